@@ -1,0 +1,74 @@
+"""``handsplice`` command line: one thin module per subcommand.
+
+Each module in ``SUBCOMMANDS`` defines ``add_parser(subparsers)`` that registers
+its parser and sets ``func=run`` (``run(args) -> int``). Heavy imports (numba,
+pyrender, panel) stay inside ``run`` so ``handsplice info`` starts fast.
+
+Errors: a ``HandSpliceError`` / ``ValueError`` / ``OSError`` is bad input and
+prints one line ``handsplice: error: ...`` with exit status 2; anything else is
+a bug, printed on one line with exit status 1 (``--debug`` shows the traceback).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from engine import __version__
+from engine.errors import HandSpliceError
+
+# module names under engine.cli, in the order shown by --help
+SUBCOMMANDS = ["info", "splice", "analyze", "synthesize", "render", "serve", "batch"]
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # argparse's own exit status is already 2
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="handsplice", description="Splice hand motion onto body motion capture.")
+    parser.add_argument("--version", action="version", version=f"handsplice {__version__}")
+    parser.add_argument("--debug", action="store_true", help="show tracebacks for errors")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    for name in SUBCOMMANDS:
+        try:
+            module = importlib.import_module(f"engine.cli.{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name == f"engine.cli.{name}":
+                continue  # subcommand not built yet
+            raise
+        module.add_parser(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help(sys.stderr)
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except KeyboardInterrupt:
+        print("handsplice: interrupted", file=sys.stderr)
+        return 130
+    except (HandSpliceError, ValueError, OSError, KeyError) as exc:
+        if args.debug:
+            raise
+        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        if isinstance(exc, OSError) and getattr(exc, "filename", None):
+            msg = f"{exc.filename}: {exc.strerror or msg}"
+        print(f"handsplice: error: {msg}", file=sys.stderr)
+        return 2
+    except Exception as exc:  # a bug: still one line unless --debug
+        if args.debug:
+            raise
+        print(f"handsplice: internal error: {type(exc).__name__}: {exc} (rerun with --debug)",
+              file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

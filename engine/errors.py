@@ -1,0 +1,40 @@
+"""Exceptions raised at the engine's boundary.
+
+Every message names the file, line or field and what was expected, so the CLI
+can print it on one line and exit with status 2.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+class HandSpliceError(Exception):
+    """Base class: a user-facing problem with input or parameters (CLI exit 2)."""
+
+
+class MotionFormatError(HandSpliceError, ValueError):
+    """A capture file does not follow its format.
+
+    ``str(err)`` reads ``walk.bvh line 212: expected 96 values, found 93``.
+    """
+
+    def __init__(self, path: str | Path | None, message: str, line: int | None = None):
+        self.path = None if path is None else str(path)
+        self.line = line
+        self.detail = message
+        where = Path(self.path).name if self.path else "<input>"
+        if line is not None:
+            where = f"{where} line {line}"
+        super().__init__(f"{where}: {message}")
+
+
+class RoleError(HandSpliceError, KeyError):
+    """A joint role (e.g. right wrist) cannot be found in a skeleton."""
+
+    def __str__(self) -> str:  # KeyError would quote the message
+        return str(self.args[0]) if self.args else ""
+
+
+class ParameterError(HandSpliceError, ValueError):
+    """A parameter (band width, matching point, option) is out of range."""

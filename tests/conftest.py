@@ -1,0 +1,32 @@
+"""Shared fixtures: paths to the real captures and to sample_data."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SAMPLE_DATA = ROOT / "sample_data"
+# ../shared/data/mocap beside the checkout; HANDSPLICE_MOCAP overrides
+MOCAP = Path(os.environ.get("HANDSPLICE_MOCAP", ROOT.parent / "shared" / "data" / "mocap"))
+
+os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+
+
+def mocap_files(pattern: str = "**/*.bvh") -> list[Path]:
+    """Real capture files under ../shared/data/mocap matching ``pattern`` (sorted)."""
+    return sorted(MOCAP.glob(pattern))
+
+
+@pytest.fixture(scope="session")
+def mocap_dir() -> Path:
+    if not MOCAP.is_dir():
+        pytest.fail(f"real capture folder {MOCAP} is missing (set HANDSPLICE_MOCAP)")
+    return MOCAP
+
+
+@pytest.fixture(scope="session")
+def sample_dir() -> Path:
+    return SAMPLE_DATA

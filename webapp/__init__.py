@@ -1,0 +1,1 @@
+"""HandSplice browser app (Panel). Thin front over ``engine``: no algorithm code here."""
