@@ -1,0 +1,95 @@
+"""``handsplice serve``: run the browser app (Panel on a Bokeh server).
+
+Listens on 127.0.0.1 by default; ``--address 0.0.0.0`` exposes it on every
+interface (explicit opt-in). Never opens a browser; prints the URL. Every
+browser session builds its own page and session state, so several users (or
+tabs) never share matching points or parameters.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "serve",
+        help="serve the browser app (cost matrix, matching points, previews)",
+        description="Serve the HandSplice browser app. Listens on localhost unless --address "
+        "says otherwise; never opens a browser.",
+    )
+    p.add_argument("--port", type=int, default=5006, help="TCP port (default 5006; 0 = any free)")
+    p.add_argument("--address", default="127.0.0.1",
+                   help="interface to listen on (default 127.0.0.1; 0.0.0.0 = all interfaces)")
+    p.add_argument("--show-url", action="store_true",
+                   help="print the app URL (and the demo pair's URL) once the server listens")
+    p.add_argument("--sample", default=None, metavar="NAME",
+                   help="sample pair opened by default (a name from sample_data/samples.json)")
+    p.add_argument("--upload-dir", type=Path, default=None, metavar="DIR",
+                   help="where uploaded takes are stored by content hash (default ./uploads)")
+    p.add_argument("--max-upload-mb", type=float, default=32.0,
+                   help="largest accepted upload in MiB (default 32)")
+    p.add_argument("--no-warm", action="store_true",
+                   help="do not precompute the demo pair before accepting connections")
+    p.set_defaults(func=run)
+
+
+def _check_args(args: argparse.Namespace) -> None:
+    if not 0 <= args.port <= 65535:
+        raise ValueError(f"--port: expected 0..65535, got {args.port}")
+    if args.max_upload_mb <= 0:
+        raise ValueError(f"--max-upload-mb: expected a positive size, got {args.max_upload_mb}")
+
+
+def _free_port(address: str) -> int:
+    import socket
+
+    with socket.socket() as sock:
+        sock.bind((address, 0))
+        return int(sock.getsockname()[1])
+
+
+def run(args: argparse.Namespace) -> int:
+    _check_args(args)
+    import panel as pn
+
+    from webapp import config
+    from webapp.app import create_app, warm_up
+
+    cfg = config.configure(
+        default_sample=args.sample,
+        upload_dir=args.upload_dir,
+        max_upload_bytes=int(args.max_upload_mb * 1024 * 1024),
+    )
+    if not args.no_warm:
+        warm_up(cfg)
+
+    host = "127.0.0.1" if args.address in ("0.0.0.0", "::", "") else args.address
+    if args.port == 0:  # pick the port now so the websocket origin check can name it
+        args.port = _free_port(args.address)
+    server = pn.serve(
+        {"/": create_app},
+        port=args.port,
+        address=args.address,
+        # 0.0.0.0 is an explicit opt-in to remote access: accept any Host header then
+        websocket_origin="*" if args.address in ("0.0.0.0", "::") else
+        [f"{host}:{args.port}", f"localhost:{args.port}", f"127.0.0.1:{args.port}"],
+        show=False,
+        start=False,
+        title="HandSplice",
+        verbose=False,
+        websocket_max_message_size=cfg.max_upload_bytes * 2 + 1_000_000,
+        http_server_kwargs={"max_buffer_size": cfg.max_upload_bytes * 2 + 1_000_000},
+    )
+    url = f"http://{host}:{args.port}/"
+    print(f"HandSplice app: {url}", flush=True)
+    if args.show_url and cfg.default_sample:
+        print(f"demo pair:      {url}?sample={cfg.default_sample}", flush=True)
+    print("press Ctrl+C to stop", flush=True)
+    try:
+        server.start()
+        server.io_loop.start()
+    finally:
+        server.stop()
+    return 0

@@ -1,0 +1,136 @@
+"""Server-wide settings of the app: where samples and uploads live, size limits.
+
+One ``AppConfig`` per server process (set by ``handsplice serve`` through
+:func:`configure`); sessions read it, never change it. The server reads files
+only from ``sample_dir`` and ``upload_dir``.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+SAMPLE_DIR = ROOT / "sample_data"
+DEFAULT_MAX_UPLOAD = 32 * 1024 * 1024
+
+
+@dataclass(frozen=True)
+class SamplePair:
+    """A bundled body/hand pair: ``body`` and ``hand`` are paths inside ``sample_dir``."""
+
+    name: str
+    body: Path
+    hand: Path
+    side: str = "right"
+    description: str = ""
+    extra: dict = field(default_factory=dict, compare=False, hash=False)
+
+
+@dataclass(frozen=True)
+class AppConfig:
+    sample_dir: Path = SAMPLE_DIR
+    upload_dir: Path = ROOT / "uploads"
+    default_sample: str | None = None
+    max_upload_bytes: int = DEFAULT_MAX_UPLOAD
+
+    def samples(self) -> list[SamplePair]:
+        return load_samples(self.sample_dir)
+
+    def sample(self, name: str) -> SamplePair:
+        for pair in self.samples():
+            if pair.name == name:
+                return pair
+        known = ", ".join(p.name for p in self.samples()) or "none"
+        raise KeyError(f"sample: no sample pair named {name!r} (known: {known})")
+
+
+_CONFIG = AppConfig()
+
+
+def get() -> AppConfig:
+    return _CONFIG
+
+
+def configure(default_sample: str | None = None, upload_dir: Path | None = None,
+              max_upload_bytes: int = DEFAULT_MAX_UPLOAD,
+              sample_dir: Path | None = None) -> AppConfig:
+    """Set the server-wide configuration; ``default_sample`` None = the samples.json demo pair."""
+    global _CONFIG
+    sample_dir = Path(sample_dir or SAMPLE_DIR).resolve()
+    upload_dir = Path(upload_dir or Path.cwd() / "uploads").resolve()
+    cfg = AppConfig(sample_dir=sample_dir, upload_dir=upload_dir,
+                    max_upload_bytes=int(max_upload_bytes))
+    names = [p.name for p in cfg.samples()]
+    if default_sample is not None and default_sample not in names:
+        raise ValueError(f"--sample: no sample pair named {default_sample!r} in "
+                         f"{sample_dir / 'samples.json'} (known: {', '.join(names) or 'none'})")
+    if default_sample is None:
+        default_sample = demo_sample_name(sample_dir)
+    _CONFIG = AppConfig(sample_dir=sample_dir, upload_dir=upload_dir,
+                        default_sample=default_sample, max_upload_bytes=int(max_upload_bytes))
+    return _CONFIG
+
+
+def _read_manifest(sample_dir: Path) -> dict | list | None:
+    path = sample_dir / "samples.json"
+    if not path.is_file():
+        return None
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError:
+        return None
+
+
+def _pairs_from_manifest(data) -> list[dict]:
+    if isinstance(data, dict):
+        for key in ("pairs", "samples"):
+            if isinstance(data.get(key), list | dict):
+                data = data[key]
+                break
+    if isinstance(data, dict):  # {name: {...}}
+        return [dict(v, name=v.get("name", k)) for k, v in data.items() if isinstance(v, dict)]
+    if isinstance(data, list):
+        return [d for d in data if isinstance(d, dict)]
+    return []
+
+
+def _inside(base: Path, rel) -> Path | None:
+    if not isinstance(rel, str) or not rel:
+        return None
+    path = (base / rel).resolve()
+    return path if path.is_relative_to(base.resolve()) and path.is_file() else None
+
+
+def load_samples(sample_dir: Path) -> list[SamplePair]:
+    """Bundled pairs listed in ``sample_dir/samples.json`` whose files exist.
+
+    Accepts ``{"pairs": [...]}``, ``{"samples": [...]}``, a list, or ``{name: {...}}``;
+    each entry needs ``name``, ``body`` and ``hand`` (paths relative to ``sample_dir``).
+    """
+    pairs = []
+    for entry in _pairs_from_manifest(_read_manifest(sample_dir)):
+        body = _inside(sample_dir, entry.get("body") or entry.get("body_file"))
+        hand = _inside(sample_dir, entry.get("hand") or entry.get("hand_file"))
+        name = entry.get("name")
+        if not (isinstance(name, str) and body and hand):
+            continue
+        side = entry.get("side", "right")
+        pairs.append(SamplePair(name=name, body=body, hand=hand,
+                                side=side if side in ("left", "right") else "right",
+                                description=str(entry.get("description", "")), extra=entry))
+    return pairs
+
+
+def demo_sample_name(sample_dir: Path) -> str | None:
+    """The pair marked as demo in samples.json (``"demo": name`` or ``"demo": true``), else the first."""
+    data = _read_manifest(sample_dir)
+    pairs = load_samples(sample_dir)
+    if isinstance(data, dict) and isinstance(data.get("demo"), str):
+        if any(p.name == data["demo"] for p in pairs):
+            return data["demo"]
+    for p in pairs:
+        if p.extra.get("demo") is True:
+            return p.name
+    return pairs[0].name if pairs else None
