@@ -1,0 +1,442 @@
+"""Session files: the takes, parameters and matching points of one splice, as JSON.
+
+The browser app saves and restores exactly this data, and the CLI reads it, so a
+session tuned in the app can be replayed with ``handsplice splice``. The loader
+accepts any text and either returns a valid :class:`SessionSpec` or raises
+:class:`SessionError` naming the field and what was expected, e.g.::
+
+    demo.json: points[2].tolerance: expected a number >= 0, got -1
+
+Schema (version 1)::
+
+    {
+      "format": "handsplice-session",
+      "version": 1,
+      "inputs": {"sample": "NAME"}                       # a bundled sample pair, or
+              | {"body": TAKE, "hand": TAKE},            # TAKE = {"path": "walk.bvh"}
+                                                         #      | {"sha256": HEX64, "name": "walk.bvh"}
+      "side": "right" | "left" | "both",
+      "band": 0.3,            # pass-1 band width W1, fraction of the body length (0, 1]
+      "refine_band": 0.1,     # pass-2 band width W2 around the pass-1 path, fraction (0, 1]
+      "tolerance": 0,         # global matching-point tolerance T, frames >= 0
+      "points": [{"body": 120, "hand": 98, "tolerance": null}, ...],
+                              # matching points (body frame, hand frame), 0-based, strictly
+                              # increasing in both; tolerance null = the global one
+      "roles": {"right": {"wrist": "RHand"}},            # optional joint-name overrides
+      "view": {"matrix": "pass1", "frame": 0}            # optional, app display only
+    }
+
+Frames of matching points are DTW-matrix frames: body frames, and hand frames after
+resampling the hand take to the body's frame rate (what the cost matrix shows).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from engine.atomic import write_text
+from engine.errors import ParameterError
+
+FORMAT = "handsplice-session"
+VERSION = 1
+SIDES = ("right", "left", "both")
+MATRIX_VIEWS = ("pass1", "pass2", "cumulative1", "cumulative2")
+MAX_POINTS = 10_000
+MAX_TEXT = 4 * 1024 * 1024  # a session is small; refuse anything bigger than 4 MiB
+_HEX64 = re.compile(r"^[0-9a-f]{64}$")
+_ROLE_NAME = re.compile(r"^[A-Za-z0-9_]{1,40}$")
+
+
+class SessionError(ParameterError):
+    """A session file or dict is malformed; the message names the field."""
+
+    def __init__(self, source: str | None, field_name: str, message: str):
+        self.source = source
+        self.field = field_name
+        self.detail = message
+        where = f"{source}: " if source else ""
+        super().__init__(f"{where}{field_name}: {message}" if field_name else f"{where}{message}")
+
+
+@dataclass(frozen=True)
+class MatchPoint:
+    """A user matching point: body frame ``body`` corresponds to hand frame ``hand``.
+
+    ``tolerance`` in frames (>= 0), or None to use the session's global tolerance.
+    """
+
+    body: int
+    hand: int
+    tolerance: float | None = None
+
+    def resolved(self, global_tolerance: float) -> tuple[int, int, float]:
+        """``(x, y, tol)`` as the DTW band expects it."""
+        tol = global_tolerance if self.tolerance is None else self.tolerance
+        return (self.body, self.hand, float(tol))
+
+
+@dataclass(frozen=True)
+class TakeRef:
+    """One input take: a ``path`` (CLI) or an uploaded file's ``sha256`` and original ``name``."""
+
+    path: str | None = None
+    sha256: str | None = None
+    name: str | None = None
+
+    def to_dict(self) -> dict:
+        if self.sha256:
+            return {"sha256": self.sha256, "name": self.name}
+        return {"path": self.path}
+
+
+@dataclass(frozen=True)
+class SessionSpec:
+    """Everything needed to reproduce a splice: inputs, parameters, matching points."""
+
+    sample: str | None = None
+    body: TakeRef | None = None
+    hand: TakeRef | None = None
+    side: str = "right"
+    band: float = 0.3
+    refine_band: float = 0.1
+    tolerance: float = 0.0
+    points: tuple[MatchPoint, ...] = ()
+    roles: dict = field(default_factory=dict)
+    view: dict = field(default_factory=dict)
+
+    def constraint_points(self) -> list[tuple[int, int, float]]:
+        """Matching points as ``[(body_frame, hand_frame, tolerance), ...]`` for the DTW band."""
+        return [p.resolved(self.tolerance) for p in self.points]
+
+    def with_changes(self, **changes) -> SessionSpec:
+        return validate(replace(self, **changes))
+
+
+# ---------------------------------------------------------------- dict <-> spec
+
+
+def to_dict(spec: SessionSpec) -> dict:
+    """The JSON-ready dict of ``spec`` (schema above)."""
+    if spec.sample is not None:
+        inputs: dict[str, Any] = {"sample": spec.sample}
+    else:
+        inputs = {}
+        if spec.body is not None:
+            inputs["body"] = spec.body.to_dict()
+        if spec.hand is not None:
+            inputs["hand"] = spec.hand.to_dict()
+    out = {
+        "format": FORMAT,
+        "version": VERSION,
+        "inputs": inputs,
+        "side": spec.side,
+        "band": spec.band,
+        "refine_band": spec.refine_band,
+        "tolerance": _num_out(spec.tolerance),
+        "points": [{"body": p.body, "hand": p.hand,
+                    "tolerance": None if p.tolerance is None else _num_out(p.tolerance)}
+                   for p in spec.points],
+    }
+    if spec.roles:
+        out["roles"] = spec.roles
+    if spec.view:
+        out["view"] = spec.view
+    return out
+
+
+def _num_out(x: float) -> float | int:
+    return int(x) if float(x).is_integer() else float(x)
+
+
+class _Reader:
+    def __init__(self, source: str | None):
+        self.source = source
+
+    def fail(self, field_name: str, message: str) -> SessionError:
+        return SessionError(self.source, field_name, message)
+
+    def number(self, value, field_name: str, lo: float, hi: float, lo_open: bool = False) -> float:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise self.fail(field_name, f"expected a number, got {_show(value)}")
+        x = float(value)
+        bad_lo = x <= lo if lo_open else x < lo
+        if not math.isfinite(x) or bad_lo or x > hi:
+            lo_txt = f"> {lo:g}" if lo_open else f">= {lo:g}"
+            rng = f"{lo_txt} and <= {hi:g}" if math.isfinite(hi) else lo_txt
+            raise self.fail(field_name, f"expected a number {rng}, got {_show(value)}")
+        return x
+
+    def integer(self, value, field_name: str) -> int:
+        if isinstance(value, bool) or not isinstance(value, int | float) or (
+                isinstance(value, float) and not value.is_integer()):
+            raise self.fail(field_name, f"expected a whole frame number, got {_show(value)}")
+        if not 0 <= value < 2**31:
+            raise self.fail(field_name, f"expected a frame number >= 0, got {_show(value)}")
+        return int(value)
+
+    def string(self, value, field_name: str, max_len: int = 1000) -> str:
+        if not isinstance(value, str) or not value or len(value) > max_len or "\x00" in value:
+            raise self.fail(field_name, f"expected a non-empty text, got {_show(value)}")
+        return value
+
+    def take(self, value, field_name: str) -> TakeRef:
+        if not isinstance(value, dict):
+            raise self.fail(field_name, f'expected {{"path": ...}} or {{"sha256": ...}}, '
+                                        f"got {_show(value)}")
+        unknown = set(value) - {"path", "sha256", "name"}
+        if unknown:
+            raise self.fail(f"{field_name}.{sorted(unknown)[0]}", "unknown field")
+        if "sha256" in value:
+            digest = value["sha256"]
+            if not isinstance(digest, str) or not _HEX64.match(digest):
+                raise self.fail(f"{field_name}.sha256",
+                                f"expected 64 lowercase hex digits, got {_show(digest)}")
+            name = value.get("name")
+            if name is not None:
+                name = self.string(name, f"{field_name}.name", 255)
+            return TakeRef(sha256=digest, name=name)
+        if "path" in value:
+            return TakeRef(path=self.string(value["path"], f"{field_name}.path", 4096))
+        raise self.fail(field_name, 'expected a "path" or a "sha256"')
+
+
+def _show(value) -> str:
+    text = json.dumps(value) if isinstance(value, str | int | float | bool | type(None)) \
+        else type(value).__name__
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+_TOP_FIELDS = {"format", "version", "inputs", "side", "band", "refine_band", "tolerance",
+               "points", "roles", "view"}
+
+
+def from_dict(data: Any, source: str | None = None) -> SessionSpec:
+    """Validate a session dict (e.g. parsed JSON) into a :class:`SessionSpec`.
+
+    Missing fields take their defaults; unknown fields, wrong types and values out of
+    range raise :class:`SessionError` naming the field.
+    """
+    r = _Reader(source)
+    if not isinstance(data, dict):
+        raise r.fail("", f"expected a JSON object at the top level, got {_show(data)}")
+    unknown = set(data) - _TOP_FIELDS
+    if unknown:
+        raise r.fail(sorted(unknown)[0], "unknown field (known: "
+                     + ", ".join(sorted(_TOP_FIELDS)) + ")")
+    if data.get("format", FORMAT) != FORMAT:
+        raise r.fail("format", f'expected "{FORMAT}", got {_show(data.get("format"))}')
+    version = data.get("version", VERSION)
+    if version != VERSION or isinstance(version, bool):
+        raise r.fail("version", f"expected {VERSION}, got {_show(version)}")
+
+    sample = body = hand = None
+    inputs = data.get("inputs", {})
+    if not isinstance(inputs, dict):
+        raise r.fail("inputs", f"expected an object, got {_show(inputs)}")
+    unknown = set(inputs) - {"sample", "body", "hand"}
+    if unknown:
+        raise r.fail(f"inputs.{sorted(unknown)[0]}", "unknown field (known: sample, body, hand)")
+    if "sample" in inputs:
+        if "body" in inputs or "hand" in inputs:
+            raise r.fail("inputs", "expected either a sample or body and hand, not both")
+        sample = r.string(inputs["sample"], "inputs.sample", 200)
+    else:
+        if "body" in inputs:
+            body = r.take(inputs["body"], "inputs.body")
+        if "hand" in inputs:
+            hand = r.take(inputs["hand"], "inputs.hand")
+
+    side = data.get("side", "right")
+    if side not in SIDES:
+        raise r.fail("side", f"expected one of {', '.join(SIDES)}, got {_show(side)}")
+    band = r.number(data.get("band", 0.3), "band", 0.0, 1.0, lo_open=True)
+    refine = r.number(data.get("refine_band", 0.1), "refine_band", 0.0, 1.0, lo_open=True)
+    tolerance = r.number(data.get("tolerance", 0), "tolerance", 0.0, 1e6)
+
+    raw_points = data.get("points", [])
+    if not isinstance(raw_points, list):
+        raise r.fail("points", f"expected a list, got {_show(raw_points)}")
+    if len(raw_points) > MAX_POINTS:
+        raise r.fail("points", f"expected at most {MAX_POINTS} points, got {len(raw_points)}")
+    points = []
+    for k, raw in enumerate(raw_points):
+        where = f"points[{k}]"
+        if isinstance(raw, list | tuple) and len(raw) in (2, 3):
+            raw = dict(zip(("body", "hand", "tolerance"), raw))
+        if not isinstance(raw, dict):
+            raise r.fail(where, f'expected {{"body": ..., "hand": ...}}, got {_show(raw)}')
+        unknown = set(raw) - {"body", "hand", "tolerance"}
+        if unknown:
+            raise r.fail(f"{where}.{sorted(unknown)[0]}", "unknown field")
+        for key in ("body", "hand"):
+            if key not in raw:
+                raise r.fail(f"{where}.{key}", "missing")
+        tol = raw.get("tolerance")
+        points.append(MatchPoint(
+            body=r.integer(raw["body"], f"{where}.body"),
+            hand=r.integer(raw["hand"], f"{where}.hand"),
+            tolerance=None if tol is None else r.number(tol, f"{where}.tolerance", 0.0, 1e6)))
+
+    roles = data.get("roles", {})
+    if not isinstance(roles, dict):
+        raise r.fail("roles", f"expected an object, got {_show(roles)}")
+    for side_name, mapping in roles.items():
+        if side_name not in ("right", "left"):
+            raise r.fail(f"roles.{side_name}", "expected right or left")
+        if not isinstance(mapping, dict):
+            raise r.fail(f"roles.{side_name}", f"expected an object, got {_show(mapping)}")
+        for role, joint in mapping.items():
+            if not _ROLE_NAME.match(str(role)):
+                raise r.fail(f"roles.{side_name}", f"expected a role name, got {_show(role)}")
+            r.string(joint, f"roles.{side_name}.{role}", 200)
+
+    view = data.get("view", {})
+    if not isinstance(view, dict):
+        raise r.fail("view", f"expected an object, got {_show(view)}")
+    unknown = set(view) - {"matrix", "frame"}
+    if unknown:
+        raise r.fail(f"view.{sorted(unknown)[0]}", "unknown field (known: matrix, frame)")
+    if "matrix" in view and view["matrix"] not in MATRIX_VIEWS:
+        raise r.fail("view.matrix", f"expected one of {', '.join(MATRIX_VIEWS)}, "
+                                    f"got {_show(view['matrix'])}")
+    if "frame" in view:
+        r.integer(view["frame"], "view.frame")
+
+    spec = SessionSpec(sample=sample, body=body, hand=hand, side=side, band=band,
+                       refine_band=refine, tolerance=tolerance, points=tuple(points),
+                       roles=roles, view=view)
+    return validate(spec, source)
+
+
+def validate(spec: SessionSpec, source: str | None = None) -> SessionSpec:
+    """Check relations between fields: matching points strictly increasing in both frames."""
+    r = _Reader(source)
+    for k in range(1, len(spec.points)):
+        a, b = spec.points[k - 1], spec.points[k]
+        if not (b.body > a.body and b.hand > a.hand):
+            raise r.fail(f"points[{k}]", f"expected frames after points[{k - 1}] "
+                         f"({a.body}, {a.hand}) in both takes, got ({b.body}, {b.hand})")
+    return spec
+
+
+# ---------------------------------------------------------------- text and files
+
+
+def parse_session(text: str | bytes, source: str | None = None) -> SessionSpec:
+    """Parse session JSON text; ``source`` names it in error messages."""
+    if isinstance(text, bytes):
+        if len(text) > MAX_TEXT:
+            raise SessionError(source, "", f"expected at most {MAX_TEXT} bytes, got {len(text)}")
+        try:
+            text = text.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise SessionError(source, "", f"not UTF-8 text (byte {exc.start})") from None
+    if len(text) > MAX_TEXT:
+        raise SessionError(source, "", f"expected at most {MAX_TEXT} characters, got {len(text)}")
+    try:
+        data = json.loads(text, parse_constant=_reject_constant)
+    except json.JSONDecodeError as exc:
+        raise SessionError(source, "", f"line {exc.lineno}: not valid JSON ({exc.msg})") from None
+    except RecursionError:
+        raise SessionError(source, "", "JSON nested too deeply") from None
+    except ValueError as exc:
+        raise SessionError(source, "", str(exc)) from None
+    return from_dict(data, source)
+
+
+def _reject_constant(name: str):
+    raise ValueError(f"expected finite numbers, found {name}")
+
+
+def format_session(spec: SessionSpec) -> str:
+    """Session JSON text (indented, newline-terminated)."""
+    return json.dumps(to_dict(spec), indent=2) + "\n"
+
+
+def read_session(path: str | Path) -> SessionSpec:
+    """Read and validate a session file. Relative take paths stay as written."""
+    path = Path(path)
+    return parse_session(path.read_bytes(), source=path.name)
+
+
+def write_session(spec: SessionSpec, path: str | Path) -> None:
+    """Write ``spec`` as JSON, atomically."""
+    write_text(Path(path), format_session(validate(spec)))
+
+
+# ---------------------------------------------------------------- URL query
+
+
+def to_query(spec: SessionSpec) -> dict[str, str]:
+    """Short URL query parameters restoring ``spec`` (for sharing a link to the app).
+
+    ``sample=NAME`` or ``body=SHA256&hand=SHA256``, ``side``, ``band``, ``refine``, ``tol``,
+    ``pts=B:H[:T],...``, ``view``, ``frame``. Take paths (CLI sessions) are not put in URLs.
+    """
+    q: dict[str, str] = {}
+    if spec.sample is not None:
+        q["sample"] = spec.sample
+    else:
+        for key, take in (("body", spec.body), ("hand", spec.hand)):
+            if take is not None and take.sha256:
+                q[key] = take.sha256
+    q["side"] = spec.side
+    q["band"] = f"{spec.band:g}"
+    q["refine"] = f"{spec.refine_band:g}"
+    q["tol"] = f"{spec.tolerance:g}"
+    if spec.points:
+        q["pts"] = ",".join(f"{p.body}:{p.hand}" + ("" if p.tolerance is None
+                                                     else f":{p.tolerance:g}")
+                            for p in spec.points)
+    if "matrix" in spec.view:
+        q["view"] = spec.view["matrix"]
+    if "frame" in spec.view:
+        q["frame"] = str(spec.view["frame"])
+    return q
+
+
+def from_query(query: dict[str, str]) -> SessionSpec:
+    """Inverse of :func:`to_query`; unknown keys are ignored, bad values raise SessionError."""
+    source = "URL"
+    q = {k: (v[0] if isinstance(v, list | tuple) and v else v) for k, v in query.items()}
+    data: dict[str, Any] = {}
+    if q.get("sample"):
+        data["inputs"] = {"sample": q["sample"]}
+    elif q.get("body") or q.get("hand"):
+        data["inputs"] = {k: {"sha256": str(q[k]).lower()} for k in ("body", "hand") if q.get(k)}
+    if "side" in q:
+        data["side"] = q["side"]
+    for key, field_name in (("band", "band"), ("refine", "refine_band"), ("tol", "tolerance")):
+        if key in q:
+            data[field_name] = _query_number(q[key], key, source)
+    if q.get("pts"):
+        points = []
+        for k, item in enumerate(str(q["pts"]).split(",")):
+            parts = item.split(":")
+            if len(parts) not in (2, 3):
+                raise SessionError(source, f"pts[{k}]", f"expected BODY:HAND[:TOL], got {item!r}")
+            nums = [_query_number(x, f"pts[{k}]", source) for x in parts]
+            points.append(dict(zip(("body", "hand", "tolerance"), nums)))
+        data["points"] = points
+    view: dict[str, Any] = {}
+    if q.get("view"):
+        view["matrix"] = q["view"]
+    if q.get("frame"):
+        view["frame"] = _query_number(q["frame"], "frame", source)
+    if view:
+        data["view"] = view
+    return from_dict(data, source)
+
+
+def _query_number(text, field_name: str, source: str) -> float | int:
+    try:
+        x = float(text)
+    except (TypeError, ValueError):
+        raise SessionError(source, field_name, f"expected a number, got {str(text)[:40]!r}") \
+            from None
+    return int(x) if x.is_integer() and abs(x) < 2**53 else x

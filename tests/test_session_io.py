@@ -1,0 +1,132 @@
+"""Session JSON (engine/io/session.py): round trips, field-naming errors, URL query."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from engine.io.session import (
+    MatchPoint,
+    SessionError,
+    SessionSpec,
+    TakeRef,
+    format_session,
+    from_dict,
+    from_query,
+    parse_session,
+    read_session,
+    to_dict,
+    to_query,
+    write_session,
+)
+
+HASH = "ab" * 32
+
+
+def _spec(**kw) -> SessionSpec:
+    base = dict(sample="demo", side="left", band=0.25, refine_band=0.08, tolerance=3,
+                points=(MatchPoint(10, 12), MatchPoint(40, 35, 0.0), MatchPoint(90, 99, 7.5)),
+                view={"matrix": "pass2", "frame": 17})
+    base.update(kw)
+    return SessionSpec(**base)
+
+
+def test_json_round_trip_file(tmp_path):
+    spec = _spec()
+    path = tmp_path / "s.json"
+    write_session(spec, path)
+    back = read_session(path)
+    assert back == spec
+    assert back.constraint_points() == [(10, 12, 3.0), (40, 35, 0.0), (90, 99, 7.5)]
+    data = json.loads(path.read_text())
+    assert data["format"] == "handsplice-session" and data["version"] == 1
+    assert data["points"][0] == {"body": 10, "hand": 12, "tolerance": None}
+
+
+def test_uploaded_inputs_round_trip():
+    spec = _spec(sample=None, body=TakeRef(sha256=HASH, name="walk.bvh"),
+                 hand=TakeRef(sha256="cd" * 32, name="h.bvh"))
+    assert parse_session(format_session(spec)) == spec
+
+
+def test_cli_paths_round_trip():
+    spec = SessionSpec(body=TakeRef(path="body.bvh"), hand=TakeRef(path="sub/hand.bvh"))
+    assert from_dict(to_dict(spec)) == spec
+
+
+def test_defaults_from_empty_object():
+    spec = parse_session("{}")
+    assert (spec.side, spec.band, spec.refine_band, spec.tolerance, spec.points) == \
+        ("right", 0.3, 0.1, 0.0, ())
+
+
+@pytest.mark.parametrize(("data", "field", "words"), [
+    ({"points": [{"body": 1, "hand": 2}, {"body": 5, "hand": 9, "tolerance": -1}]},
+     "points[1].tolerance", "expected a number >= 0"),
+    ({"points": [{"body": 10, "hand": 2}, {"body": 5, "hand": 9}]}, "points[1]", "after"),
+    ({"points": [{"body": 1.5, "hand": 2}]}, "points[0].body", "whole frame"),
+    ({"points": [{"hand": 2}]}, "points[0].body", "missing"),
+    ({"band": 0}, "band", "> 0"),
+    ({"band": "wide"}, "band", "expected a number"),
+    ({"refine_band": 1.5}, "refine_band", "<= 1"),
+    ({"side": "middle"}, "side", "right, left, both"),
+    ({"inputs": {"body": {"sha256": "xyz"}}}, "inputs.body.sha256", "64"),
+    ({"inputs": {"sample": "a", "body": {"path": "x"}}}, "inputs", "not both"),
+    ({"colour": 1}, "colour", "unknown field"),
+    ({"version": 2}, "version", "expected 1"),
+    ({"view": {"matrix": "pass3"}}, "view.matrix", "pass1"),
+    ({"roles": {"right": {"wrist": 3}}}, "roles.right.wrist", "text"),
+])
+def test_errors_name_the_field(data, field, words):
+    with pytest.raises(SessionError) as info:
+        from_dict(data, source="s.json")
+    assert info.value.field == field
+    assert str(info.value).startswith(f"s.json: {field}: ")
+    assert words in str(info.value)
+
+
+@pytest.mark.parametrize("text", ["", "[1, 2]", "{", '{"band": NaN}', '{"band": Infinity}',
+                                  b"\xff\xfe", "[" * 100000])
+def test_malformed_text_is_one_clear_error(text):
+    with pytest.raises(SessionError):
+        parse_session(text, source="bad.json")
+
+
+def test_query_round_trip():
+    spec = _spec()
+    q = to_query(spec)
+    assert q["pts"] == "10:12,40:35:0,90:99:7.5"
+    assert from_query(q) == spec
+    up = _spec(sample=None, body=TakeRef(sha256=HASH), hand=TakeRef(sha256="cd" * 32), view={})
+    assert from_query(to_query(up)) == up
+
+
+def test_query_errors():
+    with pytest.raises(SessionError, match="pts"):
+        from_query({"pts": "1:2:3:4"})
+    with pytest.raises(SessionError, match="band"):
+        from_query({"band": "x"})
+    with pytest.raises(SessionError, match="points"):
+        from_query({"pts": "5:5,3:9"})
+
+
+_json = st.recursive(
+    st.none() | st.booleans() | st.integers() | st.floats(allow_nan=False) | st.text(max_size=8),
+    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(
+        st.sampled_from(["inputs", "points", "band", "side", "body", "hand", "tolerance",
+                         "sample", "sha256", "view", "roles", "x"]), inner, max_size=4),
+    max_leaves=20)
+
+
+@settings(max_examples=300, deadline=None)
+@given(_json)
+def test_any_json_is_valid_or_session_error(data):
+    try:
+        spec = from_dict(data)
+    except SessionError as exc:
+        assert str(exc)
+    else:
+        assert from_dict(to_dict(spec)) == spec
