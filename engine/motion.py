@@ -4,7 +4,7 @@ Plain dataclasses over numpy arrays. Nothing here reads files (see ``engine.io``
 or computes kinematics (see ``engine.kinematics``).
 
 Units are the file's own (``meta.units`` says which: ``"m"``, ``"cm"``, ``"mm"``,
-``"in"`` or ``"unknown"``); ``Motion.meters_per_unit`` converts.
+``"in"``, ``"dm"`` or ``"unknown"``); ``Motion.meters_per_unit`` converts.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from engine import rotations as rot
 
 POSITION_CHANNELS = ("Xposition", "Yposition", "Zposition")
 ROTATION_CHANNELS = ("Xrotation", "Yrotation", "Zrotation")
-UNIT_TO_METERS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
+UNIT_TO_METERS = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001, "in": 0.0254}
 
 
 @dataclass(frozen=True)
@@ -106,7 +106,7 @@ class Skeleton:
 class MotionMeta:
     """Where a take came from and how to read its numbers.
 
-    units : ``"m"``, ``"cm"``, ``"mm"``, ``"in"`` or ``"unknown"``
+    units : ``"m"``, ``"dm"``, ``"cm"``, ``"mm"``, ``"in"`` or ``"unknown"``
     up_axis : ``"y"`` or ``"z"``
     source : path of the file read, or a description
     format : ``"bvh"``, ``"c3d"``, ``"trc"`` or ``"derived"``

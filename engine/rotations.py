@@ -145,22 +145,24 @@ def from_euler(angles_deg: np.ndarray, order: str) -> np.ndarray:
 def to_euler(q: np.ndarray, order: str) -> np.ndarray:
     """Euler angles ``(..., 3)`` in degrees (BVH channel order) from quaternions.
 
-    Inverse of :func:`from_euler`: the middle angle lies in [-90, 90] degrees.
+    Inverse of :func:`from_euler`: the middle angle lies in [-90, 90] degrees (up to
+    rounding), the others in [-180, 180]. Accurate to ~1e-12 degrees everywhere,
+    including at and near gimbal lock, where the first angle is taken from the matrix
+    and the last one absorbs the rest of the rotation.
     """
     order = check_order(order)
     m = to_matrix(q)
     i, j, k = (_AXIS[c] for c in order)
-    # R = R_i(a) R_j(b) R_k(c); sign of the permutation decides the signs below
-    parity = 1.0 if (j - i) % 3 == 1 else -1.0
-    sb = np.clip(parity * m[..., i, k], -1.0, 1.0)
-    b = np.arcsin(sb)
-    cb = np.cos(b)
-    safe = cb > 1e-9
-    a = np.where(safe, np.arctan2(-parity * m[..., j, k], m[..., k, k]), 0.0)
-    c = np.where(safe, np.arctan2(-parity * m[..., i, j], m[..., i, i]), 0.0)
-    # gimbal lock: put the whole remaining rotation in the first angle
-    a_lock = np.arctan2(parity * m[..., k, j], m[..., j, j])
-    a = np.where(safe, a, a_lock)
+    # R = R_i(a) R_j(b) R_k(c); the permutation's parity decides the signs below
+    p = 1.0 if (j - i) % 3 == 1 else -1.0
+    a = np.arctan2(-p * m[..., j, k], m[..., k, k])
+    ca, sa = np.cos(a), np.sin(a)
+    # N = R_i(-a) R = R_j(b) R_k(c): b and c from well-conditioned entries of N
+    n_ji = ca * m[..., j, i] + p * sa * m[..., k, i]
+    n_jj = ca * m[..., j, j] + p * sa * m[..., k, j]
+    n_kk = -p * sa * m[..., j, k] + ca * m[..., k, k]
+    b = np.arctan2(p * m[..., i, k], n_kk)
+    c = np.arctan2(p * n_ji, n_jj)
     return np.degrees(np.stack([a, b, c], axis=-1))
 
 
@@ -181,9 +183,9 @@ def slerp(q0: np.ndarray, q1: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 
 def angle_between(q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
-    """Geodesic angle in degrees between rotations ``(..., 4)``."""
-    d = np.abs(np.sum(normalize(q0) * normalize(q1), axis=-1))
-    return np.degrees(2.0 * np.arccos(np.clip(d, 0.0, 1.0)))
+    """Geodesic angle in degrees between rotations ``(..., 4)`` (accurate near zero)."""
+    d = multiply(conjugate(normalize(q0)), normalize(q1))
+    return np.degrees(2.0 * np.arctan2(np.linalg.norm(d[..., 1:], axis=-1), np.abs(d[..., 0])))
 
 
 def make_continuous(q: np.ndarray, axis: int = 0) -> np.ndarray:
