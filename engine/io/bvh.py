@@ -418,12 +418,7 @@ def _parse_motion(lines: list[str], motion_line: int, skeleton: Skeleton, where:
     try:
         data = np.array(flat, dtype=float)
     except ValueError:
-        for r, k in zip(rows, row_lines, strict=True):
-            for v in r:
-                if not _is_float(v):
-                    raise MotionFormatError(where, f"{v[:40]!r} is not a number",
-                                            line=k + 1) from None
-        raise  # pragma: no cover - numpy rejected something float() accepts
+        raise _locate_bad_number(rows, row_lines, where) from None
     data = data.reshape(len(rows), n_values)
     finite = np.isfinite(data)
     if not finite.all():
@@ -434,6 +429,22 @@ def _parse_motion(lines: list[str], motion_line: int, skeleton: Skeleton, where:
     if len(rows) == n_frames + 1 and not data[0].any():
         data = data[1:]  # gestification: a zero row before the take
     return fps, data
+
+
+def _locate_bad_number(rows: list[list[str]], row_lines: list[int], where: str | None
+                       ) -> MotionFormatError:
+    """The error for the first value numpy cannot read as a float (slow path)."""
+    for r, k in zip(rows, row_lines, strict=True):
+        try:
+            np.array(r, dtype=float)
+        except ValueError:
+            for c, v in enumerate(r):
+                try:
+                    np.array([v], dtype=float)
+                except ValueError:
+                    return MotionFormatError(
+                        where, f"value {c + 1} is {v[:40]!r}; expected a number", line=k + 1)
+    return MotionFormatError(where, "a data value is not a number", line=row_lines[0] + 1)
 
 
 def _snap_fps(fps: float) -> float:
@@ -572,46 +583,67 @@ def format_bvh(motion: Motion, precision: int = 6) -> str:
     Channel values are written with ``precision`` decimals (default 6: errors up to
     5e-7 degrees or file units); offsets and the frame time in shortest round-trip form.
     Euler angles come from ``to_euler`` in each joint's channel order, unwrapped over
-    time. Raises ``ValueError`` if a joint rotates or moves without channels to hold it
-    (more than 1e-6 degrees or 1e-9 of the skeleton's size away from rest).
+    time. Joints are written depth first (children in index order), which is the
+    skeleton's own order for every skeleton read from BVH; a skeleton in another
+    order comes back from ``read_bvh`` in depth-first order.
+
+    Raises ``ValueError`` if a joint rotates or moves without channels to hold it (more
+    than 1e-6 degrees, or 1e-9 of the skeleton's size away from its OFFSET), or if a
+    joint name cannot be written (empty, line breaks, tabs, braces, repeated).
     """
     if not (isinstance(precision, int | np.integer) and 0 <= precision <= 17):
         raise ValueError(f"format_bvh: precision must be an integer 0..17, got {precision!r}")
     sk = motion.skeleton
+    _check_names(sk)
     _check_representable(motion)
-    out: list[str] = ["HIERARCHY"]
     children: dict[int, list[int]] = {}
     for j, p in enumerate(sk.parents):
         children.setdefault(int(p), []).append(j)
-
-    def emit(j: int, depth: int) -> None:
+    out: list[str] = ["HIERARCHY"]
+    order: list[int] = []
+    # iterative depth-first walk: ("open", j, depth) writes the header and children,
+    # ("close", j, depth) writes the End Site and the closing brace
+    stack: list[tuple[str, int, int]] = [("open", r, 0) for r in reversed(children.get(-1, []))]
+    while stack:
+        what, j, depth = stack.pop()
         ind = "\t" * depth
-        kw = "ROOT" if sk.parents[j] < 0 else "JOINT"
-        out.append(f"{ind}{kw} {sk.names[j]}")
-        out.append(f"{ind}{{")
-        out.append(f"{ind}\tOFFSET {_exact3(sk.offsets[j])}")
-        chans = sk.channels[j]
-        out.append(f"{ind}\tCHANNELS {len(chans)}" + "".join(f" {c}" for c in chans))
-        for c in children.get(j, []):
-            emit(c, depth + 1)
-        if j in sk.end_sites:
-            out.append(f"{ind}\tEnd Site")
-            out.append(f"{ind}\t{{")
-            out.append(f"{ind}\t\tOFFSET {_exact3(sk.end_sites[j])}")
-            out.append(f"{ind}\t}}")
-        out.append(f"{ind}}}")
-
-    for root in children.get(-1, []):
-        emit(root, 0)
+        if what == "open":
+            order.append(j)
+            kw = "ROOT" if sk.parents[j] < 0 else "JOINT"
+            chans = sk.channels[j]
+            out.append(f"{ind}{kw} {sk.names[j]}")
+            out.append(f"{ind}{{")
+            out.append(f"{ind}\tOFFSET {_exact3(sk.offsets[j])}")
+            out.append(f"{ind}\tCHANNELS {len(chans)}" + "".join(f" {c}" for c in chans))
+            stack.append(("close", j, depth))
+            stack.extend(("open", c, depth + 1) for c in reversed(children.get(j, [])))
+        else:
+            if j in sk.end_sites:
+                out.append(f"{ind}\tEnd Site")
+                out.append(f"{ind}\t{{")
+                out.append(f"{ind}\t\tOFFSET {_exact3(sk.end_sites[j])}")
+                out.append(f"{ind}\t}}")
+            out.append(f"{ind}}}")
     out.append("MOTION")
     out.append(f"Frames: {motion.n_frames}")
     out.append(f"Frame Time: {_exact(1.0 / motion.fps)}")
-    data = _pose_to_channels(motion)
+    data = _pose_to_channels(motion, order)
     if data.shape[0] and not data.shape[1]:
         raise ValueError("format_bvh: the skeleton has no channels; BVH cannot hold frames")
     fmt = " ".join([f"%.{precision}f"] * data.shape[1])
     out.extend(fmt % tuple(row) for row in data.tolist())
     return "\n".join(out) + "\n"
+
+
+def _check_names(sk: Skeleton) -> None:
+    seen: set[str] = set()
+    for name in sk.names:
+        if not name or name != " ".join(name.split()) or "{" in name or "}" in name:
+            raise ValueError(f"format_bvh: joint name {name!r} cannot be written to BVH (empty, "
+                             f"tabs, line breaks, outer or double spaces, or braces)")
+        if name in seen:
+            raise ValueError(f"format_bvh: joint name {name!r} is used twice")
+        seen.add(name)
 
 
 def write_bvh(motion: Motion, path: str | Path, precision: int = 6) -> None:
@@ -627,6 +659,27 @@ def _exact3(v: np.ndarray) -> str:
     return " ".join(_exact(x) for x in v)
 
 
+def _wrap180(deg: np.ndarray) -> np.ndarray:
+    return (np.asarray(deg) + 180.0) % 360.0 - 180.0
+
+
+def _channel_euler(q: np.ndarray, chans: tuple[str, ...]) -> np.ndarray:
+    """Euler angles ``(..., 3)`` in the joint's completed order (see ``_full_order``).
+
+    With fewer than 3 rotation channels the missing (last) axes must come out near 0;
+    of the two Tait-Bryan solutions ``(a, b, c)`` and ``(a+180, 180-b, c+180)`` the one
+    with the smaller missing angles is taken (a 2-axis joint bent past 90 degrees).
+    """
+    n_rot = sum(c in ROTATION_CHANNELS for c in chans)
+    e = rot.to_euler(q, _full_order(chans))
+    if n_rot == 2:
+        alt = np.stack([_wrap180(e[..., 0] + 180.0), 180.0 - e[..., 1],
+                        _wrap180(e[..., 2] + 180.0)], axis=-1)
+        use_alt = np.abs(_wrap180(e[..., 2])) > 90.0
+        e = np.where(use_alt[..., None], alt, e)
+    return e
+
+
 def _check_representable(motion: Motion) -> None:
     sk = motion.skeleton
     if motion.n_frames == 0:
@@ -640,10 +693,8 @@ def _check_representable(motion: Motion) -> None:
             if n_rot == 0:
                 err = float(rot.angle_between(q, identity).max())
             else:
-                order = _full_order(chans)
-                e = rot.to_euler(q, order)
-                e[:, :n_rot] = 0.0  # the held axes; what remains is lost
-                err = float(np.abs(e).max())
+                missing = _wrap180(_channel_euler(q, chans)[:, n_rot:])
+                err = float(np.abs(missing).max())
             if err > 1e-6:
                 raise ValueError(
                     f"format_bvh: joint {sk.names[j]!r} rotates up to {err:.3g} degrees about "
@@ -657,30 +708,32 @@ def _check_representable(motion: Motion) -> None:
                         f"{c[0]} from its OFFSET but has no {c} channel")
 
 
-def _pose_to_channels(motion: Motion) -> np.ndarray:
-    """``(F, C)`` channel values in file order."""
+def _pose_to_channels(motion: Motion, order: list[int]) -> np.ndarray:
+    """``(F, C)`` channel values, joints in ``order``, channels in file order."""
     sk = motion.skeleton
     n_frames = motion.n_frames
-    n_values = sum(len(c) for c in sk.channels)
-    data = np.zeros((n_frames, n_values))
-    col = 0
-    by_order: dict[str, list[int]] = {}
+    # joints grouped by (completed order, number of rotation channels): one call each
+    groups: dict[tuple[tuple[str, ...], str], list[int]] = {}
     for j, chans in enumerate(sk.channels):
-        if any(c in ROTATION_CHANNELS for c in chans):
-            by_order.setdefault(_full_order(chans), []).append(j)
+        rot_chans = tuple(c for c in chans if c in ROTATION_CHANNELS)
+        if rot_chans:
+            groups.setdefault((rot_chans, _full_order(chans)), []).append(j)
     euler: dict[int, np.ndarray] = {}
-    for order, js in by_order.items():
-        e = rot.to_euler(motion.rotations[:, js], order)  # (F, len(js), 3)
+    for (rot_chans, _), js in groups.items():
+        e = _channel_euler(motion.rotations[:, js], rot_chans)  # (F, len(js), 3)
         if n_frames > 1:
             e = np.unwrap(e, period=360.0, axis=0)
         for k, j in enumerate(js):
             euler[j] = e[:, k]
-    for j, chans in enumerate(sk.channels):
-        order = _full_order(chans)
+    columns: list[np.ndarray] = []
+    for j in order:
+        chans = sk.channels[j]
+        rot_order = _full_order(chans)
         for c in chans:
             if c in POSITION_CHANNELS:
-                data[:, col] = motion.translations[:, j, _AXIS[c[0]]]
+                columns.append(motion.translations[:, j, _AXIS[c[0]]])
             else:
-                data[:, col] = euler[j][:, order.index(c[0])]
-            col += 1
-    return data
+                columns.append(euler[j][:, rot_order.index(c[0])])
+    if not columns:
+        return np.zeros((n_frames, 0))
+    return np.stack(columns, axis=1)
