@@ -20,8 +20,9 @@ How the labels are made (every threshold is a field of ``PhaseParameters``):
    ``min_hold_s`` count as movement, movement runs shorter than ``min_move_s``
    as still. A still run within ``rest_radius`` of the rest position is REST,
    any other still run is HOLD.
-3. The rest position is given, or estimated as the lowest still position
-   (the arm hanging), refined to the median of still frames near it.
+3. The rest position is given, or estimated as the lowest wrist position
+   (the arm hanging), refined to the median of the frames near it. Movement
+   units that never leave the rest zone (``rest_radius``) are REST too.
 4. Every movement run is cut into movement units at deep speed minima (a
    valley at most ``1 - valley_depth`` of the lower neighbouring peak).
 5. Between two REST runs (an excursion): the first unit is PREPARATION if it
@@ -111,7 +112,7 @@ class PhaseParameters:
     min_hold_s: float = 0.1
     min_move_s: float = 0.1
     rest_radius: float = 0.15
-    valley_depth: float = 0.5
+    valley_depth: float = 0.3
     stroke_accel: float = 1.0
     stroke_accel_ratio: float = 0.3
     radial_min: float = 0.02
@@ -292,11 +293,14 @@ def _drop_short(mask: np.ndarray, value: bool, min_len: int) -> np.ndarray:
     return out
 
 
-def _estimate_rest(positions: np.ndarray, still: np.ndarray, up: int, radius: float) -> np.ndarray:
-    """Rest position: median of still frames near the lowest still position."""
-    cand = positions[still] if still.any() else positions
-    lowest = cand[np.argmin(cand[:, up])]
-    near = cand[np.linalg.norm(cand - lowest, axis=1) <= radius]
+def _estimate_rest(positions: np.ndarray, up: int, radius: float) -> np.ndarray:
+    """Rest position: median of the frames near the lowest wrist position.
+
+    Captures often start and end with the hand already moving away from or toward a
+    hanging arm, so stillness is not required; the lowest point is taken as rest.
+    """
+    lowest = positions[np.argmin(positions[:, up])]
+    near = positions[np.linalg.norm(positions - lowest, axis=1) <= 0.5 * radius]
     return np.median(near, axis=0)
 
 
@@ -358,7 +362,7 @@ def segment_trajectory(positions: np.ndarray, fps: float, params: PhaseParameter
     still = _drop_short(still, True, int(round(params.min_hold_s * fps)))
 
     if rest_position is None:
-        rest = _estimate_rest(smooth, still, up_axis, params.rest_radius)
+        rest = _estimate_rest(smooth, up_axis, params.rest_radius)
     else:
         rest = np.asarray(rest_position, dtype=float).reshape(3)
     radial = np.linalg.norm(smooth - rest, axis=1)
@@ -370,7 +374,11 @@ def segment_trajectory(positions: np.ndarray, fps: float, params: PhaseParameter
             at_rest = np.median(radial[a:b]) <= params.rest_radius
             items.append(("rest" if at_rest else "hold", a, b))
         else:
-            items.extend(("move", ua, ub) for ua, ub in _split_units(speed, a, b, params.valley_depth))
+            for ua, ub in _split_units(speed, a, b, params.valley_depth):
+                # fidgeting that never leaves the rest zone is rest, not a gesture
+                at_rest = radial[ua:ub].max() <= params.rest_radius
+                items.append(("rest" if at_rest else "move", ua, ub))
+    items = _merge_items(items)
 
     labels = np.zeros(n, dtype=np.uint8)
     # excursions: maximal spans of non-rest items
@@ -382,8 +390,10 @@ def segment_trajectory(positions: np.ndarray, fps: float, params: PhaseParameter
         j = i
         while j < len(items) and items[j][0] != "rest":
             j += 1
+        # the take's first (last) frame counts as rest when the hand is in the rest zone
         _label_excursion(items[i:j], labels, radial, accel, params,
-                         from_rest=i > 0, to_rest=j < len(items))
+                         from_rest=i > 0 or radial[0] <= params.rest_radius,
+                         to_rest=j < len(items) or radial[-1] <= params.rest_radius)
         i = j
 
     segments = _segments(labels)
@@ -391,6 +401,17 @@ def segment_trajectory(positions: np.ndarray, fps: float, params: PhaseParameter
     segments = _segments(labels)  # promotion may have relabelled units
     return HandPhases(labels=labels, segments=segments, phrases=phrases, positions=smooth,
                       speed=speed, acceleration=accel, rest_position=rest, fps=float(fps))
+
+
+def _merge_items(items: list[tuple[str, int, int]]) -> list[tuple[str, int, int]]:
+    """Join neighbouring rest items (movement units are kept apart)."""
+    out: list[tuple[str, int, int]] = []
+    for kind, a, b in items:
+        if out and kind == out[-1][0] and kind in ("rest", "hold"):
+            out[-1] = (kind, out[-1][1], b)
+        else:
+            out.append((kind, a, b))
+    return out
 
 
 def _label_excursion(items, labels, radial, accel, params, from_rest: bool, to_rest: bool) -> None:
