@@ -64,7 +64,13 @@ def sample(motion: Motion, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     Returns ``rotations (T, J, 4)`` and ``translations (T, J, 3)``.
     """
     f = motion.n_frames
-    t = np.clip(np.asarray(times, dtype=float), 0.0, f - 1)
+    if f == 0:
+        raise ValueError("sample: the motion has no frames")
+    t = np.asarray(times, dtype=float)
+    if t.ndim != 1 or not np.isfinite(t).all():
+        raise ValueError(f"sample: times must be a 1-D array of finite frame indices, got "
+                         f"shape {t.shape}")
+    t = np.clip(t, 0.0, f - 1)
     i0 = np.floor(t).astype(np.int64)
     i1 = np.minimum(i0 + 1, f - 1)
     w = (t - i0)[:, None]
@@ -81,6 +87,8 @@ def resample(motion: Motion, fps: float) -> Motion:
     if not (np.isfinite(fps) and fps > 0):
         raise ValueError(f"resample: fps must be positive, got {fps}")
     f = motion.n_frames
+    if f == 0:
+        return replace(motion, fps=float(fps))
     n_out = max(1, int(round((f - 1) * fps / motion.fps)) + 1)
     times = np.arange(n_out) * (motion.fps / fps)
     rots, trans = sample(motion, times)
