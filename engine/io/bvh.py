@@ -194,7 +194,7 @@ def _parse_hierarchy(lines: list[str], where: str | None) -> tuple[Skeleton, int
                     f"closed before MOTION", i)
             if not names:
                 raise fail("no ROOT joint before MOTION", i)
-            return _make_skeleton(names, parents, offsets, channels, end_sites, where, lines), i
+            return _make_skeleton(names, parents, offsets, channels, end_sites), i
         k = 0
         while k < len(tokens):
             tok = tokens[k]
@@ -313,7 +313,7 @@ def _parse_hierarchy(lines: list[str], where: str | None) -> tuple[Skeleton, int
     raise MotionFormatError(where, "no 'MOTION' section after the HIERARCHY", line=last)
 
 
-def _make_skeleton(names, parents, offsets, channels, end_sites, where, lines) -> Skeleton:
+def _make_skeleton(names, parents, offsets, channels, end_sites) -> Skeleton:
     return Skeleton(
         names=tuple(names),
         parents=np.array(parents, dtype=np.int64),
