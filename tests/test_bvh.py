@@ -560,3 +560,12 @@ def test_bad_bytes_name_file_and_line(name, data, line, fragment, tmp_path: Path
 def test_missing_file_is_oserror(tmp_path: Path):
     with pytest.raises(OSError):
         read_bvh(tmp_path / "nope.bvh")
+
+
+def test_empty_take_round_trips():
+    m = parse_bvh(SMALL_BVH).frames(0, 0)
+    text = format_bvh(m)
+    assert "Frames: 0" in text
+    back = parse_bvh(text)
+    assert back.n_frames == 0
+    _assert_same_motion(m, back)
