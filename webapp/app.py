@@ -1,7 +1,9 @@
-"""The HandSplice page: one layout built per browser session.
+"""The HandSplice page: one notebook-like layout built per browser session.
 
 ``create_app()`` is what the Bokeh server calls for every new session, so each
-tab gets its own :class:`webapp.state.Session` and widgets.
+tab gets its own :class:`webapp.state.Session` and widgets; nothing mutable is
+shared between sessions except the read-only per-pair caches in
+:mod:`webapp.backend`.
 """
 
 from __future__ import annotations
@@ -9,34 +11,126 @@ from __future__ import annotations
 import panel as pn
 
 from webapp import config
+from webapp.backend import one_line
+from webapp.state import Session
 
-pn.extension(notifications=False)
+pn.extension("tabulator", notifications=False, sizing_mode="stretch_width")
+
+CSS = """
+.hs-section-text { color: #444; max-width: 980px; }
+"""
+
+INTRO = """
+# HandSplice
+Hands and body are usually captured in separate sessions, so the two takes differ in
+timing. HandSplice finds which hand frame belongs to each body frame with a **two-pass
+dynamic time warping** (Majkowska et al. 2006) and splices the fingers onto the body.
+Below you can see the alignment, steer it with **matching points**, watch the result and
+share it.
+"""
+
+ALIGN_TEXT = """
+Each pixel compares a body frame (x) with a hand frame (y); dark is similar. The optimal
+path (red) is the cheapest monotone route from the first to the last frame pair, searched
+only inside the **band** (blue). Pass 1 compares the signs of arm velocities and
+accelerations (phases of the gesture), pass 2 refines inside a narrow band around the
+pass-1 path by comparing forearm/hand directions (the dashed line is the other pass).
+
+**Matching points** (yellow): *click* the matrix to add one, *drag* it to move it,
+select it and press *Backspace* to delete it. The path then passes within the point's
+tolerance (the yellow bar). Edit tolerances in the table; sliders set the band widths.
+"""
 
 
-def _samples_table(cfg: config.AppConfig) -> pn.viewable.Viewable:
-    pairs = cfg.samples()
-    if not pairs:
-        return pn.pane.Alert(f"No sample pairs found in {cfg.sample_dir}/samples.json yet.",
-                             alert_type="warning")
-    rows = "\n".join(f"| {p.name} | {p.body.name} | {p.hand.name} | {p.side} | {p.description} |"
-                     for p in pairs)
-    return pn.pane.Markdown("| pair | body take | hand take | side | about |\n|---|---|---|---|---|\n"
-                            + rows)
+def _section(title: str, text: str, *objects) -> pn.Column:
+    return pn.Column(pn.pane.Markdown(f"## {title}", margin=(20, 10, 0, 10)),
+                     pn.pane.Markdown(text, css_classes=["hs-section-text"]) if text else None,
+                     *objects, sizing_mode="stretch_width")
+
+
+def _initial_state(session: Session) -> None:
+    """Restore the session from the URL query, else open the default sample pair."""
+    args = {}
+    if pn.state.session_args:
+        args = {k: v[0].decode("utf-8", "replace") for k, v in pn.state.session_args.items()
+                if v}
+    if any(k in args for k in ("sample", "body", "hand", "pts", "band")):
+        try:
+            session.from_query(args)
+            return
+        except Exception as exc:  # a bad link opens the demo with the reason shown
+            session.error = f"shared link: {one_line(exc)}"
+    cfg = session.config
+    if cfg.default_sample:
+        try:
+            session.load_sample(cfg.default_sample)
+        except Exception as exc:
+            session.error = one_line(exc)
 
 
 def create_app() -> pn.viewable.Viewable:
     """Build the page for one browser session."""
-    cfg = config.get()
-    return pn.Column(
-        pn.pane.Markdown("# HandSplice\nPut separately captured hand motion onto full-body "
-                         "motion capture."),
-        pn.pane.Markdown("## Sample pairs"),
-        _samples_table(cfg),
-        sizing_mode="stretch_width",
-        css_classes=["hs-app"],
+    from webapp.views import controls
+    from webapp.views.cost_matrix import CostMatrixView
+    from webapp.views.inputs import InputsView
+    from webapp.views.sharing import SharingView
+
+    session = Session(config.get())
+    _initial_state(session)
+    inputs = InputsView(session)
+    matrix = CostMatrixView(session)
+    points = controls.PointsTable(session)
+    pick = pn.widgets.RadioButtonGroup(options=["Edit points", "Pick frames"],
+                                       value="Edit points", css_classes=["hs-click-mode"])
+    pick.param.watch(lambda e: matrix.set_pick_mode(e.new == "Pick frames"), "value")
+
+    side_panel = pn.Column(
+        controls.parameter_widgets(session),
+        pn.pane.Markdown("**A click on the matrix**", margin=(10, 10, 0, 10)), pick,
+        controls.undo_redo(session),
+        pn.pane.Markdown("**Matching points** (empty tolerance = global)",
+                         margin=(10, 10, 0, 10)),
+        points.panel(),
+        width=420, sizing_mode="fixed",
     )
+    alignment = _section(
+        "2 · Alignment", ALIGN_TEXT,
+        controls.status_line(session), controls.error_alert(session),
+        pn.Row(matrix.panel(), side_panel, sizing_mode="stretch_width"),
+    )
+    sections = [
+        pn.pane.Markdown(INTRO, css_classes=["hs-section-text"]),
+        _section("1 · Takes", "Pick a bundled pair or upload your own body and hand takes.",
+                 inputs.panel()),
+        alignment,
+    ]
+    try:
+        from webapp.views.preview import PreviewView
+
+        sections.append(_section("3 · Preview", PreviewView.TEXT, PreviewView(session).panel()))
+    except ImportError:
+        pass
+    sections.append(_section("4 · Share", SharingView.TEXT, SharingView(session).panel()))
+    try:
+        from webapp.views.teaching import TeachingView
+
+        sections.append(_section("5 · How DTW works", TeachingView.TEXT, TeachingView().panel()))
+    except ImportError:
+        pass
+    page = pn.Column(*sections, sizing_mode="stretch_width", css_classes=["hs-app"],
+                     styles={"max-width": "1280px", "margin": "0 auto"})
+    page.session = session  # for tests and debugging
+    return page
 
 
 def warm_up(cfg: config.AppConfig) -> None:
-    """Precompute what the demo pair needs so the first page load is fast."""
-    return None
+    """Precompute the demo pair (features, JIT compilation) so the first page load is fast."""
+    if not cfg.default_sample:
+        return
+    session = Session(cfg)
+    try:
+        session.load_sample(cfg.default_sample)
+        if session.solution is not None:
+            session.cost_view((0, session.n, 0, session.m), 600)
+    except Exception as exc:  # the page will show the same problem; the server still starts
+        print(f"warm-up of sample {cfg.default_sample!r} failed: {one_line(exc)}", flush=True)

@@ -1,0 +1,224 @@
+"""The app's only door into the engine: load, align, view, splice, render.
+
+Each function here is a short sequence of engine calls (no algorithm code) plus
+caching, so the session object and the views stay free of engine details:
+
+* :func:`prepare` reads both takes and computes what every alignment of that
+  pair needs (features of both passes, signals and phases for the axes). It is
+  cached per server by file identity and side, so a second browser session (or a
+  reload) on the same pair costs nothing.
+* :func:`solve` runs pass 1 and pass 2 for a band width pair and matching points,
+  reusing the previous solution's work where the engine allows it.
+* :func:`cost_view` returns the part of a cost matrix in the visible range at
+  screen resolution.
+* :func:`splice` and the render helpers produce the spliced take and previews.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from engine.errors import HandSpliceError
+
+
+def one_line(exc: BaseException) -> str:
+    """An exception as the one line shown in the page."""
+    text = str(exc).strip()
+    if isinstance(exc, KeyError) and len(exc.args) == 1 and isinstance(exc.args[0], str):
+        text = exc.args[0]
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
+@dataclass(frozen=True)
+class PassResult:
+    """One pass's alignment: ``path`` (k, 2) int (body frame, hand frame), ``cost``, band."""
+
+    path: np.ndarray
+    cost: float
+    band: object  # engine.dtw.Band: lo, hi (n,) int inclusive columns per body row
+    alignment: object = None
+
+    @property
+    def band_cells(self) -> int:
+        return int(np.maximum(self.band.hi - self.band.lo + 1, 0).sum())
+
+
+@dataclass(frozen=True)
+class Solution:
+    """Both passes and the merged warp ``warp`` (n,) float: hand frame per body frame."""
+
+    pass1: PassResult
+    pass2: PassResult
+    warp: np.ndarray
+    points: tuple = ()
+    band: float = 0.3
+    refine_band: float = 0.1
+    seconds: float = 0.0
+    cache: dict = field(default_factory=dict, compare=False, repr=False)
+
+
+@dataclass(frozen=True)
+class CostView:
+    """A window of a cost matrix: ``image`` (cols_x, rows_y) covering body frames
+    ``x0..x1`` and hand frames ``y0..y1`` (half-open), each pixel ``stride`` cells."""
+
+    image: np.ndarray
+    x0: int
+    x1: int
+    y0: int
+    y1: int
+    stride: tuple[int, int]
+
+
+@dataclass
+class Prepared:
+    """Everything the alignments of one (body, hand, side) need, computed once."""
+
+    key: tuple
+    body: object  # Motion or MarkerSet
+    hand: object
+    side: str
+    n: int
+    m: int
+    features: object  # the splice engine's per-pair features
+    body_signal: np.ndarray  # (n,) in 0..1, drawn along the x axis
+    hand_signal: np.ndarray  # (m,) in 0..1, drawn along the y axis
+    body_phases: np.ndarray | None = None  # (n,) Phase codes
+    hand_phases: np.ndarray | None = None  # (m,)
+    lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+
+
+_PREPARED: dict[tuple, Prepared] = {}
+_PREPARED_ORDER: list[tuple] = []
+_PREPARED_LIMIT = 6
+_PREPARE_LOCK = threading.Lock()
+
+
+def _file_key(path: Path) -> tuple:
+    st = Path(path).stat()
+    return (str(path), st.st_size, st.st_mtime_ns)
+
+
+def prepare(body_path: Path, hand_path: Path, side: str) -> Prepared:
+    """Load both takes and compute the per-pair features (cached per server)."""
+    key = (str(body_path), str(hand_path), side, _file_key(body_path), _file_key(hand_path))
+    with _PREPARE_LOCK:
+        hit = _PREPARED.get(key)
+        if hit is not None:
+            return hit
+    prepared = _prepare(Path(body_path), Path(hand_path), side, key)
+    with _PREPARE_LOCK:
+        _PREPARED[key] = prepared
+        _PREPARED_ORDER.append(key)
+        while len(_PREPARED_ORDER) > _PREPARED_LIMIT:
+            _PREPARED.pop(_PREPARED_ORDER.pop(0), None)
+    return prepared
+
+
+def _normalised(x: np.ndarray) -> np.ndarray:
+    x = np.nan_to_num(np.asarray(x, dtype=float))
+    span = np.ptp(x) if x.size else 0.0
+    return (x - x.min()) / span if span > 0 else np.zeros_like(x)
+
+
+def _prepare(body_path: Path, hand_path: Path, side: str, key: tuple) -> Prepared:
+    from engine.splice import pipeline
+
+    from engine.io import load_take
+
+    body = load_take(body_path)
+    hand = load_take(hand_path)
+    features = pipeline.prepare(body, hand, side=side)
+    body_speed, hand_speed = pipeline.wrist_speeds(features)
+    body_phases, hand_phases = _phases(features)
+    n, m = features.n, features.m
+    return Prepared(key=key, body=body, hand=hand, side=side, n=n, m=m, features=features,
+                    body_signal=_normalised(body_speed), hand_signal=_normalised(hand_speed),
+                    body_phases=body_phases, hand_phases=hand_phases)
+
+
+def _phases(features) -> tuple[np.ndarray | None, np.ndarray | None]:
+    try:
+        from engine.splice import pipeline
+
+        return pipeline.phase_labels(features)
+    except (ImportError, AttributeError, HandSpliceError, ValueError):
+        return None, None
+
+
+def solve(prepared: Prepared, band: float, refine_band: float, points, previous=None) -> Solution:
+    """Pass 1 and pass 2 for band widths ``band``/``refine_band`` (fractions of n) and
+    matching points ``[(body, hand, tol), ...]``; ValueError/HandSpliceError if infeasible."""
+    from engine.splice import pipeline
+
+    t0 = time.perf_counter()
+    points = tuple((int(x), int(y), float(t)) for x, y, t in points)
+    with prepared.lock:
+        result = pipeline.align_passes(prepared.features, band=band, refine_band=refine_band,
+                                       points=list(points),
+                                       previous=None if previous is None
+                                       else previous.cache.get("engine"))
+    p1, p2 = result.pass1, result.pass2
+    sol = Solution(
+        pass1=PassResult(np.asarray(p1.path), float(p1.cost), p1.band, p1),
+        pass2=PassResult(np.asarray(p2.path), float(p2.cost), p2.band, p2),
+        warp=np.asarray(result.warp, dtype=float), points=points, band=band,
+        refine_band=refine_band, seconds=time.perf_counter() - t0)
+    sol.cache["engine"] = result
+    return sol
+
+
+def _view_window(ranges, n: int, m: int, max_pixels: int):
+    x0, x1, y0, y1 = ranges
+    x0 = int(np.clip(np.floor(x0 + 0.5), 0, n - 1))
+    x1 = int(np.clip(np.ceil(x1 + 0.5), x0 + 1, n))
+    y0 = int(np.clip(np.floor(y0 + 0.5), 0, m - 1))
+    y1 = int(np.clip(np.ceil(y1 + 0.5), y0 + 1, m))
+    sx = max(1, -(-(x1 - x0) // max_pixels))
+    sy = max(1, -(-(y1 - y0) // max_pixels))
+    # snap the window to the stride grid so pixels do not shimmer while panning
+    x0 -= x0 % sx
+    y0 -= y0 % sy
+    return x0, x1, y0, y1, sx, sy
+
+
+def cost_view(prepared: Prepared, solution: Solution | None, kind: str, ranges,
+              max_pixels: int) -> CostView:
+    """The visible part of matrix ``kind`` (pass1, pass2, cumulative1, cumulative2),
+    at most ``max_pixels`` samples per axis (every ``stride``-th cell)."""
+    from engine.splice import pipeline
+
+    x0, x1, y0, y1, sx, sy = _view_window(ranges, prepared.n, prepared.m, max_pixels)
+    rows = np.arange(x0, x1, sx)
+    cols = np.arange(y0, y1, sy)
+    engine_result = None if solution is None else solution.cache.get("engine")
+    with prepared.lock:
+        image = pipeline.cost_image(prepared.features, kind, rows, cols, engine_result)
+    return CostView(image=np.asarray(image, dtype=np.float32), x0=int(rows[0]),
+                    x1=int(rows[-1] + sx), y0=int(cols[0]), y1=int(cols[-1] + sy),
+                    stride=(sx, sy))
+
+
+def splice(prepared: Prepared, solution: Solution):
+    """The spliced Motion (body take with the hand take's wrist and fingers)."""
+    from engine.splice import pipeline
+
+    cached = solution.cache.get("spliced")
+    if cached is not None:
+        return cached
+    with prepared.lock:
+        motion = pipeline.transfer(prepared.features, solution.cache["engine"])
+    solution.cache["spliced"] = motion
+    return motion
+
+
+def bvh_bytes(motion) -> bytes:
+    """``motion`` as BVH text (UTF-8)."""
+    from engine.io.bvh import format_bvh
+
+    return format_bvh(motion).encode("utf-8")

@@ -1,0 +1,401 @@
+"""One browser session's state: inputs, parameters, matching points, results.
+
+:class:`Session` is a ``param.Parameterized`` object with no widgets: views read
+it and write its parameters, tests drive it directly. Every computation is an
+engine call made through :mod:`webapp.backend`; nothing here aligns or splices.
+
+Edits of ``band``, ``refine_band``, ``tolerance`` and ``points`` recompute band and
+path at once (the matrix is small enough, and the engine re-solves incrementally);
+an edit the engine rejects (points that leave no feasible path, say) is undone on
+the spot and ``error`` says why. Every accepted edit can be undone and redone.
+
+The same data is the CLI's session JSON (:mod:`engine.io.session`) and a shareable
+URL query (``?sample=demo&band=0.3&pts=120:98:2,...``).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from urllib.parse import urlencode
+
+import numpy as np
+import param
+
+from engine.errors import HandSpliceError
+from engine.io import session as session_io
+from engine.io.session import MatchPoint, SessionSpec, TakeRef
+from webapp import backend, config
+
+EDIT_PARAMS = ("band", "refine_band", "tolerance", "points")
+INPUT_PARAMS = ("sample", "body_sha256", "hand_sha256", "side")
+MATRIX_LABELS = {
+    "pass1": "Pass 1 local cost D1 (signs of velocity, acceleration)",
+    "pass2": "Pass 2 local cost D2 (forearm/hand angle)",
+    "cumulative1": "Pass 1 cumulative cost γ in the band",
+    "cumulative2": "Pass 2 cumulative cost γ in the band",
+}
+UNDO_LIMIT = 200
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """Values of the edit parameters before an edit (an undo step)."""
+
+    values: dict
+
+
+class Session(param.Parameterized):
+    """State of one browser session (or one test)."""
+
+    # inputs
+    sample = param.String(default=None, allow_None=True, doc="bundled sample pair name")
+    body_sha256 = param.String(default=None, allow_None=True, doc="uploaded body take (hash)")
+    hand_sha256 = param.String(default=None, allow_None=True, doc="uploaded hand take (hash)")
+    body_name = param.String(default="", doc="uploaded body file's original name")
+    hand_name = param.String(default="", doc="uploaded hand file's original name")
+    side = param.Selector(default="right", objects=["right", "left"], doc="which arm to align")
+
+    # parameters and constraints (undoable edits)
+    band = param.Number(default=0.3, bounds=(0.02, 1.0), step=0.01,
+                        doc="pass-1 band width W1, fraction of the body take's length")
+    refine_band = param.Number(default=0.1, bounds=(0.01, 1.0), step=0.01,
+                               doc="pass-2 band width W2 around the pass-1 path, fraction")
+    tolerance = param.Number(default=0.0, bounds=(0.0, 500.0), step=1.0,
+                             doc="global matching-point tolerance T in frames")
+    points = param.Parameter(default=(), doc="matching points: tuple of MatchPoint")
+
+    # display
+    matrix = param.Selector(default="pass1", objects=list(MATRIX_LABELS),
+                            doc="which cost matrix the figure shows")
+    frame = param.Integer(default=0, bounds=(0, None), doc="body frame shown in the preview")
+
+    # results (written by the session only)
+    n = param.Integer(default=0, constant=True, doc="body frames (rows)")
+    m = param.Integer(default=0, constant=True, doc="hand frames at body rate (columns)")
+    solution = param.Parameter(default=None, doc="backend.Solution of the current state")
+    compute_ms = param.Number(default=0.0, doc="wall time of the last recompute, ms")
+    error = param.String(default="", doc="why the last edit or input was rejected")
+    revision = param.Integer(default=0, doc="bumped after every recompute")
+    inputs_revision = param.Integer(default=0, doc="bumped after the takes change")
+    can_undo = param.Boolean(default=False)
+    can_redo = param.Boolean(default=False)
+
+    def __init__(self, cfg: config.AppConfig | None = None, **params):
+        self._cfg = cfg or config.get()
+        self._undo: list[Snapshot] = []
+        self._redo: list[Snapshot] = []
+        self._applying = False
+        self.prepared: backend.Prepared | None = None
+        super().__init__(**params)
+        self.param.watch(self._on_edit, list(EDIT_PARAMS))
+        self.param.watch(self._on_inputs, list(INPUT_PARAMS))
+
+    # ------------------------------------------------------------ inputs
+
+    @property
+    def config(self) -> config.AppConfig:
+        return self._cfg
+
+    def take_paths(self):
+        """(body path, hand path) of the current inputs, or None when incomplete.
+
+        Paths are only ever inside the sample folder or the upload folder.
+        """
+        if self.sample:
+            pair = self._cfg.sample(self.sample)
+            return pair.body, pair.hand
+        if self.body_sha256 and self.hand_sha256:
+            from webapp import uploads
+
+            return (uploads.path_for(self._cfg, self.body_sha256),
+                    uploads.path_for(self._cfg, self.hand_sha256))
+        return None
+
+    def load_sample(self, name: str) -> None:
+        """Open a bundled pair (KeyError naming the known pairs when unknown)."""
+        pair = self._cfg.sample(name)
+        self._set_inputs(sample=name, body_sha256=None, hand_sha256=None, body_name="",
+                         hand_name="", side=pair.side)
+
+    def load_uploads(self, body_sha256: str, hand_sha256: str, body_name: str = "",
+                     hand_name: str = "") -> None:
+        """Open two uploaded takes by content hash."""
+        self._set_inputs(sample=None, body_sha256=body_sha256, hand_sha256=hand_sha256,
+                         body_name=body_name, hand_name=hand_name)
+
+    def _set_inputs(self, **values) -> None:
+        self._apply(values)
+        self._on_inputs()
+
+    def _on_inputs(self, *events) -> None:
+        if self._applying:
+            return
+        paths = self.take_paths() if (self.sample or (self.body_sha256 and self.hand_sha256)) \
+            else None
+        if paths is None:
+            return
+        t0 = time.perf_counter()
+        try:
+            prepared = backend.prepare(paths[0], paths[1], self.side)
+        except (HandSpliceError, ValueError, KeyError, OSError) as exc:
+            self.error = backend.one_line(exc)
+            return
+        self.prepared = prepared
+        self._undo.clear()
+        self._redo.clear()
+        with param.edit_constant(self):
+            self.n, self.m = prepared.n, prepared.m
+        self._applying = True
+        try:
+            kept = tuple(p for p in self.points if p.body < self.n and p.hand < self.m)
+            self.param.update(points=kept, frame=min(self.frame, max(self.n - 1, 0)))
+        finally:
+            self._applying = False
+        self.inputs_revision += 1
+        self._solve(t0=t0)
+        self._update_history_flags()
+
+    # ------------------------------------------------------------ edits
+
+    def _on_edit(self, *events) -> None:
+        if self._applying:
+            return
+        old = {e.name: e.old for e in events}
+        if not self._solve():
+            self._apply(old)  # rejected: back to the values that worked
+            return
+        self._undo.append(Snapshot(old))
+        del self._undo[:-UNDO_LIMIT]
+        self._redo.clear()
+        self._update_history_flags()
+
+    def _apply(self, values: dict) -> None:
+        self._applying = True
+        try:
+            self.param.update(**values)
+        finally:
+            self._applying = False
+
+    def _current(self, names) -> dict:
+        return {k: getattr(self, k) for k in names}
+
+    def undo(self) -> bool:
+        """Revert the last accepted edit; False when there is nothing to undo."""
+        return self._step(self._undo, self._redo)
+
+    def redo(self) -> bool:
+        """Re-apply the last undone edit; False when there is nothing to redo."""
+        return self._step(self._redo, self._undo)
+
+    def _step(self, source: list[Snapshot], target: list[Snapshot]) -> bool:
+        if not source:
+            return False
+        snap = source.pop()
+        target.append(Snapshot(self._current(snap.values)))
+        self._apply(snap.values)
+        self._solve()
+        self._update_history_flags()
+        return True
+
+    def _update_history_flags(self) -> None:
+        self.param.update(can_undo=bool(self._undo), can_redo=bool(self._redo))
+
+    # matching-point edits (each one undoable)
+
+    def set_points(self, points) -> None:
+        """Replace all matching points: iterable of MatchPoint or (body, hand[, tol])."""
+        self.points = self._normalise(points)
+
+    def add_point(self, body: int, hand: int, tolerance: float | None = None) -> None:
+        self.set_points([*self.points, MatchPoint(int(body), int(hand), tolerance)])
+
+    def move_point(self, index: int, body: int, hand: int) -> None:
+        pts = list(self.points)
+        pts[index] = MatchPoint(int(body), int(hand), pts[index].tolerance)
+        self.set_points(pts)
+
+    def delete_point(self, index: int) -> None:
+        pts = list(self.points)
+        del pts[index]
+        self.set_points(pts)
+
+    def set_point_tolerance(self, index: int, tolerance: float | None) -> None:
+        if tolerance is not None and not (np.isfinite(tolerance) and tolerance >= 0):
+            self.error = f"points[{index}].tolerance: expected a number >= 0, got {tolerance}"
+            return
+        pts = list(self.points)
+        pts[index] = MatchPoint(pts[index].body, pts[index].hand,
+                                None if tolerance is None else float(tolerance))
+        self.set_points(pts)
+
+    def set_points_from_view(self, edited) -> bool:
+        """Points as the matrix figure sends them ((x, y, tol) floats); False if rejected."""
+        pts = []
+        for x, y, tol in edited:
+            if x is None or y is None or not (np.isfinite(x) and np.isfinite(y)):
+                continue
+            body = int(np.clip(round(x), 0, max(self.n - 1, 0)))
+            hand = int(np.clip(round(y), 0, max(self.m - 1, 0)))
+            tol = None if tol is None or (isinstance(tol, float) and np.isnan(tol)) else float(tol)
+            pts.append(MatchPoint(body, hand, tol))
+        before = self.points
+        self.set_points(pts)
+        return self.points != before or tuple(sorted(pts, key=lambda p: p.body)) == before
+
+    def _normalise(self, points) -> tuple[MatchPoint, ...]:
+        out = []
+        for p in points:
+            if not isinstance(p, MatchPoint):
+                p = MatchPoint(int(p[0]), int(p[1]), None if len(p) < 3 or p[2] is None
+                               else float(p[2]))
+            out.append(p)
+        out.sort(key=lambda p: (p.body, p.hand))
+        return tuple(out)
+
+    # ------------------------------------------------------------ compute
+
+    def _check_points(self) -> None:
+        spec = SessionSpec(points=self.points)
+        session_io.validate(spec)
+        for k, p in enumerate(self.points):
+            if not (0 <= p.body < self.n and 0 <= p.hand < self.m):
+                raise HandSpliceError(f"points[{k}]: ({p.body}, {p.hand}) is outside the "
+                                      f"{self.n} x {self.m} matrix")
+
+    def _solve(self, t0: float | None = None) -> bool:
+        """Recompute band and path for the current state; False (and ``error``) if rejected."""
+        if self.prepared is None:
+            return True
+        t0 = time.perf_counter() if t0 is None else t0
+        try:
+            self._check_points()
+            sol = backend.solve(self.prepared, band=self.band, refine_band=self.refine_band,
+                                points=self.constraint_points(), previous=self.solution)
+        except (HandSpliceError, ValueError) as exc:
+            self.error = backend.one_line(exc)
+            return False
+        self.param.update(solution=sol, compute_ms=(time.perf_counter() - t0) * 1000.0,
+                          error="")
+        self.revision += 1
+        return True
+
+    def constraint_points(self) -> list[tuple[int, int, float]]:
+        """``[(body, hand, tol), ...]`` with the global tolerance filled in."""
+        return [p.resolved(self.tolerance) for p in self.points]
+
+    def recompute(self) -> bool:
+        return self._solve()
+
+    # ------------------------------------------------------------ derived views
+
+    def status_text(self) -> str:
+        sol = self.solution
+        if sol is None:
+            return self.error or "no takes loaded"
+        cells = sol.pass1.band_cells
+        share = 100.0 * cells / max(self.n * self.m, 1)
+        return (f"pass 1 cost {sol.pass1.cost:.4g} · pass 2 cost {sol.pass2.cost:.4g} · "
+                f"{self.compute_ms:.1f} ms · band {cells:,} cells ({share:.0f} %) · "
+                f"{len(self.points)} matching point{'s' if len(self.points) != 1 else ''}")
+
+    def axis_signals(self) -> tuple[np.ndarray, np.ndarray]:
+        if self.prepared is None:
+            return np.zeros(0), np.zeros(0)
+        return self.prepared.body_signal, self.prepared.hand_signal
+
+    def axis_phases(self):
+        if self.prepared is None:
+            return None, None
+        return self.prepared.body_phases, self.prepared.hand_phases
+
+    def hand_frame_for(self, body_frame: int) -> int:
+        """The hand frame the current (pass-2) path matches to ``body_frame`` (median)."""
+        if self.solution is None:
+            return 0
+        return int(round(self.solution.warp[int(np.clip(body_frame, 0, self.n - 1))]))
+
+    def frame_pair(self) -> tuple[int, int]:
+        return self.frame, self.hand_frame_for(self.frame)
+
+    def pick_cell(self, x: float, y: float) -> None:
+        """A click on the matrix: show that body frame (and the hand frame the path gives it)."""
+        if self.n:
+            self.frame = int(np.clip(round(x), 0, self.n - 1))
+
+    def cost_view(self, ranges, max_pixels: int):
+        if self.prepared is None:
+            return None
+        return backend.cost_view(self.prepared, self.solution, self.matrix, ranges, max_pixels)
+
+    def spliced(self):
+        """The spliced Motion for the current alignment (cached per revision)."""
+        if self.prepared is None or self.solution is None:
+            raise HandSpliceError("no takes loaded")
+        return backend.splice(self.prepared, self.solution)
+
+    def output_stem(self) -> str:
+        """A file name stem for downloads: the sample name or the uploaded body take's."""
+        import re
+
+        stem = self.sample or (self.body_name.rsplit(".", 1)[0] if self.body_name else "")
+        stem = re.sub(r"[^A-Za-z0-9_.-]+", "_", stem).strip("._") or "handsplice"
+        return f"{stem}-spliced"
+
+    # ------------------------------------------------------------ save / restore
+
+    def to_spec(self) -> SessionSpec:
+        body = hand = None
+        if not self.sample and self.body_sha256:
+            body = TakeRef(sha256=self.body_sha256, name=self.body_name or None)
+        if not self.sample and self.hand_sha256:
+            hand = TakeRef(sha256=self.hand_sha256, name=self.hand_name or None)
+        return SessionSpec(sample=self.sample, body=body, hand=hand, side=self.side,
+                           band=self.band, refine_band=self.refine_band,
+                           tolerance=self.tolerance, points=self.points,
+                           view={"matrix": self.matrix, "frame": self.frame})
+
+    def apply_spec(self, spec: SessionSpec) -> None:
+        """Restore inputs, parameters and points (one recompute; clears undo history)."""
+        if spec.side not in ("right", "left"):
+            raise session_io.SessionError(None, "side", "the app aligns one side: right or left")
+        for k, take in (("body", spec.body), ("hand", spec.hand)):
+            if take is not None and not take.sha256:
+                raise session_io.SessionError(None, f"inputs.{k}", "the app opens bundled "
+                                              "samples or uploaded files (sha256), not paths")
+        if spec.sample is not None:
+            self._cfg.sample(spec.sample)  # KeyError naming the known pairs
+        self._applying = True
+        try:
+            self.param.update(
+                sample=spec.sample,
+                body_sha256=spec.body.sha256 if spec.body else None,
+                hand_sha256=spec.hand.sha256 if spec.hand else None,
+                body_name=(spec.body.name or "") if spec.body else "",
+                hand_name=(spec.hand.name or "") if spec.hand else "",
+                side=spec.side, band=spec.band, refine_band=spec.refine_band,
+                tolerance=spec.tolerance, points=self._normalise(spec.points),
+                matrix=spec.view.get("matrix", self.matrix),
+                frame=int(spec.view.get("frame", 0)))
+        finally:
+            self._applying = False
+        self.prepared = None
+        self._on_inputs()
+        self._undo.clear()
+        self._redo.clear()
+        self._update_history_flags()
+
+    def to_json(self) -> str:
+        return session_io.format_session(self.to_spec())
+
+    def from_json(self, text: str | bytes, source: str | None = None) -> None:
+        self.apply_spec(session_io.parse_session(text, source))
+
+    def to_query(self) -> dict[str, str]:
+        return session_io.to_query(self.to_spec())
+
+    def share_url(self, base: str = "") -> str:
+        return f"{base}?{urlencode(self.to_query(), safe=':,')}"
+
+    def from_query(self, query: dict) -> None:
+        self.apply_spec(session_io.from_query(query))

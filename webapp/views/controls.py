@@ -1,0 +1,160 @@
+"""Parameter widgets, the matching-points table and the status line of one session."""
+
+from __future__ import annotations
+
+import pandas as pd
+import panel as pn
+
+from webapp.state import MATRIX_LABELS, Session
+
+MATRIX_CHOICES = {"Pass 1": "pass1", "Pass 2": "pass2", "Cumulative 1": "cumulative1",
+                  "Cumulative 2": "cumulative2"}
+
+
+def parameter_widgets(session: Session) -> pn.viewable.Viewable:
+    """Band widths and global tolerance (recompute on release: throttled) and matrix choice."""
+    params = pn.Param(
+        session.param, parameters=["band", "refine_band", "tolerance"], show_name=False,
+        widgets={
+            "band": {"type": pn.widgets.FloatSlider, "throttled": True,
+                     "name": "Pass-1 band width W1 (fraction of body frames)", "step": 0.01},
+            "refine_band": {"type": pn.widgets.FloatSlider, "throttled": True,
+                            "name": "Pass-2 band width W2 around the pass-1 path", "step": 0.01},
+            "tolerance": {"type": pn.widgets.FloatSlider, "throttled": True, "end": 60.0,
+                          "name": "Global tolerance T (frames)", "step": 1.0},
+        },
+        sizing_mode="stretch_width", css_classes=["hs-params"],
+    )
+    matrix = pn.widgets.RadioButtonGroup(
+        name="Matrix", options=MATRIX_CHOICES, value=session.matrix, button_type="default",
+        css_classes=["hs-matrix-choice"])
+    matrix.link(session, value="matrix")
+    session.param.watch(lambda e: setattr(matrix, "value", e.new), ["matrix"])
+    return pn.Column(params, pn.pane.Markdown("**Matrix shown**", margin=(0, 10)), matrix,
+                     sizing_mode="stretch_width")
+
+
+def _points_frame(session: Session) -> pd.DataFrame:
+    pts = session.points
+    return pd.DataFrame({
+        "body frame": [p.body for p in pts],
+        "hand frame": [p.hand for p in pts],
+        "tolerance": [float("nan") if p.tolerance is None else p.tolerance for p in pts],
+        "effective": [session.tolerance if p.tolerance is None else p.tolerance for p in pts],
+    }, columns=["body frame", "hand frame", "tolerance", "effective"])
+
+
+class PointsTable:
+    """Tabulator of the matching points: edit frames and per-point tolerance, delete rows.
+
+    An empty ``tolerance`` cell means "use the global tolerance" (``effective`` shows it).
+    """
+
+    def __init__(self, session: Session):
+        self.session = session
+        self._syncing = False
+        self.table = pn.widgets.Tabulator(
+            _points_frame(session), show_index=True, sizing_mode="stretch_width", height=200,
+            editors={"effective": None,
+                     "tolerance": {"type": "number", "min": 0, "step": 1},
+                     "body frame": {"type": "number", "min": 0, "step": 1},
+                     "hand frame": {"type": "number", "min": 0, "step": 1}},
+            formatters={"tolerance": {"type": "plaintext"}},
+            buttons={"delete": '<i class="fa fa-trash" title="delete this point">✕</i>'},
+            css_classes=["hs-points"], selectable=False, layout="fit_columns",
+            name="Matching points",
+        )
+        self.table.on_edit(self._on_edit)
+        self.table.on_click(self._on_click)
+        session.param.watch(self._refresh, ["points", "tolerance", "revision"])
+
+    def _refresh(self, *_):
+        self._syncing = True
+        try:
+            self.table.value = _points_frame(self.session)
+        finally:
+            self._syncing = False
+
+    def _on_edit(self, event):
+        if self._syncing:
+            return
+        k, column, value = event.row, event.column, event.value
+        s = self.session
+        if not 0 <= k < len(s.points):
+            return
+        try:
+            if column == "tolerance":
+                tol = None if value is None or value == "" or pd.isna(value) else float(value)
+                s.set_point_tolerance(k, tol)
+            elif column in ("body frame", "hand frame"):
+                p = s.points[k]
+                frame = int(float(value))
+                s.move_point(k, frame if column == "body frame" else p.body,
+                             frame if column == "hand frame" else p.hand)
+        except (TypeError, ValueError) as exc:
+            s.error = f"points[{k}].{column}: {exc}"
+        self._refresh()
+
+    def _on_click(self, event):
+        if getattr(event, "column", None) == "delete" and 0 <= event.row < len(self.session.points):
+            self.session.delete_point(event.row)
+
+    def panel(self) -> pn.viewable.Viewable:
+        return self.table
+
+
+def status_line(session: Session) -> pn.viewable.Viewable:
+    """One line: path costs, compute time, band cells, points; the error when one is set."""
+    pane = pn.pane.HTML("", css_classes=["hs-status"], sizing_mode="stretch_width",
+                        styles={"font-family": "monospace", "font-size": "13px",
+                                "padding": "6px 10px", "background": "#f3f5f7",
+                                "border-radius": "4px", "border": "1px solid #dde2e6"})
+
+    def update(*_):
+        text = session.status_text()
+        pane.object = f'<span data-revision="{session.revision}">{_escape(text)}</span>'
+
+    session.param.watch(update, ["revision", "compute_ms", "error"])
+    update()
+    return pane
+
+
+def error_alert(session: Session) -> pn.viewable.Viewable:
+    """A dismissible alert showing ``session.error`` (never a traceback)."""
+    alert = pn.pane.Alert("", alert_type="danger", visible=False, css_classes=["hs-error"],
+                          sizing_mode="stretch_width")
+
+    def update(*_):
+        alert.object = _escape(session.error)
+        alert.visible = bool(session.error)
+
+    session.param.watch(update, ["error"])
+    update()
+    return alert
+
+
+def undo_redo(session: Session) -> pn.viewable.Viewable:
+    undo = pn.widgets.Button(name="↶ Undo", disabled=not session.can_undo, width=90,
+                             css_classes=["hs-undo"])
+    redo = pn.widgets.Button(name="↷ Redo", disabled=not session.can_redo, width=90,
+                             css_classes=["hs-redo"])
+    clear = pn.widgets.Button(name="Clear points", width=110, css_classes=["hs-clear"])
+    undo.on_click(lambda e: session.undo())
+    redo.on_click(lambda e: session.redo())
+    clear.on_click(lambda e: session.set_points([]))
+
+    def flags(*_):
+        undo.disabled = not session.can_undo
+        redo.disabled = not session.can_redo
+
+    session.param.watch(flags, ["can_undo", "can_redo"])
+    return pn.Row(undo, redo, clear)
+
+
+def matrix_title(session: Session) -> str:
+    return MATRIX_LABELS[session.matrix]
+
+
+def _escape(text: str) -> str:
+    return (text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+            .replace('"', "&quot;"))

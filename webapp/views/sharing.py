@@ -1,0 +1,94 @@
+"""Downloads (spliced BVH, preview GIF/MP4, session JSON) and the shareable link.
+
+The browser's address bar always carries the link of the current state (updated
+after every edit), so copying it shares the session; the field below shows it too.
+"""
+
+from __future__ import annotations
+
+import io
+
+import panel as pn
+
+from webapp import backend
+from webapp.state import Session
+
+
+class SharingView:
+    TEXT = ("Download the spliced take (BVH, opens in Blender and MotionBuilder), an animated "
+            "preview, or the session file (`handsplice splice --session` replays it). The "
+            "link restores this exact state on this server: sample or uploaded files, "
+            "parameters and matching points.")
+
+    def __init__(self, session: Session):
+        self.session = session
+        self.message = pn.pane.Alert("", alert_type="danger", visible=False,
+                                     css_classes=["hs-share-error"])
+        self.bvh = pn.widgets.FileDownload(callback=self._bvh, filename="spliced.bvh",
+                                           label="Spliced BVH", button_type="primary",
+                                           css_classes=["hs-download-bvh"], width=160)
+        self.session_file = pn.widgets.FileDownload(
+            callback=self._session_json, filename="handsplice-session.json",
+            label="Session JSON", css_classes=["hs-download-session"], width=160)
+        self.gif = pn.widgets.FileDownload(callback=self._gif, filename="preview.gif",
+                                           label="Preview GIF", css_classes=["hs-download-gif"],
+                                           width=160)
+        self.mp4 = pn.widgets.FileDownload(callback=self._mp4, filename="preview.mp4",
+                                           label="Preview MP4", css_classes=["hs-download-mp4"],
+                                           width=160)
+        self.link = pn.widgets.TextInput(name="Link to this session", value="",
+                                         css_classes=["hs-share-url"], disabled=False)
+        session.param.watch(self._update_link, ["revision", "inputs_revision", "matrix"])
+        self._update_link()
+
+    # ---------------------------------------------------------------- downloads
+
+    def _guard(self, make, what: str):
+        try:
+            data = make()
+        except Exception as exc:  # shown in the page, never a traceback
+            self.message.object = f"{what}: {backend.one_line(exc)}"
+            self.message.visible = True
+            return io.BytesIO(b"")
+        self.message.visible = False
+        return io.BytesIO(data)
+
+    def _bvh(self):
+        s = self.session
+        self.bvh.filename = f"{s.output_stem()}.bvh"
+        return self._guard(lambda: backend.bvh_bytes(s.spliced()), "spliced BVH")
+
+    def _session_json(self):
+        return self._guard(lambda: self.session.to_json().encode("utf-8"), "session")
+
+    def _gif(self):
+        s = self.session
+        self.gif.filename = f"{s.output_stem()}.gif"
+        return self._guard(lambda: backend.preview_video(s.prepared, s.solution, "gif"),
+                           "preview GIF")
+
+    def _mp4(self):
+        s = self.session
+        self.mp4.filename = f"{s.output_stem()}.mp4"
+        return self._guard(lambda: backend.preview_video(s.prepared, s.solution, "mp4"),
+                           "preview MP4")
+
+    # ---------------------------------------------------------------- link
+
+    def _base_url(self) -> str:
+        loc = pn.state.location
+        if loc is not None and loc.href:
+            origin = f"{loc.protocol}//{loc.hostname}" + (f":{loc.port}" if loc.port else "")
+            return origin + (loc.pathname or "/")
+        return ""
+
+    def _update_link(self, *_):
+        query = self.session.share_url()
+        self.link.value = self._base_url() + query
+        loc = pn.state.location
+        if loc is not None and loc.search != query:
+            loc.param.update(search=query)
+
+    def panel(self) -> pn.viewable.Viewable:
+        return pn.Column(pn.Row(self.bvh, self.session_file, self.gif, self.mp4),
+                         self.link, self.message, sizing_mode="stretch_width")
