@@ -220,6 +220,7 @@ def key_weights(n_frames: int, key_frames: np.ndarray, easing: str = "hermite",
             m1 = np.clip(tang[s + 1], 0.1 * dx, 3.0 * dx)
             t = solve_hermite_time(keys[s], keys[s + 1], m0, m1, frames[sel])
             w[sel] = _hermite(0.0, 1.0, 0.0, 0.0, t)  # y(t) with zero tangents
+    w = np.where(frames <= keys[0], 0.0, np.where(frames >= keys[-1], 1.0, w))
     return seg.astype(np.int64), w
 
 
