@@ -9,9 +9,15 @@ threshold (0.12 m/s in the paper) the phrase is ``2H``, else ``RH`` when
 Choices of this implementation (the paper leaves them open):
 
 * Paths are measured in the body frame (shoulder-relative, pelvis yaw removed,
-  see ``engine.gesture.body``) on the phase segmenter's smoothed positions, so
+  see ``engine.gesture.body``) and smoothed like the phase segmenter's, so
   walking or turning does not count as hand movement and capture noise does not
   inflate a still hand's path.
+* The point measured is the hand tip by default (``point="tip"``), so a wave
+  made by turning the wrist counts; ``point="wrist"`` measures the wrist.
+* An independent hold has almost no path for either hand, so the paper's rule
+  would call every hold-only phrase 2H; for a joint phrase without any stroke
+  the whole phrase (preparation, hold, retraction) is measured instead
+  (``hold_span="phrase"``; ``"hold"`` keeps the paper's literal rule).
 * Phrases are found per hand; overlapping phrases of the two hands form one
   joint phrase, whose expressive phase is the union of both hands' expressive
   frames. A phrase of one hand alone has the other hand's path measured over the
@@ -34,14 +40,26 @@ LABELS = ("RH", "LH", "2H")
 
 @dataclass(frozen=True)
 class HandednessParameters:
-    """``threshold``: m/s; below it the per-second path difference means ``2H``."""
+    """Parameters of the handedness rule.
+
+    threshold : m/s; below it the per-second path difference means ``2H``.
+    point : ``"tip"`` (hand tip) or ``"wrist"``, the point whose path is measured.
+    hold_span : ``"phrase"`` or ``"hold"``, what is measured for a stroke-less phrase.
+    """
 
     threshold: float = 0.12
+    point: str = "tip"
+    hold_span: str = "phrase"
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.threshold) and self.threshold >= 0):
             raise ParameterError(
                 f"handedness threshold: expected a number >= 0 (m/s), got {self.threshold!r}")
+        if self.point not in ("tip", "wrist"):
+            raise ParameterError(f"handedness point: expected 'tip' or 'wrist', got {self.point!r}")
+        if self.hold_span not in ("phrase", "hold"):
+            raise ParameterError(
+                f"handedness hold_span: expected 'phrase' or 'hold', got {self.hold_span!r}")
 
 
 @dataclass(frozen=True)
@@ -124,16 +142,23 @@ def classify(right: np.ndarray, left: np.ndarray, mask: np.ndarray, fps: float,
     return label, l_r, l_l, duration, diff
 
 
-def joint_phrases(phases: GesturePhases) -> list[tuple[int, int, np.ndarray]]:
+def joint_phrases(phases: GesturePhases, hold_span: str = "phrase"
+                  ) -> list[tuple[int, int, np.ndarray]]:
     """Phrases of both hands merged where they overlap.
 
     Returns a list of ``(start, stop, expressive_mask)`` with ``expressive_mask``
-    of shape ``(stop - start,)``: frames expressive for either hand.
+    of shape ``(stop - start,)``: frames expressive for either hand (strokes and
+    independent holds); a phrase with no stroke in either hand is expressive over
+    its whole span when ``hold_span == "phrase"``.
     """
+    from engine.gesture.phases import Phase
+
     spans = []
-    masks = {}
-    for side, hand in phases.hands.items():
-        masks[side] = hand.expressive_mask()
+    union = np.zeros(phases.n_frames, dtype=bool)
+    strokes = np.zeros(phases.n_frames, dtype=bool)
+    for hand in phases.hands.values():
+        union |= hand.expressive_mask()
+        strokes |= hand.labels == Phase.STROKE
         spans.extend((p.start, p.stop) for p in hand.phrases)
     spans.sort()
     merged: list[list[int]] = []
@@ -142,15 +167,31 @@ def joint_phrases(phases: GesturePhases) -> list[tuple[int, int, np.ndarray]]:
             merged[-1][1] = max(merged[-1][1], b)
         else:
             merged.append([a, b])
-    union = np.zeros(phases.n_frames, dtype=bool)
-    for m in masks.values():
-        union |= m
     out = []
     for a, b in merged:
         mask = union[a:b].copy()
-        if mask[:-1].sum() == 0:  # defensive: a phrase always has an expressive phase
+        if (hold_span == "phrase" and not strokes[a:b].any()) or mask[:-1].sum() == 0:
             mask[:] = True
         out.append((a, b, mask))
+    return out
+
+
+def hand_paths(phases: GesturePhases, point: str = "tip") -> dict[str, np.ndarray]:
+    """(F, 3) smoothed paths, metres, shoulder-relative body frame, of each hand's ``point``.
+
+    Without arm paths (phases built from bare trajectories) the wrist paths of the
+    phase segmentation are used.
+    """
+    from engine.gesture.phases import derivatives
+
+    paths = getattr(phases, "paths", None)
+    if paths is None or point == "wrist":
+        return {side: hand.positions for side, hand in phases.hands.items()}
+    out = {}
+    for side in phases.hands:
+        p = paths.points[side]
+        rel = p[:, 3] - p[:, 0] if phases.params.reference == "shoulder" else p[:, 3]
+        out[side] = derivatives(rel, phases.fps, phases.params.smoothing_s)[0]
     return out
 
 
@@ -164,10 +205,10 @@ def detect_handedness(phases: GesturePhases, params: HandednessParameters | None
     missing = [s for s in ("right", "left") if s not in phases.hands]
     if missing:
         raise ParameterError(f"handedness needs both hands; missing {', '.join(missing)}")
-    right = phases.hands["right"].positions
-    left = phases.hands["left"].positions
+    paths = hand_paths(phases, params.point)
+    right, left = paths["right"], paths["left"]
     out = []
-    for a, b, mask in joint_phrases(phases):
+    for a, b, mask in joint_phrases(phases, params.hold_span):
         # one frame past the phrase so its last expressive frame has a step
         stop = min(b + 1, phases.n_frames)
         full = np.zeros(stop - a, dtype=bool)

@@ -266,3 +266,25 @@ def find_key_poses(points: np.ndarray, fps: float, params: KeyPoseParameters | N
         map_frames = np.zeros(0, dtype=np.int64)
     return KeyPoses(frames=frames, distance_map=raw, enhanced_map=enh, map_frames=map_frames,
                     fps=float(fps))
+
+
+def key_poses(motion, side: str = "right", params: KeyPoseParameters | None = None, arms=None,
+              with_map: bool = True, paths=None) -> KeyPoses:
+    """Key poses of one arm of a full-body take (root translation and pelvis yaw removed).
+
+    Parameters
+    ----------
+    motion : engine.motion.Motion
+    side : ``"right"`` or ``"left"``
+    params : KeyPoseParameters
+    arms : engine.gesture.body.BodyArms, found from joint roles when omitted
+    with_map : also return the distance maps
+    paths : engine.gesture.body.ArmPaths already computed for ``motion`` (optional)
+    """
+    from engine.gesture.body import SIDES, arm_paths
+
+    if side not in SIDES:
+        raise ParameterError(f"side: expected 'right' or 'left', got {side!r}")
+    paths = paths or arm_paths(motion, arms)
+    return find_key_poses(paths.points[side], motion.fps, params, with_map=with_map)
+

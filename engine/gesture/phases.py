@@ -212,12 +212,17 @@ class HandPhases:
 
 @dataclass(frozen=True)
 class GesturePhases:
-    """Both hands' phases for a take. ``hands`` maps ``"right"``/``"left"`` to HandPhases."""
+    """Both hands' phases for a take. ``hands`` maps ``"right"``/``"left"`` to HandPhases.
+
+    ``paths`` (``engine.gesture.body.ArmPaths``) holds the arm points in the body
+    frame when the phases come from a ``Motion``.
+    """
 
     hands: dict[str, HandPhases]
     fps: float
     n_frames: int
     params: PhaseParameters = field(default_factory=PhaseParameters)
+    paths: object = None
 
     def labels(self, side: str) -> np.ndarray:
         return self.hands[side].labels
@@ -500,3 +505,39 @@ def _merge_same(segs: list[PhaseSegment]) -> list[PhaseSegment]:
         else:
             out.append(s)
     return out
+
+
+# ---------------------------------------------------------------------------
+# A whole take
+
+
+def segment_phases(motion, params: PhaseParameters | None = None, arms=None,
+                   rest_positions: dict | None = None) -> GesturePhases:
+    """Phases of both hands of a full-body take.
+
+    Parameters
+    ----------
+    motion : engine.motion.Motion
+        Any units and up axis; positions are converted to metres in the body frame
+        (``engine.gesture.body``).
+    params : PhaseParameters
+    arms : engine.gesture.body.BodyArms, found from joint roles when omitted
+    rest_positions : dict side -> (3,) metres in the body frame relative to
+        ``params.reference``; estimated per hand when omitted
+
+    Returns
+    -------
+    GesturePhases with ``hands["right"]`` and ``hands["left"]``
+    """
+    from engine.gesture.body import SIDES, arm_paths
+
+    params = params or PhaseParameters()
+    paths = arm_paths(motion, arms)
+    hands = {}
+    for side in SIDES:
+        rest = (rest_positions or {}).get(side)
+        hands[side] = segment_trajectory(paths.wrist(side, params.reference), motion.fps, params,
+                                         rest_position=rest)
+    return GesturePhases(hands=hands, fps=float(motion.fps), n_frames=motion.n_frames,
+                         params=params, paths=paths)
+
