@@ -222,3 +222,92 @@ def bvh_bytes(motion) -> bytes:
     from engine.io.bvh import format_bvh
 
     return format_bvh(motion).encode("utf-8")
+
+
+# ---------------------------------------------------------------- previews
+
+_PREVIEWS: dict[int, object] = {}
+_PREVIEW_LOCK = threading.Lock()
+
+
+def preview_for(prepared: Prepared, solution: Solution):
+    """An ``engine.render.offscreen.Preview`` of body | hand | spliced (cached per solution)."""
+    from engine.render.offscreen import Preview
+
+    cached = solution.cache.get("preview")
+    if cached is not None:
+        return cached
+    spliced = splice(prepared, solution)
+    takes = [prepared.body, prepared.hand, spliced]
+    if not all(hasattr(t, "skeleton") for t in takes):
+        raise HandSpliceError("previews need skeleton takes (BVH); marker takes have no mesh")
+    preview = Preview(takes, labels=["body take", "hand take", "spliced"], size=(960, 360))
+    solution.cache["preview"] = preview
+    with _PREVIEW_LOCK:  # close the previous solutions' OpenGL contexts of this pair
+        old = _PREVIEWS.pop(id(prepared), None)
+        _PREVIEWS[id(prepared)] = preview
+    if old is not None and old is not preview:
+        old.close()
+    return preview
+
+
+def frame_triplet(prepared: Prepared, solution: Solution, body_frame: int) -> tuple[int, int, int]:
+    """(body frame, hand-take frame in its own frame rate, spliced frame) shown together."""
+    i = int(np.clip(body_frame, 0, prepared.n - 1))
+    hand_at_body_rate = float(solution.warp[i])
+    scale = float(prepared.hand.fps) / float(prepared.body.fps)
+    hand_frames = getattr(prepared.hand, "n_frames", None) or len(prepared.hand.rotations)
+    j = int(np.clip(round(hand_at_body_rate * scale), 0, hand_frames - 1))
+    return i, j, i
+
+
+def render_frame(prepared: Prepared, solution: Solution, body_frame: int, camera: str,
+                 trails: bool, size: tuple[int, int] = (960, 360)) -> np.ndarray:
+    """(H, W, 3) uint8: body take, hand take and spliced result side by side."""
+    preview = preview_for(prepared, solution)
+    frames = frame_triplet(prepared, solution, body_frame)
+    return preview.frame(frames[0], view="side_by_side", camera=camera, size=size,
+                         frames=list(frames), trails=trails)
+
+
+def png_bytes(image: np.ndarray) -> bytes:
+    import io
+
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(np.asarray(image, dtype=np.uint8)).save(buf, format="PNG", optimize=False)
+    return buf.getvalue()
+
+
+def preview_video(prepared: Prepared, solution: Solution, fmt: str, camera: str = "three-quarter",
+                  max_frames: int = 90, size: tuple[int, int] = (720, 270)) -> bytes:
+    """An animated preview (GIF or MP4 bytes) of the whole take, at most ``max_frames``
+    frames (evenly spaced), played at the take's speed."""
+    import io
+
+    import imageio.v3 as iio
+
+    if prepared is None or solution is None:
+        raise HandSpliceError("no takes loaded")
+    if fmt not in ("gif", "mp4"):
+        raise ValueError(f"format: expected gif or mp4, got {fmt!r}")
+    step = max(1, -(-prepared.n // max_frames))
+    frames = [render_frame(prepared, solution, i, camera, False, size)
+              for i in range(0, prepared.n, step)]
+    fps = max(1.0, float(prepared.body.fps) / step)
+    buf = io.BytesIO()
+    if fmt == "gif":
+        iio.imwrite(buf, np.stack(frames), extension=".gif", duration=1000.0 / fps, loop=0)
+    else:
+        iio.imwrite(buf, np.stack(frames), extension=".mp4", fps=fps, codec="libx264",
+                    plugin="pyav" if _has_pyav() else None)
+    return buf.getvalue()
+
+
+def _has_pyav() -> bool:
+    try:
+        import av  # noqa: F401
+    except ImportError:
+        return False
+    return True
