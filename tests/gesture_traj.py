@@ -53,3 +53,36 @@ def phrase_psh_r(space=(0.1, -0.1, 0.35), beat=(0.1, -0.3, 0.35)) -> list:
     """rest, preparation, two beat strokes, hold, retraction, rest."""
     return [("rest", 0.6), ("prep", 0.5, space), ("stroke", 0.2, beat), ("stroke", 0.2, space),
             ("hold", 0.5), ("retract", 0.6, None), ("rest", 0.6)]
+
+
+def turned_and_scaled(motion, yaw_deg: float = 90.0, shift=(3.0, 0.0, -2.0), unit: str = "mm"):
+    """The same take turned about the up axis, moved, and stored in other units.
+
+    The body-relative analysis must not change (metres, pelvis yaw removed).
+    """
+    from dataclasses import replace
+
+    from engine import rotations as rot
+    from engine.motion import UNIT_TO_METERS, MotionMeta
+
+    up = np.zeros(3)
+    up[2 if motion.meta.up_axis == "z" else 1] = 1.0
+    q = rot.from_axis_angle(up, np.radians(yaw_deg))
+    factor = motion.meters_per_unit / UNIT_TO_METERS[unit]
+    rots = motion.rotations.copy()
+    rots[:, 0] = rot.multiply(q, rots[:, 0])
+    trans = motion.translations * factor
+    trans[:, 0] = rot.rotate(q, trans[:, 0]) + np.asarray(shift) / UNIT_TO_METERS[unit]
+    sk = replace(motion.skeleton, offsets=motion.skeleton.offsets * factor,
+                 end_sites={j: v * factor for j, v in motion.skeleton.end_sites.items()})
+    meta = MotionMeta(units=unit, up_axis=motion.meta.up_axis, source=motion.meta.source,
+                      format=motion.meta.format)
+    return replace(motion, skeleton=sk, rotations=rots, translations=trans, meta=meta)
+
+
+def swapped_sides(arms):
+    """``BodyArms`` with right and left exchanged (a mirrored labelling)."""
+    from dataclasses import replace
+
+    return replace(arms, arms={"right": replace(arms.arms["left"], side="right"),
+                               "left": replace(arms.arms["right"], side="left")})

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import MOCAP
 from gesture_traj import REST, build, phrase_psh_r
 
 from engine.errors import ParameterError
@@ -91,3 +92,63 @@ def test_threshold_parameter_is_validated():
         classify(np.zeros((5, 3)), np.zeros((5, 3)), np.ones(4, bool), 30.0)
     with pytest.raises(ParameterError, match="expressive"):
         classify(np.zeros((5, 3)), np.zeros((5, 3)), np.zeros(5, bool), 30.0)
+
+
+BANDAI = MOCAP / "bandai-namco"
+
+
+@pytest.fixture(scope="module")
+def bandai():
+    from engine.io.bvh import read_bvh
+
+    cache = {}
+
+    def load(name):
+        if name not in cache:
+            cache[name] = read_bvh(BANDAI / f"dataset-{name}_normal_001.bvh")
+        return cache[name]
+
+    return load
+
+
+@pytest.mark.parametrize("take, want", [("2_wave-right-hand", "RH"), ("2_wave-both-hands", "2H"),
+                                        ("2_raise-up-right-hand", "RH")])
+def test_real_takes_with_unambiguous_names(bandai, take, want):
+    from gesture_traj import swapped_sides
+
+    from engine.gesture.body import find_arms
+    from engine.gesture.phases import segment_phases
+
+    motion = bandai(take)
+    (phrase,) = detect_handedness(segment_phases(motion))
+    assert phrase.label == want
+    # mirrored labelling (right and left exchanged): RH <-> LH, 2H stays
+    arms = swapped_sides(find_arms(motion.skeleton))
+    (mirror,) = detect_handedness(segment_phases(motion, arms=arms))
+    assert mirror.label == {"RH": "LH", "LH": "RH", "2H": "2H"}[want]
+
+
+def test_real_take_units_do_not_matter(bandai):
+    from gesture_traj import turned_and_scaled
+
+    from engine.gesture.phases import segment_phases
+
+    take = bandai("2_wave-right-hand")
+    (cm,) = detect_handedness(segment_phases(take))
+    (mm,) = detect_handedness(segment_phases(turned_and_scaled(take, unit="mm")))
+    (inch,) = detect_handedness(segment_phases(turned_and_scaled(take, yaw_deg=-30, unit="in")))
+    assert cm.label == mm.label == inch.label == "RH"
+    assert cm.right_length == pytest.approx(mm.right_length, rel=1e-6)
+    assert cm.right_length == pytest.approx(inch.right_length, rel=1e-6)
+    # the wave: the right hand travels metres, the hanging left hand sways a little
+    assert cm.right_length > 3.0 and cm.left_length < 0.15 * cm.right_length
+
+
+def test_literal_rule_reads_an_independent_hold_as_2h(bandai):
+    from engine.gesture.phases import segment_phases
+
+    g = segment_phases(bandai("2_raise-up-right-hand"))
+    (literal,) = detect_handedness(g, HandednessParameters(hold_span="hold"))
+    assert literal.label == "2H" and literal.difference < 0.12
+    (wrist,) = detect_handedness(g, HandednessParameters(point="wrist"))
+    assert wrist.label == "RH"

@@ -101,3 +101,54 @@ def test_bad_parameters_name_the_field(kwargs):
 def test_bad_points_shape_is_an_error():
     with pytest.raises(ParameterError, match="points"):
         find_key_poses(np.zeros((10, 3, 3)), FPS)
+
+
+@pytest.mark.parametrize("take, side", [("2_wave-right-hand", "right"),
+                                        ("2_wave-both-hands", "right"),
+                                        ("2_wave-both-hands", "left"),
+                                        ("1_byebye", "right")])
+def test_key_poses_of_real_waves_land_on_the_swing_extremes(take, side):
+    """Within the wave (the stroke), key frames sit on the extremes of the hand tip's
+    swing (projected on its main direction) within one frame, and after the first
+    key nearly every extreme gets a key."""
+    from conftest import MOCAP
+    from scipy.signal import find_peaks
+
+    from engine.gesture.body import arm_paths
+    from engine.gesture.keyposes import key_poses
+    from engine.gesture.phases import Phase, segment_phases
+    from engine.io.bvh import read_bvh
+
+    motion = read_bvh(MOCAP / "bandai-namco" / f"dataset-{take}_normal_001.bvh")
+    paths = arm_paths(motion)
+    keys = key_poses(motion, side, paths=paths).frames
+    stroke = np.flatnonzero(segment_phases(motion).labels(side) == Phase.STROKE)
+    a, b = stroke[0], stroke[-1]
+    tip = paths.points[side][:, 3] - paths.points[side][:, 0]
+    main = np.linalg.svd(tip[a:b] - tip[a:b].mean(0), full_matrices=False)[2][0]
+    x = tip @ main
+    ext = np.sort(np.r_[find_peaks(x, prominence=0.02)[0], find_peaks(-x, prominence=0.02)[0]])
+    ext = ext[(ext >= a) & (ext <= b)]
+    inside = keys[(keys >= a) & (keys <= b)]
+    assert len(inside) >= 10
+    off = np.array([np.min(np.abs(ext - k)) for k in inside[1:]])
+    assert np.all(off <= 1)
+    later = ext[ext > inside[0]]
+    found = np.array([np.min(np.abs(inside - e)) <= 1 for e in later])
+    assert found.mean() >= 0.75
+
+
+def test_key_pose_of_raise_up_is_the_top():
+    from conftest import MOCAP
+
+    from engine.gesture.body import arm_paths
+    from engine.gesture.keyposes import key_poses
+    from engine.io.bvh import read_bvh
+
+    motion = read_bvh(MOCAP / "bandai-namco" / "dataset-2_raise-up-right-hand_normal_001.bvh")
+    paths = arm_paths(motion)
+    key = key_poses(motion, "right", paths=paths)
+    height = paths.points["right"][:, 3, 1]
+    assert len(key.frames) >= 1
+    assert abs(int(key.frames[0]) - int(np.argmax(height))) <= 3
+    assert key.distance_map.shape == (motion.n_frames, motion.n_frames)

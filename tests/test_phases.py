@@ -124,3 +124,59 @@ def test_bad_trajectory_shape_is_an_error():
 
 
 BANDAI = MOCAP / "bandai-namco"
+
+
+@pytest.fixture(scope="module")
+def bandai():
+    from engine.io.bvh import read_bvh
+
+    cache = {}
+
+    def load(name):
+        if name not in cache:
+            cache[name] = read_bvh(BANDAI / f"dataset-{name}_normal_001.bvh")
+        return cache[name]
+
+    return load
+
+
+def test_wave_right_hand_phases(bandai):
+    from engine.gesture.phases import segment_phases
+
+    g = segment_phases(bandai("2_wave-right-hand"))
+    assert [p.pattern for p in g.hands["right"].phrases] == ["PSR"]
+    assert g.hands["left"].phrases == ()  # the left arm hangs (it sways a little)
+    labels = g.labels("right")
+    # the wave (≈ frames 20-160 of 187) is one stroke; raising and lowering around it
+    strokes = np.flatnonzero(labels == Phase.STROKE)
+    assert 12 <= strokes[0] <= 30 and 150 <= strokes[-1] <= 170
+    assert labels[5] == Phase.PREPARATION and labels[175] == Phase.RETRACTION
+    np.testing.assert_allclose(g.hands["right"].rest_position[1], -0.45, atol=0.05)  # arm hanging
+
+
+def test_wave_both_hands_and_raise_up(bandai):
+    from engine.gesture.phases import segment_phases
+
+    g = segment_phases(bandai("2_wave-both-hands"))
+    r, left = g.labels("right") == Phase.STROKE, g.labels("left") == Phase.STROKE
+    assert [p.pattern for p in g.hands["right"].phrases] == ["PSR"]
+    assert [p.pattern for p in g.hands["left"].phrases] == ["PSR"]
+    assert (r & left).sum() > 0.9 * max(r.sum(), left.sum())
+    up = segment_phases(bandai("2_raise-up-right-hand"))
+    assert [p.pattern for p in up.hands["right"].phrases] == ["PHR"]  # an independent hold
+    hold = np.flatnonzero(up.labels("right") == Phase.HOLD)
+    height = up.hands["right"].positions[:, 1]
+    assert height[hold].min() > height.max() - 0.05  # held at the top
+
+
+def test_phases_ignore_units_heading_and_travel(bandai):
+    from gesture_traj import turned_and_scaled
+
+    from engine.gesture.phases import segment_phases
+
+    take = bandai("1_call")
+    a = segment_phases(take)
+    b = segment_phases(turned_and_scaled(take, yaw_deg=120.0, unit="mm"))
+    for side in ("right", "left"):
+        np.testing.assert_array_equal(a.labels(side), b.labels(side))
+        np.testing.assert_allclose(a.hands[side].positions, b.hands[side].positions, atol=1e-6)

@@ -30,13 +30,22 @@ HAND_PER_FOREARM = 0.75  # hand length (wrist to fingertip) over forearm length
 
 @dataclass(frozen=True)
 class ArmJoints:
-    """Joint indices of one arm. ``fingers`` maps a finger to its joints, palm out."""
+    """Joint indices of one arm.
+
+    ``hand`` is the joint orienting the palm (the wrist in most rigs);
+    ``fingers[f]`` lists finger ``f``'s joints palm out and ``numbers[f]`` their
+    anatomical numbers (1 = MCP / thumb CMC, 2 = PIP / MCP, 3 = DIP / IP);
+    ``tip`` is ``(joint, offset in its rest frame)`` of the hand tip.
+    """
 
     side: str
     shoulder: int
     elbow: int
     wrist: int
+    hand: int | None = None
     fingers: dict[str, tuple[int, ...]] = field(default_factory=dict)
+    numbers: dict[str, tuple[int, ...]] = field(default_factory=dict)
+    tip: tuple[int, np.ndarray] | None = None
 
     @property
     def has_fingers(self) -> bool:
@@ -51,23 +60,6 @@ class BodyArms:
     pelvis: int
 
 
-def _roles_to_arms(skeleton: Skeleton, roles) -> BodyArms:
-    arms = {}
-    for side in SIDES:
-        part = roles.side(side)
-        fingers = {}
-        for f in FINGERS:
-            joints = getattr(part, f, None)
-            if joints is None and hasattr(part, "fingers"):
-                joints = dict(part.fingers).get(f)
-            fingers[f] = tuple(int(j) for j in (joints or ()))
-        arms[side] = ArmJoints(side, int(part.shoulder), int(part.elbow), int(part.wrist), fingers)
-    pelvis = getattr(roles, "pelvis", None)
-    if pelvis is None:
-        pelvis = _pelvis_index(skeleton)
-    return BodyArms(arms, int(pelvis))
-
-
 def _pelvis_index(skeleton: Skeleton) -> int:
     """The first joint from the root that branches (legs and spine), else the root."""
     for j in range(skeleton.n_joints):
@@ -76,14 +68,35 @@ def _pelvis_index(skeleton: Skeleton) -> int:
     return 0
 
 
+def arms_from_roles(roles, sides=SIDES) -> BodyArms:
+    """``BodyArms`` from ``engine.roles.Roles``; ``RoleError`` names a missing joint."""
+    sk = roles.skeleton
+    arms = {}
+    for side in sides:
+        part = roles.side(side)
+        wrist = roles.require(side, "wrist")
+        shoulder = roles.require(side, "shoulder")
+        elbow = roles.require(side, "elbow")
+        fingers = {f: tuple(int(j) for j in part.fingers[f]) for f in FINGERS}
+        numbers = {f: tuple(int(k) for k in part.numbers[f]) for f in FINGERS}
+        tip = None
+        if not any(fingers.values()):
+            mark = roles.landmarks(side).get("hand")
+            if mark is not None:
+                tip = (int(mark.joint), np.asarray(mark.offset, dtype=float))
+        arms[side] = ArmJoints(side, int(shoulder), int(elbow), int(wrist),
+                               None if part.hand is None else int(part.hand), fingers, numbers, tip)
+    return BodyArms(arms, _pelvis_index(sk))
+
+
 def find_arms(skeleton: Skeleton, overrides=None) -> BodyArms:
     """Both arms of a full-body skeleton, from ``engine.roles.find_roles``.
 
-    Raises ``RoleError`` (naming the skeleton's joints) when an arm is missing.
+    Raises ``RoleError`` (naming the nearest joint names) when an arm joint is missing.
     """
     from engine.roles import find_roles
 
-    return _roles_to_arms(skeleton, find_roles(skeleton, overrides))
+    return arms_from_roles(find_roles(skeleton, overrides))
 
 
 def metres_per_unit(motion: Motion, arms: BodyArms) -> float:
@@ -122,25 +135,21 @@ class ArmPaths:
 
 
 def _tip_local(skeleton: Skeleton, arm: ArmJoints, rest: np.ndarray) -> tuple[int, np.ndarray]:
-    """Joint and local offset of the hand tip (in that joint's rest frame)."""
-    middle = arm.fingers.get("middle") or arm.fingers.get("index") or ()
-    if middle:
-        last = middle[-1]
+    """Joint and local offset (its rest frame) of the hand tip: the middle (else index)
+    finger's last joint continued by its End Site length along the last bone; else
+    the roles' hand landmark; else 0.75 forearm lengths beyond the wrist."""
+    chain = arm.fingers.get("middle") or arm.fingers.get("index") or ()
+    if chain:
+        last = chain[-1]
+        bone = rest[last] - rest[skeleton.parents[last]]
         site = skeleton.end_sites.get(last)
-        # a finger's End Site can be a placeholder; use the last bone's length along its line
-        prev = skeleton.parents[last]
-        bone = rest[last] - rest[prev]
-        if site is not None and np.linalg.norm(site) > 0 and np.linalg.norm(bone) > 0:
-            return last, bone / np.linalg.norm(bone) * min(np.linalg.norm(site), np.linalg.norm(bone))
+        if site is not None and np.linalg.norm(bone) > 0:
+            # End Sites are often placeholders: keep their length, not their direction
+            length = min(float(np.linalg.norm(site)), float(np.linalg.norm(bone)))
+            return last, bone / np.linalg.norm(bone) * length
         return last, np.zeros(3)
-    # no fingers: the farthest rest descendant of the wrist, or extrapolate the forearm
-    desc = skeleton.descendants(arm.wrist)
-    far = max(desc, key=lambda j: np.linalg.norm(rest[j] - rest[arm.wrist]))
-    if far != arm.wrist and np.linalg.norm(rest[far] - rest[arm.wrist]) > 0:
-        return arm.wrist, rest[far] - rest[arm.wrist]
-    site = skeleton.end_sites.get(arm.wrist)
-    if site is not None and np.linalg.norm(site) > 0:
-        return arm.wrist, np.asarray(site, dtype=float)
+    if arm.tip is not None:
+        return arm.tip
     return arm.wrist, (rest[arm.wrist] - rest[arm.elbow]) * HAND_PER_FOREARM
 
 

@@ -18,8 +18,8 @@ Choices of this implementation (the paper leaves them open):
   would call every hold-only phrase 2H; for a joint phrase without any stroke
   the whole phrase (preparation, hold, retraction) is measured instead
   (``hold_span="phrase"``; ``"hold"`` keeps the paper's literal rule).
-* Phrases are found per hand; overlapping phrases of the two hands form one
-  joint phrase, whose expressive phase is the union of both hands' expressive
+* Phrases are found per hand; phrases of the two hands that overlap by at
+  least 30 % of the shorter form one joint phrase, whose expressive phase is the union of both hands' expressive
   frames. A phrase of one hand alone has the other hand's path measured over the
   same frames.
 * Units: every length is in metres whatever the file's units (the caller
@@ -36,6 +36,7 @@ from engine.errors import ParameterError
 from engine.gesture.phases import GesturePhases
 
 LABELS = ("RH", "LH", "2H")
+MERGE_OVERLAP = 0.3
 
 
 @dataclass(frozen=True)
@@ -144,7 +145,9 @@ def classify(right: np.ndarray, left: np.ndarray, mask: np.ndarray, fps: float,
 
 def joint_phrases(phases: GesturePhases, hold_span: str = "phrase"
                   ) -> list[tuple[int, int, np.ndarray]]:
-    """Phrases of both hands merged where they overlap.
+    """Phrases of both hands merged where they overlap by at least ``MERGE_OVERLAP``
+    of the shorter one (a brief overlap only trims the later phrase, so phrases
+    of the two hands do not chain into one long span in continuous motion).
 
     Returns a list of ``(start, stop, expressive_mask)`` with ``expressive_mask``
     of shape ``(stop - start,)``: frames expressive for either hand (strokes and
@@ -164,9 +167,15 @@ def joint_phrases(phases: GesturePhases, hold_span: str = "phrase"
     merged: list[list[int]] = []
     for a, b in spans:
         if merged and a < merged[-1][1]:
-            merged[-1][1] = max(merged[-1][1], b)
-        else:
-            merged.append([a, b])
+            prev = merged[-1]
+            overlap = min(b, prev[1]) - a
+            if overlap >= MERGE_OVERLAP * min(b - a, prev[1] - prev[0]):
+                prev[1] = max(prev[1], b)
+                continue
+            a = prev[1]  # a brief overlap: the later phrase starts where the earlier ends
+            if b <= a:
+                continue
+        merged.append([a, b])
     out = []
     for a, b in merged:
         mask = union[a:b].copy()
