@@ -1,0 +1,254 @@
+"""Public DTW calls: ``align`` (precomputed cost matrix) and ``align_features``.
+
+Both return an ``Alignment``: the optimal path through a ``Band`` under the
+step pattern of Majkowska et al. eqs. 1-2 (steps (1, 0), (0, 1), (1, 1), each
+cell's local cost counted once) and its total cost.
+
+Local costs, NaN and infinity
+-----------------------------
+* ``+inf`` forbids a cell. If every path through the band meets one, the call
+  raises ``ValueError`` rather than returning an infinite-cost path.
+* NaN or ``-inf`` inside the band raise ``ValueError`` naming the first such
+  cell (row = body frame, column = hand frame). Cells outside the band are
+  never read, so a NaN there is harmless. Capture gaps must be filled (or the
+  metric must map them to a finite or ``+inf`` cost) before aligning.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba.core.dispatcher import Dispatcher
+
+from engine.errors import ParameterError
+
+from . import kernels as K
+from .band import Band
+
+_NO_GAMMA = np.empty(0, np.float64)
+
+
+@dataclass(frozen=True, eq=False)
+class Alignment:
+    """Result of a DTW alignment.
+
+    Attributes
+    ----------
+    path : (k, 2) int64 array
+        Cells ``(i, j)`` (body frame, hand frame) from ``(0, 0)`` to
+        ``(n-1, m-1)``; each step is ``(1, 0)``, ``(0, 1)`` or ``(1, 1)``.
+    cost : float
+        Sum of the local costs of the path's cells (γ(n-1, m-1)).
+    band : Band
+        The band the path was searched in.
+    """
+
+    path: np.ndarray
+    cost: float
+    band: Band
+
+    @property
+    def n(self) -> int:
+        return self.band.n
+
+    @property
+    def m(self) -> int:
+        return self.band.m
+
+    def __repr__(self) -> str:
+        return (
+            f"Alignment(n={self.n}, m={self.m}, path_length={len(self.path)}, cost={self.cost:.6g})"
+        )
+
+
+def align(cost, band: Band) -> Alignment:
+    """Optimal banded DTW path through a precomputed local-cost matrix.
+
+    Parameters
+    ----------
+    cost : (n, m) float array
+        Local cost ``D(i, j)`` of body frame ``i`` against hand frame ``j``.
+        Only cells inside ``band`` are read.
+    band : Band
+        Allowed cells; must be for ``n`` rows and ``m`` columns.
+    """
+    problem = Problem.from_cost(cost)
+    return problem.solve(_check_band(band, problem))
+
+
+def align_features(a, b, band: Band, metric: str | Dispatcher = "sqeuclidean") -> Alignment:
+    """Optimal banded DTW path between two feature sequences.
+
+    The local cost ``metric(a[i], b[j])`` is computed inside the kernel for
+    band cells only; no ``n x m`` matrix is built.
+
+    Parameters
+    ----------
+    a : (n, d) float array
+        Body-take features per frame (1-D arrays are read as ``d = 1``).
+    b : (m, d) float array
+        Hand-take features per frame.
+    band : Band
+        Allowed cells, ``n`` rows and ``m`` columns.
+    metric : str or numba function
+        ``"sqeuclidean"`` (default), ``"euclidean"``, a name registered with
+        ``register_metric``, or a ``numba.njit`` function ``f(a_row, b_row)``.
+    """
+    problem = Problem.from_features(a, b, metric)
+    return problem.solve(_check_band(band, problem))
+
+
+def _check_band(band, problem: Problem) -> Band:
+    if not isinstance(band, Band):
+        raise TypeError(f"band must be an engine.dtw.Band, got {type(band).__name__}")
+    band.check_fits((problem.n, problem.m), problem.what)
+    return band
+
+
+def _as_float_array(x, name: str, ndim: tuple[int, ...]) -> np.ndarray:
+    arr = np.asarray(x)
+    if arr.dtype.kind not in "fiub":
+        raise ParameterError(f"{name} must hold real numbers, got dtype {arr.dtype}")
+    if arr.ndim not in ndim:
+        want = " or ".join(f"{d}-D" for d in ndim)
+        raise ParameterError(f"{name} must be a {want} array, got shape {arr.shape}")
+    return np.ascontiguousarray(arr, dtype=np.float64)
+
+
+class Problem:
+    """A local-cost source (matrix, built-in metric or numba metric) and its kernels.
+
+    Internal to ``engine.dtw``: ``align``, ``align_features``, ``Aligner`` and
+    the views share it.
+    """
+
+    def __init__(self, kind: str, n: int, m: int, what: str, **arrays):
+        self.kind = kind  # "matrix" | "builtin" | "metric"
+        self.n = n
+        self.m = m
+        self.what = what
+        self.cost = arrays.get("cost")
+        self.a = arrays.get("a")
+        self.b = arrays.get("b")
+        self.bT = arrays.get("bT")
+        self.metric: K.Metric | None = arrays.get("metric")
+
+    @classmethod
+    def from_cost(cls, cost) -> Problem:
+        cost = _as_float_array(cost, "cost matrix", (2,))
+        if cost.shape[0] == 0 or cost.shape[1] == 0:
+            raise ParameterError(
+                f"cost matrix must have at least one row and column, got {cost.shape}"
+            )
+        return cls("matrix", cost.shape[0], cost.shape[1], "cost matrix", cost=cost)
+
+    @classmethod
+    def from_features(cls, a, b, metric) -> Problem:
+        met = K.get_metric(metric)
+        a = _as_float_array(a, "features a", (1, 2))
+        b = _as_float_array(b, "features b", (1, 2))
+        a = a.reshape(-1, 1) if a.ndim == 1 else a
+        b = b.reshape(-1, 1) if b.ndim == 1 else b
+        if a.shape[0] == 0 or b.shape[0] == 0:
+            raise ParameterError(
+                f"features need at least one frame each, got {a.shape[0]} and {b.shape[0]}"
+            )
+        if a.shape[1] != b.shape[1]:
+            raise ParameterError(
+                f"features a have {a.shape[1]} values per frame but b have {b.shape[1]}"
+            )
+        what = f"features ({a.shape[0]} x {b.shape[0]} frames)"
+        if met.kind >= 0:
+            return cls(
+                "builtin",
+                a.shape[0],
+                b.shape[0],
+                what,
+                a=a,
+                b=b,
+                bT=np.ascontiguousarray(b.T),
+                metric=met,
+            )
+        return cls("metric", a.shape[0], b.shape[0], what, a=a, b=b, metric=met)
+
+    def reversed(self) -> Problem:
+        """The same problem with both sequences reversed (for backward passes)."""
+        if self.kind == "matrix":
+            return Problem(
+                "matrix",
+                self.n,
+                self.m,
+                self.what,
+                cost=np.ascontiguousarray(self.cost[::-1, ::-1]),
+            )
+        a = np.ascontiguousarray(self.a[::-1])
+        b = np.ascontiguousarray(self.b[::-1])
+        extra = {"bT": np.ascontiguousarray(b.T)} if self.kind == "builtin" else {}
+        return Problem(self.kind, self.n, self.m, self.what, a=a, b=b, metric=self.metric, **extra)
+
+    # -- kernels ---------------------------------------------------------
+    def forward(self, lo, hi, start, i0, i1, bp, gamma, keep_gamma):
+        """Rows ``i0..i1-1`` of γ; returns (bad_row, total) as the kernels do."""
+        if self.kind == "matrix":
+            return K.forward_matrix(self.cost, lo, hi, start, i0, i1, bp, gamma, keep_gamma)
+        if self.kind == "builtin":
+            return K.forward_builtin(
+                self.a, self.bT, self.metric.kind, lo, hi, start, i0, i1, bp, gamma, keep_gamma
+            )
+        return K.forward_metric(
+            self.metric.cell, self.a, self.b, lo, hi, start, i0, i1, bp, gamma, keep_gamma
+        )
+
+    def cost_row(self, i: int, lo: int, hi: int) -> np.ndarray:
+        """Local costs of row ``i``, columns ``lo..hi``."""
+        if self.kind == "matrix":
+            return self.cost[i, lo : hi + 1].copy()
+        if self.kind == "builtin":
+            return K.cost_row_builtin(self.a, self.bT, self.metric.kind, i, lo, hi)
+        return K.cost_row_metric(self.metric.cell, self.a, self.b, i, lo, hi)
+
+    def bad_cost_error(self, i: int, band: Band, reversed_: bool = False) -> ValueError:
+        """The ValueError for the first NaN/-inf local cost in row ``i`` of ``band``."""
+        lo, hi = int(band.lo[i]), int(band.hi[i])
+        row = self.cost_row(i, lo, hi)
+        bad = np.flatnonzero(~(row > -np.inf))
+        j = lo + int(bad[0]) if bad.size else lo
+        value = row[j - lo] if bad.size else np.nan
+        if reversed_:
+            i, j = self.n - 1 - i, self.m - 1 - j
+        if self.kind == "matrix":
+            return ParameterError(
+                f"cost matrix cell (body frame {i}, hand frame {j}) is {value}; local costs "
+                "inside the band must be finite or +inf"
+            )
+        detail = ""
+        a = self.a if not reversed_ else self.a[::-1]
+        b = self.b if not reversed_ else self.b[::-1]
+        for name, row_vals, idx in (("a", a, i), ("b", b, j)):
+            nan_dims = np.flatnonzero(np.isnan(row_vals[idx]))
+            if nan_dims.size:
+                detail += f"; {name}[{idx}] has NaN in dimension(s) {nan_dims.tolist()}"
+        return ParameterError(
+            f"metric {self.metric.name!r} gave {value} at body frame {i}, hand frame {j}{detail}; "
+            "fill capture gaps (or make the metric return +inf) before aligning"
+        )
+
+    def solve(self, band: Band) -> Alignment:
+        """One-shot forward pass (two γ rows, one byte per cell) and backtrack."""
+        bp = np.empty(band.area, np.uint8)  # every entry is written by the forward pass
+        bad_row, total = self.forward(band.lo, band.hi, band.start, 0, band.n, bp, _NO_GAMMA, False)
+        if bad_row >= 0:
+            raise self.bad_cost_error(int(bad_row), band)
+        check_total(total)
+        path = K.backtrack(bp, band.lo, band.start, band.n - 1, band.m - 1)
+        path.flags.writeable = False
+        return Alignment(path=path, cost=float(total), band=band)
+
+
+def check_total(total: float) -> None:
+    if not np.isfinite(total):
+        raise ParameterError(
+            "every path through the band crosses a cell of infinite local cost; "
+            "widen the band or check the costs"
+        )

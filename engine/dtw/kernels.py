@@ -1,0 +1,507 @@
+"""Numba kernels for banded DTW and the registry of local-cost metrics.
+
+Storage (METHOD.md §4, "Memory"): a band is kept row by row. Cell ``(i, j)`` of
+band row ``i`` (``lo[i] <= j <= hi[i]``) has the flat index
+``start[i] + j - lo[i]``; ``start`` is the exclusive prefix sum of the row
+widths (``Band.start``). Backpointers are one byte per band cell
+(``DIAGONAL``, ``VERTICAL``, ``HORIZONTAL``: the step that entered the cell);
+cumulative costs γ are kept only when asked for (the incremental ``Aligner``),
+otherwise two rows of ``m + 1`` doubles suffice. Memory therefore grows with
+the band area, never with ``n * m``.
+
+Recurrence (Majkowska et al. eqs. 1-2)::
+
+    γ(i, j) = D(i, j) + min(γ(i-1, j-1), γ(i-1, j), γ(i, j-1)),  γ = +inf outside the band
+
+with ``γ(-1, -1) = 0``. Ties prefer the diagonal, then the vertical step
+(``i-1, j``), then the horizontal one (``i, j-1``); ``tests/naive.py`` uses
+the same order.
+
+Local costs must not be NaN or ``-inf`` (``+inf`` is allowed and forbids a
+cell): a kernel that meets one stops and reports the row, the public functions
+turn that into a ``ValueError`` naming the cell.
+
+Metrics
+-------
+A metric is a numba function of two feature rows returning the local cost::
+
+    import numba
+    from engine.dtw import register_metric
+
+    @register_metric("forearm_palm_angle")
+    @numba.njit(fastmath=True, nogil=True)
+    def forearm_palm_angle(body_row, hand_row):   # (d,) float64 each
+        ...
+        return angle                               # float, radians
+
+    align_features(body, hand, band, metric="forearm_palm_angle")
+
+``body_row`` is ``a[i]`` (a row of the first feature array), ``hand_row`` is
+``b[j]``. The function must not raise and must not allocate much (it runs once
+per band cell); it should return ``+inf`` rather than NaN for a cell that must
+not be matched. Registered metrics work with ``align_features``, ``Aligner``
+and ``local_cost_image``; the kernel is compiled once per process and metric
+(not cached on disk, numba cannot cache kernels that take a function
+argument). ``"sqeuclidean"`` and ``"euclidean"`` are built in with a
+vectorised row kernel that is cached on disk; a numba function can also be
+passed directly as ``metric=`` without registering it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba.core.dispatcher import Dispatcher
+
+from ._config import njit, njit_cached
+
+DIAGONAL = np.uint8(0)  # came from (i-1, j-1)
+VERTICAL = np.uint8(1)  # came from (i-1, j)
+HORIZONTAL = np.uint8(2)  # came from (i, j-1)
+
+# built-in metric kinds for the cached feature kernels
+SQEUCLIDEAN = 0
+EUCLIDEAN = 1
+
+INF = np.inf
+NEG_INF = -np.inf
+
+
+# ---------------------------------------------------------------------------
+# the recurrence, one row or two interleaved rows at a time
+# ---------------------------------------------------------------------------
+# γ rows live in buffers of m + 1 doubles indexed by absolute column + 1
+# (index 0 is column -1). A row buffer is +inf outside its band row where the
+# next row reads it (``_pad_row``). Loops run over slices starting at the
+# band edge, so indices are provably non-negative (no wraparound code) and the
+# minimum/addition chain along a row is the only serial dependency. Two rows
+# are interleaved (row i at column t, row i+1 at column t-1) so two
+# independent chains overlap: same arithmetic, same results, ~1.5x faster.
+
+PAIR_MIN_WIDTH = 32  # rows narrower than this are done one at a time
+
+
+@njit_cached()
+def _dp_row(prev, cur, crow, lo, hi, bp_row):
+    """Row ``i`` of γ into ``cur`` from row ``i - 1`` in ``prev``.
+
+    ``crow``: local costs by absolute column; ``bp_row``: the row's
+    backpointers (``hi - lo + 1`` bytes). Returns True if a local cost in the
+    row was NaN or -inf.
+    """
+    w = hi - lo + 1
+    p = prev[lo : hi + 2]  # p[k] = γ(i-1, lo+k-1), p[k+1] = γ(i-1, lo+k)
+    out = cur[lo + 1 : hi + 2]
+    cost = crow[lo : hi + 1]
+    left = INF
+    bad = False
+    for k in range(w):
+        diag = p[k]
+        up = p[k + 1]
+        c = cost[k]
+        du = min(diag, up)
+        step_du = VERTICAL if up < diag else DIAGONAL
+        step = HORIZONTAL if left < du else step_du
+        g = c + min(left, du)
+        bad |= not (c > NEG_INF)
+        out[k] = g
+        left = g
+        bp_row[k] = step
+    return bad
+
+
+@njit_cached()
+def _dp_pair(prev, mid, cur, crow_a, crow_b, lo_a, hi_a, lo_b, hi_b, bp_a, bp_b):
+    """Rows ``i`` (``prev`` -> ``mid``) and ``i + 1`` (``mid`` -> ``cur``) interleaved.
+
+    Needs ``lo_a <= lo_b <= hi_a + 1`` (a trimmed, feasible band). Returns a
+    bit set: 1 if row ``i`` had a NaN/-inf local cost, 2 if row ``i + 1`` had.
+    Pads ``mid`` for row ``i + 1``'s reads.
+    """
+    # phase 1: row i alone, columns lo_a .. min(hi_a, lo_b)
+    end1 = min(hi_a, lo_b)
+    pa = prev[lo_a : hi_a + 2]
+    out_a = mid[lo_a + 1 : hi_a + 2]
+    cost_a = crow_a[lo_a : hi_a + 1]
+    left_a = INF
+    bad_a = False
+    for k in range(end1 - lo_a + 1):
+        diag = pa[k]
+        up = pa[k + 1]
+        c = cost_a[k]
+        du = min(diag, up)
+        step_du = VERTICAL if up < diag else DIAGONAL
+        bp_a[k] = HORIZONTAL if left_a < du else step_du
+        g = c + min(left_a, du)
+        bad_a |= not (c > NEG_INF)
+        out_a[k] = g
+        left_a = g
+    mid[lo_a] = INF
+    for q in range(hi_a + 2, hi_b + 2):
+        mid[q] = INF
+    # phase 2: row i at column t = lo_b+1 .. hi_a, row i+1 at column t-1
+    w_b = hi_b - lo_b + 1
+    cost_b = crow_b[lo_b : hi_b + 1]
+    out_b = cur[lo_b + 1 : hi_b + 2]
+    left_b = INF
+    bad_b = False
+    done_b = 0
+    if hi_a >= lo_b + 1:
+        count = hi_a - lo_b
+        k_a = lo_b + 1 - lo_a
+        pa2 = prev[lo_b + 1 : hi_a + 2]
+        cost_a2 = crow_a[lo_b + 1 : hi_a + 1]
+        out_a2 = mid[lo_b + 2 : hi_a + 2]
+        bp_a2 = bp_a[k_a : k_a + count]
+        a_diag = mid[lo_b]  # γ(i, t-2) for t = lo_b + 1
+        a_up = mid[lo_b + 1]  # γ(i, t-1)
+        for k in range(count):
+            diag = pa2[k]
+            up = pa2[k + 1]
+            c = cost_a2[k]
+            du = min(diag, up)
+            step_du = VERTICAL if up < diag else DIAGONAL
+            bp_a2[k] = HORIZONTAL if left_a < du else step_du
+            g = c + min(left_a, du)
+            bad_a |= not (c > NEG_INF)
+            out_a2[k] = g
+            left_a = g
+            # row i+1 at column lo_b + k
+            c2 = cost_b[k]
+            du2 = min(a_diag, a_up)
+            step_du2 = VERTICAL if a_up < a_diag else DIAGONAL
+            bp_b[k] = HORIZONTAL if left_b < du2 else step_du2
+            g2 = c2 + min(left_b, du2)
+            bad_b |= not (c2 > NEG_INF)
+            out_b[k] = g2
+            left_b = g2
+            a_diag = a_up
+            a_up = g
+        done_b = count
+    # phase 3: row i+1 alone, the remaining columns
+    pb = mid[lo_b + done_b : hi_b + 2]
+    for k in range(w_b - done_b):
+        diag = pb[k]
+        up = pb[k + 1]
+        c = cost_b[done_b + k]
+        du = min(diag, up)
+        step_du = VERTICAL if up < diag else DIAGONAL
+        bp_b[done_b + k] = HORIZONTAL if left_b < du else step_du
+        g = c + min(left_b, du)
+        bad_b |= not (c > NEG_INF)
+        out_b[done_b + k] = g
+        left_b = g
+    return (1 if bad_a else 0) | (2 if bad_b else 0)
+
+
+@njit_cached()
+def _init_prev(prev, gamma, lo, hi, start, i0):
+    """Set ``prev`` to γ row ``i0 - 1`` (from ``gamma``) or to the virtual row -1."""
+    prev[:] = INF
+    if i0 == 0:
+        prev[0] = 0.0  # γ(-1, -1) = 0: the path starts with a diagonal step into (0, 0)
+    else:
+        r = i0 - 1
+        w = hi[r] - lo[r] + 1
+        prev[lo[r] + 1 : lo[r] + 1 + w] = gamma[start[r] : start[r] + w]
+
+
+@njit_cached()
+def _store_row(buf, gamma, lo, hi, start, i):
+    w = hi[i] - lo[i] + 1
+    gamma[start[i] : start[i] + w] = buf[lo[i] + 1 : lo[i] + 1 + w]
+
+
+@njit_cached()
+def _pad_row(buf, lo, hi, i):
+    """+inf in ``buf`` (row ``i``) at the columns row ``i + 1`` reads outside row ``i``."""
+    buf[lo[i]] = INF  # column lo[i] - 1
+    if i + 1 < lo.shape[0]:
+        for k in range(hi[i] + 2, hi[i + 1] + 2):  # columns hi[i] + 1 .. hi[i+1]
+            buf[k] = INF
+
+
+@njit_cached()
+def _use_pair(lo, hi, i, i1):
+    return (
+        i + 1 < i1 and hi[i] - lo[i] >= PAIR_MIN_WIDTH and hi[i + 1] - lo[i + 1] >= PAIR_MIN_WIDTH
+    )
+
+
+# ---------------------------------------------------------------------------
+# local cost rows
+# ---------------------------------------------------------------------------
+@njit_cached()
+def _fill_builtin(a, bT, kind, i, lo, hi, crow):
+    """``crow[lo..hi]`` = cost of ``a[i]`` against ``b[lo..hi]`` (``bT`` is ``b.T``, contiguous)."""
+    w = hi - lo + 1
+    out = crow[lo : hi + 1]
+    out[:] = 0.0
+    for d in range(a.shape[1]):
+        ad = a[i, d]
+        col = bT[d, lo : hi + 1]
+        for k in range(w):
+            t = ad - col[k]
+            out[k] += t * t
+    if kind == EUCLIDEAN:
+        for k in range(w):
+            out[k] = np.sqrt(out[k])
+
+
+@njit()
+def _fill_metric(metric, a, b, i, lo, hi, crow):
+    ai = a[i]
+    for j in range(lo, hi + 1):
+        crow[j] = metric(ai, b[j])
+
+
+# ---------------------------------------------------------------------------
+# forward passes: rows i0..i1-1
+# ---------------------------------------------------------------------------
+# Each returns (bad_row, total): bad_row is the first row with a NaN/-inf local
+# cost (-1 if none), total is γ(i1 - 1, m - 1) (meaningful when i1 == n).
+# ``bp`` receives the backpointers of rows i0..i1-1 (flat, ``start`` offsets).
+# ``gamma`` is the per-cell γ store when keep_gamma, else any float64 array;
+# for i0 > 0 row i0 - 1 must already be in ``gamma``. The three kernels share
+# the row functions and differ only in where a row's local costs come from.
+
+
+@njit_cached()
+def forward_matrix(cost, lo, hi, start, i0, i1, bp, gamma, keep_gamma):
+    m = cost.shape[1]
+    prev = np.empty(m + 1)
+    mid = np.full(m + 1, INF)
+    cur = np.full(m + 1, INF)
+    _init_prev(prev, gamma, lo, hi, start, i0)
+    i = i0
+    while i < i1:
+        if _use_pair(lo, hi, i, i1):
+            bad = _dp_pair(
+                prev,
+                mid,
+                cur,
+                cost[i],
+                cost[i + 1],
+                lo[i],
+                hi[i],
+                lo[i + 1],
+                hi[i + 1],
+                bp[start[i] : start[i + 1]],
+                bp[start[i + 1] : start[i + 2]],
+            )
+            if bad:
+                return (i if bad & 1 else i + 1), np.nan
+            _pad_row(cur, lo, hi, i + 1)
+            if keep_gamma:
+                _store_row(mid, gamma, lo, hi, start, i)
+                _store_row(cur, gamma, lo, hi, start, i + 1)
+            prev, mid, cur = cur, prev, mid
+            i += 2
+        else:
+            if _dp_row(prev, cur, cost[i], lo[i], hi[i], bp[start[i] : start[i + 1]]):
+                return i, np.nan
+            _pad_row(cur, lo, hi, i)
+            if keep_gamma:
+                _store_row(cur, gamma, lo, hi, start, i)
+            prev, cur = cur, prev
+            i += 1
+    return -1, prev[m]
+
+
+@njit_cached()
+def forward_builtin(a, bT, kind, lo, hi, start, i0, i1, bp, gamma, keep_gamma):
+    m = bT.shape[1]
+    prev = np.empty(m + 1)
+    mid = np.full(m + 1, INF)
+    cur = np.full(m + 1, INF)
+    crow_a = np.zeros(m)
+    crow_b = np.zeros(m)
+    _init_prev(prev, gamma, lo, hi, start, i0)
+    i = i0
+    while i < i1:
+        if _use_pair(lo, hi, i, i1):
+            _fill_builtin(a, bT, kind, i, lo[i], hi[i], crow_a)
+            _fill_builtin(a, bT, kind, i + 1, lo[i + 1], hi[i + 1], crow_b)
+            bad = _dp_pair(
+                prev,
+                mid,
+                cur,
+                crow_a,
+                crow_b,
+                lo[i],
+                hi[i],
+                lo[i + 1],
+                hi[i + 1],
+                bp[start[i] : start[i + 1]],
+                bp[start[i + 1] : start[i + 2]],
+            )
+            if bad:
+                return (i if bad & 1 else i + 1), np.nan
+            _pad_row(cur, lo, hi, i + 1)
+            if keep_gamma:
+                _store_row(mid, gamma, lo, hi, start, i)
+                _store_row(cur, gamma, lo, hi, start, i + 1)
+            prev, mid, cur = cur, prev, mid
+            i += 2
+        else:
+            _fill_builtin(a, bT, kind, i, lo[i], hi[i], crow_a)
+            if _dp_row(prev, cur, crow_a, lo[i], hi[i], bp[start[i] : start[i + 1]]):
+                return i, np.nan
+            _pad_row(cur, lo, hi, i)
+            if keep_gamma:
+                _store_row(cur, gamma, lo, hi, start, i)
+            prev, cur = cur, prev
+            i += 1
+    return -1, prev[m]
+
+
+@njit()
+def forward_metric(metric, a, b, lo, hi, start, i0, i1, bp, gamma, keep_gamma):
+    m = b.shape[0]
+    prev = np.empty(m + 1)
+    cur = np.full(m + 1, INF)
+    crow = np.zeros(m)
+    _init_prev(prev, gamma, lo, hi, start, i0)
+    for i in range(i0, i1):  # the metric dominates; one row at a time is enough
+        _fill_metric(metric, a, b, i, lo[i], hi[i], crow)
+        if _dp_row(prev, cur, crow, lo[i], hi[i], bp[start[i] : start[i + 1]]):
+            return i, np.nan
+        _pad_row(cur, lo, hi, i)
+        if keep_gamma:
+            _store_row(cur, gamma, lo, hi, start, i)
+        prev, cur = cur, prev
+    return -1, prev[m]
+
+
+@njit_cached()
+def cost_row_builtin(a, bT, kind, i, lo, hi):
+    """Local costs of row ``i``, columns ``lo..hi`` (for error messages and views)."""
+    crow = np.zeros(bT.shape[1])
+    _fill_builtin(a, bT, kind, i, lo, hi, crow)
+    return crow[lo : hi + 1].copy()
+
+
+@njit()
+def cost_row_metric(metric, a, b, i, lo, hi):
+    crow = np.zeros(b.shape[0])
+    _fill_metric(metric, a, b, i, lo, hi, crow)
+    return crow[lo : hi + 1].copy()
+
+
+# ---------------------------------------------------------------------------
+# backtracking
+# ---------------------------------------------------------------------------
+@njit_cached()
+def backtrack(bp, lo, start, i, j):
+    """Path (k, 2) int64 from (0, 0) to (i, j), following the backpointers."""
+    path = np.empty((i + j + 1, 2), np.int64)
+    k = 0
+    while True:
+        path[k, 0] = i
+        path[k, 1] = j
+        k += 1
+        if i == 0 and j == 0:
+            break
+        step = bp[start[i] + j - lo[i]]
+        if step == DIAGONAL:
+            i -= 1
+            j -= 1
+        elif step == VERTICAL:
+            i -= 1
+        else:
+            j -= 1
+        if i < 0 or j < 0:  # cannot happen for a feasible band; keep the loop finite
+            return path[:0]
+    return path[:k][::-1].copy()
+
+
+# ---------------------------------------------------------------------------
+# metric registry
+# ---------------------------------------------------------------------------
+@njit_cached()
+def sqeuclidean(x, y):
+    """Squared Euclidean distance of two feature rows."""
+    s = 0.0
+    for d in range(x.shape[0]):
+        t = x[d] - y[d]
+        s += t * t
+    return s
+
+
+@njit_cached()
+def euclidean(x, y):
+    """Euclidean distance of two feature rows."""
+    return np.sqrt(sqeuclidean(x, y))
+
+
+@dataclass(frozen=True)
+class Metric:
+    """A registered local-cost metric: ``cell(a_row, b_row) -> float`` plus an optional
+    built-in row kernel (``kind``) used instead of ``cell`` where it exists."""
+
+    name: str
+    cell: Dispatcher
+    kind: int = -1
+
+
+_METRICS: dict[str, Metric] = {
+    "sqeuclidean": Metric("sqeuclidean", sqeuclidean, SQEUCLIDEAN),
+    "euclidean": Metric("euclidean", euclidean, EUCLIDEAN),
+}
+
+
+def register_metric(name: str, fn: Dispatcher | None = None, *, replace: bool = False):
+    """Register a numba metric ``fn(a_row, b_row) -> float`` under ``name``.
+
+    Use as ``register_metric("name", fn)`` or as a decorator
+    ``@register_metric("name")`` above ``@numba.njit``. Re-registering a name
+    raises ``ValueError`` unless ``replace=True``; built-in names cannot be
+    replaced.
+    """
+
+    def _register(f):
+        if not isinstance(f, Dispatcher):
+            raise TypeError(
+                f"metric {name!r}: expected a numba.njit function of (a_row, b_row), "
+                f"got {type(f).__name__}; decorate it with @numba.njit first"
+            )
+        if not isinstance(name, str) or not name:
+            raise ValueError(f"metric name must be a non-empty string, got {name!r}")
+        known = _METRICS.get(name)
+        if known is not None and (known.kind >= 0 or not replace):
+            if known.cell is f:
+                return f
+            raise ValueError(
+                f"metric {name!r} is already registered"
+                + ("" if known.kind >= 0 else "; pass replace=True to replace it")
+            )
+        _METRICS[name] = Metric(name, f)
+        return f
+
+    return _register if fn is None else _register(fn)
+
+
+def metric_names() -> list[str]:
+    """Names accepted as ``metric=``."""
+    return sorted(_METRICS)
+
+
+def get_metric(metric: str | Dispatcher) -> Metric:
+    """Look up a metric by name, or wrap a numba function given directly."""
+    if isinstance(metric, Dispatcher):
+        for known in _METRICS.values():
+            if known.cell is metric:
+                return known
+        return Metric(getattr(metric, "__name__", "metric"), metric)
+    if isinstance(metric, str):
+        try:
+            return _METRICS[metric]
+        except KeyError:
+            raise ValueError(
+                f"unknown metric {metric!r}; known: {', '.join(metric_names())} "
+                "(register others with engine.dtw.register_metric)"
+            ) from None
+    raise TypeError(
+        f"metric must be a registered name or a numba.njit function, got {type(metric).__name__}"
+    )
