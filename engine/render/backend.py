@@ -1,0 +1,191 @@
+"""Headless OpenGL for pyrender: EGL on Mesa, OSMesa as fallback, chosen automatically.
+
+PyOpenGL fixes its platform when ``OpenGL`` is first imported, from the
+``PYOPENGL_PLATFORM`` environment variable, so :func:`ensure_platform` must run
+before anything imports ``pyrender`` or ``OpenGL``; every renderer in this package
+calls it first. When the variable is already set it is respected. Otherwise EGL is
+probed with ``ctypes`` (load ``libEGL``, enumerate devices, initialise a display;
+no OpenGL import), then ``libOSMesa``. When neither works,
+:class:`RenderBackendError` says what to install.
+
+OSMesa: pyrender's own OSMesa platform needs PyOpenGL >= 3.1.5 (pyrender pins
+3.1.0), so :class:`OSMesaPlatform` creates the core-profile context through
+``ctypes`` instead.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import os
+import sys
+import threading
+
+from engine.errors import HandSpliceError
+
+# one lock for every OpenGL call in the process: pyrender and PyOpenGL keep global
+# state, and the web app renders from several threads
+GL_LOCK = threading.RLock()
+
+_INSTALL_HINT = ("install Mesa's headless OpenGL: apt-get install libegl1 libegl-mesa0 "
+                 "libgl1-mesa-dri (EGL) or libosmesa6 (OSMesa), or set PYOPENGL_PLATFORM")
+
+
+class RenderBackendError(HandSpliceError):
+    """No headless OpenGL is available (neither EGL nor OSMesa works)."""
+
+
+def _egl_works() -> bool:
+    """True when libEGL loads and a device display initialises (ctypes only)."""
+    try:
+        egl = ctypes.CDLL(ctypes.util.find_library("EGL") or "libEGL.so.1")
+    except OSError:
+        return False
+    try:
+        get_proc = egl.eglGetProcAddress
+        get_proc.restype = ctypes.c_void_p
+        get_proc.argtypes = [ctypes.c_char_p]
+        egl.eglInitialize.argtypes = [ctypes.c_void_p, ctypes.POINTER(ctypes.c_int),
+                                      ctypes.POINTER(ctypes.c_int)]
+        egl.eglInitialize.restype = ctypes.c_uint
+        egl.eglTerminate.argtypes = [ctypes.c_void_p]
+        query_ptr = get_proc(b"eglQueryDevicesEXT")
+        display_ptr = get_proc(b"eglGetPlatformDisplayEXT")
+        if not query_ptr or not display_ptr:
+            return False
+        query = ctypes.CFUNCTYPE(ctypes.c_uint, ctypes.c_int, ctypes.POINTER(ctypes.c_void_p),
+                                 ctypes.POINTER(ctypes.c_int))(query_ptr)
+        get_display = ctypes.CFUNCTYPE(ctypes.c_void_p, ctypes.c_uint, ctypes.c_void_p,
+                                       ctypes.POINTER(ctypes.c_int))(display_ptr)
+        devices = (ctypes.c_void_p * 16)()
+        count = ctypes.c_int(0)
+        if not query(16, devices, ctypes.byref(count)) or count.value == 0:
+            return False
+        index = int(os.environ.get("EGL_DEVICE_ID", "0"))
+        if not 0 <= index < count.value:
+            return False
+        display = get_display(0x313F, devices[index], None)  # EGL_PLATFORM_DEVICE_EXT
+        if not display:
+            return False
+        major, minor = ctypes.c_int(), ctypes.c_int()
+        ok = egl.eglInitialize(display, ctypes.byref(major), ctypes.byref(minor))
+        if ok:
+            egl.eglTerminate(display)
+        return bool(ok) and (major.value, minor.value) >= (1, 4)
+    except (AttributeError, OSError, ValueError):
+        return False
+
+
+def _osmesa_library() -> ctypes.CDLL | None:
+    for name in (ctypes.util.find_library("OSMesa"), "libOSMesa.so.8", "libOSMesa.so.6"):
+        if not name:
+            continue
+        try:
+            return ctypes.CDLL(name)
+        except OSError:
+            continue
+    return None
+
+
+def ensure_platform() -> str:
+    """Choose and set ``PYOPENGL_PLATFORM`` (``"egl"`` or ``"osmesa"``) and return it.
+
+    Respects a value already set. Raises :class:`RenderBackendError` naming the
+    packages to install when neither EGL nor OSMesa works.
+    """
+    chosen = os.environ.get("PYOPENGL_PLATFORM", "").strip().lower()
+    if chosen:
+        return chosen
+    if "OpenGL" in sys.modules:  # too late to choose: PyOpenGL decided already
+        return "default"
+    if _egl_works():
+        os.environ["PYOPENGL_PLATFORM"] = "egl"
+        return "egl"
+    if _osmesa_library() is not None:
+        os.environ["PYOPENGL_PLATFORM"] = "osmesa"
+        return "osmesa"
+    raise RenderBackendError(f"no headless OpenGL: EGL and OSMesa both failed; {_INSTALL_HINT}")
+
+
+class OSMesaPlatform:
+    """pyrender platform on OSMesa through ctypes (OpenGL 3.3 core profile)."""
+
+    def __init__(self, viewport_width: int, viewport_height: int):
+        self.viewport_width = viewport_width
+        self.viewport_height = viewport_height
+        self._lib = _osmesa_library()
+        if self._lib is None:
+            raise RenderBackendError(f"OSMesa: libOSMesa not found; {_INSTALL_HINT}")
+        self._context = None
+        self._buffer = None
+
+    def init_context(self) -> None:
+        import numpy as np
+
+        lib = self._lib
+        lib.OSMesaCreateContextAttribs.restype = ctypes.c_void_p
+        lib.OSMesaCreateContextAttribs.argtypes = [ctypes.POINTER(ctypes.c_int), ctypes.c_void_p]
+        attrs = (ctypes.c_int * 11)(0x22, 0x1908,  # OSMESA_FORMAT, OSMESA_RGBA
+                                    0x30, 24,  # OSMESA_DEPTH_BITS
+                                    0x33, 0x34,  # OSMESA_PROFILE, OSMESA_CORE_PROFILE
+                                    0x36, 3, 0x37, 3,  # context version 3.3
+                                    0)
+        self._context = lib.OSMesaCreateContextAttribs(attrs, None)
+        if not self._context:
+            raise RenderBackendError("OSMesa: could not create an OpenGL 3.3 core context "
+                                     "(Mesa too old?)")
+        self._buffer = np.zeros((self.viewport_height, self.viewport_width, 4), np.uint8)
+
+    def make_current(self) -> None:
+        lib = self._lib
+        lib.OSMesaMakeCurrent.restype = ctypes.c_uint
+        lib.OSMesaMakeCurrent.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_uint,
+                                          ctypes.c_int, ctypes.c_int]
+        ok = lib.OSMesaMakeCurrent(self._context, self._buffer.ctypes.data, 0x1401,  # UBYTE
+                                   self.viewport_width, self.viewport_height)
+        if not ok:
+            raise RenderBackendError("OSMesa: could not make the context current")
+
+    def make_uncurrent(self) -> None:
+        pass
+
+    def delete_context(self) -> None:
+        if self._context:
+            self._lib.OSMesaDestroyContext.argtypes = [ctypes.c_void_p]
+            self._lib.OSMesaDestroyContext(self._context)
+        self._context = None
+        self._buffer = None
+
+    def supports_framebuffers(self) -> bool:
+        return False
+
+
+def make_renderer(width: int, height: int):
+    """A ``pyrender.OffscreenRenderer`` on the chosen platform (call under GL_LOCK)."""
+    platform = ensure_platform()
+    import pyrender
+
+    if platform != "osmesa":
+        try:
+            return pyrender.OffscreenRenderer(width, height)
+        except Exception as exc:  # EGL probed fine but the context failed
+            raise RenderBackendError(
+                f"headless OpenGL ({platform}) failed: {type(exc).__name__}: {exc}; "
+                f"try PYOPENGL_PLATFORM=osmesa, or {_INSTALL_HINT}") from exc
+
+    class _OSMesaRenderer(pyrender.OffscreenRenderer):
+        def _create(self):
+            from pyrender.renderer import Renderer
+
+            self._platform = OSMesaPlatform(self.viewport_width, self.viewport_height)
+            self._platform.init_context()
+            self._platform.make_current()
+            self._renderer = Renderer(self.viewport_width, self.viewport_height)
+
+    try:
+        return _OSMesaRenderer(width, height)
+    except RenderBackendError:
+        raise
+    except Exception as exc:
+        raise RenderBackendError(f"headless OpenGL (osmesa) failed: {type(exc).__name__}: "
+                                 f"{exc}; {_INSTALL_HINT}") from exc

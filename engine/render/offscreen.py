@@ -1,0 +1,370 @@
+"""Skinned previews with pyrender, headless (EGL on Mesa, OSMesa fallback).
+
+``Preview`` is built once per take (or set of takes) and renders frames as
+``(H, W, 3) uint8`` arrays:
+
+>>> preview = Preview([body, hand, spliced], labels=["body", "hand", "spliced"])
+>>> image = preview.frame(120, view="side_by_side", camera="three-quarter", size=(960, 360))
+>>> image = preview.frame(120, view="overlay", take=2, overlay_take=0)  # stick over skin
+>>> image = preview.frame(120, trails=True, phases=phase_array)
+
+Views: ``single`` (one take), ``side_by_side`` (each take in its own panel, its own
+auto-framed camera; frames matched by time unless given), ``overlay`` (the stick
+figure of ``overlay_take`` drawn over the skinned ``take``, in the same space;
+where the sticks are hidden behind the skin they show through at half strength,
+Heloir et al.'s re-creation check). Cameras: ``front``, ``side``,
+``three-quarter`` (see :mod:`engine.render.scene`).
+
+One OpenGL renderer is created lazily and reused (resized on demand); every
+OpenGL call holds :data:`engine.render.backend.GL_LOCK`, so a ``Preview`` may be
+shared by the threads of a Panel server (renders then run one at a time).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from engine.errors import ParameterError
+from engine.mesh.skinning import SkinnedMesh
+from engine.motion import Motion
+from engine.render import trails as tr
+from engine.render.backend import GL_LOCK, ensure_platform, make_renderer
+from engine.render.scene import CAMERAS, TakeView, floor_mesh_arrays, stick_arrays
+
+VIEWS = ("single", "side_by_side", "overlay")
+BACKGROUND = (0.96, 0.96, 0.97)
+YFOV = np.radians(35.0)
+MAX_SIZE = 4096
+
+
+def parse_size(size) -> tuple[int, int]:
+    """``(width, height)`` from a tuple or a ``"WxH"`` string, each 16..4096."""
+    if isinstance(size, str):
+        parts = size.lower().split("x")
+        if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+            raise ParameterError(f"size {size!r}: expected WIDTHxHEIGHT, e.g. 640x480")
+        size = (int(parts[0]), int(parts[1]))
+    try:
+        w, h = (int(v) for v in size)
+    except (TypeError, ValueError):
+        raise ParameterError(f"size {size!r}: expected (width, height)") from None
+    if not (16 <= w <= MAX_SIZE and 16 <= h <= MAX_SIZE):
+        raise ParameterError(f"size {w}x{h}: width and height must lie in 16..{MAX_SIZE}")
+    return w, h
+
+
+class Preview:
+    """Renders one or more takes (see the module docstring).
+
+    Parameters
+    ----------
+    takes : Motion or sequence of Motion
+    labels : names shown on side-by-side panels (default: file names)
+    meshes : optional SkinnedMesh per take (``None`` entries: the mannequin); a
+        user's mesh comes from :func:`engine.mesh.bind.bind_mesh`
+    size : default ``(width, height)`` in pixels
+    phases : per-frame gesture phases for the trails of take 0, or
+        ``{take index: phases}``; each is one array for both hands or
+        ``{"left": array, "right": array}``
+    """
+
+    def __init__(self, takes: Motion | Sequence[Motion], labels: Sequence[str] | None = None,
+                 meshes: Sequence[SkinnedMesh | None] | None = None,
+                 size: tuple[int, int] | str = (640, 480), phases=None):
+        takes = [takes] if isinstance(takes, Motion) else list(takes)
+        if not takes:
+            raise ValueError("Preview: needs at least one take")
+        for k, t in enumerate(takes):
+            if not isinstance(t, Motion):
+                raise TypeError(f"Preview: take {k} is a {type(t).__name__}, expected Motion")
+        meshes = list(meshes) if meshes is not None else [None] * len(takes)
+        if len(meshes) != len(takes):
+            raise ValueError(f"Preview: {len(meshes)} meshes for {len(takes)} takes")
+        if labels is None:
+            labels = [_label(t, k) for k, t in enumerate(takes)]
+        if len(labels) != len(takes):
+            raise ValueError(f"Preview: {len(labels)} labels for {len(takes)} takes")
+        self.size = parse_size(size)
+        self.views = [TakeView.from_motion(t, mesh=m, label=lab)
+                      for t, m, lab in zip(takes, meshes, labels, strict=True)]
+        if phases is not None and not (isinstance(phases, Mapping)
+                                       and all(isinstance(k, int) for k in phases)):
+            phases = {0: phases}
+        self.phases: dict[int, object] = dict(phases or {})
+        self._renderer = None
+        self._materials = None
+        self._floor_cache: dict[int, object] = {}
+        self._trail_cache: dict[tuple, object] = {}
+
+    # ------------------------------------------------------------------ public
+    @property
+    def n_frames(self) -> int:
+        """Frames of take 0."""
+        return self.views[0].n_frames
+
+    @property
+    def fps(self) -> float:
+        return float(self.views[0].motion.fps)
+
+    def matched_frames(self, i: int) -> list[int]:
+        """Frame of each take at the time of take 0's frame ``i`` (clipped to each take)."""
+        t = self.views[0].check_frame(i) / self.views[0].motion.fps
+        return [int(np.clip(round(t * v.motion.fps), 0, v.n_frames - 1)) for v in self.views]
+
+    def frame(self, i: int, view: str = "single", camera: str = "three-quarter",
+              size: tuple[int, int] | str | None = None, take: int = 0, overlay_take: int = 1,
+              frames: Sequence[int] | None = None, trails: bool = False,
+              trail_range: tuple[int, int] | None = None, trail_style: str = "line",
+              phases=None, floor: bool = True) -> np.ndarray:
+        """Render frame ``i`` (of take 0, or of ``take``) as ``(H, W, 3) uint8``.
+
+        view : ``single`` | ``side_by_side`` | ``overlay``
+        camera : ``front`` | ``side`` | ``three-quarter``
+        take : the skinned take of ``single`` and ``overlay``
+        overlay_take : whose stick figure ``overlay`` draws (itself if only one take)
+        frames : explicit frame per take (side by side, overlay); default by time
+        trails : draw both hands' trails over ``trail_range`` (default the whole take)
+        phases : per-frame phases for the trails of this call (see the class)
+        """
+        if view not in VIEWS:
+            raise ParameterError(f"view {view!r}: expected one of {', '.join(VIEWS)}")
+        if camera not in CAMERAS:
+            raise ParameterError(f"camera {camera!r}: expected one of {', '.join(CAMERAS)}")
+        if trail_style not in tr.STYLES:
+            raise ParameterError(f"trail style {trail_style!r}: expected one of "
+                                 f"{', '.join(tr.STYLES)}")
+        width, height = parse_size(size) if size is not None else self.size
+        take = self._check_take(take, "take")
+        options = dict(camera=camera, trails=trails, trail_range=trail_range,
+                       trail_style=trail_style, floor=floor)
+        if view == "side_by_side":
+            picks = list(frames) if frames is not None else self.matched_frames(i)
+            if len(picks) != len(self.views):
+                raise ParameterError(f"frames: expected {len(self.views)} values, got {len(picks)}")
+            n = len(self.views)
+            widths = [width // n + (1 if k < width % n else 0) for k in range(n)]
+            panels = []
+            for k, (v, f, w) in enumerate(zip(self.views, picks, widths, strict=True)):
+                img = self._render(k, v.check_frame(f), (w, height), phases=self._phases(k, phases, take),
+                                   **options)
+                panels.append(_label_image(img, v.label) if n > 1 else img)
+            out = np.concatenate(panels, axis=1)
+            for x in np.cumsum(widths)[:-1]:
+                out[:, max(0, x - 1): x + 1] = 255
+            return out
+        if view == "overlay":
+            other = self._check_take(overlay_take if len(self.views) > 1 else 0, "overlay_take")
+            if frames is not None:
+                fi, fo = (int(frames[take]), int(frames[other])) if len(frames) == len(
+                    self.views) else (int(frames[0]), int(frames[-1]))
+            else:
+                base = self.views[take].check_frame(i)
+                t = base / self.views[take].motion.fps
+                fi = base
+                fo = int(np.clip(round(t * self.views[other].motion.fps), 0,
+                                 self.views[other].n_frames - 1))
+            return self._render(take, fi, (width, height), stick=(other, fo),
+                                phases=self._phases(take, phases, take), **options)
+        return self._render(take, self.views[take].check_frame(i), (width, height),
+                            phases=self._phases(take, phases, take), **options)
+
+    def close(self) -> None:
+        """Free the OpenGL context (a later ``frame`` creates a new one)."""
+        with GL_LOCK:
+            if self._renderer is not None:
+                self._renderer.delete()
+                self._renderer = None
+            self._floor_cache.clear()
+            self._trail_cache.clear()
+
+    def __enter__(self) -> Preview:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # ---------------------------------------------------------------- internals
+    def _check_take(self, k: int, field: str) -> int:
+        if not isinstance(k, (int, np.integer)) or not 0 <= int(k) < len(self.views):
+            raise ParameterError(f"{field} {k!r}: expected 0..{len(self.views) - 1}")
+        return int(k)
+
+    def _phases(self, k: int, phases, take: int):
+        if phases is not None and k == take:
+            return phases
+        return self.phases.get(k)
+
+    def _mesh(self, verts, faces, colors, normals=None, material="skin"):
+        import pyrender
+
+        if self._materials is None:
+            self._materials = {
+                "skin": pyrender.MetallicRoughnessMaterial(
+                    baseColorFactor=(1.0, 1.0, 1.0, 1.0), metallicFactor=0.0,
+                    roughnessFactor=0.7),
+                "flat": pyrender.MetallicRoughnessMaterial(
+                    baseColorFactor=(1.0, 1.0, 1.0, 1.0), metallicFactor=0.0,
+                    roughnessFactor=1.0),
+            }
+        if normals is None:
+            from engine.mesh.skinning import vertex_normals
+
+            normals = vertex_normals(verts, faces)
+        prim = pyrender.Primitive(
+            positions=np.asarray(verts, np.float32), normals=np.asarray(normals, np.float32),
+            color_0=np.asarray(colors, np.float32), indices=np.asarray(faces, np.uint32),
+            material=self._materials[material])
+        return pyrender.Mesh([prim])
+
+    def _floor(self, k: int):
+        if k not in self._floor_cache:
+            v = self.views[k]
+            if v.floor_y is None:
+                self._floor_cache[k] = None
+            else:
+                path = v.targets
+                center = 0.5 * (path.min(0) + path.max(0))
+                half = float(0.5 * np.max(np.ptp(path[:, [0, 2]], axis=0)) + 2.5 * v.height_m)
+                verts, faces, colors = floor_mesh_arrays(center, half, v.floor_y - 1e-3,
+                                                         tile=0.5 * max(v.height_m / 1.75, 0.2))
+                normals = np.tile([0.0, 1.0, 0.0], (len(verts), 1))
+                self._floor_cache[k] = self._mesh(verts, faces, colors, normals, "flat")
+        return self._floor_cache[k]
+
+    def _trails(self, k: int, trail_range, style: str, phases):
+        v = self.views[k]
+        lo, hi = (0, v.n_frames) if trail_range is None else trail_range
+        lo, hi = int(max(0, lo)), int(min(v.n_frames, hi))
+        if hi - lo < 1:
+            raise ParameterError(f"trail_range {trail_range}: empty for a take of "
+                                 f"{v.n_frames} frames")
+        key = (k, lo, hi, style, id(phases))
+        if key in self._trail_cache:
+            return self._trail_cache[key]
+        hands = v.anatomy.hand_joints()
+        codes = tr.per_side_phases(phases, list(hands), v.n_frames)
+        step = max(1, (hi - lo) // 600)
+        idx = np.arange(lo, hi, step)
+        radius = 0.006 * max(v.height_m, 0.3) if v.anatomy.kind == "body" else 0.004
+        if style == "spheres":
+            radius *= 1.6
+        parts = []
+        for side, joint in hands.items():
+            pts = v.positions[idx, joint]
+            c = codes[side]
+            cols = tr.trail_colors(None if c is None else c[idx], side, len(idx))
+            parts.append(tr.trail_arrays(pts, cols, radius, style))
+        parts = [p for p in parts if len(p[0])]
+        mesh = None
+        if parts:
+            verts, faces, colors, n = [], [], [], 0
+            for pv, pf, pc in parts:
+                verts.append(pv)
+                faces.append(pf + n)
+                colors.append(pc)
+                n += len(pv)
+            mesh = self._mesh(np.vstack(verts), np.vstack(faces), np.vstack(colors),
+                              material="flat")
+        if len(self._trail_cache) > 16:
+            self._trail_cache.clear()
+        self._trail_cache[key] = mesh
+        return mesh
+
+    def _render(self, k: int, i: int, size: tuple[int, int], camera: str, trails: bool,
+                trail_range, trail_style: str, floor: bool, phases=None,
+                stick: tuple[int, int] | None = None) -> np.ndarray:
+        ensure_platform()
+        import pyrender
+
+        v = self.views[k]
+        verts, normals = v.vertices(i)
+        with GL_LOCK:
+            scene = pyrender.Scene(bg_color=(*BACKGROUND, 1.0), ambient_light=(0.38, 0.38, 0.4))
+            scene.add(self._mesh(verts, v.mesh.faces, v.mesh.colors, normals))
+            if floor:
+                floor_mesh = self._floor(k)
+                if floor_mesh is not None:
+                    scene.add(floor_mesh)
+            if trails:
+                trail_mesh = self._trails(k, trail_range, trail_style, phases)
+                if trail_mesh is not None:
+                    scene.add(trail_mesh)
+            width, height = size
+            cam_pose = v.camera_pose(i, camera, width / height, YFOV)
+            scene.add(pyrender.PerspectiveCamera(yfov=YFOV, aspectRatio=width / height,
+                                                 znear=0.02 * v.radius, zfar=60.0 * v.radius),
+                      pose=cam_pose)
+            for angles, power in (((-40.0, -30.0), 3.2), ((-10.0, 50.0), 1.3),
+                                  ((60.0, 170.0), 1.0)):
+                scene.add(pyrender.DirectionalLight(color=np.ones(3), intensity=power),
+                          pose=cam_pose @ _rotation(*angles))
+            renderer = self._get_renderer(width, height)
+            color, depth = renderer.render(scene)
+            color = np.array(color[..., :3], dtype=np.uint8, copy=True)
+            if stick is not None:
+                color = self._overlay(renderer, scene, color, depth, stick, v)
+        return color
+
+    def _overlay(self, renderer, scene, color, depth, stick, base_view: TakeView) -> np.ndarray:
+        k2, f2 = stick
+        other = self.views[k2]
+        pos = other.positions[f2]
+        radius = 0.009 * base_view.height_m if base_view.anatomy.kind == "body" else 0.003
+        verts, faces, colors = stick_arrays(pos, other.motion.skeleton.parents, other._visible,
+                                            radius)
+        for node in list(scene.mesh_nodes):
+            node.mesh.is_visible = False
+        scene.add(self._mesh(verts, faces, colors))
+        s_color, s_depth = renderer.render(scene)
+        for node in list(scene.mesh_nodes):
+            node.mesh.is_visible = True
+        mask = s_depth > 0
+        in_front = mask & ((depth <= 0) | (s_depth <= depth * 1.002))
+        alpha = np.where(in_front, 1.0, np.where(mask, 0.45, 0.0))[..., None]
+        return (color * (1 - alpha) + s_color[..., :3] * alpha).round().astype(np.uint8)
+
+    def _get_renderer(self, width: int, height: int):
+        if self._renderer is None:
+            self._renderer = make_renderer(width, height)
+        else:
+            self._renderer.viewport_width = width
+            self._renderer.viewport_height = height
+        return self._renderer
+
+
+def _rotation(pitch_deg: float, yaw_deg: float) -> np.ndarray:
+    """4x4 rotation: yaw about +Y then pitch about +X (degrees)."""
+    p, y = np.radians(pitch_deg), np.radians(yaw_deg)
+    ry = np.array([[np.cos(y), 0, np.sin(y), 0], [0, 1, 0, 0], [-np.sin(y), 0, np.cos(y), 0],
+                   [0, 0, 0, 1]])
+    rx = np.array([[1, 0, 0, 0], [0, np.cos(p), -np.sin(p), 0], [0, np.sin(p), np.cos(p), 0],
+                   [0, 0, 0, 1]])
+    return ry @ rx
+
+
+def _label(motion: Motion, k: int) -> str:
+    from pathlib import Path
+
+    src = motion.meta.source
+    return Path(src).stem if src else f"take {k}"
+
+
+def _label_image(img: np.ndarray, text: str) -> np.ndarray:
+    """Write ``text`` in the top-left corner of ``img`` (PIL default font)."""
+    if not text:
+        return img
+    from PIL import Image, ImageDraw, ImageFont
+
+    pil = Image.fromarray(img)
+    draw = ImageDraw.Draw(pil)
+    size = max(10, min(22, img.shape[0] // 22))
+    try:
+        font = ImageFont.load_default(size=size)
+    except TypeError:  # Pillow < 10.1
+        font = ImageFont.load_default()
+    box = draw.textbbox((6, 4), text, font=font)
+    draw.rectangle((box[0] - 3, box[1] - 2, box[2] + 3, box[3] + 2), fill=(255, 255, 255))
+    draw.text((6, 4), text, fill=(30, 30, 30), font=font)
+    return np.asarray(pil)

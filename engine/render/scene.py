@@ -1,0 +1,292 @@
+"""A take prepared for display: units, up axis, skinning, framing (no OpenGL here).
+
+Display space is metres with +Y up. A take's file coordinates are mapped by
+``p_display = scale * A @ p_file``, with ``A`` the identity for Y-up files and
+``(x, y, z) -> (x, z, -y)`` for Z-up files, and ``scale`` the file's metres per
+unit (``Motion.meters_per_unit``), or, when the units are unknown, the scale that
+makes the character 1.75 m tall (a hand take: a 19 cm hand).
+
+Framing follows the character: the camera looks at the centre of the posed
+joints' bounding box, smoothed over +-0.4 s, from a fixed distance that fits the
+character's largest pose, and from a fixed direction relative to the take's
+median facing (pelvis rotation applied to the rest-pose facing), so a video does
+not zoom or swing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from engine import rotations as rot
+from engine.kinematics import forward_kinematics
+from engine.mesh.anatomy import Anatomy, find_anatomy
+from engine.mesh.mannequin import build_mannequin
+from engine.mesh.skinning import SkinnedMesh
+from engine.motion import Motion
+
+CAMERAS = ("front", "side", "three-quarter")
+# camera direction per name: (azimuth towards the character's right, elevation), degrees
+_CAMERA_ANGLES = {"front": (0.0, 8.0), "side": (90.0, 5.0), "three-quarter": (40.0, 14.0)}
+_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.where(n > 1e-12, n, 1.0)
+
+
+def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray) -> np.ndarray:
+    """4x4 camera pose (OpenGL: the camera looks down its -Z) at ``eye`` facing ``target``."""
+    back = _unit(eye - target)
+    right = np.cross(up, back)
+    if np.linalg.norm(right) < 1e-9:
+        right = np.cross(np.array([0.0, 0.0, 1.0]) if abs(back[1]) > 0.9 else
+                         np.array([0.0, 1.0, 0.0]), back)
+    right = _unit(right)
+    true_up = np.cross(back, right)
+    pose = np.eye(4)
+    pose[:3, 0], pose[:3, 1], pose[:3, 2], pose[:3, 3] = right, true_up, back, eye
+    return pose
+
+
+@dataclass
+class TakeView:
+    """One take ready to draw: world joints of every frame, mesh and framing.
+
+    Build with :meth:`from_motion`. Arrays are in display space (metres, +Y up).
+
+    motion : Motion
+    anatomy : Anatomy
+    mesh : SkinnedMesh (rest pose, file units)
+    scale : float, metres per file unit used
+    axes : (3, 3) file-to-display rotation
+    positions : (F, J, 3) world joint positions, display space
+    rotations : (F, J, 4) world joint rotations, file frame (for skinning)
+    targets : (F, 3) smoothed look-at points
+    radius : float, metres; the sphere the camera keeps in view
+    facing, right : (3,) unit horizontal vectors (the take's median facing)
+    floor_y : float or None (no floor for a hand take)
+    """
+
+    motion: Motion
+    anatomy: Anatomy
+    mesh: SkinnedMesh
+    scale: float
+    axes: np.ndarray
+    positions: np.ndarray
+    rotations: np.ndarray
+    targets: np.ndarray
+    radius: float
+    facing: np.ndarray
+    right: np.ndarray
+    view_up: np.ndarray
+    floor_y: float | None
+    label: str = ""
+    _visible: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+
+    @classmethod
+    def from_motion(cls, motion: Motion, mesh: SkinnedMesh | None = None,
+                    anatomy: Anatomy | None = None, label: str = "",
+                    bind_frame: int = 0) -> TakeView:
+        """Prepare ``motion``; the mannequin is bound in captured frame ``bind_frame``."""
+        if motion.n_frames < 1:
+            raise ValueError(f"{label or 'take'}: has no frames to render")
+        if not 0 <= bind_frame < motion.n_frames:
+            raise ValueError(f"{label or 'take'}: bind frame {bind_frame} outside "
+                             f"0..{motion.n_frames - 1}")
+        pos, wrot = forward_kinematics(motion)
+        bind_pos, bind_rot = pos[bind_frame], wrot[bind_frame]
+        anatomy = anatomy or find_anatomy(motion.skeleton, bind_pos, bind_rot)
+        if mesh is None:
+            mesh = build_mannequin(motion.skeleton, anatomy, pose=(bind_pos, bind_rot))
+        elif mesh.bind_positions.shape[0] != motion.skeleton.n_joints:
+            raise ValueError(f"{label or 'take'}: the mesh is bound to "
+                             f"{mesh.bind_positions.shape[0]} joints, the skeleton has "
+                             f"{motion.skeleton.n_joints}")
+        axes = _Z_UP if motion.meta.up_axis.lower() == "z" else np.eye(3)
+        if motion.meta.units in ("m", "cm", "mm", "in", "dm"):
+            scale = motion.meters_per_unit
+        else:
+            scale = 1.75 / anatomy.height if anatomy.height > 0 else 1.0
+        disp = scale * np.einsum("ij,fkj->fki", axes, pos)
+        visible = np.ones(motion.skeleton.n_joints, bool)
+        visible[list(anatomy.hidden)] = False
+        vis_pos = disp[:, visible]
+        lo, hi = vis_pos.min(axis=1), vis_pos.max(axis=1)
+        center = 0.5 * (lo + hi)
+        half_diag = 0.5 * np.linalg.norm(hi - lo, axis=1)
+        height_m = anatomy.height * scale
+        margin = 0.12 * height_m if anatomy.kind == "body" else 0.08 * height_m
+        radius = float(max(np.percentile(half_diag, 95) + margin,
+                           0.5 * height_m if anatomy.kind == "body" else 0.1))
+        win = max(1, int(round(0.4 * motion.fps)))
+        targets = _moving_average(center, win)
+        # facing: the bind pose's facing carried by the pelvis (or wrist) rotation
+        anchor = anatomy.pelvis if anatomy.kind == "body" else next(
+            iter(anatomy.hands.values())).wrist
+        rel = rot.multiply(wrot[:, anchor], rot.conjugate(bind_rot[anchor]))
+        fwd = rot.rotate(rel, anatomy.forward) @ axes.T
+        up_hand = rot.rotate(rel, anatomy.up) @ axes.T
+        if anatomy.kind == "body":
+            flat = fwd.copy()
+            flat[:, 1] = 0.0
+            mean = np.mean(_unit(flat), axis=0)
+            facing = _unit(mean) if np.linalg.norm(mean) > 1e-6 else np.array([0.0, 0.0, 1.0])
+            view_up = np.array([0.0, 1.0, 0.0])
+        else:
+            # a hand: look at the back of the hand, fingers up in the image
+            facing = -_unit(np.mean(_unit(fwd), axis=0))
+            view_up = _unit(np.mean(_unit(up_hand), axis=0))
+            view_up = _unit(view_up - np.dot(view_up, facing) * facing)
+        right = _unit(np.cross(facing, view_up))
+        view = cls(motion, anatomy, mesh, float(scale), axes, disp, wrot, targets, radius,
+                   facing, right, view_up, None, label, visible)
+        # the mesh reaches beyond the joints (head, feet, a hand take's forearm): measure
+        # it on a few frames for the floor height, the framing radius and centre offset
+        sample = np.unique(np.linspace(0, motion.n_frames - 1,
+                                       min(motion.n_frames, 24)).round().astype(int))
+        offsets, radii, lowest = [], [], []
+        for f in sample:
+            verts = view.vertices(int(f))[0]
+            vlo, vhi = verts.min(axis=0), verts.max(axis=0)
+            offsets.append(0.5 * (vlo + vhi) - center[f])
+            radii.append(0.5 * np.linalg.norm(vhi - vlo))
+            lowest.append(vlo[1])
+        view.targets = targets + np.median(offsets, axis=0)
+        view.radius = float(max(radius - margin, np.percentile(radii, 95)) * 1.04)
+        if anatomy.kind == "body":
+            view.floor_y = float(min(lowest))
+        return view
+
+    @property
+    def n_frames(self) -> int:
+        return self.motion.n_frames
+
+    @property
+    def height_m(self) -> float:
+        return float(self.anatomy.height * self.scale)
+
+    def check_frame(self, i: int) -> int:
+        i = int(i)
+        if not -self.n_frames <= i < self.n_frames:
+            raise IndexError(f"{self.label or 'take'}: frame {i} is outside 0..{self.n_frames - 1}")
+        return i % self.n_frames
+
+    def vertices(self, i: int) -> tuple[np.ndarray, np.ndarray]:
+        """Skinned vertices and normals ``(V, 3)`` of frame ``i``, display space."""
+        i = self.check_frame(i)
+        file_pos = self.positions[i] @ self.axes / self.scale  # back to file frame
+        verts, normals = self.mesh.pose(file_pos, self.rotations[i])
+        return self.scale * verts @ self.axes.T, normals @ self.axes.T
+
+    def camera_pose(self, i: int, camera: str, aspect: float, yfov: float
+                    ) -> np.ndarray:
+        """4x4 pose of the camera ``camera`` (front, side, three-quarter) at frame ``i``."""
+        if camera not in _CAMERA_ANGLES:
+            raise ValueError(f"camera {camera!r}: expected one of {', '.join(CAMERAS)}")
+        i = self.check_frame(i)
+        az, el = np.radians(_CAMERA_ANGLES[camera])
+        horizontal = np.cos(az) * self.facing + np.sin(az) * self.right
+        direction = np.cos(el) * horizontal + np.sin(el) * self.view_up
+        half = 0.5 * min(yfov, 2 * np.arctan(np.tan(0.5 * yfov) * aspect))
+        dist = self.radius / np.sin(half) * 1.02
+        target = self.targets[i]
+        return look_at(target + dist * direction, target, self.view_up)
+
+
+def _moving_average(x: np.ndarray, half: int) -> np.ndarray:
+    """Centred moving average over ``2*half+1`` frames along axis 0 (edges shrink)."""
+    if half <= 0 or len(x) < 2:
+        return x.copy()
+    c = np.cumsum(np.vstack([np.zeros((1,) + x.shape[1:]), x]), axis=0)
+    idx = np.arange(len(x))
+    lo = np.clip(idx - half, 0, len(x))
+    hi = np.clip(idx + half + 1, 0, len(x))
+    return (c[hi] - c[lo]) / (hi - lo)[:, None]
+
+
+def floor_mesh_arrays(center: np.ndarray, half_size: float, y: float, tile: float
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A checkered floor: vertices ``(V, 3)``, faces ``(T, 3)``, colours ``(V, 4)``."""
+    n = int(np.clip(np.ceil(2 * half_size / tile), 2, 80))
+    tile = 2 * half_size / n
+    x0 = np.floor((center[0] - half_size) / tile) * tile
+    z0 = np.floor((center[2] - half_size) / tile) * tile
+    ii, jj = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    ii, jj = ii.ravel(), jj.ravel()
+    corners = np.array([[0, 0], [1, 0], [1, 1], [0, 1]])
+    xs = x0 + (ii[:, None] + corners[None, :, 0]) * tile
+    zs = z0 + (jj[:, None] + corners[None, :, 1]) * tile
+    verts = np.stack([xs, np.full_like(xs, y), zs], -1).reshape(-1, 3)
+    base = 4 * np.arange(len(ii))
+    faces = np.concatenate([np.stack([base, base + 2, base + 1], 1),
+                            np.stack([base, base + 3, base + 2], 1)])
+    dark = ((ii + jj) % 2 == 0)
+    col = np.where(dark[:, None], [0.70, 0.72, 0.75, 1.0], [0.80, 0.82, 0.85, 1.0])
+    colors = np.repeat(col, 4, axis=0)
+    return verts, faces, colors
+
+
+def _template_cylinder(n: int = 8) -> tuple[np.ndarray, np.ndarray]:
+    theta = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    ring = np.stack([np.cos(theta), np.sin(theta), np.zeros(n)], 1)
+    verts = np.vstack([ring, ring + [0, 0, 1.0]])
+    k = np.arange(n)
+    k1 = (k + 1) % n
+    faces = np.vstack([np.stack([k, k1, n + k1], 1), np.stack([k, n + k1, n + k], 1)])
+    return verts, faces
+
+
+def _template_sphere() -> tuple[np.ndarray, np.ndarray]:
+    import trimesh
+
+    s = trimesh.creation.icosphere(subdivisions=1)
+    return np.asarray(s.vertices), np.asarray(s.faces)
+
+
+_CYL = _template_cylinder()
+_SPH = None
+
+
+def stick_arrays(positions: np.ndarray, parents: np.ndarray, visible: np.ndarray,
+                 radius: float, color=(0.05, 0.6, 0.25, 1.0)
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A stick figure: a cylinder per bone and a ball per joint.
+
+    positions : (J, 3) display space; parents : (J,); visible : (J,) bool.
+    Returns vertices, faces, colours.
+    """
+    global _SPH
+    if _SPH is None:
+        _SPH = _template_sphere()
+    cv, cf = _CYL
+    sv, sf = _SPH
+    idx = [j for j in range(len(parents)) if parents[j] >= 0 and visible[j] and visible[parents[j]]]
+    verts, faces, count = [], [], 0
+    if idx:
+        a = positions[parents[idx]]
+        b = positions[idx]
+        d = b - a
+        length = np.linalg.norm(d, axis=1)
+        z = _unit(d)
+        ref = np.where(np.abs(z[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])
+        x = _unit(np.cross(ref, z))
+        y = np.cross(z, x)
+        local = cv[None] * np.array([radius, radius, 1.0])
+        v = (a[:, None] + local[..., :1] * x[:, None] + local[..., 1:2] * y[:, None]
+             + local[..., 2:3] * length[:, None, None] * z[:, None])
+        verts.append(v.reshape(-1, 3))
+        faces.append((cf[None] + (np.arange(len(idx)) * len(cv))[:, None, None]).reshape(-1, 3))
+        count += v.shape[0] * v.shape[1]
+    joints = positions[visible]
+    if len(joints):
+        v = joints[:, None] + 1.6 * radius * sv[None]
+        verts.append(v.reshape(-1, 3))
+        faces.append((sf[None] + count + (np.arange(len(joints)) * len(sv))[:, None, None]
+                      ).reshape(-1, 3))
+    verts = np.vstack(verts)
+    faces = np.vstack(faces)
+    colors = np.broadcast_to(np.asarray(color, float), (len(verts), 4))
+    return verts, faces, colors
