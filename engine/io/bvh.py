@@ -67,6 +67,7 @@ import numpy as np
 from engine import rotations as rot
 from engine.atomic import write_text
 from engine.errors import MotionFormatError
+from engine.limits import MAX_ABS_VALUE, MAX_FPS, MAX_FRAMES, MAX_JOINTS
 from engine.motion import (
     POSITION_CHANNELS,
     ROTATION_CHANNELS,
@@ -76,8 +77,6 @@ from engine.motion import (
     Skeleton,
 )
 
-MAX_JOINTS = 1_000
-MAX_FRAMES = 2_000_000
 _CHANNEL_NAMES = POSITION_CHANNELS + ROTATION_CHANNELS
 _CHANNEL_LOOKUP = {c.lower(): c for c in _CHANNEL_NAMES}
 _AXIS = {"X": 0, "Y": 1, "Z": 2}
@@ -333,6 +332,10 @@ def _finite_numbers(vals: list[str], where: str | None, i: int, field: str) -> n
     if not np.all(np.isfinite(out)):
         bad = vals[int(np.flatnonzero(~np.isfinite(out))[0])]
         raise MotionFormatError(where, f"{field}: {bad!r} is not a finite number", line=i + 1)
+    if np.abs(out).max(initial=0.0) > MAX_ABS_VALUE:
+        bad = vals[int(np.argmax(np.abs(out)))]
+        raise MotionFormatError(where, f"{field}: {bad[:40]!r} is beyond +-{MAX_ABS_VALUE:g}; "
+                                       "refusing an absurd value", line=i + 1)
     return out
 
 
@@ -392,6 +395,10 @@ def _parse_motion(lines: list[str], motion_line: int, skeleton: Skeleton, where:
         raise MotionFormatError(
             where, f"Frame Time: {m.group(1)[:40]!r} is not a positive number of seconds",
             line=i + 1)
+    if frame_time < 1.0 / MAX_FPS:
+        raise MotionFormatError(
+            where, f"Frame Time: {m.group(1)[:40]!r} is more than {MAX_FPS:g} frames per second; "
+                   "refusing an absurd rate", line=i + 1)
     fps = _snap_fps(1.0 / frame_time)
     first_data = i + 1
 
@@ -426,6 +433,11 @@ def _parse_motion(lines: list[str], motion_line: int, skeleton: Skeleton, where:
         raise MotionFormatError(
             where, f"value {c + 1} is {rows[r][c]!r}; expected a finite number",
             line=row_lines[r] + 1)
+    if data.size and np.abs(data).max() > MAX_ABS_VALUE:
+        r, c = (int(x) for x in np.unravel_index(np.argmax(np.abs(data)), data.shape))
+        raise MotionFormatError(
+            where, f"value {c + 1} is {rows[r][c][:40]!r}; beyond +-{MAX_ABS_VALUE:g}, "
+                   "refusing an absurd value", line=row_lines[r] + 1)
     if len(rows) == n_frames + 1 and not data[0].any():
         data = data[1:]  # gestification: a zero row before the take
     return fps, data

@@ -41,13 +41,14 @@ from typing import Any
 
 from engine.atomic import write_text
 from engine.errors import ParameterError
+from engine.limits import MAX_SESSION_BYTES
 
 FORMAT = "handsplice-session"
 VERSION = 1
 SIDES = ("right", "left", "both")
 MATRIX_VIEWS = ("pass1", "pass2", "cumulative1", "cumulative2")
 MAX_POINTS = 10_000
-MAX_TEXT = 4 * 1024 * 1024  # a session is small; refuse anything bigger than 4 MiB
+MAX_TEXT = MAX_SESSION_BYTES  # a session is small; refuse anything bigger (engine.limits)
 _HEX64 = re.compile(r"^[0-9a-f]{64}$")
 _ROLE_NAME = re.compile(r"^[A-Za-z0-9_]{1,40}$")
 
@@ -163,7 +164,10 @@ class _Reader:
     def number(self, value, field_name: str, lo: float, hi: float, lo_open: bool = False) -> float:
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise self.fail(field_name, f"expected a number, got {_show(value)}")
-        x = float(value)
+        try:
+            x = float(value)
+        except OverflowError:  # a huge JSON integer
+            x = math.inf
         bad_lo = x <= lo if lo_open else x < lo
         if not math.isfinite(x) or bad_lo or x > hi:
             lo_txt = f"> {lo:g}" if lo_open else f">= {lo:g}"
