@@ -91,7 +91,7 @@ def test_long_takes_get_a_strided_map_and_the_same_keys():
     np.testing.assert_array_equal(full.frames, strided.frames)
 
 
-@pytest.mark.parametrize("kwargs", [dict(joint_weights=(1, 1, 1)), dict(max_gain=0.5),
+@pytest.mark.parametrize("kwargs", [dict(joint_weights=(1, -1, 1)), dict(max_gain=0.5),
                                     dict(contrast_window_s=0), dict(min_prominence=-1)])
 def test_bad_parameters_name_the_field(kwargs):
     with pytest.raises(ParameterError, match=next(iter(kwargs))):
@@ -101,6 +101,9 @@ def test_bad_parameters_name_the_field(kwargs):
 def test_bad_points_shape_is_an_error():
     with pytest.raises(ParameterError, match="points"):
         find_key_poses(np.zeros((10, 3, 3)), FPS)
+    # other point sets work with one weight per point
+    five = find_key_poses(np.zeros((10, 5, 3)), FPS, KeyPoseParameters(joint_weights=(1,) * 5))
+    assert five.frames.tolist() == []
 
 
 @pytest.mark.parametrize("take, side", [("2_wave-right-hand", "right"),

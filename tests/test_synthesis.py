@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import MOCAP
 
 from engine.errors import ParameterError
 from engine.gesture.synthesis import (
@@ -139,3 +140,132 @@ def test_speed_matched_warp_maps_keys_to_cycle_ends():
     assert w[20] == pytest.approx(0.0) and w[25] == pytest.approx(4.0)
     with pytest.raises(ParameterError, match="clip key frames"):
         speed_matched_warp([0, 10], [5], 20, 20, 30.0, 30.0)
+
+
+# ---------------------------------------------------------------------------
+# On real skeletons
+
+BEAT = MOCAP / "beat" / "1_wayne_0_1_1.bvh"
+CLENCH = MOCAP / "gestification" / "clenching.bvh"
+
+
+@pytest.fixture(scope="module")
+def beat():
+    from engine.io.bvh import read_bvh
+
+    return read_bvh(BEAT)
+
+
+def _tips_in_wrist_frame(motion, rig):
+    from engine import rotations as rot
+    from engine.kinematics import forward_kinematics
+
+    pos, wrot = forward_kinematics(motion)
+    last = [int(rig.joints[f][rig.joints[f] >= 0][-1]) for f in range(5)]
+    rel = pos[:, last] - pos[:, [rig.wrist]]
+    inv = rot.conjugate(wrot[:, rig.wrist])[:, None]
+    return rot.rotate(np.broadcast_to(inv, rel.shape[:2] + (4,)), rel) * motion.meters_per_unit
+
+
+def test_flexion_axes_curl_fingers_into_the_palm(beat):
+    from engine.gesture.synthesis import apply_flexion, extract_flexion, hand_rig
+
+    for side in ("right", "left"):
+        rig = hand_rig(beat.skeleton, side)
+        assert rig.n_joints == 15
+        rest = beat.frames(0, 1)
+        open_ = apply_flexion(rest, rig, get_pose("open").angles[None])
+        fist = apply_flexion(rest, rig, get_pose("fist").angles[None])
+        t_open, t_fist = _tips_in_wrist_frame(open_, rig)[0], _tips_in_wrist_frame(fist, rig)[0]
+        # fingertips come closer to the wrist and move to the palm side
+        assert np.all(np.linalg.norm(t_fist[1:], axis=1) < 0.8 * np.linalg.norm(t_open[1:], axis=1))
+        assert np.all((t_fist[1:] - t_open[1:]) @ rig.palm_normal > 0.02)
+        # the captured BEAT fingers read as mostly flexed (positive) angles
+        cap = extract_flexion(beat, rig)
+        assert np.nanmean(cap[:, 1:, 1]) > 10
+        # apply then extract is exact
+        np.testing.assert_allclose(extract_flexion(fist, rig)[0], get_pose("fist").angles, atol=1e-9)
+
+
+@pytest.mark.parametrize("easing", ["hermite", "gaussian"])
+def test_pose_synthesis_is_smooth_and_coupled(beat, easing):
+    from engine.gesture.synthesis import extract_flexion, hand_rig, synthesize_from_poses
+
+    keys = ["relaxed@0", "fist@40", "point@100", "ok@160", "five@-1"]
+    out = synthesize_from_poses(beat, keys, easing=easing)
+    rig = hand_rig(beat.skeleton, "right")
+    got = extract_flexion(out.motion, rig)
+    for frame, name in [(0, "relaxed"), (40, "fist"), (100, "point"), (160, "ok"), (249, "five")]:
+        np.testing.assert_allclose(got[frame], get_pose(name).angles, atol=1e-9)
+    np.testing.assert_allclose(got[:, 1:, 2], DIP_PER_PIP * got[:, 1:, 1], atol=1e-9)
+    # fingertip velocity (wrist frame) has no jumps: frame-to-frame change of velocity
+    # stays a small fraction of the peak speed (the linear easing jumps by far more)
+    def jerkiness(motion):
+        v = np.diff(_tips_in_wrist_frame(motion, rig), axis=0)
+        return np.abs(np.diff(v, axis=0)).max() / np.abs(v).max()
+
+    assert jerkiness(out.motion) < 0.25
+    linear = synthesize_from_poses(beat, keys, easing="linear")
+    assert jerkiness(linear.motion) > 1.5 * jerkiness(out.motion)
+    # the body is untouched
+    body = [j for j in range(beat.skeleton.n_joints) if j not in set(rig.joints.ravel())]
+    left = hand_rig(beat.skeleton, "left")
+    body = [j for j in body if j not in set(left.joints.ravel())]
+    np.testing.assert_array_equal(out.motion.rotations[:, body], beat.rotations[:, body])
+
+
+def test_synthesis_needs_fingers():
+    from engine.errors import RoleError
+    from engine.gesture.synthesis import synthesize_from_poses
+    from engine.io.bvh import read_bvh
+
+    body = read_bvh(MOCAP / "bandai-namco" / "dataset-2_wave-right-hand_normal_001.bvh")
+    with pytest.raises(RoleError, match="no finger joints"):
+        synthesize_from_poses(body, ["fist@0"])
+    with pytest.raises(ParameterError, match="POSE@FRAME"):
+        synthesize_from_poses(body, ["fist"])
+
+
+def test_clip_synthesis_matches_speed_and_end_poses(beat):
+    from engine.gesture.synthesis import (
+        clip_key_frames,
+        extract_flexion,
+        hand_rig,
+        synthesize_from_clip,
+    )
+    from engine.io.bvh import read_bvh
+    from engine.roles import find_roles
+
+    clip = read_bvh(CLENCH)
+    clip_rig = hand_rig(clip.skeleton, "right", find_roles(clip.skeleton))
+    ckeys = clip_key_frames(clip, clip_rig)
+    assert ckeys[0] == 0 and ckeys[-1] == clip.n_frames - 1 and len(ckeys) >= 3
+    bkeys = [0, 50, 120, 200, 249]
+    out = synthesize_from_clip(beat, clip, "right", body_keys=bkeys, clip_keys=ckeys)
+    rig = hand_rig(beat.skeleton, "right")
+    src = extract_flexion(clip, clip_rig)
+    got = extract_flexion(out.motion, rig)
+    n_cycles = len(ckeys) - 1
+    for k, b in enumerate(bkeys[:-1]):  # each body key plays the start of a clip cycle
+        want = src[ckeys[k % n_cycles]]
+        np.testing.assert_allclose(got[b][np.isfinite(want)], want[np.isfinite(want)], atol=1e-6)
+    # uniform speed inside an interval
+    t = out.clip_time["right"]
+    np.testing.assert_allclose(np.diff(t[50:120]), np.diff(t[50:120]).mean(), rtol=1e-9)
+    # the left hand keeps its captured motion; warping scales the flexion
+    left = hand_rig(beat.skeleton, "left").joints
+    np.testing.assert_array_equal(out.motion.rotations[:, left[left >= 0]],
+                                  beat.rotations[:, left[left >= 0]])
+    half = synthesize_from_clip(beat, clip, "right", factor=0.5, body_keys=bkeys, clip_keys=ckeys)
+    np.testing.assert_allclose(extract_flexion(half.motion, rig), 0.5 * got, atol=1e-6)
+
+
+def test_synthesized_take_survives_a_bvh_round_trip(beat, tmp_path):
+    from engine.gesture.synthesis import extract_flexion, hand_rig, synthesize_from_poses
+    from engine.io.bvh import read_bvh, write_bvh
+
+    out = synthesize_from_poses(beat.frames(0, 60), ["open@0", "fist@59"], sides=("left",))
+    write_bvh(out.motion, tmp_path / "hands.bvh")
+    back = read_bvh(tmp_path / "hands.bvh")
+    rig = hand_rig(back.skeleton, "left")
+    np.testing.assert_allclose(extract_flexion(back, rig), out.angles["left"], atol=1e-4)

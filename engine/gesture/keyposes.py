@@ -40,9 +40,10 @@ class KeyPoseParameters:
 
     Attributes
     ----------
-    joint_weights : 4 floats
+    joint_weights : floats, one per point
         Weights ``w_t`` of shoulder, elbow, wrist and hand tip; the tip is raised
         (Jin & Hahn start equal and raise the tip to catch finger-driven motion).
+        Other point sets (e.g. five fingertips of a hand clip) give one weight each.
     contrast_threshold : float
         Weighted metres; local mean distance below which contrast is raised;
         0 turns enhancement off.
@@ -68,10 +69,10 @@ class KeyPoseParameters:
 
     def __post_init__(self) -> None:
         w = np.asarray(self.joint_weights, dtype=float)
-        if w.shape != (4,) or not np.all(np.isfinite(w)) or np.any(w < 0) or w.sum() <= 0:
+        if w.ndim != 1 or len(w) < 1 or not np.all(np.isfinite(w)) or np.any(w < 0) or w.sum() <= 0:
             raise ParameterError(
-                f"key poses joint_weights: expected 4 weights >= 0 (shoulder, elbow, wrist, "
-                f"hand tip) with a positive sum, got {self.joint_weights!r}")
+                f"key poses joint_weights: expected one weight >= 0 per point (shoulder, elbow, "
+                f"wrist, hand tip) with a positive sum, got {self.joint_weights!r}")
         for name in ("contrast_threshold", "min_prominence", "search_radius_s"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0):
@@ -153,12 +154,12 @@ class _PoseSpace:
         return raw, raw * gain
 
 
-def _as_points(points: np.ndarray, fps: float) -> np.ndarray:
+def _as_points(points: np.ndarray, fps: float, n_weights: int = 4) -> np.ndarray:
     pts = np.asarray(points, dtype=float)
-    if pts.ndim != 3 or pts.shape[1:] != (4, 3) or len(pts) < 1:
+    if pts.ndim != 3 or pts.shape[1:] != (n_weights, 3) or len(pts) < 1:
         raise ParameterError(
-            f"key poses: points must be (frames, 4, 3) (shoulder, elbow, wrist, hand tip), "
-            f"got {pts.shape}")
+            f"key poses: points must be (frames, {n_weights}, 3), one point per joint weight "
+            f"(shoulder, elbow, wrist, hand tip), got {pts.shape}")
     if not (np.isfinite(fps) and fps > 0):
         raise ParameterError(f"key poses: fps must be positive, got {fps!r}")
     if not np.all(np.isfinite(pts)):
@@ -185,7 +186,7 @@ def pose_distance_map(points: np.ndarray, fps: float, params: KeyPoseParameters 
     map_frames : (G,) int, the frames sampled (stride ``ceil(F / max_map_frames)``)
     """
     params = params or KeyPoseParameters()
-    pts = _as_points(points, fps)
+    pts = _as_points(points, fps, len(params.joint_weights))
     space = _PoseSpace(pts, np.asarray(params.joint_weights, float), fps, params)
     n = len(pts)
     stride = int(np.ceil(n / int(params.max_map_frames)))
@@ -243,9 +244,9 @@ def find_key_poses(points: np.ndarray, fps: float, params: KeyPoseParameters | N
 
     Parameters
     ----------
-    points : (F, 4, 3) float, metres
+    points : (F, K, 3) float, metres
         Shoulder, elbow, wrist and hand tip in the body frame (root translation and
-        pelvis yaw removed).
+        pelvis yaw removed), K = 4; or any K points with K joint weights.
     fps : float
     params : KeyPoseParameters
     with_map : bool
@@ -256,7 +257,7 @@ def find_key_poses(points: np.ndarray, fps: float, params: KeyPoseParameters | N
     KeyPoses
     """
     params = params or KeyPoseParameters()
-    pts = _as_points(points, fps)
+    pts = _as_points(points, fps, len(params.joint_weights))
     space = _PoseSpace(pts, np.asarray(params.joint_weights, float), fps, params)
     frames = stepwise_key_frames(lambda i: space.rows(i, i + 1)[1][0], len(pts), fps, params)
     if with_map:

@@ -50,7 +50,7 @@ Easing between key ``k`` (time ``x_k``, angle ``y_k``) and ``k + 1``:
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -325,7 +325,166 @@ def speed_matched_warp(body_keys, clip_keys, n_body: int, n_clip: int, body_fps:
 
 
 # ---------------------------------------------------------------------------
-# Result helpers
+# Finger joints of a skeleton and their flexion axes
+
+
+@dataclass(frozen=True)
+class HandRig:
+    """The finger joints of one hand and their flexion axes.
+
+    Attributes
+    ----------
+    side : ``"right"`` or ``"left"``
+    wrist : int
+    joints : (5, 3) int, joint index per finger (``FINGERS``) and anatomical number
+        (MCP/PIP/DIP, thumb CMC/MCP/IP); -1 where the rig has none
+    axes : (5, 3, 3) float, unit flexion axis of each joint in its rest (local) frame
+    bones : (5, 3, 3) float, unit rest direction of the bone each joint moves
+    palm_normal : (3,) float, unit, rest frame, pointing out of the palm
+    """
+
+    side: str
+    wrist: int
+    joints: np.ndarray
+    axes: np.ndarray
+    bones: np.ndarray
+    palm_normal: np.ndarray
+
+    @property
+    def n_joints(self) -> int:
+        return int((self.joints >= 0).sum())
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v)
+    return v / n if n > 0 else v
+
+
+def hand_rig(skeleton, side: str, roles=None) -> HandRig:
+    """Finger joints of ``side`` and their flexion axes from the rest geometry.
+
+    ``roles`` (``engine.roles.Roles``) is found from the joint names when omitted.
+    Raises ``RoleError`` when the hand has no finger joints, saying that synthesis
+    needs a skeleton with fingers.
+    """
+    from engine.errors import RoleError
+    from engine.kinematics import rest_positions
+    from engine.roles import find_roles
+
+    roles = roles or find_roles(skeleton)
+    arm = roles.side(side)
+    if not arm.has_fingers:
+        raise RoleError(
+            f"{side} hand: the skeleton has no finger joints ({skeleton.n_joints} joints); hand "
+            "synthesis needs a skeleton with fingers (grafting a hand onto a finger-less body "
+            "is not supported here; splice a hand take instead)")
+    wrist = roles.require(side, "wrist")
+    joints = -np.ones((5, 3), dtype=np.int64)
+    for f, finger in enumerate(FINGERS):
+        for j, k in zip(arm.fingers[finger], arm.numbers[finger]):
+            if 1 <= k <= 3:
+                joints[f, k - 1] = j
+    rest = rest_positions(skeleton)
+    base = rest[arm.hand if arm.hand is not None else wrist]
+    knuckles = [(f, rest[next(j for j in joints[f] if j >= 0)]) for f in range(1, 5)
+                if (joints[f] >= 0).any()]
+    if knuckles:
+        forward = np.mean([k for _, k in knuckles], axis=0) - base
+    else:  # thumb only: the thumb's direction stands in for the fingers'
+        forward = rest[joints[0][joints[0] >= 0][-1]] - base
+    if len(knuckles) >= 2:
+        lateral = knuckles[0][1] - knuckles[-1][1]  # radial (index side) minus ulnar
+    elif (joints[0] >= 0).any() and knuckles:
+        lateral = rest[joints[0][joints[0] >= 0][0]] - knuckles[0][1]  # thumb is radial
+    else:
+        raise RoleError(f"{side} hand: too few finger joints to find the palm's orientation")
+    normal = np.cross(lateral, forward) if side == "right" else np.cross(forward, lateral)
+    if np.linalg.norm(normal) < 1e-9 * max(np.linalg.norm(forward), 1e-12) ** 2:
+        raise RoleError(f"{side} hand: finger bases are in line with the wrist; cannot find "
+                        "the palm's orientation")
+    normal = _unit(normal)
+    toward_pinky = -_unit(lateral - np.dot(lateral, normal) * normal)
+    axes = np.zeros((5, 3, 3))
+    bones = np.zeros((5, 3, 3))
+    for f in range(5):
+        chain = [j for j in joints[f] if j >= 0]
+        curl = normal if f > 0 else _unit(normal + toward_pinky)
+        for k in range(3):
+            j = joints[f, k]
+            if j < 0:
+                continue
+            nxt = chain.index(j) + 1
+            kids = skeleton.children(j)
+            if nxt < len(chain):
+                bone = rest[chain[nxt]] - rest[j]
+            elif kids:
+                bone = rest[kids[0]] - rest[j]
+            else:
+                bone = rest[j] - rest[skeleton.parents[j]]
+            axis = np.cross(_unit(bone), curl)
+            if np.linalg.norm(axis) < 1e-6:
+                axis = np.cross(_unit(forward), normal)
+            axes[f, k] = _unit(axis)
+            b = _unit(bone)
+            bones[f, k] = _unit(b - np.dot(b, axes[f, k]) * axes[f, k])
+    return HandRig(side, int(wrist), joints, axes, bones, normal)
+
+
+def extract_flexion(motion, rig: HandRig) -> np.ndarray:
+    """(F, 5, 3) flexion angles, degrees; NaN where the rig has no joint.
+
+    The angle is that of the joint's bone, rotated by its local rotation and
+    projected on the plane normal to the flexion axis, from its rest direction
+    (positive toward the palm). Exact for rotations about the flexion axis; twist
+    about the bone and sideways (abduction) swing do not count.
+    """
+    from engine import rotations as rot
+
+    out = np.full((motion.n_frames, 5, 3), np.nan)
+    for f in range(5):
+        for k in range(3):
+            j = rig.joints[f, k]
+            if j < 0:
+                continue
+            axis, bone = rig.axes[f, k], rig.bones[f, k]
+            now = rot.rotate(motion.rotations[:, j], np.broadcast_to(bone, (motion.n_frames, 3)))
+            sin = np.cross(bone, now) @ axis
+            cos = now @ bone
+            out[:, f, k] = np.degrees(np.arctan2(sin, cos))
+    return out
+
+
+def apply_flexion(motion, rig: HandRig, angles: np.ndarray):
+    """``motion`` with each finger joint rotated by ``angles (F, 5, 3)`` degrees about
+    its flexion axis, relative to the rest pose. NaN angles keep the joint's rotation.
+    """
+    from engine import rotations as rot
+
+    ang = np.asarray(angles, dtype=float)
+    if ang.shape != (motion.n_frames, 5, 3):
+        raise ParameterError(f"flexion angles: expected ({motion.n_frames}, 5, 3), got {ang.shape}")
+    rots = motion.rotations.copy()
+    for f in range(5):
+        for k in range(3):
+            j = rig.joints[f, k]
+            if j < 0:
+                continue
+            a = ang[:, f, k]
+            ok = np.isfinite(a)
+            rots[ok, j] = rot.from_axis_angle(np.broadcast_to(rig.axes[f, k], (ok.sum(), 3)),
+                                              np.radians(a[ok]))
+    return replace(motion, rotations=rots)
+
+
+def _for_rig(angles: np.ndarray, rig: HandRig) -> np.ndarray:
+    """Angles for the joints a rig has: DIP from 2/3 PIP where missing, NaN elsewhere."""
+    out = couple_dip(angles)
+    out[..., rig.joints < 0] = np.nan
+    return out
+
+
+# ---------------------------------------------------------------------------
+# Result and front ends
 
 
 @dataclass(frozen=True)
@@ -336,15 +495,146 @@ class SynthesisResult:
     ----------
     motion : Motion, the body with finger rotations set
     angles : dict side -> (F, 5, 3) float degrees, the flexion applied (NaN: no joint)
-    key_frames : (K,) int, body key frames used
-    clip_time : (F,) float or None, clip frame per body frame (clip synthesis)
+    key_frames : dict side -> (K,) int, body key frames used
+    clip_time : dict side -> (F,) float clip frames (clip synthesis), else empty
     """
 
     motion: object
     angles: dict
-    key_frames: np.ndarray
-    clip_time: np.ndarray | None = None
+    key_frames: dict
+    clip_time: dict = field(default_factory=dict)
 
 
-def _replace_rotations(motion, rotations):
-    return replace(motion, rotations=rotations)
+def parse_pose_keys(specs, n_frames: int) -> list[tuple[int, str]]:
+    """``["fist@0", "open@30", ...]`` -> sorted ``[(0, "fist"), (30, "open")]``.
+
+    Frames may be negative (counted from the end). Errors name the bad item.
+    """
+    out = []
+    for spec in specs:
+        text = str(spec)
+        name, sep, frame = text.partition("@")
+        if not sep:
+            raise ParameterError(f"pose key {text!r}: expected POSE@FRAME, e.g. fist@30")
+        get_pose(name)
+        try:
+            k = int(frame)
+        except ValueError:
+            raise ParameterError(f"pose key {text!r}: frame {frame!r} is not an integer") from None
+        if k < 0:
+            k += n_frames
+        if not 0 <= k < n_frames:
+            raise ParameterError(f"pose key {text!r}: frame outside 0..{n_frames - 1}")
+        out.append((k, name.strip().lower()))
+    out.sort()
+    for (a, _), (b, _) in zip(out, out[1:]):
+        if a == b:
+            raise ParameterError(f"pose keys: two poses at frame {a}")
+    return out
+
+
+def synthesize_from_poses(body, keys, sides=("right", "left"), easing: str = "hermite",
+                          sigma: float = 0.2, roles=None) -> SynthesisResult:
+    """(c) Key-frame interpolation between library poses on a body with fingers.
+
+    Parameters
+    ----------
+    body : Motion with finger joints
+    keys : list of ``(frame, pose name)`` or of ``"pose@frame"`` strings
+    sides : hands to animate
+    easing : ``"hermite"``, ``"gaussian"`` or ``"linear"``
+    roles : engine.roles.Roles of ``body`` (found when omitted)
+    """
+    from engine.roles import find_roles
+
+    if keys and isinstance(keys[0], str):
+        keys = parse_pose_keys(keys, body.n_frames)
+    if not keys:
+        raise ParameterError("pose keys: give at least one POSE@FRAME")
+    keys = sorted((int(k), str(n)) for k, n in keys)
+    frames = np.array([k for k, _ in keys])
+    vals = np.array([get_pose(n).angles for _, n in keys])
+    curve = interpolate_keys(body.n_frames, frames, vals, easing, sigma)
+    roles = roles or find_roles(body.skeleton)
+    motion = body
+    angles, used = {}, {}
+    for side in sides:
+        rig = hand_rig(body.skeleton, side, roles)
+        angles[side] = _for_rig(curve, rig)
+        motion = apply_flexion(motion, rig, angles[side])
+        used[side] = frames
+    return SynthesisResult(motion=motion, angles=angles, key_frames=used)
+
+
+def clip_key_frames(clip, rig: HandRig, params=None) -> np.ndarray:
+    """Cycle boundaries of a hand clip: its first and last frame and the key poses
+    of its fingertips in the wrist frame (``engine.gesture.keyposes``)."""
+    from engine import rotations as rot
+    from engine.gesture.keyposes import KeyPoseParameters, find_key_poses
+    from engine.kinematics import forward_kinematics, rest_positions
+
+    pos, wrot = forward_kinematics(clip)
+    rest = rest_positions(clip.skeleton)
+    scale = clip.meters_per_unit
+    tips = []
+    for f in range(5):
+        chain = [j for j in rig.joints[f] if j >= 0]
+        if not chain:
+            continue
+        last = chain[-1]
+        bone = rest[last] - rest[clip.skeleton.parents[last]]
+        tip = pos[:, last] + rot.rotate(wrot[:, last], bone)
+        tips.append(tip)
+    pts = np.stack(tips, axis=1) - pos[:, rig.wrist][:, None]
+    inv = rot.conjugate(wrot[:, rig.wrist])[:, None]
+    local = rot.rotate(np.broadcast_to(inv, pts.shape[:2] + (4,)), pts) * scale
+    params = params or KeyPoseParameters(joint_weights=(1.0,) * local.shape[1],
+                                         contrast_threshold=0.05, min_prominence=0.02)
+    keys = find_key_poses(local, clip.fps, params, with_map=False).frames
+    return np.unique(np.r_[0, keys, clip.n_frames - 1]).astype(np.int64)
+
+
+def synthesize_from_clip(body, clip, side: str = "right", factor: float = 1.0,
+                         body_keys=None, clip_keys=None, clip_side: str | None = None,
+                         roles=None, clip_roles=None) -> SynthesisResult:
+    """(a) Speed-matched temporal alignment of a hand clip, with (b) flexion warping.
+
+    Parameters
+    ----------
+    body : Motion with finger joints on ``side``
+    clip : Motion of a hand (any rig with finger joints; hand-only takes are fine)
+    side : the body's hand to animate
+    factor : flexion warp factor (1 = as captured)
+    body_keys : body key frames; from ``key_poses(body, side)`` plus the first and
+        last frame when omitted
+    clip_keys : clip cycle boundaries; from ``clip_key_frames`` when omitted
+    clip_side : the clip's hand; its only hand (or ``side``) when omitted
+    """
+    from engine.gesture.keyposes import key_poses
+    from engine.roles import find_roles, side_from_name
+
+    roles = roles or find_roles(body.skeleton)
+    rig = hand_rig(body.skeleton, side, roles)
+    hint = side_from_name(clip.meta.source) if clip.meta.source else None
+    clip_roles = clip_roles or find_roles(clip.skeleton, side_hint=hint or clip_side or side)
+    if clip_side is None:
+        found = [s for s in ("right", "left") if clip_roles.side(s).has_fingers]
+        clip_side = side if side in found else (found[0] if found else side)
+    clip_rig = hand_rig(clip.skeleton, clip_side, clip_roles)
+    if body_keys is None:
+        found = key_poses(body, side, with_map=False).frames
+        body_keys = np.unique(np.r_[0, found, body.n_frames - 1])
+    if clip_keys is None:
+        clip_keys = clip_key_frames(clip, clip_rig)
+    warp = speed_matched_warp(body_keys, clip_keys, body.n_frames, clip.n_frames, body.fps,
+                              clip.fps)
+    src = extract_flexion(clip, clip_rig)
+    i0 = np.floor(warp).astype(np.int64)
+    i1 = np.minimum(i0 + 1, clip.n_frames - 1)
+    w = (warp - i0)[:, None, None]
+    angles = src[i0] * (1.0 - w) + src[i1] * w
+    angles = _for_rig(warp_flexion(angles, factor), rig)
+    motion = apply_flexion(body, rig, angles)
+    return SynthesisResult(motion=motion, angles={side: angles},
+                           key_frames={side: np.asarray(body_keys, dtype=np.int64)},
+                           clip_time={side: warp})
