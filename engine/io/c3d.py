@@ -1,21 +1,26 @@
 """C3D reader: labelled 3-D marker trajectories into a ``MarkerSet``.
 
-Reading goes through ezc3d, but only after this module has checked the file's
-header itself: ezc3d reads a truncated file silently (fewer frames) and may
-misbehave on garbage, so the header's key byte, parameter block, processor type,
-frame range, frame rate and the promised data size are validated first.
+A small, self-contained reader of the C3D layout (header block, parameter
+section, point data), written with bounds checks everywhere: ezc3d (used by the
+tests as the reference reader) segfaults or hangs on some damaged parameter
+sections and silently reads truncated files, which a server accepting uploads
+cannot afford. Intel (little-endian), DEC (VAX floats) and MIPS (big-endian)
+files, integer and float point data are supported.
 
 What is read
 ------------
 - labels: ``POINT:LABELS`` (and ``LABELS2``, ``LABELS3``... beyond 255 markers),
-  stripped, as the file spells them (e.g. ``"Daphnee:ASISr"``);
-- points: (frames, markers, 3) in the file's units; a sample whose residual is
-  negative (the C3D convention for "not seen") is NaN;
+  stripped, as the file spells them (e.g. ``"Daphnee:ASISr"``); unlabelled
+  points are named ``M001``...;
+- points: (frames, markers, 3) in the file's units (integer data times
+  ``POINT:SCALE``); a sample whose residual word is negative (the C3D convention
+  for "not seen") is NaN;
 - fps: ``POINT:RATE`` (the header's rate when the parameter is absent);
 - units: ``POINT:UNITS`` (``"mm"``, ``"cm"``, ``"m"``, ``"in"``; anything else
   gives ``"unknown"``);
 - up axis: from ``POINT:Y_SCREEN`` (the axis shown upwards; ``"+Z"`` -> ``"z"``),
-  ``"z"`` when absent (the usual lab convention for C3D).
+  ``"z"`` when absent or not Y/Z (the usual lab convention for C3D).
+Analog channels are not read.
 """
 
 from __future__ import annotations
@@ -52,64 +57,103 @@ def read_c3d(path: str | Path) -> MarkerSet:
     Raises
     ------
     MotionFormatError
-        The file is not a C3D file, its header is inconsistent, it is shorter than
-        its header promises (truncated), or ezc3d cannot parse it.
+        The file is not a C3D file, its header or parameter section is damaged or
+        inconsistent, or it is shorter than its header promises (truncated).
     FileNotFoundError
         ``path`` does not exist.
     """
     path = Path(path)
-    raw_size = path.stat().st_size  # FileNotFoundError names the file
-    with open(path, "rb") as fh:
-        head = fh.read(_BLOCK)
-        header = _check_header(path, head, raw_size, fh)
-        fh.seek((header["param_block"] - 1) * _BLOCK)
-        section = fh.read(header["n_param_blocks"] * _BLOCK)
-    # ezc3d can crash or hang on a damaged parameter section: walk it here first
-    params = _walk_parameters(path, section, header)
-    _check_parameters(path, params, header)
+    raw = path.read_bytes()
+    return parse_c3d(raw, source=path)
 
-    try:
-        import ezc3d
 
-        c3d = ezc3d.c3d(str(path))
-    except Exception as exc:  # ezc3d raises OSError/RuntimeError with iostream text
-        raise MotionFormatError(path, f"not a readable C3D file ({_first_line(exc)})") from None
+def parse_c3d(raw: bytes, source: str | Path = "<input>") -> MarkerSet:
+    """Parse the bytes of a C3D file (see ``read_c3d``); ``source`` names it in errors."""
+    header = _check_header(source, raw)
+    start = (header["param_block"] - 1) * _BLOCK
+    section = raw[start:start + header["n_param_blocks"] * _BLOCK]
+    params = _walk_parameters(source, section, header)
+    _check_parameters(source, params, header)
+    reader = _ParamReader(params, header)
 
-    params = c3d["parameters"]
-    point = params.get("POINT", {})
-    labels = _labels(point)
-    data = np.asarray(c3d["data"]["points"], dtype=float)  # (4, M, F)
-    if data.ndim != 3 or data.shape[0] < 3:
-        raise MotionFormatError(path, f"unexpected point data shape {data.shape}")
-    n_markers = data.shape[1]
-    if len(labels) < n_markers:  # unlabelled points get a generated name
-        labels += [f"M{i + 1:03d}" for i in range(len(labels), n_markers)]
-    labels = labels[:n_markers]
-    points = np.ascontiguousarray(np.transpose(data[:3], (2, 1, 0)))  # (F, M, 3)
-    residuals = c3d["data"].get("meta_points", {}).get("residuals")
-    if residuals is not None:
-        res = np.asarray(residuals, dtype=float)
-        if res.ndim == 3 and res.shape[1:] == data.shape[1:]:
-            points[np.transpose(res[0]) < 0] = np.nan
+    n_points = header["n_points"]
+    n_frames = _frame_count(source, reader, header, len(raw))
+    scale = reader.float("POINT", "SCALE", header["scale"])
+    is_float = scale < 0
+    value_bytes = 4 if is_float else 2
+    per_frame = n_points * 4 + header["n_analog"]
+    offset = (header["data_start"] - 1) * _BLOCK
+    needed = offset + n_frames * per_frame * value_bytes
+    if len(raw) < needed:
+        have = (len(raw) - offset) // max(per_frame * value_bytes, 1)
+        raise MotionFormatError(
+            source, f"truncated C3D file (or damaged header): {n_frames} frames need {needed} "
+                    f"bytes, the file has {len(raw)} (about {max(have, 0)} frames)")
+    data = raw[offset:needed]
+    if is_float:
+        values = _floats(data, header["processor"], header["endian"])
+    else:
+        values = np.frombuffer(data, dtype=np.dtype(header["endian"] + "i2")).astype(float)
+    values = values.reshape(n_frames, per_frame)[:, :n_points * 4].reshape(n_frames, n_points, 4)
+    points = values[:, :, :3].copy()
+    if not is_float:
+        points *= abs(scale)
+    points[values[:, :, 3] < 0] = np.nan
+    if not np.isfinite(points[~np.isnan(points)]).all():
+        raise MotionFormatError(source, "point data holds infinite values")
 
-    rate = _param_value(point, "RATE")
-    fps = float(rate[0]) if rate is not None and len(rate) else header["rate"]
+    labels = reader.labels()
+    if len(labels) < n_points:
+        labels += [f"M{i + 1:03d}" for i in range(len(labels), n_points)]
+    labels = labels[:n_points]
+    fps = reader.float("POINT", "RATE", header["rate"])
     if not (np.isfinite(fps) and fps > 0):
-        raise MotionFormatError(path, f"POINT:RATE must be a positive number, got {fps}")
-    units = _units(_param_value(point, "UNITS"))
-    up_axis = _up_axis(_param_value(point, "Y_SCREEN"))
-    meta = MotionMeta(units=units, up_axis=up_axis, source=str(path), format="c3d")
-    return MarkerSet(labels=tuple(labels), points=points, fps=fps, meta=meta)
+        raise MotionFormatError(source, f"POINT:RATE must be a positive number, got {fps}")
+    units = _UNITS.get(reader.text("POINT", "UNITS").lower(), "unknown")
+    up = reader.text("POINT", "Y_SCREEN").lower().lstrip("+-")
+    up_axis = up if up in ("y", "z") else "z"  # MotionMeta knows y-up and z-up only
+    meta = MotionMeta(units=units, up_axis=up_axis, source=str(source), format="c3d")
+    return MarkerSet(labels=tuple(labels), points=points, fps=float(fps), meta=meta)
+
+
+def _frame_count(source, reader: _ParamReader, header: dict, size: int) -> int:
+    first, last = header["first"], header["last"]
+    if last != 0xFFFF:
+        if last < first:
+            raise MotionFormatError(source, f"bad C3D header: last frame {last} before "
+                                            f"first frame {first}")
+        return last - first + 1
+    # long takes: the 16-bit header overflows; TRIAL:ACTUAL_*_FIELD hold 32-bit numbers
+    start = reader.uint32("TRIAL", "ACTUAL_START_FIELD")
+    end = reader.uint32("TRIAL", "ACTUAL_END_FIELD")
+    if start is None or end is None or end < start:
+        raise MotionFormatError(source, "C3D header frame count overflows and "
+                                        "TRIAL:ACTUAL_START_FIELD/END_FIELD are missing")
+    return end - start + 1
+
+
+def _floats(data: bytes, processor: str, endian: str) -> np.ndarray:
+    with np.errstate(invalid="ignore"):  # signalling-NaN bit patterns in damaged data
+        return _floats_raw(data, processor, endian)
+
+
+def _floats_raw(data: bytes, processor: str, endian: str) -> np.ndarray:
+    if processor == "dec":  # VAX F-float: swap the 16-bit halves, exponent bias 2 higher
+        halves = np.frombuffer(data, dtype="<u2").reshape(-1, 2)[:, ::-1].copy()
+        return halves.view("<f4").ravel().astype(float) / 4.0
+    return np.frombuffer(data, dtype=np.dtype(endian + "f4")).astype(float)
 
 
 # --------------------------------------------------------------------------- header
 
 
-def _check_header(path: Path, head: bytes, size: int, fh) -> dict:
-    """Validate the 512-byte header and the promised file size; return key numbers."""
-    if len(head) < _BLOCK:
+def _check_header(path, raw: bytes) -> dict:
+    """Validate the 512-byte header and the parameter block start; return key numbers."""
+    size = len(raw)
+    if size < _BLOCK:
         raise MotionFormatError(path, f"not a C3D file: {size} bytes, shorter than the "
                                       f"{_BLOCK}-byte header")
+    head = raw[:_BLOCK]
     if head[1] != 0x50:
         raise MotionFormatError(path, f"not a C3D file: header byte 2 is 0x{head[1]:02x}, "
                                       "expected 0x50")
@@ -117,11 +161,11 @@ def _check_header(path: Path, head: bytes, size: int, fh) -> dict:
     if param_block < 2:
         raise MotionFormatError(path, f"bad C3D header: parameter block {param_block}, "
                                       "expected 2 or more")
-    fh.seek((param_block - 1) * _BLOCK)
-    phead = fh.read(4)
-    if len(phead) < 4:
+    at = (param_block - 1) * _BLOCK
+    if size < at + 4:
         raise MotionFormatError(path, f"truncated C3D file: parameter block {param_block} "
                                       f"lies beyond the end ({size} bytes)")
+    phead = raw[at:at + 4]
     processor = _PROCESSORS.get(phead[3])
     if processor is None:
         raise MotionFormatError(path, f"bad C3D parameter block: processor type {phead[3]}, "
@@ -136,27 +180,18 @@ def _check_header(path: Path, head: bytes, size: int, fh) -> dict:
     rate = _header_float(head[20:24], processor, endian)
     if n_param_blocks < 1:
         raise MotionFormatError(path, "bad C3D parameter block: it declares 0 parameter blocks")
+    if size < at + n_param_blocks * _BLOCK:
+        raise MotionFormatError(path, f"truncated C3D file: {size} bytes, the parameter "
+                                      f"section needs {at + n_param_blocks * _BLOCK}")
     if data_start < param_block + n_param_blocks:
         raise MotionFormatError(path, f"bad C3D header: data starts at block {data_start}, "
                                       f"inside the parameter section (blocks {param_block}.."
                                       f"{param_block + n_param_blocks - 1})")
-    if size < (param_block - 1 + n_param_blocks) * _BLOCK:
-        raise MotionFormatError(path, f"truncated C3D file: {size} bytes, the parameter "
-                                      f"section needs {(param_block - 1 + n_param_blocks) * _BLOCK}")
-    if last >= first and last != 0xFFFF:  # 65535 means "see POINT:FRAMES"
-        n_frames = last - first + 1
-        value_bytes = 4 if scale < 0 else 2
-        per_frame = (n_points * 4 + n_analog) * value_bytes
-        needed = (data_start - 1) * _BLOCK + n_frames * per_frame
-        if size < needed:
-            have = max(0, (size - (data_start - 1) * _BLOCK) // per_frame) if per_frame else 0
-            raise MotionFormatError(
-                path, f"truncated C3D file (or damaged header): header promises {n_frames} frames "
-                      f"({needed} bytes), "
-                      f"file has {size} bytes (about {have} frames)")
-    return {"n_points": n_points, "n_analog": n_analog, "rate": rate, "processor": processor,
-            "endian": endian, "param_block": param_block, "n_param_blocks": n_param_blocks,
-            "data_start": data_start, "scale": scale}
+    if not np.isfinite(scale) or scale == 0:
+        raise MotionFormatError(path, f"bad C3D header: point scale {scale}")
+    return {"n_points": n_points, "n_analog": n_analog, "first": first, "last": last,
+            "rate": rate, "processor": processor, "endian": endian, "param_block": param_block,
+            "n_param_blocks": n_param_blocks, "data_start": data_start, "scale": scale}
 
 
 def _header_float(b: bytes, processor: str, endian: str) -> float:
@@ -269,38 +304,55 @@ def _check_parameters(path: Path, params: dict, header: dict) -> None:
 
 
 
-def _param_value(group: dict, name: str):
-    entry = group.get(name)
-    if not isinstance(entry, dict):
-        return None
-    return entry.get("value")
+class _ParamReader:
+    """Typed access to the walked parameters (endianness and DEC floats handled)."""
 
+    def __init__(self, params: dict, header: dict):
+        self.params = params
+        self.endian = header["endian"]
+        self.processor = header["processor"]
 
-def _labels(point: dict) -> list[str]:
-    labels: list[str] = []
-    for key in ["LABELS"] + [f"LABELS{i}" for i in range(2, 100)]:
-        value = _param_value(point, key)
-        if value is None:
-            if key != "LABELS":
+    def _entry(self, group: str, name: str):
+        return self.params.get(group, {}).get(name)
+
+    def float(self, group: str, name: str, default: float) -> float:
+        entry = self._entry(group, name)
+        if entry is None or entry[0] != 4 or len(entry[2]) < 4:
+            return default
+        return _header_float(entry[2][:4], self.processor, self.endian)
+
+    def uint32(self, group: str, name: str) -> int | None:
+        """Two 16-bit words (low, high) as one number (TRIAL:ACTUAL_END_FIELD)."""
+        entry = self._entry(group, name)
+        if entry is None or entry[0] != 2 or len(entry[2]) < 4:
+            return None
+        lo, hi = struct.unpack(self.endian + "2H", entry[2][:4])
+        return lo + (hi << 16)
+
+    def text(self, group: str, name: str) -> str:
+        entry = self._entry(group, name)
+        if entry is None or entry[0] != -1:
+            return ""
+        return entry[2].decode("latin-1").strip().strip("\x00").strip()
+
+    def strings(self, group: str, name: str) -> list[str] | None:
+        entry = self._entry(group, name)
+        if entry is None or entry[0] != -1:
+            return None
+        dims, data = entry[1], entry[2]
+        if len(dims) < 2:
+            return [data.decode("latin-1").strip()] if dims else []
+        width = dims[0]
+        count = len(data) // width if width else 0
+        return [data[i * width:(i + 1) * width].decode("latin-1").replace("\x00", " ").strip()
+                for i in range(count)]
+
+    def labels(self) -> list[str]:
+        labels: list[str] = self.strings("POINT", "LABELS") or []
+        for i in range(2, 100):
+            more = self.strings("POINT", f"LABELS{i}")
+            if more is None:
                 break
-            continue
-        labels.extend(str(v).strip() for v in value)
-    return labels
+            labels.extend(more)
+        return labels
 
-
-def _units(value) -> str:
-    if value is None or not len(value):
-        return "unknown"
-    return _UNITS.get(str(value[0]).strip().lower(), "unknown")
-
-
-def _up_axis(value) -> str:
-    if value is None or not len(value):
-        return "z"
-    text = str(value[0]).strip().lower().lstrip("+-")
-    return text if text in ("y", "z") else "z"  # MotionMeta knows y-up and z-up only
-
-
-def _first_line(exc: BaseException) -> str:
-    text = str(exc).strip()
-    return text.splitlines()[0] if text else type(exc).__name__
