@@ -1,0 +1,66 @@
+"""``handsplice synthesize BODY -o OUT.bvh``: give a body take moving fingers.
+
+Either from a hand clip (``--clip``, speed-matched to the body's key poses,
+flexion optionally scaled with ``--warp``) or from library poses at frames
+(``--poses fist@0 open@30 ...``, interpolated with ``--easing``). Without
+either, both hands hold the relaxed pose. The body skeleton needs finger joints.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "synthesize",
+        help="add finger motion to a body take from a hand clip or key poses",
+        description="Add finger motion to a body take that has finger joints: from a hand clip "
+        "aligned to the body's key poses (Jin & Hahn), or by interpolating library poses "
+        "(relaxed, fist, open, point, ok, one..five) placed at frames.",
+    )
+    p.add_argument("body", help="body take with finger joints (.bvh)")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.bvh", help="output BVH")
+    src = p.add_mutually_exclusive_group()
+    src.add_argument("--clip", metavar="HAND.bvh", help="hand clip to align to the body")
+    src.add_argument("--poses", nargs="+", metavar="POSE@FRAME",
+                     help="library poses at body frames, e.g. relaxed@0 fist@30 open@-1")
+    p.add_argument("--easing", choices=("hermite", "gaussian", "linear"), default="hermite",
+                   help="interpolation between poses (default hermite)")
+    p.add_argument("--side", choices=("right", "left", "both"), default=None,
+                   help="hand(s) to animate (default: both for --poses, right for --clip)")
+    p.add_argument("--warp", type=float, default=1.0,
+                   help="scale the clip's finger flexion by this factor (default 1)")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from engine.errors import MotionFormatError, ParameterError
+    from engine.gesture.synthesis import synthesize_from_clip, synthesize_from_poses
+    from engine.io import load_take
+    from engine.io.bvh import write_bvh
+    from engine.motion import Motion
+
+    body = load_take(args.body)
+    if not isinstance(body, Motion):
+        raise MotionFormatError(args.body, "synthesize needs a skeletal body take (.bvh)")
+    if args.clip:
+        if args.side == "both":
+            raise ParameterError("--side both: a clip drives one hand; run twice for two")
+        clip = load_take(args.clip)
+        if not isinstance(clip, Motion):
+            raise MotionFormatError(args.clip, "the hand clip must be a skeletal take (.bvh)")
+        side = args.side or "right"
+        result = synthesize_from_clip(body, clip, side, factor=args.warp)
+        keys = result.key_frames[side]
+        how = f"clip {args.clip} on the {side} hand, {len(keys)} body key frames"
+    else:
+        if args.warp != 1.0:
+            raise ParameterError("--warp applies to --clip only")
+        sides = ("right", "left") if args.side in (None, "both") else (args.side,)
+        poses = args.poses or ["relaxed@0"]
+        result = synthesize_from_poses(body, poses, sides=sides, easing=args.easing)
+        how = f"{len(poses)} key poses ({args.easing}) on {' and '.join(sides)}"
+    write_bvh(result.motion, args.output)
+    print(f"wrote {args.output}: {body.n_frames} frames, {how}")
+    return 0
