@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from engine import rotations as rot
+from engine.errors import HandSpliceError
 from engine.kinematics import rest_positions
 from engine.motion import Skeleton
 
@@ -108,6 +109,7 @@ class HandParts:
     other : joints below the wrist that are no named finger (``LFingers``,
         ``RightHandEnd``, a second ``hand`` joint): the mannequin hangs the missing
         fingers on the first of them
+    tips : {finger: joint at the finger tip} where the rig has one
     """
 
     side: str
@@ -115,6 +117,7 @@ class HandParts:
     elbow: int | None
     fingers: dict[str, tuple[int, ...]] = field(default_factory=dict)
     other: tuple[int, ...] = ()
+    tips: dict[str, int] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -184,13 +187,18 @@ def _distinct_chain(chain: list[int], pos: np.ndarray, tol: float) -> list[int]:
 
 
 def find_anatomy(skeleton: Skeleton, positions: np.ndarray | None = None,
-                 rotations: np.ndarray | None = None) -> Anatomy:
+                 rotations: np.ndarray | None = None, roles=None,
+                 side_hint: str | None = None) -> Anatomy:
     """Find the body parts of ``skeleton`` (see the module docstring).
 
     ``positions (J, 3)`` and ``rotations (J, 4)`` are the world pose the body frame
     and sizes are measured in (default: the rest pose). Some files' rest poses are
     not anatomical (Bandai-Namco's shoulders are turned 90 degrees against its
     hips), so the mannequin measures on a captured frame.
+
+    Arms, wrists and fingers come from :func:`engine.roles.find_roles` (``roles``,
+    or found with ``side_hint`` for hand takes whose names carry no side) where it
+    finds them, so the mannequin agrees with the splice (and its overrides).
 
     Never fails: parts that cannot be found are left out (``None``, empty), and the
     mannequin then draws plain limb segments for the joints not classified.
@@ -307,6 +315,16 @@ def find_anatomy(skeleton: Skeleton, positions: np.ndarray | None = None,
                                 {f: tuple(fingers[f]) for f in FINGERS if f in fingers},
                                 tuple(other))
 
+    if roles is None:
+        try:
+            from engine.roles import find_roles
+
+            roles = find_roles(skeleton, side_hint=side_hint)
+        except HandSpliceError:
+            roles = None
+    if roles is not None:
+        _merge_roles(skeleton, pos, roles, hands, arms, body, tol)
+
     up, left, forward = _body_frame(skeleton, pos, pelvis, head, chest, arms, legs, hands, body)
     hand_length = _hand_length(skeleton, pos, hands, rotations)
     height = _height(skeleton, pos, spine, legs, head, hand_length, body)
@@ -318,6 +336,42 @@ def find_anatomy(skeleton: Skeleton, positions: np.ndarray | None = None,
         hidden=frozenset(hidden), up=up, left=left, forward=forward,
         height=float(height), hand_length=float(hand_length),
     )
+
+
+def _merge_roles(skeleton: Skeleton, pos: np.ndarray, roles, hands: dict[str, HandParts],
+                 arms: dict, body: bool, tol: float) -> None:
+    """Take wrists, fingers and arm chains from ``roles`` (in place) where it has them."""
+    found = {s: roles.side(s) for s in SIDES if roles.side(s).wrist is not None}
+    if not body and found and "" in hands:
+        del hands[""]  # a hand take given its side by roles (file name hint)
+    for side, arm in found.items():
+        w = arm.wrist
+        fingers: dict[str, tuple[int, ...]] = {}
+        for f in FINGERS:
+            chain = list(arm.fingers.get(f, []))
+            if not chain:
+                continue
+            meta = arm.metacarpals.get(f)
+            if meta is not None and f != "thumb":
+                chain = [meta] + chain
+            fingers[f] = tuple(chain)
+        tips = {f: int(arm.tips[f]) for f in fingers if arm.tips.get(f) is not None}
+        other = tuple(j for j in (arm.hand_end, arm.hand) if j is not None and j != w)
+        elbow = arm.elbow
+        if elbow is not None and np.linalg.norm(pos[elbow] - pos[w]) <= tol:
+            elbow = None  # Leap Motion: the forearm joint sits at the wrist
+        old = hands.get(side)
+        if elbow is None and old is not None:
+            elbow = old.elbow
+        if not fingers and old is not None:
+            fingers, tips = old.fingers, old.tips
+        hands[side] = HandParts(side, w, elbow, fingers, other or (old.other if old else ()),
+                                tips)
+        if body and arm.shoulder is not None and arm.elbow is not None and elbow is not None:
+            chain = skeleton.chain_to_root(w)
+            if arm.shoulder in chain and arm.elbow in chain:
+                clav = arm.clavicle if arm.clavicle in chain else -1
+                arms[side] = (-1 if clav is None else clav, arm.shoulder, arm.elbow, w)
 
 
 def _lca_many(skeleton: Skeleton, joints: list[int]) -> int:

@@ -597,8 +597,10 @@ def _hand(b: _Builder, skeleton, anatomy: Anatomy, pos, bones: Bones, bone_of, d
     nf = max(6, int(round(8 * (nar / 12))))
     for finger, chain in hand.fingers.items():
         r = radius * (1.12 if finger == "thumb" else 1.0)
-        pts = [pos[j] for j in chain] + [tip_of(chain)]
-        joints_ = list(chain) + [-1]
+        tip_joint = hand.tips.get(finger)
+        pts = [pos[j] for j in chain] + [pos[tip_joint] if tip_joint is not None
+                                         else tip_of(chain)]
+        joints_ = list(chain) + [-1 if tip_joint is None else tip_joint]
         start_i = 0
         if finger != "thumb" and len(chain) > 3:
             start_i = len(chain) - 3  # metacarpal joints lie inside the palm
@@ -608,6 +610,8 @@ def _hand(b: _Builder, skeleton, anatomy: Anatomy, pos, bones: Bones, bone_of, d
             if np.linalg.norm(pts[i + 1] - pts[i]) < 1e-6 * lh:
                 continue
             k = bone_of.get((j0, j1))
+            if k is None and j1 >= 0:  # a joint between the two (ManipNet THUMB_CMC_AA)
+                k = bone_of.get((int(skeleton.parents[j1]), j1))
             level = i - start_i
             taper0 = 1.0 - 0.08 * level
             taper1 = taper0 - (0.14 if i == len(pts) - 2 else 0.08)

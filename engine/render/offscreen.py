@@ -66,13 +66,15 @@ class Preview:
         user's mesh comes from :func:`engine.mesh.bind.bind_mesh`
     size : default ``(width, height)`` in pixels
     phases : per-frame gesture phases for the trails of take 0, or
-        ``{take index: phases}``; each is one array for both hands or
-        ``{"left": array, "right": array}``
+        ``{take index: phases}``; each is one array for both hands,
+        ``{"left": array, "right": array}`` or a ``GesturePhases``
+    roles : optional ``engine.roles.Roles`` per take (``None``: found from names)
     """
 
     def __init__(self, takes: Motion | Sequence[Motion], labels: Sequence[str] | None = None,
                  meshes: Sequence[SkinnedMesh | None] | None = None,
-                 size: tuple[int, int] | str = (640, 480), phases=None):
+                 size: tuple[int, int] | str = (640, 480), phases=None,
+                 roles: Sequence | None = None):
         takes = [takes] if isinstance(takes, Motion) else list(takes)
         if not takes:
             raise ValueError("Preview: needs at least one take")
@@ -87,8 +89,11 @@ class Preview:
         if len(labels) != len(takes):
             raise ValueError(f"Preview: {len(labels)} labels for {len(takes)} takes")
         self.size = parse_size(size)
-        self.views = [TakeView.from_motion(t, mesh=m, label=lab)
-                      for t, m, lab in zip(takes, meshes, labels, strict=True)]
+        roles = list(roles) if roles is not None else [None] * len(takes)
+        if len(roles) != len(takes):
+            raise ValueError(f"Preview: {len(roles)} role sets for {len(takes)} takes")
+        self.views = [TakeView.from_motion(t, mesh=m, label=lab, roles=r)
+                      for t, m, lab, r in zip(takes, meshes, labels, roles, strict=True)]
         if phases is not None and not (isinstance(phases, Mapping)
                                        and all(isinstance(k, int) for k in phases)):
             phases = {0: phases}

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from engine import rotations as rot
+from engine.errors import ParameterError
 from engine.kinematics import forward_kinematics
 from engine.mesh.anatomy import Anatomy, find_anatomy
 from engine.mesh.mannequin import build_mannequin
@@ -89,8 +90,11 @@ class TakeView:
     @classmethod
     def from_motion(cls, motion: Motion, mesh: SkinnedMesh | None = None,
                     anatomy: Anatomy | None = None, label: str = "",
-                    bind_frame: int = 0) -> TakeView:
-        """Prepare ``motion``; the mannequin is bound in captured frame ``bind_frame``."""
+                    bind_frame: int = 0, roles=None) -> TakeView:
+        """Prepare ``motion``; the mannequin is bound in captured frame ``bind_frame``.
+
+        ``roles`` (``engine.roles.Roles``) fixes the arm and finger joints; default:
+        found from the names (a hand take's side from its file name)."""
         if motion.n_frames < 1:
             raise ValueError(f"{label or 'take'}: has no frames to render")
         if not 0 <= bind_frame < motion.n_frames:
@@ -98,7 +102,11 @@ class TakeView:
                              f"0..{motion.n_frames - 1}")
         pos, wrot = forward_kinematics(motion)
         bind_pos, bind_rot = pos[bind_frame], wrot[bind_frame]
-        anatomy = anatomy or find_anatomy(motion.skeleton, bind_pos, bind_rot)
+        if anatomy is None:
+            from engine.roles import side_from_name
+
+            anatomy = find_anatomy(motion.skeleton, bind_pos, bind_rot, roles=roles,
+                                   side_hint=side_from_name(motion.meta.source or ""))
         if mesh is None:
             mesh = build_mannequin(motion.skeleton, anatomy, pose=(bind_pos, bind_rot))
         elif mesh.bind_positions.shape[0] != motion.skeleton.n_joints:
@@ -171,7 +179,8 @@ class TakeView:
     def check_frame(self, i: int) -> int:
         i = int(i)
         if not -self.n_frames <= i < self.n_frames:
-            raise IndexError(f"{self.label or 'take'}: frame {i} is outside 0..{self.n_frames - 1}")
+            raise ParameterError(f"{self.label or 'take'}: frame {i} is outside "
+                                 f"0..{self.n_frames - 1}")
         return i % self.n_frames
 
     def vertices(self, i: int) -> tuple[np.ndarray, np.ndarray]:

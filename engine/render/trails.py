@@ -60,9 +60,12 @@ def phase_codes(phases: Sequence | np.ndarray, n_frames: int, field: str = "phas
 
 
 def per_side_phases(phases, sides: Sequence[str], n_frames: int) -> dict[str, np.ndarray | None]:
-    """Phase codes per hand: one array for both hands, or ``{side: array}``."""
+    """Phase codes per hand: one array for both hands, ``{side: array}``, or an
+    ``engine.gesture.phases.GesturePhases``."""
     if phases is None:
         return {s: None for s in sides}
+    if hasattr(phases, "hands") and isinstance(phases.hands, Mapping):  # GesturePhases
+        phases = {s: h.labels for s, h in phases.hands.items()}
     if isinstance(phases, Mapping):
         return {s: (phase_codes(phases[s], n_frames, f"phases[{s!r}]") if s in phases else None)
                 for s in sides}

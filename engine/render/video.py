@@ -1,0 +1,239 @@
+"""Image and video output: PNG frame, contact sheet, GIF, MP4 (all written atomically).
+
+``write_image``, ``contact_sheet``, ``write_gif``, ``write_mp4`` take rendered
+``(H, W, 3) uint8`` frames; ``render_to_file(preview, path, ...)`` renders a frame
+range of a :class:`engine.render.offscreen.Preview` straight to ``.png`` (one
+frame, or a contact sheet of a range), ``.gif`` or ``.mp4``, reporting progress
+through ``progress(done, total)``. MP4 is H.264 (yuv420p) through imageio-ffmpeg's
+bundled ffmpeg; odd frame sizes are padded by one pixel.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable, Iterable, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from engine.atomic import atomic_path
+from engine.errors import ParameterError
+
+Progress = Callable[[int, int], None]
+FORMATS = (".png", ".gif", ".mp4")
+
+
+def _as_frame(image: np.ndarray, field: str = "image") -> np.ndarray:
+    arr = np.asarray(image)
+    if arr.ndim != 3 or arr.shape[2] not in (3, 4) or arr.dtype != np.uint8:
+        raise ValueError(f"{field}: expected an (H, W, 3) uint8 image, got {arr.shape} "
+                         f"{arr.dtype}")
+    return arr[..., :3]
+
+
+def write_image(image: np.ndarray, path: str | Path) -> Path:
+    """Write ``image (H, W, 3) uint8`` as PNG (or any format Pillow knows by suffix)."""
+    from PIL import Image
+
+    path = Path(path)
+    img = _as_frame(image)
+    with atomic_path(path) as tmp:
+        Image.fromarray(img).save(tmp, format=None if path.suffix else "PNG")
+    return path
+
+
+def contact_sheet(images: Sequence[np.ndarray], columns: int | None = None,
+                  labels: Sequence[str] | None = None, gap: int = 4,
+                  background: int = 255) -> np.ndarray:
+    """Tile images (each ``(H, W, 3) uint8``, sizes may differ) in rows of ``columns``.
+
+    ``labels`` are written in each tile's top-left corner. Returns ``(H, W, 3) uint8``.
+    """
+    if not images:
+        raise ValueError("contact_sheet: no images")
+    tiles = [_as_frame(im, f"images[{k}]") for k, im in enumerate(images)]
+    if labels is not None:
+        from engine.render.offscreen import _label_image
+
+        if len(labels) != len(tiles):
+            raise ValueError(f"contact_sheet: {len(labels)} labels for {len(tiles)} images")
+        tiles = [_label_image(t, lab) for t, lab in zip(tiles, labels, strict=True)]
+    n = len(tiles)
+    cols = columns or int(np.ceil(np.sqrt(n)))
+    rows = int(np.ceil(n / cols))
+    th = max(t.shape[0] for t in tiles)
+    tw = max(t.shape[1] for t in tiles)
+    sheet = np.full((rows * th + (rows + 1) * gap, cols * tw + (cols + 1) * gap, 3), background,
+                    np.uint8)
+    for k, t in enumerate(tiles):
+        r, c = divmod(k, cols)
+        y, x = gap + r * (th + gap), gap + c * (tw + gap)
+        sheet[y: y + t.shape[0], x: x + t.shape[1]] = t
+    return sheet
+
+
+def write_gif(frames: Iterable[np.ndarray], path: str | Path, fps: float,
+              progress: Progress | None = None, total: int | None = None) -> Path:
+    """Write frames as a looping GIF at ``fps`` (Pillow; frame times in 10 ms steps)."""
+    from PIL import Image
+
+    if not fps > 0:
+        raise ParameterError(f"fps {fps}: must be positive")
+    pil_frames = []
+    for k, frame in enumerate(frames):
+        pil_frames.append(Image.fromarray(_as_frame(frame, f"frame {k}")))
+        if progress:
+            progress(k + 1, total or 0)
+    if not pil_frames:
+        raise ValueError("write_gif: no frames")
+    duration = max(20, int(round(1000.0 / fps / 10.0)) * 10)
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        pil_frames[0].save(tmp, format="GIF", save_all=True, append_images=pil_frames[1:],
+                           duration=duration, loop=0, optimize=False, disposal=1)
+    return path
+
+
+def write_mp4(frames: Iterable[np.ndarray], path: str | Path, fps: float,
+              progress: Progress | None = None, total: int | None = None,
+              quality: float = 7.0) -> Path:
+    """Write frames as H.264 MP4 at ``fps`` (imageio-ffmpeg). All frames one size."""
+    import imageio_ffmpeg
+
+    if not fps > 0:
+        raise ParameterError(f"fps {fps}: must be positive")
+    path = Path(path)
+    writer = None
+    size = None
+    count = 0
+    with atomic_path(path) as tmp:
+        try:
+            for k, frame in enumerate(frames):
+                img = _as_frame(frame, f"frame {k}")
+                if size is None:
+                    size = img.shape[:2]
+                    even = (size[0] + size[0] % 2, size[1] + size[1] % 2)
+                    writer = imageio_ffmpeg.write_frames(
+                        str(tmp), (even[1], even[0]), fps=float(fps), codec="libx264",
+                        quality=quality, macro_block_size=1, ffmpeg_log_level="error",
+                        output_params=["-preset", "veryfast", "-movflags", "+faststart"])
+                    writer.send(None)
+                elif img.shape[:2] != size:
+                    raise ValueError(f"write_mp4: frame {k} is {img.shape[1]}x{img.shape[0]}, "
+                                     f"the first was {size[1]}x{size[0]}")
+                if even != size:
+                    img = np.pad(img, ((0, even[0] - size[0]), (0, even[1] - size[1]), (0, 0)),
+                                 mode="edge")
+                writer.send(np.ascontiguousarray(img))
+                count += 1
+                if progress:
+                    progress(count, total or 0)
+        finally:
+            if writer is not None:
+                writer.close()
+        if count == 0:
+            raise ValueError("write_mp4: no frames")
+    return path
+
+
+def frame_range(n_frames: int, frames: str | tuple[int, int] | None = None) -> range:
+    """Frames ``A:B`` (Python slice, B exclusive, either may be empty) of a take."""
+    if frames is None:
+        return range(n_frames)
+    if isinstance(frames, str):
+        parts = frames.split(":")
+        if len(parts) not in (2, 3):
+            raise ParameterError(f"frames {frames!r}: expected A:B (e.g. 0:90)")
+        try:
+            vals = [int(p) if p.strip() else None for p in parts]
+        except ValueError:
+            raise ParameterError(f"frames {frames!r}: A and B must be integers") from None
+        sl = slice(*vals)
+    else:
+        sl = slice(*frames)
+    out = range(n_frames)[sl]
+    if len(out) == 0:
+        raise ParameterError(f"frames {frames!r}: selects no frame of a take with "
+                             f"{n_frames} frames")
+    return out
+
+
+def render_to_file(preview, path: str | Path, frames: range | Sequence[int] | None = None,
+                   frame: int | None = None, fps: float | None = None,
+                   progress: Progress | None = None, sheet_frames: int = 12,
+                   **frame_kwargs) -> Path:
+    """Render ``preview`` to ``path`` by its suffix.
+
+    ``.png``: frame ``frame`` (default: the first of ``frames``, or 0), or with
+    ``frames`` and no ``frame`` a contact sheet of up to ``sheet_frames`` frames
+    spread over the range. ``.gif``/``.mp4``: every frame of ``frames`` (default all),
+    stepped so the output plays at ``fps`` (default the take's rate, at most 30).
+    ``frame_kwargs`` go to ``Preview.frame`` (view, camera, size, trails ...).
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in FORMATS:
+        raise ParameterError(f"{path.name}: output must end in {', '.join(FORMATS)}")
+    n = preview.n_frames
+    if suffix == ".png":
+        if frame is not None or frames is None:
+            f = frame if frame is not None else 0
+            if not -n <= f < n:
+                raise ParameterError(f"frame {f}: outside 0..{n - 1}")
+            image = preview.frame(f, **frame_kwargs)
+            if progress:
+                progress(1, 1)
+            return write_image(image, path)
+        picks = list(frames)
+        if len(picks) > sheet_frames:
+            picks = [picks[int(round(k))] for k in np.linspace(0, len(picks) - 1, sheet_frames)]
+        images = []
+        for k, f in enumerate(picks):
+            images.append(preview.frame(f, **frame_kwargs))
+            if progress:
+                progress(k + 1, len(picks))
+        labels = [f"frame {f}" for f in picks]
+        return write_image(contact_sheet(images, labels=labels), path)
+    frames = list(range(n) if frames is None else frames)
+    if not frames:
+        raise ParameterError("frames: selects no frame")
+    take_fps = preview.fps
+    out_fps = float(fps) if fps is not None else min(take_fps, 30.0)
+    if not out_fps > 0:
+        raise ParameterError(f"fps {fps}: must be positive")
+    step = max(1.0, take_fps / out_fps)
+    picks = [frames[int(k)] for k in np.arange(0, len(frames), step)]
+    out_fps = take_fps / step
+
+    def generate():
+        for f in picks:
+            yield preview.frame(f, **frame_kwargs)
+
+    writer = write_gif if suffix == ".gif" else write_mp4
+    return writer(generate(), path, out_fps, progress=progress, total=len(picks))
+
+
+def progress_printer(label: str = "rendering", stream=None, min_interval: float = 0.2
+                     ) -> Progress:
+    """A ``progress(done, total)`` that draws a one-line bar on ``stream`` (stderr)."""
+    stream = stream or sys.stderr
+    state = {"last": 0.0, "start": time.perf_counter()}
+
+    def report(done: int, total: int) -> None:
+        now = time.perf_counter()
+        final = total and done >= total
+        if not final and now - state["last"] < min_interval:
+            return
+        state["last"] = now
+        if total:
+            width = 30
+            fill = int(width * done / total)
+            bar = "#" * fill + "-" * (width - fill)
+            msg = f"\r{label} [{bar}] {done}/{total} {now - state['start']:.1f}s"
+        else:
+            msg = f"\r{label} {done} frames {now - state['start']:.1f}s"
+        stream.write(msg + ("\n" if final else ""))
+        stream.flush()
+
+    return report
