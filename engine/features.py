@@ -1,0 +1,454 @@
+"""Alignment markers per arm: the paper's four points, from a skeleton or a marker set.
+
+Majkowska et al. place four markers on each arm: two on the wrist (radial and
+ulnar styloid), one on the forearm and one on the back of the hand. For a
+skeletal take they are *virtual* markers at fixed offsets in the forearm and hand
+joint frames, computed by forward kinematics; for a marker take (C3D/TRC) they
+are the labelled markers themselves (pyomeca ``STYLr``, ``STYLu``, ``LARM*``,
+``MEDH``/``LATH``/``INDEX``; Plug-in Gait ``RWRA``, ``RWRB``, ``RFRA``, ``RFIN``).
+
+Output convention (:class:`ArmMarkers`): ``(F, 4, 3)`` in metres, y up, order
+``p1`` radial wrist, ``p2`` ulnar wrist, ``p3`` forearm, ``p4`` back of the hand
+(METHOD.md §3: ``f = p3 - (p1+p2)/2``, ``h = p4 - (p1+p2)/2``), with the shoulder
+position subtracted when the take has a shoulder (METHOD.md §2.1).
+
+The hand's rest frame (:class:`HandFrame`)
+------------------------------------------
+Offsets are defined in an anatomical frame of the rest pose so that two rigs
+with different axes, rest poses and units give comparable markers:
+
+* ``along``: the forearm's direction at rest (elbow -> wrist). Rigs whose
+  forearm joint sits at the wrist (Leap ``rForeArm``) or that have none
+  (ManipNet ``WRIST``) use wrist -> finger bases instead. The rest wrist is
+  assumed straight (true of T/A-pose rigs).
+* ``dorsal``: the normal of the back of the hand, from the finger bases (index
+  and pinky/ring joint 1) when the rig has them; else from the elbow's flexion
+  axis (the mean rotation vector of the elbow over the take: with the forearm at
+  mid-pronation the back of the hand faces along it); else from the thumb; else
+  the up axis. It is then snapped to the nearest axis of the rest frame (BVH rigs
+  orient joints along their rest axes), so a body without fingers and a hand take
+  from the same rig get the same frame.
+* ``radial``: completes the right-handed frame (thumb side).
+
+Marker offsets, with ``L`` the forearm length (estimated as palm length / 0.36
+when the rig has no elbow apart from the wrist): ``p1, p2 = wrist ± 0.12 L radial``
+and ``p3 = wrist - 0.5 L along`` in the forearm joint's frame; ``p4 = wrist +
+0.4 L along + 0.1 L dorsal`` in the hand joint's frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from engine import rotations as rot
+from engine.errors import ParameterError, RoleError
+from engine.kinematics import forward_kinematics, rest_positions
+from engine.motion import MarkerSet, Motion
+
+MARKER_NAMES = ("wrist_radial", "wrist_ulnar", "forearm", "hand")
+#: marker offsets as fractions of the forearm length L
+WRIST_HALF_WIDTH = 0.12
+FOREARM_POINT = 0.5
+HAND_POINT = 0.4
+HAND_DORSAL = 0.1
+#: palm length (wrist -> middle knuckle) / forearm length, to estimate L
+PALM_TO_FOREARM = 0.36
+DEFAULT_FOREARM_M = 0.25
+
+_AXES = np.vstack([np.eye(3), -np.eye(3)])
+
+
+@dataclass(frozen=True)
+class HandFrame:
+    """Rest-pose geometry of one arm of a skeleton (file axes and units).
+
+    Attributes
+    ----------
+    side : ``"right"`` or ``"left"``
+    wrist : int
+        The wrist joint (root of the transferred subtree).
+    forearm_joint : int
+        Joint whose world rotation carries the forearm (the elbow role when it is
+        an ancestor of the wrist, else the wrist).
+    hand_joint : int
+        Joint whose rotation orients the palm (the ``hand`` role, else the wrist).
+    shoulder : int or None
+        Joint whose position is subtracted (the ``shoulder`` role).
+    elbow_apart : bool
+        True when the forearm joint sits away from the wrist (a real elbow).
+    along, dorsal, radial : (3,) float unit vectors, rest world = rest joint axes
+    forearm_length : float, file units
+    palm_length : float or None, file units (wrist -> finger bases)
+    dorsal_source : str
+        ``"fingers"``, ``"elbow flexion"``, ``"thumb"`` or ``"up axis"``.
+    """
+
+    side: str
+    wrist: int
+    forearm_joint: int
+    hand_joint: int
+    shoulder: int | None
+    elbow_apart: bool
+    along: np.ndarray
+    dorsal: np.ndarray
+    radial: np.ndarray
+    forearm_length: float
+    palm_length: float | None
+    dorsal_source: str
+
+    @property
+    def basis(self) -> np.ndarray:
+        """(3, 3) rest anatomical frame, columns ``along, radial, dorsal``."""
+        return np.column_stack([self.along, self.radial, self.dorsal])
+
+
+@dataclass(frozen=True)
+class ArmMarkers:
+    """The four alignment markers of one arm.
+
+    markers : (F, 4, 3) float, metres, y up (order of ``MARKER_NAMES``)
+    fps : float
+    side : str
+    shoulder_subtracted : bool
+    """
+
+    markers: np.ndarray
+    fps: float
+    side: str
+    shoulder_subtracted: bool
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.markers.shape[0])
+
+
+# --------------------------------------------------------------------------------------------
+# axes and units
+# --------------------------------------------------------------------------------------------
+
+
+def to_y_up(points: np.ndarray, up_axis: str) -> np.ndarray:
+    """Points ``(..., 3)`` in a y-up frame: z-up data turn by -90° about x (``(x, z, -y)``)."""
+    p = np.asarray(points, dtype=float)
+    if up_axis == "y":
+        return p
+    if up_axis == "z":
+        return np.stack([p[..., 0], p[..., 2], -p[..., 1]], axis=-1)
+    raise ParameterError(f"up axis must be 'y' or 'z', got {up_axis!r}")
+
+
+def up_vector(up_axis: str) -> np.ndarray:
+    """The up direction ``(3,)`` in a take's own axes."""
+    return np.array([0.0, 0.0, 1.0]) if up_axis == "z" else np.array([0.0, 1.0, 0.0])
+
+
+def resample_points(points: np.ndarray, fps: float, target_fps: float) -> np.ndarray:
+    """Linear resampling of ``(F, ...)`` trajectories to ``target_fps``.
+
+    Output has ``round((F-1) * target_fps / fps) + 1`` frames spanning the same
+    duration (as :func:`engine.kinematics.resample`).
+    """
+    p = np.asarray(points, dtype=float)
+    f = p.shape[0]
+    if f == 0 or fps == target_fps:
+        return p.copy()
+    n_out = max(1, int(round((f - 1) * target_fps / fps)) + 1)
+    t = np.clip(np.arange(n_out) * (fps / target_fps), 0.0, f - 1)
+    i0 = np.floor(t).astype(np.int64)
+    i1 = np.minimum(i0 + 1, f - 1)
+    w = (t - i0).reshape((-1,) + (1,) * (p.ndim - 1))
+    return p[i0] * (1.0 - w) + p[i1] * w
+
+
+# --------------------------------------------------------------------------------------------
+# skeletons
+# --------------------------------------------------------------------------------------------
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = float(np.linalg.norm(v))
+    return v / n if n > 0 else v
+
+
+def _rest_vec(rest: np.ndarray, a: int, b: int) -> np.ndarray:
+    return rest[b] - rest[a]
+
+
+def _log_map(q: np.ndarray) -> np.ndarray:
+    q = np.where(q[..., :1] < 0, -q, q)
+    v = q[..., 1:]
+    s = np.linalg.norm(v, axis=-1, keepdims=True)
+    ang = 2.0 * np.arctan2(s, q[..., :1])
+    return np.where(s > 1e-12, v / np.where(s > 1e-12, s, 1.0) * ang, 0.0)
+
+
+def _finger_bases(arm, hand: int, skeleton) -> list[int]:
+    out = []
+    for f in ("index", "middle", "ring", "pinky"):
+        js = arm.fingers.get(f, [])
+        if js and hand in skeleton.chain_to_root(js[0]):
+            out.append(js[0])
+    return out
+
+
+def hand_frame(motion: Motion, roles, side: str) -> HandFrame:
+    """The rest-pose anatomical frame of ``side``'s hand (see the module docstring).
+
+    ``roles`` is an :class:`engine.roles.Roles` of ``motion.skeleton``. Raises
+    ``RoleError`` when the side has no wrist, or when neither a forearm nor finger
+    joints give the hand's direction.
+    """
+    sk = motion.skeleton
+    arm = roles.side(side)
+    wrist = roles.require(side, "wrist")
+    hand_joint = arm.hand if arm.hand is not None else wrist
+    rest = rest_positions(sk)
+    chain = sk.chain_to_root(wrist)
+    scale = max(float(np.linalg.norm(sk.offsets[1:], axis=1).max()) if sk.n_joints > 1 else 1.0,
+                1e-12)
+
+    elbow = arm.elbow if (arm.elbow is not None and arm.elbow in chain) else None
+    forearm_vec = _rest_vec(rest, elbow, wrist) if elbow is not None else None
+    elbow_apart = forearm_vec is not None and np.linalg.norm(forearm_vec) > 1e-3 * scale
+    bases = _finger_bases(arm, wrist, sk)
+    palm_vec = np.mean([_rest_vec(rest, wrist, j) for j in bases], axis=0) if bases else None
+    palm_length = float(np.linalg.norm(palm_vec)) if palm_vec is not None else None
+
+    if elbow_apart:
+        along = _unit(forearm_vec)
+    elif palm_vec is not None and palm_length > 1e-6 * scale:
+        along = _unit(palm_vec)
+    elif arm.hand_end is not None:
+        along = _unit(_rest_vec(rest, wrist, arm.hand_end))
+    elif sk.end_sites.get(hand_joint) is not None and np.linalg.norm(sk.end_sites[hand_joint]) > 0:
+        along = _unit(np.asarray(sk.end_sites[hand_joint], dtype=float))
+    else:
+        raise RoleError(f"{side} hand of {_name(motion)}: no forearm and no finger joints to "
+                        f"tell which way the hand points")
+
+    if elbow_apart:
+        length = float(np.linalg.norm(forearm_vec))
+    elif palm_length:
+        length = palm_length / PALM_TO_FOREARM
+    else:
+        length = DEFAULT_FOREARM_M / motion.meters_per_unit
+
+    dorsal_est, source = _dorsal_estimate(motion, arm, side, wrist, elbow, along, rest, chain)
+    dorsal = _snap_dorsal(dorsal_est, along)
+    radial = np.cross(dorsal, along) if side == "right" else np.cross(along, dorsal)
+    shoulder = arm.shoulder if (arm.shoulder is not None and arm.shoulder in chain) else None
+    forearm_joint = elbow if elbow is not None else wrist
+    return HandFrame(side=side, wrist=wrist, forearm_joint=forearm_joint, hand_joint=hand_joint,
+                     shoulder=shoulder, elbow_apart=bool(elbow_apart), along=along,
+                     dorsal=dorsal, radial=_unit(radial), forearm_length=length,
+                     palm_length=palm_length, dorsal_source=source)
+
+
+def _name(motion: Motion) -> str:
+    from pathlib import Path
+
+    return Path(motion.meta.source).name if motion.meta.source else "the take"
+
+
+def _dorsal_estimate(motion, arm, side, wrist, elbow, along, rest, chain):
+    sk = motion.skeleton
+    sign = 1.0 if side == "right" else -1.0
+    index = arm.fingers.get("index", [])
+    outer = arm.fingers.get("pinky", []) or arm.fingers.get("ring", [])
+    if index and outer and wrist in sk.chain_to_root(index[0]) \
+            and wrist in sk.chain_to_root(outer[0]):
+        radial = _rest_vec(rest, outer[0], index[0])
+        n = np.cross(along, radial) if side == "right" else np.cross(radial, along)
+        if np.linalg.norm(n) > 1e-9:
+            return _unit(n), "fingers"
+    if elbow is not None and sk.parents[elbow] >= 0 and motion.n_frames > 0:
+        w = _log_map(motion.rotations[:, elbow]).mean(axis=0)
+        w = w - along * np.dot(w, along)
+        if np.linalg.norm(w) > np.radians(2.0):
+            return sign * _unit(w), "elbow flexion"
+    thumb = arm.fingers.get("thumb", [])
+    if thumb and wrist in sk.chain_to_root(thumb[0]):
+        r = _rest_vec(rest, wrist, thumb[0])
+        r = r - along * np.dot(r, along)
+        if np.linalg.norm(r) > 1e-9:
+            n = np.cross(along, r) if side == "right" else np.cross(r, along)
+            return _unit(n), "thumb"
+    return up_vector(motion.meta.up_axis), "up axis"
+
+
+def _snap_dorsal(estimate: np.ndarray, along: np.ndarray) -> np.ndarray:
+    """Nearest rest axis to ``estimate`` among those not along the forearm, made ⊥ ``along``."""
+    cands = [a for a in _AXES if abs(np.dot(a, along)) < 0.75]
+    best = max(cands, key=lambda a: float(np.dot(a, estimate)))
+    n = best - along * np.dot(best, along)
+    return _unit(n)
+
+
+def marker_offsets(frame: HandFrame) -> tuple[np.ndarray, np.ndarray]:
+    """Rest-world offsets (file units) of ``p1..p4`` from the wrist and, per marker,
+    0 if it rides the forearm joint or 1 if it rides the hand joint."""
+    length = frame.forearm_length
+    offs = np.stack([
+        WRIST_HALF_WIDTH * length * frame.radial,
+        -WRIST_HALF_WIDTH * length * frame.radial,
+        -FOREARM_POINT * length * frame.along,
+        length * (HAND_POINT * frame.along + HAND_DORSAL * frame.dorsal),
+    ])
+    return offs, np.array([0, 0, 0, 1])
+
+
+def skeleton_markers(positions: np.ndarray, rotations: np.ndarray, frame: HandFrame
+                     ) -> np.ndarray:
+    """Virtual markers ``(F, 4, 3)`` (file units and axes) from FK results.
+
+    positions, rotations : (F, J, 3), (F, J, 4) world joint positions and rotations
+    (:func:`engine.kinematics.forward_kinematics`). At rest every world rotation is
+    the identity, so a rest-world offset turns with the joint's world rotation.
+    """
+    offs, rides = marker_offsets(frame)
+    wrist = positions[:, frame.wrist]
+    out = np.empty(positions.shape[:1] + (4, 3))
+    for k in range(4):
+        joint = frame.hand_joint if rides[k] else frame.forearm_joint
+        out[:, k] = wrist + rot.rotate(rotations[:, joint], offs[k])
+    return out
+
+
+def motion_markers(motion: Motion, side: str, roles=None, fps: float | None = None,
+                   frame: HandFrame | None = None, fk=None) -> ArmMarkers:
+    """Alignment markers of one arm of a skeletal take, metres, y up.
+
+    Parameters
+    ----------
+    motion : Motion
+    side : ``"right"`` or ``"left"``
+    roles : engine.roles.Roles, optional (found from joint names if omitted)
+    fps : float, optional
+        Resample the markers to this rate (linear interpolation).
+    frame : HandFrame, optional (computed if omitted)
+    fk : (positions, rotations), optional
+        Precomputed forward kinematics of the whole take.
+    """
+    if roles is None:
+        from engine.roles import find_roles
+
+        roles = find_roles(motion.skeleton)
+    if frame is None:
+        frame = hand_frame(motion, roles, side)
+    pos, wrot = fk if fk is not None else forward_kinematics(motion)
+    mk = skeleton_markers(pos, wrot, frame)
+    subtracted = frame.shoulder is not None
+    if subtracted:
+        mk = mk - pos[:, frame.shoulder][:, None, :]
+    mk = to_y_up(mk * motion.meters_per_unit, motion.meta.up_axis)
+    if fps is not None:
+        mk = resample_points(mk, motion.fps, fps)
+    return ArmMarkers(markers=mk, fps=float(fps or motion.fps), side=side,
+                      shoulder_subtracted=subtracted)
+
+
+def skeleton_yaw(motion: Motion, roles, fk=None) -> np.ndarray | None:
+    """Trunk heading about the vertical axis per frame (radians), or None.
+
+    From the vector between the two shoulder joints (else the two clavicles):
+    ``yaw = atan2(l_x, l_z)`` of the left-to-right vector in y-up axes, so that
+    ``θ = yaw_body - yaw_hand`` turns the hand take onto the body (eq. 7 sign).
+    """
+    pos, _ = fk if fk is not None else forward_kinematics(motion)
+    for role in ("shoulder", "clavicle"):
+        r, left = roles.get("right", role), roles.get("left", role)
+        if r is not None and left is not None:
+            lat = to_y_up(pos[:, r] - pos[:, left], motion.meta.up_axis)
+            return np.unwrap(np.arctan2(lat[:, 0], lat[:, 2]))
+    return None
+
+
+# --------------------------------------------------------------------------------------------
+# marker sets
+# --------------------------------------------------------------------------------------------
+
+# label candidates per marker; "{s}" is the side letter (R/L) for side-prefixed sets
+_MARKER_LABELS = {
+    "wrist_radial": ["STYLr", "{s}STYLr", "{s}WRA", "{s}RSP", "{s}_RSP", "WRA"],
+    "wrist_ulnar": ["STYLu", "{s}STYLu", "{s}WRB", "{s}USP", "{s}_USP", "WRB"],
+    "forearm": ["LARM_ant", "LARMl", "LARMm", "{s}FRA", "{s}FRM", "{s}FOREARM", "FRA"],
+    "hand": ["MEDH+LATH", "{s}MEDH+{s}LATH", "INDEX", "{s}FIN", "{s}HAND", "{s}MH2", "FIN"],
+    "shoulder": ["ACRO_tip", "{s}ACRO", "{s}SHO", "DELT", "SHO"],
+}
+_SIDE_LETTER = {"right": "R", "left": "L"}
+
+
+def _clean_label(label: str) -> str:
+    return label.split(":")[-1].strip()
+
+
+def _find_label(labels: dict[str, int], pattern: str, side: str) -> list[int] | None:
+    parts = [p.replace("{s}", _SIDE_LETTER[side]) for p in pattern.split("+")]
+    idx = [labels.get(p.lower()) for p in parts]
+    return None if any(i is None for i in idx) else idx
+
+
+def marker_set_markers(markers: MarkerSet, side: str, fps: float | None = None) -> ArmMarkers:
+    """Alignment markers of one arm of a marker take (C3D/TRC), metres, y up.
+
+    A set whose labels carry no side (pyomeca's single arm: ``STYLr``, ``STYLu``,
+    ``LARM_ant``, ``MEDH``, ``LATH``, ``ACRO_tip``) serves either side. Gaps stay
+    NaN here (the metrics fill them). ``RoleError`` lists what is missing.
+    """
+    labels = {_clean_label(lab).lower(): k for k, lab in enumerate(markers.labels)}
+    picked: dict[str, list[int]] = {}
+    for name, patterns in _MARKER_LABELS.items():
+        for pat in patterns:
+            idx = _find_label(labels, pat, side)
+            if idx is not None:
+                picked[name] = idx
+                break
+    missing = [n for n in MARKER_NAMES if n not in picked]
+    if missing:
+        raise RoleError(
+            f"{side} arm of {markers.meta.source or 'the marker set'}: no marker for "
+            f"{', '.join(missing)} (looked for labels such as "
+            + "; ".join(f"{n}: {', '.join(_MARKER_LABELS[n][:3])}" for n in missing) + ")")
+    pts = np.stack([np.nanmean(markers.points[:, picked[n]], axis=1) if len(picked[n]) > 1
+                    else markers.points[:, picked[n][0]] for n in MARKER_NAMES], axis=1)
+    subtracted = "shoulder" in picked
+    if subtracted:
+        pts = pts - markers.points[:, picked["shoulder"][0]][:, None, :]
+    pts = to_y_up(pts * markers.meters_per_unit, markers.meta.up_axis)
+    if fps is not None:
+        pts = resample_points(pts, markers.fps, fps)
+    return ArmMarkers(markers=pts, fps=float(fps or markers.fps), side=side,
+                      shoulder_subtracted=subtracted)
+
+
+def marker_set_yaw(markers: MarkerSet) -> np.ndarray | None:
+    """Trunk heading from right/left pelvis or shoulder markers (``ASISr``/``ASISl``,
+    ``RSHO``/``LSHO``, ``RASI``/``LASI``), or None."""
+    labels = {_clean_label(lab).lower(): k for k, lab in enumerate(markers.labels)}
+    for r, left in (("RSHO", "LSHO"), ("ASISr", "ASISl"), ("RASI", "LASI")):
+        if r.lower() in labels and left.lower() in labels:
+            lat = markers.points[:, labels[r.lower()]] - markers.points[:, labels[left.lower()]]
+            lat = to_y_up(lat, markers.meta.up_axis)
+            good = np.isfinite(lat).all(axis=1)
+            if good.sum() < 2:
+                continue
+            t = np.arange(len(lat))
+            yaw = np.arctan2(lat[:, 0], lat[:, 2])
+            return np.interp(t, t[good], np.unwrap(yaw[good]))
+    return None
+
+
+def take_sides(take: Motion | MarkerSet, roles=None) -> list[str]:
+    """Sides (``"right"``, ``"left"``) for which ``take`` yields alignment markers."""
+    if isinstance(take, MarkerSet):
+        out = []
+        for side in ("right", "left"):
+            try:
+                marker_set_markers(take, side)
+            except RoleError:
+                continue
+            out.append(side)
+        return out
+    return list(roles.sides_found())

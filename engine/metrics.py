@@ -1,0 +1,698 @@
+"""Local-cost metrics for the two splicing passes (METHOD.md sections 2 and 3).
+
+Pass 1 (phase matching, Majkowska et al. eq. 6): signs of the first and second
+derivatives of the four arm markers, with a dead zone so a held hand reads 0,
+after rotating the hand take about the vertical axis by θ (eq. 7, from a window
+of 5 frames × markers, or from the trunk yaw of both takes).
+
+Pass 2 (refinement, eqs. 8-9): angle between the hand vectors after the smallest
+rotation that takes the hand take's forearm vector onto the body's.
+
+Everything works on marker arrays from :mod:`engine.features` (metres, y up).
+
+The costs reach the DTW engine (:mod:`engine.dtw`) through its metric plug-in:
+each frame becomes one float64 row (:func:`phase_rows`, :meth:`AngleFeatures.rows`)
+and the numba functions :func:`splice_phase` / :func:`splice_angle` (registered
+as ``"splice_phase"`` / ``"splice_angle"``) compute a cell's cost inside the
+kernel, for band cells only: no ``n x m`` matrix, memory proportional to the
+frame counts plus one byte per band cell for the DTW's backpointers.
+
+Implementation notes (where this differs from the paper, and why)
+------------------------------------------------------------------
+* θ is quantised to ``n_bins`` directions (default 72, 5°): the hand take's sign
+  codes are precomputed for every direction and packed into two 48-bit masks
+  (positive, negative), so a band cell costs two short dot products (θ of eq. 7),
+  a polynomial ``atan2`` and three popcounts instead of rotating 16 vectors.
+  :func:`phase_cost_reference` computes eq. 6 with exact θ (tests compare).
+* The window of eq. 7 uses frames ``i-2..i+2`` clipped at the take's ends
+  (edge frames repeated), so every window holds 5 × markers points.
+* With both arms aligned jointly, one θ is computed from both arms' markers
+  (one trunk rotation for the take) and the two arms' costs are summed.
+* The dead zone ``ε`` is relative to each take's own 90th-percentile marker speed
+  (and acceleration), so a hand captured with a shrunken arm still reads holds as
+  0 and movements as ±1.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from scipy.signal import savgol_filter
+
+from engine.errors import ParameterError
+
+# numba options in one place: no nnan/ninf (NaN gaps in capture data are real)
+_FASTMATH = {"contract", "arcp", "reassoc", "nsz", "afn"}
+
+#: window of eq. 7 in frames (the paper: 5 frames × 4 markers = 20 points)
+THETA_WINDOW = 5
+#: default number of quantised θ directions
+THETA_BINS = 72
+
+
+# --------------------------------------------------------------------------------------------
+# derivatives and the dead zone
+# --------------------------------------------------------------------------------------------
+
+
+def savgol_window(fps: float, window_s: float = 0.2, polyorder: int = 3) -> int:
+    """Odd Savitzky-Golay window length in frames for ``window_s`` seconds at ``fps``."""
+    w = int(round(window_s * fps))
+    w = max(w, polyorder + 2)
+    return w + 1 if w % 2 == 0 else w
+
+
+def derivatives(points: np.ndarray, fps: float, window_s: float = 0.2,
+                polyorder: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """Velocity and acceleration of trajectories by Savitzky-Golay filtering.
+
+    Parameters
+    ----------
+    points : (F, ...) float
+        Trajectories along axis 0 (e.g. ``(F, K, 3)`` marker positions, metres).
+    fps : float
+        Frames per second of ``points``.
+    window_s : float
+        Smoothing window in seconds (rounded to an odd number of frames).
+
+    Returns
+    -------
+    velocity : same shape as ``points``, units per second
+    acceleration : same shape as ``points``, units per second²
+
+    Takes shorter than the window use the longest odd window that fits (and a
+    lower polynomial order); a take of 1-2 frames has zero derivatives.
+    NaN gaps are filled by linear interpolation first (edges held).
+    """
+    p = np.asarray(points, dtype=float)
+    if not (np.isfinite(fps) and fps > 0):
+        raise ParameterError(f"derivatives: fps must be positive, got {fps}")
+    f = p.shape[0]
+    if f < 3:
+        z = np.zeros_like(p)
+        return z, z.copy()
+    p = _fill_gaps(p)
+    w = savgol_window(fps, window_s, polyorder)
+    if w > f:
+        w = f if f % 2 == 1 else f - 1
+    order = min(polyorder, w - 1)
+    dt = 1.0 / fps
+    v = savgol_filter(p, w, order, deriv=1, delta=dt, axis=0, mode="interp")
+    if order < 2:
+        a = np.gradient(v, dt, axis=0)
+    else:
+        a = savgol_filter(p, w, order, deriv=2, delta=dt, axis=0, mode="interp")
+    return v, a
+
+
+def _fill_gaps(p: np.ndarray) -> np.ndarray:
+    """Linear interpolation over NaN frames along axis 0 (edges held); all-NaN -> 0."""
+    if not np.isnan(p).any():
+        return p
+    flat = p.reshape(p.shape[0], -1).copy()
+    t = np.arange(flat.shape[0])
+    for c in range(flat.shape[1]):
+        col = flat[:, c]
+        good = np.isfinite(col)
+        if not good.any():
+            flat[:, c] = 0.0
+        elif not good.all():
+            flat[:, c] = np.interp(t, t[good], col[good])
+    return flat.reshape(p.shape)
+
+
+@dataclass(frozen=True)
+class DeadZone:
+    """Thresholds below which a velocity / acceleration component reads 0.
+
+    velocity : float, units/s
+    acceleration : float, units/s²
+    """
+
+    velocity: float
+    acceleration: float
+
+
+def dead_zone(velocity: np.ndarray, acceleration: np.ndarray, relative: float = 0.1,
+              quantile: float = 0.9) -> DeadZone:
+    """Dead zone sized from the take's own speed and acceleration distribution.
+
+    ``ε_v = relative · q(|v|)`` where ``q`` is the ``quantile`` of the per-frame
+    speeds of all markers (the same for ``ε_a`` on accelerations). A take whose
+    arm moves half as far (a hand captured in a small volume) gets half the
+    threshold, so holds read 0 in both takes and the sign codes stay comparable.
+
+    velocity, acceleration : (F, K, 3) float
+    """
+    if not 0.0 <= relative < 1.0:
+        raise ParameterError(f"dead zone: relative must be in [0, 1), got {relative}")
+    speed = np.linalg.norm(np.asarray(velocity, dtype=float), axis=-1).ravel()
+    accel = np.linalg.norm(np.asarray(acceleration, dtype=float), axis=-1).ravel()
+    speed = speed[np.isfinite(speed)]
+    accel = accel[np.isfinite(accel)]
+    ev = relative * float(np.quantile(speed, quantile)) if speed.size else 0.0
+    ea = relative * float(np.quantile(accel, quantile)) if accel.size else 0.0
+    return DeadZone(velocity=ev, acceleration=ea)
+
+
+def sign_dead_zone(x: np.ndarray, eps: float) -> np.ndarray:
+    """``sgn_ε(x)``: 0 where ``|x| < eps`` else the sign, as int8."""
+    x = np.asarray(x, dtype=float)
+    out = np.sign(x).astype(np.int8)
+    out[np.abs(x) < eps] = 0
+    out[~np.isfinite(x)] = 0
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# pass-1 features
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class PhaseFeatures:
+    """Per-frame inputs of the pass-1 metric for one take.
+
+    Attributes
+    ----------
+    markers : (F, K, 3) float, metres, y up
+        Alignment markers (4 per arm, arms one after another), shoulder subtracted.
+    velocity, acceleration : (F, K, 3) float
+        Savitzky-Golay derivatives of ``markers`` (m/s, m/s²).
+    zone : DeadZone
+    codes : (F, K * 6) int8
+        ``sgn_ε`` of velocity (x, y, z) then acceleration (x, y, z) per marker.
+    window : (F, 2 * THETA_WINDOW * K) float32
+        The eq.-7 window of each frame, centred: horizontal coordinates ``x``
+        then ``z`` of frames ``f-2..f+2`` minus the window's centroid.
+    yaw : (F,) float radians or None
+        Trunk heading about the vertical axis (for ``theta="trunk"``).
+    fps : float
+    arms : int
+        Number of arms (1 or 2); ``K = 4 * arms``.
+    """
+
+    markers: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray
+    zone: DeadZone
+    codes: np.ndarray
+    window: np.ndarray
+    yaw: np.ndarray | None
+    fps: float
+    arms: int
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.markers.shape[0])
+
+
+def phase_features(markers: np.ndarray, fps: float, yaw: np.ndarray | None = None,
+                   window_s: float = 0.2, relative: float = 0.1) -> PhaseFeatures:
+    """Pass-1 features of one take.
+
+    Parameters
+    ----------
+    markers : (F, K, 3) float, metres, y up
+        ``K = 4 * arms`` alignment markers (order per arm: radial wrist, ulnar
+        wrist, forearm, hand), shoulder already subtracted where known.
+    fps : float
+    yaw : (F,) float radians, optional
+        Trunk heading, needed only for ``theta="trunk"``.
+    window_s : float
+        Savitzky-Golay window in seconds.
+    relative : float
+        Dead zone as a fraction of the take's 90th-percentile speed (and acceleration).
+    """
+    m = np.asarray(markers, dtype=float)
+    if m.ndim != 3 or m.shape[2] != 3 or m.shape[1] % 4 != 0 or m.shape[1] == 0:
+        raise ParameterError(f"phase features: markers must be (frames, 4*arms, 3), got {m.shape}")
+    if m.shape[0] < 1:
+        raise ParameterError("phase features: the take has no frames")
+    m = _fill_gaps(m)
+    v, a = derivatives(m, fps, window_s)
+    zone = dead_zone(v, a, relative)
+    codes = np.concatenate(
+        [sign_dead_zone(v, zone.velocity), sign_dead_zone(a, zone.acceleration)], axis=2
+    )  # (F, K, 6)
+    if yaw is not None:
+        yaw = np.asarray(yaw, dtype=float).reshape(-1)
+        if yaw.shape[0] != m.shape[0]:
+            raise ParameterError(f"phase features: yaw has {yaw.shape[0]} frames, markers {m.shape[0]}")
+    return PhaseFeatures(
+        markers=m, velocity=v, acceleration=a, zone=zone,
+        codes=np.ascontiguousarray(codes.reshape(m.shape[0], -1)),
+        window=_theta_windows(m), yaw=yaw, fps=float(fps), arms=m.shape[1] // 4,
+    )
+
+
+def _theta_windows(markers: np.ndarray) -> np.ndarray:
+    """(F, 2*W*K) float32: centred x then z of the W-frame window around each frame."""
+    f, k, _ = markers.shape
+    half = THETA_WINDOW // 2
+    idx = np.clip(np.arange(f)[:, None] + np.arange(-half, half + 1)[None, :], 0, f - 1)
+    x = markers[idx, :, 0].reshape(f, -1)  # (F, W*K)
+    z = markers[idx, :, 2].reshape(f, -1)
+    x = x - x.mean(axis=1, keepdims=True)
+    z = z - z.mean(axis=1, keepdims=True)
+    return np.ascontiguousarray(np.concatenate([x, z], axis=1), dtype=np.float32)
+
+
+def window_theta(body: PhaseFeatures, hand: PhaseFeatures, i: int, j: int) -> float:
+    """θ of eq. 7 (radians) for body frame ``i`` and hand frame ``j``.
+
+    ``R_y(θ)`` with ``x' = x cosθ + z sinθ``, ``z' = -x sinθ + z cosθ`` applied to
+    the hand markers best aligns their window with the body's (least squares
+    after removing the horizontal centroid; Kovar, Gleicher & Pighin 2002).
+    """
+    b = body.window[i].astype(float)
+    h = hand.window[j].astype(float)
+    n = b.size // 2
+    bx, bz = b[:n], b[n:]
+    hx, hz = h[:n], h[n:]
+    num = float(np.sum(bx * hz - hx * bz))
+    den = float(np.sum(bx * hx + bz * hz))
+    return float(np.arctan2(num, den))
+
+
+def cell_theta_window(body: PhaseFeatures, hand: PhaseFeatures, i: np.ndarray, j: np.ndarray
+                      ) -> np.ndarray:
+    """Exact eq.-7 θ (radians) at cells ``(i, j)`` (vectorised :func:`window_theta`)."""
+    b = body.window[np.asarray(i, dtype=np.int64)].astype(float)
+    h = hand.window[np.asarray(j, dtype=np.int64)].astype(float)
+    k = b.shape[-1] // 2
+    num = np.sum(b[..., :k] * h[..., k:] - h[..., :k] * b[..., k:], axis=-1)
+    den = np.sum(b[..., :k] * h[..., :k] + b[..., k:] * h[..., k:], axis=-1)
+    return np.arctan2(num, den)
+
+
+def rotate_y(v: np.ndarray, theta: np.ndarray | float) -> np.ndarray:
+    """Rotate vectors ``(..., 3)`` about +y: ``x' = x cosθ + z sinθ``, ``z' = -x sinθ + z cosθ``."""
+    v = np.asarray(v, dtype=float)
+    t = np.asarray(theta, dtype=float)
+    c, s = np.cos(t), np.sin(t)
+    out = v.copy()
+    out[..., 0] = v[..., 0] * c + v[..., 2] * s
+    out[..., 2] = -v[..., 0] * s + v[..., 2] * c
+    return out
+
+
+def rotated_codes(hand: PhaseFeatures, n_bins: int = THETA_BINS) -> np.ndarray:
+    """Sign codes of the hand take rotated by each quantised θ.
+
+    Returns ``(F, n_bins, K * 6)`` int8; bin ``b`` is ``θ = 2π b / n_bins``.
+    The dead zone is the hand take's own (rotation does not change speeds).
+    """
+    if n_bins < 1:
+        raise ParameterError(f"rotated codes: n_bins must be >= 1, got {n_bins}")
+    f, k, _ = hand.velocity.shape
+    out = np.empty((f, n_bins, k, 6), dtype=np.int8)
+    for b in range(n_bins):
+        theta = 2.0 * np.pi * b / n_bins
+        out[:, b, :, :3] = sign_dead_zone(rotate_y(hand.velocity, theta), hand.zone.velocity)
+        out[:, b, :, 3:] = sign_dead_zone(rotate_y(hand.acceleration, theta), hand.zone.acceleration)
+    return out.reshape(f, n_bins, k * 6)
+
+
+# --------------------------------------------------------------------------------------------
+# pass-1 rows for the DTW metric plug-in
+# --------------------------------------------------------------------------------------------
+#
+# The DTW engine (engine.dtw) evaluates ``metric(a[i], b[j])`` for band cells only, so each
+# frame becomes one float64 row holding everything the cell needs:
+#
+#   header : [L, n_bins, mode, yaw_bin]      L = length of the x (or z) half of the window
+#   window : 2L values (centred x then z of the eq.-7 window; empty in yaw mode)
+#   codes  : body: 2 values (P, Q); hand: 2 * n_bins values (P_b, Q_b for every θ bin b)
+#
+# P and Q are bit masks of the components whose sign is +1 and -1 (up to 48 components:
+# 8 markers x (3 velocity + 3 acceleration)), stored exactly as float64 integers. With
+# s, s' in {-1, 0, 1}: (s - s')^2 = [P xor P'] + [Q xor Q'] + 2 [(P and Q') or (Q and P')].
+
+_HEADER = 4
+MODE_WINDOW = 0
+MODE_YAW = 1
+MAX_COMPONENTS = 48
+
+
+def pack_codes(codes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Bit masks ``(P, Q)`` (float64, exact integers) of ternary codes ``(..., C)``, C <= 48."""
+    c = np.asarray(codes)
+    if c.shape[-1] > MAX_COMPONENTS:
+        raise ParameterError(f"pack codes: at most {MAX_COMPONENTS} components, got {c.shape[-1]}")
+    weights = (np.uint64(1) << np.arange(c.shape[-1], dtype=np.uint64))
+    pos = np.sum(np.where(c > 0, weights, np.uint64(0)), axis=-1, dtype=np.uint64)
+    neg = np.sum(np.where(c < 0, weights, np.uint64(0)), axis=-1, dtype=np.uint64)
+    return pos.astype(np.float64), neg.astype(np.float64)
+
+
+def _yaw_bins(yaw: np.ndarray, n_bins: int) -> np.ndarray:
+    return np.round(np.asarray(yaw, dtype=float) / (2 * np.pi) * n_bins) % n_bins
+
+
+def phase_rows(body: PhaseFeatures, hand: PhaseFeatures, theta: str = "window",
+               n_bins: int = THETA_BINS, yaw_offset: float = 0.0
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """Rows for the ``"splice_phase"`` metric: ``(n, 4+2L+2B)`` body (zero padded) and hand.
+
+    theta : ``"window"`` (eq. 7), ``"trunk"`` (θ = body yaw − hand yaw − ``yaw_offset``)
+        or ``"none"`` (θ = 0).
+    n_bins : quantised directions of θ (bin ``b`` is ``2π b / n_bins``).
+    """
+    if body.arms != hand.arms:
+        raise ParameterError(f"phase rows: body has {body.arms} arm(s), hand {hand.arms}")
+    if not 1 <= n_bins <= 4096:
+        raise ParameterError(f"phase rows: n_bins must be in 1..4096, got {n_bins}")
+    if theta not in ("window", "trunk", "none"):
+        raise ParameterError(f"theta must be 'window', 'trunk' or 'none', got {theta!r}")
+    n, m = body.n_frames, hand.n_frames
+    if theta == "window":
+        mode, half = MODE_WINDOW, body.window.shape[1] // 2
+        bwin, hwin = body.window.astype(np.float64), hand.window.astype(np.float64)
+        byaw, hyaw = np.zeros(n), np.zeros(m)
+    else:
+        mode, half = MODE_YAW, 0
+        bwin, hwin = np.zeros((n, 0)), np.zeros((m, 0))
+        if theta == "trunk":
+            if body.yaw is None or hand.yaw is None:
+                raise ParameterError("theta='trunk' needs the trunk yaw of both takes")
+            byaw = _yaw_bins(body.yaw, n_bins)
+            hyaw = _yaw_bins(hand.yaw + yaw_offset, n_bins)
+        else:
+            byaw, hyaw = np.zeros(n), np.zeros(m)
+    bp, bq = pack_codes(body.codes)
+    hcodes = rotated_codes(hand, n_bins)  # (m, B, C)
+    hp, hq = pack_codes(hcodes)  # (m, B)
+    head_b = np.column_stack([np.full(n, half), np.full(n, n_bins), np.full(n, mode), byaw])
+    head_h = np.column_stack([np.full(m, half), np.full(m, n_bins), np.full(m, mode), hyaw])
+    hpq = np.stack([hp, hq], axis=2).reshape(m, 2 * n_bins)
+    # the DTW engine wants rows of one width: the body's are padded with zeros
+    pad = np.zeros((n, 2 * n_bins - 2))
+    a = np.ascontiguousarray(np.column_stack([head_b, bwin, bp, bq, pad]), dtype=np.float64)
+    b = np.ascontiguousarray(np.column_stack([head_h, hwin, hpq]), dtype=np.float64)
+    return a, b
+
+
+@numba.njit(cache=True, inline="always")
+def _popcount(x):
+    x = x - ((x >> np.uint64(1)) & np.uint64(0x5555555555555555))
+    x = (x & np.uint64(0x3333333333333333)) + ((x >> np.uint64(2)) & np.uint64(0x3333333333333333))
+    x = (x + (x >> np.uint64(4))) & np.uint64(0x0F0F0F0F0F0F0F0F)
+    return (x * np.uint64(0x0101010101010101)) >> np.uint64(56)
+
+
+@numba.njit(cache=True, fastmath=_FASTMATH, inline="always")
+def _fast_atan2(y, x):
+    """atan2 to about 1e-5 rad (enough to pick a θ bin), no libm call."""
+    ax = abs(x)
+    ay = abs(y)
+    mx = max(ax, ay)
+    if mx == 0.0:
+        return 0.0
+    a = min(ax, ay) / mx
+    s = a * a
+    r = ((-0.0464964749 * s + 0.15931422) * s - 0.327622764) * s * a + a
+    if ay > ax:
+        r = 1.5707963267948966 - r
+    if x < 0.0:
+        r = 3.141592653589793 - r
+    if y < 0.0:
+        r = -r
+    return r
+
+
+@numba.njit(cache=True, fastmath=_FASTMATH, nogil=True)
+def splice_phase(body_row, hand_row):
+    """Pass-1 local cost ``D1`` (eq. 6) of one cell from :func:`phase_rows` rows."""
+    half = int(body_row[0])
+    nb = int(body_row[1])
+    if body_row[2] == 0.0:
+        num = 0.0
+        den = 0.0
+        for t in range(half):
+            bx = body_row[4 + t]
+            bz = body_row[4 + half + t]
+            hx = hand_row[4 + t]
+            hz = hand_row[4 + half + t]
+            num += bx * hz - hx * bz
+            den += bx * hx + bz * hz
+        th = _fast_atan2(num, den)
+        b = int(np.floor(th * (nb / (2.0 * np.pi)) + 0.5)) % nb
+    else:
+        b = int(body_row[3] - hand_row[3]) % nb
+    k = 4 + 2 * half
+    p = np.uint64(body_row[k])
+    q = np.uint64(body_row[k + 1])
+    p2 = np.uint64(hand_row[k + 2 * b])
+    q2 = np.uint64(hand_row[k + 2 * b + 1])
+    cost = _popcount(p ^ p2) + _popcount(q ^ q2) + np.uint64(2) * _popcount((p & q2) | (q & p2))
+    return float(cost)
+
+
+@numba.njit(cache=True, fastmath=_FASTMATH, nogil=True)
+def splice_phase_theta(body_row, hand_row):
+    """θ (radians, quantised to the bin the metric uses) of one cell, for reports and views."""
+    half = int(body_row[0])
+    nb = int(body_row[1])
+    if body_row[2] == 0.0:
+        num = 0.0
+        den = 0.0
+        for t in range(half):
+            bx = body_row[4 + t]
+            bz = body_row[4 + half + t]
+            hx = hand_row[4 + t]
+            hz = hand_row[4 + half + t]
+            num += bx * hz - hx * bz
+            den += bx * hx + bz * hz
+        th = _fast_atan2(num, den)
+        b = int(np.floor(th * (nb / (2.0 * np.pi)) + 0.5)) % nb
+    else:
+        b = int(body_row[3] - hand_row[3]) % nb
+    return 2.0 * np.pi * b / nb
+
+
+# --------------------------------------------------------------------------------------------
+# pass-2 features and rows
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class AngleFeatures:
+    """Per-frame inputs of the pass-2 metric (eqs. 8-9) for one take.
+
+    forearm : (F, A, 3) float unit vectors ``f = p3 - (p1 + p2)/2``
+    hand : (F, A, 3) float unit vectors ``h = p4 - (p1 + p2)/2``
+    """
+
+    forearm: np.ndarray
+    hand: np.ndarray
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.forearm.shape[0])
+
+    def rows(self) -> np.ndarray:
+        """``(F, 1 + 6A)`` float64 rows for the ``"splice_angle"`` metric: [A, f, h, f, h, ...]."""
+        f, a = self.forearm.shape[:2]
+        body = np.concatenate([self.forearm, self.hand], axis=2).reshape(f, 6 * a)
+        return np.ascontiguousarray(np.column_stack([np.full(f, a), body]), dtype=np.float64)
+
+
+def angle_features(markers: np.ndarray, theta: np.ndarray | float | None = None) -> AngleFeatures:
+    """Forearm and hand vectors (eq. 8) from ``(F, 4*A, 3)`` markers.
+
+    ``theta`` (radians, scalar or ``(F,)``) rotates the take about the vertical
+    axis first (used for the hand take, with θ taken along the pass-1 path).
+    """
+    m = _fill_gaps(np.asarray(markers, dtype=float))
+    if m.ndim != 3 or m.shape[1] % 4 != 0 or m.shape[2] != 3 or m.shape[1] == 0:
+        raise ParameterError(f"angle features: markers must be (frames, 4*arms, 3), got {m.shape}")
+    f, k, _ = m.shape
+    arms = m.reshape(f, k // 4, 4, 3)
+    centre = 0.5 * (arms[:, :, 0] + arms[:, :, 1])
+    fv = arms[:, :, 2] - centre
+    hv = arms[:, :, 3] - centre
+    if theta is not None:
+        th = np.asarray(theta, dtype=float)
+        if th.ndim == 1:
+            th = th[:, None]
+        fv = rotate_y(fv, th)
+        hv = rotate_y(hv, th)
+    return AngleFeatures(forearm=_unit(fv), hand=_unit(hv))
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return np.where(n > 1e-12, v / np.where(n > 1e-12, n, 1.0), 0.0)
+
+
+@numba.njit(cache=True, fastmath=_FASTMATH, nogil=True)
+def splice_angle(body_row, hand_row):
+    """Pass-2 local cost ``D2`` (eq. 9, radians, summed over arms) of one cell.
+
+    ``R`` is the smallest rotation taking the hand take's forearm vector ``f'``
+    onto the body's ``f``; the cost is the angle between ``h`` and ``R h'``.
+    Antiparallel forearms use a half turn about an axis perpendicular to ``f'``.
+    """
+    arms = int(body_row[0])
+    total = 0.0
+    for a in range(arms):
+        o = 1 + 6 * a
+        total += _angle_after_align(body_row[o], body_row[o + 1], body_row[o + 2],
+                                    body_row[o + 3], body_row[o + 4], body_row[o + 5],
+                                    hand_row[o], hand_row[o + 1], hand_row[o + 2],
+                                    hand_row[o + 3], hand_row[o + 4], hand_row[o + 5])
+    return total
+
+
+@numba.njit(cache=True, fastmath=_FASTMATH, inline="always")
+def _angle_after_align(fx, fy, fz, hx, hy, hz, gx, gy, gz, kx, ky, kz):
+    # R v = v + w×v + w×(w×v)/(1+c), w = g×f, c = g·f (g, f unit)
+    c = gx * fx + gy * fy + gz * fz
+    if c < -0.999999:
+        if abs(gx) < 0.9:
+            ax, ay, az = 0.0, -gz, gy
+        else:
+            ax, ay, az = gz, 0.0, -gx
+        nrm = np.sqrt(ax * ax + ay * ay + az * az)
+        ax /= nrm
+        ay /= nrm
+        az /= nrm
+        d = ax * kx + ay * ky + az * kz
+        rx = 2.0 * d * ax - kx
+        ry = 2.0 * d * ay - ky
+        rz = 2.0 * d * az - kz
+    else:
+        wx = gy * fz - gz * fy
+        wy = gz * fx - gx * fz
+        wz = gx * fy - gy * fx
+        cx = wy * kz - wz * ky
+        cy = wz * kx - wx * kz
+        cz = wx * ky - wy * kx
+        ccx = wy * cz - wz * cy
+        ccy = wz * cx - wx * cz
+        ccz = wx * cy - wy * cx
+        inv = 1.0 / (1.0 + c)
+        rx = kx + cx + ccx * inv
+        ry = ky + cy + ccy * inv
+        rz = kz + cz + ccz * inv
+    nr = np.sqrt((rx * rx + ry * ry + rz * rz) * (hx * hx + hy * hy + hz * hz))
+    if nr < 1e-12:
+        return 0.0
+    dot = (hx * rx + hy * ry + hz * rz) / nr
+    if dot > 1.0:
+        dot = 1.0
+    elif dot < -1.0:
+        dot = -1.0
+    return np.arccos(dot)
+
+
+@numba.njit(cache=True, nogil=True)
+def _grid_kernel(metric, a, b, rows, cols, out):
+    for r in range(rows.shape[0]):
+        ar = a[rows[r]]
+        for c in range(cols.shape[0]):
+            out[r, c] = metric(ar, b[cols[c]])
+
+
+def cost_grid(metric, a: np.ndarray, b: np.ndarray, rows: np.ndarray, cols: np.ndarray
+              ) -> np.ndarray:
+    """Local costs ``metric(a[rows[r]], b[cols[c]])`` as a ``(len(rows), len(cols))`` array.
+
+    ``metric`` is one of this module's numba metrics (:func:`splice_phase`,
+    :func:`splice_angle`); used for cost-matrix images and dense tests.
+    """
+    rows = np.ascontiguousarray(rows, dtype=np.int64)
+    cols = np.ascontiguousarray(cols, dtype=np.int64)
+    if rows.size and (rows.min() < 0 or rows.max() >= len(a)):
+        raise ParameterError(f"cost grid: rows must lie in 0..{len(a) - 1}")
+    if cols.size and (cols.min() < 0 or cols.max() >= len(b)):
+        raise ParameterError(f"cost grid: columns must lie in 0..{len(b) - 1}")
+    out = np.zeros((rows.size, cols.size), dtype=np.float64)
+    _grid_kernel(metric, a, b, rows, cols, out)
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# plain references (tests, small takes)
+# --------------------------------------------------------------------------------------------
+
+
+def phase_cost_reference(body: PhaseFeatures, hand: PhaseFeatures, theta: str = "window",
+                         yaw_offset: float = 0.0) -> np.ndarray:
+    """Dense ``(n, m)`` D1 with θ exact (no quantisation), numpy; small takes only."""
+    n, m = body.n_frames, hand.n_frames
+    out = np.zeros((n, m))
+    zb = body.codes.reshape(n, -1, 6).astype(np.int64)
+    js = np.arange(m)
+    for i in range(n):
+        if theta == "window":
+            th = np.array([window_theta(body, hand, i, j) for j in js])
+        elif theta == "trunk":
+            th = body.yaw[i] - (hand.yaw + yaw_offset)
+        else:
+            th = np.zeros(m)
+        v = rotate_y(hand.velocity, th[:, None])
+        a = rotate_y(hand.acceleration, th[:, None])
+        hc = np.concatenate([sign_dead_zone(v, hand.zone.velocity),
+                             sign_dead_zone(a, hand.zone.acceleration)], axis=2).astype(np.int64)
+        out[i] = np.sum((zb[i][None] - hc) ** 2, axis=(1, 2))
+    return out
+
+
+def angle_cost_reference(body: AngleFeatures, hand: AngleFeatures) -> np.ndarray:
+    """Dense ``(n, m)`` D2 by explicit rotation matrices (numpy); small takes only."""
+    n, m = body.n_frames, hand.n_frames
+    out = np.zeros((n, m))
+    for i in range(n):
+        for j in range(m):
+            for a in range(body.forearm.shape[1]):
+                f, h = body.forearm[i, a], body.hand[i, a]
+                g, k = hand.forearm[j, a], hand.hand[j, a]
+                out[i, j] += _reference_angle(f, h, g, k)
+    return out
+
+
+def _reference_angle(f, h, g, k) -> float:
+    axis = np.cross(g, f)
+    s = np.linalg.norm(axis)
+    c = float(np.dot(g, f))
+    if s < 1e-12:
+        r = np.eye(3) if c > 0 else None
+        if r is None:
+            perp = np.array([0.0, -g[2], g[1]]) if abs(g[0]) < 0.9 else np.array([g[2], 0.0, -g[0]])
+            perp /= np.linalg.norm(perp)
+            r = 2.0 * np.outer(perp, perp) - np.eye(3)
+    else:
+        u = axis / s
+        ux = np.array([[0, -u[2], u[1]], [u[2], 0, -u[0]], [-u[1], u[0], 0]])
+        r = np.eye(3) + s * ux + (1 - c) * ux @ ux
+    rk = r @ k
+    nn = np.linalg.norm(rk) * np.linalg.norm(h)
+    if nn < 1e-12:
+        return 0.0
+    return float(np.arccos(np.clip(np.dot(h, rk) / nn, -1.0, 1.0)))
+
+
+def register_metrics() -> None:
+    """Register ``"splice_phase"`` and ``"splice_angle"`` with ``engine.dtw`` (idempotent)."""
+    from engine.dtw import register_metric
+
+    register_metric("splice_phase", splice_phase, replace=True)
+    register_metric("splice_angle", splice_angle, replace=True)
+
+
+@numba.njit(cache=True, nogil=True)
+def _path_kernel(metric, a, b, path, out):
+    for k in range(path.shape[0]):
+        out[k] = metric(a[path[k, 0]], b[path[k, 1]])
+
+
+def path_values(metric, a: np.ndarray, b: np.ndarray, path: np.ndarray) -> np.ndarray:
+    """``metric(a[i], b[j])`` for every cell ``(i, j)`` of ``path (k, 2)``, as ``(k,)`` float64."""
+    path = np.ascontiguousarray(path, dtype=np.int64).reshape(-1, 2)
+    out = np.zeros(len(path), dtype=np.float64)
+    _path_kernel(metric, a, b, path, out)
+    return out

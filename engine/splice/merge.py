@@ -1,0 +1,81 @@
+"""Merging and smoothing (METHOD.md §5): a DTW path -> a monotone warp ``w(i)``.
+
+The path may match one body frame ``i`` to several hand frames. The paper takes,
+per body frame, the median position of each marker over those hand frames; for
+joint rotations we take the **median hand frame index** (one time per body frame,
+so every joint is sampled at the same instant and the hand pose stays a pose that
+was captured). The medians are non-decreasing because the path is monotone.
+
+Where ``w`` jumps (a run of body frames mapped to one hand frame, then a jump),
+the jump is blended over a window: ``w`` is smoothed with a Gaussian of
+``blend`` frames (standard deviation), which keeps it non-decreasing. The hand
+take is then sampled at ``w(i)`` with slerp between the two nearest hand frames
+(:func:`engine.kinematics.sample`), so rotations are blended along the arc.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.ndimage import gaussian_filter1d
+
+from engine.errors import ParameterError
+
+#: default blend window (Gaussian standard deviation, body frames)
+BLEND_FRAMES = 1.5
+
+
+def median_warp(path: np.ndarray, n: int) -> np.ndarray:
+    """Median matched column per row of ``path (k, 2)``: ``(n,)`` float, non-decreasing.
+
+    Every row ``0..n-1`` must appear in the path (true of any DTW path).
+    """
+    path = np.asarray(path, dtype=np.int64).reshape(-1, 2)
+    if len(path) == 0:
+        raise ParameterError("merge: the path is empty")
+    rows, cols = path[:, 0], path[:, 1]
+    if rows.min() != 0 or rows.max() != n - 1 or np.any(np.diff(rows) < 0):
+        raise ParameterError(f"merge: the path must visit rows 0..{n - 1} in order")
+    # rows are sorted: each row's columns are a contiguous sorted run
+    starts = np.searchsorted(rows, np.arange(n), side="left")
+    stops = np.searchsorted(rows, np.arange(n), side="right")
+    if np.any(stops <= starts):
+        missing = int(np.flatnonzero(stops <= starts)[0])
+        raise ParameterError(f"merge: the path skips body frame {missing}")
+    lo = cols[starts]
+    hi = cols[stops - 1]
+    return 0.5 * (lo + hi).astype(float)  # median of a run of consecutive columns
+
+
+def smooth_warp(warp: np.ndarray, blend: float = BLEND_FRAMES, m: int | None = None
+                ) -> np.ndarray:
+    """Blend jumps of a non-decreasing warp over a Gaussian window of ``blend`` frames.
+
+    The result stays non-decreasing and inside ``[0, m-1]`` when ``m`` is given.
+    ``blend = 0`` returns the warp unchanged.
+    """
+    w = np.asarray(warp, dtype=float)
+    if blend < 0 or not np.isfinite(blend):
+        raise ParameterError(f"merge: blend must be >= 0 frames, got {blend}")
+    if blend > 0 and len(w) > 1:
+        w = gaussian_filter1d(w, blend, mode="nearest")
+    w = np.maximum.accumulate(w)
+    if m is not None:
+        w = np.clip(w, 0.0, m - 1)
+    return w
+
+
+def merge_path(path: np.ndarray, n: int, m: int, blend: float = BLEND_FRAMES) -> np.ndarray:
+    """The warp ``w (n,)``: hand frame (DTW grid units, float) for every body frame."""
+    return smooth_warp(median_warp(path, n), blend, m)
+
+
+def grid_to_hand_frames(warp: np.ndarray, body_fps: float, hand_fps: float,
+                        hand_frames: int) -> np.ndarray:
+    """Grid columns (hand resampled to the body's rate) -> frames of the original hand take."""
+    t = np.asarray(warp, dtype=float) * (hand_fps / body_fps)
+    return np.clip(t, 0.0, hand_frames - 1)
+
+
+def hand_frames_to_grid(frames: np.ndarray, body_fps: float, hand_fps: float) -> np.ndarray:
+    """Frames of the original hand take -> grid columns (float)."""
+    return np.asarray(frames, dtype=float) * (body_fps / hand_fps)

@@ -1,0 +1,642 @@
+"""The two-pass splice: features -> pass 1 -> pass 2 -> merge -> transfer.
+
+Public calls (the CLI, the app and the benchmarks use only these)::
+
+    from engine.splice import pipeline
+
+    feats = pipeline.prepare(body, hand, side="both")          # once per pair
+    result = pipeline.align_passes(feats, band=0.3, refine_band=0.1,
+                                   points=[(120, 98, 2)])        # per parameter change
+    motion = pipeline.transfer(feats, result)                   # the spliced Motion
+
+    # or all at once
+    spliced = pipeline.splice(body, hand, side="both", band=0.3, refine_band=0.1)
+
+Frame units. Rows are body frames ``0..n-1``. Columns are hand frames on the
+**alignment grid**: the hand take resampled to the body's frame rate
+(``m = round((m_hand - 1) * fps_body / fps_hand) + 1``). Matching points,
+paths, bands and ``result.warp`` are in grid units; ``result.map`` is the same
+warp in frames of the original hand take (``features.hand_to_grid`` /
+``features.grid_to_hand`` convert). When both takes share a frame rate the two
+are equal.
+
+Both hands are aligned jointly by default (as in the paper): pass 1 sums both
+arms' sign costs under one θ, pass 2 sums both arms' angles, and one warp drives
+both hands.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from engine import metrics as M
+from engine.dtw import Aligner, Band, align_features
+from engine.errors import HandSpliceError, ParameterError, RoleError
+from engine.features import (
+    HandFrame,
+    hand_frame,
+    marker_set_markers,
+    marker_set_yaw,
+    motion_markers,
+    skeleton_yaw,
+    take_sides,
+)
+from engine.kinematics import forward_kinematics
+from engine.motion import MarkerSet, Motion
+from engine.splice import merge as MG
+from engine.splice import transfer as TR
+
+Progress = Callable[[str, float], None]
+
+#: defaults (the paper's values where it gives them)
+BAND = 0.30
+REFINE_BAND = 0.10
+SMOOTHING_S = 0.2
+DEAD_ZONE = 0.1
+#: one-shot solves (1 byte per cell) above this band area; incremental ``Aligner`` below
+INCREMENTAL_MAX_CELLS = 12_000_000
+
+
+def _noop(stage: str, fraction: float) -> None:
+    return None
+
+
+# --------------------------------------------------------------------------------------------
+# features
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass
+class SpliceFeatures:
+    """Everything the alignments of one (body, hand, side) pair need, computed once.
+
+    Attributes
+    ----------
+    body, hand : Motion or MarkerSet
+    sides : tuple of ``"right"``/``"left"``
+    n, m : int
+        Body frames; hand frames on the alignment grid (body frame rate).
+    m_hand : int
+        Frames of the original hand take.
+    fps, hand_fps : float
+    body_markers, hand_markers : (n, 4A, 3), (m, 4A, 3) float, metres, y up
+    body_phase, hand_phase : metrics.PhaseFeatures
+    pass1_rows : (a (n, d1), b (m, d1')) rows of the ``splice_phase`` metric
+    pass2_body_rows : (n, d2) rows of the ``splice_angle`` metric (hand rows depend on θ)
+    theta : ``"window"``, ``"trunk"`` or ``"none"``
+    yaw_offset : float, radians (trunk mode, hand take without a trunk)
+    params : dict of the parameters used
+    timings : dict stage -> seconds
+    """
+
+    body: Motion | MarkerSet
+    hand: Motion | MarkerSet
+    sides: tuple[str, ...]
+    n: int
+    m: int
+    m_hand: int
+    fps: float
+    hand_fps: float
+    body_markers: np.ndarray
+    hand_markers: np.ndarray
+    body_phase: M.PhaseFeatures
+    hand_phase: M.PhaseFeatures
+    pass1_rows: tuple[np.ndarray, np.ndarray]
+    pass2_body_rows: np.ndarray
+    theta: str
+    n_bins: int
+    yaw_offset: float
+    body_roles: object = None
+    hand_roles: object = None
+    body_frames: dict[str, HandFrame] = field(default_factory=dict)
+    hand_frames: dict[str, HandFrame] = field(default_factory=dict)
+    body_fk: tuple | None = None
+    params: dict = field(default_factory=dict)
+    timings: dict = field(default_factory=dict)
+    notes: list = field(default_factory=list)
+
+    def hand_to_grid(self, frames) -> np.ndarray:
+        """Original hand-take frames -> alignment-grid columns (float)."""
+        return MG.hand_frames_to_grid(frames, self.fps, self.hand_fps)
+
+    def grid_to_hand(self, columns) -> np.ndarray:
+        """Alignment-grid columns -> original hand-take frames (float)."""
+        return MG.grid_to_hand_frames(columns, self.fps, self.hand_fps, self.m_hand)
+
+
+def _take_name(take) -> str:
+    src = getattr(take.meta, "source", "")
+    return Path(src).name if src else "the take"
+
+
+def _roles_for(take, overrides):
+    from engine.roles import find_roles, side_from_name
+
+    if isinstance(take, MarkerSet):
+        return None
+    if overrides is not None and not isinstance(overrides, dict):
+        return overrides  # a Roles object
+    hint = side_from_name(take.meta.source) if take.meta.source else None
+    return find_roles(take.skeleton, overrides=overrides or None, side_hint=hint)
+
+
+def resolve_sides(side: str, body_sides: Sequence[str], hand_sides: Sequence[str],
+                  body_name: str = "body", hand_name: str = "hand") -> tuple[str, ...]:
+    """Sides to splice. ``"auto"``: both when both takes have both, else the shared side."""
+    side = (side or "auto").lower()
+    common = [s for s in ("right", "left") if s in body_sides and s in hand_sides]
+    if side == "auto":
+        if not common:
+            raise RoleError(
+                f"no side to splice: {body_name} has arms {list(body_sides) or 'none'}, "
+                f"{hand_name} has hands {list(hand_sides) or 'none'} (need a wrist on the "
+                f"same side in both)")
+        return tuple(common)
+    if side not in ("right", "left", "both"):
+        raise ParameterError(f"side must be 'right', 'left', 'both' or 'auto', got {side!r}")
+    wanted = ("right", "left") if side == "both" else (side,)
+    for s in wanted:
+        if s not in body_sides:
+            raise RoleError(f"{body_name} has no {s} wrist (arms found: "
+                            f"{', '.join(body_sides) or 'none'})")
+        if s not in hand_sides:
+            raise RoleError(f"{hand_name} has no {s} hand (hands found: "
+                            f"{', '.join(hand_sides) or 'none'}); try --side "
+                            f"{hand_sides[0] if hand_sides else 'right'}")
+    return wanted
+
+
+def _hand_sides(take, roles) -> list[str]:
+    if isinstance(take, MarkerSet):
+        return take_sides(take)
+    return [s for s in roles.sides_found()]
+
+
+def prepare(body: Motion | MarkerSet, hand: Motion | MarkerSet, side: str = "auto",
+            body_roles=None, hand_roles=None, theta: str = "window",
+            n_bins: int = M.THETA_BINS, smoothing_s: float = SMOOTHING_S,
+            dead_zone: float = DEAD_ZONE, progress: Progress | None = None) -> SpliceFeatures:
+    """Per-pair features of both passes.
+
+    Parameters
+    ----------
+    body, hand : Motion (BVH) or MarkerSet (C3D/TRC; alignment only)
+    side : ``"auto"`` (default: both hands when both takes have both, else the shared
+        side), ``"both"``, ``"right"`` or ``"left"``.
+    body_roles, hand_roles : dict of role overrides (``{"right.wrist": "Name"}``) or a
+        ``Roles``; default from joint names.
+    theta : ``"window"`` (eq. 7, default), ``"trunk"`` (trunk yaw difference) or ``"none"``.
+    n_bins : θ quantisation (directions).
+    smoothing_s : Savitzky-Golay window (seconds) for the derivatives.
+    dead_zone : ε as a fraction of each take's 90th-percentile speed / acceleration.
+    """
+    progress = progress or _noop
+    t0 = time.perf_counter()
+    progress("features", 0.0)
+    if theta not in ("window", "trunk", "none"):
+        raise ParameterError(f"theta must be 'window', 'trunk' or 'none', got {theta!r}")
+    rb = _roles_for(body, body_roles)
+    rh = _roles_for(hand, hand_roles)
+    body_name, hand_name = _take_name(body), _take_name(hand)
+    body_sides = _hand_sides(body, rb)
+    hand_sides = _hand_sides(hand, rh)
+    if isinstance(hand, Motion):  # a hand take without fingers cannot give any
+        hand_sides = [s for s in hand_sides if rh.side(s).has_fingers] or hand_sides
+    sides = resolve_sides(side, body_sides, hand_sides, body_name, hand_name)
+    fps = float(body.fps)
+    timings: dict[str, float] = {}
+
+    body_fk = forward_kinematics(body) if isinstance(body, Motion) else None
+    hand_fk = forward_kinematics(hand) if isinstance(hand, Motion) else None
+    body_frames: dict[str, HandFrame] = {}
+    hand_frames: dict[str, HandFrame] = {}
+    bm, hm = [], []
+    for s in sides:
+        if isinstance(body, Motion):
+            body_frames[s] = hand_frame(body, rb, s)
+            bm.append(motion_markers(body, s, rb, frame=body_frames[s], fk=body_fk).markers)
+        else:
+            bm.append(marker_set_markers(body, s).markers)
+        if isinstance(hand, Motion):
+            hand_frames[s] = hand_frame(hand, rh, s)
+            hm.append(motion_markers(hand, s, rh, fps=fps, frame=hand_frames[s],
+                                     fk=hand_fk).markers)
+        else:
+            hm.append(marker_set_markers(hand, s, fps=fps).markers)
+    body_markers = np.concatenate(bm, axis=1)
+    hand_markers = np.concatenate(hm, axis=1)
+    n, m = body_markers.shape[0], hand_markers.shape[0]
+    if n < 2 or m < 2:
+        raise ParameterError(f"takes too short to align: {body_name} {n} frames, "
+                             f"{hand_name} {m} frames at {fps:g} fps")
+
+    body_yaw = hand_yaw = None
+    if theta == "trunk":
+        body_yaw = skeleton_yaw(body, rb, body_fk) if isinstance(body, Motion) \
+            else marker_set_yaw(body)
+        hand_yaw = skeleton_yaw(hand, rh, hand_fk) if isinstance(hand, Motion) \
+            else marker_set_yaw(hand)
+        if body_yaw is None:
+            raise RoleError(f"theta='trunk': {body_name} has no left and right shoulders "
+                            "to give the trunk's heading")
+        if hand_yaw is not None:
+            from engine.features import resample_points
+
+            hand_yaw = resample_points(hand_yaw, hand.fps, fps)
+    timings["markers"] = time.perf_counter() - t0
+
+    t1 = time.perf_counter()
+    bp = M.phase_features(body_markers, fps, yaw=body_yaw, window_s=smoothing_s,
+                          relative=dead_zone)
+    yaw_offset = 0.0
+    if theta == "trunk" and hand_yaw is None:
+        hand_yaw = np.zeros(m)
+    hp = M.phase_features(hand_markers, fps, yaw=hand_yaw, window_s=smoothing_s,
+                          relative=dead_zone)
+    if theta == "trunk" and hand_yaw is not None and not np.any(hand_yaw):
+        yaw_offset = _estimate_yaw_offset(bp, hp)
+    rows1 = M.phase_rows(bp, hp, theta=theta, n_bins=n_bins, yaw_offset=yaw_offset)
+    rows2 = M.angle_features(body_markers).rows()
+    timings["features"] = time.perf_counter() - t1
+    progress("features", 1.0)
+    M.register_metrics()
+    return SpliceFeatures(
+        body=body, hand=hand, sides=tuple(sides), n=n, m=m, m_hand=hand.n_frames, fps=fps,
+        hand_fps=float(hand.fps), body_markers=body_markers, hand_markers=hand_markers,
+        body_phase=bp, hand_phase=hp, pass1_rows=rows1, pass2_body_rows=rows2, theta=theta,
+        n_bins=n_bins, yaw_offset=yaw_offset, body_roles=rb, hand_roles=rh,
+        body_frames=body_frames, hand_frames=hand_frames, body_fk=body_fk,
+        params={"side": side, "sides": list(sides), "theta": theta, "n_bins": n_bins,
+                "smoothing_s": smoothing_s, "dead_zone": dead_zone},
+        timings=timings)
+
+
+def _estimate_yaw_offset(body: M.PhaseFeatures, hand: M.PhaseFeatures) -> float:
+    """Constant heading of a hand take without a trunk: circular mean over the diagonal of
+    ``yaw_body(i) - θ(i, j(i))`` with θ from eq. 7."""
+    n, m = body.n_frames, hand.n_frames
+    i = np.arange(n)
+    j = np.minimum(np.round(i * (m - 1) / max(n - 1, 1)).astype(np.int64), m - 1)
+    th = M.cell_theta_window(body, hand, i, j)
+    d = body.yaw - th
+    return float(np.arctan2(np.mean(np.sin(d)), np.mean(np.cos(d))))
+
+
+# --------------------------------------------------------------------------------------------
+# alignment
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass
+class PassResult:
+    """One DTW pass.
+
+    path : (k, 2) int64 cells (body frame, grid hand frame)
+    cost : float, total local cost along the path
+    band : engine.dtw.Band
+    rows : (a, b) float64 rows of the pass's metric (the local-cost inputs: the
+        cost of cell (i, j) is ``metric(a[i], b[j])``)
+    metric : ``"splice_phase"`` or ``"splice_angle"``
+    solver : engine.dtw.Aligner or None (kept for incremental re-solves and γ)
+    seconds : float
+    """
+
+    path: np.ndarray
+    cost: float
+    band: Band
+    rows: tuple[np.ndarray, np.ndarray]
+    metric: str
+    solver: object = None
+    seconds: float = 0.0
+
+    def local_costs(self, rows_idx=None, cols_idx=None) -> np.ndarray:
+        """Local costs on a grid of cells (all cells by default: small takes only)."""
+        fn = _METRIC_FUNCS[self.metric]
+        a, b = self.rows
+        r = np.arange(len(a)) if rows_idx is None else np.asarray(rows_idx)
+        c = np.arange(len(b)) if cols_idx is None else np.asarray(cols_idx)
+        return M.cost_grid(fn, a, b, r, c)
+
+    def path_costs(self) -> np.ndarray:
+        """(k,) local cost of every path cell."""
+        a, b = self.rows
+        return M.path_values(_METRIC_FUNCS[self.metric], a, b, self.path)
+
+
+_METRIC_FUNCS = {"splice_phase": M.splice_phase, "splice_angle": M.splice_angle}
+
+
+@dataclass
+class SpliceAlignment:
+    """Both passes and the merged warp.
+
+    pass1, pass2 : PassResult
+    warp : (n,) float, grid hand frame per body frame (merged and smoothed)
+    map : (n,) float, frame of the original hand take per body frame
+    theta : (m,) float radians, rotation about the vertical applied to the hand take's
+        pass-2 vectors (θ along the pass-1 path)
+    points : list of (body, grid hand, tol) matching points used
+    band, refine_band : float fractions of n; radius : int (pass-2 band, frames)
+    timings : dict stage -> seconds
+    """
+
+    pass1: PassResult
+    pass2: PassResult
+    warp: np.ndarray
+    map: np.ndarray
+    theta: np.ndarray
+    points: list
+    band: float
+    refine_band: float
+    radius: int
+    blend: float
+    timings: dict = field(default_factory=dict)
+    features_id: int = 0
+
+
+def refine_radius(n: int, m: int, refine_band: float) -> int:
+    """Pass-2 band radius (frames, Chebyshev) for width ``refine_band * n`` around the path.
+
+    The vertical half-width of a diagonal band of width ``W`` is
+    ``Λ = W sqrt(n² + m²) / (2n)``; a Chebyshev radius ``r`` around a path of slope
+    ``m/n`` spans about ``r (1 + m/n)`` columns either side, so ``r = Λ / (1 + m/n)``.
+    """
+    if not (np.isfinite(refine_band) and refine_band >= 0):
+        raise ParameterError(f"refine band must be a fraction >= 0, got {refine_band}")
+    lam = refine_band * n * np.hypot(n, m) / (2.0 * n)
+    return max(1, int(round(lam / (1.0 + m / n))))
+
+
+def _check_points(points, n: int, m: int) -> list[tuple[int, int, float]]:
+    out = []
+    for k, p in enumerate(points or ()):
+        try:
+            vals = [float(v) for v in p]
+        except (TypeError, ValueError):
+            raise ParameterError(f"matching point {k}: expected (body, hand[, tol]), got {p!r}") \
+                from None
+        if len(vals) not in (2, 3):
+            raise ParameterError(f"matching point {k}: expected (body, hand[, tol]), got {p!r}")
+        out.append((int(round(vals[0])), int(round(vals[1])), vals[2] if len(vals) == 3 else 0.0))
+    return out
+
+
+def _solve(rows, metric: str, band: Band, solver=None, incremental: bool = False):
+    """Solve one pass; returns (Alignment, solver or None)."""
+    a, b = rows
+    if solver is not None:
+        return solver.solve(band), solver
+    if incremental:
+        solver = Aligner(a, b, metric=metric)
+        return solver.solve(band), solver
+    return align_features(a, b, band, metric=metric), None
+
+
+def _theta_along_path(features: SpliceFeatures, path: np.ndarray) -> np.ndarray:
+    """θ per grid hand frame: median of the quantised θ over pass-1 path cells in that column."""
+    m = features.m
+    if features.theta == "none":
+        return np.zeros(m)
+    a, b = features.pass1_rows
+    th = M.path_values(M.splice_phase_theta, a, b, path)
+    th = np.where(th > np.pi, th - 2 * np.pi, th)
+    cols = path[:, 1]
+    out = np.zeros(m)
+    # circular median-ish: median of angles unwrapped around their circular mean
+    c = np.arctan2(np.mean(np.sin(th)), np.mean(np.cos(th)))
+    rel = np.angle(np.exp(1j * (th - c)))
+    order = np.argsort(cols, kind="stable")
+    cols_s, rel_s = cols[order], rel[order]
+    starts = np.searchsorted(cols_s, np.arange(m), side="left")
+    stops = np.searchsorted(cols_s, np.arange(m), side="right")
+    for j in range(m):
+        if stops[j] > starts[j]:
+            out[j] = np.median(rel_s[starts[j]:stops[j]])
+    from scipy.ndimage import median_filter
+
+    out = median_filter(out, size=min(9, max(1, m)), mode="nearest")
+    return out + c
+
+
+def align_passes(features: SpliceFeatures, band: float = BAND, refine_band: float = REFINE_BAND,
+                 points: Sequence = (), previous: SpliceAlignment | None = None,
+                 blend: float = MG.BLEND_FRAMES, incremental: bool | None = None,
+                 progress: Progress | None = None) -> SpliceAlignment:
+    """Pass 1 (phase matching) and pass 2 (refinement), then merge and smooth.
+
+    Parameters
+    ----------
+    features : SpliceFeatures from :func:`prepare`
+    band : pass-1 band width as a fraction of n (paper: 0.30)
+    refine_band : pass-2 band width around the pass-1 path, fraction of n (paper: 0.10)
+    points : ``[(body_frame, grid_hand_frame, tol), ...]`` user matching points
+        (grid units; tol in grid frames). Carried over to pass 2.
+    previous : the last result for the same ``features`` (reuses DTW rows that the
+        edit cannot change)
+    blend : merge smoothing (Gaussian σ, body frames)
+    incremental : keep ``Aligner`` solvers (γ for cumulative-cost views, partial
+        re-solves); default when the pass-1 band has at most 12 M cells.
+
+    Raises ``ParameterError`` for infeasible bands or points (naming the point).
+    """
+    progress = progress or _noop
+    n, m = features.n, features.m
+    pts = _check_points(points, n, m)
+    timings: dict[str, float] = {}
+    if not (np.isfinite(band) and band >= 0):
+        raise ParameterError(f"band must be a fraction >= 0, got {band}")
+    t0 = time.perf_counter()
+    progress("pass 1", 0.0)
+    band1 = Band.from_constraints(n, m, float(band), pts)
+    if incremental is None:
+        incremental = band1.area <= INCREMENTAL_MAX_CELLS
+    same = previous is not None and previous.features_id == id(features)
+    solver1 = previous.pass1.solver if same else None
+    al1, solver1 = _solve(features.pass1_rows, "splice_phase", band1, solver1, incremental)
+    t1 = time.perf_counter()
+    timings["pass1"] = t1 - t0
+    progress("pass 1", 1.0)
+
+    progress("pass 2", 0.0)
+    theta = _theta_along_path(features, al1.path)
+    hand2 = M.angle_features(features.hand_markers, theta).rows()
+    radius = refine_radius(n, m, refine_band)
+    band2 = Band.around_path(al1.path, n, m, radius, points=pts if pts else None)
+    solver2 = None
+    if same and previous.pass2.solver is not None and \
+            np.array_equal(previous.pass2.rows[1], hand2):
+        solver2 = previous.pass2.solver
+    al2, solver2 = _solve((features.pass2_body_rows, hand2), "splice_angle", band2, solver2,
+                          incremental)
+    t2 = time.perf_counter()
+    timings["pass2"] = t2 - t1
+    progress("pass 2", 1.0)
+
+    progress("merge", 0.0)
+    warp = MG.merge_path(al2.path, n, m, blend)
+    hand_map = features.grid_to_hand(warp)
+    timings["merge"] = time.perf_counter() - t2
+    progress("merge", 1.0)
+    p1 = PassResult(path=np.asarray(al1.path), cost=float(al1.cost), band=band1,
+                    rows=features.pass1_rows, metric="splice_phase", solver=solver1,
+                    seconds=timings["pass1"])
+    p2 = PassResult(path=np.asarray(al2.path), cost=float(al2.cost), band=band2,
+                    rows=(features.pass2_body_rows, hand2), metric="splice_angle",
+                    solver=solver2, seconds=timings["pass2"])
+    return SpliceAlignment(pass1=p1, pass2=p2, warp=warp, map=hand_map, theta=theta,
+                           points=pts, band=float(band), refine_band=float(refine_band),
+                           radius=radius, blend=float(blend), timings=timings,
+                           features_id=id(features))
+
+
+# --------------------------------------------------------------------------------------------
+# transfer
+# --------------------------------------------------------------------------------------------
+
+
+def transfer(features: SpliceFeatures, result: SpliceAlignment,
+             progress: Progress | None = None) -> Motion:
+    """The body take with the hand take's wrists and fingers sampled at ``result.map``."""
+    progress = progress or _noop
+    body, hand = features.body, features.hand
+    if not isinstance(body, Motion):
+        raise HandSpliceError(f"{_take_name(body)}: a marker take has no skeleton to splice "
+                              "fingers onto (the body take must be a BVH)")
+    if not isinstance(hand, Motion):
+        raise HandSpliceError(f"{_take_name(hand)}: a marker take has no finger joint "
+                              "rotations to transfer (the hand take must be a BVH)")
+    progress("transfer", 0.0)
+    plan = plan_for(features)
+    out = TR.apply_transfer(plan, body, hand, result.map, body_fk=features.body_fk)
+    progress("transfer", 1.0)
+    return out
+
+
+def plan_for(features: SpliceFeatures) -> TR.TransferPlan:
+    """The transfer plan of a pair (cached on the features)."""
+    cached = features.params.get("_plan")
+    if cached is None:
+        cached = TR.plan_transfer(features.body, features.hand, features.body_roles,
+                                  features.hand_roles, features.body_frames,
+                                  features.hand_frames, features.sides)
+        features.params["_plan"] = cached
+    return cached
+
+
+# --------------------------------------------------------------------------------------------
+# everything at once
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass
+class SpliceResult:
+    """``motion`` (the spliced take), ``features``, ``alignment``, ``timings`` (seconds)."""
+
+    motion: Motion | None
+    features: SpliceFeatures
+    alignment: SpliceAlignment
+    timings: dict
+
+
+def splice(body: Motion, hand: Motion, side: str = "auto", band: float = BAND,
+           refine_band: float = REFINE_BAND, points: Sequence = (), hand_points: bool = False,
+           theta: str = "window", body_roles=None, hand_roles=None,
+           blend: float = MG.BLEND_FRAMES, smoothing_s: float = SMOOTHING_S,
+           dead_zone: float = DEAD_ZONE, n_bins: int = M.THETA_BINS,
+           progress: Progress | None = None, transfer_fingers: bool = True) -> SpliceResult:
+    """Align and splice in one call (CLI, batch and benchmarks).
+
+    ``points`` are ``(body_frame, hand_frame[, tol])``; with ``hand_points=True`` the
+    hand frame and tolerance are in frames of the original hand take (as a person
+    reads them off the file) and are converted to the alignment grid, else they are
+    grid units. With ``transfer_fingers=False`` only the alignment is computed.
+    """
+    t0 = time.perf_counter()
+    feats = prepare(body, hand, side=side, body_roles=body_roles, hand_roles=hand_roles,
+                    theta=theta, n_bins=n_bins, smoothing_s=smoothing_s, dead_zone=dead_zone,
+                    progress=progress)
+    t1 = time.perf_counter()
+    pts = _check_points(points, feats.n, feats.m_hand if hand_points else feats.m)
+    if hand_points:
+        pts = [(x, int(round(float(feats.hand_to_grid(y)))),
+                float(np.ceil(float(feats.hand_to_grid(t)) - 1e-9)) if t else 0.0)
+               for x, y, t in pts]
+        pts = [(x, min(y, feats.m - 1), t) for x, y, t in pts]
+    result = align_passes(feats, band=band, refine_band=refine_band, points=pts, blend=blend,
+                          incremental=False, progress=progress)
+    t2 = time.perf_counter()
+    motion = transfer(feats, result, progress) if transfer_fingers else None
+    t3 = time.perf_counter()
+    timings = {"prepare": t1 - t0, **{f"prepare.{k}": v for k, v in feats.timings.items()},
+               "pass1": result.timings["pass1"], "pass2": result.timings["pass2"],
+               "merge": result.timings["merge"], "transfer": t3 - t2, "total": t3 - t0}
+    return SpliceResult(motion=motion, features=feats, alignment=result, timings=timings)
+
+
+# --------------------------------------------------------------------------------------------
+# views for the app
+# --------------------------------------------------------------------------------------------
+
+
+def wrist_speeds(features: SpliceFeatures) -> tuple[np.ndarray, np.ndarray]:
+    """Speed of the wrist centre (m/s, summed over spliced arms): body ``(n,)``, hand ``(m,)``."""
+    def speed(ph: M.PhaseFeatures) -> np.ndarray:
+        v = ph.velocity.reshape(ph.n_frames, -1, 4, 3)
+        centre = 0.5 * (v[:, :, 0] + v[:, :, 1])
+        return np.linalg.norm(centre, axis=-1).sum(axis=1)
+
+    return speed(features.body_phase), speed(features.hand_phase)
+
+
+def phase_labels(features: SpliceFeatures) -> tuple[np.ndarray, np.ndarray]:
+    """Gesture phase codes (``engine.gesture.phases.Phase``) of the first spliced arm's wrist:
+    body ``(n,)`` and hand ``(m,)`` (alignment grid)."""
+    from engine.gesture.phases import segment_trajectory
+
+    def labels(markers: np.ndarray) -> np.ndarray:
+        wrist = 0.5 * (markers[:, 0] + markers[:, 1])
+        return np.asarray(segment_trajectory(wrist, features.fps).labels)
+
+    return labels(features.body_markers), labels(features.hand_markers)
+
+
+def cost_image(features: SpliceFeatures, kind: str, rows, cols,
+               result: SpliceAlignment | None = None) -> np.ndarray:
+    """Cost matrix values at body frames ``rows`` × grid hand frames ``cols``.
+
+    kind : ``"pass1"`` / ``"pass2"`` (local costs; pass 2 uses the hand take turned by
+        ``result.theta``, or unturned without a result) or ``"cumulative1"`` /
+        ``"cumulative2"`` (γ of the last solve; NaN outside the band; needs a result
+        solved incrementally).
+    Returns ``(len(rows), len(cols))`` float64.
+    """
+    rows = np.asarray(rows, dtype=np.int64)
+    cols = np.asarray(cols, dtype=np.int64)
+    if kind == "pass1":
+        a, b = features.pass1_rows
+        return M.cost_grid(M.splice_phase, a, b, rows, cols)
+    if kind == "pass2":
+        b = result.pass2.rows[1] if result is not None else \
+            M.angle_features(features.hand_markers).rows()
+        return M.cost_grid(M.splice_angle, features.pass2_body_rows, b, rows, cols)
+    if kind in ("cumulative1", "cumulative2"):
+        if result is None:
+            return np.full((rows.size, cols.size), np.nan)
+        pr = result.pass1 if kind == "cumulative1" else result.pass2
+        if pr.solver is None:
+            pr.solver = Aligner(pr.rows[0], pr.rows[1], metric=pr.metric)
+            pr.solver.solve(pr.band)
+        bv = pr.solver.cumulative_cost()
+        bd = bv.band
+        lo, hi = bd.lo[rows][:, None], bd.hi[rows][:, None]
+        inside = (cols[None, :] >= lo) & (cols[None, :] <= hi)
+        flat = bd.start[rows][:, None] + cols[None, :] - lo
+        flat = np.where(inside, flat, 0)
+        return np.where(inside, bv.values[flat], np.nan)
+    raise ParameterError(f"cost image kind must be pass1, pass2, cumulative1 or cumulative2, "
+                         f"got {kind!r}")
