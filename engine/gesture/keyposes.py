@@ -183,7 +183,10 @@ def pose_distance_map(points: np.ndarray, fps: float, params: KeyPoseParameters 
     Returns
     -------
     distance_map, enhanced_map : (G, G) float32, weighted metres
-    map_frames : (G,) int, the frames sampled (stride ``ceil(F / max_map_frames)``)
+    map_frames : (G,) int, the frames sampled (stride ``ceil(F / max_map_frames)``).
+        With a stride > 1 the contrast's local mean is taken on the strided grid, so
+        the enhanced map is an approximation of the full-resolution one (the key
+        frames never use it).
     """
     params = params or KeyPoseParameters()
     pts = _as_points(points, fps, len(params.joint_weights))
@@ -194,17 +197,20 @@ def pose_distance_map(points: np.ndarray, fps: float, params: KeyPoseParameters 
     g = len(frames)
     raw = np.zeros((g, g), dtype=np.float32)
     enh = np.zeros((g, g), dtype=np.float32)
-    chunk = max(1, 262144 // max(n, 1))
-    for k in range(0, g, chunk):
-        sel = frames[k:k + chunk]
-        if stride == 1:
-            r, e = space.rows(int(sel[0]), int(sel[-1]) + 1)
-        else:
-            pairs = [space.rows(int(i), int(i) + 1) for i in sel]
-            r = np.concatenate([p[0] for p in pairs])
-            e = np.concatenate([p[1] for p in pairs])
-        raw[k:k + len(sel)] = r[:, frames]
-        enh[k:k + len(sel)] = e[:, frames]
+    if stride == 1:
+        chunk = max(1, 262144 // max(n, 1))
+        for k in range(0, g, chunk):
+            r, e = space.rows(k, min(g, k + chunk))
+            raw[k:k + len(r)] = r
+            enh[k:k + len(e)] = e
+    else:
+        # long takes: the map at every stride-th frame, the local mean on that grid
+        # (window shrunk by the stride), so display costs O(G^2) not O(F * G * window)
+        sub = _PoseSpace(pts[frames], space.weights, fps / stride, params)
+        for k in range(0, g, 512):
+            r, e = sub.rows(k, min(g, k + 512))
+            raw[k:k + len(r)] = r
+            enh[k:k + len(e)] = e
     return raw, enh, frames
 
 
