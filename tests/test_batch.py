@@ -1,0 +1,215 @@
+"""``handsplice batch``: manifest validation, and a real batch on a 2-worker local Dask
+cluster (separate processes) with one broken pair, then a re-run that skips the
+finished pairs. Inputs are short crops of real takes from ../shared/data/mocap."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import re
+from pathlib import Path
+
+import pytest
+from conftest import MOCAP
+
+from engine.batch import (
+    MARKER_DIR,
+    ManifestError,
+    PairJob,
+    is_done,
+    parse_manifest,
+    read_manifest,
+    run_pair,
+)
+from engine.cli import main
+from engine.io.bvh import read_bvh, write_bvh
+
+pytestmark = pytest.mark.timeout(300, method="thread")
+
+# body takes (no fingers) x hand takes (Leap Motion right hands), as in sample_data
+BODIES = ["bandai-namco/dataset-2_wave-right-hand_normal_001.bvh",
+          "bandai-namco/dataset-2_raise-up-right-hand_normal_001.bvh",
+          "bandai-namco/dataset-1_bye_normal_001.bvh"]
+HANDS = ["gestification/hello-world.bvh", "gestification/gesture-pointing.bvh",
+         "gestification/fingers-ok.bvh"]
+CROP_BODY, CROP_HAND = 50, 60  # frames: the whole batch stays well under a minute
+
+
+def _crop(src: Path, dst: Path, frames: int) -> Path:
+    m = read_bvh(src)
+    write_bvh(m.frames(0, min(frames, m.n_frames)), dst)
+    return dst
+
+
+@pytest.fixture(scope="module")
+def takes(tmp_path_factory) -> Path:
+    folder = tmp_path_factory.mktemp("takes")
+    (folder / "bodies").mkdir()
+    (folder / "hands").mkdir()
+    for name in BODIES:
+        _crop(MOCAP / name, folder / "bodies" / Path(name).name, CROP_BODY)
+    for name in HANDS:
+        _crop(MOCAP / name, folder / "hands" / Path(name).name, CROP_HAND)
+    # the deliberately broken pair's body: a take cut off in the middle of a data row
+    text = (folder / "bodies" / Path(BODIES[0]).name).read_text(encoding="utf-8")
+    (folder / "bodies" / "broken.bvh").write_text(text[:len(text) * 2 // 3], encoding="utf-8")
+    return folder
+
+
+def _write_manifest(folder: Path, rows: list[str], header: str = "body,hand,side,band,match,name"
+                    ) -> Path:
+    path = folder / "manifest.csv"
+    path.write_text(header + "\n" + "\n".join(rows) + "\n", encoding="utf-8")
+    return path
+
+
+def _summary(outdir: Path) -> dict[str, dict]:
+    with open(outdir / "summary.csv", newline="", encoding="utf-8") as fh:
+        return {row["name"]: row for row in csv.DictReader(fh)}
+
+
+# ---------------------------------------------------------------- the batch on Dask
+
+
+def test_batch_on_two_worker_cluster_then_resume(takes, tmp_path, capsys):
+    b = [f"bodies/{Path(n).name}" for n in BODIES]
+    h = [f"hands/{Path(n).name}" for n in HANDS]
+    rows = [
+        f"{b[0]},{h[0]},right,,,wave-hello",
+        f"{b[1]},{h[1]},right,0.3,,raise-pointing",
+        f"{b[2]},{h[2]},right,0.4,,bye-ok",
+        f"{b[0]},{h[1]},right,,,wave-pointing",
+        f"{b[1]},{h[2]},right,,,raise-ok",
+        f"{b[2]},{h[0]},right,,5:6:2;40:45,bye-hello-matched",
+        f"bodies/broken.bvh,{h[0]},right,,,broken",
+    ]
+    manifest = _write_manifest(takes, rows)  # relative paths: from the manifest's folder
+    out = tmp_path / "out"
+
+    status = main(["batch", str(manifest), "-o", str(out), "--workers", "2"])
+    err = capsys.readouterr().err
+    assert status == 3, err  # finished, one pair failed
+    summary = _summary(out)
+    assert len(summary) == 7
+    assert summary["broken"]["status"] == "failed"
+    assert "broken.bvh" in summary["broken"]["error"] and "line" in summary["broken"]["error"]
+    done = [n for n, r in summary.items() if r["status"] == "done"]
+    assert len(done) == 6
+    # progress on stderr: one line per pair, the failure named
+    assert len(re.findall(r"^\[\d/7\] ", err, re.M)) == 7
+    assert "broken: failed" in err
+    # separate worker processes, none of them this test process
+    workers = {summary[n]["worker"] for n in done}
+    assert len(workers) == 2 and all(not w.endswith(f":{os.getpid()}") for w in workers)
+    for name in done:
+        row = summary[name]
+        spliced = read_bvh(out / row["output"])
+        assert spliced.n_frames == CROP_BODY == int(row["spliced_frames"])
+        assert any("index" in j.lower() for j in spliced.skeleton.names)  # fingers arrived
+        report = json.loads((out / row["report"]).read_text(encoding="utf-8"))
+        assert len(report["map"]) == CROP_BODY
+        png = (out / row["thumbnail"]).read_bytes()
+        assert png.startswith(b"\x89PNG") and row["thumbnail_kind"] in ("render", "stick")
+        assert (out / MARKER_DIR / f"{name}.json").is_file()
+    assert summary["bye-hello-matched"]["match"] == "5:6:2;40:45"
+    page = (out / "index.html").read_text(encoding="utf-8")
+    assert page.count("<img ") == 6 and "broken" in page and "failed" in page
+    # no temporary files left behind by the atomic writes
+    assert not [p for p in out.iterdir() if p.name.startswith(".") and p.name != MARKER_DIR]
+    mtimes = {n: (out / summary[n]["output"]).stat().st_mtime_ns for n in done}
+
+    # re-run: finished pairs are skipped (outputs untouched), the broken one is tried again
+    status = main(["batch", str(manifest), "-o", str(out), "--workers", "2", "--quiet"])
+    assert status == 3
+    again = _summary(out)
+    assert {n for n, r in again.items() if r["status"] == "skipped"} == set(done)
+    assert again["broken"]["status"] == "failed"
+    assert {n: (out / summary[n]["output"]).stat().st_mtime_ns for n in done} == mtimes
+
+    # a changed input (same name) is no longer "done": its hash differs
+    job = next(j for j in read_manifest(manifest) if j.name == "wave-hello")
+    assert is_done(job, out) is not None
+    hand = Path(job.hand)
+    hand.write_text(hand.read_text(encoding="utf-8") + "\n", encoding="utf-8")
+    assert is_done(job, out) is None
+    # and a changed option too
+    job2 = next(j for j in read_manifest(manifest) if j.name == "raise-pointing")
+    assert is_done(job2, out) is not None
+    assert is_done(PairJob(**{**job2.__dict__, "band": 0.5}), out) is None
+
+
+def test_run_pair_records_errors_without_raising(takes, tmp_path):
+    job = PairJob(line=2, name="nohand", body=str(takes / "bodies" / Path(BODIES[0]).name),
+                  hand=str(takes / "bodies" / Path(BODIES[1]).name), side="right")
+    rec = run_pair(job, tmp_path, thumbnails="none")  # a body as the hand: no fingers
+    assert rec["status"] == "failed" and rec["error"] and "\n" not in rec["error"]
+    assert not (tmp_path / MARKER_DIR / "nohand.json").exists()
+
+    def explode(body, hand, job):
+        raise ZeroDivisionError("a bug")
+
+    rec = run_pair(PairJob(**{**job.__dict__, "hand": str(takes / "hands" /
+                                                           Path(HANDS[0]).name)}),
+                   tmp_path, thumbnails="none", splice=explode)
+    assert rec["status"] == "failed" and rec["error"].startswith("ZeroDivisionError: a bug [")
+
+
+# ---------------------------------------------------------------- manifest errors
+
+
+@pytest.mark.parametrize("text, line, words", [
+    ("body,hand\na.bvh,b.bvh\n", 1, "missing column side"),
+    ("body,hand,sde\na.bvh,b.bvh,right\n", 1, "unknown column 'sde'"),
+    ("body,hand,side,side\n", 1, "appears twice"),
+    ("body,hand,side\na.bvh,b.bvh,right\n\na.bvh,b.bvh,up\n", 4, "side: expected right, left"),
+    ("body,hand,side,band\na.bvh,b.bvh,right,1.5\n", 2, "band: expected a number in (0, 1]"),
+    ("body,hand,side,band\na.bvh,b.bvh,right,nan\n", 2, "band"),
+    ("body,hand,side,refine_band\na.bvh,b.bvh,right,x\n", 2, "refine_band"),
+    ("body,hand,side,match\na.bvh,b.bvh,right,12\n", 2, "match: point 1 '12'"),
+    ("body,hand,side,match\na.bvh,b.bvh,right,10:5;8:9\n", 2, "must come after point 1"),
+    ("body,hand,side,match\na.bvh,b.bvh,right,1:x\n", 2, "whole numbers"),
+    ("body,hand,side,match\na.bvh,b.bvh,right,1:2:-3\n", 2, ">= 0"),
+    ("body,hand,side\n,b.bvh,right\n", 2, "body: empty"),
+    ("body,hand,side,name\na.bvh,b.bvh,right,x\nc.bvh,d.bvh,left,x\n", 3, "already used"),
+    ("body,hand,side,name\na.bvh,b.bvh,right,../../etc/x\n", 2, "name"),
+    ("body,hand,side\na.bvh,b.bvh,right,extra\n", 2, "4 values for 3 columns"),
+    ("body,hand,side\n", None, "no pairs"),
+    ("", None, "empty manifest"),
+    ('body,hand,side\n"a.bvh,b.bvh,right\n', None, "not valid CSV"),
+])
+def test_manifest_errors_name_the_line(tmp_path, text, line, words):
+    with pytest.raises(ManifestError) as info:
+        parse_manifest(text, tmp_path / "m.csv")
+    msg = str(info.value)
+    assert words in msg, msg
+    if line is not None:
+        assert msg.startswith(f"m.csv line {line}: "), msg
+
+
+def test_manifest_paths_defaults_and_names(tmp_path):
+    (tmp_path / "sub").mkdir()
+    text = ("# a comment line\nBody , Hand,Side,band,match\n"
+            "takes/a.bvh,/abs/h.bvh,RIGHT,,\n"
+            "takes/a.bvh,/abs/h.bvh,right,0.25,3:4:1 9:10\n")
+    jobs = parse_manifest(text, tmp_path / "sub" / "m.csv")
+    assert jobs[0].body == str((tmp_path / "sub" / "takes" / "a.bvh").resolve())
+    assert jobs[0].hand == "/abs/h.bvh" and jobs[0].side == "right"
+    assert jobs[0].band is None and jobs[0].match == ()
+    assert jobs[1].band == 0.25 and jobs[1].match == ((3, 4, 1.0), (9, 10, None))
+    assert jobs[0].name == "a+h-right" and jobs[1].name == "a+h-right-line4"
+    assert [j.line for j in jobs] == [3, 4]
+
+
+def test_cli_manifest_error_is_one_line_exit_2(tmp_path, capsys):
+    manifest = tmp_path / "pairs.csv"
+    manifest.write_text("body,hand,side\na.bvh,b.bvh,right\na.bvh,b.bvh,sideways\n",
+                        encoding="utf-8")
+    assert main(["batch", str(manifest), "-o", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == ("handsplice: error: pairs.csv line 3: side: expected right, left or both, "
+                   "got 'sideways'")
+    assert not (tmp_path / "o").exists()  # nothing ran
+    assert main(["batch", str(tmp_path / "none.csv"), "-o", str(tmp_path / "o")]) == 2
+    assert "none.csv" in capsys.readouterr().err
+    assert main(["batch", str(manifest), "-o", str(tmp_path / "o"), "--workers", "0"]) == 2
