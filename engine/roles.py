@@ -768,3 +768,115 @@ def _skeleton_scale(sk: Skeleton) -> float:
     if sk.n_joints < 2:
         return 1.0
     return max(float(np.linalg.norm(sk.offsets[1:], axis=1).max()), 1e-12)
+
+
+# --------------------------------------------------------------------------- marker sets
+
+MARKER_ROLES = ("shoulder", "elbow", "forearm", "wrist_radial", "wrist_ulnar", "hand")
+# label (upper case, namespace removed) -> role; earlier entries win within a role.
+# Plug-in Gait (RSHO, RELB, RFRA, RWRA, RWRB, RFIN, with an R/L side prefix), pyomeca /
+# ISB-style anatomical names (ACRO_tip, EPICl, LARMl, STYLr, STYLu, LATH) and CAST-style
+# short names (LE, RS, US, MCP2).
+_MARKER_NAMES = {
+    "shoulder": ("SHO", "ACRO_TIP", "ACRO", "ACR", "ACROMION", "AC"),
+    "elbow": ("ELB", "EPICL", "LE", "LEL", "EL", "EPL", "ELBOW", "EPICM", "ME"),
+    "forearm": ("FRA", "LARML", "LARMM", "LARM_ANT", "LARM_ELB", "FA", "FOREARM"),
+    "wrist_radial": ("WRA", "STYLR", "RS", "RSP", "RADIAL_STYLOID"),
+    "wrist_ulnar": ("WRB", "STYLU", "US", "USP", "ULNAR_STYLOID"),
+    "hand": ("FIN", "LATH", "MCP2", "MH2", "MEDH", "MCP5", "HAND"),
+}
+_MARKER_VOCAB = {name: role for role, names in _MARKER_NAMES.items() for name in names}
+_MARKER_RANK = {name: rank for names in _MARKER_NAMES.values() for rank, name in enumerate(names)}
+_SIDED_LABEL = (re.compile(r"^(R|L|RIGHT|LEFT)[_ .-]?(.+)$"), re.compile(r"^(.+?)[_ .-](R|L)$"))
+
+
+@dataclass(frozen=True)
+class MarkerRoles:
+    """Marker indices per side for the alignment markers of METHOD.md (a marker set's
+    counterpart of ``Roles``): ``shoulder``, ``elbow``, ``forearm``, ``wrist_radial``,
+    ``wrist_ulnar``, ``hand`` (back of the hand, 2nd metacarpal head), None if absent.
+    ``unsided`` holds the roles of labels that carry no side when no hint was given."""
+
+    labels: tuple[str, ...]
+    right: dict[str, int | None]
+    left: dict[str, int | None]
+    unsided: dict[str, int | None] | None = None
+    side_source: dict[str, str] = field(default_factory=dict)
+
+    def side(self, side: str) -> dict[str, int | None]:
+        if side not in SIDES:
+            raise ParameterError(f"side must be 'right' or 'left', got {side!r}")
+        return self.right if side == "right" else self.left
+
+    def require(self, side: str, role: str) -> int:
+        """Marker index of ``role`` on ``side``; ``RoleError`` naming similar labels."""
+        if role not in MARKER_ROLES:
+            raise ParameterError(f"unknown marker role {role!r}; roles: {', '.join(MARKER_ROLES)}")
+        index = self.side(side)[role]
+        if index is not None:
+            return index
+        if self.unsided is not None and self.unsided.get(role) is not None:
+            raise RoleError(f"{side} {role.replace('_', ' ')}: the marker labels carry no side "
+                            f"({self.labels[self.unsided[role]]}); give the side (--side {side})")
+        near = difflib.get_close_matches(role.upper(), [lab.upper() for lab in self.labels],
+                                         n=5, cutoff=0.3)
+        hint = f"nearest labels: {', '.join(near)}" if near else "no similar labels"
+        raise RoleError(f"{side} {role.replace('_', ' ')}: no marker found among "
+                        f"{len(self.labels)} labels ({hint})")
+
+    def to_dict(self) -> dict:
+        def names(d):
+            return None if d is None else {r: (None if d[r] is None else self.labels[d[r]])
+                                           for r in MARKER_ROLES}
+
+        return {"right": names(self.right), "left": names(self.left),
+                "unsided": names(self.unsided),
+                "side_source": {s: self.side_source.get(s, "") for s in SIDES}}
+
+
+def find_marker_roles(labels, side_hint: str | None = None) -> MarkerRoles:
+    """Alignment-marker roles of a marker set from its labels.
+
+    Labels are read without a ``Subject:`` namespace, case-insensitively; a side comes
+    from an ``R``/``L``/``Right``/``Left`` prefix or an ``_R``/``_L`` suffix (Plug-in
+    Gait ``RWRA``). Labels without a side (pyomeca ``STYLr``, ``ACRO_tip``) go to
+    ``side_hint``, else to ``unsided``. Within a role the conventional marker wins
+    (lateral epicondyle over medial, ``LATH`` over ``MEDH``).
+    """
+    if side_hint is not None and side_hint not in SIDES:
+        raise ParameterError(f"side_hint must be 'right', 'left' or None, got {side_hint!r}")
+    labels = tuple(str(lab) for lab in labels)
+    found: dict[str, dict[str, tuple[int, int]]] = {"right": {}, "left": {}, "": {}}
+    for i, label in enumerate(labels):
+        key = re.split(r"[:|]", label)[-1].strip().upper()
+        side, name = "", key
+        if key not in _MARKER_VOCAB:
+            for pattern in _SIDED_LABEL:
+                m = pattern.match(key)
+                if not m:
+                    continue
+                a, b = m.groups()
+                side_word, rest = (a, b) if pattern is _SIDED_LABEL[0] else (b, a)
+                if rest in _MARKER_VOCAB:
+                    side, name = ("right" if side_word[0] == "R" else "left"), rest
+                    break
+        role = _MARKER_VOCAB.get(name)
+        if role is None:
+            continue
+        rank = _MARKER_RANK[name]
+        if role not in found[side] or rank < found[side][role][0]:
+            found[side][role] = (rank, i)
+
+    def as_dict(d):
+        return {r: (d[r][1] if r in d else None) for r in MARKER_ROLES}
+
+    sides = {s: as_dict(found[s]) for s in SIDES}
+    source = {s: "names" if found[s] else "" for s in SIDES}
+    unsided = None
+    if found[""]:
+        if side_hint is not None and not found[side_hint]:
+            sides[side_hint] = as_dict(found[""])
+            source[side_hint] = "hint"
+        elif not found["right"] and not found["left"]:
+            unsided = as_dict(found[""])
+    return MarkerRoles(labels, sides["right"], sides["left"], unsided, source)

@@ -50,7 +50,11 @@ def test_info_json_on_every_capture(path, capsys):
     else:
         markers = report["markers"]
         assert markers["count"] == len(markers["labels"]) == 51
-        assert set(markers["gaps"]) == set(markers["labels"]) and report["roles"] is None
+        assert set(markers["gaps"]) == set(markers["labels"])
+        # pyomeca labels carry no side: the arm's markers are reported as unsided
+        unsided = report["roles"]["unsided"]
+        assert unsided["wrist_radial"].endswith("STYLr") and unsided["hand"].endswith("LATH")
+        assert report["sides"] == []
 
 
 def test_info_markers_gaps(capsys):
@@ -62,6 +66,9 @@ def test_info_markers_gaps(capsys):
     _, out, _ = _info(capsys, "--json", MOCAP / "pyomeca/markers.trc")
     report = json.loads(out)
     assert report["frames"] == 93 and report["markers"]["gap_percent"] == 0
+    _, out, _ = _info(capsys, "--json", "--side", "right", MOCAP / "pyomeca/markers.trc")
+    report = json.loads(out)
+    assert report["sides"] == ["right"] and report["roles"]["right"]["elbow"] == "EPICl"
 
 
 def test_info_text_is_aligned(capsys):

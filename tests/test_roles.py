@@ -14,7 +14,9 @@ from engine.errors import ParameterError, RoleError
 from engine.io.bvh import read_bvh
 from engine.kinematics import forward_kinematics
 from engine.roles import (
+    MARKER_ROLES,
     ROLE_NAMES,
+    find_marker_roles,
     find_roles,
     load_role_overrides,
     name_tokens,
@@ -323,3 +325,33 @@ def test_to_dict_is_json_ready():
     idx = json.loads(json.dumps(roles.to_dict(indices=True)))
     assert idx["right"]["wrist"] == roles.right.wrist
     assert idx["right"]["fingers"]["index"] == roles.right.fingers["index"]
+
+
+# --------------------------------------------------------------------------- marker sets
+
+
+def test_marker_roles_plug_in_gait_and_pyomeca():
+    pig = ["C7", "RSHO", "RUPA", "RELB", "RFRA", "RWRA", "RWRB", "RFIN", "LSHO", "LELB",
+           "LWRA", "LWRB", "LFIN", "Sub:RKNE"]
+    roles = find_marker_roles(pig)
+    assert {r: pig[i] for r, i in roles.right.items()} == {
+        "shoulder": "RSHO", "elbow": "RELB", "forearm": "RFRA", "wrist_radial": "RWRA",
+        "wrist_ulnar": "RWRB", "hand": "RFIN"}
+    assert roles.left["forearm"] is None and pig[roles.require("left", "wrist_ulnar")] == "LWRB"
+    with pytest.raises(RoleError, match="left forearm: no marker found"):
+        roles.require("left", "forearm")
+    pyomeca = ["Daphnee:EPICm", "Daphnee:EPICl", "Daphnee:STYLr", "Daphnee:STYLu",
+               "Daphnee:MEDH", "Daphnee:LATH", "Daphnee:LARMm", "Daphnee:LARMl",
+               "Daphnee:ACRO_tip"]
+    plain = find_marker_roles(pyomeca)
+    assert plain.right == dict.fromkeys(MARKER_ROLES) and plain.unsided is not None
+    with pytest.raises(RoleError, match="carry no side.*--side right"):
+        plain.require("right", "hand")
+    hinted = find_marker_roles(pyomeca, side_hint="right")
+    assert {r: pyomeca[i] for r, i in hinted.right.items()} == {
+        "shoulder": "Daphnee:ACRO_tip", "elbow": "Daphnee:EPICl", "forearm": "Daphnee:LARMl",
+        "wrist_radial": "Daphnee:STYLr", "wrist_ulnar": "Daphnee:STYLu",
+        "hand": "Daphnee:LATH"}  # lateral epicondyle and 2nd metacarpal win
+    assert json.loads(json.dumps(hinted.to_dict()))["side_source"]["right"] == "hint"
+    suffixed = find_marker_roles(["RS_R", "US_R", "LE_L"])
+    assert suffixed.right["wrist_radial"] == 0 and suffixed.left["elbow"] == 2

@@ -9,7 +9,9 @@ JSON keys: ``file``, ``format`` ("bvh", "c3d", "trc"), ``frames``, ``fps``,
 ``roles`` (``Roles.to_dict()``: per side role -> joint name or null, ``fingers``
 lists, ``tips``, ``metacarpals``; ``unsided``; ``side_source``), ``sides`` (sides
 with a wrist), ``hand_sides`` (sides with finger joints); C3D/TRC: ``markers``
-{``count``, ``labels``, ``gap_percent`` (all samples), ``gaps`` {label: percent}}.
+{``count``, ``labels``, ``gap_percent`` (all samples), ``gaps`` {label: percent}},
+``roles`` (``MarkerRoles.to_dict()``: per side shoulder, elbow, forearm, wrist_radial,
+wrist_ulnar, hand -> label or null; ``unsided``; ``side_source``), ``sides``.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ def add_parser(subparsers) -> None:
     p.add_argument("--roles", metavar="MAP.json",
                    help='joint-role overrides, e.g. {"right.wrist": "Bip01_R_Hand"}')
     p.add_argument("--side", choices=["right", "left"],
-                   help="side of a hand-only take whose joint names carry none "
+                   help="side of a take whose joint or marker names carry none "
                         "(default: from the file name, e.g. mug1_rightHand.bvh)")
     p.set_defaults(func=run)
 
@@ -50,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
 
             raise ParameterError(f"--roles applies to skeletal takes (.bvh); {args.file} "
                                  "holds markers")
-        report = describe_markers(take, args.file)
+        report = describe_markers(take, args.file, side=args.side)
     else:
         report = describe_motion(take, args.file, overrides=overrides, side=args.side)
     if args.json:
@@ -82,9 +84,13 @@ def describe_motion(motion, path, overrides=None, side=None) -> dict:
     }
 
 
-def describe_markers(markers, path) -> dict:
+def describe_markers(markers, path, side=None) -> dict:
     """The ``info`` report of a marker take (C3D, TRC) as a JSON-ready dict."""
     import numpy as np
+
+    from engine.roles import SIDES, find_marker_roles, side_from_name
+
+    roles = find_marker_roles(markers.labels, side_hint=side or side_from_name(path))
 
     missing = np.isnan(markers.points).any(axis=2)  # (F, M)
     n = max(markers.n_frames, 1)
@@ -101,7 +107,9 @@ def describe_markers(markers, path) -> dict:
         "up_axis": markers.meta.up_axis,
         "markers": {"count": len(markers.labels), "labels": list(markers.labels),
                     "gap_percent": _number(total, 2), "gaps": gaps},
-        "roles": None,
+        "roles": roles.to_dict(),
+        "sides": [s for s in SIDES if roles.side(s)["wrist_radial"] is not None
+                  or roles.side(s)["wrist_ulnar"] is not None],
     }
 
 
@@ -140,6 +148,7 @@ def format_text(report: dict) -> str:
         worst = [f"{k} {v:g}%" for k, v in worst if v > 0]
         if worst:
             rows += [("most gaps", line) for line in _wrap(worst, 72)]
+        rows += _marker_role_rows(report["roles"])
         rows += [("labels", line) for line in _wrap(m["labels"], 72)]
     width = max(len(k) for k, _ in rows) + 2
     out = []
@@ -175,6 +184,23 @@ def _role_rows(report: dict) -> list[tuple[str, str]]:
         fingers = [f"{f}[{' '.join(js)}]" for f, js in arm["fingers"].items() if js]
         rows += [("no side", line) for line in _wrap(found + fingers, 72)]
         rows.append(("", "(names carry no side: pass --side right|left)"))
+    return rows
+
+
+def _marker_role_rows(roles: dict) -> list[tuple[str, str]]:
+    rows = []
+    for key in ("right", "left", "unsided"):
+        found = roles.get(key) or {}
+        items = [f"{r}={n}" for r, n in found.items() if n is not None]
+        if key == "unsided" and not items:
+            continue
+        label = "no side" if key == "unsided" else f"{key} arm"
+        source = roles["side_source"].get(key) if key != "unsided" else None
+        if items and source == "hint":
+            items.append("(side from the file name/--side)")
+        rows += [(label, line) for line in _wrap(items or ["none found"], 72)]
+    if roles.get("unsided") and any(roles["unsided"].values()):
+        rows.append(("", "(labels carry no side: pass --side right|left)"))
     return rows
 
 
