@@ -288,7 +288,7 @@ class ArmRoles:
         return sorted({v for v in self.flat().values() if v is not None})
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Landmark:
     """A point fixed in a joint's frame: ``offset`` (3,) in the joint's local axes,
     file units. ``source`` says how it was derived (``"joint"``, ``"hand_end joint"``,
@@ -299,7 +299,7 @@ class Landmark:
     source: str
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Roles:
     """Roles of one skeleton per side. See the module docstring for the meanings.
 
@@ -790,7 +790,7 @@ _MARKER_RANK = {name: rank for names in _MARKER_NAMES.values() for rank, name in
 _SIDED_LABEL = (re.compile(r"^(R|L|RIGHT|LEFT)[_ .-]?(.+)$"), re.compile(r"^(.+?)[_ .-](R|L)$"))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class MarkerRoles:
     """Marker indices per side for the alignment markers of METHOD.md (a marker set's
     counterpart of ``Roles``): ``shoulder``, ``elbow``, ``forearm``, ``wrist_radial``,
