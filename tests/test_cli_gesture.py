@@ -55,7 +55,7 @@ def test_analyze_thresholds_change_the_result(capsys):
     (["analyze", str(MOCAP / "pyomeca" / "markers.trc")], "skeletal take"),
     (["analyze", str(MOCAP / "gestification" / "clenching.bvh")], "right shoulder"),
     (["analyze", str(WAVE), "--hold-speed", "-1"], "hold_speed"),
-    (["synthesize", str(WAVE), "-o", "{tmp}/x.bvh"], "no finger joints"),
+    (["synthesize", str(WAVE), "-o", "{tmp}/x.bvh", "--no-graft"], "no finger joints"),
     (["synthesize", str(BEAT), "-o", "{tmp}/x.bvh", "--poses", "claw@3"], "unknown hand pose"),
     (["synthesize", str(BEAT), "-o", "{tmp}/x.bvh", "--poses", "fist@999"], "outside"),
     (["synthesize", str(BEAT), "-o", "{tmp}/x.bvh", "--clip", str(CLIP), "--side", "both"],
@@ -85,3 +85,15 @@ def test_synthesize_poses_and_clip(tmp_path, capsys):
                  "--warp", "0.8"]) == 0
     assert "on the right hand" in capsys.readouterr().out
     assert read_bvh(clip_out).n_frames == 250
+
+
+def test_synthesize_grafts_fingers_onto_a_body_without_them(tmp_path, capsys):
+    from engine.io.bvh import read_bvh
+    from engine.roles import find_roles
+
+    out = tmp_path / "grafted.bvh"
+    assert main(["synthesize", str(WAVE), "-o", str(out), "--poses", "relaxed@0", "fist@-1"]) == 0
+    assert "grafted" in capsys.readouterr().out
+    roles = find_roles(read_bvh(out).skeleton)
+    assert all(len(roles.side(s).fingers["index"]) == 3 for s in ("right", "left"))
+

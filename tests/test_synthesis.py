@@ -214,16 +214,45 @@ def test_pose_synthesis_is_smooth_and_coupled(beat, easing):
     np.testing.assert_array_equal(out.motion.rotations[:, body], beat.rotations[:, body])
 
 
-def test_synthesis_needs_fingers():
+def test_finger_less_bodies_get_grafted_fingers():
     from engine.errors import RoleError
-    from engine.gesture.synthesis import synthesize_from_poses
+    from engine.gesture.synthesis import (
+        extract_flexion,
+        graft_fingers,
+        hand_rig,
+        synthesize_from_poses,
+    )
     from engine.io.bvh import read_bvh
+    from engine.kinematics import forward_kinematics
+    from engine.roles import find_roles
 
-    body = read_bvh(MOCAP / "bandai-namco" / "dataset-2_wave-right-hand_normal_001.bvh")
+    body = read_bvh(MOCAP / "bandai-namco" / "dataset-2_wave-right-hand_normal_001.bvh").frames(0, 40)
     with pytest.raises(RoleError, match="no finger joints"):
-        synthesize_from_poses(body, ["fist@0"])
+        synthesize_from_poses(body, ["fist@0"], graft=False)
     with pytest.raises(ParameterError, match="POSE@FRAME"):
         synthesize_from_poses(body, ["fist"])
+    grafted = graft_fingers(body)
+    n = body.skeleton.n_joints
+    assert grafted.skeleton.n_joints == n + 30
+    # the body itself does not move
+    np.testing.assert_allclose(forward_kinematics(grafted)[0][:, :n], forward_kinematics(body)[0])
+    roles = find_roles(grafted.skeleton)
+    for side in ("right", "left"):
+        rig = hand_rig(grafted.skeleton, side, roles)
+        assert rig.n_joints == 15
+        # a hand about 0.7 forearm lengths long (scaled to this body, in its cm units)
+        pos = forward_kinematics(grafted.frames(0, 1))[0][0]
+        forearm = np.linalg.norm(pos[roles.side(side).wrist] - pos[roles.side(side).elbow])
+        middle = rig.joints[2]
+        reach = np.linalg.norm(pos[middle[2]] - pos[rig.wrist])
+        assert 0.45 < reach / forearm < 0.9
+    out = synthesize_from_poses(body, ["open@0", "fist@39"])
+    rig = hand_rig(out.motion.skeleton, "right")
+    np.testing.assert_allclose(extract_flexion(out.motion, rig)[39], get_pose("fist").angles,
+                               atol=1e-9)
+    t_open = _tips_in_wrist_frame(out.motion.frames(0, 1), rig)[0]
+    t_fist = _tips_in_wrist_frame(out.motion.frames(39, 40), rig)[0]
+    assert np.all(np.linalg.norm(t_fist[1:], axis=1) < 0.8 * np.linalg.norm(t_open[1:], axis=1))
 
 
 def test_clip_synthesis_matches_speed_and_end_poses(beat):

@@ -3,7 +3,8 @@
 Either from a hand clip (``--clip``, speed-matched to the body's key poses,
 flexion optionally scaled with ``--warp``) or from library poses at frames
 (``--poses fist@0 open@30 ...``, interpolated with ``--easing``). Without
-either, both hands hold the relaxed pose. The body skeleton needs finger joints.
+either, both hands hold the relaxed pose. A body without finger joints gets the
+fingers of a procedural hand grafted under each wrist (``--no-graft`` refuses).
 """
 
 from __future__ import annotations
@@ -15,7 +16,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "synthesize",
         help="add finger motion to a body take from a hand clip or key poses",
-        description="Add finger motion to a body take that has finger joints: from a hand clip "
+        description="Add finger motion to a body take (fingers are grafted if it has none): "
+        "from a hand clip "
         "aligned to the body's key poses (Jin & Hahn), or by interpolating library poses "
         "(relaxed, fist, open, point, ok, one..five) placed at frames.",
     )
@@ -31,6 +33,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                    help="hand(s) to animate (default: both for --poses, right for --clip)")
     p.add_argument("--warp", type=float, default=1.0,
                    help="scale the clip's finger flexion by this factor (default 1)")
+    p.add_argument("--no-graft", action="store_true",
+                   help="fail on a body without finger joints instead of grafting a hand")
     p.set_defaults(func=run)
 
 
@@ -51,7 +55,8 @@ def run(args: argparse.Namespace) -> int:
         if not isinstance(clip, Motion):
             raise MotionFormatError(args.clip, "the hand clip must be a skeletal take (.bvh)")
         side = args.side or "right"
-        result = synthesize_from_clip(body, clip, side, factor=args.warp)
+        result = synthesize_from_clip(body, clip, side, factor=args.warp,
+                                      graft=not args.no_graft)
         keys = result.key_frames[side]
         how = f"clip {args.clip} on the {side} hand, {len(keys)} body key frames"
     else:
@@ -59,8 +64,12 @@ def run(args: argparse.Namespace) -> int:
             raise ParameterError("--warp applies to --clip only")
         sides = ("right", "left") if args.side in (None, "both") else (args.side,)
         poses = args.poses or ["relaxed@0"]
-        result = synthesize_from_poses(body, poses, sides=sides, easing=args.easing)
+        result = synthesize_from_poses(body, poses, sides=sides, easing=args.easing,
+                                       graft=not args.no_graft)
         how = f"{len(poses)} key poses ({args.easing}) on {' and '.join(sides)}"
+    added = result.motion.skeleton.n_joints - body.skeleton.n_joints
+    if added:
+        how += f", {added} finger joints grafted"
     write_bvh(result.motion, args.output)
     print(f"wrote {args.output}: {body.n_frames} frames, {how}")
     return 0

@@ -28,6 +28,12 @@ the little finger, ``l`` the unit index-to-pinky direction reversed) — an
 approximation. Abduction and twist of the fingers are set to rest (lost from a
 clip): only flexion is synthesized, as in the paper.
 
+Bodies without finger joints (or with a thumb only) get the fingers of a
+procedural flat hand grafted under each wrist (``graft_fingers``, through the
+splice engineer's ``engine.splice.transfer.plan_transfer``: offsets turned into
+the body's hand axes and scaled to its forearm); ``graft=False`` makes that an
+error instead.
+
 Coupling (Rijpkema & Girard, used by Jin & Hahn): ``theta_DIP = 2/3 theta_PIP``
 wherever DIP is not given (every library pose, and clips whose fingers have no
 DIP joint). All easings interpolate every joint with the same weight curve, so
@@ -376,8 +382,7 @@ def hand_rig(skeleton, side: str, roles=None) -> HandRig:
     if not arm.has_fingers:
         raise RoleError(
             f"{side} hand: the skeleton has no finger joints ({skeleton.n_joints} joints); hand "
-            "synthesis needs a skeleton with fingers (grafting a hand onto a finger-less body "
-            "is not supported here; splice a hand take instead)")
+            "synthesis needs finger joints (graft them with graft_fingers)")
     wrist = roles.require(side, "wrist")
     joints = -np.ones((5, 3), dtype=np.int64)
     for f, finger in enumerate(FINGERS):
@@ -484,6 +489,99 @@ def _for_rig(angles: np.ndarray, rig: HandRig) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------
+# Grafting fingers onto a body without them
+
+
+# A procedural right hand, metres, palm down (-y), fingers along +x, thumb on -z.
+# (joint name suffix, parent suffix, offset); Mixamo-style names so roles find them.
+_DONOR_RIGHT = (
+    ("ForeArm", None, (0.0, 0.0, 0.0)),
+    ("Hand", "ForeArm", (0.26, 0.0, 0.0)),
+    ("HandThumb1", "Hand", (0.02, -0.012, -0.02)),
+    ("HandThumb2", "HandThumb1", (0.032, 0.0, -0.032)),
+    ("HandThumb3", "HandThumb2", (0.025, 0.0, -0.018)),
+    ("HandIndex1", "Hand", (0.09, 0.0, -0.025)),
+    ("HandIndex2", "HandIndex1", (0.045, 0.0, 0.0)),
+    ("HandIndex3", "HandIndex2", (0.025, 0.0, 0.0)),
+    ("HandMiddle1", "Hand", (0.095, 0.0, -0.005)),
+    ("HandMiddle2", "HandMiddle1", (0.05, 0.0, 0.0)),
+    ("HandMiddle3", "HandMiddle2", (0.03, 0.0, 0.0)),
+    ("HandRing1", "Hand", (0.09, 0.0, 0.015)),
+    ("HandRing2", "HandRing1", (0.045, 0.0, 0.0)),
+    ("HandRing3", "HandRing2", (0.028, 0.0, 0.0)),
+    ("HandPinky1", "Hand", (0.08, 0.0, 0.033)),
+    ("HandPinky2", "HandPinky1", (0.035, 0.0, 0.0)),
+    ("HandPinky3", "HandPinky2", (0.02, 0.0, 0.0)),
+)
+_DONOR_TIPS = {"HandThumb3": 0.02, "HandIndex3": 0.02, "HandMiddle3": 0.022,
+               "HandRing3": 0.02, "HandPinky3": 0.018}
+
+
+def donor_hand(side: str = "right"):
+    """A one-frame procedural hand (forearm, wrist, 15 finger joints), metres, rest =
+    flat hand, used to graft fingers onto bodies without them. The left hand is the
+    mirror image of the right (z negated)."""
+    from engine.motion import Motion, MotionMeta, Skeleton
+
+    if side not in ("right", "left"):
+        raise ParameterError(f"side: expected 'right' or 'left', got {side!r}")
+    prefix = "Right" if side == "right" else "Left"
+    mirror = np.array([1.0, 1.0, 1.0 if side == "right" else -1.0])
+    names = [prefix + n for n, _, _ in _DONOR_RIGHT]
+    index = {n: i for i, (n, _, _) in enumerate(_DONOR_RIGHT)}
+    parents = [-1 if p is None else index[p] for _, p, _ in _DONOR_RIGHT]
+    offsets = np.array([o for _, _, o in _DONOR_RIGHT]) * mirror
+    channels = [("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")]
+    channels += [("Zrotation", "Xrotation", "Yrotation")] * (len(names) - 1)
+    ends = {index[n]: _unit(offsets[index[n]]) * length for n, length in _DONOR_TIPS.items()}
+    sk = Skeleton(names=names, parents=np.array(parents), offsets=offsets, channels=channels,
+                  end_sites=ends)
+    return Motion.rest(sk, 1, 30.0, MotionMeta(units="m", source=f"procedural {side} hand",
+                                               format="derived"))
+
+
+def needs_graft(arm) -> bool:
+    """True when an ``ArmRoles`` has fewer than two of index, middle, ring, pinky (the
+    palm's orientation needs two; thumb-only rigs such as CMU count as finger-less)."""
+    return sum(bool(arm.fingers[f]) for f in FINGERS[1:]) < 2
+
+
+def graft_fingers(body, sides=("right", "left"), donor=None, roles=None):
+    """``body`` with finger joints grafted under each hand of ``sides`` that lacks them.
+
+    Uses the splice engineer's ``engine.splice.transfer.plan_transfer`` (offsets
+    turned into the body's axes and scaled to its forearm). The grafted fingers
+    hold the donor's rest pose (flat). ``donor`` (a hand ``Motion`` with that side's
+    fingers) defaults to ``donor_hand(side)``. Hands with at least two of index..pinky
+    are left as they are (``needs_graft``); a thumb-only hand gets the donor's fingers
+    where it has none.
+    """
+    from engine.features import hand_frame
+    from engine.motion import Motion
+    from engine.roles import find_roles
+    from engine.splice.transfer import plan_transfer
+
+    motion = body
+    for side in sides:
+        roles = find_roles(motion.skeleton) if roles is None or motion is not body else roles
+        if not needs_graft(roles.side(side)):
+            continue
+        hand = donor if donor is not None else donor_hand(side)
+        hand_roles = find_roles(hand.skeleton, side_hint=side)
+        plan = plan_transfer(motion, hand, roles, hand_roles,
+                             {side: hand_frame(motion, roles, side)},
+                             {side: hand_frame(hand, hand_roles, side)}, (side,))
+        n, jn = motion.n_frames, plan.skeleton.n_joints
+        rots = np.zeros((n, jn, 4))
+        rots[..., 0] = 1.0
+        rots[:, :motion.skeleton.n_joints] = motion.rotations
+        trans = np.broadcast_to(plan.skeleton.offsets, (n, jn, 3)).copy()
+        trans[:, :motion.skeleton.n_joints] = motion.translations
+        motion = Motion(plan.skeleton, rots, trans, motion.fps, motion.meta)
+    return motion
+
+
+# ---------------------------------------------------------------------------
 # Result and front ends
 
 
@@ -534,7 +632,7 @@ def parse_pose_keys(specs, n_frames: int) -> list[tuple[int, str]]:
 
 
 def synthesize_from_poses(body, keys, sides=("right", "left"), easing: str = "hermite",
-                          sigma: float = 0.2, roles=None) -> SynthesisResult:
+                          sigma: float = 0.2, roles=None, graft: bool = True) -> SynthesisResult:
     """(c) Key-frame interpolation between library poses on a body with fingers.
 
     Parameters
@@ -544,6 +642,8 @@ def synthesize_from_poses(body, keys, sides=("right", "left"), easing: str = "he
     sides : hands to animate
     easing : ``"hermite"``, ``"gaussian"`` or ``"linear"``
     roles : engine.roles.Roles of ``body`` (found when omitted)
+    graft : give a hand without finger joints the procedural ``donor_hand``'s
+        fingers (``graft_fingers``); when False such a hand is an error
     """
     from engine.roles import find_roles
 
@@ -556,6 +656,9 @@ def synthesize_from_poses(body, keys, sides=("right", "left"), easing: str = "he
     vals = np.array([get_pose(n).angles for _, n in keys])
     curve = interpolate_keys(body.n_frames, frames, vals, easing, sigma)
     roles = roles or find_roles(body.skeleton)
+    if graft and any(needs_graft(roles.side(s)) for s in sides):
+        body = graft_fingers(body, sides, roles=roles)
+        roles = find_roles(body.skeleton)
     motion = body
     angles, used = {}, {}
     for side in sides:
@@ -596,7 +699,7 @@ def clip_key_frames(clip, rig: HandRig, params=None) -> np.ndarray:
 
 def synthesize_from_clip(body, clip, side: str = "right", factor: float = 1.0,
                          body_keys=None, clip_keys=None, clip_side: str | None = None,
-                         roles=None, clip_roles=None) -> SynthesisResult:
+                         roles=None, clip_roles=None, graft: bool = True) -> SynthesisResult:
     """(a) Speed-matched temporal alignment of a hand clip, with (b) flexion warping.
 
     Parameters
@@ -609,11 +712,15 @@ def synthesize_from_clip(body, clip, side: str = "right", factor: float = 1.0,
         last frame when omitted
     clip_keys : clip cycle boundaries; from ``clip_key_frames`` when omitted
     clip_side : the clip's hand; its only hand (or ``side``) when omitted
+    graft : give a finger-less body hand the procedural ``donor_hand``'s fingers
     """
     from engine.gesture.keyposes import key_poses
     from engine.roles import find_roles, side_from_name
 
     roles = roles or find_roles(body.skeleton)
+    if graft and needs_graft(roles.side(side)):
+        body = graft_fingers(body, (side,), roles=roles)
+        roles = find_roles(body.skeleton)
     rig = hand_rig(body.skeleton, side, roles)
     hint = side_from_name(clip.meta.source) if clip.meta.source else None
     clip_roles = clip_roles or find_roles(clip.skeleton, side_hint=hint or clip_side or side)
