@@ -442,8 +442,6 @@ def _label_excursion(items, labels, radial, accel, params, from_rest: bool, to_r
             labels[a:b] = Phase.PREPARATION
         else:
             labels[a:b] = Phase.STROKE
-    # a preparation/retraction that is itself one of several units keeps its label;
-    # units are kept separate in _parse_phrases through the unit boundaries below.
 
 
 def _segments(labels: np.ndarray) -> tuple[PhaseSegment, ...]:
