@@ -27,14 +27,19 @@ A metric is a numba function of two feature rows returning the local cost::
 
     import numba
     from engine.dtw import register_metric
+    from engine.dtw._config import FASTMATH       # fastmath without nnan/ninf
 
     @register_metric("forearm_palm_angle")
-    @numba.njit(fastmath=True, nogil=True)
+    @numba.njit(fastmath=FASTMATH, nogil=True)
     def forearm_palm_angle(body_row, hand_row):   # (d,) float64 each
         ...
         return angle                               # float, radians
 
     align_features(body, hand, band, metric="forearm_palm_angle")
+
+The pass-1 sign-code cost (METHOD.md §2: sum of squared differences of the
+velocity and acceleration sign codes) is the squared Euclidean distance of the
+concatenated sign vectors, so ``"sqeuclidean"`` serves it as is (and fast).
 
 ``body_row`` is ``a[i]`` (a row of the first feature array), ``hand_row`` is
 ``b[j]``. The function must not raise and must not allocate much (it runs once
