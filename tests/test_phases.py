@@ -180,3 +180,45 @@ def test_phases_ignore_units_heading_and_travel(bandai):
     for side in ("right", "left"):
         np.testing.assert_array_equal(a.labels(side), b.labels(side))
         np.testing.assert_allclose(a.hands[side].positions, b.hands[side].positions, atol=1e-6)
+
+
+GRAMMAR = r"P?[SH]+R?"
+
+
+@pytest.mark.parametrize("path", sorted(p.name for p in (MOCAP / "lafan1").glob("*.bvh"))
+                         + ["../beat/1_wayne_0_1_1.bvh", "../animated-drawings/fair1_dab.bvh"])
+def test_every_phrase_of_real_takes_follows_the_grammar(path):
+    import re
+
+    from engine.gesture.phases import segment_phases
+    from engine.io.bvh import read_bvh
+
+    g = segment_phases(read_bvh(MOCAP / "lafan1" / path))
+    for hand in g.hands.values():
+        assert len(hand.labels) == g.n_frames
+        for phrase in hand.phrases:
+            assert re.fullmatch(GRAMMAR, phrase.pattern), phrase.pattern
+            assert phrase.expressive_segments()
+            np.testing.assert_array_equal(
+                hand.labels[phrase.start:phrase.stop] != Phase.REST, True)
+
+
+def test_random_paths_follow_the_grammar():
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    @settings(max_examples=40, deadline=None)
+    @given(st.integers(0, 2**32 - 1), st.integers(2, 400), st.sampled_from([24.0, 30.0, 120.0]))
+    def check(seed, n, fps):
+        import re
+
+        rng = np.random.default_rng(seed)
+        steps = rng.normal(scale=rng.uniform(0.001, 0.05), size=(n, 3))
+        pos = REST + np.cumsum(steps, axis=0)
+        hand = segment_trajectory(pos, fps)
+        assert hand.labels.shape == (n,) and set(np.unique(hand.labels)) <= set(range(5))
+        assert sum(s.n_frames for s in hand.segments) == n
+        for phrase in hand.phrases:
+            assert re.fullmatch(GRAMMAR, phrase.pattern), phrase.pattern
+
+    check()
