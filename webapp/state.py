@@ -45,6 +45,13 @@ class Snapshot:
     values: dict
 
 
+def _same(a, b) -> bool:
+    try:
+        return bool(a == b)
+    except (TypeError, ValueError):
+        return False
+
+
 class Session(param.Parameterized):
     """State of one browser session (or one test)."""
 
@@ -161,7 +168,9 @@ class Session(param.Parameterized):
     def _on_edit(self, *events) -> None:
         if self._applying:
             return
-        old = {e.name: e.old for e in events}
+        old = {e.name: e.old for e in events if not _same(e.old, e.new)}
+        if not old:
+            return  # nothing changed (e.g. the same points set again): no recompute, no undo
         if not self._solve():
             self._apply(old)  # rejected: back to the values that worked
             return

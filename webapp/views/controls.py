@@ -39,7 +39,7 @@ def _points_frame(session: Session) -> pd.DataFrame:
     return pd.DataFrame({
         "body frame": [p.body for p in pts],
         "hand frame": [p.hand for p in pts],
-        "tolerance": [float("nan") if p.tolerance is None else p.tolerance for p in pts],
+        "tolerance": ["" if p.tolerance is None else f"{p.tolerance:g}" for p in pts],
         "effective": [session.tolerance if p.tolerance is None else p.tolerance for p in pts],
     }, columns=["body frame", "hand frame", "tolerance", "effective"])
 
@@ -56,10 +56,10 @@ class PointsTable:
         self.table = pn.widgets.Tabulator(
             _points_frame(session), show_index=True, sizing_mode="stretch_width", height=200,
             editors={"effective": None,
-                     "tolerance": {"type": "number", "min": 0, "step": 1},
+                     "tolerance": {"type": "input"},
                      "body frame": {"type": "number", "min": 0, "step": 1},
                      "hand frame": {"type": "number", "min": 0, "step": 1}},
-            formatters={"tolerance": {"type": "plaintext"}},
+            text_align={"tolerance": "right"},
             buttons={"delete": '<i class="fa fa-trash" title="delete this point">✕</i>'},
             css_classes=["hs-points"], selectable=False, layout="fit_columns",
             name="Matching points",
@@ -84,7 +84,8 @@ class PointsTable:
             return
         try:
             if column == "tolerance":
-                tol = None if value is None or value == "" or pd.isna(value) else float(value)
+                text = "" if value is None else str(value).strip()
+                tol = None if text in ("", "global", "nan") else float(text)
                 s.set_point_tolerance(k, tol)
             elif column in ("body frame", "hand frame"):
                 p = s.points[k]

@@ -135,6 +135,7 @@ class CostMatrixView:
                              fill_color=POINT_COLOR, line_color="black", line_width=1.5,
                              name="hs-points-glyph")
         self.point_tool = PointDrawTool(renderers=[points], add=True, drag=True,
+                                        default_overrides={"tol": float("nan")},
                                         description="Matching points: click adds, drag moves, "
                                                     "Backspace deletes")
         fig.add_tools(self.point_tool)

@@ -22,8 +22,8 @@ from bokeh.models import ColumnDataSource, Range1d
 from bokeh.plotting import figure
 
 from engine import metrics
-from engine.dtw.band import Band
-from engine.dtw.incremental import Aligner
+from engine.dtw import Aligner, Band
+from engine.dtw.views import local_cost_image
 from engine.errors import HandSpliceError
 
 EXAMPLE_FPS = 10.0
@@ -46,15 +46,17 @@ def example_signals(n: int = 12, m: int = 10) -> tuple[np.ndarray, np.ndarray]:
 def local_costs(body: np.ndarray, hand: np.ndarray, metric: str) -> np.ndarray:
     """(n, m) local cost of the example: ``"value"`` squared difference of heights, or
     ``"sign"`` eq. 6 on this one coordinate (signs of velocity and acceleration)."""
+    n, m = len(body), len(hand)
     if metric == "value":
-        return metrics.euclidean_cost(body[:, None], hand[:, None]).dense().astype(float)
+        return local_cost_image(body[:, None], hand[:, None], "sqeuclidean", (n, m)).image
     codes = []
     for x in (body, hand):
         v, a = metrics.derivatives(x[:, None], EXAMPLE_FPS, window_s=0.3)
         zone = metrics.dead_zone(v[:, :, None], a[:, :, None])
         codes.append(np.concatenate([metrics.sign_dead_zone(v, zone.velocity),
                                      metrics.sign_dead_zone(a, zone.acceleration)], axis=1))
-    return metrics.euclidean_cost(codes[0], codes[1]).dense().astype(float)
+    return local_cost_image(codes[0].astype(float), codes[1].astype(float), "sqeuclidean",
+                            (n, m)).image
 
 
 class TeachingModel(param.Parameterized):

@@ -1,0 +1,312 @@
+"""The app in a real browser: Debian's Chromium driven by Playwright.
+
+A server (``handsplice serve``) is started on a free port for the module and
+killed at the end. Waits poll the page (Bokeh's document model or the DOM), no
+fixed sleeps. Playwright's CSS selectors pierce the open shadow roots Panel and
+Bokeh render into, so the stable hooks ``.hs-cost-matrix``, ``.hs-status`` and
+``.hs-points`` are found wherever they sit.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.browser
+
+ROOT = Path(__file__).resolve().parents[1]
+CHROMIUM = "/usr/bin/chromium"
+ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking",
+        "--disable-component-update", "--disable-sync", "--no-first-run"]
+
+# page-side helpers: data -> screen coordinates of the matrix, and source snapshots
+HELPERS = """
+window.hs = {
+  model(name) { return Bokeh.documents[0].get_model_by_name(name); },
+  xy(x, y) {
+    const v = Bokeh.index.find_one(this.model('hs-cost-figure'));
+    const r = v.canvas_view.el.getBoundingClientRect();
+    return [r.left + v.frame.x_scale.compute(x), r.top + v.frame.y_scale.compute(y)];
+  },
+  cols(name, keys) {
+    const d = this.model(name).data;
+    return Object.fromEntries(keys.map(k => [k, Array.from(d[k] ?? [])]));
+  },
+};
+"""
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory):
+    """URL of a running ``handsplice serve`` (or HANDSPLICE_TEST_URL when set)."""
+    if os.environ.get("HANDSPLICE_TEST_URL"):
+        yield os.environ["HANDSPLICE_TEST_URL"].rstrip("/") + "/"
+        return
+    port = _free_port()
+    uploads = tmp_path_factory.mktemp("uploads")
+    log = (tmp_path_factory.mktemp("log") / "serve.log").open("w+")
+    exe = Path(sys.executable).with_name("handsplice")
+    proc = subprocess.Popen([str(exe), "serve", "--port", str(port), "--upload-dir",
+                             str(uploads)], cwd=ROOT, stdout=log, stderr=subprocess.STDOUT)
+    url = f"http://127.0.0.1:{port}/"
+    deadline = time.monotonic() + 120
+    try:
+        while True:
+            if proc.poll() is not None:
+                log.seek(0)
+                pytest.fail(f"handsplice serve exited ({proc.returncode}):\n{log.read()[-3000:]}")
+            try:
+                with urllib.request.urlopen(url, timeout=5) as r:
+                    if r.status == 200:
+                        break
+            except OSError:
+                pass
+            if time.monotonic() > deadline:
+                pytest.fail("handsplice serve did not answer within 120 s")
+            time.sleep(0.25)
+        yield url
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+        log.close()
+
+
+@pytest.fixture(scope="module")
+def browser():
+    sync_api = pytest.importorskip("playwright.sync_api")
+    if not Path(CHROMIUM).exists():
+        pytest.fail(f"{CHROMIUM} is missing (apt-get install chromium)")
+    with sync_api.sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
+        yield b
+        b.close()
+
+
+def _open(browser, url: str):
+    context = browser.new_context(viewport={"width": 1300, "height": 1000}, accept_downloads=True)
+    page = context.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.goto(url)
+    page.locator(".hs-cost-matrix").first.wait_for(timeout=60_000)
+    page.wait_for_function(
+        "() => window.Bokeh && Bokeh.documents.length && "
+        "Bokeh.documents[0].get_model_by_name('hs-path-source')?.data.x?.length > 0",
+        timeout=60_000)
+    page.evaluate(HELPERS)
+    page.errors = errors
+    return page
+
+
+def _text(locator) -> str:
+    """Text of an element including its (open) shadow root, where Panel renders panes."""
+    return locator.evaluate("e => (e.shadowRoot ? e.shadowRoot.textContent : '') + "
+                            "e.textContent")
+
+
+def _status(page) -> str:
+    return page.locator(".hs-status span").inner_text()
+
+
+def _revision(page) -> int:
+    return int(page.locator(".hs-status span").get_attribute("data-revision"))
+
+
+def _wait_revision(page, after: int, timeout: float = 30.0) -> int:
+    """Poll the status line until the session has recomputed (revision > ``after``)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        rev = _revision(page)
+        if rev > after:
+            return rev
+        if time.monotonic() > deadline:
+            raise AssertionError(f"no recompute within {timeout} s (revision {rev})")
+        page.wait_for_timeout(40)
+
+
+def _wait_tolerances(page, expected: list) -> None:
+    """Poll the matching points' tolerance column in the page until it equals ``expected``."""
+    page.wait_for_function(
+        "(want) => JSON.stringify(hs.cols('hs-points-source', ['tol']).tol) === want",
+        arg=json.dumps(expected), timeout=30_000)
+
+
+def _drag(page, x0, y0, x1, y1) -> None:
+    a = page.evaluate(f"hs.xy({x0}, {y0})")
+    b = page.evaluate(f"hs.xy({x1}, {y1})")
+    page.mouse.move(*a)
+    page.mouse.down()
+    page.mouse.move(*b, steps=6)
+    page.mouse.up()
+
+
+@pytest.fixture(scope="module")
+def page(browser, server):
+    p = _open(browser, server)
+    yield p
+    p.context.close()
+
+
+def test_app_loads_with_matrix_path_band_status(page):
+    status = _status(page)
+    assert "pass 1 cost" in status and "ms" in status
+    band = page.evaluate("hs.cols('hs-band-source', ['lo', 'hi'])")
+    assert len(band["lo"]) > 10 and all(lo <= hi for lo, hi in zip(band["lo"], band["hi"]))
+    path = page.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
+    assert path["x"][0] == 0 and path["y"][0] == 0
+    assert all(b >= a for a, b in zip(path["x"], path["x"][1:]))
+    assert page.locator(".hs-points").count() >= 1
+    assert not page.errors
+
+
+def test_add_and_drag_matching_point_changes_band_path_status(page):
+    n = len(page.evaluate("hs.cols('hs-band-source', ['x'])")["x"])
+    path0 = page.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
+    # a point off the current path: the path must move to pass through it
+    x = n // 2
+    k = path0["x"].index(x)
+    y_on_path = path0["y"][k]
+    rev = _revision(page)
+    xy = page.evaluate(f"hs.xy({x}, {y_on_path})")
+    page.mouse.click(*xy)
+    _wait_revision(page, rev)
+    pts = page.evaluate("hs.cols('hs-points-source', ['x', 'y', 'tol'])")
+    assert len(pts["x"]) == 1 and abs(pts["x"][0] - x) <= 1
+    assert pts["tol"] == [None]  # a new point uses the global tolerance
+    assert "1 matching point" in _status(page)
+
+    band0 = page.evaluate("hs.cols('hs-band-source', ['lo', 'hi'])")
+    status0 = _status(page)
+    path1 = page.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
+    target = y_on_path + max(8, n // 12)
+    rev = _revision(page)
+    _drag(page, pts["x"][0], pts["y"][0], pts["x"][0], target)
+    _wait_revision(page, rev)
+    pts = page.evaluate("hs.cols('hs-points-source', ['x', 'y'])")
+    assert abs(pts["y"][0] - target) <= 2, pts
+    band1 = page.evaluate("hs.cols('hs-band-source', ['lo', 'hi'])")
+    path2 = page.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
+    assert band1 != band0
+    assert path2 != path1
+    # tolerance 0: the path passes exactly through the dragged point
+    cells = set(zip(path2["x"], path2["y"]))
+    assert (round(pts["x"][0]), round(pts["y"][0])) in cells
+    assert _status(page) != status0
+
+
+def test_tolerance_edit_in_table_widens_the_band_at_the_point(page):
+    pts = page.evaluate("hs.cols('hs-points-source', ['x', 'y'])")
+    assert len(pts["x"]) == 1
+    x = round(pts["x"][0])
+    band0 = page.evaluate("hs.cols('hs-band-source', ['lo', 'hi'])")
+    rev = _revision(page)
+    cell = page.locator(".hs-points .tabulator-row").first.locator(
+        "[tabulator-field='tolerance']")
+    cell.scroll_into_view_if_needed()
+    page.wait_for_timeout(300)  # let the layout settle after scrolling, or the editor blurs
+    cell.click()
+    editor = page.locator(".hs-points .tabulator-row input").first
+    editor.fill("6")
+    editor.press("Enter")
+    _wait_tolerances(page, [6])
+    _wait_revision(page, rev)
+    band1 = page.evaluate("hs.cols('hs-band-source', ['lo', 'hi'])")
+    width0 = band0["hi"][x] - band0["lo"][x]
+    width1 = band1["hi"][x] - band1["lo"][x]
+    assert width1 > width0
+    tol = page.evaluate("hs.cols('hs-points-source', ['tol'])")["tol"]
+    assert tol == [6]
+
+
+def test_undo_and_redo_the_tolerance_edit(page):
+    page.locator(".hs-undo button").click()
+    _wait_tolerances(page, [None])
+    page.locator(".hs-redo button").click()
+    _wait_tolerances(page, [6])
+
+
+def test_render_preview(page):
+    page.locator(".hs-render button").click()
+    img = page.locator(".hs-preview-image img")
+    img.wait_for(timeout=60_000)
+    src = img.get_attribute("src")
+    assert src and src.startswith("data:image/png")
+    assert len(src) > 5000
+    assert "hand frame" in page.locator(".hs-preview-info").inner_text()
+
+
+def test_download_bvh_and_session(page, tmp_path):
+    with page.expect_download(timeout=60_000) as info:
+        page.locator(".hs-download-bvh button").click()
+    path = tmp_path / "out.bvh"
+    info.value.save_as(path)
+    text = path.read_text()
+    assert text.startswith("HIERARCHY") and "MOTION" in text
+    from engine.io.bvh import read_bvh
+
+    assert read_bvh(path).rotations.shape[0] > 10
+
+    with page.expect_download(timeout=30_000) as info:
+        page.locator(".hs-download-session button").click()
+    spath = tmp_path / "s.json"
+    info.value.save_as(spath)
+    data = json.loads(spath.read_text())
+    pts = page.evaluate("hs.cols('hs-points-source', ['x', 'y'])")
+    assert [(p["body"], p["hand"]) for p in data["points"]] == \
+        [(round(x), round(y)) for x, y in zip(pts["x"], pts["y"])]
+    from engine.io.session import read_session
+
+    assert read_session(spath).sample == data["inputs"]["sample"]
+
+
+def test_shared_url_restores_the_session(page, browser):
+    url = page.locator(".hs-share-url input").input_value()
+    assert "pts=" in url
+    pts = page.evaluate("hs.cols('hs-points-source', ['x', 'y', 'tol'])")
+    status = _status(page)
+    other = _open(browser, url)
+    try:
+        assert other.evaluate("hs.cols('hs-points-source', ['x', 'y', 'tol'])") == pts
+        cost = status.split("·")[0].strip()
+        assert _status(other).split("·")[0].strip() == cost
+    finally:
+        other.context.close()
+
+
+def test_sessions_are_independent(page, browser):
+    other = _open(browser, page.url.split("?")[0])
+    try:
+        # a fresh session on the bare URL has no points, whatever this one has
+        assert other.evaluate("hs.cols('hs-points-source', ['x'])")["x"] == []
+        assert page.evaluate("hs.cols('hs-points-source', ['x'])")["x"] != []
+    finally:
+        other.context.close()
+
+
+def test_malformed_upload_is_rejected_with_a_message(page, tmp_path):
+    bad = tmp_path / "broken.bvh"
+    bad.write_text("HIERARCHY\nROOT Hips\n{\n OFFSET 0 0\n")
+    page.locator(".hs-upload-body input[type=file]").set_input_files(str(bad))
+    alert = page.locator(".hs-upload-error")
+    alert.wait_for(state="visible", timeout=30_000)
+    text = _text(alert)
+    assert "broken.bvh" in text and "line" in text
+    assert "Traceback" not in page.content()
