@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from engine.errors import MotionFormatError
+from engine.limits import MAX_ABS_VALUE, MAX_FRAMES, MAX_MARKERS
 from engine.motion import MarkerSet, MotionMeta
 
 _BLOCK = 512
@@ -78,7 +79,13 @@ def parse_c3d(raw: bytes, source: str | Path = "<input>") -> MarkerSet:
 
     n_points = header["n_points"]
     n_frames = _frame_count(source, reader, header, len(raw))
+    if n_frames > MAX_FRAMES or n_points > MAX_MARKERS:
+        raise MotionFormatError(source, f"{n_frames:,} frames of {n_points:,} markers is more than "
+                                        f"{MAX_FRAMES:,} frames or {MAX_MARKERS:,} markers; "
+                                        "refusing an absurd take")
     scale = reader.float("POINT", "SCALE", header["scale"])
+    if not np.isfinite(scale):
+        raise MotionFormatError(source, f"POINT:SCALE is {scale}, expected a finite number")
     is_float = scale < 0
     value_bytes = 4 if is_float else 2
     per_frame = n_points * 4 + header["n_analog"]
@@ -99,8 +106,12 @@ def parse_c3d(raw: bytes, source: str | Path = "<input>") -> MarkerSet:
     if not is_float:
         points *= abs(scale)
     points[values[:, :, 3] < 0] = np.nan
-    if not np.isfinite(points[~np.isnan(points)]).all():
+    seen = points[~np.isnan(points)]
+    if not np.isfinite(seen).all():
         raise MotionFormatError(source, "point data holds infinite values")
+    if seen.size and np.abs(seen).max() > MAX_ABS_VALUE:
+        raise MotionFormatError(source, f"point data holds values beyond +-{MAX_ABS_VALUE:g}; "
+                                        "refusing an absurd take")
 
     labels = reader.labels()
     if len(labels) < n_points:

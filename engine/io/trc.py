@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from engine.errors import MotionFormatError
+from engine.limits import MAX_ABS_VALUE, MAX_FRAMES, MAX_MARKERS
 from engine.motion import MarkerSet, MotionMeta
 
 _UNITS = {"mm": "mm", "millimeters": "mm", "cm": "cm", "m": "m", "meters": "m",
@@ -92,6 +93,9 @@ def parse_trc(data: bytes | str, source: str | Path = "<input>", up_axis: str = 
         raise MotionFormatError(source, f"expected the marker-name row 'Frame#, Time, "
                                         f"names...', found {lines[3][:40]!r}", line=4)
     labels = _marker_names(name_fields, source)
+    if len(labels) > MAX_MARKERS:
+        raise MotionFormatError(source, f"{len(labels):,} markers is more than {MAX_MARKERS:,}; "
+                                        "refusing an absurd file", line=4)
     if declared_markers:
         try:
             n_declared = int(float(declared_markers))
@@ -115,6 +119,9 @@ def parse_trc(data: bytes | str, source: str | Path = "<input>", up_axis: str = 
             raise MotionFormatError(source, f"expected {n_fields} values (Frame#, Time, 3 x "
                                             f"{len(labels)} markers), found {len(fields)}{hint}",
                                     line=number)
+        if len(rows) >= MAX_FRAMES:
+            raise MotionFormatError(source, f"more than {MAX_FRAMES:,} data rows; refusing an "
+                                            "absurd take", line=number)
         rows.append(_row_values(fields, number, labels, source))
     if not rows:
         raise MotionFormatError(source, "no data rows after the header", line=len(lines))
@@ -190,6 +197,10 @@ def _row_values(fields: list[str], number: int, labels: list[str], source) -> li
                                             "a number", line=number) from None
         if not math.isfinite(value):
             raise MotionFormatError(source, f"{_column_name(col, labels)}: {text!r} is not finite",
+                                    line=number)
+        if abs(value) > MAX_ABS_VALUE:
+            raise MotionFormatError(source, f"{_column_name(col, labels)}: {text[:20]!r} is beyond "
+                                            f"+-{MAX_ABS_VALUE:g}; refusing an absurd value",
                                     line=number)
         out.append(value)
     return out
