@@ -160,8 +160,81 @@ class OSMesaPlatform:
         return False
 
 
+def _patch_pyopengl_osmesa() -> None:
+    """PyOpenGL 3.1.0 returns the current OSMesa context as a ctypes pointer, which its
+    per-context caches cannot hash; hand it back as an integer address."""
+    import OpenGL.platform as gl_platform
+
+    raw = getattr(gl_platform.PLATFORM, "OSMesa", None)
+    if raw is None or getattr(gl_platform, "_handsplice_patched", False):
+        return
+    current = raw.OSMesaGetCurrentContext
+    current.restype = ctypes.c_void_p
+    current.argtypes = []
+
+    def get_current_context() -> int:
+        return current() or 0
+
+    gl_platform.GetCurrentContext = get_current_context
+    gl_platform.CurrentContextIsValid = get_current_context
+    gl_platform._handsplice_patched = True
+
+
+_SHARED = None
+
+
+def shared_renderer(width: int, height: int):
+    """The process's one ``pyrender.OffscreenRenderer``, resized to ``width x height``.
+
+    Call under :data:`GL_LOCK`. One renderer serves every ``Preview``: pyrender's EGL
+    platform terminates the (per-device, shared) EGL display when a renderer is
+    deleted, which would break every other renderer of the process.
+    """
+    global _SHARED
+    with GL_LOCK:
+        if _SHARED is None:
+            _SHARED = make_renderer(width, height)
+        else:
+            _SHARED.viewport_width = width
+            _SHARED.viewport_height = height
+        return _SHARED
+
+
+def release_current(renderer) -> None:
+    """Make ``renderer``'s context not current in this thread (call under GL_LOCK).
+
+    pyrender leaves an EGL context current after rendering; another thread then
+    cannot make it current (EGL_BAD_ACCESS). Releasing it after every render lets
+    any thread render next."""
+    platform = getattr(renderer, "_platform", None)
+    if platform is None:
+        return
+    if isinstance(platform, OSMesaPlatform):
+        lib = platform._lib
+        lib.OSMesaMakeCurrent.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_uint,
+                                          ctypes.c_int, ctypes.c_int]
+        lib.OSMesaMakeCurrent(None, None, 0, 0, 0)
+        return
+    display = getattr(platform, "_egl_display", None)
+    if display is not None:
+        from OpenGL.EGL import EGL_NO_CONTEXT, EGL_NO_SURFACE, eglMakeCurrent
+
+        eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT)
+
+
+def release_renderer() -> None:
+    """Delete the shared renderer (its OpenGL context); the next render makes a new one."""
+    global _SHARED
+    with GL_LOCK:
+        if _SHARED is not None:
+            _SHARED.delete()
+            _SHARED = None
+
+
 def make_renderer(width: int, height: int):
-    """A ``pyrender.OffscreenRenderer`` on the chosen platform (call under GL_LOCK)."""
+    """A new ``pyrender.OffscreenRenderer`` on the chosen platform (call under GL_LOCK).
+
+    Prefer :func:`shared_renderer`; deleting one EGL renderer invalidates the others."""
     platform = ensure_platform()
     import pyrender
 
@@ -172,6 +245,8 @@ def make_renderer(width: int, height: int):
             raise RenderBackendError(
                 f"headless OpenGL ({platform}) failed: {type(exc).__name__}: {exc}; "
                 f"try PYOPENGL_PLATFORM=osmesa, or {_INSTALL_HINT}") from exc
+
+    _patch_pyopengl_osmesa()
 
     class _OSMesaRenderer(pyrender.OffscreenRenderer):
         def _create(self):

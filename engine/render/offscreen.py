@@ -15,9 +15,10 @@ where the sticks are hidden behind the skin they show through at half strength,
 Heloir et al.'s re-creation check). Cameras: ``front``, ``side``,
 ``three-quarter`` (see :mod:`engine.render.scene`).
 
-One OpenGL renderer is created lazily and reused (resized on demand); every
-OpenGL call holds :data:`engine.render.backend.GL_LOCK`, so a ``Preview`` may be
-shared by the threads of a Panel server (renders then run one at a time).
+One OpenGL renderer per process is created lazily and reused by every
+``Preview`` (resized on demand, :func:`engine.render.backend.shared_renderer`);
+every OpenGL call holds :data:`engine.render.backend.GL_LOCK`, so previews may be
+used from the threads of a Panel server (renders then run one at a time).
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ from engine.errors import ParameterError
 from engine.mesh.skinning import SkinnedMesh
 from engine.motion import Motion
 from engine.render import trails as tr
-from engine.render.backend import GL_LOCK, ensure_platform, make_renderer
+from engine.render.backend import GL_LOCK, ensure_platform, release_current, shared_renderer
 from engine.render.scene import CAMERAS, TakeView, floor_mesh_arrays, stick_arrays
 
 VIEWS = ("single", "side_by_side", "overlay")
@@ -98,9 +99,7 @@ class Preview:
                                        and all(isinstance(k, int) for k in phases)):
             phases = {0: phases}
         self.phases: dict[int, object] = dict(phases or {})
-        self._renderer = None
         self._materials = None
-        self._floor_cache: dict[int, object] = {}
         self._trail_cache: dict[tuple, object] = {}
 
     # ------------------------------------------------------------------ public
@@ -175,13 +174,32 @@ class Preview:
         return self._render(take, self.views[take].check_frame(i), (width, height),
                             phases=self._phases(take, phases, take), **options)
 
+    def joint_positions(self, i: int, take: int = 0) -> np.ndarray:
+        """(J, 3) world joint positions of ``take`` at frame ``i``, display space (metres, +Y up)."""
+        view = self.views[self._check_take(take, "take")]
+        return view.positions[view.check_frame(i)].copy()
+
+    def project(self, points: np.ndarray, i: int, take: int = 0,
+                camera: str = "three-quarter", size: tuple[int, int] | str | None = None
+                ) -> np.ndarray:
+        """Pixel coordinates ``(N, 2)`` (x right, y down) of display-space ``points (N, 3)``
+        in ``frame(i, view="single", take=take, camera=camera, size=size)``."""
+        if camera not in CAMERAS:
+            raise ParameterError(f"camera {camera!r}: expected one of {', '.join(CAMERAS)}")
+        width, height = parse_size(size) if size is not None else self.size
+        view = self.views[self._check_take(take, "take")]
+        pose = view.camera_pose(view.check_frame(i), camera, width / height, YFOV)
+        pts = np.asarray(points, dtype=float).reshape(-1, 3)
+        cam = (pts - pose[:3, 3]) @ pose[:3, :3]  # camera frame: x right, y up, -z forward
+        f = 1.0 / np.tan(0.5 * YFOV)
+        depth = np.maximum(-cam[:, 2], 1e-9)
+        x_ndc = f / (width / height) * cam[:, 0] / depth
+        y_ndc = f * cam[:, 1] / depth
+        return np.stack([(x_ndc + 1) * 0.5 * width, (1 - y_ndc) * 0.5 * height], axis=1)
+
     def close(self) -> None:
-        """Free the OpenGL context (a later ``frame`` creates a new one)."""
+        """Drop cached trail meshes (the shared renderer stays for the other previews)."""
         with GL_LOCK:
-            if self._renderer is not None:
-                self._renderer.delete()
-                self._renderer = None
-            self._floor_cache.clear()
             self._trail_cache.clear()
 
     def __enter__(self) -> Preview:
@@ -212,6 +230,9 @@ class Preview:
                 "flat": pyrender.MetallicRoughnessMaterial(
                     baseColorFactor=(1.0, 1.0, 1.0, 1.0), metallicFactor=0.0,
                     roughnessFactor=1.0),
+                "floor": pyrender.MetallicRoughnessMaterial(
+                    baseColorFactor=(1.0, 1.0, 1.0, 1.0), metallicFactor=0.0,
+                    roughnessFactor=1.0, alphaMode="BLEND"),
             }
         if normals is None:
             from engine.mesh.skinning import vertex_normals
@@ -223,20 +244,16 @@ class Preview:
             material=self._materials[material])
         return pyrender.Mesh([prim])
 
-    def _floor(self, k: int):
-        if k not in self._floor_cache:
-            v = self.views[k]
-            if v.floor_y is None:
-                self._floor_cache[k] = None
-            else:
-                path = v.targets
-                center = 0.5 * (path.min(0) + path.max(0))
-                half = float(0.5 * np.max(np.ptp(path[:, [0, 2]], axis=0)) + 2.5 * v.height_m)
-                verts, faces, colors = floor_mesh_arrays(center, half, v.floor_y - 1e-3,
-                                                         tile=0.5 * max(v.height_m / 1.75, 0.2))
-                normals = np.tile([0.0, 1.0, 0.0], (len(verts), 1))
-                self._floor_cache[k] = self._mesh(verts, faces, colors, normals, "flat")
-        return self._floor_cache[k]
+    def _floor(self, k: int, i: int):
+        """The floor patch under take ``k`` at frame ``i`` (None for a hand take)."""
+        v = self.views[k]
+        if v.floor_y is None:
+            return None
+        radius = max(1.1 * v.height_m, 1.4 * v.radius)
+        verts, faces, colors = floor_mesh_arrays(v.targets[i], radius, v.floor_y - 1e-3,
+                                                 tile=0.5 * max(v.height_m / 1.75, 0.2))
+        normals = np.tile([0.0, 1.0, 0.0], (len(verts), 1))
+        return self._mesh(verts, faces, colors, normals, "floor")
 
     def _trails(self, k: int, trail_range, style: str, phases):
         v = self.views[k]
@@ -289,7 +306,7 @@ class Preview:
             scene = pyrender.Scene(bg_color=(*BACKGROUND, 1.0), ambient_light=(0.38, 0.38, 0.4))
             scene.add(self._mesh(verts, v.mesh.faces, v.mesh.colors, normals))
             if floor:
-                floor_mesh = self._floor(k)
+                floor_mesh = self._floor(k, i)
                 if floor_mesh is not None:
                     scene.add(floor_mesh)
             if trails:
@@ -306,10 +323,13 @@ class Preview:
                 scene.add(pyrender.DirectionalLight(color=np.ones(3), intensity=power),
                           pose=cam_pose @ _rotation(*angles))
             renderer = self._get_renderer(width, height)
-            color, depth = renderer.render(scene)
-            color = np.array(color[..., :3], dtype=np.uint8, copy=True)
-            if stick is not None:
-                color = self._overlay(renderer, scene, color, depth, stick, v)
+            try:
+                color, depth = renderer.render(scene)
+                color = np.array(color[..., :3], dtype=np.uint8, copy=True)
+                if stick is not None:
+                    color = self._overlay(renderer, scene, color, depth, stick, v)
+            finally:
+                release_current(renderer)
         return color
 
     def _overlay(self, renderer, scene, color, depth, stick, base_view: TakeView) -> np.ndarray:
@@ -331,12 +351,7 @@ class Preview:
         return (color * (1 - alpha) + s_color[..., :3] * alpha).round().astype(np.uint8)
 
     def _get_renderer(self, width: int, height: int):
-        if self._renderer is None:
-            self._renderer = make_renderer(width, height)
-        else:
-            self._renderer.viewport_width = width
-            self._renderer.viewport_height = height
-        return self._renderer
+        return shared_renderer(width, height)
 
 
 def _rotation(pitch_deg: float, yaw_deg: float) -> np.ndarray:

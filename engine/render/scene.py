@@ -216,25 +216,37 @@ def _moving_average(x: np.ndarray, half: int) -> np.ndarray:
     return (c[hi] - c[lo]) / (hi - lo)[:, None]
 
 
-def floor_mesh_arrays(center: np.ndarray, half_size: float, y: float, tile: float
+def floor_mesh_arrays(center: np.ndarray, radius: float, y: float, tile: float
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A checkered floor: vertices ``(V, 3)``, faces ``(T, 3)``, colours ``(V, 4)``."""
-    n = int(np.clip(np.ceil(2 * half_size / tile), 2, 80))
-    tile = 2 * half_size / n
-    x0 = np.floor((center[0] - half_size) / tile) * tile
-    z0 = np.floor((center[2] - half_size) / tile) * tile
-    ii, jj = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
-    ii, jj = ii.ravel(), jj.ravel()
+    """A round checkered floor patch at height ``y`` around ``center`` whose opacity
+    (colour alpha) fades to zero towards ``radius``. Tiles are aligned to the world
+    grid, so the pattern stays put while the patch follows the character.
+
+    Returns vertices ``(V, 3)``, faces ``(T, 3)``, colours ``(V, 4)``.
+    """
+    n = int(np.ceil(radius / tile)) + 1
+    i0 = int(np.floor(center[0] / tile))
+    k0 = int(np.floor(center[2] / tile))
+    ii, kk = np.meshgrid(np.arange(i0 - n, i0 + n + 1), np.arange(k0 - n, k0 + n + 1),
+                         indexing="ij")
+    ii, kk = ii.ravel(), kk.ravel()
+    mid = np.stack([(ii + 0.5) * tile - center[0], (kk + 0.5) * tile - center[2]], 1)
+    keep = np.hypot(mid[:, 0], mid[:, 1]) < radius + tile
+    ii, kk = ii[keep], kk[keep]
     corners = np.array([[0, 0], [1, 0], [1, 1], [0, 1]])
-    xs = x0 + (ii[:, None] + corners[None, :, 0]) * tile
-    zs = z0 + (jj[:, None] + corners[None, :, 1]) * tile
+    xs = (ii[:, None] + corners[None, :, 0]) * tile
+    zs = (kk[:, None] + corners[None, :, 1]) * tile
     verts = np.stack([xs, np.full_like(xs, y), zs], -1).reshape(-1, 3)
     base = 4 * np.arange(len(ii))
     faces = np.concatenate([np.stack([base, base + 2, base + 1], 1),
                             np.stack([base, base + 3, base + 2], 1)])
-    dark = ((ii + jj) % 2 == 0)
-    col = np.where(dark[:, None], [0.70, 0.72, 0.75, 1.0], [0.80, 0.82, 0.85, 1.0])
-    colors = np.repeat(col, 4, axis=0)
+    dark = (ii + kk) % 2 == 0
+    col = np.where(dark[:, None], [0.72, 0.74, 0.77], [0.84, 0.85, 0.88])
+    col = np.repeat(col, 4, axis=0)
+    dist = np.hypot(verts[:, 0] - center[0], verts[:, 2] - center[2])
+    t = np.clip((dist - 0.45 * radius) / (0.55 * radius), 0.0, 1.0)
+    alpha = 1.0 - t * t * (3 - 2 * t)
+    colors = np.hstack([col, alpha[:, None]])
     return verts, faces, colors
 
 
