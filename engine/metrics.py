@@ -323,7 +323,8 @@ def rotated_codes(hand: PhaseFeatures, n_bins: int = THETA_BINS) -> np.ndarray:
 # The DTW engine (engine.dtw) evaluates ``metric(a[i], b[j])`` for band cells only, so each
 # frame becomes one float64 row holding everything the cell needs:
 #
-#   header : [L, n_bins, mode, yaw_bin]      L = length of the x (or z) half of the window
+#   header : [L, n_bins, mode, yaw_bin, step]  L = length of the x (or z) half of the window;
+#            step = constant added to every cell (0 in hand rows)
 #   window : 2L values (centred x then z of the eq.-7 window; empty in yaw mode)
 #   codes  : body: 2 values (P, Q); hand: 2 * n_bins values (P_b, Q_b for every θ bin b)
 #
@@ -331,7 +332,7 @@ def rotated_codes(hand: PhaseFeatures, n_bins: int = THETA_BINS) -> np.ndarray:
 # 8 markers x (3 velocity + 3 acceleration)), stored exactly as float64 integers. With
 # s, s' in {-1, 0, 1}: (s - s')^2 = [P xor P'] + [Q xor Q'] + 2 [(P and Q') or (Q and P')].
 
-_HEADER = 4
+_HEADER = 5
 MODE_WINDOW = 0
 MODE_YAW = 1
 MAX_COMPONENTS = 48
@@ -353,13 +354,16 @@ def _yaw_bins(yaw: np.ndarray, n_bins: int) -> np.ndarray:
 
 
 def phase_rows(body: PhaseFeatures, hand: PhaseFeatures, theta: str = "window",
-               n_bins: int = THETA_BINS, yaw_offset: float = 0.0
+               n_bins: int = THETA_BINS, yaw_offset: float = 0.0, step: float = 0.0
                ) -> tuple[np.ndarray, np.ndarray]:
     """Rows for the ``"splice_phase"`` metric: ``(n, 4+2L+2B)`` body (zero padded) and hand.
 
     theta : ``"window"`` (eq. 7), ``"trunk"`` (θ = body yaw − hand yaw − ``yaw_offset``)
         or ``"none"`` (θ = 0).
     n_bins : quantised directions of θ (bin ``b`` is ``2π b / n_bins``).
+    step : constant added to every cell's cost. DTW counts each cell of the path once,
+        so this charges every horizontal or vertical step: where costs are flat (a hold)
+        the path keeps a steady rate instead of stalling and jumping. 0 is the paper's.
     """
     if body.arms != hand.arms:
         raise ParameterError(f"phase rows: body has {body.arms} arm(s), hand {hand.arms}")
@@ -385,8 +389,10 @@ def phase_rows(body: PhaseFeatures, hand: PhaseFeatures, theta: str = "window",
     bp, bq = pack_codes(body.codes)
     hcodes = rotated_codes(hand, n_bins)  # (m, B, C)
     hp, hq = pack_codes(hcodes)  # (m, B)
-    head_b = np.column_stack([np.full(n, half), np.full(n, n_bins), np.full(n, mode), byaw])
-    head_h = np.column_stack([np.full(m, half), np.full(m, n_bins), np.full(m, mode), hyaw])
+    head_b = np.column_stack([np.full(n, half), np.full(n, n_bins), np.full(n, mode), byaw,
+                              np.full(n, float(step))])
+    head_h = np.column_stack([np.full(m, half), np.full(m, n_bins), np.full(m, mode), hyaw,
+                              np.zeros(m)])
     hpq = np.stack([hp, hq], axis=2).reshape(m, 2 * n_bins)
     # the DTW engine wants rows of one width: the body's are padded with zeros
     pad = np.zeros((n, 2 * n_bins - 2))
@@ -432,23 +438,23 @@ def splice_phase(body_row, hand_row):
         num = 0.0
         den = 0.0
         for t in range(half):
-            bx = body_row[4 + t]
-            bz = body_row[4 + half + t]
-            hx = hand_row[4 + t]
-            hz = hand_row[4 + half + t]
+            bx = body_row[5 + t]
+            bz = body_row[5 + half + t]
+            hx = hand_row[5 + t]
+            hz = hand_row[5 + half + t]
             num += bx * hz - hx * bz
             den += bx * hx + bz * hz
         th = _fast_atan2(num, den)
         b = int(np.floor(th * (nb / (2.0 * np.pi)) + 0.5)) % nb
     else:
         b = int(body_row[3] - hand_row[3]) % nb
-    k = 4 + 2 * half
+    k = 5 + 2 * half
     p = np.uint64(body_row[k])
     q = np.uint64(body_row[k + 1])
     p2 = np.uint64(hand_row[k + 2 * b])
     q2 = np.uint64(hand_row[k + 2 * b + 1])
     cost = _popcount(p ^ p2) + _popcount(q ^ q2) + np.uint64(2) * _popcount((p & q2) | (q & p2))
-    return float(cost)
+    return float(cost) + body_row[4]
 
 
 @numba.njit(cache=True, fastmath=_FASTMATH, nogil=True)
@@ -460,10 +466,10 @@ def splice_phase_theta(body_row, hand_row):
         num = 0.0
         den = 0.0
         for t in range(half):
-            bx = body_row[4 + t]
-            bz = body_row[4 + half + t]
-            hx = hand_row[4 + t]
-            hz = hand_row[4 + half + t]
+            bx = body_row[5 + t]
+            bz = body_row[5 + half + t]
+            hx = hand_row[5 + t]
+            hz = hand_row[5 + half + t]
             num += bx * hz - hx * bz
             den += bx * hx + bz * hz
         th = _fast_atan2(num, den)
@@ -493,11 +499,14 @@ class AngleFeatures:
     def n_frames(self) -> int:
         return int(self.forearm.shape[0])
 
-    def rows(self) -> np.ndarray:
-        """``(F, 1 + 6A)`` float64 rows for the ``"splice_angle"`` metric: [A, f, h, f, h, ...]."""
+    def rows(self, step: float = 0.0) -> np.ndarray:
+        """``(F, 2 + 6A)`` float64 rows for the ``"splice_angle"`` metric:
+        ``[A, step, f, h, f, h, ...]``; ``step`` (radians) is added to every cell
+        (put it in the body rows only; see :func:`phase_rows`)."""
         f, a = self.forearm.shape[:2]
         body = np.concatenate([self.forearm, self.hand], axis=2).reshape(f, 6 * a)
-        return np.ascontiguousarray(np.column_stack([np.full(f, a), body]), dtype=np.float64)
+        return np.ascontiguousarray(np.column_stack([np.full(f, a), np.full(f, float(step)),
+                                                     body]), dtype=np.float64)
 
 
 def angle_features(markers: np.ndarray, theta: np.ndarray | float | None = None) -> AngleFeatures:
@@ -537,9 +546,9 @@ def splice_angle(body_row, hand_row):
     Antiparallel forearms use a half turn about an axis perpendicular to ``f'``.
     """
     arms = int(body_row[0])
-    total = 0.0
+    total = body_row[1]
     for a in range(arms):
-        o = 1 + 6 * a
+        o = 2 + 6 * a
         total += _angle_after_align(body_row[o], body_row[o + 1], body_row[o + 2],
                                     body_row[o + 3], body_row[o + 4], body_row[o + 5],
                                     hand_row[o], hand_row[o + 1], hand_row[o + 2],

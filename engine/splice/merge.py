@@ -21,7 +21,7 @@ from scipy.ndimage import gaussian_filter1d
 from engine.errors import ParameterError
 
 #: default blend window (Gaussian standard deviation, body frames)
-BLEND_FRAMES = 1.5
+BLEND_FRAMES = 3.0
 
 
 def median_warp(path: np.ndarray, n: int) -> np.ndarray:

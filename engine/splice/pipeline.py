@@ -58,6 +58,9 @@ BAND = 0.30
 REFINE_BAND = 0.10
 SMOOTHING_S = 0.2
 DEAD_ZONE = 0.1
+#: constant added to every cell (charges non-diagonal steps; 0 = the paper)
+STEP1 = 0.0
+STEP2 = 0.05
 #: one-shot solves (1 byte per cell) above this band area; incremental ``Aligner`` below
 INCREMENTAL_MAX_CELLS = 12_000_000
 
@@ -87,7 +90,7 @@ class SpliceFeatures:
     body_markers, hand_markers : (n, 4A, 3), (m, 4A, 3) float, metres, y up
     body_phase, hand_phase : metrics.PhaseFeatures
     pass1_rows : (a (n, d1), b (m, d1')) rows of the ``splice_phase`` metric
-    pass2_body_rows : (n, d2) rows of the ``splice_angle`` metric (hand rows depend on θ)
+    hand_has_yaw : bool, the hand take has a trunk heading (``hand_phase.yaw``)
     theta : ``"window"``, ``"trunk"`` or ``"none"``
     yaw_offset : float, radians (trunk mode, hand take without a trunk)
     params : dict of the parameters used
@@ -107,7 +110,7 @@ class SpliceFeatures:
     body_phase: M.PhaseFeatures
     hand_phase: M.PhaseFeatures
     pass1_rows: tuple[np.ndarray, np.ndarray]
-    pass2_body_rows: np.ndarray
+    hand_has_yaw: bool
     theta: str
     n_bins: int
     yaw_offset: float
@@ -180,7 +183,8 @@ def _hand_sides(take, roles) -> list[str]:
 def prepare(body: Motion | MarkerSet, hand: Motion | MarkerSet, side: str = "auto",
             body_roles=None, hand_roles=None, theta: str = "window",
             n_bins: int = M.THETA_BINS, smoothing_s: float = SMOOTHING_S,
-            dead_zone: float = DEAD_ZONE, progress: Progress | None = None) -> SpliceFeatures:
+            dead_zone: float = DEAD_ZONE, step1: float = STEP1, step2: float = STEP2,
+            progress: Progress | None = None) -> SpliceFeatures:
     """Per-pair features of both passes.
 
     Parameters
@@ -194,6 +198,9 @@ def prepare(body: Motion | MarkerSet, hand: Motion | MarkerSet, side: str = "aut
     n_bins : θ quantisation (directions).
     smoothing_s : Savitzky-Golay window (seconds) for the derivatives.
     dead_zone : ε as a fraction of each take's 90th-percentile speed / acceleration.
+    step1, step2 : constant added to every pass-1 / pass-2 cell (sign-cost units /
+        radians): each horizontal or vertical step of a path then costs extra, so in
+        ambiguous stretches (holds) the path keeps a steady rate.
     """
     progress = progress or _noop
     t0 = time.perf_counter()
@@ -235,56 +242,77 @@ def prepare(body: Motion | MarkerSet, hand: Motion | MarkerSet, side: str = "aut
         raise ParameterError(f"takes too short to align: {body_name} {n} frames, "
                              f"{hand_name} {m} frames at {fps:g} fps")
 
-    body_yaw = hand_yaw = None
-    if theta == "trunk":
-        body_yaw = skeleton_yaw(body, rb, body_fk) if isinstance(body, Motion) \
-            else marker_set_yaw(body)
-        hand_yaw = skeleton_yaw(hand, rh, hand_fk) if isinstance(hand, Motion) \
-            else marker_set_yaw(hand)
-        if body_yaw is None:
-            raise RoleError(f"theta='trunk': {body_name} has no left and right shoulders "
-                            "to give the trunk's heading")
-        if hand_yaw is not None:
-            from engine.features import resample_points
+    # trunk headings (radians about the vertical), where the takes have a trunk
+    body_yaw = skeleton_yaw(body, rb, body_fk) if isinstance(body, Motion) \
+        else marker_set_yaw(body)
+    hand_yaw = skeleton_yaw(hand, rh, hand_fk) if isinstance(hand, Motion) \
+        else marker_set_yaw(hand)
+    if hand_yaw is not None:
+        from engine.features import resample_points
 
-            hand_yaw = resample_points(hand_yaw, hand.fps, fps)
+        hand_yaw = resample_points(hand_yaw, hand.fps, fps)
+    if theta == "trunk" and body_yaw is None:
+        raise RoleError(f"theta='trunk': {body_name} has no left and right shoulders "
+                        "to give the trunk's heading")
     timings["markers"] = time.perf_counter() - t0
 
     t1 = time.perf_counter()
     bp = M.phase_features(body_markers, fps, yaw=body_yaw, window_s=smoothing_s,
                           relative=dead_zone)
+    hp = M.phase_features(hand_markers, fps, yaw=hand_yaw if hand_yaw is not None
+                          else np.zeros(m), window_s=smoothing_s, relative=dead_zone)
     yaw_offset = 0.0
     if theta == "trunk" and hand_yaw is None:
-        hand_yaw = np.zeros(m)
-    hp = M.phase_features(hand_markers, fps, yaw=hand_yaw, window_s=smoothing_s,
-                          relative=dead_zone)
-    if theta == "trunk" and hand_yaw is not None and not np.any(hand_yaw):
-        yaw_offset = _estimate_yaw_offset(bp, hp)
-    rows1 = M.phase_rows(bp, hp, theta=theta, n_bins=n_bins, yaw_offset=yaw_offset)
-    rows2 = M.angle_features(body_markers).rows()
+        # a hand take without a trunk: constant heading, estimated near the diagonal
+        i = np.arange(n)
+        j = np.minimum(np.round(i * (m - 1) / max(n - 1, 1)).astype(np.int64), m - 1)
+        yaw_offset = -heading_offset(bp, hp, np.column_stack([i, j]))
+    rows1 = M.phase_rows(bp, hp, theta=theta, n_bins=n_bins, yaw_offset=yaw_offset, step=step1)
     timings["features"] = time.perf_counter() - t1
     progress("features", 1.0)
     M.register_metrics()
     return SpliceFeatures(
         body=body, hand=hand, sides=tuple(sides), n=n, m=m, m_hand=hand.n_frames, fps=fps,
         hand_fps=float(hand.fps), body_markers=body_markers, hand_markers=hand_markers,
-        body_phase=bp, hand_phase=hp, pass1_rows=rows1, pass2_body_rows=rows2, theta=theta,
+        body_phase=bp, hand_phase=hp, pass1_rows=rows1, hand_has_yaw=hand_yaw is not None, theta=theta,
         n_bins=n_bins, yaw_offset=yaw_offset, body_roles=rb, hand_roles=rh,
         body_frames=body_frames, hand_frames=hand_frames, body_fk=body_fk,
         params={"side": side, "sides": list(sides), "theta": theta, "n_bins": n_bins,
-                "smoothing_s": smoothing_s, "dead_zone": dead_zone},
+                "smoothing_s": smoothing_s, "dead_zone": dead_zone, "step1": step1,
+                "step2": step2},
         timings=timings)
 
 
-def _estimate_yaw_offset(body: M.PhaseFeatures, hand: M.PhaseFeatures) -> float:
-    """Constant heading of a hand take without a trunk: circular mean over the diagonal of
-    ``yaw_body(i) - θ(i, j(i))`` with θ from eq. 7."""
-    n, m = body.n_frames, hand.n_frames
-    i = np.arange(n)
-    j = np.minimum(np.round(i * (m - 1) / max(n - 1, 1)).astype(np.int64), m - 1)
+def heading_offset(body: M.PhaseFeatures, hand: M.PhaseFeatures, cells: np.ndarray) -> float:
+    """Constant heading (radians) of a hand take without a trunk.
+
+    For cells ``(i, j)`` believed to match (a path, or the diagonal), eq. 7 gives
+    ``θ(i, j) ≈ yaw_body(i) - heading``. Eq. 7 is unreliable where the arms are still
+    or posed differently, so the estimate is the *mode* of ``yaw_body - θ`` weighted
+    by how much both wrists move (5° bins, circular smoothing), refined by the
+    weighted circular mean within 20° of the mode. Without a body trunk the body's
+    yaw counts as 0.
+    """
+    cells = np.asarray(cells, dtype=np.int64).reshape(-1, 2)
+    i, j = cells[:, 0], cells[:, 1]
     th = M.cell_theta_window(body, hand, i, j)
-    d = body.yaw - th
-    return float(np.arctan2(np.mean(np.sin(d)), np.mean(np.cos(d))))
+    yb = body.yaw[i] if body.yaw is not None else 0.0
+    v = np.angle(np.exp(1j * (yb - th)))
+    w = _wrist_speed(body)[i] * _wrist_speed(hand)[j] + 1e-12
+    bins = 72
+    k = np.floor((v + np.pi) / (2 * np.pi) * bins).astype(np.int64) % bins
+    hist = np.bincount(k, weights=w, minlength=bins)
+    hist = hist + 0.5 * (np.roll(hist, 1) + np.roll(hist, -1))
+    mode = (np.argmax(hist) + 0.5) / bins * 2 * np.pi - np.pi
+    near = np.abs(np.angle(np.exp(1j * (v - mode)))) < np.radians(20)
+    if not near.any():
+        return float(mode)
+    return float(np.angle(np.sum(w[near] * np.exp(1j * v[near]))))
+
+
+def _wrist_speed(ph: M.PhaseFeatures) -> np.ndarray:
+    v = ph.velocity.reshape(ph.n_frames, -1, 4, 3)
+    return np.linalg.norm(0.5 * (v[:, :, 0] + v[:, :, 1]), axis=-1).sum(axis=1)
 
 
 # --------------------------------------------------------------------------------------------
@@ -338,8 +366,8 @@ class SpliceAlignment:
     pass1, pass2 : PassResult
     warp : (n,) float, grid hand frame per body frame (merged and smoothed)
     map : (n,) float, frame of the original hand take per body frame
-    theta : (m,) float radians, rotation about the vertical applied to the hand take's
-        pass-2 vectors (θ along the pass-1 path)
+    body_heading, hand_heading : (n,), (m,) float radians, trunk headings removed from
+        each take's pass-2 vectors (:func:`pass2_headings`)
     points : list of (body, grid hand, tol) matching points used
     band, refine_band : float fractions of n; radius : int (pass-2 band, frames)
     timings : dict stage -> seconds
@@ -349,7 +377,8 @@ class SpliceAlignment:
     pass2: PassResult
     warp: np.ndarray
     map: np.ndarray
-    theta: np.ndarray
+    body_heading: np.ndarray
+    hand_heading: np.ndarray
     points: list
     band: float
     refine_band: float
@@ -397,30 +426,24 @@ def _solve(rows, metric: str, band: Band, solver=None, incremental: bool = False
     return align_features(a, b, band, metric=metric), None
 
 
-def _theta_along_path(features: SpliceFeatures, path: np.ndarray) -> np.ndarray:
-    """θ per grid hand frame: median of the quantised θ over pass-1 path cells in that column."""
-    m = features.m
-    if features.theta == "none":
-        return np.zeros(m)
-    a, b = features.pass1_rows
-    th = M.path_values(M.splice_phase_theta, a, b, path)
-    th = np.where(th > np.pi, th - 2 * np.pi, th)
-    cols = path[:, 1]
-    out = np.zeros(m)
-    # circular median-ish: median of angles unwrapped around their circular mean
-    c = np.arctan2(np.mean(np.sin(th)), np.mean(np.cos(th)))
-    rel = np.angle(np.exp(1j * (th - c)))
-    order = np.argsort(cols, kind="stable")
-    cols_s, rel_s = cols[order], rel[order]
-    starts = np.searchsorted(cols_s, np.arange(m), side="left")
-    stops = np.searchsorted(cols_s, np.arange(m), side="right")
-    for j in range(m):
-        if stops[j] > starts[j]:
-            out[j] = np.median(rel_s[starts[j]:stops[j]])
-    from scipy.ndimage import median_filter
+def pass2_headings(features: SpliceFeatures, path1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Headings (radians) removed from the body ``(n,)`` and hand ``(m,)`` before pass 2.
 
-    out = median_filter(out, size=min(9, max(1, m)), mode="nearest")
-    return out + c
+    D2 compares vectors in world axes, so both takes are turned to face the same way:
+    the body by its trunk yaw, the hand by its own trunk yaw or, for a hand take
+    without a trunk (Leap, ManipNet), by a constant heading estimated along the pass-1
+    path (:func:`heading_offset`). ``theta="none"`` turns nothing.
+    """
+    n, m = features.n, features.m
+    if features.theta == "none":
+        return np.zeros(n), np.zeros(m)
+    bp, hp = features.body_phase, features.hand_phase
+    body = bp.yaw if bp.yaw is not None else np.zeros(n)
+    if features.hand_has_yaw:
+        return body, hp.yaw
+    c = heading_offset(bp, hp, path1)
+    c = np.round(c / np.radians(5.0)) * np.radians(5.0)  # stable across small path edits
+    return body, np.full(m, c)
 
 
 def align_passes(features: SpliceFeatures, band: float = BAND, refine_band: float = REFINE_BAND,
@@ -463,16 +486,17 @@ def align_passes(features: SpliceFeatures, band: float = BAND, refine_band: floa
     progress("pass 1", 1.0)
 
     progress("pass 2", 0.0)
-    theta = _theta_along_path(features, al1.path)
-    hand2 = M.angle_features(features.hand_markers, theta).rows()
+    body_heading, hand_heading = pass2_headings(features, al1.path)
+    body2 = M.angle_features(features.body_markers, -body_heading).rows(
+        features.params.get("step2", 0.0))
+    hand2 = M.angle_features(features.hand_markers, -hand_heading).rows()
     radius = refine_radius(n, m, refine_band)
     band2 = Band.around_path(al1.path, n, m, radius, points=pts if pts else None)
     solver2 = None
     if same and previous.pass2.solver is not None and \
             np.array_equal(previous.pass2.rows[1], hand2):
         solver2 = previous.pass2.solver
-    al2, solver2 = _solve((features.pass2_body_rows, hand2), "splice_angle", band2, solver2,
-                          incremental)
+    al2, solver2 = _solve((body2, hand2), "splice_angle", band2, solver2, incremental)
     t2 = time.perf_counter()
     timings["pass2"] = t2 - t1
     progress("pass 2", 1.0)
@@ -486,9 +510,10 @@ def align_passes(features: SpliceFeatures, band: float = BAND, refine_band: floa
                     rows=features.pass1_rows, metric="splice_phase", solver=solver1,
                     seconds=timings["pass1"])
     p2 = PassResult(path=np.asarray(al2.path), cost=float(al2.cost), band=band2,
-                    rows=(features.pass2_body_rows, hand2), metric="splice_angle",
+                    rows=(body2, hand2), metric="splice_angle",
                     solver=solver2, seconds=timings["pass2"])
-    return SpliceAlignment(pass1=p1, pass2=p2, warp=warp, map=hand_map, theta=theta,
+    return SpliceAlignment(pass1=p1, pass2=p2, warp=warp, map=hand_map,
+                           body_heading=body_heading, hand_heading=hand_heading,
                            points=pts, band=float(band), refine_band=float(refine_band),
                            radius=radius, blend=float(blend), timings=timings,
                            features_id=id(features))
@@ -548,6 +573,7 @@ def splice(body: Motion, hand: Motion, side: str = "auto", band: float = BAND,
            theta: str = "window", body_roles=None, hand_roles=None,
            blend: float = MG.BLEND_FRAMES, smoothing_s: float = SMOOTHING_S,
            dead_zone: float = DEAD_ZONE, n_bins: int = M.THETA_BINS,
+           step1: float = STEP1, step2: float = STEP2,
            progress: Progress | None = None, transfer_fingers: bool = True) -> SpliceResult:
     """Align and splice in one call (CLI, batch and benchmarks).
 
@@ -559,7 +585,7 @@ def splice(body: Motion, hand: Motion, side: str = "auto", band: float = BAND,
     t0 = time.perf_counter()
     feats = prepare(body, hand, side=side, body_roles=body_roles, hand_roles=hand_roles,
                     theta=theta, n_bins=n_bins, smoothing_s=smoothing_s, dead_zone=dead_zone,
-                    progress=progress)
+                    step1=step1, step2=step2, progress=progress)
     t1 = time.perf_counter()
     pts = _check_points(points, feats.n, feats.m_hand if hand_points else feats.m)
     if hand_points:
@@ -609,8 +635,8 @@ def cost_image(features: SpliceFeatures, kind: str, rows, cols,
                result: SpliceAlignment | None = None) -> np.ndarray:
     """Cost matrix values at body frames ``rows`` × grid hand frames ``cols``.
 
-    kind : ``"pass1"`` / ``"pass2"`` (local costs; pass 2 uses the hand take turned by
-        ``result.theta``, or unturned without a result) or ``"cumulative1"`` /
+    kind : ``"pass1"`` / ``"pass2"`` (local costs; pass 2 uses the headings of
+        ``result``, or none without a result) or ``"cumulative1"`` /
         ``"cumulative2"`` (γ of the last solve; NaN outside the band; needs a result
         solved incrementally).
     Returns ``(len(rows), len(cols))`` float64.
@@ -621,9 +647,12 @@ def cost_image(features: SpliceFeatures, kind: str, rows, cols,
         a, b = features.pass1_rows
         return M.cost_grid(M.splice_phase, a, b, rows, cols)
     if kind == "pass2":
-        b = result.pass2.rows[1] if result is not None else \
-            M.angle_features(features.hand_markers).rows()
-        return M.cost_grid(M.splice_angle, features.pass2_body_rows, b, rows, cols)
+        if result is not None:
+            a, b = result.pass2.rows
+        else:
+            a = M.angle_features(features.body_markers).rows()
+            b = M.angle_features(features.hand_markers).rows()
+        return M.cost_grid(M.splice_angle, a, b, rows, cols)
     if kind in ("cumulative1", "cumulative2"):
         if result is None:
             return np.full((rows.size, cols.size), np.nan)

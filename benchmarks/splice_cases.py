@@ -1,0 +1,353 @@
+"""Splice test bench: real captures split into a body take and a hand take with known truth.
+
+Two families of cases (``make_case``):
+
+* ``beat``: the BEAT take (body and 30 finger joints captured together). The body
+  take is BEAT with every joint below the wrists removed. The hand take is BEAT
+  (fingers included) re-timed by a smooth random warp, resampled to another frame
+  rate, with the trunk held still (and turned to face another way), the arms'
+  amplitude shrunk (shoulder, collar and elbow rotations pulled toward their mean,
+  a performer in a small capture volume) and rotation noise on every joint.
+* ``bandai`` / ``lafan1``: real body-only takes. Synthetic fingers (five 3-joint
+  chains grafted under each wrist, flexing with a smooth random curl signal) make a
+  "full" take whose finger timing is known; it is split the same way.
+
+Each case carries ``truth`` (for every body frame, the hand-take frame captured at
+the same instant, float) and ``reference`` (the full take at body frames: the
+fingers the splice should reproduce).
+
+Everything random comes from ``numpy.random.Generator(seed)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+from scipy.ndimage import gaussian_filter1d
+
+from engine import rotations as rot
+from engine.features import hand_frame
+from engine.io.bvh import read_bvh
+from engine.kinematics import forward_kinematics, rest_positions, sample
+from engine.motion import Motion, Skeleton
+from engine.roles import FINGERS, find_roles
+
+MOCAP = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "mocap"
+BEAT = "beat/1_wayne_0_1_1.bvh"
+BANDAI = ["bandai-namco/dataset-2_wave-both-hands_normal_001.bvh",
+          "bandai-namco/dataset-1_call_normal_001.bvh",
+          "bandai-namco/dataset-1_guide_normal_001.bvh",
+          "bandai-namco/dataset-2_wave-right-hand_normal_001.bvh",
+          "bandai-namco/dataset-1_byebye_normal_001.bvh",
+          "bandai-namco/dataset-1_respond_normal_001.bvh"]
+LAFAN = ["lafan1/multipleActions1_subject1.bvh", "lafan1/dance1_subject1.bvh"]
+
+
+@dataclass
+class Case:
+    """One split pair with its truth."""
+
+    name: str
+    family: str
+    seed: int
+    body: Motion  # body take, no fingers
+    hand: Motion  # hand take (re-timed, other fps, trunk still, arms shrunk, noise)
+    truth: np.ndarray  # (n,) float: hand-take frame for every body frame
+    reference: Motion  # full take (with fingers) at body frames
+    params: dict
+
+
+# --------------------------------------------------------------------------------------------
+# skeleton surgery
+# --------------------------------------------------------------------------------------------
+
+
+def subset(motion: Motion, keep: np.ndarray, end_sites: dict[int, np.ndarray] | None = None
+           ) -> Motion:
+    """The take restricted to joints ``keep`` (bool mask, closed under parents)."""
+    sk = motion.skeleton
+    idx = np.flatnonzero(keep)
+    new = -np.ones(sk.n_joints, dtype=np.int64)
+    new[idx] = np.arange(idx.size)
+    parents = np.array([new[sk.parents[j]] if sk.parents[j] >= 0 else -1 for j in idx])
+    ends = {int(new[j]): v for j, v in sk.end_sites.items() if keep[j]}
+    for j, v in (end_sites or {}).items():
+        ends[int(new[j])] = np.asarray(v, dtype=float)
+    skel = Skeleton(names=tuple(sk.names[j] for j in idx), parents=parents,
+                    offsets=sk.offsets[idx], channels=tuple(sk.channels[j] for j in idx),
+                    end_sites=ends)
+    return Motion(skel, motion.rotations[:, idx], motion.translations[:, idx], motion.fps,
+                  motion.meta)
+
+
+def strip_fingers(motion: Motion, roles=None) -> Motion:
+    """Remove every joint below the wrists; each wrist gets an End Site at its fingers' base."""
+    roles = roles or find_roles(motion.skeleton)
+    sk = motion.skeleton
+    keep = np.ones(sk.n_joints, dtype=bool)
+    ends = {}
+    for side in roles.sides_found():
+        w = roles.side(side).wrist
+        kids = sk.descendants(w)[1:]
+        if kids:
+            ends[w] = np.mean([sk.offsets[c] for c in sk.children(w)], axis=0)
+        keep[kids] = False
+    return subset(motion, keep, ends)
+
+
+def add_fingers(motion: Motion, rng: np.random.Generator, roles=None) -> Motion:
+    """Graft five 3-joint fingers under each wrist, flexing with smooth random curls.
+
+    Finger bases fan out across the palm (radial to ulnar), bones point along the
+    hand; joint ``k`` of finger ``f`` flexes about the radial axis by
+    ``curl_f(t) * (1.0, 1.1, 0.8)[k]`` (curl in 0..80°, thumb flexes about the
+    dorsal axis). The curl signals are Gaussian-filtered noise (≈ 0.4 s scale).
+    """
+    roles = roles or find_roles(motion.skeleton)
+    sk = motion.skeleton
+    names, parents, offsets, channels = list(sk.names), list(sk.parents), list(sk.offsets), \
+        list(sk.channels)
+    f = motion.n_frames
+    extra_rot = []
+    for side in roles.sides_found():
+        fr = hand_frame(motion, roles, side)
+        length = fr.forearm_length
+        wrist = fr.wrist
+        for fi, finger in enumerate(FINGERS):
+            curl = gaussian_filter1d(rng.normal(size=f + 40), 0.4 * motion.fps)[20:-20]
+            curl = curl / (np.abs(curl).max() + 1e-9)
+            curl = np.radians(40.0 + 40.0 * curl)  # 0..80 degrees
+            across = (fi - 2) * 0.08 * length
+            if finger == "thumb":
+                base = 0.12 * length * fr.along + 0.14 * length * fr.radial
+                axis = fr.dorsal
+                bone = _unit(fr.along + fr.radial)
+            else:
+                base = 0.36 * length * fr.along - across * fr.radial
+                axis = fr.radial
+                bone = fr.along
+            parent = wrist
+            for k, (blen, gain) in enumerate(zip((0.0, 0.16, 0.11), (1.0, 1.1, 0.8),
+                                                 strict=True)):
+                names.append(f"{sk.names[wrist]}_{finger}{k + 1}")
+                parents.append(parent)
+                offsets.append(base if k == 0 else blen * length * bone)
+                channels.append(("Zrotation", "Xrotation", "Yrotation"))
+                sgn = 1.0 if side == "right" else -1.0
+                extra_rot.append(rot.from_axis_angle(np.broadcast_to(axis, (f, 3)),
+                                                     sgn * gain * curl))
+                parent = len(names) - 1
+    ends = dict(sk.end_sites)
+    n_old = sk.n_joints
+    for j in range(n_old, len(names)):
+        if j + 1 >= len(names) or parents[j + 1] != j:  # finger tip
+            ends[j] = 0.8 * np.asarray(offsets[j], dtype=float)
+    skel = Skeleton(names=tuple(names), parents=np.array(parents), offsets=np.array(offsets),
+                    channels=tuple(channels), end_sites=ends)
+    rots = np.concatenate([motion.rotations, np.stack(extra_rot, axis=1)], axis=1)
+    trans = np.concatenate([motion.translations,
+                            np.broadcast_to(np.array(offsets[n_old:]),
+                                            (f, len(names) - n_old, 3))], axis=1)
+    return Motion(skel, rots, trans, motion.fps, motion.meta)
+
+
+def _unit(v):
+    return v / np.linalg.norm(v)
+
+
+# --------------------------------------------------------------------------------------------
+# the hand take
+# --------------------------------------------------------------------------------------------
+
+
+def _mean_rotation(q: np.ndarray) -> np.ndarray:
+    """Sign-consistent normalised mean of ``(F, 4)`` quaternions."""
+    q = rot.make_continuous(q, axis=0)
+    return rot.normalize(q.mean(axis=0))
+
+
+def arm_joints(motion: Motion, roles) -> tuple[set[int], set[int]]:
+    """(shrunk joints: clavicle/shoulder/elbow chain, free joints: the whole arm and hand)."""
+    sk = motion.skeleton
+    shrink, free = set(), set()
+    for side in roles.sides_found():
+        arm = roles.side(side)
+        top = arm.clavicle if arm.clavicle is not None else arm.shoulder
+        if top is None:
+            continue
+        free.update(sk.descendants(top))
+        for j in sk.chain_to_root(arm.wrist)[1:]:
+            shrink.add(j)
+            if j == top:
+                break
+    return shrink, free
+
+
+def _keep_forearm_roll(full: Motion, roles, before: np.ndarray, after: np.ndarray,
+                      trans: np.ndarray) -> None:
+    """Give each shrunk forearm the roll (pronation) it had before shrinking.
+
+    Shrinking shoulder and elbow rotations toward their mean changes where the forearm
+    points (the smaller arm motion we want) but also its roll about its own axis, which a
+    performer keeps because it is part of the hand's gesture. The elbow joint's world
+    rotation is set to the original one turned by the smallest rotation between the
+    original and the shrunk forearm directions (swing only, no added roll).
+    """
+    sk = full.skeleton
+    g_before = forward_kinematics(replace(full, rotations=before, translations=trans))[1]
+    g_after = forward_kinematics(replace(full, rotations=after, translations=trans))[1]
+    rest = rest_positions(sk)
+    for side in roles.sides_found():
+        arm = roles.side(side)
+        e, w = arm.elbow, arm.wrist
+        if e is None or e not in sk.chain_to_root(w) or sk.parents[e] < 0:
+            continue
+        along = rest[w] - rest[e]
+        if np.linalg.norm(along) < 1e-9:
+            continue
+        a0 = rot.rotate(g_before[:, e], along)
+        a1 = rot.rotate(g_after[:, e], along)
+        swing = _between(a0, a1)
+        g_new = rot.multiply(swing, g_before[:, e])
+        parent = sk.parents[e]
+        after[:, e] = rot.multiply(rot.conjugate(g_after[:, parent]), g_new)
+
+
+def _between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Smallest rotations ``(F, 4)`` taking vectors ``a`` onto ``b`` (F, 3)."""
+    a = a / np.linalg.norm(a, axis=-1, keepdims=True)
+    b = b / np.linalg.norm(b, axis=-1, keepdims=True)
+    q = np.concatenate([1.0 + np.sum(a * b, axis=-1, keepdims=True), np.cross(a, b)], axis=-1)
+    return rot.normalize(q)
+
+
+def smooth_warp(rng: np.random.Generator, duration: float, scale: float, sigma: float,
+                corr_s: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """A smooth random monotone map from hand time (s) to original time (s).
+
+    The hand take lasts ``duration * scale`` seconds; its local rate (original
+    seconds per hand second) is ``exp(sigma * smooth noise)``, renormalised so both
+    ends match. Returns (hand times, original times) sampled at 1 ms.
+    """
+    th = np.linspace(0.0, duration * scale, int(duration * scale * 1000) + 2)
+    dt = th[1] - th[0]
+    noise = gaussian_filter1d(rng.normal(size=th.size + 4000), corr_s / dt)[2000:-2000]
+    noise = noise / (noise.std() + 1e-12)
+    rate = np.exp(sigma * noise)
+    t = np.concatenate([[0.0], np.cumsum(0.5 * (rate[1:] + rate[:-1]) * dt)])
+    t *= duration / t[-1]
+    return th, t
+
+
+def make_hand_take(full: Motion, rng: np.random.Generator, fps: float, scale: float,
+                   warp_sigma: float, shrink: float, yaw_deg: float, noise_deg: float,
+                   roles=None) -> tuple[Motion, np.ndarray, np.ndarray]:
+    """The hand take from a full take; returns (hand, hand times s, original times s)."""
+    roles = roles or find_roles(full.skeleton)
+    sk = full.skeleton
+    shrink_set, free = arm_joints(full, roles)
+    rots = full.rotations.copy()
+    trans = full.translations.copy()
+    mid = full.n_frames // 2
+    for j in range(sk.n_joints):
+        if j in free:
+            continue
+        rots[:, j] = rots[mid, j]  # trunk and legs still
+        if sk.has_position_channels(j):
+            trans[:, j] = trans[mid, j]
+    unshrunk = rots.copy()
+    for j in shrink_set:
+        mean = _mean_rotation(rots[:, j])
+        rots[:, j] = rot.slerp(np.broadcast_to(mean, rots[:, j].shape), rots[:, j],
+                               np.full(full.n_frames, shrink))
+    _keep_forearm_roll(full, roles, unshrunk, rots, trans)
+    up = np.array([0.0, 0.0, 1.0]) if full.meta.up_axis == "z" else np.array([0.0, 1.0, 0.0])
+    turn = rot.from_axis_angle(up, np.radians(yaw_deg))
+    for j in np.flatnonzero(sk.parents < 0):
+        rots[:, j] = rot.multiply(turn, rots[:, j])
+        trans[:, j] = rot.rotate(turn, trans[:, j])
+    still = replace(full, rotations=rots, translations=trans)
+
+    duration = (full.n_frames - 1) / full.fps
+    th, t = smooth_warp(rng, duration, scale, warp_sigma)
+    m = int(np.floor(th[-1] * fps + 1e-9)) + 1
+    hand_t = np.arange(m) / fps
+    orig_t = np.interp(hand_t, th, t)
+    local, tr = sample(still, orig_t * full.fps)
+    if noise_deg > 0:
+        axis = rng.normal(size=local.shape[:2] + (3,))
+        axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
+        ang = np.radians(noise_deg) * rng.normal(size=local.shape[:2])
+        local = rot.multiply(local, rot.from_axis_angle(axis, ang))
+    hand = Motion(sk, local, tr, fps, replace(full.meta, source=f"{full.meta.source}#hand"))
+    return hand, hand_t, orig_t
+
+
+def make_case(family: str, seed: int, crop_s: float = 20.0) -> Case:
+    """One seeded case of ``family`` (``"beat"``, ``"bandai"`` or ``"lafan1"``)."""
+    rng = np.random.default_rng(seed)
+    if family == "beat":
+        full = read_bvh(MOCAP / BEAT)
+        name = f"beat/{seed}"
+    elif family == "bandai":
+        path = BANDAI[seed % len(BANDAI)]
+        base = read_bvh(MOCAP / path)
+        full = add_fingers(base, rng)
+        name = f"{Path(path).stem}/{seed}"
+    elif family == "lafan1":
+        path = LAFAN[seed % len(LAFAN)]
+        base = read_bvh(MOCAP / path)
+        n = int(crop_s * base.fps)
+        start = int(rng.integers(0, base.n_frames - n))
+        base = base.frames(start, start + n)
+        full = add_fingers(base, rng)
+        name = f"{Path(path).stem}[{start}:{start + n}]/{seed}"
+    else:
+        raise ValueError(f"unknown family {family!r}")
+    roles = find_roles(full.skeleton)
+    body = strip_fingers(full, roles)
+    body = replace(body, meta=replace(body.meta, source=f"{full.meta.source}#body"))
+    params = {
+        "fps": float(rng.choice([60.0, 90.0, 100.0, 120.0])),
+        "scale": float(rng.uniform(0.85, 1.2)),
+        "warp_sigma": float(rng.uniform(0.15, 0.3)),
+        "shrink": float(rng.uniform(0.4, 0.7)),
+        "yaw_deg": float(rng.uniform(-60.0, 60.0)),
+        "noise_deg": 0.5,
+    }
+    hand, hand_t, orig_t = make_hand_take(full, rng, roles=roles, **params)
+    body_t = np.arange(body.n_frames) / body.fps
+    truth = np.interp(body_t, orig_t, hand_t) * hand.fps
+    return Case(name=name, family=family, seed=seed, body=body, hand=hand, truth=truth,
+                reference=full, params=params)
+
+
+# --------------------------------------------------------------------------------------------
+# error measures
+# --------------------------------------------------------------------------------------------
+
+
+def finger_pairs(out: Motion, ref: Motion) -> list[tuple[int, int]]:
+    """(output joint, reference joint) for every finger joint role present in both."""
+    ro, rr = find_roles(out.skeleton), find_roles(ref.skeleton)
+    pairs = []
+    for side in ("right", "left"):
+        for finger in FINGERS:
+            for k in (1, 2, 3):
+                a = ro.get(side, f"{finger}{k}")
+                b = rr.get(side, f"{finger}{k}")
+                if a is not None and b is not None:
+                    pairs.append((a, b))
+    return pairs
+
+
+def finger_error(out: Motion, ref: Motion, pairs=None) -> float:
+    """Mean geodesic angle (degrees) between the finger joints' local rotations."""
+    pairs = pairs or finger_pairs(out, ref)
+    if not pairs:
+        raise ValueError("no finger joints in common")
+    a = out.rotations[:, [p[0] for p in pairs]]
+    b = ref.rotations[:, [p[1] for p in pairs]]
+    return float(np.mean(rot.angle_between(a, b)))
