@@ -39,6 +39,7 @@ and ``p3 = wrist - 0.5 L along`` in the forearm joint's frame; ``p4 = wrist +
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -247,8 +248,6 @@ def hand_frame(motion: Motion, roles, side: str) -> HandFrame:
 
 
 def _name(motion: Motion) -> str:
-    from pathlib import Path
-
     return Path(motion.meta.source).name if motion.meta.source else "the take"
 
 
@@ -369,64 +368,48 @@ def skeleton_yaw(motion: Motion, roles, fk=None) -> np.ndarray | None:
 # marker sets
 # --------------------------------------------------------------------------------------------
 
-# label candidates per marker; "{s}" is the side letter (R/L) for side-prefixed sets
-_MARKER_LABELS = {
-    "wrist_radial": ["STYLr", "{s}STYLr", "{s}WRA", "{s}RSP", "{s}_RSP", "WRA"],
-    "wrist_ulnar": ["STYLu", "{s}STYLu", "{s}WRB", "{s}USP", "{s}_USP", "WRB"],
-    "forearm": ["LARM_ant", "LARMl", "LARMm", "{s}FRA", "{s}FRM", "{s}FOREARM", "FRA"],
-    "hand": ["MEDH+LATH", "{s}MEDH+{s}LATH", "INDEX", "{s}FIN", "{s}HAND", "{s}MH2", "FIN"],
-    "shoulder": ["ACRO_tip", "{s}ACRO", "{s}SHO", "DELT", "SHO"],
-}
-_SIDE_LETTER = {"right": "R", "left": "L"}
-
-
-def _clean_label(label: str) -> str:
-    return label.split(":")[-1].strip()
-
-
-def _find_label(labels: dict[str, int], pattern: str, side: str) -> list[int] | None:
-    parts = [p.replace("{s}", _SIDE_LETTER[side]) for p in pattern.split("+")]
-    idx = [labels.get(p.lower()) for p in parts]
-    return None if any(i is None for i in idx) else idx
-
-
 def marker_set_markers(markers: MarkerSet, side: str, fps: float | None = None) -> ArmMarkers:
     """Alignment markers of one arm of a marker take (C3D/TRC), metres, y up.
 
-    A set whose labels carry no side (pyomeca's single arm: ``STYLr``, ``STYLu``,
-    ``LARM_ant``, ``MEDH``, ``LATH``, ``ACRO_tip``) serves either side. Gaps stay
-    NaN here (the metrics fill them). ``RoleError`` lists what is missing.
+    Markers are found by :func:`engine.roles.find_marker_roles` (Plug-in Gait
+    ``RWRA``/``RWRB``/``RFRA``/``RFIN``/``RSHO``; pyomeca ``STYLr``, ``STYLu``,
+    ``LARM*``, ``LATH``, ``ACRO_tip``). A set whose labels carry no side (pyomeca's
+    single arm) serves the side asked for. Without a forearm marker the midpoint of
+    the elbow marker and the wrist is used. Gaps stay NaN here (the metrics fill
+    them). ``RoleError`` names what is missing.
     """
-    labels = {_clean_label(lab).lower(): k for k, lab in enumerate(markers.labels)}
-    picked: dict[str, list[int]] = {}
-    for name, patterns in _MARKER_LABELS.items():
-        for pat in patterns:
-            idx = _find_label(labels, pat, side)
-            if idx is not None:
-                picked[name] = idx
-                break
-    missing = [n for n in MARKER_NAMES if n not in picked]
+    from engine.roles import find_marker_roles
+
+    roles = find_marker_roles(markers.labels, side_hint=side)
+    arm = roles.side(side)
+    pts = markers.points
+    missing = [r for r in ("wrist_radial", "wrist_ulnar", "hand") if arm.get(r) is None]
+    if arm.get("forearm") is None and arm.get("elbow") is None:
+        missing.append("forearm (or elbow)")
     if missing:
-        raise RoleError(
-            f"{side} arm of {markers.meta.source or 'the marker set'}: no marker for "
-            f"{', '.join(missing)} (looked for labels such as "
-            + "; ".join(f"{n}: {', '.join(_MARKER_LABELS[n][:3])}" for n in missing) + ")")
-    pts = np.stack([np.nanmean(markers.points[:, picked[n]], axis=1) if len(picked[n]) > 1
-                    else markers.points[:, picked[n][0]] for n in MARKER_NAMES], axis=1)
-    subtracted = "shoulder" in picked
+        raise RoleError(f"{side} arm of {Path(markers.meta.source).name or 'the marker set'}: "
+                        f"no marker for {', '.join(missing)} among {len(markers.labels)} labels")
+    radial = pts[:, arm["wrist_radial"]]
+    ulnar = pts[:, arm["wrist_ulnar"]]
+    if arm.get("forearm") is not None:
+        forearm = pts[:, arm["forearm"]]
+    else:
+        forearm = 0.5 * (pts[:, arm["elbow"]] + 0.5 * (radial + ulnar))
+    out = np.stack([radial, ulnar, forearm, pts[:, arm["hand"]]], axis=1)
+    subtracted = arm.get("shoulder") is not None
     if subtracted:
-        pts = pts - markers.points[:, picked["shoulder"][0]][:, None, :]
-    pts = to_y_up(pts * markers.meters_per_unit, markers.meta.up_axis)
+        out = out - pts[:, arm["shoulder"]][:, None, :]
+    out = to_y_up(out * markers.meters_per_unit, markers.meta.up_axis)
     if fps is not None:
-        pts = resample_points(pts, markers.fps, fps)
-    return ArmMarkers(markers=pts, fps=float(fps or markers.fps), side=side,
+        out = resample_points(out, markers.fps, fps)
+    return ArmMarkers(markers=out, fps=float(fps or markers.fps), side=side,
                       shoulder_subtracted=subtracted)
 
 
 def marker_set_yaw(markers: MarkerSet) -> np.ndarray | None:
     """Trunk heading from right/left pelvis or shoulder markers (``ASISr``/``ASISl``,
     ``RSHO``/``LSHO``, ``RASI``/``LASI``), or None."""
-    labels = {_clean_label(lab).lower(): k for k, lab in enumerate(markers.labels)}
+    labels = {lab.split(":")[-1].strip().lower(): k for k, lab in enumerate(markers.labels)}
     for r, left in (("RSHO", "LSHO"), ("ASISr", "ASISl"), ("RASI", "LASI")):
         if r.lower() in labels and left.lower() in labels:
             lat = markers.points[:, labels[r.lower()]] - markers.points[:, labels[left.lower()]]

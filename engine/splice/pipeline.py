@@ -213,7 +213,12 @@ def prepare(body: Motion | MarkerSet, hand: Motion | MarkerSet, side: str = "aut
     body_sides = _hand_sides(body, rb)
     hand_sides = _hand_sides(hand, rh)
     if isinstance(hand, Motion):  # a hand take without fingers cannot give any
-        hand_sides = [s for s in hand_sides if rh.side(s).has_fingers] or hand_sides
+        with_fingers = [s for s in hand_sides if rh.side(s).has_fingers]
+        if not with_fingers:
+            raise RoleError(f"{hand_name} has no finger joints (hands found: "
+                            f"{', '.join(hand_sides) or 'none'}); the hand take must carry "
+                            "the fingers to splice")
+        hand_sides = with_fingers
     sides = resolve_sides(side, body_sides, hand_sides, body_name, hand_name)
     fps = float(body.fps)
     timings: dict[str, float] = {}
@@ -588,7 +593,9 @@ def splice(body: Motion, hand: Motion, side: str = "auto", band: float = BAND,
                     step1=step1, step2=step2, progress=progress)
     t1 = time.perf_counter()
     pts = _check_points(points, feats.n, feats.m_hand if hand_points else feats.m)
-    if hand_points:
+    if hand_points and pts:
+        # check order and range in the user's own frame numbers first
+        Band.from_constraints(feats.n, feats.m_hand, None, pts)
         pts = [(x, int(round(float(feats.hand_to_grid(y)))),
                 float(np.ceil(float(feats.hand_to_grid(t)) - 1e-9)) if t else 0.0)
                for x, y, t in pts]

@@ -1,0 +1,205 @@
+"""``handsplice splice BODY HAND -o OUT.bvh``: put the hand take's fingers on the body take.
+
+::
+
+    handsplice splice BODY HAND -o OUT.bvh [--side auto|both|right|left]
+        [--band 0.3] [--refine-band 0.1] [--match BODY_FRAME:HAND_FRAME[:TOL] ...]
+        [--report REPORT.json] [--preview OUT.gif] [--roles MAP.json]
+        [--theta window|trunk|none] [--quiet]
+
+* ``--side``: ``auto`` (default) splices both hands, aligned jointly, when both takes
+  have both, else the side they share; ``both``/``right``/``left`` insist.
+* ``--match B:H[:T]``: body frame ``B`` matches frame ``H`` of the hand take (as
+  numbered in the hand file, 0-based) within ``T`` hand frames (default 0). Repeat
+  for several points; they must increase in both frames.
+* ``--roles MAP.json``: joint-role overrides, ``{"body": {"right.wrist": "Name"},
+  "hand": {...}}``, or one flat map applied to whichever take has those joints.
+* ``--report``: REPORT.json (see ``engine.splice.report``): the frame map, both
+  passes' paths, costs and bands, the parameters and per-stage times.
+* ``--preview OUT.gif`` (or .mp4/.png): a skinned preview of the spliced take.
+
+Progress goes to stderr. Bad input (unreadable file, a pair that cannot be spliced,
+infeasible matching points) prints one line and exits with status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+
+def add_parser(subparsers) -> None:
+    p = subparsers.add_parser(
+        "splice", help="splice a hand take's wrists and fingers onto a body take",
+        description="Align a hand take to a body take with two-pass DTW (Majkowska et al. "
+                    "2006) and write the body take with the hand take's wrists and fingers.")
+    p.add_argument("body", help="body take (.bvh)")
+    p.add_argument("hand", help="hand take with finger joints (.bvh)")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.bvh", help="spliced take")
+    p.add_argument("--side", default="auto", choices=["auto", "both", "right", "left"],
+                   help="hands to splice (default auto: both when both takes have both)")
+    p.add_argument("--band", type=float, default=0.3,
+                   help="pass-1 band width, fraction of the body length (default 0.3)")
+    p.add_argument("--refine-band", type=float, default=0.1,
+                   help="pass-2 band width around the pass-1 path (default 0.1)")
+    p.add_argument("--match", action="append", default=[], metavar="BODY:HAND[:TOL]",
+                   help="matching point: body frame, hand frame, tolerance in hand frames")
+    p.add_argument("--report", metavar="REPORT.json", help="write the alignment report")
+    p.add_argument("--preview", metavar="OUT.gif", help="render a preview (.gif, .mp4, .png)")
+    p.add_argument("--roles", metavar="MAP.json", help="joint-role overrides")
+    p.add_argument("--theta", default="window", choices=["window", "trunk", "none"],
+                   help="vertical-axis rotation of pass 1: eq. 7 window (default), trunk "
+                        "heading difference, or none")
+    p.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    p.set_defaults(func=run)
+
+
+def parse_match(text: str) -> tuple[int, int, float]:
+    """``"120:98"`` or ``"120:98:2"`` -> (120, 98, 2.0); ParameterError otherwise."""
+    from engine.errors import ParameterError
+
+    parts = text.split(":")
+    if len(parts) not in (2, 3):
+        raise ParameterError(f"--match {text!r}: expected BODY_FRAME:HAND_FRAME[:TOL]")
+    try:
+        body, hand = int(parts[0]), int(parts[1])
+        tol = float(parts[2]) if len(parts) == 3 else 0.0
+    except ValueError:
+        raise ParameterError(f"--match {text!r}: frames must be whole numbers and the "
+                             "tolerance a number") from None
+    if body < 0 or hand < 0 or not tol >= 0:
+        raise ParameterError(f"--match {text!r}: frames and tolerance must be >= 0")
+    return body, hand, tol
+
+
+def split_roles(mapping: dict, body, hand) -> tuple[dict | None, dict | None]:
+    """Role overrides per take from a ``--roles`` map (see the module docstring)."""
+    from engine.errors import ParameterError
+    from engine.roles import normalize_overrides
+
+    if not isinstance(mapping, dict):
+        raise ParameterError("--roles: expected a JSON object")
+    if set(mapping) & {"body", "hand"}:
+        extra = set(mapping) - {"body", "hand"}
+        if extra:
+            raise ParameterError(f"--roles: unexpected keys {sorted(extra)} beside body/hand")
+        return mapping.get("body") or None, mapping.get("hand") or None
+    flat = normalize_overrides(mapping, "--roles")
+    names = {v for v in flat.values() if v is not None}
+    out = []
+    for take in (body, hand):
+        joints = set(getattr(getattr(take, "skeleton", None), "names", ()))
+        out.append(flat if names and names <= joints else None)
+    if names and out == [None, None]:
+        raise ParameterError("--roles: no take has all the joints named in the map; "
+                             'use {"body": {...}, "hand": {...}}')
+    return out[0], out[1]
+
+
+class _Progress:
+    """Stage lines on stderr: ``splice: pass 1 ... 0.12 s``."""
+
+    def __init__(self, quiet: bool):
+        self.quiet = quiet
+        self.start: dict[str, float] = {}
+
+    def __call__(self, stage: str, fraction: float) -> None:
+        if self.quiet:
+            return
+        now = time.perf_counter()
+        if fraction <= 0.0:
+            self.start[stage] = now
+            print(f"splice: {stage} ...", file=sys.stderr, flush=True)
+        elif fraction >= 1.0:
+            t = now - self.start.get(stage, now)
+            print(f"splice: {stage} done ({t:.2f} s)", file=sys.stderr, flush=True)
+
+
+def run(args: argparse.Namespace) -> int:
+    import json
+    from pathlib import Path
+
+    from engine.errors import HandSpliceError, ParameterError
+    from engine.io import load_take
+    from engine.io.bvh import write_bvh
+    from engine.motion import Motion
+
+    out = Path(args.output)
+    if out.suffix.lower() != ".bvh":
+        raise ParameterError(f"{out.name}: the output must be a .bvh file")
+    if not (0.0 <= args.band <= 10.0):
+        raise ParameterError(f"--band {args.band}: expected a fraction of the body length, "
+                             "e.g. 0.3")
+    if not (0.0 <= args.refine_band <= 10.0):
+        raise ParameterError(f"--refine-band {args.refine_band}: expected a fraction, e.g. 0.1")
+    if args.preview:
+        suffix = Path(args.preview).suffix.lower()
+        if suffix not in (".gif", ".mp4", ".png"):
+            raise ParameterError(f"--preview {args.preview}: expected a .gif, .mp4 or .png file")
+    points = [parse_match(m) for m in args.match]
+
+    body = load_take(args.body)
+    hand = load_take(args.hand)
+    if not isinstance(body, Motion):
+        raise HandSpliceError(f"{Path(args.body).name}: holds markers; the body take must be a "
+                              "skeletal take (.bvh) to receive fingers")
+    if not isinstance(hand, Motion):
+        raise HandSpliceError(f"{Path(args.hand).name}: holds markers; the hand take must be a "
+                              "skeletal take (.bvh) with finger joints")
+    body_roles = hand_roles = None
+    if args.roles:
+        try:
+            mapping = json.loads(Path(args.roles).read_text(encoding="utf-8"))
+        except json.JSONDecodeError as err:
+            raise ParameterError(f"{args.roles} line {err.lineno}: not valid JSON "
+                                 f"({err.msg})") from None
+        body_roles, hand_roles = split_roles(mapping, body, hand)
+    for x, y, _ in points:
+        if x >= body.n_frames:
+            raise ParameterError(f"--match {x}:{y}: body frame {x} is past the body take's "
+                                 f"last frame {body.n_frames - 1}")
+        if y >= hand.n_frames:
+            raise ParameterError(f"--match {x}:{y}: hand frame {y} is past the hand take's "
+                                 f"last frame {hand.n_frames - 1}")
+
+    from engine.splice import pipeline
+    from engine.splice.report import build_report, write_report
+
+    progress = _Progress(args.quiet)
+    result = pipeline.splice(body, hand, side=args.side, band=args.band,
+                             refine_band=args.refine_band, points=points, hand_points=True,
+                             theta=args.theta, body_roles=body_roles, hand_roles=hand_roles,
+                             progress=progress)
+    progress("write", 0.0)
+    write_bvh(result.motion, out)
+    progress("write", 1.0)
+    if args.report:
+        write_report(args.report, build_report(result, args.body, args.hand, out,
+                                               points_given=points))
+    if args.preview:
+        _preview(result.motion, args.preview, args.quiet)
+    if not args.quiet:
+        sides = " and ".join(result.features.sides)
+        print(f"wrote {out} ({result.features.n} frames, {sides} hand"
+              f"{'s' if len(result.features.sides) > 1 else ''}, "
+              f"{result.timings['total']:.2f} s)", file=sys.stderr)
+    return 0
+
+
+def _preview(motion, path: str, quiet: bool) -> None:
+    from engine.errors import HandSpliceError
+
+    try:
+        from engine.render.offscreen import Preview
+        from engine.render.video import progress_printer, render_to_file
+    except ImportError as err:
+        raise HandSpliceError(f"--preview: the renderer is not available ({err}); the spliced "
+                              "take was written, render it later with handsplice render") \
+            from None
+    preview = Preview([motion], labels=["spliced"])
+    try:
+        progress = None if quiet else progress_printer(f"preview {path}")
+        render_to_file(preview, path, progress=progress)
+    finally:
+        preview.close()

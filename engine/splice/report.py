@@ -1,0 +1,112 @@
+"""REPORT.json: what a splice did, for people and for tools.
+
+Keys (all frame numbers 0-based):
+
+``version``            report format version (1)
+``body``, ``hand``     ``{"file", "frames", "fps"}`` of the inputs; ``output``: path or null
+``sides``              sides spliced (``["right", "left"]`` when both hands aligned jointly)
+``map``                for every body frame, the matched frame of the original hand take
+                       (float; fractional frames are slerped)
+``map_seconds``        the same in seconds of the hand take
+``grid``               ``{"fps", "hand_frames"}``: the alignment grid (hand take resampled to
+                       the body's rate); paths, bands, points and ``warp`` use its columns
+``warp``               ``map`` in grid columns
+``pass1``, ``pass2``   ``{"path": [[body, grid hand], ...], "cost", "band": {"lo", "hi",
+                       "cells"}, "metric", "seconds"}``; pass 2 adds ``"radius"`` and the
+                       trunk ``headings_deg`` removed from each take (``body``: list or
+                       constant, ``hand``)
+``parameters``         band, refine_band, points (grid units and as given), theta, n_bins,
+                       smoothing_s, dead_zone, step1, step2, blend
+``timings_s``          seconds per stage (prepare, pass1, pass2, merge, transfer, total)
+``transfer``           per side: wrist transferred or kept, finger joints driven, joints
+                       grafted (names), graft scale; ``notes``
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from engine.atomic import write_text
+
+VERSION = 1
+
+
+def _round(x, nd: int = 4) -> list:
+    return [round(float(v), nd) for v in np.asarray(x, dtype=float).ravel()]
+
+
+def _band(band) -> dict:
+    return {"lo": [int(v) for v in band.lo], "hi": [int(v) for v in band.hi],
+            "cells": int(band.area)}
+
+
+def _headings(h: np.ndarray):
+    h = np.degrees(np.asarray(h, dtype=float))
+    if h.size and np.allclose(h, h[0]):
+        return round(float(h[0]), 3)
+    return _round(h, 3)
+
+
+def build_report(result, body_path=None, hand_path=None, output_path=None,
+                 points_given=None) -> dict:
+    """The REPORT.json dictionary of a :class:`engine.splice.pipeline.SpliceResult`."""
+    f, a = result.features, result.alignment
+    report = {
+        "version": VERSION,
+        "body": {"file": str(body_path or f.body.meta.source), "frames": int(f.n),
+                 "fps": float(f.fps)},
+        "hand": {"file": str(hand_path or f.hand.meta.source), "frames": int(f.m_hand),
+                 "fps": float(f.hand_fps)},
+        "output": None if output_path is None else str(output_path),
+        "sides": list(f.sides),
+        "map": _round(a.map),
+        "map_seconds": _round(np.asarray(a.map) / f.hand_fps, 5),
+        "grid": {"fps": float(f.fps), "hand_frames": int(f.m)},
+        "warp": _round(a.warp),
+        "pass1": {"path": np.asarray(a.pass1.path).tolist(), "cost": float(a.pass1.cost),
+                  "band": _band(a.pass1.band), "metric": a.pass1.metric,
+                  "seconds": round(a.pass1.seconds, 6)},
+        "pass2": {"path": np.asarray(a.pass2.path).tolist(), "cost": float(a.pass2.cost),
+                  "band": _band(a.pass2.band), "metric": a.pass2.metric,
+                  "seconds": round(a.pass2.seconds, 6), "radius": int(a.radius),
+                  "headings_deg": {"body": _headings(a.body_heading),
+                                   "hand": _headings(a.hand_heading)}},
+        "parameters": {
+            "band": a.band, "refine_band": a.refine_band,
+            "points": [[int(x), int(y), float(t)] for x, y, t in a.points],
+            "points_given": None if points_given is None else [list(p) for p in points_given],
+            "blend": a.blend,
+            **{k: v for k, v in f.params.items() if not k.startswith("_")},
+        },
+        "timings_s": {k: round(float(v), 6) for k, v in result.timings.items()},
+    }
+    plan = f.params.get("_plan")
+    if plan is not None:
+        sk = plan.skeleton
+        report["transfer"] = {
+            "sides": {sp.side: {
+                "wrist": sk.names[sp.body_frame.wrist] if sp.wrist else None,
+                "fingers": [sk.names[m.body] for m in sp.mapped],
+                "grafted": [sk.names[new] for new, _ in sp.grafted],
+                "graft_scale": round(float(sp.scale), 6),
+                "body_dorsal_from": sp.body_frame.dorsal_source,
+                "hand_dorsal_from": sp.hand_frame.dorsal_source,
+            } for sp in plan.sides},
+            "notes": list(plan.notes),
+        }
+    return report
+
+
+def dumps(report: dict) -> str:
+    """JSON text with one top-level key per line (long arrays stay on their line)."""
+    items = [f"  {json.dumps(k)}: {json.dumps(v, separators=(', ', ': '))}"
+             for k, v in report.items()]
+    return "{\n" + ",\n".join(items) + "\n}\n"
+
+
+def write_report(path: str | Path, report: dict) -> None:
+    """Write ``report`` as JSON (atomically)."""
+    write_text(path, dumps(report))
