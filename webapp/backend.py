@@ -127,9 +127,8 @@ def _normalised(x: np.ndarray) -> np.ndarray:
 
 
 def _prepare(body_path: Path, hand_path: Path, side: str, key: tuple) -> Prepared:
-    from engine.splice import pipeline
-
     from engine.io import load_take
+    from engine.splice import pipeline
 
     body = load_take(body_path)
     hand = load_take(hand_path)
@@ -254,11 +253,9 @@ def preview_for(prepared: Prepared, solution: Solution):
 def frame_triplet(prepared: Prepared, solution: Solution, body_frame: int) -> tuple[int, int, int]:
     """(body frame, hand-take frame in its own frame rate, spliced frame) shown together."""
     i = int(np.clip(body_frame, 0, prepared.n - 1))
-    hand_at_body_rate = float(solution.warp[i])
-    scale = float(prepared.hand.fps) / float(prepared.body.fps)
-    hand_frames = getattr(prepared.hand, "n_frames", None) or len(prepared.hand.rotations)
-    j = int(np.clip(round(hand_at_body_rate * scale), 0, hand_frames - 1))
-    return i, j, i
+    hand_map = solution.cache["engine"].map  # frame of the original hand take per body frame
+    last = int(prepared.features.m_hand) - 1
+    return i, int(np.clip(round(float(hand_map[i])), 0, last)), i
 
 
 def render_frame(prepared: Prepared, solution: Solution, body_frame: int, camera: str,

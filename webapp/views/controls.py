@@ -69,9 +69,12 @@ class PointsTable:
         session.param.watch(self._refresh, ["points", "tolerance", "revision"])
 
     def _refresh(self, *_):
+        frame = _points_frame(self.session)
+        if frame.equals(self.table.value):
+            return  # unchanged: do not re-render the table (an open editor would close)
         self._syncing = True
         try:
-            self.table.value = _points_frame(self.session)
+            self.table.value = frame
         finally:
             self._syncing = False
 
