@@ -254,3 +254,30 @@ def test_clear_message_when_no_backend_works(monkeypatch):
         ensure_platform()
     monkeypatch.setattr(backend, "_osmesa_library", lambda: object())
     assert ensure_platform() == "osmesa"
+
+
+def test_z_up_metres_and_y_up_centimetres_render_alike():
+    """The same motion written Y-up in cm and Z-up in m gives the same picture."""
+    from test_mesh import humanoid
+
+    from engine.motion import Motion, MotionMeta, Skeleton
+
+    sk = humanoid()
+    rng = np.random.default_rng(4)
+    n = 3
+    axis = rng.normal(size=(n, sk.n_joints, 3))
+    axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
+    rots = rot.from_axis_angle(axis, rng.uniform(-0.3, 0.3, size=(n, sk.n_joints)))
+    trans = np.broadcast_to(sk.offsets, (n, sk.n_joints, 3)).copy()
+    y_up = Motion(sk, rots, trans, 30.0, MotionMeta(units="cm", up_axis="y"))
+    # Z-up: (x, y, z) -> (x, -z, y), metres; rotations conjugated by the axis change
+    to_z = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
+    q = rot.from_matrix(to_z)
+    sk_z = Skeleton(sk.names, sk.parents, sk.offsets @ to_z.T / 100.0, sk.channels)
+    rots_z = rot.multiply(rot.multiply(q, rots), rot.conjugate(q))
+    z_up = Motion(sk_z, rots_z, trans @ to_z.T / 100.0, 30.0, MotionMeta(units="m", up_axis="z"))
+    with Preview([y_up, z_up], size=(96, 96)) as preview:
+        a = preview.frame(2, take=0, camera="three-quarter")
+        b = preview.frame(2, take=1, camera="three-quarter")
+    assert silhouette(a).sum() > 200
+    assert np.abs(a.astype(int) - b.astype(int)).max() <= 2

@@ -262,11 +262,12 @@ class Preview:
         if hi - lo < 1:
             raise ParameterError(f"trail_range {trail_range}: empty for a take of "
                                  f"{v.n_frames} frames")
-        key = (k, lo, hi, style, id(phases))
-        if key in self._trail_cache:
-            return self._trail_cache[key]
         hands = v.anatomy.hand_joints()
         codes = tr.per_side_phases(phases, list(hands), v.n_frames)
+        key = (k, lo, hi, style, tuple((s, None if c is None else hash(c.tobytes()))
+                                       for s, c in sorted(codes.items())))
+        if key in self._trail_cache:
+            return self._trail_cache[key]
         step = max(1, (hi - lo) // 600)
         idx = np.arange(lo, hi, step)
         radius = 0.006 * max(v.height_m, 0.3) if v.anatomy.kind == "body" else 0.004
