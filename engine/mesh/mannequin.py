@@ -239,11 +239,12 @@ def build_mannequin(skeleton: Skeleton, anatomy: Anatomy | None = None,
         :func:`mannequin_for` does.
     detail : float
         Scales the number of vertices around each tube (1.0: 12 around limbs, 8
-        around phalanges; about 20k triangles for a body with fingers).
+        around phalanges; about 4,300 vertices and 8,400 triangles for a body with
+        fingers).
 
     Returns
     -------
-    SkinnedMesh in the skeleton's rest frame and file units, parts ``body``,
+    SkinnedMesh in the bind pose (world frame, file units), parts ``body``,
     ``head``, ``left_hand``, ``right_hand`` (or ``hand`` for a hand take).
     """
     if skeleton.n_joints < 2:
@@ -569,11 +570,10 @@ def _hand(b: _Builder, skeleton, anatomy: Anatomy, pos, bones: Bones, bone_of, d
     palm = palm_normal(skeleton, pos, hand, hand_dir, across)
 
     # palm: owned by the wrist's bones towards the fingers, or a virtual palm bone
-    palm_len = float(np.linalg.norm(knuckle - pos[w]))
     s = np.linspace(0.0, 1.0, 5)
-    centers = pos[w][None] + (knuckle - pos[w])[None] * (s[:, None] * 1.0 - 0.02)
-    half_a = (0.5 * span + 0.6 * radius) * (0.72 + 0.28 * s)
-    half_b = 0.95 * radius * (1.05 - 0.15 * s) + 0.0 * palm_len
+    centers = pos[w][None] + (knuckle - pos[w])[None] * (s[:, None] - 0.02)
+    half_a = (0.5 * span + 0.6 * radius) * (0.72 + 0.28 * s)  # wider at the knuckles
+    half_b = 0.95 * radius * (1.05 - 0.15 * s)
     v, f, _ = sweep(centers, half_a, half_b, across, n_around=max(12, nar + 2), n_cap=2)
     wrist_bones = [k for (a, c), k in bone_of.items() if a == w or (
         skeleton.parents[w] >= 0 and a in _same_place(skeleton, pos, w))]
@@ -634,7 +634,7 @@ def _hand(b: _Builder, skeleton, anatomy: Anatomy, pos, bones: Bones, bone_of, d
         lengths = {"index": 0.37, "middle": 0.41, "ring": 0.38, "pinky": 0.3}
         offsets = {"index": 0.75, "middle": 0.25, "ring": -0.25, "pinky": -0.75}
         for f in missing:
-            base = knuckle + offsets[f] * (span * 0.95 - 2 * radius) * across * 1.0
+            base = knuckle + offsets[f] * (span * 0.95 - 2 * radius) * across
             length = lengths[f] * lh
             d = hand_dir
             p = base
@@ -654,7 +654,7 @@ def _hand(b: _Builder, skeleton, anatomy: Anatomy, pos, bones: Bones, bone_of, d
                 q = p + frac * lh * d
                 b.capsule(p, q, radius * 1.15 * (1 - 0.08 * level),
                           radius * 1.15 * (0.92 - 0.08 * level - (0.08 if level == 2 else 0)),
-                          palm, PHALANX[level], part, rigid=anchor if anchor != w else w,
+                          palm, PHALANX[level], part, rigid=anchor,
                           n_around=nf, n_along=1, n_cap=2)
                 d = _unit(d + 0.15 * hand_dir)
                 p = q
@@ -665,10 +665,8 @@ def _hand(b: _Builder, skeleton, anatomy: Anatomy, pos, bones: Bones, bone_of, d
     # a hand take: a forearm stub behind the wrist
     if anatomy.kind == "hand":
         back = pos[w] - 1.2 * lh * hand_dir
-        kv = virtual_bone(back, pos[w], w)
-        b.capsule(pos[w], back, 0.9 * radius * 2.1, radius * 2.6, palm, BODY, "body",
+        b.capsule(pos[w], back, 1.9 * radius, 2.6 * radius, palm, BODY, "body",
                   rigid=w, n_around=nar, n_along=2)
-        del kv
     # bones of this hand not drawn as fingers (e.g. a forearm joint at the wrist)
     for (a, c), k in bone_of.items():
         if a in skeleton.descendants(w) and k not in drawn and c in hand.other:
