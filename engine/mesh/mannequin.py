@@ -654,7 +654,7 @@ def _hand(b: _Builder, skeleton, anatomy: Anatomy, pos, bones: Bones, bone_of, d
                 q = p + frac * lh * d
                 b.capsule(p, q, radius * 1.15 * (1 - 0.08 * level),
                           radius * 1.15 * (0.92 - 0.08 * level - (0.08 if level == 2 else 0)),
-                          palm, PHALANX[level], part, rigid=anchor,
+                          palm, PHALANX[level], part, rigid=w,
                           n_around=nf, n_along=1, n_cap=2)
                 d = _unit(d + 0.15 * hand_dir)
                 p = q
