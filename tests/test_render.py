@@ -281,3 +281,15 @@ def test_z_up_metres_and_y_up_centimetres_render_alike():
         b = preview.frame(2, take=1, camera="three-quarter")
     assert silhouette(a).sum() > 200
     assert np.abs(a.astype(int) - b.astype(int)).max() <= 2
+
+
+def test_png_bytes_round_trip(beat_preview):
+    import io
+
+    from PIL import Image
+
+    from engine.render import to_png_bytes
+
+    img = beat_preview.frame(1, size=(40, 30), floor=False)
+    back = np.asarray(Image.open(io.BytesIO(to_png_bytes(img))))
+    assert np.array_equal(back, img)

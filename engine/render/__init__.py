@@ -8,8 +8,15 @@ pyrender/OpenGL: the headless platform is chosen first (``backend.ensure_platfor
 from engine.render.backend import RenderBackendError, ensure_platform
 from engine.render.offscreen import VIEWS, Preview, parse_size
 from engine.render.scene import CAMERAS
-from engine.render.video import contact_sheet, render_to_file, write_gif, write_image, write_mp4
+from engine.render.video import (
+                                 contact_sheet,
+                                 render_to_file,
+                                 to_png_bytes,
+                                 write_gif,
+                                 write_image,
+                                 write_mp4,
+)
 
 __all__ = ["CAMERAS", "VIEWS", "Preview", "RenderBackendError", "contact_sheet",
-           "ensure_platform", "parse_size", "render_to_file", "write_gif", "write_image",
-           "write_mp4"]
+           "ensure_platform", "parse_size", "render_to_file", "to_png_bytes", "write_gif",
+           "write_image", "write_mp4"]

@@ -130,7 +130,10 @@ class Preview:
         overlay_take : whose stick figure ``overlay`` draws (itself if only one take)
         frames : explicit frame per take (side by side, overlay); default by time
         trails : draw both hands' trails over ``trail_range`` (default the whole take)
-        phases : per-frame phases for the trails of this call (see the class)
+        trail_style : ``line`` (a tube) or ``spheres`` (one ball per sample)
+        phases : per-frame phases for the trails of ``take`` in this call (see the
+            class); other panels use the phases given to the constructor
+        floor : draw the floor patch (body takes)
         """
         if view not in VIEWS:
             raise ParameterError(f"view {view!r}: expected one of {', '.join(VIEWS)}")

@@ -43,6 +43,17 @@ def write_image(image: np.ndarray, path: str | Path) -> Path:
     return path
 
 
+def to_png_bytes(image: np.ndarray) -> bytes:
+    """PNG bytes of ``image (H, W, 3) uint8`` (for a web page or a download)."""
+    import io
+
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(_as_frame(image)).save(buf, format="PNG")
+    return buf.getvalue()
+
+
 def contact_sheet(images: Sequence[np.ndarray], columns: int | None = None,
                   labels: Sequence[str] | None = None, gap: int = 4,
                   background: int = 255) -> np.ndarray:
