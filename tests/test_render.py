@@ -248,11 +248,16 @@ def test_clear_message_when_no_backend_works(monkeypatch):
 
     monkeypatch.delenv("PYOPENGL_PLATFORM", raising=False)
     monkeypatch.delitem(sys.modules, "OpenGL", raising=False)
+    monkeypatch.setattr(backend, "_CHOSEN", None)
     monkeypatch.setattr(backend, "_egl_works", lambda: False)
     monkeypatch.setattr(backend, "_osmesa_library", lambda: None)
     with pytest.raises(RenderBackendError, match="apt-get install libegl1"):
         ensure_platform()
     monkeypatch.setattr(backend, "_osmesa_library", lambda: object())
+    assert ensure_platform() == "osmesa"
+    # the Makefile's default egl, on a machine where only OSMesa works: OSMesa
+    monkeypatch.setattr(backend, "_CHOSEN", None)
+    monkeypatch.setenv("PYOPENGL_PLATFORM", "egl")
     assert ensure_platform() == "osmesa"
 
 

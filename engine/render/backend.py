@@ -3,10 +3,10 @@
 PyOpenGL fixes its platform when ``OpenGL`` is first imported, from the
 ``PYOPENGL_PLATFORM`` environment variable, so :func:`ensure_platform` must run
 before anything imports ``pyrender`` or ``OpenGL``; every renderer in this package
-calls it first. When the variable is already set it is respected. Otherwise EGL is
-probed with ``ctypes`` (load ``libEGL``, enumerate devices, initialise a display;
-no OpenGL import), then ``libOSMesa``. When neither works,
-:class:`RenderBackendError` says what to install.
+calls it first. EGL is probed with ``ctypes`` (load ``libEGL``, enumerate devices,
+initialise a display; no OpenGL import), then ``libOSMesa``. A variable already
+set is respected, except an ``egl`` that does not work where OSMesa does. When
+neither works, :class:`RenderBackendError` says what to install.
 
 OSMesa: pyrender's own OSMesa platform needs PyOpenGL >= 3.1.5 (pyrender pins
 3.1.0), so :class:`OSMesaPlatform` creates the core-profile context through
@@ -87,22 +87,32 @@ def _osmesa_library() -> ctypes.CDLL | None:
     return None
 
 
+_CHOSEN: str | None = None
+
+
 def ensure_platform() -> str:
     """Choose and set ``PYOPENGL_PLATFORM`` (``"egl"`` or ``"osmesa"``) and return it.
 
-    Respects a value already set. Raises :class:`RenderBackendError` naming the
-    packages to install when neither EGL nor OSMesa works.
+    A value already set is kept, except ``egl`` when EGL does not work here and
+    OSMesa does (the Makefile and the tests default to ``egl``): then ``osmesa`` is
+    used. Raises :class:`RenderBackendError` naming the packages to install when
+    neither works. Decided once per process.
     """
+    global _CHOSEN
+    if _CHOSEN is not None and os.environ.get("PYOPENGL_PLATFORM", "") == _CHOSEN:
+        return _CHOSEN
     chosen = os.environ.get("PYOPENGL_PLATFORM", "").strip().lower()
-    if chosen:
-        return chosen
     if "OpenGL" in sys.modules:  # too late to choose: PyOpenGL decided already
-        return "default"
+        _CHOSEN = chosen or None
+        return chosen or "default"
+    if chosen and chosen != "egl":
+        _CHOSEN = chosen
+        return chosen
     if _egl_works():
-        os.environ["PYOPENGL_PLATFORM"] = "egl"
+        os.environ["PYOPENGL_PLATFORM"] = _CHOSEN = "egl"
         return "egl"
     if _osmesa_library() is not None:
-        os.environ["PYOPENGL_PLATFORM"] = "osmesa"
+        os.environ["PYOPENGL_PLATFORM"] = _CHOSEN = "osmesa"
         return "osmesa"
     raise RenderBackendError(f"no headless OpenGL: EGL and OSMesa both failed; {_INSTALL_HINT}")
 
