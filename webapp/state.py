@@ -138,12 +138,11 @@ class Session(param.Parameterized):
     def _on_inputs(self, *events) -> None:
         if self._applying:
             return
-        paths = self.take_paths() if (self.sample or (self.body_sha256 and self.hand_sha256)) \
-            else None
-        if paths is None:
+        if not (self.sample or (self.body_sha256 and self.hand_sha256)):
             return
         t0 = time.perf_counter()
         try:
+            paths = self.take_paths()
             prepared = backend.prepare(paths[0], paths[1], self.side)
         except (HandSpliceError, ValueError, KeyError, OSError) as exc:
             self.error = backend.one_line(exc)

@@ -17,16 +17,16 @@ def parameter_widgets(session: Session) -> pn.viewable.Viewable:
         session.param, parameters=["band", "refine_band", "tolerance"], show_name=False,
         widgets={
             "band": {"type": pn.widgets.FloatSlider, "throttled": True,
-                     "name": "Pass-1 band width W1 (fraction of body frames)", "step": 0.01},
+                     "label": "Pass-1 band width W1 (fraction of body frames)", "step": 0.01},
             "refine_band": {"type": pn.widgets.FloatSlider, "throttled": True,
-                            "name": "Pass-2 band width W2 around the pass-1 path", "step": 0.01},
+                            "label": "Pass-2 band width W2 around the pass-1 path", "step": 0.01},
             "tolerance": {"type": pn.widgets.FloatSlider, "throttled": True, "end": 60.0,
-                          "name": "Global tolerance T (frames)", "step": 1.0},
+                          "label": "Global tolerance T (frames)", "step": 1.0},
         },
         sizing_mode="stretch_width", css_classes=["hs-params"],
     )
     matrix = pn.widgets.RadioButtonGroup(
-        name="Matrix", options=MATRIX_CHOICES, value=session.matrix, button_type="default",
+        label="Matrix", options=MATRIX_CHOICES, value=session.matrix, color="default",
         css_classes=["hs-matrix-choice"])
     matrix.link(session, value="matrix")
     session.param.watch(lambda e: setattr(matrix, "value", e.new), ["matrix"])
@@ -62,7 +62,6 @@ class PointsTable:
             text_align={"tolerance": "right"},
             buttons={"delete": '<i class="fa fa-trash" title="delete this point">✕</i>'},
             css_classes=["hs-points"], selectable=False, layout="fit_columns",
-            name="Matching points",
         )
         self.table.on_edit(self._on_edit)
         self.table.on_click(self._on_click)
@@ -138,11 +137,11 @@ def error_alert(session: Session) -> pn.viewable.Viewable:
 
 
 def undo_redo(session: Session) -> pn.viewable.Viewable:
-    undo = pn.widgets.Button(name="↶ Undo", disabled=not session.can_undo, width=90,
+    undo = pn.widgets.Button(label="↶ Undo", disabled=not session.can_undo, width=90,
                              css_classes=["hs-undo"])
-    redo = pn.widgets.Button(name="↷ Redo", disabled=not session.can_redo, width=90,
+    redo = pn.widgets.Button(label="↷ Redo", disabled=not session.can_redo, width=90,
                              css_classes=["hs-redo"])
-    clear = pn.widgets.Button(name="Clear points", width=110, css_classes=["hs-clear"])
+    clear = pn.widgets.Button(label="Clear points", width=110, css_classes=["hs-clear"])
     undo.on_click(lambda e: session.undo())
     redo.on_click(lambda e: session.redo())
     clear.on_click(lambda e: session.set_points([]))

@@ -16,15 +16,15 @@ class InputsView:
         self.session = session
         cfg = session.config
         names = [p.name for p in cfg.samples()]
-        self.sample = pn.widgets.Select(name="Sample pair", options=names,
+        self.sample = pn.widgets.Select(label="Sample pair", options=names,
                                         value=session.sample if session.sample in names else None,
                                         css_classes=["hs-sample"], width=260)
         self.sample.param.watch(self._on_sample, "value")
         limit = f"{cfg.max_upload_bytes / 2**20:.0f} MiB"
         self.body_file = pn.widgets.FileInput(accept=",".join(uploads.EXTENSIONS),
-                                              css_classes=["hs-upload-body"], name="Body take")
+                                              css_classes=["hs-upload-body"], label="Body take")
         self.hand_file = pn.widgets.FileInput(accept=",".join(uploads.EXTENSIONS),
-                                              css_classes=["hs-upload-hand"], name="Hand take")
+                                              css_classes=["hs-upload-hand"], label="Hand take")
         self.body_file.param.watch(lambda e: self._on_upload("body"), "value")
         self.hand_file.param.watch(lambda e: self._on_upload("hand"), "value")
         self.side = pn.widgets.RadioButtonGroup.from_param(session.param.side,

@@ -32,7 +32,7 @@ class PreviewView:
         self.alert = pn.pane.Alert("", alert_type="warning", visible=False,
                                    css_classes=["hs-preview-error"])
         n = max(session.n, 1)
-        self.slider = pn.widgets.IntSlider(name="Body frame", start=0, end=max(n - 1, 1),
+        self.slider = pn.widgets.IntSlider(label="Body frame", start=0, end=max(n - 1, 1),
                                            value=session.frame, css_classes=["hs-frame-slider"],
                                            sizing_mode="stretch_width")
         self.player = pn.widgets.Player(start=0, end=max(n - 1, 1), value=session.frame,
@@ -40,12 +40,12 @@ class PreviewView:
                                         width=360, css_classes=["hs-player"], step=2,
                                         visible_buttons=["previous", "reverse", "pause", "play",
                                                          "next"])
-        self.camera = pn.widgets.Select(name="Camera", options=["three-quarter", "front", "side"],
+        self.camera = pn.widgets.Select(label="Camera", options=["three-quarter", "front", "side"],
                                         value="three-quarter", width=150)
-        self.trails = pn.widgets.Checkbox(name="Hand trails", value=False, width=110)
-        self.render_button = pn.widgets.Button(name="Render", button_type="primary", width=90,
+        self.trails = pn.widgets.Checkbox(label="Hand trails", value=False, width=110)
+        self.render_button = pn.widgets.Button(label="Render", color="primary", width=90,
                                                css_classes=["hs-render"])
-        self.auto = pn.widgets.Checkbox(name="Follow edits", value=True, width=110)
+        self.auto = pn.widgets.Checkbox(label="Follow edits", value=True, width=110)
         self.slider.param.watch(self._on_slider, "value_throttled")
         self.player.param.watch(lambda e: setattr(session, "frame", int(e.new)), "value")
         session.param.watch(self._on_frame, ["frame"])

@@ -25,7 +25,7 @@ class SharingView:
         self.message = pn.pane.Alert("", alert_type="danger", visible=False,
                                      css_classes=["hs-share-error"])
         self.bvh = pn.widgets.FileDownload(callback=self._bvh, filename="spliced.bvh",
-                                           label="Spliced BVH", button_type="primary",
+                                           label="Spliced BVH", color="primary",
                                            css_classes=["hs-download-bvh"], width=160)
         self.session_file = pn.widgets.FileDownload(
             callback=self._session_json, filename="handsplice-session.json",
@@ -36,7 +36,7 @@ class SharingView:
         self.mp4 = pn.widgets.FileDownload(callback=self._mp4, filename="preview.mp4",
                                            label="Preview MP4", css_classes=["hs-download-mp4"],
                                            width=160)
-        self.link = pn.widgets.TextInput(name="Link to this session", value="",
+        self.link = pn.widgets.TextInput(label="Link to this session", value="",
                                          css_classes=["hs-share-url"], disabled=False)
         session.param.watch(self._update_link, ["revision", "inputs_revision", "matrix"])
         self._update_link()

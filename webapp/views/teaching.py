@@ -187,12 +187,12 @@ class TeachingView:
         self.band_note = pn.pane.HTML("", styles={"font-size": "13px", "color": "#333"})
         self.alert = pn.pane.Alert("", alert_type="warning", visible=False)
         self.buttons = {
-            "reset": pn.widgets.Button(name="Reset", width=80),
-            "back": pn.widgets.Button(name="Back", width=80),
-            "step": pn.widgets.Button(name="Step", button_type="primary", width=80,
+            "reset": pn.widgets.Button(label="Reset", width=80),
+            "back": pn.widgets.Button(label="Back", width=80),
+            "step": pn.widgets.Button(label="Step", color="primary", width=80,
                                       css_classes=["hs-teach-step"]),
-            "row": pn.widgets.Button(name="Next row", width=90),
-            "end": pn.widgets.Button(name="Finish", width=80),
+            "row": pn.widgets.Button(label="Next row", width=90),
+            "end": pn.widgets.Button(label="Finish", width=80),
         }
         self.buttons["reset"].on_click(lambda e: setattr(mdl, "step", 0))
         self.buttons["back"].on_click(lambda e: setattr(mdl, "step", max(mdl.step - 1, 0)))
@@ -310,14 +310,14 @@ class TeachingView:
     def panel(self) -> pn.viewable.Viewable:
         mdl = self.model
         controls = pn.Column(
-            pn.widgets.RadioButtonGroup.from_param(mdl.param.metric, name="Local cost"),
-            pn.widgets.FloatSlider.from_param(mdl.param.width, name="Band width W (fraction of n)"),
-            pn.widgets.Checkbox.from_param(mdl.param.use_point, name="Matching point"),
-            pn.Row(pn.widgets.IntSlider.from_param(mdl.param.point_body, name="body frame x",
+            pn.widgets.RadioButtonGroup.from_param(mdl.param.metric, label="Local cost"),
+            pn.widgets.FloatSlider.from_param(mdl.param.width, label="Band width W (fraction of n)"),
+            pn.widgets.Checkbox.from_param(mdl.param.use_point, label="Matching point"),
+            pn.Row(pn.widgets.IntSlider.from_param(mdl.param.point_body, label="body frame x",
                                                    width=130),
-                   pn.widgets.IntSlider.from_param(mdl.param.point_hand, name="hand frame y",
+                   pn.widgets.IntSlider.from_param(mdl.param.point_hand, label="hand frame y",
                                                    width=130),
-                   pn.widgets.IntSlider.from_param(mdl.param.point_tol, name="tolerance T",
+                   pn.widgets.IntSlider.from_param(mdl.param.point_tol, label="tolerance T",
                                                    width=110)),
             pn.Row(*self.buttons.values()),
             self.equation, self.band_note, self.alert, width=480, sizing_mode="fixed")

@@ -1,0 +1,249 @@
+"""The app's session state without a browser: set parameters, assert results."""
+
+from __future__ import annotations
+
+from urllib.parse import parse_qsl, urlsplit
+
+import numpy as np
+import pytest
+
+from engine.io.session import MatchPoint, SessionError
+from webapp import backend, config, uploads
+from webapp.state import Session
+
+DEMO = "wave-hello"
+
+
+@pytest.fixture(scope="module")
+def cfg(sample_dir, tmp_path_factory) -> config.AppConfig:
+    return config.AppConfig(sample_dir=sample_dir.resolve(),
+                            upload_dir=tmp_path_factory.mktemp("uploads"),
+                            default_sample=DEMO, max_upload_bytes=2 * 1024 * 1024)
+
+
+@pytest.fixture
+def session(cfg) -> Session:
+    s = Session(cfg)
+    s.load_sample(DEMO)
+    assert s.error == ""
+    return s
+
+
+def _path_hits(path: np.ndarray, x: int, y: int, tol: float) -> bool:
+    cols = path[path[:, 0] == x, 1]
+    return bool(cols.size) and bool(np.all(np.abs(cols - y) <= tol))
+
+
+def test_samples_json_lists_the_demo_pair(cfg):
+    names = [p.name for p in cfg.samples()]
+    assert DEMO in names
+    assert config.demo_sample_name(cfg.sample_dir) == DEMO
+    pair = cfg.sample(DEMO)
+    assert pair.body.is_file() and pair.hand.is_file()
+    with pytest.raises(KeyError, match="known: .*wave-hello"):
+        cfg.sample("nope")
+
+
+def test_loading_the_demo_pair_solves_both_passes(session):
+    sol = session.solution
+    assert session.n == sol.pass1.band.n and session.m == sol.pass1.band.m
+    assert sol.pass1.path[0].tolist() == [0, 0]
+    assert sol.pass1.path[-1].tolist() == [session.n - 1, session.m - 1]
+    assert sol.pass2.band_cells < sol.pass1.band_cells  # pass 2 searches a narrower band
+    assert sol.warp.shape == (session.n,)
+    text = session.status_text()
+    assert "pass 1 cost" in text and "band" in text and "ms" in text
+    assert session.revision >= 1
+
+
+def test_band_width_changes_band_and_is_undoable(session):
+    cells = session.solution.pass1.band_cells
+    session.band = 0.15
+    assert session.solution.pass1.band_cells < cells
+    assert session.can_undo
+    session.undo()
+    assert session.band == 0.3 and session.solution.pass1.band_cells == cells
+    session.redo()
+    assert session.band == 0.15
+
+
+def test_matching_point_with_tolerance_reshapes_search_and_path(session):
+    n, m = session.n, session.m
+    x, y = n // 2, m // 4  # well off the diagonal
+    before = session.solution.pass1.path
+    session.add_point(x, y, 0)
+    sol = session.solution
+    assert _path_hits(sol.pass1.path, x, y, 0)
+    assert _path_hits(sol.pass2.path, x, y, 0)  # carried over to pass 2
+    assert not np.array_equal(before, sol.pass1.path)
+    # a tolerance loosens the constraint: the band at row x widens to y +- tol
+    session.set_point_tolerance(0, 4)
+    band = session.solution.pass1.band
+    assert band.lo[x] >= y - 4 and band.hi[x] <= y + 4 and band.hi[x] - band.lo[x] > 0
+    assert _path_hits(session.solution.pass1.path, x, y, 4)
+    # the global tolerance applies to points without their own
+    session.set_point_tolerance(0, None)
+    session.tolerance = 2
+    assert session.constraint_points() == [(x, y, 2.0)]
+    assert _path_hits(session.solution.pass1.path, x, y, 2)
+
+
+def test_infeasible_points_are_rejected_and_leave_state_alone(session):
+    session.add_point(40, 20, 0)
+    rev, points, undo = session.revision, session.points, session.can_undo
+    session.add_point(60, 10, 0)  # after (40, 20) in body frames but before it in hand frames
+    assert "points[1]" in session.error
+    assert session.points == points and session.revision == rev and session.can_undo == undo
+    session.add_point(session.n + 5, session.m - 1, 0)
+    assert "outside" in session.error and session.points == points
+
+
+def test_view_edits_round_clip_and_sort(session):
+    assert session.set_points_from_view([(80.4, 30.6, float("nan")), (20.2, 5.1, 3.0)])
+    assert session.points == (MatchPoint(20, 5, 3.0), MatchPoint(80, 31))
+    # dragged past the matrix edge: clipped to the last row; crossing the other point: refused
+    assert not session.set_points_from_view([(20, 5, 3.0), (1e9, 2, None)])
+    assert session.points == (MatchPoint(20, 5, 3.0), MatchPoint(80, 31))
+    assert f"({session.n - 1}, 2)" in session.error
+
+
+def test_undo_redo_across_points_and_parameters(session):
+    session.add_point(50, 20)
+    session.move_point(0, 60, 25)
+    session.tolerance = 3
+    session.delete_point(0)
+    assert session.points == ()
+    assert session.undo() and session.points == (MatchPoint(60, 25),)
+    assert session.undo() and session.tolerance == 0
+    assert session.undo() and session.points == (MatchPoint(50, 20),)
+    assert session.redo() and session.points == (MatchPoint(60, 25),)
+    session.band = 0.2  # a new edit clears the redo stack
+    assert not session.can_redo and not session.redo()
+
+
+def test_json_round_trip_restores_the_same_alignment(session, cfg):
+    session.add_point(70, 30, 2)
+    session.refine_band = 0.05
+    text = session.to_json()
+    other = Session(cfg)
+    other.from_json(text, source="s.json")
+    assert other.points == session.points and other.refine_band == 0.05
+    assert other.solution.pass1.cost == pytest.approx(session.solution.pass1.cost)
+    assert np.array_equal(other.solution.pass2.path, session.solution.pass2.path)
+    with pytest.raises(SessionError, match="s.json: points"):
+        other.from_json('{"points": [{"body": 5}]}', source="s.json")
+
+
+def test_url_round_trip_restores_the_state(session, cfg):
+    session.add_point(90, 40, 1.5)
+    session.tolerance = 2
+    session.matrix = "pass2"
+    url = session.share_url("http://127.0.0.1:5006/")
+    query = dict(parse_qsl(urlsplit(url).query))
+    assert query["sample"] == DEMO and query["pts"] == "90:40:1.5"
+    other = Session(cfg)
+    other.from_query(query)
+    assert other.to_spec() == session.to_spec()
+    assert other.solution.pass1.cost == pytest.approx(session.solution.pass1.cost)
+
+
+def test_two_sessions_are_independent(cfg):
+    a, b = Session(cfg), Session(cfg)
+    a.load_sample(DEMO)
+    b.load_sample(DEMO)
+    assert a.prepared is b.prepared  # the per-pair features are shared, read-only
+    a.add_point(60, 20, 0)
+    a.band = 0.2
+    assert b.points == () and b.band == 0.3
+    assert b.solution is not a.solution
+    assert not _path_hits(b.solution.pass1.path, 60, 20, 0) or \
+        _path_hits(a.solution.pass1.path, 60, 20, 0)
+    b.undo()  # nothing to undo in b
+    assert a.points == (MatchPoint(60, 20, 0),)
+
+
+def test_cost_views_at_screen_resolution_and_full_detail(session):
+    n, m = session.n, session.m
+    full = session.cost_view((-0.5, n - 0.5, -0.5, m - 0.5), 600)
+    assert full.stride == (1, 1) and full.image.shape == (n, m)
+    assert np.all(np.isfinite(full.image))
+    coarse = session.cost_view((-0.5, n - 0.5, -0.5, m - 0.5), 40)
+    assert coarse.stride[0] > 1 and coarse.image.shape[0] <= 40 and coarse.image.shape[1] <= 40
+    zoom = session.cost_view((50, 70, 10, 20), 40)  # zoomed in: every cell again
+    assert zoom.stride == (1, 1) and zoom.x0 == 50 and zoom.image.shape == (zoom.x1 - 50,
+                                                                           zoom.y1 - zoom.y0)
+    assert np.allclose(zoom.image, full.image[50:zoom.x1, zoom.y0:zoom.y1])
+    session.matrix = "cumulative1"
+    cum = session.cost_view((-0.5, n - 0.5, -0.5, m - 0.5), 600).image
+    band = session.solution.pass1.band
+    assert np.isnan(cum[0, band.hi[0] + 1:]).all() and np.isfinite(cum[n - 1, m - 1])
+    assert cum[n - 1, m - 1] == pytest.approx(session.solution.pass1.cost)
+
+
+def test_spliced_take_and_downloads(session):
+    session.add_point(90, 40, 2)
+    motion = session.spliced()
+    assert motion.rotations.shape[0] == session.n
+    bvh = backend.bvh_bytes(motion).decode()
+    assert bvh.startswith("HIERARCHY") and "MOTION" in bvh
+    assert session.output_stem() == f"{DEMO}-spliced"
+    i, j, k = backend.frame_triplet(session.prepared, session.solution, 90)
+    assert i == k == 90 and 0 <= j < session.prepared.features.m_hand
+
+
+def test_uploads_store_by_hash_and_reject_bad_files(cfg, sample_dir, session):
+    pair = cfg.sample(DEMO)
+    data = pair.body.read_bytes()
+    digest, take = uploads.store(cfg, "my body.bvh", data)
+    assert digest == uploads.sha256(data) and uploads.path_for(cfg, digest).is_file()
+    assert take.rotations.shape[0] == session.n
+    with pytest.raises(uploads.UploadError, match=r"broken\.bvh.*line"):
+        uploads.store(cfg, "broken.bvh", b"HIERARCHY\nROOT Hips\n{\n OFFSET 0 0\n")
+    with pytest.raises(uploads.UploadError, match="upload limit"):
+        uploads.store(cfg, "big.bvh", b"x" * (cfg.max_upload_bytes + 1))
+    with pytest.raises(uploads.UploadError, match=r"\.bvh, \.c3d or \.trc"):
+        uploads.store(cfg, "notes.txt", b"hello")
+    with pytest.raises(uploads.UploadError, match="empty"):
+        uploads.store(cfg, "empty.trc", b"")
+    for bad in ("../../etc/passwd", "ab" * 31, "AB" * 32):
+        with pytest.raises(uploads.UploadError, match="64-digit hex"):
+            uploads.path_for(cfg, bad)
+    assert not list(cfg.upload_dir.glob(".check-*"))  # no staging files left behind
+
+
+def test_session_on_uploaded_files(cfg):
+    pair = cfg.sample(DEMO)
+    body, _ = uploads.store(cfg, "body.bvh", pair.body.read_bytes())
+    hand, _ = uploads.store(cfg, "hand.bvh", pair.hand.read_bytes())
+    s = Session(cfg)
+    s.load_uploads(body, hand, "body.bvh", "hand.bvh")
+    assert s.error == "" and s.solution is not None
+    query = s.to_query()
+    assert query["body"] == body and "sample" not in query
+    other = Session(cfg)
+    other.from_query(query)
+    assert other.solution.pass1.cost == pytest.approx(s.solution.pass1.cost)
+    missing = Session(cfg)
+    missing.from_query({"body": "0" * 64, "hand": hand})
+    assert "no such file" in missing.error and missing.solution is None
+
+
+def test_session_json_with_paths_is_refused_by_the_app(cfg):
+    s = Session(cfg)
+    with pytest.raises(SessionError, match="inputs.body"):
+        s.from_json('{"inputs": {"body": {"path": "/etc/passwd"}, "hand": {"path": "x"}}}')
+
+
+def test_create_app_builds_a_page_with_the_css_hooks(cfg, monkeypatch):
+    from bokeh.document import Document
+
+    from webapp import app
+
+    monkeypatch.setattr(config, "_CONFIG", cfg)
+    page = app.create_app()
+    assert page.session.sample == DEMO and page.session.solution is not None
+    root = page.get_root(Document())
+    classes = set()
+    for model in root.references():
+        classes.update(getattr(model, "css_classes", None) or [])
+    assert {"hs-cost-matrix", "hs-status", "hs-points"} <= classes
