@@ -298,3 +298,13 @@ def test_png_bytes_round_trip(beat_preview):
     img = beat_preview.frame(1, size=(40, 30), floor=False)
     back = np.asarray(Image.open(io.BytesIO(to_png_bytes(img))))
     assert np.array_equal(back, img)
+
+
+def test_hands_camera_is_a_close_up(beat_preview, beat):
+    sk = beat.skeleton
+    wrists = beat_preview.joint_positions(20)[[sk.index("right_wrist"), sk.index("left_wrist")]]
+    near = beat_preview.project(wrists, 20, camera="hands")
+    far = beat_preview.project(wrists, 20, camera="front")
+    assert np.linalg.norm(near[0] - near[1]) > 1.8 * np.linalg.norm(far[0] - far[1])
+    assert np.all((near > 0) & (near < [160, 120]))  # both hands in the picture
+    assert silhouette(beat_preview.frame(20, camera="hands", floor=False)).mean() > 0.1

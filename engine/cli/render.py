@@ -4,7 +4,7 @@
 
     handsplice render FILE -o OUT.{png,gif,mp4} [--frames A:B] [--frame N]
         [--compare OTHER.bvh] [--view single|side-by-side|overlay] [--trails]
-        [--size WxH] [--camera front|side|three-quarter] [--fps F]
+        [--size WxH] [--camera front|side|three-quarter|hands] [--fps F]
         [--roles MAP.json] [--side right|left]
 
 * ``.png``: one frame (``--frame N``, default 0), or with ``--frames A:B`` a contact
@@ -44,7 +44,9 @@ def add_parser(subparsers) -> None:
     p.add_argument("--trails", action="store_true",
                    help="draw both hands' trails, coloured by gesture phase")
     p.add_argument("--size", default="640x480", metavar="WxH", help="pixels (default 640x480)")
-    p.add_argument("--camera", default="three-quarter", choices=("front", "side", "three-quarter"))
+    p.add_argument("--camera", default="three-quarter",
+                   choices=("front", "side", "three-quarter", "hands"),
+                   help="view direction; hands: a close-up of both hands")
     p.add_argument("--fps", type=float, help="frame rate of a .gif/.mp4 (default the take's, "
                                             "at most 30)")
     p.add_argument("--roles", metavar="MAP.json", help="joint-role overrides for FILE")

@@ -13,7 +13,8 @@ auto-framed camera; frames matched by time unless given), ``overlay`` (the stick
 figure of ``overlay_take`` drawn over the skinned ``take``, in the same space;
 where the sticks are hidden behind the skin they show through at half strength,
 Heloir et al.'s re-creation check). Cameras: ``front``, ``side``,
-``three-quarter`` (see :mod:`engine.render.scene`).
+``three-quarter`` and ``hands`` (a close-up that keeps both hands in view; see
+:mod:`engine.render.scene`).
 
 One OpenGL renderer per process is created lazily and reused by every
 ``Preview`` (resized on demand, :func:`engine.render.backend.shared_renderer`);
@@ -125,7 +126,7 @@ class Preview:
         """Render frame ``i`` (of take 0, or of ``take``) as ``(H, W, 3) uint8``.
 
         view : ``single`` | ``side_by_side`` | ``overlay``
-        camera : ``front`` | ``side`` | ``three-quarter``
+        camera : ``front`` | ``side`` | ``three-quarter`` | ``hands`` (close-up)
         take : the skinned take of ``single`` and ``overlay``
         overlay_take : whose stick figure ``overlay`` draws (itself if only one take)
         frames : explicit frame per take (side by side, overlay); default by time

@@ -27,9 +27,11 @@ from engine.mesh.mannequin import build_mannequin
 from engine.mesh.skinning import SkinnedMesh
 from engine.motion import Motion
 
-CAMERAS = ("front", "side", "three-quarter")
-# camera direction per name: (azimuth towards the character's right, elevation), degrees
-_CAMERA_ANGLES = {"front": (0.0, 8.0), "side": (90.0, 5.0), "three-quarter": (40.0, 14.0)}
+CAMERAS = ("front", "side", "three-quarter", "hands")
+# camera direction per name: (azimuth towards the character's right, elevation), degrees;
+# "hands" is a close-up from the front that keeps both hands in view
+_CAMERA_ANGLES = {"front": (0.0, 8.0), "side": (90.0, 5.0), "three-quarter": (40.0, 14.0),
+                  "hands": (15.0, 18.0)}
 _Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
 
@@ -86,6 +88,8 @@ class TakeView:
     floor_y: float | None
     label: str = ""
     _visible: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    hand_targets: np.ndarray | None = None
+    hand_radius: float = 0.0
 
     @classmethod
     def from_motion(cls, motion: Motion, mesh: SkinnedMesh | None = None,
@@ -163,6 +167,15 @@ class TakeView:
             radii.append(0.5 * np.linalg.norm(vhi - vlo))
             lowest.append(vlo[1])
         view.targets = targets + np.median(offsets, axis=0)
+        # the hands' close-up: centre and size of the hands' joints (wrists and fingers)
+        hand_joints = sorted({d for h in anatomy.hands.values()
+                              for d in motion.skeleton.descendants(h.wrist)})
+        if anatomy.kind == "body" and hand_joints:
+            hp = disp[:, hand_joints]
+            h_lo, h_hi = hp.min(axis=1), hp.max(axis=1)
+            view.hand_targets = _moving_average(0.5 * (h_lo + h_hi), win)
+            view.hand_radius = float(np.percentile(0.5 * np.linalg.norm(h_hi - h_lo, axis=1), 90)
+                                     + 0.9 * anatomy.hand_length * scale)
         view.radius = float(max(radius - margin, np.percentile(radii, 95)) * 1.04)
         if anatomy.kind == "body":
             view.floor_y = float(min(lowest))
@@ -192,7 +205,10 @@ class TakeView:
 
     def camera_pose(self, i: int, camera: str, aspect: float, yfov: float
                     ) -> np.ndarray:
-        """4x4 pose of the camera ``camera`` (front, side, three-quarter) at frame ``i``."""
+        """4x4 pose of the camera ``camera`` (front, side, three-quarter, hands) at frame ``i``.
+
+        ``hands`` frames both hands' joints (a hand take: the whole take, as ``front``
+        at a slight angle)."""
         if camera not in _CAMERA_ANGLES:
             raise ValueError(f"camera {camera!r}: expected one of {', '.join(CAMERAS)}")
         i = self.check_frame(i)
@@ -200,8 +216,11 @@ class TakeView:
         horizontal = np.cos(az) * self.facing + np.sin(az) * self.right
         direction = np.cos(el) * horizontal + np.sin(el) * self.view_up
         half = 0.5 * min(yfov, 2 * np.arctan(np.tan(0.5 * yfov) * aspect))
-        dist = self.radius / np.sin(half) * 1.02
-        target = self.targets[i]
+        if camera == "hands" and self.hand_targets is not None:
+            radius, target = self.hand_radius, self.hand_targets[i]
+        else:
+            radius, target = self.radius, self.targets[i]
+        dist = radius / np.sin(half) * 1.02
         return look_at(target + dist * direction, target, self.view_up)
 
 
