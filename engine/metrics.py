@@ -160,9 +160,11 @@ def dead_zone(velocity: np.ndarray, acceleration: np.ndarray, relative: float = 
 def sign_dead_zone(x: np.ndarray, eps: float) -> np.ndarray:
     """``sgn_ε(x)``: 0 where ``|x| < eps`` else the sign, as int8."""
     x = np.asarray(x, dtype=float)
-    out = np.sign(x).astype(np.int8)
-    out[np.abs(x) < eps] = 0
-    out[~np.isfinite(x)] = 0
+    out = np.zeros(x.shape, dtype=np.int8)
+    out[x >= eps] = 1
+    out[x <= -eps] = -1
+    if eps <= 0:  # no dead zone: exact zeros still read 0
+        out[x == 0] = 0
     return out
 
 

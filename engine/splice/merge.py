@@ -8,7 +8,8 @@ was captured). The medians are non-decreasing because the path is monotone.
 
 Where ``w`` jumps (a run of body frames mapped to one hand frame, then a jump),
 the jump is blended over a window: ``w`` is smoothed with a Gaussian of
-``blend`` frames (standard deviation), which keeps it non-decreasing. The hand
+``blend`` frames (standard deviation), which keeps it non-decreasing (the ends are
+padded by point reflection, so a steady rate stays exactly steady up to the ends). The hand
 take is then sampled at ``w(i)`` with slerp between the two nearest hand frames
 (:func:`engine.kinematics.sample`), so rotations are blended along the arc.
 """
@@ -57,7 +58,13 @@ def smooth_warp(warp: np.ndarray, blend: float = BLEND_FRAMES, m: int | None = N
     if blend < 0 or not np.isfinite(blend):
         raise ParameterError(f"merge: blend must be >= 0 frames, got {blend}")
     if blend > 0 and len(w) > 1:
-        w = gaussian_filter1d(w, blend, mode="nearest")
+        # point reflection at both ends keeps straight stretches straight (no pull toward
+        # the end values, which plain edge padding would add) and keeps w non-decreasing
+        k = min(len(w) - 1, int(np.ceil(4 * blend)))
+        head = 2 * w[0] - w[1:k + 1][::-1]
+        tail = 2 * w[-1] - w[-k - 1:-1][::-1]
+        padded = np.concatenate([head, w, tail])
+        w = gaussian_filter1d(padded, blend, mode="nearest")[k:k + len(w)]
     w = np.maximum.accumulate(w)
     if m is not None:
         w = np.clip(w, 0.0, m - 1)

@@ -1,4 +1,7 @@
-"""Splice test bench: real captures split into a body take and a hand take with known truth.
+"""Split real captures into a body take and a hand take with known truth (the splice test bench).
+
+Used by ``benchmarks/bench_splice_accuracy.py`` and the tests; also a way to see the
+method work on a pair whose answer is known.
 
 Two families of cases (``make_case``):
 
@@ -21,6 +24,7 @@ Everything random comes from ``numpy.random.Generator(seed)``.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -34,7 +38,9 @@ from engine.kinematics import forward_kinematics, rest_positions, sample
 from engine.motion import Motion, Skeleton
 from engine.roles import FINGERS, find_roles
 
-MOCAP = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "mocap"
+#: the shared real captures (``HANDSPLICE_MOCAP`` overrides), as tests/conftest.py finds them
+MOCAP = Path(os.environ.get("HANDSPLICE_MOCAP",
+                            Path(__file__).resolve().parents[2].parent / "shared" / "data" / "mocap"))
 BEAT = "beat/1_wayne_0_1_1.bvh"
 BANDAI = ["bandai-namco/dataset-2_wave-both-hands_normal_001.bvh",
           "bandai-namco/dataset-1_call_normal_001.bvh",
@@ -285,20 +291,25 @@ def make_hand_take(full: Motion, rng: np.random.Generator, fps: float, scale: fl
     return hand, hand_t, orig_t
 
 
-def make_case(family: str, seed: int, crop_s: float = 20.0) -> Case:
-    """One seeded case of ``family`` (``"beat"``, ``"bandai"`` or ``"lafan1"``)."""
+def make_case(family: str, seed: int, crop_s: float = 20.0, mocap: str | Path | None = None
+              ) -> Case:
+    """One seeded case of ``family`` (``"beat"``, ``"bandai"`` or ``"lafan1"``).
+
+    ``mocap`` is the folder of real captures (default :data:`MOCAP`).
+    """
     rng = np.random.default_rng(seed)
+    root = Path(mocap) if mocap is not None else MOCAP
     if family == "beat":
-        full = read_bvh(MOCAP / BEAT)
+        full = read_bvh(root / BEAT)
         name = f"beat/{seed}"
     elif family == "bandai":
         path = BANDAI[seed % len(BANDAI)]
-        base = read_bvh(MOCAP / path)
+        base = read_bvh(root / path)
         full = add_fingers(base, rng)
         name = f"{Path(path).stem}/{seed}"
     elif family == "lafan1":
         path = LAFAN[seed % len(LAFAN)]
-        base = read_bvh(MOCAP / path)
+        base = read_bvh(root / path)
         n = int(crop_s * base.fps)
         start = int(rng.integers(0, base.n_frames - n))
         base = base.frames(start, start + n)

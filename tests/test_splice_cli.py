@@ -1,0 +1,72 @@
+"""``handsplice splice``: output, report, progress, and one-line errors with exit status 2."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from conftest import MOCAP
+
+from engine.cli import main
+from engine.io.bvh import read_bvh
+from engine.roles import find_roles
+
+BODY = MOCAP / "bandai-namco/dataset-2_wave-right-hand_normal_001.bvh"
+HAND = MOCAP / "gestification/hello-world.bvh"
+
+
+def test_splice_writes_bvh_report_and_progress(tmp_path, capsys):
+    out, rep = tmp_path / "out.bvh", tmp_path / "r.json"
+    code = main(["splice", str(BODY), str(HAND), "-o", str(out), "--report", str(rep),
+                 "--match", "60:40:3", "--band", "0.4", "--refine-band", "0.15"])
+    assert code == 0
+    err = capsys.readouterr().err
+    assert "pass 1" in err and "pass 2" in err and f"wrote {out}" in err
+    motion = read_bvh(out)
+    assert motion.n_frames == read_bvh(BODY).n_frames
+    assert find_roles(motion.skeleton).side("right").has_fingers
+    report = json.loads(rep.read_text())
+    assert len(report["map"]) == motion.n_frames
+    assert report["parameters"]["points_given"] == [[60, 40, 3.0]]
+    assert report["parameters"]["band"] == 0.4 and report["parameters"]["refine_band"] == 0.15
+    # the matching point holds in hand-take frames: body 60 -> hand 40 +- 3 (+ smoothing)
+    assert abs(report["map"][60] - 40) <= 4
+
+
+def test_quiet_prints_nothing(tmp_path, capsys):
+    assert main(["splice", str(BODY), str(HAND), "-o", str(tmp_path / "o.bvh"), "--quiet"]) == 0
+    assert capsys.readouterr().err == ""
+
+
+def test_roles_file_maps_an_unusual_name(tmp_path):
+    roles = tmp_path / "roles.json"
+    roles.write_text(json.dumps({"body": {"right.wrist": "Hand_R"}}))
+    assert main(["splice", str(BODY), str(HAND), "-o", str(tmp_path / "o.bvh"), "--quiet",
+                 "--roles", str(roles)]) == 0
+
+
+@pytest.mark.parametrize("args,message", [
+    (["{body}", str(MOCAP / "lafan1/dance1_subject1.bvh")], "no finger joints"),
+    (["{body}", str(MOCAP / "pyomeca/markers.trc")], "holds markers"),
+    ([str(MOCAP / "pyomeca/markers_analogs.c3d"), str(HAND)], "holds markers"),
+    (["{body}", "{hand}", "--side", "left"], "no left hand"),
+    (["{body}", "{hand}", "--match", "12"], "BODY_FRAME:HAND_FRAME"),
+    (["{body}", "{hand}", "--match", "a:b"], "whole numbers"),
+    (["{body}", "{hand}", "--match", "5000:3"], "past the body take"),
+    (["{body}", "{hand}", "--match", "50:40", "--match", "40:60"], "out of order"),
+    (["{body}", "{hand}", "--band", "-1"], "--band"),
+    (["{body}", "{hand}", "--preview", "x.txt"], "--preview"),
+    (["{body}", "/nonexistent/take.bvh"], "take.bvh"),
+])
+def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, args, message):
+    argv = ["splice"] + [a.format(body=BODY, hand=HAND) for a in args] + \
+        ["-o", str(tmp_path / "o.bvh"), "--quiet"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("handsplice: error:") and message in err[0]
+    assert not (tmp_path / "o.bvh").exists()
+
+
+def test_output_must_be_bvh(tmp_path, capsys):
+    assert main(["splice", str(BODY), str(HAND), "-o", str(tmp_path / "o.fbx")]) == 2
+    assert ".bvh" in capsys.readouterr().err
