@@ -39,6 +39,9 @@ VIEWS = ("single", "side_by_side", "overlay")
 BACKGROUND = (0.96, 0.96, 0.97)
 YFOV = np.radians(35.0)
 MAX_SIZE = 4096
+# directional lights fixed to the camera: ((pitch, yaw) degrees, intensity)
+LIGHTS = (((-40.0, -30.0), 3.2), ((-10.0, 50.0), 1.3), ((60.0, 170.0), 1.0))
+FLOOR_RADIUS = 0.8  # floor patch radius in body heights (at least ~1 framing radius)
 
 
 def parse_size(size) -> tuple[int, int]:
@@ -253,7 +256,7 @@ class Preview:
         v = self.views[k]
         if v.floor_y is None:
             return None
-        radius = max(1.1 * v.height_m, 1.4 * v.radius)
+        radius = max(FLOOR_RADIUS * v.height_m, 1.4 * v.radius * FLOOR_RADIUS / 1.1)
         verts, faces, colors = floor_mesh_arrays(v.targets[i], radius, v.floor_y - 1e-3,
                                                  tile=0.5 * max(v.height_m / 1.75, 0.2))
         normals = np.tile([0.0, 1.0, 0.0], (len(verts), 1))
@@ -323,8 +326,7 @@ class Preview:
             scene.add(pyrender.PerspectiveCamera(yfov=YFOV, aspectRatio=width / height,
                                                  znear=0.02 * v.radius, zfar=60.0 * v.radius),
                       pose=cam_pose)
-            for angles, power in (((-40.0, -30.0), 3.2), ((-10.0, 50.0), 1.3),
-                                  ((60.0, 170.0), 1.0)):
+            for angles, power in LIGHTS:
                 scene.add(pyrender.DirectionalLight(color=np.ones(3), intensity=power),
                           pose=cam_pose @ _rotation(*angles))
             renderer = self._get_renderer(width, height)
