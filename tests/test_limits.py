@@ -9,6 +9,7 @@ requests are served, and each must lie inside those folders (or be Python code).
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import struct
 import sys
@@ -279,6 +280,8 @@ def recorded_opens():
 def _outside(paths: list[str], allowed: list[Path]) -> list[str]:
     code = [Path(sys.prefix).resolve(), Path(sys.base_prefix).resolve(), ROOT / "engine",
             ROOT / "webapp"]
+    if os.environ.get("NUMBA_CACHE_DIR"):  # numba's compiled-kernel cache (cold on a fresh clone)
+        code.append(Path(os.environ["NUMBA_CACHE_DIR"]).resolve())
     out = []
     for p in paths:
         if p.startswith(("/proc/", "/sys/", "/dev/")) or p.endswith(".__path_hook__"):

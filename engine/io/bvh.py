@@ -402,6 +402,8 @@ def _parse_motion(lines: list[str], motion_line: int, skeleton: Skeleton, where:
     fps = _snap_fps(1.0 / frame_time)
     first_data = i + 1
 
+    if n_values == 0:  # no channels at all: data rows are empty lines, the pose is the rest pose
+        return fps, np.zeros((n_frames, 0))
     # data rows: every non-blank line after Frame Time
     row_lines = [k for k in range(first_data, len(lines)) if lines[k].strip()]
     if len(row_lines) > MAX_FRAMES + 1:
@@ -640,10 +642,11 @@ def format_bvh(motion: Motion, precision: int = 6) -> str:
     out.append(f"Frames: {motion.n_frames}")
     out.append(f"Frame Time: {_exact(1.0 / motion.fps)}")
     data = _pose_to_channels(motion, order)
-    if data.shape[0] and not data.shape[1]:
-        raise ValueError("format_bvh: the skeleton has no channels; BVH cannot hold frames")
-    fmt = " ".join([f"%.{precision}f"] * data.shape[1])
-    out.extend(fmt % tuple(row) for row in data.tolist())
+    if data.shape[1]:
+        fmt = " ".join([f"%.{precision}f"] * data.shape[1])
+        out.extend(fmt % tuple(row) for row in data.tolist())
+    else:  # no channels anywhere: one empty data row per frame (the reader counts Frames:)
+        out.extend([""] * data.shape[0])
     return "\n".join(out) + "\n"
 
 
