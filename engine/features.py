@@ -45,7 +45,8 @@ import numpy as np
 
 from engine import rotations as rot
 from engine.errors import ParameterError, RoleError
-from engine.kinematics import forward_kinematics, rest_positions
+from engine.fastkin import forward_kinematics
+from engine.kinematics import rest_positions
 from engine.motion import MarkerSet, Motion
 
 MARKER_NAMES = ("wrist_radial", "wrist_ulnar", "forearm", "hand")

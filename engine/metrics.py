@@ -39,7 +39,6 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
-from scipy.signal import savgol_filter
 
 from engine.errors import ParameterError
 
@@ -84,7 +83,8 @@ def derivatives(points: np.ndarray, fps: float, window_s: float = 0.2,
 
     Takes shorter than the window use the longest odd window that fits (and a
     lower polynomial order); a take of 1-2 frames has zero derivatives.
-    NaN gaps are filled by linear interpolation first (edges held).
+    NaN gaps are filled by linear interpolation first (edges held). The ends are
+    padded by point reflection (a steady motion continues; its acceleration reads 0).
     """
     p = np.asarray(points, dtype=float)
     if not (np.isfinite(fps) and fps > 0):
@@ -99,12 +99,33 @@ def derivatives(points: np.ndarray, fps: float, window_s: float = 0.2,
         w = f if f % 2 == 1 else f - 1
     order = min(polyorder, w - 1)
     dt = 1.0 / fps
-    v = savgol_filter(p, w, order, deriv=1, delta=dt, axis=0, mode="interp")
+    # Savitzky-Golay as a convolution; the ends are padded by point reflection
+    # (2 x[0] - x[k]), which continues a steady motion instead of stopping it
+    half = w // 2
+    flat = p.reshape(f, -1)
+    padded = np.concatenate([2 * flat[:1] - flat[half:0:-1], flat,
+                             2 * flat[-1:] - flat[-2:-half - 2:-1]], axis=0)
+    v = _sg_apply(padded, w, order, 1, dt)[half:half + f].reshape(p.shape)
     if order < 2:
         a = np.gradient(v, dt, axis=0)
     else:
-        a = savgol_filter(p, w, order, deriv=2, delta=dt, axis=0, mode="interp")
+        a = _sg_apply(padded, w, order, 2, dt)[half:half + f].reshape(p.shape)
     return v, a
+
+
+_SG_CACHE: dict[tuple, np.ndarray] = {}
+
+
+def _sg_apply(x: np.ndarray, window: int, order: int, deriv: int, dt: float) -> np.ndarray:
+    from scipy.ndimage import correlate1d
+    from scipy.signal import savgol_coeffs
+
+    key = (window, order, deriv)
+    c = _SG_CACHE.get(key)
+    if c is None:
+        c = savgol_coeffs(window, order, deriv=deriv, use="dot")
+        _SG_CACHE[key] = c
+    return correlate1d(x, c, axis=0, mode="nearest") / dt ** deriv
 
 
 def _fill_gaps(p: np.ndarray) -> np.ndarray:
@@ -389,8 +410,7 @@ def phase_rows(body: PhaseFeatures, hand: PhaseFeatures, theta: str = "window",
         else:
             byaw, hyaw = np.zeros(n), np.zeros(m)
     bp, bq = pack_codes(body.codes)
-    hcodes = rotated_codes(hand, n_bins)  # (m, B, C)
-    hp, hq = pack_codes(hcodes)  # (m, B)
+    hp, hq = rotated_packed_codes(hand, n_bins)  # (m, B) each
     head_b = np.column_stack([np.full(n, half), np.full(n, n_bins), np.full(n, mode), byaw,
                               np.full(n, float(step))])
     head_h = np.column_stack([np.full(m, half), np.full(m, n_bins), np.full(m, mode), hyaw,
@@ -401,6 +421,51 @@ def phase_rows(body: PhaseFeatures, hand: PhaseFeatures, theta: str = "window",
     a = np.ascontiguousarray(np.column_stack([head_b, bwin, bp, bq, pad]), dtype=np.float64)
     b = np.ascontiguousarray(np.column_stack([head_h, hwin, hpq]), dtype=np.float64)
     return a, b
+
+
+def rotated_packed_codes(hand: PhaseFeatures, n_bins: int = THETA_BINS
+                         ) -> tuple[np.ndarray, np.ndarray]:
+    """``pack_codes(rotated_codes(hand, n_bins))`` without the ``(F, B, C)`` array:
+    ``(F, n_bins)`` float64 masks P and Q (numba)."""
+    f, k, _ = hand.velocity.shape
+    if k * 6 > MAX_COMPONENTS:
+        raise ParameterError(f"pack codes: at most {MAX_COMPONENTS} components, got {k * 6}")
+    theta = 2.0 * np.pi * np.arange(n_bins) / n_bins
+    p = np.zeros((f, n_bins), dtype=np.float64)
+    q = np.zeros((f, n_bins), dtype=np.float64)
+    _rotated_packed_kernel(np.ascontiguousarray(hand.velocity, dtype=np.float64),
+                           np.ascontiguousarray(hand.acceleration, dtype=np.float64),
+                           float(hand.zone.velocity), float(hand.zone.acceleration),
+                           np.cos(theta), np.sin(theta), p, q)
+    return p, q
+
+
+@numba.njit(cache=True)
+def _rotated_packed_kernel(vel, acc, ev, ea, cos_t, sin_t, out_p, out_q):
+    frames, markers = vel.shape[0], vel.shape[1]
+    nb = cos_t.shape[0]
+    for f in range(frames):
+        for b in range(nb):
+            c = cos_t[b]
+            s = sin_t[b]
+            pos = np.uint64(0)
+            neg = np.uint64(0)
+            for k in range(markers):
+                for d in range(2):
+                    if d == 0:
+                        x, y, z, eps = vel[f, k, 0], vel[f, k, 1], vel[f, k, 2], ev
+                    else:
+                        x, y, z, eps = acc[f, k, 0], acc[f, k, 1], acc[f, k, 2], ea
+                    vals = (x * c + z * s, y, -x * s + z * c)
+                    for comp in range(3):
+                        bit = np.uint64(1) << np.uint64(k * 6 + d * 3 + comp)
+                        val = vals[comp]
+                        if val >= eps and not (eps <= 0 and val == 0):
+                            pos |= bit
+                        elif val <= -eps and not (eps <= 0 and val == 0):
+                            neg |= bit
+            out_p[f, b] = float(pos)
+            out_q[f, b] = float(neg)
 
 
 @numba.njit(cache=True, inline="always")

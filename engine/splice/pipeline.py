@@ -37,6 +37,7 @@ import numpy as np
 from engine import metrics as M
 from engine.dtw import Aligner, Band, align_features
 from engine.errors import HandSpliceError, ParameterError, RoleError
+from engine.fastkin import forward_kinematics
 from engine.features import (
     HandFrame,
     hand_frame,
@@ -46,7 +47,6 @@ from engine.features import (
     skeleton_yaw,
     take_sides,
 )
-from engine.kinematics import forward_kinematics
 from engine.motion import MarkerSet, Motion
 from engine.splice import merge as MG
 from engine.splice import transfer as TR

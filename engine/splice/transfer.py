@@ -32,8 +32,9 @@ import numpy as np
 
 from engine import rotations as rot
 from engine.errors import RoleError
+from engine.fastkin import continuous, forward_kinematics, qmul, qmul_conj
 from engine.features import HandFrame
-from engine.kinematics import forward_kinematics, rest_positions, sample
+from engine.kinematics import rest_positions, sample
 from engine.motion import Motion, Skeleton
 from engine.roles import FINGERS
 
@@ -225,8 +226,8 @@ def _graft_name(wrist_name: str, finger: str, arm_h, joint: int, hand_name: str,
 
 
 def _conj_u(u: np.ndarray, r: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """``u * r * v^-1`` broadcast over frames."""
-    return rot.multiply(rot.multiply(u, r), rot.conjugate(v))
+    """``u * r * v^-1`` broadcast over frames (``u``, ``v`` (4,) or (K, 4))."""
+    return qmul(qmul(u, r), rot.conjugate(v))
 
 
 def apply_transfer(plan: TransferPlan, body: Motion, hand: Motion, hand_times: np.ndarray,
@@ -255,47 +256,55 @@ def apply_transfer(plan: TransferPlan, body: Motion, hand: Motion, hand_times: n
         body_fk = forward_kinematics(body)
     _, g_b = body_fk
     jn = plan.skeleton.n_joints
+    nb = plan.n_body_joints
     rots = np.empty((n, jn, 4))
     trans = np.empty((n, jn, 3))
-    rots[:, :plan.n_body_joints] = body.rotations
-    trans[:, :plan.n_body_joints] = body.translations
-    rots[:, plan.n_body_joints:] = rot.identity((n, jn - plan.n_body_joints))
-    trans[:, plan.n_body_joints:] = plan.skeleton.offsets[plan.n_body_joints:]
+    rots[:, :nb] = body.rotations
+    trans[:, :nb] = body.translations
+    rots[:, nb:] = rot.identity((n, jn - nb))
+    trans[:, nb:] = plan.skeleton.offsets[nb:]
     sk_b = body.skeleton
     for sp in plan.sides:
         fb, fh = sp.body_frame, sp.hand_frame
         u = sp.u_hand
         if sp.wrist:
-            r_rel = rot.multiply(rot.conjugate(g_h[:, fh.forearm_joint]), g_h[:, fh.hand_joint])
-            desired = rot.multiply(g_b[:, fb.forearm_joint], _conj_u(u, r_rel, u))
+            r_rel = qmul_conj(g_h[:, fh.forearm_joint], g_h[:, fh.hand_joint])
+            desired = qmul(g_b[:, fb.forearm_joint], _conj_u(u, r_rel, u))
             parent = sk_b.parents[fb.wrist]
-            g_parent = g_b[:, parent] if parent >= 0 else rot.identity((n,))
-            local = rot.multiply(rot.conjugate(g_parent), desired)
+            local = qmul_conj(g_b[:, parent], desired) if parent >= 0 else desired
             if fb.hand_joint != fb.wrist:  # palm carried by a joint below the wrist (CMU)
                 between = rot.identity((n,))
                 for j in sk_b.chain_to_root(fb.hand_joint)[:-1]:
                     if j == fb.wrist:
                         break
-                    between = rot.multiply(body.rotations[:, j], between)
-                local = rot.multiply(local, rot.conjugate(between))
+                    between = qmul(body.rotations[:, j], between)
+                local = qmul(local, rot.conjugate(between))
             rots[:, fb.wrist] = local
-        for fm in sp.mapped:
-            r_rel = rot.multiply(rot.conjugate(g_h[:, fm.hand_parent]), g_h[:, fm.hand])
-            desired = _conj_u(fm.u_parent, r_rel, fm.u_child)
-            # body joints between the matched parent and this joint keep their rotations
-            between = rot.identity((n,))
-            j = sk_b.parents[fm.body]
-            while j != fm.body_parent and j >= 0:
-                between = rot.multiply(body.rotations[:, j], between)
-                j = sk_b.parents[j]
-            rots[:, fm.body] = rot.multiply(rot.conjugate(between), desired)
-        for new, a in sp.grafted:
-            p = hand.skeleton.parents[a]
-            if plan.skeleton.parents[new] == fb.hand_joint:
-                r_rel = rot.multiply(rot.conjugate(g_h[:, fh.hand_joint]), g_h[:, a])
-            else:
-                r_rel = h_local[:, a] if p >= 0 else g_h[:, a]
+        if sp.mapped:
+            hp = [fm.hand_parent for fm in sp.mapped]
+            hj = [fm.hand for fm in sp.mapped]
+            r_rel = qmul_conj(g_h[:, hp], g_h[:, hj])
+            u_p = np.stack([fm.u_parent for fm in sp.mapped])
+            u_c = np.stack([fm.u_child for fm in sp.mapped])
+            desired = _conj_u(u_p, r_rel, u_c)
+            for k, fm in enumerate(sp.mapped):
+                # body joints between the matched parent and this joint keep their rotations
+                between = None
+                j = sk_b.parents[fm.body]
+                while j != fm.body_parent and j >= 0:
+                    between = body.rotations[:, j] if between is None else \
+                        qmul(body.rotations[:, j], between)
+                    j = sk_b.parents[j]
+                rots[:, fm.body] = desired[:, k] if between is None else \
+                    qmul_conj(between, desired[:, k])
+        if sp.grafted:
+            new = np.array([g[0] for g in sp.grafted])
+            src = np.array([g[1] for g in sp.grafted])
+            top = plan.skeleton.parents[new] == fb.hand_joint
+            r_rel = h_local[:, src].copy()
+            if top.any():
+                r_rel[:, top] = qmul_conj(g_h[:, [fh.hand_joint]], g_h[:, src[top]])
             rots[:, new] = _conj_u(u, r_rel, u)
-    rots = rot.make_continuous(rot.normalize(rots), axis=0)
+    rots = continuous(rot.normalize(rots))
     return Motion(plan.skeleton, rots, trans, body.fps,
                   replace(body.meta, format="derived"))

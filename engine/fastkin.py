@@ -1,0 +1,113 @@
+"""Numba versions of the kinematics the splice runs on every call.
+
+Same conventions and results as :mod:`engine.kinematics` and :mod:`engine.rotations`
+(quaternions ``(w, x, y, z)``; ``tests/test_features.py`` compares them), without
+numpy's per-call overhead, which dominates for a few hundred frames:
+
+* :func:`forward_kinematics` - world positions and rotations of every joint;
+* :func:`qmul`, :func:`qmul_conj` - batched quaternion products ``a * b`` and
+  ``a^-1 * b`` over ``(F, K, 4)`` arrays;
+* :func:`continuous` - flip quaternion signs so consecutive frames share a hemisphere.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from engine.motion import Motion
+
+_FASTMATH = {"contract", "arcp", "nsz", "afn"}
+
+
+@numba.njit(cache=True, fastmath=_FASTMATH, inline="always")
+def _mul(aw, ax, ay, az, bw, bx, by, bz):
+    return (aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw)
+
+
+@numba.njit(cache=True, fastmath=_FASTMATH)
+def _fk_kernel(rot, trans, parents, wpos, wrot):
+    frames, joints = rot.shape[0], rot.shape[1]
+    for f in range(frames):
+        for j in range(joints):
+            p = parents[j]
+            if p < 0:
+                for c in range(4):
+                    wrot[f, j, c] = rot[f, j, c]
+                for c in range(3):
+                    wpos[f, j, c] = trans[f, j, c]
+                continue
+            qw, qx, qy, qz = wrot[f, p, 0], wrot[f, p, 1], wrot[f, p, 2], wrot[f, p, 3]
+            w, x, y, z = _mul(qw, qx, qy, qz, rot[f, j, 0], rot[f, j, 1], rot[f, j, 2],
+                              rot[f, j, 3])
+            wrot[f, j, 0] = w
+            wrot[f, j, 1] = x
+            wrot[f, j, 2] = y
+            wrot[f, j, 3] = z
+            # rotate the local translation by the parent's world rotation
+            vx, vy, vz = trans[f, j, 0], trans[f, j, 1], trans[f, j, 2]
+            tx = 2.0 * (qy * vz - qz * vy)
+            ty = 2.0 * (qz * vx - qx * vz)
+            tz = 2.0 * (qx * vy - qy * vx)
+            wpos[f, j, 0] = wpos[f, p, 0] + vx + qw * tx + (qy * tz - qz * ty)
+            wpos[f, j, 1] = wpos[f, p, 1] + vy + qw * ty + (qz * tx - qx * tz)
+            wpos[f, j, 2] = wpos[f, p, 2] + vz + qw * tz + (qx * ty - qy * tx)
+
+
+def forward_kinematics(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
+    """World positions ``(F, J, 3)`` (file units) and rotations ``(F, J, 4)`` of every joint."""
+    rot = np.ascontiguousarray(motion.rotations, dtype=np.float64)
+    trans = np.ascontiguousarray(motion.translations, dtype=np.float64)
+    parents = np.ascontiguousarray(motion.skeleton.parents, dtype=np.int64)
+    wpos = np.zeros(trans.shape)
+    wrot = np.zeros(rot.shape)
+    _fk_kernel(rot, trans, parents, wpos, wrot)
+    return wpos, wrot
+
+
+@numba.njit(cache=True, fastmath=_FASTMATH)
+def _qmul_kernel(a, b, out, conj_a):
+    s = -1.0 if conj_a else 1.0
+    for i in range(a.shape[0]):
+        w, x, y, z = _mul(a[i, 0], s * a[i, 1], s * a[i, 2], s * a[i, 3],
+                          b[i, 0], b[i, 1], b[i, 2], b[i, 3])
+        out[i, 0] = w
+        out[i, 1] = x
+        out[i, 2] = y
+        out[i, 3] = z
+
+
+def _batched(a, b, conj_a: bool) -> np.ndarray:
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    shape = np.broadcast_shapes(a.shape, b.shape)
+    a2 = np.ascontiguousarray(np.broadcast_to(a, shape)).reshape(-1, 4)
+    b2 = np.ascontiguousarray(np.broadcast_to(b, shape)).reshape(-1, 4)
+    out = np.zeros(a2.shape)
+    _qmul_kernel(a2, b2, out, conj_a)
+    return out.reshape(shape)
+
+
+def qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a * b`` for broadcastable ``(..., 4)`` quaternion arrays."""
+    return _batched(a, b, False)
+
+
+def qmul_conj(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a^-1 * b`` (``a`` unit) for broadcastable ``(..., 4)`` quaternion arrays."""
+    return _batched(a, b, True)
+
+
+def continuous(q: np.ndarray) -> np.ndarray:
+    """Quaternions ``(F, ..., 4)`` with signs flipped so frame ``f`` and ``f-1`` have a
+    non-negative dot product (as :func:`engine.rotations.make_continuous`)."""
+    q = np.array(q, dtype=float, copy=True)
+    if q.shape[0] < 2:
+        return q
+    dots = np.sum(q[1:] * q[:-1], axis=-1)
+    flips = np.where(dots < 0, -1.0, 1.0)
+    sign = np.concatenate([np.ones((1,) + flips.shape[1:]), np.cumprod(flips, axis=0)], axis=0)
+    return q * sign[..., None]
