@@ -6,8 +6,8 @@ A *manifest* is a CSV file with a header row and one pair per row::
     takes/walk01.bvh,hands/point.bvh,right,0.3,0.1,120:98:2;300:280,walk01-point
     takes/walk02.bvh,hands/count.bvh,both,,,,
 
-Columns ``body``, ``hand`` and ``side`` (``right``, ``left`` or ``both``) are
-required; ``band`` (pass-1 band width, fraction of the body length, (0, 1]),
+Columns ``body``, ``hand`` and ``side`` (``right``, ``left``, ``both`` or ``auto``,
+as ``handsplice splice --side``) are required; ``band`` (pass-1 band width, fraction of the body length, (0, 1]),
 ``refine_band`` (pass-2 band, (0, 1]), ``match`` (matching points
 ``BODY:HAND[:TOL]`` separated by ``;`` or spaces, frames 0-based, the splice
 engine's convention) and ``name`` (the output file stem) are optional; an empty
@@ -64,7 +64,7 @@ from engine.limits import MAX_MANIFEST_ROWS
 
 REQUIRED_COLUMNS = ("body", "hand", "side")
 OPTIONAL_COLUMNS = ("band", "refine_band", "match", "name")
-SIDES = ("right", "left", "both")
+SIDES = ("right", "left", "both", "auto")
 MARKER_DIR = ".handsplice-batch"
 SUMMARY_COLUMNS = ("name", "line", "status", "body", "hand", "side", "band", "refine_band",
                    "match", "body_frames", "spliced_frames", "fps", "seconds", "output",
@@ -202,7 +202,8 @@ def _parse_row(cells: dict[str, str], path: Path, line: int, base: Path) -> Pair
         takes[key] = str((base / Path(value).expanduser()).resolve())
     side = cells.get("side", "").lower()
     if side not in SIDES:
-        raise fail("side", f"expected right, left or both, got {cells.get('side', '')[:40]!r}")
+        raise fail("side", f"expected right, left, both or auto, got "
+                           f"{cells.get('side', '')[:40]!r}")
     band = _fraction(cells.get("band", ""), "band", fail)
     refine = _fraction(cells.get("refine_band", ""), "refine_band", fail)
     match = _match_points(cells.get("match", ""), fail)
@@ -324,6 +325,7 @@ def run_pair(job: PairJob, outdir: str | Path, thumbnails: str = "render",
 
         write_bvh(motion, outs["output"])
         report = dict(report)
+        report["output"] = outs["output"].name
         report.setdefault("batch", {"name": job.name, "line": job.line, "body": job.body,
                                     "hand": job.hand, **job.options()})
         write_text(outs["report"], json.dumps(_jsonable(report)) + "\n")
@@ -349,36 +351,25 @@ def splice_pair(body, hand, job: PairJob):
     """The default splice of one pair: ``engine.splice.pipeline.splice`` with the job's options.
 
     Matching points are ``(body frame, hand frame[, tol])`` in frames of the original
-    takes, as ``handsplice splice --match`` reads them. Returns ``(Motion, report dict)``.
+    takes, as ``handsplice splice --match`` reads them. Returns ``(Motion, report dict)``
+    with the report of :func:`engine.splice.report.build_report`.
     """
+    from engine.motion import Motion
     from engine.splice import pipeline
+    from engine.splice.report import build_report
 
+    for take, path, role in ((body, job.body, "body"), (hand, job.hand, "hand")):
+        if not isinstance(take, Motion):
+            raise HandSpliceError(f"{Path(path).name}: holds markers; the {role} take must be a skeletal "
+                       "take (.bvh)")
     options = {"side": job.side}
     if job.band is not None:
         options["band"] = job.band
     if job.refine_band is not None:
         options["refine_band"] = job.refine_band
-    points = [(b, h) if t is None else (b, h, t) for b, h, t in job.match]
+    points = [(b, h, 0.0 if t is None else t) for b, h, t in job.match]
     result = pipeline.splice(body, hand, points=points, hand_points=True, **options)
-    return result.motion, _report(result)
-
-
-def _report(result) -> dict:
-    """REPORT.json content of a splice result (engine.splice.report when it exists)."""
-    try:
-        from engine.splice import report as splice_report
-    except ImportError:
-        splice_report = None
-    if splice_report is not None and hasattr(splice_report, "build_report"):
-        return splice_report.build_report(result)
-    al = result.alignment
-    return {"map": al.map, "warp": al.warp,
-            "pass1": {"path": al.pass1.path, "cost": al.pass1.cost},
-            "pass2": {"path": al.pass2.path, "cost": al.pass2.cost},
-            "parameters": {"band": al.band, "refine_band": al.refine_band,
-                           "radius": al.radius, "points": al.points, "blend": al.blend,
-                           **result.features.params},
-            "timings": result.timings}
+    return result.motion, build_report(result, job.body, job.hand, points_given=points)
 
 
 def one_line(exc: BaseException) -> str:

@@ -108,11 +108,17 @@ def test_batch_on_two_worker_cluster_then_resume(takes, tmp_path, capsys):
         assert spliced.n_frames == CROP_BODY == int(row["spliced_frames"])
         assert any("index" in j.lower() for j in spliced.skeleton.names)  # fingers arrived
         report = json.loads((out / row["report"]).read_text(encoding="utf-8"))
-        assert len(report["map"]) == CROP_BODY
+        assert len(report["map"]) == CROP_BODY and report["output"] == row["output"]
+        assert report["pass1"]["band"]["cells"] > 0 and report["timings_s"]["total"] > 0
         png = (out / row["thumbnail"]).read_bytes()
         assert png.startswith(b"\x89PNG") and row["thumbnail_kind"] in ("render", "stick")
         assert (out / MARKER_DIR / f"{name}.json").is_file()
     assert summary["bye-hello-matched"]["match"] == "5:6:2;40:45"
+    matched = json.loads((out / "bye-hello-matched.report.json").read_text(encoding="utf-8"))
+    assert matched["parameters"]["points_given"] == [[5, 6, 2.0], [40, 45, 0.0]]
+    grid = matched["parameters"]["points"][1]  # (40, 45) on the alignment grid, tolerance 0
+    assert grid[0] == 40 and [40, grid[1]] in matched["pass2"]["path"]
+    assert abs(matched["map"][40] - 45) < 2.0  # merged and smoothed: near the point
     page = (out / "index.html").read_text(encoding="utf-8")
     assert page.count("<img ") == 6 and "broken" in page and "failed" in page
     # no temporary files left behind by the atomic writes
@@ -162,7 +168,7 @@ def test_run_pair_records_errors_without_raising(takes, tmp_path):
     ("body,hand\na.bvh,b.bvh\n", 1, "missing column side"),
     ("body,hand,sde\na.bvh,b.bvh,right\n", 1, "unknown column 'sde'"),
     ("body,hand,side,side\n", 1, "appears twice"),
-    ("body,hand,side\na.bvh,b.bvh,right\n\na.bvh,b.bvh,up\n", 4, "side: expected right, left"),
+    ("body,hand,side\na.bvh,b.bvh,right\n\na.bvh,b.bvh,up\n", 4, "side: expected right, left, both or auto"),
     ("body,hand,side,band\na.bvh,b.bvh,right,1.5\n", 2, "band: expected a number in (0, 1]"),
     ("body,hand,side,band\na.bvh,b.bvh,right,nan\n", 2, "band"),
     ("body,hand,side,refine_band\na.bvh,b.bvh,right,x\n", 2, "refine_band"),
@@ -207,8 +213,8 @@ def test_cli_manifest_error_is_one_line_exit_2(tmp_path, capsys):
                         encoding="utf-8")
     assert main(["batch", str(manifest), "-o", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip()
-    assert err == ("handsplice: error: pairs.csv line 3: side: expected right, left or both, "
-                   "got 'sideways'")
+    assert err == ("handsplice: error: pairs.csv line 3: side: expected right, left, both or "
+                   "auto, got 'sideways'")
     assert not (tmp_path / "o").exists()  # nothing ran
     assert main(["batch", str(tmp_path / "none.csv"), "-o", str(tmp_path / "o")]) == 2
     assert "none.csv" in capsys.readouterr().err
