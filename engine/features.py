@@ -55,7 +55,9 @@ WRIST_HALF_WIDTH = 0.12
 FOREARM_POINT = 0.5
 HAND_POINT = 0.4
 HAND_DORSAL = 0.1
-#: palm length (wrist -> middle knuckle) / forearm length, to estimate L
+#: hand length (wrist -> middle finger tip) / forearm length, to estimate L (anthropometric
+#: means: hand ~0.108, forearm ~0.146 of body height); palm (wrist -> knuckles) / forearm
+HAND_TO_FOREARM = 0.72
 PALM_TO_FOREARM = 0.36
 DEFAULT_FOREARM_M = 0.25
 
@@ -83,6 +85,8 @@ class HandFrame:
     along, dorsal, radial : (3,) float unit vectors, rest world = rest joint axes
     forearm_length : float, file units
     palm_length : float or None, file units (wrist -> finger bases)
+    hand_length : float or None, file units (wrist -> tip of the middle finger, else the
+        longest finger, along its joints and End Site)
     dorsal_source : str
         ``"fingers"``, ``"elbow flexion"``, ``"thumb"`` or ``"up axis"``.
     """
@@ -98,6 +102,7 @@ class HandFrame:
     radial: np.ndarray
     forearm_length: float
     palm_length: float | None
+    hand_length: float | None
     dorsal_source: str
 
     @property
@@ -230,8 +235,11 @@ def hand_frame(motion: Motion, roles, side: str) -> HandFrame:
         raise RoleError(f"{side} hand of {_name(motion)}: no forearm and no finger joints to "
                         f"tell which way the hand points")
 
+    hand_length = _hand_length(sk, arm, wrist, rest)
     if elbow_apart:
         length = float(np.linalg.norm(forearm_vec))
+    elif hand_length:
+        length = hand_length / HAND_TO_FOREARM
     elif palm_length:
         length = palm_length / PALM_TO_FOREARM
     else:
@@ -245,7 +253,32 @@ def hand_frame(motion: Motion, roles, side: str) -> HandFrame:
     return HandFrame(side=side, wrist=wrist, forearm_joint=forearm_joint, hand_joint=hand_joint,
                      shoulder=shoulder, elbow_apart=bool(elbow_apart), along=along,
                      dorsal=dorsal, radial=_unit(radial), forearm_length=length,
-                     palm_length=palm_length, dorsal_source=source)
+                     palm_length=palm_length, hand_length=hand_length, dorsal_source=source)
+
+
+def _hand_length(sk, arm, wrist: int, rest: np.ndarray) -> float | None:
+    """Wrist -> finger tip along the middle finger (else the longest finger), file units."""
+    best = None
+    for finger in ("middle", "index", "ring", "pinky"):
+        js = arm.fingers.get(finger, [])
+        if not js or wrist not in sk.chain_to_root(js[0]):
+            continue
+        last = js[-1]
+        while True:  # follow single children below the last numbered joint (tips)
+            kids = sk.children(last)
+            if len(kids) != 1:
+                break
+            last = kids[0]
+        length = float(np.linalg.norm(rest[js[0]] - rest[wrist]))
+        chain = sk.chain_to_root(last)
+        for j in chain[:chain.index(js[0])]:
+            length += float(np.linalg.norm(sk.offsets[j]))
+        if last in sk.end_sites:
+            length += float(np.linalg.norm(sk.end_sites[last]))
+        if finger == "middle":
+            return length
+        best = max(best or 0.0, length)
+    return best
 
 
 def _name(motion: Motion) -> str:

@@ -124,7 +124,11 @@ def test_graft_onto_a_fingerless_body_scales_to_its_hand():
     sk = res.motion.skeleton
     plan = P.plan_for(res.features)
     (sp,) = plan.sides
-    assert len(sp.grafted) == 15 and sp.wrist
+    # Leap takes carry no forearm measurement (rForeArm sits on the wrist): the body keeps
+    # its own wrist rotation and gets the fingers
+    assert len(sp.grafted) == 15 and not sp.wrist
+    w = body.skeleton.index("Hand_R")
+    assert np.allclose(res.motion.rotations[:, sk.index("Hand_R")], body.rotations[:, w])
     roles = find_roles(sk)
     idx1 = roles.get("right", "index1")
     idx2 = roles.get("right", "index2")

@@ -4,9 +4,11 @@ The body keeps every joint down to the forearm. Per spliced side:
 
 * **Wrist**: the hand's orientation relative to the forearm in the hand take,
   ``R = G_hand(forearm)^-1 G_hand(hand)`` (world rotations, so twist joints in
-  between count), is given to the body's hand relative to its own forearm. A hand
-  take rooted at the wrist (ManipNet ``WRIST``) has no forearm: the body keeps its
-  wrist rotation.
+  between count), is given to the body's hand relative to its own forearm, when
+  the hand take measured a forearm (an elbow joint away from the wrist). A hand take
+  rooted at the wrist (ManipNet ``WRIST``) or at a forearm joint sitting on the wrist
+  (Leap ``rForeArm``, whose ``rHand`` rotation is always the identity) has no
+  forearm: the body keeps its own wrist rotation.
 * **Fingers** the body has (matched by role: finger and joint number): the
   rotation of each finger joint relative to the previous matched joint (the hand
   joint for joint 1).
@@ -33,7 +35,7 @@ import numpy as np
 from engine import rotations as rot
 from engine.errors import RoleError
 from engine.fastkin import continuous, forward_kinematics, qmul, qmul_conj
-from engine.features import HandFrame
+from engine.features import HAND_TO_FOREARM, HandFrame
 from engine.kinematics import rest_positions, sample
 from engine.motion import Motion, Skeleton
 from engine.roles import FINGERS
@@ -138,13 +140,18 @@ def plan_transfer(body: Motion, hand: Motion, body_roles, hand_roles,
             raise RoleError(f"{side} hand of {_src(hand)}: no finger joints to transfer")
         u_hand_m = fb.basis @ fh.basis.T
         u_hand = _quat(u_hand_m)
-        wrist = fh.elbow_apart or fh.forearm_joint != fh.hand_joint
+        # the wrist's rotation relative to the forearm means something only when the hand
+        # take measured a forearm (an elbow joint away from the wrist). Leap takes put the
+        # whole hand orientation on a forearm joint sitting at the wrist (the wrist's own
+        # rotation is always identity) and ManipNet has no forearm: the body keeps its wrist.
+        wrist = fh.elbow_apart
         if not wrist:
-            notes.append(f"{side}: the hand take has no forearm joint; the body keeps its wrist")
+            notes.append(f"{side}: the hand take has no measured forearm (no elbow joint away "
+                         "from the wrist); the body keeps its own wrist rotation")
         hand_b, hand_h = fb.hand_joint, fh.hand_joint
         mapped: list[FingerMap] = []
         grafted: list[tuple[int, int]] = []
-        size = (fb.forearm_length / fh.forearm_length) if fh.forearm_length > 0 else 1.0
+        size = graft_scale(fb, fh)
         for finger in FINGERS:
             hj = [j for j in arm_h.fingers[finger] if hand_h in sk_h.chain_to_root(j)]
             if not hj:
@@ -198,6 +205,21 @@ def plan_transfer(body: Motion, hand: Motion, body_roles, hand_roles,
                         channels=tuple(channels), end_sites=end_sites)
     return TransferPlan(skeleton=skeleton, sides=tuple(plans), n_body_joints=sk_b.n_joints,
                         notes=tuple(notes))
+
+
+def graft_scale(body: HandFrame, hand: HandFrame) -> float:
+    """Hand-take file units -> body file units for grafted offsets, scaled to the body's hand.
+
+    Both rigs with a real forearm: the ratio of forearm lengths (1 for the same rig).
+    Otherwise the ratio of hand lengths (wrist to middle finger tip), the body's measured
+    from its own fingers or estimated as 0.72 forearm lengths.
+    """
+    if body.elbow_apart and hand.elbow_apart:
+        return body.forearm_length / hand.forearm_length
+    if not hand.hand_length:
+        return body.forearm_length / hand.forearm_length
+    target = body.hand_length or HAND_TO_FOREARM * body.forearm_length
+    return target / hand.hand_length
 
 
 def _src(motion: Motion) -> str:
