@@ -215,3 +215,29 @@ def test_bad_inputs_raise():
 
 def _unit(v):
     return v / np.linalg.norm(v)
+
+
+def test_packed_rotated_codes_equal_the_numpy_ones():
+    rng = np.random.default_rng(10)
+    ph = M.phase_features(_arm_markers(40, rng, arms=2), 30.0)
+    p, q = M.rotated_packed_codes(ph, 36)
+    rp, rq = M.pack_codes(M.rotated_codes(ph, 36))
+    assert np.array_equal(p, rp) and np.array_equal(q, rq)
+
+
+def test_fast_kinematics_match_the_reference():
+    from conftest import MOCAP
+
+    from engine import fastkin
+    from engine.io.bvh import read_bvh
+    from engine.kinematics import forward_kinematics
+
+    take = read_bvh(MOCAP / "beat/1_wayne_0_1_1.bvh")
+    p0, r0 = forward_kinematics(take)
+    p1, r1 = fastkin.forward_kinematics(take)
+    assert np.allclose(p0, p1, atol=1e-10) and np.allclose(r0, r1, atol=1e-12)
+    a, b = r0[:, 3], r0[:, 7]
+    assert np.allclose(fastkin.qmul(a, b), rot.multiply(a, b))
+    assert np.allclose(fastkin.qmul_conj(a, b), rot.multiply(rot.conjugate(a), b))
+    flipped = r0[:, 5] * np.where(np.arange(len(r0)) % 3 == 0, -1.0, 1.0)[:, None]
+    assert np.allclose(fastkin.continuous(flipped), rot.make_continuous(flipped))

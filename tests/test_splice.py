@@ -228,3 +228,35 @@ def test_report_has_the_map_both_passes_and_timings(beat_case, beat_result):
     assert {"prepare", "pass1", "pass2", "merge", "transfer", "total"} <= set(rep["timings_s"])
     assert rep["sides"] == ["right", "left"]
     assert rep["transfer"]["sides"]["right"]["grafted"]
+
+
+def test_partial_hand_takes_rooted_at_the_shoulder_or_forearm(beat_case):
+    from engine.splice.split import subset
+
+    hand = beat_case.hand
+    sk = hand.skeleton
+    for root in ("right_collar", "right_elbow"):
+        keep = np.zeros(sk.n_joints, dtype=bool)
+        keep[sk.descendants(sk.index(root))] = True
+        part = subset(hand, keep)
+        res = P.splice(beat_case.body, part, side="right")
+        assert res.features.sides == ("right",)
+        err_ms = np.abs(res.alignment.map - beat_case.truth) / hand.fps * 1000
+        assert np.median(err_ms) < 100  # one arm, no trunk: still on time
+        (sp,) = P.plan_for(res.features).sides
+        assert sp.wrist and len(sp.grafted) == 15
+
+
+def test_trunk_theta_and_marker_set_alignment(beat_case):
+    res = P.splice(beat_case.body, beat_case.hand, theta="trunk", transfer_fingers=False)
+    err_ms = np.abs(res.alignment.map - beat_case.truth) / beat_case.hand.fps * 1000
+    assert np.median(err_ms) <= 1000 / 30
+    from engine.io import load_take
+
+    markers = load_take(MOCAP / "pyomeca/markers_analogs.c3d")
+    body = read_bvh(MOCAP / "bandai-namco/dataset-1_bye_normal_001.bvh")
+    feats = P.prepare(body, markers, side="right")  # alignment works on marker takes
+    res = P.align_passes(feats)
+    assert res.map.shape == (body.n_frames,)
+    with pytest.raises(Exception, match="marker take"):
+        P.transfer(feats, res)

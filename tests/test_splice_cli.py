@@ -70,3 +70,10 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, args, message):
 def test_output_must_be_bvh(tmp_path, capsys):
     assert main(["splice", str(BODY), str(HAND), "-o", str(tmp_path / "o.fbx")]) == 2
     assert ".bvh" in capsys.readouterr().err
+
+
+def test_preview_renders_the_spliced_take(tmp_path):
+    png = tmp_path / "preview.png"
+    code = main(["splice", str(BODY), str(HAND), "-o", str(tmp_path / "o.bvh"), "--quiet",
+                 "--preview", str(png)])
+    assert code == 0 and png.stat().st_size > 1000

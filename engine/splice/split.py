@@ -72,9 +72,31 @@ class Case:
 
 def subset(motion: Motion, keep: np.ndarray, end_sites: dict[int, np.ndarray] | None = None
            ) -> Motion:
-    """The take restricted to joints ``keep`` (bool mask, closed under parents)."""
+    """The take restricted to joints ``keep`` (bool mask).
+
+    A kept joint whose parent is dropped becomes a root carrying its world rotation and
+    position (as exporters bake a partial skeleton: a Leap take rooted at the forearm, an
+    arm rooted at the collar), so the kept joints stay where they were in the world.
+    """
     sk = motion.skeleton
     idx = np.flatnonzero(keep)
+    new_roots = [j for j in idx if sk.parents[j] >= 0 and not keep[sk.parents[j]]]
+    if new_roots:
+        pos, wrot = forward_kinematics(motion)
+        rots = motion.rotations.copy()
+        trans = motion.translations.copy()
+        for j in new_roots:
+            rots[:, j] = wrot[:, j]
+            trans[:, j] = pos[:, j]
+        motion = replace(motion, rotations=rots, translations=trans)
+        if not all(sk.has_position_channels(j) for j in new_roots):
+            channels = list(sk.channels)
+            for j in new_roots:
+                rot_ch = tuple(c for c in channels[j] if c.endswith("rotation")) or \
+                    ("Zrotation", "Xrotation", "Yrotation")
+                channels[j] = ("Xposition", "Yposition", "Zposition") + rot_ch
+            sk = Skeleton(sk.names, sk.parents, sk.offsets, tuple(channels), sk.end_sites)
+            motion = replace(motion, skeleton=sk)
     new = -np.ones(sk.n_joints, dtype=np.int64)
     new[idx] = np.arange(idx.size)
     parents = np.array([new[sk.parents[j]] if sk.parents[j] >= 0 else -1 for j in idx])
