@@ -266,7 +266,7 @@ def test_tolerance_edit_in_table_widens_the_band_at_the_point(page):
 def test_undo_and_redo_the_tolerance_edit(page):
     page.locator(".hs-undo button").click()
     _wait_tolerances(page, [None])
-    page.locator(".hs-redo button").click()
+    page.locator(".hs-redo button:enabled").click()
     _wait_tolerances(page, [6])
 
 
@@ -305,9 +305,14 @@ def test_download_bvh_and_session(page, tmp_path):
 
 
 def test_shared_url_restores_the_session(page, browser):
-    url = page.locator(".hs-share-url input").input_value()
-    assert "pts=" in url
     pts = page.evaluate("hs.cols('hs-points-source', ['x', 'y', 'tol'])")
+    want = "pts=" + ",".join(f"{x:g}:{y:g}" + ("" if t is None else f":{t:g}")
+                             for x, y, t in zip(pts["x"], pts["y"], pts["tol"]))
+    link = page.locator(".hs-share-url input")
+    deadline = time.monotonic() + 30
+    while want not in (url := link.input_value()):  # the link follows every edit
+        assert time.monotonic() < deadline, f"{want} not in {url}"
+        page.wait_for_timeout(50)
     status = _status(page)
     other = _open(browser, url)
     try:

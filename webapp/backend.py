@@ -90,12 +90,17 @@ class Prepared:
     hand_signal: np.ndarray  # (m,) in 0..1, drawn along the y axis
     body_phases: np.ndarray | None = None  # (n,) Phase codes
     hand_phases: np.ndarray | None = None  # (m,)
+    pass1_cost: np.ndarray | None = None  # (n, m) D1 of every cell, when small enough
     lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
 
 _PREPARED: dict[tuple, Prepared] = {}
 _PREPARED_ORDER: list[tuple] = []
-_PREPARED_LIMIT = 6
+_PREPARED_LIMIT = 4
+#: pass-1 local costs are tabulated once per pair up to this many cells (8 bytes each):
+#: a drag then re-solves from the table (a few ns per cell) instead of evaluating the
+#: sign metric with its θ (eq. 7) per cell (tens of ns)
+DENSE_PASS1_MAX_CELLS = 6_000_000
 _PREPARE_LOCK = threading.Lock()
 
 
@@ -136,9 +141,13 @@ def _prepare(body_path: Path, hand_path: Path, side: str, key: tuple) -> Prepare
     body_speed, hand_speed = pipeline.wrist_speeds(features)
     body_phases, hand_phases = _phases(features)
     n, m = features.n, features.m
+    pass1_cost = None
+    if n * m <= DENSE_PASS1_MAX_CELLS:
+        pass1_cost = np.ascontiguousarray(
+            pipeline.cost_image(features, "pass1", np.arange(n), np.arange(m)), dtype=np.float64)
     return Prepared(key=key, body=body, hand=hand, side=side, n=n, m=m, features=features,
                     body_signal=_normalised(body_speed), hand_signal=_normalised(hand_speed),
-                    body_phases=body_phases, hand_phases=hand_phases)
+                    body_phases=body_phases, hand_phases=hand_phases, pass1_cost=pass1_cost)
 
 
 def _phases(features) -> tuple[np.ndarray | None, np.ndarray | None]:
@@ -158,10 +167,11 @@ def solve(prepared: Prepared, band: float, refine_band: float, points, previous=
     t0 = time.perf_counter()
     points = tuple((int(x), int(y), float(t)) for x, y, t in points)
     with prepared.lock:
+        earlier = None if previous is None else previous.cache.get("engine")
+        if earlier is None and prepared.pass1_cost is not None:
+            earlier = _seed(prepared)
         result = pipeline.align_passes(prepared.features, band=band, refine_band=refine_band,
-                                       points=list(points),
-                                       previous=None if previous is None
-                                       else previous.cache.get("engine"))
+                                       points=list(points), previous=earlier)
     p1, p2 = result.pass1, result.pass2
     sol = Solution(
         pass1=PassResult(np.asarray(p1.path), float(p1.cost), p1.band, p1),
@@ -170,6 +180,30 @@ def solve(prepared: Prepared, band: float, refine_band: float, points, previous=
         refine_band=refine_band, seconds=time.perf_counter() - t0)
     sol.cache["engine"] = result
     return sol
+
+
+@dataclass
+class _SeedPass:
+    solver: object = None
+    rows: tuple = (None, None)
+
+
+@dataclass
+class _Seed:
+    """Stands in for a previous ``SpliceAlignment`` so that ``align_passes`` reuses a pass-1
+    solver over the tabulated local costs (same costs, same path; only faster)."""
+
+    features_id: int
+    pass1: _SeedPass
+    pass2: _SeedPass
+
+
+def _seed(prepared: Prepared) -> _Seed:
+    from engine.dtw import Aligner
+
+    return _Seed(features_id=id(prepared.features),
+                 pass1=_SeedPass(solver=Aligner.from_cost(prepared.pass1_cost)),
+                 pass2=_SeedPass())
 
 
 def _view_window(ranges, n: int, m: int, max_pixels: int):
@@ -196,8 +230,11 @@ def cost_view(prepared: Prepared, solution: Solution | None, kind: str, ranges,
     rows = np.arange(x0, x1, sx)
     cols = np.arange(y0, y1, sy)
     engine_result = None if solution is None else solution.cache.get("engine")
-    with prepared.lock:
-        image = pipeline.cost_image(prepared.features, kind, rows, cols, engine_result)
+    if kind == "pass1" and prepared.pass1_cost is not None:
+        image = prepared.pass1_cost[np.ix_(rows, cols)]
+    else:
+        with prepared.lock:
+            image = pipeline.cost_image(prepared.features, kind, rows, cols, engine_result)
     return CostView(image=np.asarray(image, dtype=np.float32), x0=int(rows[0]),
                     x1=int(rows[-1] + sx), y0=int(cols[0]), y1=int(cols[-1] + sy),
                     stride=(sx, sy))

@@ -26,6 +26,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                    help="print the app URL (and the demo pair's URL) once the server listens")
     p.add_argument("--sample", default=None, metavar="NAME",
                    help="sample pair opened by default (a name from sample_data/samples.json)")
+    p.add_argument("--sample-dir", type=Path, default=None, metavar="DIR",
+                   help="folder of sample pairs with its samples.json (default: the bundled "
+                        "sample_data)")
     p.add_argument("--upload-dir", type=Path, default=None, metavar="DIR",
                    help="where uploaded takes are stored by content hash (default ./uploads)")
     p.add_argument("--max-upload-mb", type=float, default=32.0,
@@ -57,7 +60,10 @@ def run(args: argparse.Namespace) -> int:
     from webapp import config
     from webapp.app import create_app, warm_up
 
+    if args.sample_dir is not None and not (args.sample_dir / "samples.json").is_file():
+        raise ValueError(f"--sample-dir: {args.sample_dir} has no samples.json")
     cfg = config.configure(
+        sample_dir=args.sample_dir,
         default_sample=args.sample,
         upload_dir=args.upload_dir,
         max_upload_bytes=int(args.max_upload_mb * 1024 * 1024),

@@ -107,11 +107,11 @@ class CostMatrixView:
         fig.image(image="image", x="x", y="y", dw="dw", dh="dh", source=self.image_source,
                   color_mapper=self.mapper, level="image")
         # the band: cells outside it dimmed, its edges drawn
-        self.band_source = ColumnDataSource({"x": [], "lo": [], "hi": [], "bottom": [],
-                                             "top": []}, name="hs-band-source")
-        fig.varea(x="x", y1="bottom", y2="lo", source=self.band_source, fill_color="black",
+        self.band_source = ColumnDataSource({"x": [], "lo": [], "hi": []}, name="hs-band-source")
+        fig.varea(x="x", y1=-0.5, y2="lo", source=self.band_source, fill_color="black",
                   fill_alpha=0.55, name="hs-band-below")
-        fig.varea(x="x", y1="hi", y2="top", source=self.band_source, fill_color="black",
+        self._above = fig.varea(x="x", y1="hi", y2=m - 0.5, source=self.band_source,
+                                fill_color="black",
                   fill_alpha=0.55, name="hs-band-above")
         fig.line(x="x", y="lo", source=self.band_source, color=BAND_COLOR, line_width=1.5,
                  name="hs-band-lo")
@@ -193,6 +193,7 @@ class CostMatrixView:
         n, m = max(s.n, 1), max(s.m, 1)
         self.x_range.update(bounds=(-0.5, n - 0.5), start=-0.5, end=n - 0.5)
         self.y_range.update(bounds=(-0.5, m - 0.5), start=-0.5, end=m - 0.5)
+        self._above.glyph.y2 = m - 0.5
         body, hand = s.axis_signals()
         self.body_signal_source.data = {"x": np.arange(len(body)), "y": body}
         self.hand_signal_source.data = {"x": hand, "y": np.arange(len(hand))}
@@ -208,19 +209,21 @@ class CostMatrixView:
         sol = s.solution
         self._sync_points()
         if sol is None:
-            self.band_source.data = {"x": [], "lo": [], "hi": [], "bottom": [], "top": []}
+            self.band_source.data = {"x": [], "lo": [], "hi": []}
             self.path_source.data = {"x": [], "y": []}
             self.other_path_source.data = {"x": [], "y": []}
             return
         shown, other = (sol.pass2, sol.pass1) if s.matrix in ("pass2", "cumulative2") \
             else (sol.pass1, sol.pass2)
+        # the path first: it is what a drag is waiting for; compact dtypes keep messages small
+        self.path_source.data = {"x": shown.path[:, 0].astype(np.int32),
+                                 "y": shown.path[:, 1].astype(np.int32)}
         lo, hi = shown.band.lo, shown.band.hi
-        rows = np.arange(len(lo))
-        self.band_source.data = {"x": rows, "lo": lo - 0.5, "hi": hi + 0.5,
-                                 "bottom": np.full(len(rows), -0.5),
-                                 "top": np.full(len(rows), s.m - 0.5)}
-        self.path_source.data = {"x": shown.path[:, 0], "y": shown.path[:, 1]}
-        self.other_path_source.data = {"x": other.path[:, 0], "y": other.path[:, 1]}
+        self.band_source.data = {"x": np.arange(len(lo), dtype=np.int32),
+                                 "lo": (lo - 0.5).astype(np.float32),
+                                 "hi": (hi + 0.5).astype(np.float32)}
+        self.other_path_source.data = {"x": other.path[:, 0].astype(np.int32),
+                                       "y": other.path[:, 1].astype(np.int32)}
         self._on_frame()
         if s.matrix.startswith("cumulative"):  # the cumulative cost depends on band and points
             self._image_key = None
@@ -284,6 +287,13 @@ class CostMatrixView:
         xs, ys = list(new.get("x", [])), list(new.get("y", []))
         tols = list(new.get("tol", [])) + [None] * (len(xs) - len(new.get("tol", [])))
         edited = [(x, y, t) for x, y, t in zip(xs, ys, tols)]
+        doc = pn.state.curdoc
+        if doc is None or doc.session_context is None:
+            self._apply_edit(edited)
+        else:  # after Bokeh has finished applying the browser's patch: changes go out at once
+            doc.add_next_tick_callback(lambda: self._apply_edit(edited))
+
+    def _apply_edit(self, edited) -> None:
         if not self.session.set_points_from_view(edited):
             self._sync_points()  # rejected: put the points back where the session has them
 

@@ -1,0 +1,252 @@
+"""The app in a real browser: drag latency on a 2,000 x 2,000 matrix, first page load.
+
+Run: ``.venv/bin/python -m benchmarks.bench_app [--drags 40] [--loads 5]``
+
+* **Drag**: a 2,000-frame body take (LAFAN1 ``dance1_subject1`` resampled to 60 fps)
+  against ManipNet's mug take (4,000 frames at 120 fps = 2,001 alignment-grid
+  frames), pass-1 band 30 %. One matching point is dragged up and down by 60 hand
+  frames with the mouse; the time from the mouse release (``pointerup`` in the
+  page) to the new path arriving in the page's path data source (checked every
+  animation frame, so the path is drawn in that frame) is recorded.
+  The server-side compute time of each edit (status line) is reported beside it.
+* **Page load**: a fresh browser context opens the demo pair (server already
+  started, i.e. warm: features and JIT done at start-up); the time from
+  navigation to the cost image, band and path being in the page.
+
+Both against ``handsplice serve`` started here on free ports; Chromium from
+/usr/bin/chromium. Writes the ``app`` section of benchmarks/RESULTS.md and a
+screenshot of the demo pair to benchmarks/figures/app_demo.png.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import socket
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+import urllib.request
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks._results import write_section
+
+ROOT = Path(__file__).resolve().parents[1]
+MOCAP = ROOT.parent / "shared" / "data" / "mocap"
+FIGURES = Path(__file__).with_name("figures")
+CHROMIUM = "/usr/bin/chromium"
+ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking",
+        "--disable-component-update", "--disable-sync", "--no-first-run"]
+
+WATCH = """
+() => {
+  const src = Bokeh.documents[0].get_model_by_name('hs-path-source');
+  window.hsLast = src.data; window.hsChanged = null; window.hsUp = null;
+  const tick = () => {
+    if (src.data !== window.hsLast) { window.hsLast = src.data; window.hsChanged = performance.now(); }
+    requestAnimationFrame(tick);
+  };
+  requestAnimationFrame(tick);
+  window.addEventListener('pointerup', () => { window.hsUp = performance.now(); }, true);
+}
+"""
+XY = """
+([x, y]) => {
+  const fig = Bokeh.documents[0].get_model_by_name('hs-cost-figure');
+  const v = Bokeh.index.find_one(fig);
+  let r = v.canvas_view.el.getBoundingClientRect();
+  if (r.top < 0 || r.bottom > window.innerHeight) {
+    v.canvas_view.el.scrollIntoView({block: 'center'});
+    r = v.canvas_view.el.getBoundingClientRect();
+  }
+  return [r.left + v.frame.x_scale.compute(x), r.top + v.frame.y_scale.compute(y)];
+}
+"""
+READY = """
+() => {
+  if (!window.Bokeh || !Bokeh.documents.length) return false;
+  const doc = Bokeh.documents[0];
+  const path = doc.get_model_by_name('hs-path-source');
+  const band = doc.get_model_by_name('hs-band-source');
+  const img = doc.get_model_by_name('hs-image-source');
+  return !!(path && path.data.x && path.data.x.length > 0 && band && band.data.lo.length > 0
+            && img && img.data.image && img.data.image[0] && img.data.image[0].length > 1);
+}
+"""
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@contextmanager
+def serve(*extra: str):
+    """``handsplice serve`` on a free port; yields (url, seconds until it answered)."""
+    port = _free_port()
+    exe = Path(sys.executable).with_name("handsplice")
+    log = tempfile.TemporaryFile()
+    t0 = time.perf_counter()
+    proc = subprocess.Popen([str(exe), "serve", "--port", str(port), *extra], cwd=ROOT,
+                            stdout=log, stderr=subprocess.STDOUT)
+    url = f"http://127.0.0.1:{port}/"
+    try:
+        while True:
+            if proc.poll() is not None:
+                log.seek(0)
+                raise RuntimeError(f"serve exited: {log.read().decode()[-2000:]}")
+            try:
+                with urllib.request.urlopen(url, timeout=5):
+                    break
+            except OSError:
+                time.sleep(0.2)
+        yield url, time.perf_counter() - t0
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+        log.close()
+
+
+def big_pair(folder: Path) -> tuple[int, int]:
+    """Write the 2,000 x 2,001 pair and its samples.json into ``folder``."""
+    from engine.io import load_take
+    from engine.io.bvh import write_bvh
+    from engine.kinematics import resample
+
+    body = load_take(MOCAP / "lafan1" / "dance1_subject1.bvh")
+    write_bvh(resample(body, 60.0).frames(0, 2000), folder / "dance1_60fps_2000.bvh")
+    hand = ROOT / "sample_data" / "manipnet" / "mug1_rightHand.bvh"
+    (folder / hand.name).write_bytes(hand.read_bytes())
+    (folder / "samples.json").write_text(json.dumps({"pairs": [{
+        "name": "big", "body": "dance1_60fps_2000.bvh", "hand": hand.name, "side": "right",
+        "demo": True}]}))
+    return 2000, 2001
+
+
+def _pct(values, q) -> float:
+    return float(np.percentile(np.asarray(values, dtype=float), q))
+
+
+def measure_drags(browser, url: str, drags: int) -> dict:
+    page = browser.new_page(viewport={"width": 1400, "height": 1100})
+    page.goto(url)
+    page.wait_for_function(READY, timeout=120_000)
+    page.evaluate(WATCH)
+    n = len(page.evaluate("() => Array.from(Bokeh.documents[0]"
+                          ".get_model_by_name('hs-band-source').data.x)"))
+    x, y0, y1 = n // 2, int(n * 0.45), int(n * 0.45) + 60
+    page.mouse.click(*page.evaluate(XY, [x, y0]))
+    page.wait_for_function("() => window.hsChanged !== null", timeout=60_000)
+    latencies, server_ms = [], []
+    for k in range(drags):
+        a, b = (y0, y1) if k % 2 == 0 else (y1, y0)
+        page.evaluate("() => { window.hsChanged = null; window.hsUp = null; }")
+        start = page.evaluate(XY, [x, a])
+        end = page.evaluate(XY, [x, b])
+        page.mouse.move(*start)
+        page.mouse.down()
+        page.mouse.move(*end, steps=4)
+        page.mouse.up()
+        page.wait_for_function("() => window.hsChanged !== null && window.hsUp !== null",
+                               timeout=60_000)
+        latencies.append(page.evaluate("() => window.hsChanged - window.hsUp"))
+        status = page.locator(".hs-status span").inner_text()
+        found = re.search(r"([\d.]+) ms", status)
+        if found:
+            server_ms.append(float(found.group(1)))
+    page.close()
+    return {"latency": latencies, "server": server_ms, "n": n}
+
+
+def measure_loads(browser, url: str, loads: int) -> list[float]:
+    times = []
+    for _ in range(loads):
+        context = browser.new_context(viewport={"width": 1400, "height": 1100})
+        page = context.new_page()
+        t0 = time.perf_counter()
+        page.goto(url)
+        page.wait_for_function(READY, timeout=120_000)
+        times.append(time.perf_counter() - t0)
+        context.close()
+    return times
+
+
+def screenshot(browser, url: str, path: Path) -> None:
+    page = browser.new_page(viewport={"width": 1360, "height": 1500})
+    page.goto(url)
+    page.wait_for_function(READY, timeout=120_000)
+    page.locator(".hs-render button").click()
+    page.locator(".hs-preview-image img").wait_for(timeout=120_000)
+    page.wait_for_timeout(800)
+    page.screenshot(path=str(path), full_page=False)
+    page.close()
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--drags", type=int, default=40)
+    parser.add_argument("--loads", type=int, default=5)
+    parser.add_argument("--no-write", action="store_true", help="print only")
+    args = parser.parse_args(argv)
+    from playwright.sync_api import sync_playwright
+
+    FIGURES.mkdir(exist_ok=True)
+    with tempfile.TemporaryDirectory() as tmp, sync_playwright() as p:
+        tmp = Path(tmp)
+        (tmp / "big").mkdir()
+        n, m = big_pair(tmp / "big")
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
+        with serve("--upload-dir", str(tmp / "up")) as (url, start_demo):
+            loads = measure_loads(browser, url, args.loads)
+            shot = FIGURES / "app_demo.png"
+            screenshot(browser, url + "?sample=wave-hello&pts=93:30:3", shot)
+        with serve("--sample-dir", str(tmp / "big"), "--upload-dir", str(tmp / "up")) as (
+                url, start_big):
+            big_loads = measure_loads(browser, url, 2)
+            drags = measure_drags(browser, url, args.drags)
+        browser.close()
+
+    lat, srv = drags["latency"], drags["server"]
+    rows = [
+        ("drag -> new path in the page, p50", f"{_pct(lat, 50):.0f} ms", ""),
+        ("drag -> new path in the page, p95", f"{_pct(lat, 95):.0f} ms", "< 150 ms"),
+        ("drag -> new path in the page, max", f"{max(lat):.0f} ms", ""),
+        ("server compute per edit (both passes + merge), p50 / p95",
+         f"{_pct(srv, 50):.0f} / {_pct(srv, 95):.0f} ms" if srv else "n/a", ""),
+        ("first page load, demo pair, warm server: median / max",
+         f"{statistics.median(loads):.2f} / {max(loads):.2f} s", "< 5 s"),
+        (f"first page load, {n} x {m} pair, warm server: median",
+         f"{statistics.median(big_loads):.2f} s", ""),
+        ("server start incl. warm-up (demo pair / 2,000-frame pair)",
+         f"{start_demo:.1f} / {start_big:.1f} s", ""),
+    ]
+    table = "| measure | result | goal |\n|---|---|---|\n" + "\n".join(
+        f"| {a} | {b} | {c} |" for a, b, c in rows)
+    md = (f"### Browser app (`benchmarks/bench_app.py`, Chromium headless via Playwright)\n\n"
+          f"{table}\n\n"
+          f"Drag: {len(lat)} mouse drags of one matching point by 60 hand frames on the pass-1 "
+          f"matrix of a {n} x {m} pair (LAFAN1 dance1 at 60 fps vs ManipNet mug1, band 30 %); "
+          "latency = mouse release (pointerup) to the new path in the page's data source, "
+          "checked every animation frame. The pass-1 local costs are tabulated once per pair "
+          "(up to 6 M cells), so a drag re-solves pass 1 from the table, then pass 2 and the "
+          "merge. Page load: fresh browser context, navigation until cost image, band and path "
+          f"are in the page ({len(loads)} loads). Screenshot: `benchmarks/figures/app_demo.png`.")
+    print(md)
+    if not args.no_write:
+        write_section("app", md)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
