@@ -185,15 +185,12 @@ def make_batch(folder: Path, pairs: int, frames: int) -> Path:
 
 def run_throughput(manifest: Path, workers: int, out: Path) -> dict:
     """One batch run on a fresh LocalCluster; start-up timed apart from the pairs."""
-    import logging
+    from distributed import Client
 
-    from distributed import Client, LocalCluster
-
-    from engine.batch import run_batch
+    from engine.batch import local_cluster, run_batch
 
     t0 = time.perf_counter()
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                           dashboard_address=None, silence_logs=logging.ERROR)
+    cluster = local_cluster(workers)
     client = Client(cluster)
     startup = time.perf_counter() - t0
     try:

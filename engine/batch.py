@@ -542,9 +542,7 @@ def run_batch(manifest: str | Path, outdir: str | Path, scheduler: str | None = 
 
 def _run_on_dask(todo: list[PairJob], outdir: Path, thumbnails: str, scheduler: str | None,
                  workers: int, client, show: Progress, splice: Callable | None) -> list[dict]:
-    import logging
-
-    from distributed import Client, LocalCluster, as_completed
+    from distributed import Client, as_completed
 
     own_cluster = own_client = None
     try:
@@ -554,30 +552,86 @@ def _run_on_dask(todo: list[PairJob], outdir: Path, thumbnails: str, scheduler: 
             else:
                 show.note(f"starting a local Dask cluster: {workers} worker process"
                           f"{'es' if workers > 1 else ''}")
-                own_cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
-                                           processes=True, dashboard_address=None,
-                                           silence_logs=logging.ERROR)
+                own_cluster = local_cluster(workers)
                 client = own_client = Client(own_cluster)
-        futures = {client.submit(run_pair, job, str(outdir), thumbnails, splice, pure=False,
-                                 key=f"handsplice-{job.name}-{os.getpid()}-{time.time_ns()}"): job
-                   for job in todo}
+        # at most one pair per worker thread is handed to the cluster at a time: a pair
+        # never waits in a worker's queue, so a pair that kills its worker process (a
+        # segfault, the OOM killer) takes no other pair down with it
+        pending = list(reversed(todo))
+        running: dict = {}
+        done_iter = as_completed()
+        batch_id = f"{os.getpid()}-{time.time_ns()}"
+
+        def fill() -> None:
+            while pending and len(running) < _capacity(client):
+                job = pending.pop()
+                fut = client.submit(run_pair, job, str(outdir), thumbnails, splice, pure=False,
+                                    key=f"handsplice_pair-{batch_id}-{len(todo) - len(pending)}")
+                running[fut] = job
+                done_iter.add(fut)
+
+        fill()
         out = []
-        for fut in as_completed(futures):
-            job = futures[fut]
+        for fut in done_iter:
+            job = running.pop(fut)
             try:
                 rec = fut.result()
             except Exception as exc:  # a worker died (KilledWorker), a cancelled task...
+                why = one_line(exc)
+                if type(exc).__name__ == "KilledWorker":
+                    why = ("its worker process died while splicing it (a crash or out of "
+                           "memory), also when retried")
                 rec = {**_base_record(job), "status": "failed",
-                       "error": f"the task did not finish: {one_line(exc)}"}
+                       "error": f"the task did not finish: {why}"}
             out.append(rec)
             show.update(rec)
             fut.release()
+            fill()
         return out
     finally:
         if own_client is not None:
             own_client.close()
         if own_cluster is not None:
             own_cluster.close()
+
+
+def _capacity(client) -> int:
+    """Worker threads of the cluster now (at least 1, so a batch waits for workers)."""
+    try:
+        workers = client.scheduler_info(n_workers=-1)["workers"].values()
+    except TypeError:  # older distributed: no n_workers argument
+        workers = client.scheduler_info()["workers"].values()
+    return max(1, sum(int(w.get("nthreads", 1)) for w in workers))
+
+
+#: scheduler settings of the embedded cluster (see :func:`local_cluster`)
+LOCAL_SCHEDULER_CONFIG = {
+    # one task per single-threaded worker at a time (the batch also submits no more
+    # pairs than there are worker threads)
+    "distributed.scheduler.worker-saturation": 1.0,
+    # a pair whose worker died is tried once more (a transient loss), then recorded as
+    # failed, instead of taking down four workers in a row
+    "distributed.scheduler.allowed-failures": 1,
+}
+
+
+def local_cluster(workers: int, config: dict | None = None, **kwargs):
+    """The embedded cluster: ``workers`` processes of one thread, no dashboard.
+
+    The scheduler's HTTP endpoint listens on a free port (not 8787), so batches run
+    side by side (or beside another Dask cluster) start without a port clash.
+    ``config`` adds to :data:`LOCAL_SCHEDULER_CONFIG` (read when the scheduler starts).
+    """
+    import logging
+
+    import dask
+    from distributed import LocalCluster
+
+    with dask.config.set({**LOCAL_SCHEDULER_CONFIG, **(config or {})}):
+        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                            dashboard_address=None,
+                            scheduler_kwargs={"dashboard_address": ":0"},
+                            silence_logs=logging.ERROR, **kwargs)
 
 
 class Progress:

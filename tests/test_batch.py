@@ -219,3 +219,53 @@ def test_cli_manifest_error_is_one_line_exit_2(tmp_path, capsys):
     assert main(["batch", str(tmp_path / "none.csv"), "-o", str(tmp_path / "o")]) == 2
     assert "none.csv" in capsys.readouterr().err
     assert main(["batch", str(manifest), "-o", str(tmp_path / "o"), "--workers", "0"]) == 2
+
+
+# ---------------------------------------------------------------- an existing cluster
+
+
+@pytest.fixture()
+def one_worker_cluster():
+    from distributed import Client
+
+    from engine.batch import local_cluster
+
+    # a task whose worker dies is failed at once (no retry): a quicker test
+    cluster = local_cluster(1, config={"distributed.scheduler.allowed-failures": 0})
+    client = Client(cluster)
+    try:
+        yield cluster, client
+    finally:
+        client.close()
+        cluster.close()
+
+
+def test_scheduler_address_and_a_dying_worker(takes, tmp_path, capsys, one_worker_cluster):
+    from engine.batch import run_batch, splice_pair
+
+    cluster, client = one_worker_cluster
+    b = [f"bodies/{Path(n).name}" for n in BODIES]
+    h = [f"hands/{Path(n).name}" for n in HANDS]
+    manifest = _write_manifest(takes, [f"{b[0]},{h[0]},right,,,first",
+                                       f"{b[1]},{h[1]},right,,,dies",
+                                       f"{b[2]},{h[2]},right,,,last"])
+    out = tmp_path / "out"
+    # the CLI with --scheduler: the cluster's own worker runs the pairs
+    assert main(["batch", str(manifest), "-o", str(out), "--scheduler",
+                 cluster.scheduler_address, "--thumbnails", "stick", "--quiet"]) == 0
+    assert {r["status"] for r in _summary(out).values()} == {"done"}
+    assert main(["batch", str(manifest), "-o", str(out), "--scheduler",
+                 cluster.scheduler_address, "--workers", "2"]) == 2
+    assert "--workers applies to the local cluster" in capsys.readouterr().err
+
+    def splice_or_die(body, hand, job):
+        if job.name == "dies":
+            os._exit(3)  # the worker process itself goes away (a segfault, the OOM killer)
+        return splice_pair(body, hand, job)
+
+    out2 = tmp_path / "out2"
+    result = run_batch(manifest, out2, client=client, thumbnails="none", splice=splice_or_die)
+    status = {r["name"]: r for r in result.records}
+    assert status["dies"]["status"] == "failed", status["dies"]
+    assert "worker process died" in status["dies"]["error"]
+    assert status["first"]["status"] == status["last"]["status"] == "done"
