@@ -183,13 +183,17 @@ def measure_loads(browser, url: str, loads: int) -> list[float]:
 
 
 def screenshot(browser, url: str, path: Path) -> None:
-    page = browser.new_page(viewport={"width": 1360, "height": 1500})
+    """The header, the alignment and the preview of the demo pair (one picture)."""
+    page = browser.new_page(viewport={"width": 1360, "height": 1000})
     page.goto(url)
     page.wait_for_function(READY, timeout=120_000)
     page.locator(".hs-render button").click()
     page.locator(".hs-preview-image img").wait_for(timeout=120_000)
     page.wait_for_timeout(800)
-    page.screenshot(path=str(path), full_page=False)
+    bottom = page.locator(".hs-preview-image").bounding_box()
+    page.screenshot(path=str(path), full_page=True,
+                    clip={"x": 0, "y": 0, "width": 1360,
+                          "height": bottom["y"] + bottom["height"] + 12})
     page.close()
 
 
@@ -210,7 +214,7 @@ def main(argv=None) -> int:
         with serve("--upload-dir", str(tmp / "up")) as (url, start_demo):
             loads = measure_loads(browser, url, args.loads)
             shot = FIGURES / "app_demo.png"
-            screenshot(browser, url + "?sample=wave-hello&pts=93:30:3", shot)
+            screenshot(browser, url + "?sample=wave-hello&pts=93:30:3&frame=60", shot)
         with serve("--sample-dir", str(tmp / "big"), "--upload-dir", str(tmp / "up")) as (
                 url, start_big):
             big_loads = measure_loads(browser, url, 2)

@@ -52,9 +52,12 @@ def test_uploaded_inputs_round_trip():
     assert parse_session(format_session(spec)) == spec
 
 
-def test_cli_paths_round_trip():
-    spec = SessionSpec(body=TakeRef(path="body.bvh"), hand=TakeRef(path="sub/hand.bvh"))
+def test_cli_paths_and_roles_round_trip():
+    spec = SessionSpec(body=TakeRef(path="body.bvh"), hand=TakeRef(path="sub/hand.bvh"),
+                       roles={"body": {"right.wrist": "RHand"}, "hand": {"left.index1": None}})
     assert from_dict(to_dict(spec)) == spec
+    nested = from_dict({"roles": {"body": {"right": {"wrist": "RHand"}}}})
+    assert nested.roles == {"body": {"right.wrist": "RHand"}}
 
 
 def test_defaults_from_empty_object():
@@ -78,13 +81,15 @@ def test_defaults_from_empty_object():
     ({"colour": 1}, "colour", "unknown field"),
     ({"version": 2}, "version", "expected 1"),
     ({"view": {"matrix": "pass3"}}, "view.matrix", "pass1"),
-    ({"roles": {"right": {"wrist": 3}}}, "roles.right.wrist", "text"),
+    ({"roles": {"body": {"right.wrist": 3}}}, "", "roles.body: right.wrist"),
+    ({"roles": {"body": {"right.wirst": "R"}}}, "", "did you mean right.wrist"),
+    ({"roles": {"right": {"wrist": "R"}}}, "roles.right", "body, hand"),
 ])
 def test_errors_name_the_field(data, field, words):
     with pytest.raises(SessionError) as info:
         from_dict(data, source="s.json")
     assert info.value.field == field
-    assert str(info.value).startswith(f"s.json: {field}: ")
+    assert str(info.value).startswith(f"s.json: {field}: " if field else "s.json: ")
     assert words in str(info.value)
 
 
@@ -100,7 +105,8 @@ def test_query_round_trip():
     q = to_query(spec)
     assert q["pts"] == "10:12,40:35:0,90:99:7.5"
     assert from_query(q) == spec
-    up = _spec(sample=None, body=TakeRef(sha256=HASH), hand=TakeRef(sha256="cd" * 32), view={})
+    up = _spec(sample=None, body=TakeRef(sha256=HASH), hand=TakeRef(sha256="cd" * 32), view={},
+               roles={"hand": {"right.wrist": "rHand"}})
     assert from_query(to_query(up)) == up
 
 
@@ -111,6 +117,8 @@ def test_query_errors():
         from_query({"band": "x"})
     with pytest.raises(SessionError, match="points"):
         from_query({"pts": "5:5,3:9"})
+    with pytest.raises(SessionError, match="roles"):
+        from_query({"roles": "{not json"})
 
 
 _json = st.recursive(

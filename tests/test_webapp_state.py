@@ -247,3 +247,21 @@ def test_create_app_builds_a_page_with_the_css_hooks(cfg, monkeypatch):
     for model in root.references():
         classes.update(getattr(model, "css_classes", None) or [])
     assert {"hs-cost-matrix", "hs-status", "hs-points"} <= classes
+
+
+def test_role_overrides_reprepare_and_travel_with_the_session(cfg):
+    s = Session(cfg)
+    s.load_sample(DEMO)
+    cost = s.solution.pass1.cost
+    assert s.set_roles({"body": {"right.wrist": "Hand_R", "right.elbow": "LowerArm_R"}})
+    assert s.error == "" and s.solution.pass1.cost == pytest.approx(cost)  # same joints
+    assert s.to_spec().roles == {"body": {"right.wrist": "Hand_R", "right.elbow": "LowerArm_R"}}
+    other = Session(cfg)
+    other.from_query(s.to_query())
+    assert other.roles == s.roles
+    # a joint name the take does not have: the reason is shown, the alignment is kept
+    assert not s.set_roles({"body": {"right.wrist": "NoSuchJoint"}})
+    assert "NoSuchJoint" in s.error and s.solution is not None
+    assert not s.set_roles({"body": {"right.wirst": "Hand_R"}})
+    assert "right.wirst" in s.error
+    assert s.roles == {"body": {"right.wrist": "Hand_R", "right.elbow": "LowerArm_R"}}

@@ -20,13 +20,16 @@ CSS = """
 .hs-section-text { color: #444; max-width: 980px; }
 """
 
-INTRO = """
-# HandSplice
-Hands and body are usually captured in separate sessions, so the two takes differ in
-timing. HandSplice finds which hand frame belongs to each body frame with a **two-pass
-dynamic time warping** (Majkowska et al. 2006) and splices the fingers onto the body.
-Below you can see the alignment, steer it with **matching points**, watch the result and
-share it.
+HEADER = """
+<div style="background:linear-gradient(90deg,#1d3557,#274c77);color:white;padding:14px 22px;
+            border-radius:6px;font-family:Helvetica,Arial,sans-serif">
+  <div style="font-size:26px;font-weight:600;letter-spacing:0.5px">HandSplice</div>
+  <div style="font-size:14px;opacity:0.9;margin-top:4px">
+    Hands and body are captured in separate sessions, so the takes differ in timing.
+    A two-pass dynamic time warping (Majkowska et al. 2006) finds which hand frame belongs to
+    each body frame; steer it with matching points, check the skinned result, share it.
+  </div>
+</div>
 """
 
 ALIGN_TEXT = """
@@ -99,9 +102,8 @@ def create_app() -> pn.viewable.Viewable:
         pn.Row(matrix.panel(), side_panel, sizing_mode="stretch_width"),
     )
     sections = [
-        pn.pane.Markdown(INTRO, css_classes=["hs-section-text"]),
-        _section("1 · Takes", "Pick a bundled pair or upload your own body and hand takes.",
-                 inputs.panel()),
+        pn.pane.HTML(HEADER, sizing_mode="stretch_width", margin=(10, 10, 0, 10)),
+        _section("1 · Takes", "", inputs.panel()),
         alignment,
     ]
     try:

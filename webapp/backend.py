@@ -109,14 +109,21 @@ def _file_key(path: Path) -> tuple:
     return (str(path), st.st_size, st.st_mtime_ns)
 
 
-def prepare(body_path: Path, hand_path: Path, side: str) -> Prepared:
-    """Load both takes and compute the per-pair features (cached per server)."""
-    key = (str(body_path), str(hand_path), side, _file_key(body_path), _file_key(hand_path))
+def prepare(body_path: Path, hand_path: Path, side: str, roles: dict | None = None) -> Prepared:
+    """Load both takes and compute the per-pair features (cached per server).
+
+    ``roles``: ``{"body": {"right.wrist": NAME}, "hand": {...}}`` joint-role overrides.
+    """
+    import json
+
+    roles = roles or {}
+    key = (str(body_path), str(hand_path), side, _file_key(body_path), _file_key(hand_path),
+           json.dumps(roles, sort_keys=True))
     with _PREPARE_LOCK:
         hit = _PREPARED.get(key)
         if hit is not None:
             return hit
-    prepared = _prepare(Path(body_path), Path(hand_path), side, key)
+    prepared = _prepare(Path(body_path), Path(hand_path), side, key, roles)
     with _PREPARE_LOCK:
         _PREPARED[key] = prepared
         _PREPARED_ORDER.append(key)
@@ -131,13 +138,14 @@ def _normalised(x: np.ndarray) -> np.ndarray:
     return (x - x.min()) / span if span > 0 else np.zeros_like(x)
 
 
-def _prepare(body_path: Path, hand_path: Path, side: str, key: tuple) -> Prepared:
+def _prepare(body_path: Path, hand_path: Path, side: str, key: tuple, roles: dict) -> Prepared:
     from engine.io import load_take
     from engine.splice import pipeline
 
     body = load_take(body_path)
     hand = load_take(hand_path)
-    features = pipeline.prepare(body, hand, side=side)
+    features = pipeline.prepare(body, hand, side=side, body_roles=roles.get("body") or None,
+                                hand_roles=roles.get("hand") or None)
     body_speed, hand_speed = pipeline.wrist_speeds(features)
     body_phases, hand_phases = _phases(features)
     n, m = features.n, features.m
@@ -315,7 +323,7 @@ def png_bytes(image: np.ndarray) -> bytes:
 
 
 def preview_video(prepared: Prepared, solution: Solution, fmt: str, camera: str = "three-quarter",
-                  max_frames: int = 90, size: tuple[int, int] = (720, 270)) -> bytes:
+                  max_frames: int = 90, size: tuple[int, int] = (720, 272)) -> bytes:
     """An animated preview (GIF or MP4 bytes) of the whole take, at most ``max_frames``
     frames (evenly spaced), played at the take's speed."""
     import io
@@ -345,3 +353,24 @@ def _has_pyav() -> bool:
     except ImportError:
         return False
     return True
+
+
+def cli_command(prepared: Prepared, body: str, hand: str, side: str, band: float,
+                refine_band: float, points, roles: dict | None = None) -> str:
+    """The ``handsplice splice`` command line that reproduces this alignment.
+
+    Matching points are converted from alignment-grid columns to the hand file's own
+    frame numbers (what ``--match`` takes), rounded to whole frames.
+    """
+    import shlex
+
+    feats = prepared.features
+    scale = float(feats.hand_fps) / float(feats.fps)
+    parts = ["handsplice", "splice", shlex.quote(body), shlex.quote(hand), "-o", "spliced.bvh",
+             "--side", side, "--band", f"{band:g}", "--refine-band", f"{refine_band:g}"]
+    for x, y, tol in points:
+        h = int(round(float(np.asarray(feats.grid_to_hand(np.array([float(y)]))).ravel()[0])))
+        parts += ["--match", f"{x}:{h}" + (f":{tol * scale:.3g}" if tol else "")]
+    if roles:
+        parts += ["--roles", "ROLES.json"]
+    return " ".join(parts)

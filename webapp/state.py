@@ -28,7 +28,7 @@ from engine.io.session import MatchPoint, SessionSpec, TakeRef
 from webapp import backend, config
 
 EDIT_PARAMS = ("band", "refine_band", "tolerance", "points")
-INPUT_PARAMS = ("sample", "body_sha256", "hand_sha256", "side")
+INPUT_PARAMS = ("sample", "body_sha256", "hand_sha256", "side", "roles")
 MATRIX_LABELS = {
     "pass1": "Pass 1 local cost D1 (signs of velocity, acceleration)",
     "pass2": "Pass 2 local cost D2 (forearm/hand angle)",
@@ -43,6 +43,14 @@ class Snapshot:
     """Values of the edit parameters before an edit (an undo step)."""
 
     values: dict
+
+
+@dataclass(frozen=True)
+class _Change:
+    """A param-like event (name, old) for input changes made by the session itself."""
+
+    name: str
+    old: object
 
 
 def _same(a, b) -> bool:
@@ -62,6 +70,8 @@ class Session(param.Parameterized):
     body_name = param.String(default="", doc="uploaded body file's original name")
     hand_name = param.String(default="", doc="uploaded hand file's original name")
     side = param.Selector(default="right", objects=["right", "left"], doc="which arm to align")
+    roles = param.Dict(default={}, doc='joint-role overrides {"body": {"right.wrist": NAME}, '
+                                       '"hand": {...}} for unusual joint names')
 
     # parameters and constraints (undoable edits)
     band = param.Number(default=0.3, bounds=(0.02, 1.0), step=0.01,
@@ -131,9 +141,20 @@ class Session(param.Parameterized):
         self._set_inputs(sample=None, body_sha256=body_sha256, hand_sha256=hand_sha256,
                          body_name=body_name, hand_name=hand_name)
 
+    def set_roles(self, roles: dict) -> bool:
+        """Joint-role overrides per take (validated like the session file); False if rejected."""
+        try:
+            spec = session_io.from_dict({"roles": roles}, source="role overrides")
+        except session_io.SessionError as exc:
+            self.error = str(exc)
+            return False
+        self.roles = spec.roles
+        return not self.error
+
     def _set_inputs(self, **values) -> None:
+        old = self._current(values)
         self._apply(values)
-        self._on_inputs()
+        self._on_inputs(*[_Change(k, old[k]) for k in values])
 
     def _on_inputs(self, *events) -> None:
         if self._applying:
@@ -143,9 +164,12 @@ class Session(param.Parameterized):
         t0 = time.perf_counter()
         try:
             paths = self.take_paths()
-            prepared = backend.prepare(paths[0], paths[1], self.side)
+            prepared = backend.prepare(paths[0], paths[1], self.side, self.roles)
         except (HandSpliceError, ValueError, KeyError, OSError) as exc:
-            self.error = backend.one_line(exc)
+            message = backend.one_line(exc)
+            if self.prepared is not None:  # keep what worked: inputs back to their old values
+                self._apply({e.name: e.old for e in events if e.name in INPUT_PARAMS})
+            self.error = message
             return
         self.prepared = prepared
         self._undo.clear()
@@ -360,7 +384,7 @@ class Session(param.Parameterized):
             hand = TakeRef(sha256=self.hand_sha256, name=self.hand_name or None)
         return SessionSpec(sample=self.sample, body=body, hand=hand, side=self.side,
                            band=self.band, refine_band=self.refine_band,
-                           tolerance=self.tolerance, points=self.points,
+                           tolerance=self.tolerance, points=self.points, roles=dict(self.roles),
                            view={"matrix": self.matrix, "frame": self.frame})
 
     def apply_spec(self, spec: SessionSpec) -> None:
@@ -383,6 +407,7 @@ class Session(param.Parameterized):
                 hand_name=(spec.hand.name or "") if spec.hand else "",
                 side=spec.side, band=spec.band, refine_band=spec.refine_band,
                 tolerance=spec.tolerance, points=self._normalise(spec.points),
+                roles=dict(spec.roles),
                 matrix=spec.view.get("matrix", self.matrix),
                 frame=int(spec.view.get("frame", 0)))
         finally:

@@ -22,7 +22,8 @@ Schema (version 1)::
       "points": [{"body": 120, "hand": 98, "tolerance": null}, ...],
                               # matching points (body frame, hand frame), 0-based, strictly
                               # increasing in both; tolerance null = the global one
-      "roles": {"right": {"wrist": "RHand"}},            # optional joint-name overrides
+      "roles": {"body": {"right.wrist": "RHand"},        # optional joint-role overrides per
+                "hand": {"right.index1": "rIdx1"}},      # take (as handsplice splice --roles)
       "view": {"matrix": "pass1", "frame": 0}            # optional, app display only
     }
 
@@ -50,7 +51,6 @@ MATRIX_VIEWS = ("pass1", "pass2", "cumulative1", "cumulative2")
 MAX_POINTS = 10_000
 MAX_TEXT = MAX_SESSION_BYTES  # a session is small; refuse anything bigger (engine.limits)
 _HEX64 = re.compile(r"^[0-9a-f]{64}$")
-_ROLE_NAME = re.compile(r"^[A-Za-z0-9_]{1,40}$")
 
 
 class SessionError(ParameterError):
@@ -289,15 +289,11 @@ def from_dict(data: Any, source: str | None = None) -> SessionSpec:
     roles = data.get("roles", {})
     if not isinstance(roles, dict):
         raise r.fail("roles", f"expected an object, got {_show(roles)}")
-    for side_name, mapping in roles.items():
-        if side_name not in ("right", "left"):
-            raise r.fail(f"roles.{side_name}", "expected right or left")
-        if not isinstance(mapping, dict):
-            raise r.fail(f"roles.{side_name}", f"expected an object, got {_show(mapping)}")
-        for role, joint in mapping.items():
-            if not _ROLE_NAME.match(str(role)):
-                raise r.fail(f"roles.{side_name}", f"expected a role name, got {_show(role)}")
-            r.string(joint, f"roles.{side_name}.{role}", 200)
+    clean_roles = {}
+    for take, mapping in roles.items():
+        if take not in ("body", "hand"):
+            raise r.fail(f"roles.{take}", "unknown take (known: body, hand)")
+        clean_roles[take] = _role_map(r, mapping, f"roles.{take}")
 
     view = data.get("view", {})
     if not isinstance(view, dict):
@@ -313,8 +309,27 @@ def from_dict(data: Any, source: str | None = None) -> SessionSpec:
 
     spec = SessionSpec(sample=sample, body=body, hand=hand, side=side, band=band,
                        refine_band=refine, tolerance=tolerance, points=tuple(points),
-                       roles=roles, view=view)
+                       roles={k: v for k, v in clean_roles.items() if v}, view=view)
     return validate(spec, source)
+
+
+def _role_map(r: _Reader, mapping, field_name: str) -> dict:
+    """``{"right.wrist": "Name" or None}`` checked by ``engine.roles.normalize_overrides``."""
+    from engine.roles import normalize_overrides
+
+    if not isinstance(mapping, dict):
+        raise r.fail(field_name, f'expected an object {{"right.wrist": "NAME"}}, '
+                                 f"got {_show(mapping)}")
+    if len(mapping) > 200:
+        raise r.fail(field_name, f"expected at most 200 overrides, got {len(mapping)}")
+    try:
+        flat = normalize_overrides(mapping, field_name)
+    except ParameterError as exc:
+        raise r.fail("", str(exc)) from None
+    for key, joint in flat.items():
+        if joint is not None:
+            r.string(joint, f"{field_name}.{key}", 200)
+    return flat
 
 
 def validate(spec: SessionSpec, source: str | None = None) -> SessionSpec:
@@ -380,7 +395,7 @@ def to_query(spec: SessionSpec) -> dict[str, str]:
     """Short URL query parameters restoring ``spec`` (for sharing a link to the app).
 
     ``sample=NAME`` or ``body=SHA256&hand=SHA256``, ``side``, ``band``, ``refine``, ``tol``,
-    ``pts=B:H[:T],...``, ``view``, ``frame``. Take paths (CLI sessions) are not put in URLs.
+    ``pts=B:H[:T],...``, ``roles`` (JSON), ``view``, ``frame``. Take paths (CLI sessions) are not put in URLs.
     """
     q: dict[str, str] = {}
     if spec.sample is not None:
@@ -397,6 +412,8 @@ def to_query(spec: SessionSpec) -> dict[str, str]:
         q["pts"] = ",".join(f"{p.body}:{p.hand}" + ("" if p.tolerance is None
                                                      else f":{p.tolerance:g}")
                             for p in spec.points)
+    if spec.roles:
+        q["roles"] = json.dumps(spec.roles, separators=(",", ":"), sort_keys=True)
     if "matrix" in spec.view:
         q["view"] = spec.view["matrix"]
     if "frame" in spec.view:
@@ -427,6 +444,11 @@ def from_query(query: dict[str, str]) -> SessionSpec:
             nums = [_query_number(x, f"pts[{k}]", source) for x in parts]
             points.append(dict(zip(("body", "hand", "tolerance"), nums)))
         data["points"] = points
+    if q.get("roles"):
+        try:
+            data["roles"] = json.loads(str(q["roles"]))
+        except (json.JSONDecodeError, RecursionError):
+            raise SessionError(source, "roles", "expected a JSON object") from None
     view: dict[str, Any] = {}
     if q.get("view"):
         view["matrix"] = q["view"]

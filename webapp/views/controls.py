@@ -54,14 +54,18 @@ class PointsTable:
         self.session = session
         self._syncing = False
         self.table = pn.widgets.Tabulator(
-            _points_frame(session), show_index=True, sizing_mode="stretch_width", height=200,
+            _points_frame(session), show_index=False, sizing_mode="stretch_width", height=180,
+            titles={"body frame": "body", "hand frame": "hand", "tolerance": "tol.",
+                    "effective": "in use"},
+            widths={"body frame": 88, "hand frame": 88, "tolerance": 88, "effective": 88},
+            header_align="center",
             editors={"effective": None,
                      "tolerance": {"type": "input"},
                      "body frame": {"type": "number", "min": 0, "step": 1},
                      "hand frame": {"type": "number", "min": 0, "step": 1}},
             text_align={"tolerance": "right"},
-            buttons={"delete": '<i class="fa fa-trash" title="delete this point">✕</i>'},
-            css_classes=["hs-points"], selectable=False, layout="fit_columns",
+            buttons={"delete": '<span title="delete this point" style="color:#c62828">✕</span>'},
+            css_classes=["hs-points"], selectable=False, layout="fit_data_table",
         )
         self.table.on_edit(self._on_edit)
         self.table.on_click(self._on_click)

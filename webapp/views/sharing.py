@@ -16,9 +16,9 @@ from webapp.state import Session
 
 class SharingView:
     TEXT = ("Download the spliced take (BVH, opens in Blender and MotionBuilder), an animated "
-            "preview, or the session file (`handsplice splice --session` replays it). The "
-            "link restores this exact state on this server: sample or uploaded files, "
-            "parameters and matching points.")
+            "preview (GIF or MP4, a few seconds to render), or the session file. The link "
+            "restores this exact state on this server: sample or uploaded files, parameters "
+            "and matching points. The command line below redoes the same splice offline.")
 
     def __init__(self, session: Session):
         self.session = session
@@ -38,6 +38,10 @@ class SharingView:
                                            width=160)
         self.link = pn.widgets.TextInput(label="Link to this session", value="",
                                          css_classes=["hs-share-url"], disabled=False)
+        self.command = pn.pane.HTML("", css_classes=["hs-cli"], sizing_mode="stretch_width",
+                                    styles={"font-family": "monospace", "font-size": "12px",
+                                            "background": "#f3f5f7", "padding": "6px 10px",
+                                            "border-radius": "4px"})
         session.param.watch(self._update_link, ["revision", "inputs_revision", "matrix"])
         self._update_link()
 
@@ -88,7 +92,15 @@ class SharingView:
         loc = pn.state.location
         if loc is not None and loc.search != query:
             loc.param.update(search=query)
+        s = self.session
+        if s.prepared is not None:
+            paths = s.take_paths()
+            body = s.body_name or paths[0].name
+            hand = s.hand_name or paths[1].name
+            cmd = backend.cli_command(s.prepared, body, hand, s.side, s.band, s.refine_band,
+                                      s.constraint_points(), s.roles)
+            self.command.object = "$ " + cmd.replace("&", "&amp;").replace("<", "&lt;")
 
     def panel(self) -> pn.viewable.Viewable:
         return pn.Column(pn.Row(self.bvh, self.session_file, self.gif, self.mp4),
-                         self.link, self.message, sizing_mode="stretch_width")
+                         self.link, self.command, self.message, sizing_mode="stretch_width")
