@@ -546,3 +546,54 @@ def test_c3d_parameter_mutations(c3d_child, ops):
     reply = c3d_child.read(data)
     assert reply["result"] in ("valid", "refused"), reply
     event(reply["result"])
+
+
+# ---------------------------------------------------------------- the web app's session state
+
+
+@pytest.fixture(scope="module")
+def app_session(tmp_path_factory):
+    """A web-app Session (no server) on a small real sample pair."""
+    from engine.io.bvh import write_bvh
+    from webapp import config
+    from webapp.state import Session
+
+    root = tmp_path_factory.mktemp("app")
+    (root / "takes").mkdir()
+    body = read_bvh(MOCAP / "bandai-namco/dataset-2_wave-right-hand_normal_001.bvh")
+    write_bvh(body.frames(0, 40), root / "takes" / "body.bvh")
+    hand = read_bvh(MOCAP / "gestification/hello-world.bvh")
+    write_bvh(hand.frames(0, 50), root / "takes" / "hand.bvh")
+    (root / "samples.json").write_text(json.dumps({"pairs": [
+        {"name": "ok", "body": "takes/body.bvh", "hand": "takes/hand.bvh"}]}), encoding="utf-8")
+    cfg = config.AppConfig(sample_dir=root.resolve(), upload_dir=(root / "up").resolve(),
+                           default_sample="ok")
+    session = Session(cfg)
+    session.load_sample("ok")
+    assert session.prepared is not None
+    return session
+
+
+_APP_VALUES = ["ok", "right", "left", "both", "0", "-1", "0.01", "0.5", "1", "2", "1e999", "nan",
+               "inf", "", "x", "1:2", "0:0", "39:49", "40:50", "5:5,3:9", "1:2,3:4:5", "1:2:-1",
+               "99999:1", "0:0:1e9", "pass1", "cumulative2", "bogus", "ab" * 32, "1:2,1:2",
+               "0:49", "39:0", "20:25:1000", "10:10,20:20,30:30", "../../etc/passwd"]
+
+
+@settings(FUZZ, max_examples=n_examples(150))
+@given(st.dictionaries(st.sampled_from(["sample", "side", "band", "refine", "tol", "pts", "view",
+                                        "frame", "body", "hand"]),
+                       st.sampled_from(_APP_VALUES) | st.text(max_size=12), max_size=5))
+def test_app_session_restores_any_link_or_refuses(app_session, query):
+    """A shared link opens a session or is refused (HandSpliceError, KeyError, ValueError);
+    the session stays usable either way."""
+    from engine.errors import HandSpliceError as Refused
+
+    with time_bound():
+        try:
+            app_session.from_query(query)
+        except (Refused, KeyError, ValueError) as err:
+            assert str(err)
+    assert app_session.n in (0, 40)
+    if app_session.prepared is not None and app_session.solution is not None:
+        assert 0 <= app_session.hand_frame_for(app_session.n - 1) < app_session.m
