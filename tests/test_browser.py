@@ -280,6 +280,23 @@ def test_render_preview(page):
     assert "hand frame" in page.locator(".hs-preview-info span").inner_text()
 
 
+def test_click_on_the_path_in_pick_mode_shows_that_frame_pair(page):
+    page.locator(".hs-click-mode button", has_text="Pick frames").click()
+    page.wait_for_function("() => hs.model('hs-point-tool').add === false")
+    path = page.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
+    k = len(path["x"]) * 2 // 3
+    x, y = path["x"][k], path["y"][k]
+    npts = len(page.evaluate("hs.cols('hs-points-source', ['x'])")["x"])
+    page.mouse.click(*page.evaluate(f"hs.xy({x}, {y})"))
+    page.locator(f".hs-preview-info span[data-frame='{x}']").wait_for(timeout=60_000)
+    assert f"body frame {x}" in page.locator(".hs-preview-info span").inner_text()
+    frame = page.evaluate("hs.cols('hs-frame-source', ['x', 'y'])")
+    assert frame["x"] == [x] and abs(frame["y"][0] - y) <= 3  # the marker sits on the path
+    assert len(page.evaluate("hs.cols('hs-points-source', ['x'])")["x"]) == npts  # no new point
+    page.locator(".hs-click-mode button", has_text="Edit points").click()
+    page.wait_for_function("() => hs.model('hs-point-tool').add === true")
+
+
 def test_download_bvh_and_session(page, tmp_path):
     with page.expect_download(timeout=60_000) as info:
         page.locator(".hs-download-bvh button").click()
@@ -302,6 +319,17 @@ def test_download_bvh_and_session(page, tmp_path):
     from engine.io.session import read_session
 
     assert read_session(spath).sample == data["inputs"]["sample"]
+
+
+def test_download_preview_gif(page, tmp_path):
+    with page.expect_download(timeout=120_000) as info:
+        page.locator(".hs-download-gif button").click()
+    path = tmp_path / "preview.gif"
+    info.value.save_as(path)
+    import imageio.v3 as iio
+
+    frames = iio.imread(path, index=None)
+    assert frames.ndim == 4 and frames.shape[0] > 10 and frames.shape[3] in (3, 4)
 
 
 def test_shared_url_restores_the_session(page, browser):

@@ -136,6 +136,7 @@ class CostMatrixView:
                              name="hs-points-glyph")
         self.point_tool = PointDrawTool(renderers=[points], add=True, drag=True,
                                         default_overrides={"tol": float("nan")},
+                                        name="hs-point-tool",
                                         description="Matching points: click adds, drag moves, "
                                                     "Backspace deletes")
         fig.add_tools(self.point_tool)
