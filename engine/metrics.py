@@ -665,7 +665,7 @@ def _angle_after_align(fx, fy, fz, hx, hy, hz, gx, gy, gz, kx, ky, kz):
     return np.arccos(dot)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(nogil=True)  # no cache: a dispatcher argument breaks numba's cache
 def _grid_kernel(metric, a, b, rows, cols, out):
     for r in range(rows.shape[0]):
         ar = a[rows[r]]
@@ -760,7 +760,7 @@ def register_metrics() -> None:
     register_metric("splice_angle", splice_angle, replace=True)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(nogil=True)  # no cache: a dispatcher argument breaks numba's cache
 def _path_kernel(metric, a, b, path, out):
     for k in range(path.shape[0]):
         out[k] = metric(a[path[k, 0]], b[path[k, 1]])
