@@ -151,8 +151,8 @@ def _prepare(body_path: Path, hand_path: Path, side: str, key: tuple, roles: dic
     n, m = features.n, features.m
     pass1_cost = None
     if n * m <= DENSE_PASS1_MAX_CELLS:
-        pass1_cost = np.ascontiguousarray(
-            pipeline.cost_image(features, "pass1", np.arange(n), np.arange(m)), dtype=np.float64)
+        pass1_cost = _local_costs(features.pass1_rows, "splice_phase", np.arange(n),
+                                  np.arange(m))
     return Prepared(key=key, body=body, hand=hand, side=side, n=n, m=m, features=features,
                     body_signal=_normalised(body_speed), hand_signal=_normalised(hand_speed),
                     body_phases=body_phases, hand_phases=hand_phases, pass1_cost=pass1_cost)
@@ -214,6 +214,18 @@ def _seed(prepared: Prepared) -> _Seed:
                  pass2=_SeedPass())
 
 
+def _local_costs(rows_ab, metric: str, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """Local costs ``metric(a[r], b[c])`` on the grid ``rows`` x ``cols`` (float64), through
+    the DTW engine's cost view at one cell per pixel."""
+    from engine.dtw.views import local_cost_image
+
+    a, b = rows_ab
+    sub_a = np.ascontiguousarray(a[rows])
+    sub_b = np.ascontiguousarray(b[cols])
+    view = local_cost_image(sub_a, sub_b, metric, max_size=(len(rows), len(cols)))
+    return np.ascontiguousarray(view.image, dtype=np.float64)
+
+
 def _view_window(ranges, n: int, m: int, max_pixels: int):
     x0, x1, y0, y1 = ranges
     x0 = int(np.clip(np.floor(x0 + 0.5), 0, n - 1))
@@ -240,6 +252,10 @@ def cost_view(prepared: Prepared, solution: Solution | None, kind: str, ranges,
     engine_result = None if solution is None else solution.cache.get("engine")
     if kind == "pass1" and prepared.pass1_cost is not None:
         image = prepared.pass1_cost[np.ix_(rows, cols)]
+    elif kind == "pass1":
+        image = _local_costs(prepared.features.pass1_rows, "splice_phase", rows, cols)
+    elif kind == "pass2" and engine_result is not None:
+        image = _local_costs(engine_result.pass2.rows, "splice_angle", rows, cols)
     else:
         with prepared.lock:
             image = pipeline.cost_image(prepared.features, kind, rows, cols, engine_result)
