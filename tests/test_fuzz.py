@@ -137,7 +137,7 @@ SESSION_SEEDS = [
                 "side": "right", "band": 0.3, "refine_band": 0.1, "tolerance": 2,
                 "points": [{"body": 10, "hand": 12, "tolerance": None},
                            {"body": 40, "hand": 35, "tolerance": 1.5}],
-                "roles": {"right": {"wrist": "RHand"}},
+                "roles": {"body": {"right.wrist": "RHand"}, "hand": {"right.index1": "rIdx1"}},
                 "view": {"matrix": "pass1", "frame": 3}}, indent=2),
     json.dumps({"format": "handsplice-session", "version": 1,
                 "inputs": {"body": {"sha256": "ab" * 32, "name": "walk.bvh"},
