@@ -190,10 +190,10 @@ def screenshot(browser, url: str, path: Path) -> None:
     page.locator(".hs-render button").click()
     page.locator(".hs-preview-image img").wait_for(timeout=120_000)
     page.wait_for_timeout(800)
-    bottom = page.locator(".hs-preview-image").bounding_box()
+    bottom = page.locator(".hs-preview-image").evaluate(
+        "e => e.getBoundingClientRect().bottom + window.scrollY")
     page.screenshot(path=str(path), full_page=True,
-                    clip={"x": 0, "y": 0, "width": 1360,
-                          "height": bottom["y"] + bottom["height"] + 12})
+                    clip={"x": 0, "y": 0, "width": 1360, "height": bottom + 12})
     page.close()
 
 

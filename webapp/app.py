@@ -46,9 +46,10 @@ tolerance (the yellow bar). Edit tolerances in the table; sliders set the band w
 
 
 def _section(title: str, text: str, *objects) -> pn.Column:
-    return pn.Column(pn.pane.Markdown(f"## {title}", margin=(20, 10, 0, 10)),
-                     pn.pane.Markdown(text, css_classes=["hs-section-text"]) if text else None,
-                     *objects, sizing_mode="stretch_width")
+    head = [pn.pane.Markdown(f"## {title}", margin=(20, 10, 0, 10))]
+    if text:
+        head.append(pn.pane.Markdown(text, css_classes=["hs-section-text"]))
+    return pn.Column(*head, *objects, sizing_mode="stretch_width")
 
 
 def _initial_state(session: Session) -> None:
