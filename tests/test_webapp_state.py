@@ -265,3 +265,27 @@ def test_role_overrides_reprepare_and_travel_with_the_session(cfg):
     assert not s.set_roles({"body": {"right.wirst": "Hand_R"}})
     assert "right.wirst" in s.error
     assert s.roles == {"body": {"right.wrist": "Hand_R", "right.elbow": "LowerArm_R"}}
+
+
+def test_matrix_view_refetches_the_visible_range_at_full_detail(session):
+    from webapp.views.cost_matrix import CostMatrixView
+
+    view = CostMatrixView(session, max_pixels=40)
+    img = view.image_source.data["image"][0]
+    assert img.shape[0] <= 40 and img.shape[1] <= 40  # whole matrix, downsampled
+    assert "1 pixel" in view.title.object
+
+    class Ranges:  # what Bokeh's RangesUpdate carries
+        x0, x1, y0, y1 = 100.0, 120.0, 20.0, 35.0
+
+    view._on_range(Ranges())  # outside a server: fetched at once
+    data = view.image_source.data
+    assert data["image"][0].shape == (data["dh"][0], data["dw"][0])  # one pixel per cell
+    assert data["x"][0] == pytest.approx(99.5) and "1 pixel" not in view.title.object
+    # band, path and points follow the session
+    session.add_point(90, 40, 2)
+    assert list(view.points_source.data["x"]) == [90]
+    assert len(view.path_source.data["x"]) == len(session.solution.pass1.path)
+    assert list(view.band_source.data["lo"]) == list(session.solution.pass1.band.lo - 0.5)
+    session.matrix = "pass2"
+    assert len(view.path_source.data["x"]) == len(session.solution.pass2.path)

@@ -95,7 +95,7 @@ def create_app() -> pn.viewable.Viewable:
         pn.pane.Markdown("**Matching points** (empty tolerance = global)",
                          margin=(10, 10, 0, 10)),
         points.panel(),
-        width=420, sizing_mode="fixed",
+        width=420, sizing_mode=None,
     )
     alignment = _section(
         "2 · Alignment", ALIGN_TEXT,

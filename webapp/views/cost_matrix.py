@@ -330,8 +330,8 @@ class CostMatrixView:
             self.title,
             pn.Row(pn.pane.Bokeh(self.hand_figure, sizing_mode="fixed", margin=0),
                    pn.pane.Bokeh(self.figure, sizing_mode="fixed", margin=0),
-                   sizing_mode="fixed", width=size + AXIS_SIGNAL_SIZE, margin=0),
+                   sizing_mode=None, width=size + AXIS_SIGNAL_SIZE, margin=0),
             pn.Row(pn.Spacer(width=AXIS_SIGNAL_SIZE, margin=0),
                    pn.pane.Bokeh(self.body_figure, sizing_mode="fixed", margin=0),
-                   sizing_mode="fixed", width=size + AXIS_SIGNAL_SIZE, margin=0),
-            sizing_mode="fixed", width=size + AXIS_SIGNAL_SIZE, margin=(0, 10))
+                   sizing_mode=None, width=size + AXIS_SIGNAL_SIZE, margin=0),
+            sizing_mode=None, width=size + AXIS_SIGNAL_SIZE, margin=(0, 10))

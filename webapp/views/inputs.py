@@ -115,7 +115,7 @@ class InputsView:
     def panel(self) -> pn.viewable.Viewable:
         def labelled(text, widget, width):
             return pn.Column(pn.pane.Markdown(f"**{text}**", margin=(0, 10, -10, 10)), widget,
-                             width=width, sizing_mode="fixed")
+                             width=width, sizing_mode=None)
 
         return pn.Column(
             pn.Row(labelled("Sample pair", self.sample, 280), labelled("Side", self.side, 200),

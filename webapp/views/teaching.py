@@ -320,7 +320,7 @@ class TeachingView:
                    pn.widgets.IntSlider.from_param(mdl.param.point_tol, label="tolerance T",
                                                    width=110)),
             pn.Row(*self.buttons.values()),
-            self.equation, self.band_note, self.alert, width=480, sizing_mode="fixed")
+            self.equation, self.band_note, self.alert, width=480, sizing_mode=None)
         return pn.Column(pn.Row(pn.pane.Bokeh(self.grid, sizing_mode="fixed"), controls),
                          pn.pane.Markdown("#### Why signs? (the paper's Figure 3)"),
                          self.compare, css_classes=["hs-teaching"])
