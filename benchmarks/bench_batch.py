@@ -349,9 +349,9 @@ def report(runs: list[dict], throughput: list[dict], load: float, load_after: fl
             lines += ["", f"2 workers / 1 worker: "
                           f"{t[1]['pairs_per_min'] / t[0]['pairs_per_min']:.2f}x pairs per minute "
                           f"({t[1]['pairs_per_min_running'] / t[0]['pairs_per_min_running']:.2f}x "
-                          "once running). On this shared 2-core machine a second worker process "
-                          "competes with the other work for the same cores; on free cores the "
-                          "pairs are independent and scale with the workers."]
+                          "once running). On this shared 2-core machine (load above 2) a second "
+                          "worker process only competes for the same busy cores; scaling on idle "
+                          "cores was not measured here (no idle multi-core machine was available)."]
     lines += ["", f"Load average (1 min) {load:.1f} at the start, {load_after:.1f} at the end "
                   f"({os.cpu_count()} cores, shared with other work): timings are noisy."]
     return "\n".join(lines)
