@@ -21,8 +21,11 @@ COPY engine ./engine
 COPY webapp ./webapp
 COPY sample_data ./sample_data
 RUN pip install . \
- && useradd --create-home handsplice
+ && useradd --create-home handsplice \
+ && mkdir -p /data/uploads && chown handsplice /data/uploads
 USER handsplice
 
 EXPOSE 5006
-CMD ["handsplice", "serve", "--address", "0.0.0.0", "--port", "5006", "--allow-websocket-origin", "*"]
+# 0.0.0.0 inside the container (serve then accepts any websocket origin); samples from /app/sample_data
+CMD ["handsplice", "serve", "--address", "0.0.0.0", "--port", "5006", \
+     "--sample-dir", "/app/sample_data", "--upload-dir", "/data/uploads"]
