@@ -1,17 +1,16 @@
 # HandSplice app image: serves the browser app on 0.0.0.0:5006 with headless rendering
-# (pyrender on Mesa EGL/llvmpipe, OSMesa as fallback).
+# (pyrender on Mesa EGL/llvmpipe, OSMesa as fallback, chosen automatically).
 #   docker build -t handsplice .
 #   docker run --rm -p 5006:5006 handsplice
 FROM python:3.11-slim-bookworm
 
 ENV PYTHONDONTWRITEBYTECODE=1 \
     PYTHONUNBUFFERED=1 \
-    PYOPENGL_PLATFORM=egl \
     NUMBA_CACHE_DIR=/tmp/numba_cache \
     PIP_NO_CACHE_DIR=1
 
 RUN apt-get update \
- && apt-get install -y --no-install-recommends libegl1 libegl-mesa0 libgl1-mesa-dri libosmesa6 \
+ && apt-get install -y --no-install-recommends libgl1 libegl1 libegl-mesa0 libgl1-mesa-dri libosmesa6 \
       libglib2.0-0 fonts-dejavu-core \
  && rm -rf /var/lib/apt/lists/*
 

@@ -6,7 +6,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 SUDO   := $(shell [ "$$(id -u)" = "0" ] || echo sudo)
-APT_PACKAGES := chromium libegl1 libegl-mesa0 libgl1-mesa-dri libosmesa6 libglib2.0-0 fonts-dejavu-core
+APT_PACKAGES := chromium libgl1 libegl1 libegl-mesa0 libgl1-mesa-dri libosmesa6 libglib2.0-0 fonts-dejavu-core
 PORT ?= 5006
 
 export PYOPENGL_PLATFORM ?= egl
