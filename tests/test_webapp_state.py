@@ -289,3 +289,36 @@ def test_matrix_view_refetches_the_visible_range_at_full_detail(session):
     assert list(view.band_source.data["lo"]) == list(session.solution.pass1.band.lo - 0.5)
     session.matrix = "pass2"
     assert len(view.path_source.data["x"]) == len(session.solution.pass2.path)
+
+
+def test_model_changes_wait_for_the_document_lock(monkeypatch):
+    """Outside Bokeh's document lock (a Panel widget callback run on the event loop) a view's
+    model change is deferred to a next-tick callback instead of raising RuntimeError."""
+    import panel as pn
+
+    from webapp.views._dispatch import with_document_lock
+
+    class Session:
+        _pending_writes = None
+
+    class Context:
+        _session = Session()
+
+    class Doc:
+        session_context = Context()
+        scheduled: list = []
+
+        def add_next_tick_callback(self, fn):
+            self.scheduled.append(fn)
+
+    calls = []
+    changed = with_document_lock(lambda x: calls.append(x))
+    doc = Doc()
+    monkeypatch.setattr(type(pn.state), "curdoc", property(lambda self: doc))
+    changed(1)  # no lock: deferred
+    assert calls == [] and len(doc.scheduled) == 1
+    doc.scheduled.pop()()
+    assert calls == [1]
+    Session._pending_writes = []  # lock held: at once
+    changed(2)
+    assert calls == [1, 2] and not doc.scheduled

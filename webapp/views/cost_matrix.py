@@ -33,6 +33,7 @@ from bokeh.palettes import Viridis256
 from bokeh.plotting import figure
 
 from webapp.state import MATRIX_LABELS, Session
+from webapp.views._dispatch import with_document_lock
 
 PATH_COLOR = "#ff3b30"
 OTHER_PATH_COLOR = "#ffffff"
@@ -189,6 +190,7 @@ class CostMatrixView:
 
     # ------------------------------------------------------------ session -> page
 
+    @with_document_lock
     def _on_inputs(self, *_):
         s = self.session
         n, m = max(s.n, 1), max(s.m, 1)
@@ -205,6 +207,7 @@ class CostMatrixView:
         self._update_image((-0.5, n - 0.5, -0.5, m - 0.5))
         self._on_result()
 
+    @with_document_lock
     def _on_result(self, *_):
         s = self.session
         sol = s.solution
@@ -230,15 +233,18 @@ class CostMatrixView:
             self._image_key = None
             self._update_image(self._visible())
 
+    @with_document_lock
     def _on_matrix(self, *_):
         self._image_key = None
         self._on_result()
         self._update_image(self._visible())
 
+    @with_document_lock
     def _on_frame(self, *_):
         pair = self.session.frame_pair()
         self.frame_source.data = {"x": [pair[0]], "y": [pair[1]]}
 
+    @with_document_lock
     def _sync_points(self):
         pts = self.session.points
         tol = [self.session.tolerance if p.tolerance is None else p.tolerance for p in pts]
@@ -256,6 +262,7 @@ class CostMatrixView:
     def _visible(self) -> tuple[float, float, float, float]:
         return (self.x_range.start, self.x_range.end, self.y_range.start, self.y_range.end)
 
+    @with_document_lock
     def _update_image(self, ranges):
         s = self.session
         if s.n == 0 or s.m == 0:
@@ -320,6 +327,7 @@ class CostMatrixView:
             return
         self.session.pick_cell(event.x, event.y)
 
+    @with_document_lock
     def set_pick_mode(self, pick: bool) -> None:
         """Pick mode: a click chooses the previewed frame pair instead of adding a point."""
         self.point_tool.add = not pick

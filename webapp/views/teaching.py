@@ -25,6 +25,7 @@ from engine import metrics
 from engine.dtw import Aligner, Band
 from engine.dtw.views import local_cost_image
 from engine.errors import HandSpliceError
+from webapp.views._dispatch import with_document_lock
 
 EXAMPLE_FPS = 10.0
 
@@ -254,6 +255,7 @@ class TeachingView:
             "dx": ii - 0.44, "dy": jj + 0.46,
         }
 
+    @with_document_lock
     def _refresh(self, *_):
         mdl = self.model
         self.alert.object = mdl.error
