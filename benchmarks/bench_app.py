@@ -197,6 +197,21 @@ def screenshot(browser, url: str, path: Path) -> None:
     page.close()
 
 
+def demo_query() -> str:
+    """URL query of the demo pair with one matching point on its path (tolerance 2) and the
+    preview a third into the take."""
+    from webapp import config
+    from webapp.state import Session
+
+    cfg = config.configure(upload_dir=Path(tempfile.gettempdir()) / "hs-bench-uploads")
+    session = Session(cfg)
+    session.load_sample(cfg.default_sample)
+    path = session.solution.pass1.path
+    x = session.n // 2
+    y = int(path[path[:, 0] == x, 1][0])
+    return f"?sample={cfg.default_sample}&pts={x}:{y}:2&frame={session.n // 3}"
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--drags", type=int, default=40)
@@ -214,7 +229,7 @@ def main(argv=None) -> int:
         with serve("--upload-dir", str(tmp / "up")) as (url, start_demo):
             loads = measure_loads(browser, url, args.loads)
             shot = FIGURES / "app_demo.png"
-            screenshot(browser, url + "?sample=wave-hello&pts=93:30:3&frame=60", shot)
+            screenshot(browser, url + demo_query(), shot)
         with serve("--sample-dir", str(tmp / "big"), "--upload-dir", str(tmp / "up")) as (
                 url, start_big):
             big_loads = measure_loads(browser, url, 2)
