@@ -322,3 +322,35 @@ def test_model_changes_wait_for_the_document_lock(monkeypatch):
     Session._pending_writes = []  # lock held: at once
     changed(2)
     assert calls == [1, 2] and not doc.scheduled
+
+
+def test_teaching_example_steps_through_the_recurrence():
+    from webapp.views.teaching import TeachingModel, TeachingView
+
+    model = TeachingModel()
+    assert model.cost.shape == (12, 10) and model.current() is None
+    model.step = len(model.order)  # the last cell
+    g, d = model.gamma, model.cost
+    for i, j in model.order[1:]:  # eq. 2 holds in every band cell the solver filled
+        preds = [g[a, b] for a, b in ((i - 1, j - 1), (i - 1, j), (i, j - 1))
+                 if a >= 0 and b >= 0 and np.isfinite(g[a, b])]
+        assert g[i, j] == pytest.approx(d[i, j] + min(preds))
+    assert g[11, 9] == pytest.approx(model.alignment.cost) and model.finished
+    model.step = 5
+    i, j = model.current()
+    assert f"γ({i}, {j}) = D({i}, {j}) + min(" in model.explain()
+    # a narrower band searches fewer cells; a matching point pins the path
+    cells = model.band.area
+    model.width = 0.3
+    assert model.band.area < cells
+    model.param.update(use_point=True, point_body=6, point_hand=3, point_tol=0)
+    path = model.alignment.path
+    assert path[path[:, 0] == 6, 1].tolist() == [3]
+    assert "T = 0" in model.band_text()
+    # value- and sign-based costs give different alignments of the amplitude-shrunk hand
+    model.use_point = False
+    sign_path = model.alignment.path
+    model.metric = "value"
+    assert not np.array_equal(sign_path, model.alignment.path)
+    view = TeachingView(model)
+    assert len(view.cells.data["i"]) == 120
