@@ -56,6 +56,7 @@ class PreviewView:
         self.render_button.on_click(lambda e: self.render())
         self._rendered_key = None
         self._inflight = False
+        self._scheduled = False
 
     def _on_slider(self, event):
         self.session.frame = int(event.new)
@@ -72,11 +73,26 @@ class PreviewView:
             self.slider.value = f
         if self.player.value != f:
             self.player.value = f
-        self.render()
+        self._render_soon()
 
     def _on_solution(self, *_):
         if self.auto.value and self._rendered_key is not None:
+            self._render_soon()
+
+    def _render_soon(self):
+        """Render after the current update has gone out (a drag's new path is not held
+        back by the preview's tens of milliseconds)."""
+        doc = pn.state.curdoc
+        if doc is None or doc.session_context is None:
             self.render()
+        elif not self._scheduled:
+            self._scheduled = True
+
+            def run():
+                self._scheduled = False
+                self.render()
+
+            doc.add_next_tick_callback(run)
 
     def render(self) -> bool:
         """Render the current frame; False (and a message) when it cannot."""
