@@ -496,9 +496,9 @@ def _fast_atan2(y, x):
     return r
 
 
-@numba.njit(cache=True, fastmath=_FASTMATH, nogil=True)
-def splice_phase(body_row, hand_row):
-    """Pass-1 local cost ``D1`` (eq. 6) of one cell from :func:`phase_rows` rows."""
+@numba.njit(cache=True, fastmath=_FASTMATH, nogil=True, inline="always")
+def _theta_bin(body_row, hand_row):
+    """Index of the quantised θ (eq. 7) of one cell: window formula, or trunk-yaw difference."""
     half = int(body_row[0])
     nb = int(body_row[1])
     if body_row[2] == 0.0:
@@ -512,9 +512,15 @@ def splice_phase(body_row, hand_row):
             num += bx * hz - hx * bz
             den += bx * hx + bz * hz
         th = _fast_atan2(num, den)
-        b = int(np.floor(th * (nb / (2.0 * np.pi)) + 0.5)) % nb
-    else:
-        b = int(body_row[3] - hand_row[3]) % nb
+        return int(np.floor(th * (nb / (2.0 * np.pi)) + 0.5)) % nb
+    return int(body_row[3] - hand_row[3]) % nb
+
+
+@numba.njit(cache=True, fastmath=_FASTMATH, nogil=True)
+def splice_phase(body_row, hand_row):
+    """Pass-1 local cost ``D1`` (eq. 6) of one cell from :func:`phase_rows` rows."""
+    half = int(body_row[0])
+    b = _theta_bin(body_row, hand_row)
     k = 5 + 2 * half
     p = np.uint64(body_row[k])
     q = np.uint64(body_row[k + 1])
@@ -527,22 +533,8 @@ def splice_phase(body_row, hand_row):
 @numba.njit(cache=True, fastmath=_FASTMATH, nogil=True)
 def splice_phase_theta(body_row, hand_row):
     """θ (radians, quantised to the bin the metric uses) of one cell, for reports and views."""
-    half = int(body_row[0])
     nb = int(body_row[1])
-    if body_row[2] == 0.0:
-        num = 0.0
-        den = 0.0
-        for t in range(half):
-            bx = body_row[5 + t]
-            bz = body_row[5 + half + t]
-            hx = hand_row[5 + t]
-            hz = hand_row[5 + half + t]
-            num += bx * hz - hx * bz
-            den += bx * hx + bz * hz
-        th = _fast_atan2(num, den)
-        b = int(np.floor(th * (nb / (2.0 * np.pi)) + 0.5)) % nb
-    else:
-        b = int(body_row[3] - hand_row[3]) % nb
+    b = _theta_bin(body_row, hand_row)
     return 2.0 * np.pi * b / nb
 
 
