@@ -11,7 +11,7 @@ from engine.io.session import MatchPoint, SessionError
 from webapp import backend, config, uploads
 from webapp.state import Session
 
-DEMO = "wave-hello"
+DEMO = "bye-hello"
 
 
 @pytest.fixture(scope="module")
@@ -40,7 +40,7 @@ def test_samples_json_lists_the_demo_pair(cfg):
     assert config.demo_sample_name(cfg.sample_dir) == DEMO
     pair = cfg.sample(DEMO)
     assert pair.body.is_file() and pair.hand.is_file()
-    with pytest.raises(KeyError, match="known: .*wave-hello"):
+    with pytest.raises(KeyError, match="known: .*bye-hello.*wave-hello"):
         cfg.sample("nope")
 
 

@@ -124,12 +124,15 @@ def load_samples(sample_dir: Path) -> list[SamplePair]:
 
 
 def demo_sample_name(sample_dir: Path) -> str | None:
-    """The pair marked as demo in samples.json (``"demo": name`` or ``"demo": true``), else the first."""
+    """The pair marked as demo in samples.json (``"demo": name``, ``"demo": {"name": name,
+    ...}`` or a pair's ``"demo": true``), else the first."""
     data = _read_manifest(sample_dir)
     pairs = load_samples(sample_dir)
-    if isinstance(data, dict) and isinstance(data.get("demo"), str):
-        if any(p.name == data["demo"] for p in pairs):
-            return data["demo"]
+    demo = data.get("demo") if isinstance(data, dict) else None
+    if isinstance(demo, dict):
+        demo = demo.get("name")
+    if isinstance(demo, str) and any(p.name == demo for p in pairs):
+        return demo
     for p in pairs:
         if p.extra.get("demo") is True:
             return p.name
