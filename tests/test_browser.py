@@ -379,6 +379,22 @@ def test_shared_url_restores_the_session(page, browser):
         other.context.close()
 
 
+def test_a_bad_link_opens_the_demo_and_says_why(browser, server):
+    other = _open(browser, server + "?sample=nope&band=0.5&pts=3:4")
+    try:
+        alert = other.locator(".hs-error")
+        alert.wait_for(state="visible", timeout=30_000)
+        text = _text(alert)
+        assert "shared link" in text and "nope" in text
+        assert "pass 1 cost" in _status(other)  # the demo pair is open and solved
+        other.wait_for_function("() => !location.search.includes('nope')", timeout=30_000)
+        assert "sample=nope" not in other.url and "band=0.5" not in other.url
+        assert other.locator(".hs-share-url input").input_value().find("nope") < 0
+        assert not other.errors, other.errors
+    finally:
+        other.context.close()
+
+
 def test_sessions_are_independent(page, browser):
     other = _open(browser, page.url.split("?")[0])
     try:

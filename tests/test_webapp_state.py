@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import json
 from urllib.parse import parse_qsl, urlsplit
 
 import numpy as np
 import pytest
 
+from engine.errors import HandSpliceError
 from engine.io.session import MatchPoint, SessionError
 from webapp import backend, config, uploads
 from webapp.state import Session
@@ -224,8 +226,82 @@ def test_session_on_uploaded_files(cfg):
     other.from_query(query)
     assert other.solution.pass1.cost == pytest.approx(s.solution.pass1.cost)
     missing = Session(cfg)
-    missing.from_query({"body": "0" * 64, "hand": hand})
-    assert "no such file" in missing.error and missing.solution is None
+    with pytest.raises(uploads.UploadError, match="no such file"):
+        missing.from_query({"body": "0" * 64, "hand": hand})
+    assert missing.solution is None and missing.body_sha256 is None
+
+
+def _snapshot(s: Session) -> tuple:
+    return (s.to_spec(), s.solution, s.prepared, s.n, s.m, s.revision, s.inputs_revision,
+            s.can_undo)
+
+
+def test_bad_session_file_or_link_leaves_the_working_session_alone(session, cfg):
+    """Everything is resolved and solved before anything changes: a bad file or link raises
+    and the working session (takes, parameters, points, path, undo) is untouched."""
+    session.add_point(50, 20, 1)
+    session.band = 0.25
+    before = _snapshot(session)
+    good_hand, _ = uploads.store(cfg, "hand.bvh", cfg.sample(DEMO).hand.read_bytes())
+    files = [
+        ({"inputs": {"sample": "nope"}, "band": 0.5}, "nope"),
+        ({"inputs": {"body": {"sha256": "0" * 64}, "hand": {"sha256": good_hand}}},
+         "no such file"),
+        ({"inputs": {"body": {"sha256": good_hand}}}, "inputs.hand"),
+        ({"inputs": {"sample": "wave-hello"}, "points": [{"body": 5000, "hand": 3}]}, "outside"),
+        ({"inputs": {"sample": "wave-hello"},
+          "roles": {"body": {"right.wrist": "NoSuchJoint"}}}, "NoSuchJoint"),
+        ({"inputs": {"sample": DEMO}, "side": "both"}, "right or left"),
+    ]
+    for data, message in files:
+        with pytest.raises((HandSpliceError, KeyError, ValueError), match=message):
+            session.from_json(json.dumps(data), source="bad.json")
+        assert _snapshot(session) == before, data
+    for query, message in [({"sample": "nope", "band": "0.5"}, "nope"),
+                           ({"body": "0" * 64, "hand": "1" * 64, "pts": "1:2"}, "no such file"),
+                           ({"pts": "5000:3"}, "outside")]:
+        with pytest.raises((HandSpliceError, KeyError, ValueError), match=message):
+            session.from_query(query)
+        assert _snapshot(session) == before, query
+    # parameters without inputs apply to the takes already open
+    session.from_query({"band": "0.4", "pts": "30:10"})
+    assert session.sample == DEMO and session.band == 0.4
+    assert session.points == (MatchPoint(30, 10),) and not session.can_undo
+    assert _path_hits(session.solution.pass1.path, 30, 10, 0)
+
+
+def test_a_bad_link_opens_the_demo_and_says_why(cfg):
+    from webapp import app
+
+    s = Session(cfg)
+    app._initial_state(s, {"sample": "nope", "pts": "1:2"})
+    assert s.sample == DEMO and s.solution is not None and s.points == ()
+    assert s.error.startswith("shared link:") and "nope" in s.error
+    assert "nope" not in s.share_url() and "pts" not in s.to_query()  # the link shows the demo
+    ok = Session(cfg)
+    app._initial_state(ok, {"sample": "wave-hello", "pts": "30:10:2"})
+    assert ok.sample == "wave-hello" and ok.points == (MatchPoint(30, 10, 2.0),) and not ok.error
+
+
+def test_opening_a_bad_session_file_in_the_page_keeps_the_session(session, cfg):
+    from webapp.views.inputs import InputsView
+    from webapp.views.sharing import SharingView
+
+    inputs = InputsView(session)
+    view = SharingView(session)
+    session.add_point(40, 20, 0)
+    before = _snapshot(session)
+    view.open_session.filename = "bad.json"
+    view.open_session.value = b'{"inputs": {"sample": "nope"}, "band": 0.5}'
+    assert view.message.visible and "session file: " in view.message.object
+    assert "nope" in view.message.object and _snapshot(session) == before
+    other = Session(cfg)
+    other.load_sample("wave-hello")
+    other.add_point(30, 10, 2)
+    view.open_session.filename = "good.json"
+    view.open_session.value = other.to_json().encode()
+    assert not view.message.visible and session.to_spec() == other.to_spec()
+    assert inputs.sample.value == "wave-hello" and "wave-hello" in view.link.value
 
 
 def test_session_json_with_paths_is_refused_by_the_app(cfg):

@@ -52,24 +52,33 @@ def _section(title: str, text: str, *objects) -> pn.Column:
     return pn.Column(*head, *objects, sizing_mode="stretch_width")
 
 
-def _initial_state(session: Session) -> None:
-    """Restore the session from the URL query, else open the default sample pair."""
-    args = {}
-    if pn.state.session_args:
-        args = {k: v[0].decode("utf-8", "replace") for k, v in pn.state.session_args.items()
-                if v}
-    if any(k in args for k in ("sample", "body", "hand", "pts", "band")):
-        try:
-            session.from_query(args)
-            return
-        except Exception as exc:  # a bad link opens the demo with the reason shown
-            session.error = f"shared link: {one_line(exc)}"
+SHARE_KEYS = ("sample", "body", "hand", "side", "band", "refine", "tol", "pts", "roles", "view",
+              "frame")
+
+
+def _initial_state(session: Session, args: dict[str, str] | None = None) -> None:
+    """Open the default sample pair, then restore the URL query's session over it.
+
+    A link that cannot be restored (unknown sample or upload, bad values) leaves the
+    default pair open and says why in the page; the address bar then shows the pair
+    that is open, not the link's values.
+    """
+    if args is None:
+        args = {}
+        if pn.state.session_args:
+            args = {k: v[0].decode("utf-8", "replace")
+                    for k, v in pn.state.session_args.items() if v}
     cfg = session.config
     if cfg.default_sample:
         try:
             session.load_sample(cfg.default_sample)
         except Exception as exc:
             session.error = one_line(exc)
+    if any(k in args for k in SHARE_KEYS):
+        try:
+            session.from_query(args)
+        except Exception as exc:  # nothing was applied: the reason is shown
+            session.error = f"shared link: {one_line(exc)}"
 
 
 def create_app() -> pn.viewable.Viewable:

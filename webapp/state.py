@@ -388,34 +388,82 @@ class Session(param.Parameterized):
                            view={"matrix": self.matrix, "frame": self.frame})
 
     def apply_spec(self, spec: SessionSpec) -> None:
-        """Restore inputs, parameters and points (one recompute; clears undo history)."""
+        """Restore inputs, parameters and points (one recompute; clears undo history).
+
+        All or nothing: the takes are resolved and opened, the points checked and both
+        passes solved before anything in the session changes, so a bad session file or
+        link (unknown sample or upload, points outside the matrix, infeasible points)
+        raises (SessionError, KeyError, HandSpliceError, ValueError, OSError) and leaves
+        the working session exactly as it was. A spec without inputs keeps the current
+        takes.
+        """
+        staged = self._stage(spec)
+        self._commit(staged)
+
+    def _stage(self, spec: SessionSpec) -> dict:
+        """Everything ``spec`` needs, computed without touching the session."""
+        t0 = time.perf_counter()
         if spec.side not in ("right", "left"):
             raise session_io.SessionError(None, "side", "the app aligns one side: right or left")
         for k, take in (("body", spec.body), ("hand", spec.hand)):
             if take is not None and not take.sha256:
                 raise session_io.SessionError(None, f"inputs.{k}", "the app opens bundled "
                                               "samples or uploaded files (sha256), not paths")
+        if (spec.body is None) != (spec.hand is None):
+            missing = "hand" if spec.hand is None else "body"
+            raise session_io.SessionError(None, f"inputs.{missing}", "missing (an uploaded "
+                                          "pair needs both takes)")
         if spec.sample is not None:
-            self._cfg.sample(spec.sample)  # KeyError naming the known pairs
-        self._applying = True
-        try:
-            self.param.update(
-                sample=spec.sample,
-                body_sha256=spec.body.sha256 if spec.body else None,
-                hand_sha256=spec.hand.sha256 if spec.hand else None,
-                body_name=(spec.body.name or "") if spec.body else "",
-                hand_name=(spec.hand.name or "") if spec.hand else "",
-                side=spec.side, band=spec.band, refine_band=spec.refine_band,
-                tolerance=spec.tolerance, points=self._normalise(spec.points),
-                roles=dict(spec.roles),
-                matrix=spec.view.get("matrix", self.matrix),
-                frame=int(spec.view.get("frame", 0)))
-        finally:
-            self._applying = False
-        self.prepared = None
-        self._on_inputs()
+            pair = self._cfg.sample(spec.sample)  # KeyError naming the known pairs
+            inputs = dict(sample=spec.sample, body_sha256=None, hand_sha256=None,
+                          body_name="", hand_name="")
+            paths = (pair.body, pair.hand)
+        elif spec.body is not None:
+            from webapp import uploads
+
+            inputs = dict(sample=None, body_sha256=spec.body.sha256,
+                          hand_sha256=spec.hand.sha256, body_name=spec.body.name or "",
+                          hand_name=spec.hand.name or "")
+            paths = (uploads.path_for(self._cfg, spec.body.sha256),
+                     uploads.path_for(self._cfg, spec.hand.sha256))
+        else:  # parameters only: applied to the takes already open
+            inputs = self._current(("sample", "body_sha256", "hand_sha256", "body_name",
+                                    "hand_name"))
+            paths = self.take_paths()
+            if paths is None:
+                raise session_io.SessionError(None, "inputs", "expected a sample or uploaded "
+                                              "body and hand takes (none are open)")
+        roles = dict(spec.roles)
+        prepared = backend.prepare(paths[0], paths[1], spec.side, roles)
+        points = self._normalise(spec.points)
+        session_io.validate(SessionSpec(points=points))
+        for k, p in enumerate(points):
+            if not (p.body < prepared.n and p.hand < prepared.m):
+                raise HandSpliceError(f"points[{k}]: ({p.body}, {p.hand}) is outside the "
+                                      f"{prepared.n} x {prepared.m} matrix of these takes")
+        solution = backend.solve(prepared, band=spec.band, refine_band=spec.refine_band,
+                                 points=[p.resolved(spec.tolerance) for p in points])
+        values = dict(inputs, side=spec.side, roles=roles, band=spec.band,
+                      refine_band=spec.refine_band, tolerance=spec.tolerance, points=points,
+                      matrix=spec.view.get("matrix", self.matrix),
+                      frame=int(min(spec.view.get("frame", 0), max(prepared.n - 1, 0))))
+        return {"values": values, "prepared": prepared, "solution": solution,
+                "compute_ms": (time.perf_counter() - t0) * 1000.0}
+
+    def _commit(self, staged: dict) -> None:
+        """Install a staged state: results first, so watchers of the inputs see a consistent
+        session (a frame of the new takes has a hand frame in the new solution)."""
+        prepared = staged["prepared"]
+        self.prepared = prepared
+        with param.edit_constant(self):
+            self.n, self.m = prepared.n, prepared.m
+        self.param.update(solution=staged["solution"], compute_ms=staged["compute_ms"])
+        self._apply(staged["values"])
         self._undo.clear()
         self._redo.clear()
+        self.inputs_revision += 1
+        self.error = ""
+        self.revision += 1
         self._update_history_flags()
 
     def to_json(self) -> str:

@@ -43,6 +43,7 @@ class InputsView:
                                              css_classes=["hs-roles-apply"])
         self.roles_apply.on_click(self._on_roles)
         self._show_roles()
+        session.param.watch(self._on_session_inputs, ["sample", "roles"])
         self.limit_note = pn.pane.Markdown(
             f"BVH, C3D or TRC, up to {limit} each. Files are checked with the engine's reader "
             "and kept on this server by content hash, so a shared link can name them.",
@@ -51,6 +52,13 @@ class InputsView:
     def _on_sample(self, event):
         if event.new and event.new != self.session.sample:
             self.session.load_sample(event.new)
+
+    def _on_session_inputs(self, *_):
+        """Follow inputs set by the session itself (a session file, undo of roles)."""
+        sample = self.session.sample if self.session.sample in self.sample.options else None
+        if self.sample.value != sample:
+            self.sample.value = sample
+        self._show_roles()
 
     def _on_upload(self, which: str):
         widget = self.body_file if which == "body" else self.hand_file

@@ -18,7 +18,8 @@ class SharingView:
     TEXT = ("Download the spliced take (BVH, opens in Blender and MotionBuilder), an animated "
             "preview (GIF or MP4, a few seconds to render), or the session file. The link "
             "restores this exact state on this server: sample or uploaded files, parameters "
-            "and matching points. The command line below redoes the same splice offline.")
+            "and matching points; so does opening a downloaded session file. The command line "
+            "below redoes the same splice offline.")
 
     def __init__(self, session: Session):
         self.session = session
@@ -36,6 +37,9 @@ class SharingView:
         self.mp4 = pn.widgets.FileDownload(callback=self._mp4, filename="preview.mp4",
                                            label="Preview MP4", css_classes=["hs-download-mp4"],
                                            width=160)
+        self.open_session = pn.widgets.FileInput(accept=".json", css_classes=["hs-open-session"],
+                                                 width=260)
+        self.open_session.param.watch(self._on_open_session, "value")
         self.link = pn.widgets.TextInput(label="Link to this session", value="",
                                          css_classes=["hs-share-url"], disabled=False)
         self.command = pn.pane.HTML("", css_classes=["hs-cli"], sizing_mode="stretch_width",
@@ -44,6 +48,11 @@ class SharingView:
                                             "border-radius": "4px"})
         session.param.watch(self._update_link, ["revision", "inputs_revision", "matrix"])
         self._update_link()
+        doc = pn.state.curdoc
+        if doc is not None and doc.session_context is not None:
+            # the browser reports its own address once the page is up; the address bar then
+            # gets the state that is open (a link that could not be restored is replaced)
+            pn.state.onload(self._update_link)
 
     # ---------------------------------------------------------------- downloads
 
@@ -77,6 +86,20 @@ class SharingView:
         return self._guard(lambda: backend.preview_video(s.prepared, s.solution, "mp4"),
                            "preview MP4")
 
+    def _on_open_session(self, *_):
+        """Restore a session file; a bad one changes nothing and says why here."""
+        data = self.open_session.value
+        if data is None:
+            return
+        name = self.open_session.filename or "session.json"
+        try:
+            self.session.from_json(data, source=name)
+        except Exception as exc:  # nothing was applied; never a traceback
+            self.message.object = f"session file: {backend.one_line(exc)}"
+            self.message.visible = True
+            return
+        self.message.visible = False
+
     # ---------------------------------------------------------------- link
 
     def _base_url(self) -> str:
@@ -103,4 +126,6 @@ class SharingView:
 
     def panel(self) -> pn.viewable.Viewable:
         return pn.Column(pn.Row(self.bvh, self.session_file, self.gif, self.mp4),
+                         pn.Row(pn.pane.Markdown("**Open a session file**",
+                                                 margin=(12, 10, 0, 10)), self.open_session),
                          self.link, self.command, self.message, sizing_mode="stretch_width")
