@@ -213,6 +213,43 @@ def test_uploads_store_by_hash_and_reject_bad_files(cfg, sample_dir, session):
     assert not list(cfg.upload_dir.glob(".check-*"))  # no staging files left behind
 
 
+def test_upload_folder_problems_are_one_line_upload_errors(cfg, tmp_path, monkeypatch):
+    import dataclasses
+
+    good = cfg.sample(DEMO).hand.read_bytes()
+    blocker = tmp_path / "not-a-folder"
+    blocker.write_text("x")
+    bad_dir = dataclasses.replace(cfg, upload_dir=blocker / "uploads")
+    with pytest.raises(uploads.UploadError) as info:  # mkdir fails (a file is in the way)
+        uploads.store(bad_dir, "hand.bvh", good)
+    msg = str(info.value)
+    assert msg.startswith("hand.bvh: the server cannot store uploads (") and "\n" not in msg
+    assert str(tmp_path) not in msg  # no server paths shown to the user
+
+    def denied(path, data):
+        raise PermissionError(13, "Permission denied", str(path))
+
+    other = dataclasses.replace(cfg, upload_dir=tmp_path / "up")
+    monkeypatch.setattr(uploads, "write_bytes", denied)
+    with pytest.raises(uploads.UploadError, match=r"^body\.bvh: the server cannot store "
+                                                   r"uploads \(permission denied\)$"):
+        uploads.store(other, "body.bvh", good)
+    assert not list((tmp_path / "up").iterdir())
+
+
+def test_upload_limit_has_one_source():
+    import argparse
+
+    from engine.cli import serve
+    from engine.limits import MAX_UPLOAD_BYTES
+
+    assert config.AppConfig().max_upload_bytes == MAX_UPLOAD_BYTES
+    parser = argparse.ArgumentParser()
+    serve.add_parser(parser.add_subparsers())
+    args = parser.parse_args(["serve"])
+    assert int(args.max_upload_mb * 2**20) == MAX_UPLOAD_BYTES
+
+
 def test_session_on_uploaded_files(cfg):
     pair = cfg.sample(DEMO)
     body, _ = uploads.store(cfg, "body.bvh", pair.body.read_bytes())

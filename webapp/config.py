@@ -11,9 +11,11 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from engine.limits import MAX_UPLOAD_BYTES
+
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE_DIR = ROOT / "sample_data"
-DEFAULT_MAX_UPLOAD = 32 * 1024 * 1024
+DEFAULT_MAX_UPLOAD = MAX_UPLOAD_BYTES  # the default; ``handsplice serve --max-upload-mb`` sets it
 
 
 @dataclass(frozen=True)

@@ -61,10 +61,15 @@ def store(cfg: AppConfig, filename: str, data: bytes | None) -> tuple[str, objec
                           f"{cfg.max_upload_bytes / 2**20:.0f} MiB upload limit")
     digest = sha256(data)
     target = cfg.upload_dir / f"{digest}{ext}"
-    cfg.upload_dir.mkdir(parents=True, exist_ok=True)
     staging = cfg.upload_dir / f".check-{digest}{ext}"
     try:
+        cfg.upload_dir.mkdir(parents=True, exist_ok=True)
         write_bytes(staging, data)
+    except OSError as exc:
+        _discard(staging)
+        raise UploadError(f"{name}: the server cannot store uploads ({_os_reason(exc)})") \
+            from None
+    try:
         try:
             take = load_take(staging)
         except HandSpliceError as exc:
@@ -73,10 +78,27 @@ def store(cfg: AppConfig, filename: str, data: bytes | None) -> tuple[str, objec
             raise UploadError(f"{name}: cannot be read ({type(exc).__name__}: "
                               f"{_rename(str(exc), staging.name, name)})") from None
         if not target.exists():
-            staging.replace(target)
+            try:
+                staging.replace(target)
+            except OSError as exc:
+                raise UploadError(f"{name}: the server cannot store uploads "
+                                  f"({_os_reason(exc)})") from None
     finally:
-        staging.unlink(missing_ok=True)
+        _discard(staging)
     return digest, take
+
+
+def _discard(path: Path) -> None:
+    try:
+        path.unlink(missing_ok=True)
+    except OSError:
+        pass  # an unwritable folder: nothing was staged there
+
+
+def _os_reason(exc: OSError) -> str:
+    """An OSError in one line, without the server's paths (``permission denied``)."""
+    reason = exc.strerror or type(exc).__name__
+    return reason[:1].lower() + reason[1:]
 
 
 def _rename(message: str, staged: str, original: str) -> str:

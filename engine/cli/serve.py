@@ -11,6 +11,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from engine.limits import MAX_UPLOAD_BYTES
+
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
@@ -31,8 +33,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         "sample_data)")
     p.add_argument("--upload-dir", type=Path, default=None, metavar="DIR",
                    help="where uploaded takes are stored by content hash (default ./uploads)")
-    p.add_argument("--max-upload-mb", type=float, default=32.0,
-                   help="largest accepted upload in MiB (default 32)")
+    p.add_argument("--max-upload-mb", type=float, default=MAX_UPLOAD_BYTES / 2**20,
+                   help="largest accepted upload in MiB (default "
+                        f"{MAX_UPLOAD_BYTES / 2**20:g}, engine.limits.MAX_UPLOAD_BYTES)")
     p.add_argument("--no-warm", action="store_true",
                    help="do not precompute the demo pair before accepting connections")
     p.set_defaults(func=run)
