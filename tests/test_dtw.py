@@ -288,8 +288,14 @@ def test_aligner_reuses_rows_and_equals_full_solves():
     solver = Aligner(a, b)
     band = Band.from_constraints(n, m, 0.3, points)
     first = solver.solve(band)
-    assert solver.last_stats.cells_computed == band.area
-    assert first.cost == pytest.approx(align_features(a, b, band).cost, rel=1e-12)
+    stats = solver.last_stats
+    assert stats.forward_rows == (0, n)  # a full solve runs forward over every row ...
+    suffix = band.area - band.start[stats.backward_rows[0]]
+    assert stats.cells_computed == band.area + suffix  # ... plus the backward last third
+    assert suffix == pytest.approx(band.area / 3, rel=0.05)
+    plain = align_features(a, b, band)
+    assert first.cost == pytest.approx(plain.cost, rel=1e-12)
+    assert first.path.tolist() == plain.path.tolist()
     for y in (104, 110, 95, 100):  # drag the middle point
         points[1][1] = y
         band = Band.from_constraints(n, m, 0.3, points)
@@ -302,6 +308,120 @@ def test_aligner_reuses_rows_and_equals_full_solves():
     assert stats.cells_computed < 0.6 * band.area  # after the first drag: two segments only
     assert solver.solve(band) is r  # unchanged band: nothing recomputed
     assert solver.last_stats.cells_computed == 0
+
+
+SLACK = 2 * Aligner.GAMMA_EVERY + 4  # rows a pass may redo to resume from a stored row
+
+
+def _even_points(n, count=5, tol=2):
+    return [
+        [round(n * k / (count + 1)), round(n * k / (count + 1)), tol] for k in range(1, count + 1)
+    ]
+
+
+def _segment_cells(band, r0, r1):
+    """Band cells in rows r0..r1 (the rows an edit must recompute)."""
+    return int(band.start[r1 + 1] - band.start[r0])
+
+
+@pytest.mark.parametrize("k", [2, 3, 4])  # points at n/2, 2n/3, 5n/6
+def test_aligner_first_edit_recomputes_only_the_two_segments(k):
+    rng = np.random.default_rng(13 + k)
+    n = 300
+    a = rng.standard_normal((n, 3))
+    b = rng.standard_normal((n, 3))
+    points = _even_points(n)
+    xs = [p[0] for p in points]
+    solver = Aligner(a, b)
+    solver.solve(Band.from_constraints(n, n, 0.3, points))
+    for step, dy in enumerate((6, -5, 9)):  # first edit, then further drags
+        points[k][1] = xs[k] + dy
+        band = Band.from_constraints(n, n, 0.3, points)
+        r = solver.solve(band)
+        full = align_features(a, b, band)
+        assert r.cost == pytest.approx(full.cost, rel=1e-12)
+        assert r.path.tolist() == full.path.tolist()
+        stats = solver.last_stats
+        r0, r1 = xs[k - 1] + 1, xs[k + 1] if k + 1 < len(xs) else n - 1
+        # the point's two segments, plus the few rows back to a stored γ row
+        assert stats.cells_computed <= _segment_cells(band, r0, r1) + SLACK * n, (step, stats)
+        assert stats.cells_computed <= 0.4 * band.area, (step, stats)
+        assert stats.forward_rows[0] >= r0 - SLACK and stats.backward_rows[1] <= r1 + SLACK
+
+
+def test_aligner_switching_points_and_adding_one_stays_exact_and_cheap():
+    rng = np.random.default_rng(17)
+    n, m = 300, 280
+    cost = rng.random((n, m))
+    points = [[50, 45, 2], [100, 92, 1], [150, 140, 2], [200, 186, 0], [250, 232, 2]]
+    solver = Aligner.from_cost(cost)
+    solver.solve(Band.from_constraints(n, m, 0.3, points))
+
+    def edit(pts):
+        band = Band.from_constraints(n, m, 0.3, pts)
+        r = solver.solve(band)
+        assert_matches_naive(cost, band, r)
+        return solver.last_stats, band
+
+    # the last point, then the one before it, then the last again: each a first edit
+    for k, y in ((4, 240), (3, 190), (4, 228), (3, 183)):
+        points[k][1] = y
+        stats, band = edit(points)
+        r0 = points[k - 1][0] + 1
+        r1 = points[k + 1][0] if k + 1 < len(points) else n - 1
+        assert stats.cells_computed <= _segment_cells(band, r0, r1) + SLACK * m
+    # a new point between the last two, then dragging it: only the segment it splits
+    points.insert(4, [225, 210, 1])
+    for y in (210, 215, 205):
+        points[4][1] = y
+        stats, band = edit(points)
+        assert stats.cells_computed <= _segment_cells(band, 201, 250) + SLACK * m
+    # an early point (its first edit reaches back to the junction, later drags stay
+    # local), then one in the last third again: exact
+    for step, y in enumerate((40, 50, 44)):
+        points[0][1] = y
+        stats, band = edit(points)
+        if step:
+            assert stats.cells_computed <= _segment_cells(band, 0, 100) + SLACK * m
+    points[5][1] = 236
+    _, band = edit(points)
+    gamma = solver.cumulative_cost().dense()
+    assert gamma[n - 1, m - 1] == pytest.approx(solver.solve(band).cost, rel=1e-12)
+
+
+def test_cumulative_cost_stays_exact_across_edits_and_checkpoints():
+    rng = np.random.default_rng(23)
+    n, m = 90, 80
+    cost = rng.random((n, m))
+    points = [[30, 25, 1], [60, 52, 2]]
+    solver = Aligner.from_cost(cost)
+    for step, y in enumerate((52, 58, 47, 55)):
+        points[1][1] = y
+        band = Band.from_constraints(n, m, 0.4, points)
+        r = solver.solve(band)
+        assert_matches_naive(cost, band, r)
+        if step >= 1:  # view in use from the second solve on
+            _, _, gamma = naive.dtw_banded(cost, band.lo.tolist(), band.hi.tolist())
+            dense = solver.cumulative_cost().dense()
+            got = np.array([dense[i, j] for i, j in gamma])
+            np.testing.assert_allclose(got, list(gamma.values()), rtol=1e-12)
+
+
+def test_aligner_full_rewrite_is_a_full_solve_again():
+    rng = np.random.default_rng(19)
+    n, m = 120, 100
+    cost = rng.random((n, m))
+    solver = Aligner.from_cost(cost)
+    solver.solve(Band.sakoe_chiba(n, m, 0.3))
+    band = Band.sakoe_chiba(n, m, 0.5)  # every row changes: nothing to reuse
+    r = solver.solve(band)
+    assert solver.last_stats.forward_rows == (0, n)
+    assert solver.last_stats.backward_rows[1] == n
+    assert_matches_naive(cost, band, r)
+    band = Band.from_constraints(n, m, 0.5, [(100, 80, 1)])  # then a cheap edit at the end
+    r = solver.solve(band)
+    assert_matches_naive(cost, band, r)
+    assert solver.last_stats.forward_rows[0] > 0
 
 
 def test_aligner_from_cost_and_cumulative_cost_after_edits():

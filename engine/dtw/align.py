@@ -188,8 +188,11 @@ class Problem:
         return Problem(self.kind, self.n, self.m, self.what, a=a, b=b, metric=self.metric, **extra)
 
     # -- kernels ---------------------------------------------------------
-    def forward(self, lo, hi, start, i0, i1, bp, gamma, keep_gamma):
-        """Rows ``i0..i1-1`` of γ; returns (bad_row, total) as the kernels do."""
+    def forward(self, lo, hi, start, i0, i1, bp, gamma, keep_gamma: int):
+        """Rows ``i0..i1-1`` of γ; returns (bad_row, total) as the kernels do.
+
+        ``keep_gamma``: which rows' γ go to ``gamma`` (0 none, 1 all, k every
+        k-th and the last; ``kernels._keep``)."""
         if self.kind == "matrix":
             return K.forward_matrix(self.cost, lo, hi, start, i0, i1, bp, gamma, keep_gamma)
         if self.kind == "builtin":
@@ -237,7 +240,7 @@ class Problem:
     def solve(self, band: Band) -> Alignment:
         """One-shot forward pass (two γ rows, one byte per cell) and backtrack."""
         bp = np.empty(band.area, np.uint8)  # every entry is written by the forward pass
-        bad_row, total = self.forward(band.lo, band.hi, band.start, 0, band.n, bp, _NO_GAMMA, False)
+        bad_row, total = self.forward(band.lo, band.hi, band.start, 0, band.n, bp, _NO_GAMMA, 0)
         if bad_row >= 0:
             raise self.bad_cost_error(int(bad_row), band)
         check_total(total)

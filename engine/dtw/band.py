@@ -189,7 +189,18 @@ class Band:
 
     def reversed(self) -> Band:
         """The band of the problem with both sequences reversed."""
-        return Band(self.m - 1 - self.hi[::-1], self.m - 1 - self.lo[::-1], self.m)
+        # a stored band is feasible and trimmed, so its mirror image is too:
+        # build it directly (the incremental solver does this on every edit)
+        lo = self.m - 1 - self.hi[::-1]
+        hi = self.m - 1 - self.lo[::-1]
+        start = np.zeros(self.n + 1, np.int64)
+        np.cumsum(hi - lo + 1, out=start[1:])
+        band = object.__new__(Band)
+        for name, value in (("lo", lo), ("hi", hi), ("start", start)):
+            value.flags.writeable = False
+            object.__setattr__(band, name, value)
+        object.__setattr__(band, "m", self.m)
+        return band
 
     def intersect(self, other: Band) -> Band:
         """Cells in both bands; ``ParameterError`` if no path fits in the intersection."""

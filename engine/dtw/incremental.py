@@ -20,19 +20,40 @@ How rows are reused
 -------------------
 Forward γ in row ``i`` depends only on band rows ``0..i``; the backward
 cost-to-go β (the same recurrence run from ``(n-1, m-1)`` backwards) in row
-``i`` depends only on rows ``i..n-1``. The solver keeps both per band cell. An
+``i`` depends only on rows ``i..n-1``. The solver keeps both between calls. An
 edit that changes band rows ``r0..r1`` (moving point ``k`` changes the two
 segments beside it, rows ``x_{k-1}+1 .. x_{k+1}``) leaves forward rows before
 ``r0`` and backward rows after ``r1`` valid. The solver computes forward rows
 up to a junction row ``J`` and backward rows after it, and joins them at the
-cheapest crossing from row ``J`` to row ``J + 1``. The first solve is forward
-only; the first edit costs as much as a forward-only re-solve (rows ``r0`` to
-the end) and leaves the backward rows after ``r1`` in place, so further drags
-of the same point recompute only rows ``r0..r1``.
+cheapest crossing from row ``J`` to row ``J + 1``; only the rows between the
+last valid forward row and the first valid backward row are computed, so the
+cost of an edit does not depend on where ``J`` lies, but the next edit does.
 
-Memory: about 18 bytes per band cell (γ and β as float64, two byte-sized
-backpointers), e.g. 27 MB for 2,000 x 2,000 with a 30 % band. For one-shot
-large problems use ``align_features`` (1 byte per cell).
+* A full solve (the first one, or an edit that leaves no row reusable) runs
+  forward over every row, so its path is exactly ``align_features``'s, and
+  then also computes the backward rows of the band's last third by cells
+  (``SUFFIX_SHARE``): 1.33x the cells of a forward-only solve. The first
+  edit of any point whose edited rows reach into that last third (every
+  point in the last third) then recomputes only the two segments beside it.
+* After an edit, ``J`` is the row inside the edited rows ``r0-1 .. r1``
+  nearest the start of that last third: further drags of the same point
+  recompute only its two segments, and the junction stays where a later
+  first edit of a point in the last third finds it. Editing a point in the
+  first part and then one in the last third costs, once, the forward rows
+  between them (they depend on the earlier edit; no scheme can avoid that
+  without recomputing them on every drag of the early point).
+* γ (and β) are stored for every ``GAMMA_EVERY``-th row and the last row of
+  each pass only; a pass resumes from the nearest stored row (fewer than
+  ``GAMMA_EVERY`` rows recomputed). Backpointers are kept for every cell.
+  ``cumulative_cost()`` computes the missing γ rows once and switches the
+  solver to keeping γ of every row (and, from then on, ``J`` to the end
+  of the edited rows, since γ is needed up to the last row anyway).
+
+Memory: one byte per band cell and direction for backpointers plus γ/β of
+every 8th row, i.e. about 3-4 bytes per cell resident (18 once
+``cumulative_cost()`` is used; address space is reserved for 18 either way),
+e.g. 27 MB at most for 2,000 x 2,000 with a 30 % band. For one-shot large
+problems use ``align_features`` (1 byte per cell).
 
 An ``Aligner`` is bound to one cost source; it serialises its calls with a
 lock (safe to share between threads, but calls do not run in parallel).
@@ -75,12 +96,19 @@ class SolveStats:
         return self.cells_computed / max(self.cells_in_band, 1)
 
 
-class _Store:
-    """Per-cell γ and backpointers for one direction, grown on demand."""
+class _Side:
+    """Stored rows of one direction (forward γ, or backward β in reversed row order).
 
-    def __init__(self):
+    Backpointers are kept for every computed cell, γ for the rows ``has``
+    marks (``kernels._keep``). Rows ``0..valid-1`` (in this direction's own
+    order) are valid for the current band.
+    """
+
+    def __init__(self, n: int):
         self.gamma = np.empty(0, np.float64)
         self.bp = np.empty(0, np.uint8)
+        self.has = np.zeros(n, bool)
+        self.valid = 0
 
     def ensure(self, area: int, keep: int) -> None:
         """Capacity for ``area`` cells, keeping the first ``keep`` entries."""
@@ -93,6 +121,11 @@ class _Store:
         bp[:keep] = self.bp[:keep]
         self.gamma, self.bp = gamma, bp
 
+    def resume_row(self, row: int) -> int:
+        """First row to compute so that rows up to ``row`` follow a stored one."""
+        stored = np.flatnonzero(self.has[:row])
+        return int(stored[-1]) + 1 if stored.size else 0
+
 
 class Aligner:
     """Banded DTW solver that keeps its rows between calls (see module docstring).
@@ -104,6 +137,14 @@ class Aligner:
     metric : str or numba function
         As for ``align_features``.
     """
+
+    #: share of the band's cells, at its end, whose backward rows a full solve
+    #: also computes (see the module docstring)
+    SUFFIX_SHARE = 1.0 / 3.0
+    #: γ/β are stored for every GAMMA_EVERY-th row (and the last row of each
+    #: pass); a pass resumes from the nearest stored row, recomputing fewer
+    #: than GAMMA_EVERY rows. ``cumulative_cost()`` switches to every row.
+    GAMMA_EVERY = 8
 
     def __init__(self, a, b, metric: str | Dispatcher = "sqeuclidean"):
         self._init(Problem.from_features(a, b, metric))
@@ -125,10 +166,9 @@ class Aligner:
         """Forget all stored rows (the next solve is a full one)."""
         self._band: Band | None = None
         self._rband: Band | None = None
-        self._fwd = _Store()
-        self._bwd = _Store()
-        self._f_valid = 0  # forward rows [0, f_valid) are valid for self._band
-        self._b_valid = self.n  # backward rows [b_valid, n) are valid
+        self._fwd = _Side(self.n)  # forward rows [0, fwd.valid) are valid for self._band
+        self._bwd = _Side(self.n)  # backward rows [n - bwd.valid, n) are valid
+        self._every = self.GAMMA_EVERY  # 1 once cumulative_cost() was asked for
         self._last: Alignment | None = None
         self.last_stats: SolveStats | None = None
 
@@ -156,15 +196,22 @@ class Aligner:
     def cumulative_cost(self) -> BandValues:
         """Forward cumulative cost γ of every cell of the current band.
 
-        Rows the last re-solve left to the backward pass are computed here
-        (once) first. Raises ``RuntimeError`` before the first solve.
+        Rows whose γ is not stored (solves keep γ of every
+        ``GAMMA_EVERY``-th row only) or that the last re-solve left to the
+        backward pass are computed here first; from then on this solver keeps
+        γ of every row, so after further edits only the rows that changed are
+        recomputed. Raises ``RuntimeError`` before the first solve.
         """
         with self._lock:
             band = self._band
             if band is None:
                 raise RuntimeError("cumulative_cost() needs a solve() first")
-            self._forward_rows(band, self._f_valid, band.n)
-            return BandValues(band, self._fwd.gamma[: band.area].copy())
+            self._every = 1
+            fwd = self._fwd
+            missing = np.flatnonzero(~fwd.has[: fwd.valid])
+            first = int(missing[0]) if missing.size else fwd.valid
+            self._compute(self._problem, fwd, band, first, band.n)
+            return BandValues(band, fwd.gamma[: band.area].copy())
 
     # -- internals -----------------------------------------------------------
     def _solve(self, band: Band) -> Alignment:
@@ -181,66 +228,93 @@ class Aligner:
         else:
             changed = np.flatnonzero((old.lo != band.lo) | (old.hi != band.hi))
             r0, r1 = (int(changed[0]), int(changed[-1])) if changed.size else (n, -1)
-        f_valid = min(self._f_valid, r0)
-        b_valid = max(self._b_valid, r1 + 1)
+        fwd, bwd = self._fwd, self._bwd
         # stored rows keep their flat offsets: widths before r0 (forward) and
         # after r1 (backward, counted from the end) did not change
+        fwd.valid = min(fwd.valid, r0)
+        bwd.valid = min(bwd.valid, n - 1 - r1)
+        f_valid, b_valid = fwd.valid, n - bwd.valid
         rband = band.reversed()
         self._band, self._rband, self._last = band, rband, None
-        self._f_valid, self._b_valid = f_valid, b_valid
 
-        junction = min(max(r1, f_valid - 1), b_valid - 1)  # any J in [f_valid-1, b_valid-1] works
-        cells = self._forward_rows(band, f_valid, junction + 1)
+        split = self._split_row(band)
+        full = f_valid == 0 and b_valid >= n  # nothing reusable: forward over every row
+        if full:
+            junction = n - 1
+        else:
+            # any J with J + 1 between f_valid and b_valid needs the same rows;
+            # prefer one inside the edited rows (further drags of the same point
+            # stay minimal) and there the one nearest the split row (or, once
+            # cumulative_cost() is in use, the end of the edited rows: γ is
+            # needed up to the last row anyway)
+            pref = split if self._every > 1 else n - 1
+            if r0 <= r1:
+                pref = min(max(pref, r0 - 1), r1)
+            lo_j = min(f_valid, b_valid) - 1
+            hi_j = max(f_valid, b_valid) - 1
+            junction = max(0, min(max(pref, lo_j), hi_j))
+        f0 = fwd.resume_row(min(f_valid, junction + 1))
+        cells = self._compute(self._problem, fwd, band, f0, junction + 1)
+        forward = (f0, max(f0, junction + 1))
+        backward = (junction + 1, junction + 1)
         if junction == n - 1:
             total = self._fwd_total(band)
-            path = K.backtrack(self._fwd.bp, band.lo, band.start, n - 1, self.m - 1)
+            path = K.backtrack(fwd.bp, band.lo, band.start, n - 1, self.m - 1)
         else:
-            cells += self._backward_rows(rband, junction + 1)
+            cells += self._backward(rband, junction + 1)
+            backward = (junction + 1, self._last_backward_end)
             total, path = self._join(band, rband, junction)
         check_total(total)
+        if full and split < n - 1:
+            # backward rows of the last third, for cheap first edits there
+            cells += self._backward(rband, split + 1)
+            backward = (split + 1, n)
         path.flags.writeable = False
         self._last = Alignment(path=path, cost=float(total), band=band)
         self.last_stats = SolveStats(
-            (f_valid, max(f_valid, junction + 1)),
-            (junction + 1, b_valid),
-            cells,
-            band.area,
-            junction,
-            time.perf_counter() - t0,
+            forward, backward, cells, band.area, junction, time.perf_counter() - t0
         )
         return self._last
 
-    def _forward_rows(self, band: Band, i0: int, i1: int) -> int:
-        """Compute forward rows [i0, i1) into the store; returns cells computed."""
-        if i1 <= i0:
-            return 0
-        self._fwd.ensure(band.area, int(band.start[i0]))
-        bad, _ = self._problem.forward(
-            band.lo, band.hi, band.start, i0, i1, self._fwd.bp, self._fwd.gamma, True
-        )
-        if bad >= 0:
-            self._f_valid = int(bad)
-            raise self._problem.bad_cost_error(int(bad), band)
-        self._f_valid = max(self._f_valid, i1)
-        return int(band.start[i1] - band.start[i0])
+    def _split_row(self, band: Band) -> int:
+        """Last row before the band's final ``SUFFIX_SHARE`` of cells (0..n-1)."""
+        target = band.area * (1.0 - self.SUFFIX_SHARE)
+        first_of_suffix = int(np.searchsorted(band.start, target, side="left"))
+        return min(max(first_of_suffix - 1, 0), band.n - 1)
 
-    def _backward_rows(self, rband: Band, first_row: int) -> int:
-        """Compute backward rows [first_row, b_valid) (reversed rows n-b_valid .. n-1-first_row)."""
-        n = self.n
-        r0, r1 = n - self._b_valid, n - first_row
-        if r1 <= r0:
-            return 0
+    def _reversed_problem(self) -> Problem:
         if self._reverse is None:
             self._reverse = self._problem.reversed()
-        self._bwd.ensure(rband.area, int(rband.start[r0]))
-        bad, _ = self._reverse.forward(
-            rband.lo, rband.hi, rband.start, r0, r1, self._bwd.bp, self._bwd.gamma, True
-        )
+        return self._reverse
+
+    def _backward(self, rband: Band, first_row: int) -> int:
+        """Make backward rows ``first_row..n-1`` valid with β of ``first_row`` stored."""
+        n = self.n
+        bwd = self._bwd
+        target = n - first_row  # reversed rows [0, target) needed, the last one stored
+        r0 = bwd.resume_row(min(bwd.valid, target))
+        self._last_backward_end = n - r0
+        return self._compute(self._reversed_problem(), bwd, rband, r0, target)
+
+    def _compute(self, problem: Problem, side: _Side, band: Band, i0: int, i1: int) -> int:
+        """Rows [i0, i1) of one direction (its own row order); returns cells computed.
+
+        Needs row ``i0 - 1`` stored (``side.resume_row``). Afterwards rows up to
+        ``max(side.valid, i1)`` are valid and row ``i1 - 1`` is stored.
+        """
+        if i1 <= i0:
+            return 0
+        side.ensure(band.area, int(band.start[side.valid]))
+        every = self._every
+        bad, _ = problem.forward(band.lo, band.hi, band.start, i0, i1, side.bp, side.gamma, every)
         if bad >= 0:
-            self._b_valid = n - int(bad)
-            raise self._reverse.bad_cost_error(int(bad), rband, reversed_=True)
-        self._b_valid = first_row
-        return int(rband.start[r1] - rband.start[r0])
+            side.valid = min(side.valid, i0)
+            raise problem.bad_cost_error(int(bad), band, reversed_=problem is not self._problem)
+        rows = np.arange(i0, i1)
+        side.has[i0:i1] = (rows % every == 0) if every > 1 else True
+        side.has[i1 - 1] = True
+        side.valid = max(side.valid, i1)
+        return int(band.start[i1] - band.start[i0])
 
     def _fwd_total(self, band: Band) -> float:
         return float(self._fwd.gamma[band.area - 1])  # last cell of the last row is (n-1, m-1)

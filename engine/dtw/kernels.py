@@ -228,6 +228,13 @@ def _pad_row(buf, lo, hi, i):
 
 
 @njit_cached()
+def _keep(every, i, i1):
+    """Store γ of row ``i`` (of a pass over rows ``..i1-1``)? ``every``: 0 never, 1 always,
+    k > 1 every k-th row (``i % k == 0``) and the pass's last row."""
+    return every == 1 or (every > 1 and (i % every == 0 or i == i1 - 1))
+
+
+@njit_cached()
 def _use_pair(lo, hi, i, i1):
     return (
         i + 1 < i1 and hi[i] - lo[i] >= PAIR_MIN_WIDTH and hi[i + 1] - lo[i + 1] >= PAIR_MIN_WIDTH
@@ -267,8 +274,10 @@ def _fill_metric(metric, a, b, i, lo, hi, crow):
 # Each returns (bad_row, total): bad_row is the first row with a NaN/-inf local
 # cost (-1 if none), total is γ(i1 - 1, m - 1) (meaningful when i1 == n).
 # ``bp`` receives the backpointers of rows i0..i1-1 (flat, ``start`` offsets).
-# ``gamma`` is the per-cell γ store when keep_gamma, else any float64 array;
-# for i0 > 0 row i0 - 1 must already be in ``gamma``. The three kernels share
+# ``gamma`` is the per-cell γ store (same flat offsets as ``bp``); ``keep_gamma``
+# (int) says which rows are written to it (``_keep``: 0 none, then ``gamma`` may
+# be any float64 array; 1 every row; k > 1 every k-th row and the last one).
+# For i0 > 0 row i0 - 1 must already be in ``gamma``. The three kernels share
 # the row functions and differ only in where a row's local costs come from.
 
 
@@ -298,8 +307,9 @@ def forward_matrix(cost, lo, hi, start, i0, i1, bp, gamma, keep_gamma):
             if bad:
                 return (i if bad & 1 else i + 1), np.nan
             _pad_row(cur, lo, hi, i + 1)
-            if keep_gamma:
+            if _keep(keep_gamma, i, i1):
                 _store_row(mid, gamma, lo, hi, start, i)
+            if _keep(keep_gamma, i + 1, i1):
                 _store_row(cur, gamma, lo, hi, start, i + 1)
             prev, mid, cur = cur, prev, mid
             i += 2
@@ -307,7 +317,7 @@ def forward_matrix(cost, lo, hi, start, i0, i1, bp, gamma, keep_gamma):
             if _dp_row(prev, cur, cost[i], lo[i], hi[i], bp[start[i] : start[i + 1]]):
                 return i, np.nan
             _pad_row(cur, lo, hi, i)
-            if keep_gamma:
+            if _keep(keep_gamma, i, i1):
                 _store_row(cur, gamma, lo, hi, start, i)
             prev, cur = cur, prev
             i += 1
@@ -344,8 +354,9 @@ def forward_builtin(a, bT, kind, lo, hi, start, i0, i1, bp, gamma, keep_gamma):
             if bad:
                 return (i if bad & 1 else i + 1), np.nan
             _pad_row(cur, lo, hi, i + 1)
-            if keep_gamma:
+            if _keep(keep_gamma, i, i1):
                 _store_row(mid, gamma, lo, hi, start, i)
+            if _keep(keep_gamma, i + 1, i1):
                 _store_row(cur, gamma, lo, hi, start, i + 1)
             prev, mid, cur = cur, prev, mid
             i += 2
@@ -354,7 +365,7 @@ def forward_builtin(a, bT, kind, lo, hi, start, i0, i1, bp, gamma, keep_gamma):
             if _dp_row(prev, cur, crow_a, lo[i], hi[i], bp[start[i] : start[i + 1]]):
                 return i, np.nan
             _pad_row(cur, lo, hi, i)
-            if keep_gamma:
+            if _keep(keep_gamma, i, i1):
                 _store_row(cur, gamma, lo, hi, start, i)
             prev, cur = cur, prev
             i += 1
@@ -373,7 +384,7 @@ def forward_metric(metric, a, b, lo, hi, start, i0, i1, bp, gamma, keep_gamma):
         if _dp_row(prev, cur, crow, lo[i], hi[i], bp[start[i] : start[i + 1]]):
             return i, np.nan
         _pad_row(cur, lo, hi, i)
-        if keep_gamma:
+        if _keep(keep_gamma, i, i1):
             _store_row(cur, gamma, lo, hi, start, i)
         prev, cur = cur, prev
     return -1, prev[m]
