@@ -218,16 +218,16 @@ class Aligner:
         t0 = time.perf_counter()
         n = self.n
         old = self._band
-        if old is not None and old == band and self._last is not None:
-            self.last_stats = SolveStats(
-                (0, 0), (n, n), 0, band.area, n - 1, time.perf_counter() - t0
-            )
-            return self._last
         if old is None:
             r0, r1 = 0, n - 1
         else:
             changed = np.flatnonzero((old.lo != band.lo) | (old.hi != band.hi))
             r0, r1 = (int(changed[0]), int(changed[-1])) if changed.size else (n, -1)
+            if r0 > r1 and self._last is not None:  # same band (Band.__eq__): nothing to do
+                self.last_stats = SolveStats(
+                    (0, 0), (n, n), 0, band.area, n - 1, time.perf_counter() - t0
+                )
+                return self._last
         fwd, bwd = self._fwd, self._bwd
         # stored rows keep their flat offsets: widths before r0 (forward) and
         # after r1 (backward, counted from the end) did not change
@@ -310,8 +310,11 @@ class Aligner:
         if bad >= 0:
             side.valid = min(side.valid, i0)
             raise problem.bad_cost_error(int(bad), band, reversed_=problem is not self._problem)
-        rows = np.arange(i0, i1)
-        side.has[i0:i1] = (rows % every == 0) if every > 1 else True
+        if every > 1:
+            side.has[i0:i1] = False
+            side.has[-(-i0 // every) * every : i1 : every] = True
+        else:
+            side.has[i0:i1] = True
         side.has[i1 - 1] = True
         side.valid = max(side.valid, i1)
         return int(band.start[i1] - band.start[i0])
@@ -321,26 +324,8 @@ class Aligner:
 
     def _join(self, band: Band, rband: Band, J: int):
         """Cheapest crossing from row J (forward γ) to row J + 1 (backward β)."""
-        n, m = self.n, self.m
-        lo_j, hi_j = int(band.lo[J]), int(band.hi[J])
-        gamma = self._fwd.gamma[band.start[J] : band.start[J + 1]]
-        r = n - 2 - J  # reversed index of row J + 1
-        # β of row J + 1 in original column order lo..hi
-        beta = self._bwd.gamma[rband.start[r] : rband.start[r + 1]][::-1]
-        lo_n, hi_n = int(band.lo[J + 1]), int(band.hi[J + 1])
-        cols = np.arange(lo_j, hi_j + 1)
-        beta_at = np.full(m + 1, np.inf)
-        beta_at[lo_n : hi_n + 1] = beta
-        diag = beta_at[cols + 1]
-        vert = beta_at[cols]
-        use_diag = diag <= vert
-        nxt = np.where(use_diag, diag, vert)
-        totals = gamma + nxt
-        k = int(np.argmin(totals))
-        total = float(totals[k])
-        j = lo_j + k
-        j_next = j + 1 if use_diag[k] else j
-        head = K.backtrack(self._fwd.bp, band.lo, band.start, J, j)
-        tail = K.backtrack(self._bwd.bp, rband.lo, rband.start, r, m - 1 - j_next)
-        tail = np.column_stack((n - 1 - tail[::-1, 0], m - 1 - tail[::-1, 1]))
-        return total, np.ascontiguousarray(np.concatenate((head, tail)), dtype=np.int64)
+        fwd, bwd = self._fwd, self._bwd
+        return K.join_path(
+            fwd.gamma, fwd.bp, band.lo, band.hi, band.start,
+            bwd.gamma, bwd.bp, rband.lo, rband.hi, rband.start, J,
+        )  # fmt: skip

@@ -432,6 +432,55 @@ def backtrack(bp, lo, start, i, j):
     return path[:k][::-1].copy()
 
 
+@njit_cached()
+def join_path(gamma, bp, lo, hi, start, rgamma, rbp, rlo, rhi, rstart, J):
+    """Optimal path through the cheapest crossing from row ``J`` to row ``J + 1``.
+
+    ``gamma``/``bp`` (band ``lo``, ``hi``, ``start``) hold forward γ of row
+    ``J`` and the backpointers of rows ``0..J``; ``rgamma``/``rbp`` (reversed
+    band ``rlo``, ``rhi``, ``rstart``) hold β of row ``J + 1`` and the backward
+    backpointers of rows ``J + 1..n-1``, in reversed order. The crossing is
+    ``(J, j) -> (J + 1, j + 1)`` (preferred on a tie) or ``(J + 1, j)``; the
+    first cheapest ``j`` wins. Returns (total, path (k, 2) int64).
+    """
+    n = lo.shape[0]
+    m = rhi[n - 1] + 1
+    r = n - 2 - J  # reversed index of row J + 1
+    lo_n, hi_n = lo[J + 1], hi[J + 1]
+    best = INF
+    best_j = lo[J]
+    best_next = lo[J]
+    for j in range(lo[J], hi[J] + 1):
+        g = gamma[start[J] + j - lo[J]]
+        # β(J + 1, c) sits at reversed column m - 1 - c of reversed row r
+        vert = INF
+        if lo_n <= j <= hi_n:
+            vert = rgamma[rstart[r] + (m - 1 - j) - rlo[r]]
+        diag = INF
+        if lo_n <= j + 1 <= hi_n:
+            diag = rgamma[rstart[r] + (m - 2 - j) - rlo[r]]
+        if diag <= vert:
+            t = g + diag
+            nxt = j + 1
+        else:
+            t = g + vert
+            nxt = j
+        if t < best or j == lo[J]:
+            best = t
+            best_j = j
+            best_next = nxt
+    head = backtrack(bp, lo, start, J, best_j)
+    tail = backtrack(rbp, rlo, rstart, r, m - 1 - best_next)
+    k_head = head.shape[0]
+    k_tail = tail.shape[0]
+    path = np.empty((k_head + k_tail, 2), np.int64)
+    path[:k_head] = head
+    for q in range(k_tail):
+        path[k_head + q, 0] = n - 1 - tail[k_tail - 1 - q, 0]
+        path[k_head + q, 1] = m - 1 - tail[k_tail - 1 - q, 1]
+    return best, path
+
+
 # ---------------------------------------------------------------------------
 # metric registry
 # ---------------------------------------------------------------------------
