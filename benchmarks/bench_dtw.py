@@ -374,7 +374,16 @@ def report(speed, resolve, memory, warmup) -> str:
         )
         + ".",
         "",
-        "Target: ≤ 0.40 of a full solve for a point in the last third.",
+        "Target: ≤ 0.40 of a full solve for a point in the last third. Choice: the initial "
+        "solve pays for the backward rows of the last third (1.33x the cells of a plain solve, "
+        "time ratio above) so that the *first* edit of any point in the last third recomputes "
+        "only its two segments; `Aligner.SUFFIX_SHARE = 0` gives the previous cheaper initial "
+        "solve with the slower first edits of the *before* column. Not covered: after dragging "
+        "a point in the first two thirds, the first edit of a point in the last third also "
+        "recomputes the forward rows between the two (they depend on the earlier edit), e.g. "
+        "n/6 then 5n/6: two thirds of the band's cells, once; further drags are again two "
+        "segments. Results equal a full solve (tests compare cost and path with "
+        "`align_features` / the naive reference after first and later edits).",
         "",
         "**JIT warm-up** (fresh process; cold = empty numba cache, warm = cache on disk):",
         "",
