@@ -349,9 +349,24 @@ def test_download_bvh_and_session(page, tmp_path):
     assert read_session(spath).sample == data["inputs"]["sample"]
 
 
-def test_download_preview_gif(page, tmp_path):
-    with page.expect_download(timeout=120_000) as info:
-        page.locator(".hs-download-gif button").click()
+def test_download_preview_gif(page, browser, server, tmp_path):
+    """The export shows its progress, and another session stays responsive meanwhile."""
+    other = _open(browser, server)
+    try:
+        with page.expect_download(timeout=120_000) as info:
+            page.locator(".hs-download-gif button").click()
+            page.locator("progress.hs-export-progress").wait_for(state="visible", timeout=30_000)
+            rev = _revision(other)
+            t0 = time.monotonic()
+            other.mouse.click(*other.evaluate("hs.xy(40, 30)"))  # an edit in the other tab
+            _wait_revision(other, rev)
+            elapsed = time.monotonic() - t0
+            busy = "rendering" in _text(page.locator(".hs-export-status"))
+        assert busy, "the export ended before the other session's edit: nothing was measured"
+        assert elapsed < 2.0, f"another session waited {elapsed:.1f} s during the export"
+        assert not other.errors, other.errors
+    finally:
+        other.context.close()
     path = tmp_path / "preview.gif"
     info.value.save_as(path)
     import imageio.v3 as iio

@@ -467,3 +467,56 @@ def test_teaching_example_steps_through_the_recurrence():
     assert not np.array_equal(sign_path, model.alignment.path)
     view = TeachingView(model)
     assert len(view.cells.data["i"]) == 120
+
+
+def test_video_export_runs_off_the_event_loop_with_progress(session, monkeypatch):
+    """The GIF renders on a worker thread: the event loop (every session's) keeps ticking,
+    the page's progress bar moves, and the bytes are a real GIF."""
+    import asyncio
+    import time
+
+    import imageio.v3 as iio
+
+    from webapp.views import sharing
+
+    real = backend.preview_video
+    threads = set()
+
+    def short_video(*args, **kwargs):  # a real export, fewer frames (test time)
+        import threading
+
+        threads.add(threading.current_thread().name)
+        time.sleep(0.3)  # long enough for the page to show progress
+        return real(*args, max_frames=12, **kwargs)
+
+    monkeypatch.setattr(backend, "preview_video", short_video)
+    monkeypatch.setattr(sharing, "PROGRESS_INTERVAL", 0.05)
+    view = sharing.SharingView(session)
+
+    async def export():
+        gaps, shown, stop = [], set(), []
+
+        async def tick():
+            last = time.perf_counter()
+            while not stop:
+                await asyncio.sleep(0.01)
+                now = time.perf_counter()
+                gaps.append(now - last)
+                last = now
+                if view.progress.visible:
+                    shown.add((view.gif.disabled, view.progress_text.object.split("…")[0]))
+
+        ticker = asyncio.create_task(tick())
+        data = await view._gif()
+        stop.append(True)
+        await ticker
+        return data, gaps, shown
+
+    data, gaps, shown = asyncio.run(export())
+    assert threads and all(name.startswith("hs-export") for name in threads)
+    assert max(gaps) < 0.5 and len(gaps) > 10  # the loop ran all along
+    assert (True, "preview GIF: rendering") in shown  # buttons off, progress text on
+    frames = iio.imread(data.getvalue(), index=None)
+    assert frames.shape[0] >= 10 and not view.gif.disabled
+    assert view.progress.value == 100 and "KiB" in view.progress_text.object
+    assert view.gif.filename == f"{DEMO}-spliced.gif"

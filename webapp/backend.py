@@ -339,9 +339,15 @@ def png_bytes(image: np.ndarray) -> bytes:
 
 
 def preview_video(prepared: Prepared, solution: Solution, fmt: str, camera: str = "three-quarter",
-                  max_frames: int = 90, size: tuple[int, int] = (720, 272)) -> bytes:
+                  max_frames: int = 90, size: tuple[int, int] = (720, 272),
+                  progress=None) -> bytes:
     """An animated preview (GIF or MP4 bytes) of the whole take, at most ``max_frames``
-    frames (evenly spaced), played at the take's speed."""
+    frames (evenly spaced), played at the take's speed.
+
+    ``progress(done, total)`` is called after each rendered frame and once more (total,
+    total) when the file is encoded. Safe to call from a worker thread (the renderer
+    serialises OpenGL calls), which is how the app runs it.
+    """
     import io
 
     import imageio.v3 as iio
@@ -351,8 +357,13 @@ def preview_video(prepared: Prepared, solution: Solution, fmt: str, camera: str 
     if fmt not in ("gif", "mp4"):
         raise ValueError(f"format: expected gif or mp4, got {fmt!r}")
     step = max(1, -(-prepared.n // max_frames))
-    frames = [render_frame(prepared, solution, i, camera, False, size)
-              for i in range(0, prepared.n, step)]
+    indices = range(0, prepared.n, step)
+    total = len(indices) + 1  # + encoding
+    frames = []
+    for done, i in enumerate(indices, 1):
+        frames.append(render_frame(prepared, solution, i, camera, False, size))
+        if progress is not None:
+            progress(done, total)
     fps = max(1.0, float(prepared.body.fps) / step)
     buf = io.BytesIO()
     if fmt == "gif":
@@ -360,6 +371,8 @@ def preview_video(prepared: Prepared, solution: Solution, fmt: str, camera: str 
     else:
         iio.imwrite(buf, np.stack(frames), extension=".mp4", fps=fps, codec="libx264",
                     plugin="pyav" if _has_pyav() else None)
+    if progress is not None:
+        progress(total, total)
     return buf.getvalue()
 
 

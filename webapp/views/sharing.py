@@ -2,16 +2,29 @@
 
 The browser's address bar always carries the link of the current state (updated
 after every edit), so copying it shares the session; the field below shows it too.
+
+GIF/MP4 exports take seconds: they render on a worker thread while the event loop
+goes on serving every session (this one included); a progress bar and a line of
+text follow the frames, and the file downloads when it is ready.
 """
 
 from __future__ import annotations
 
+import asyncio
 import io
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
 
 import panel as pn
 
 from webapp import backend
 from webapp.state import Session
+
+#: exports of all sessions share these threads (renders take turns on the OpenGL lock)
+_EXPORTS = ThreadPoolExecutor(max_workers=2, thread_name_prefix="hs-export")
+#: how often the page's progress follows an export, seconds
+PROGRESS_INTERVAL = 0.25
 
 
 class SharingView:
@@ -37,6 +50,11 @@ class SharingView:
         self.mp4 = pn.widgets.FileDownload(callback=self._mp4, filename="preview.mp4",
                                            label="Preview MP4", css_classes=["hs-download-mp4"],
                                            width=160)
+        self.progress = pn.indicators.Progress(value=0, max=100, visible=False, width=300,
+                                               css_classes=["hs-export-progress"])
+        self.progress_text = pn.pane.HTML("", visible=False, css_classes=["hs-export-status"],
+                                          styles={"font-size": "12px", "color": "#444"})
+        self._exporting = False
         self.open_session = pn.widgets.FileInput(accept=".json", css_classes=["hs-open-session"],
                                                  width=260)
         self.open_session.param.watch(self._on_open_session, "value")
@@ -74,17 +92,64 @@ class SharingView:
     def _session_json(self):
         return self._guard(lambda: self.session.to_json().encode("utf-8"), "session")
 
-    def _gif(self):
-        s = self.session
-        self.gif.filename = f"{s.output_stem()}.gif"
-        return self._guard(lambda: backend.preview_video(s.prepared, s.solution, "gif"),
-                           "preview GIF")
+    async def _gif(self):
+        return await self._video("gif", self.gif, "preview GIF")
 
-    def _mp4(self):
+    async def _mp4(self):
+        return await self._video("mp4", self.mp4, "preview MP4")
+
+    async def _video(self, fmt: str, widget, what: str) -> io.BytesIO:
+        """Render the preview video on a worker thread; the page shows its progress."""
         s = self.session
-        self.mp4.filename = f"{s.output_stem()}.mp4"
-        return self._guard(lambda: backend.preview_video(s.prepared, s.solution, "mp4"),
-                           "preview MP4")
+        if self._exporting:
+            self.message.object = f"{what}: another export of this session is still running"
+            self.message.visible = True
+            return io.BytesIO(b"")
+        widget.filename = f"{s.output_stem()}.{fmt}"
+        prepared, solution = s.prepared, s.solution  # this state, whatever is edited meanwhile
+        counts = {"done": 0, "total": 1}
+        lock = threading.Lock()
+
+        def progress(done, total):
+            with lock:
+                counts.update(done=done, total=total)
+
+        def show():
+            with lock:
+                done, total = counts["done"], counts["total"]
+            self.progress.value = int(100 * done / max(total, 1))
+            step = "encoding" if done >= total - 1 else f"frame {done} of {total - 1}"
+            self.progress_text.object = f"{what}: rendering… {step}"
+
+        self._exporting = True
+        self.gif.disabled = self.mp4.disabled = True
+        self.progress.value = 0
+        self.progress.visible = self.progress_text.visible = True
+        self.progress_text.object = f"{what}: starting…"
+        t0 = time.perf_counter()
+        loop = asyncio.get_running_loop()
+        job = loop.run_in_executor(_EXPORTS, lambda: backend.preview_video(
+            prepared, solution, fmt, progress=progress))
+        try:
+            while True:
+                done, _ = await asyncio.wait({job}, timeout=PROGRESS_INTERVAL)
+                if done:
+                    break
+                show()
+            data = job.result()
+        except Exception as exc:  # shown in the page, never a traceback
+            self.message.object = f"{what}: {backend.one_line(exc)}"
+            self.message.visible = True
+            self.progress.visible = self.progress_text.visible = False
+            return io.BytesIO(b"")
+        finally:
+            self._exporting = False
+            self.gif.disabled = self.mp4.disabled = False
+        self.message.visible = False
+        self.progress.value = 100
+        self.progress_text.object = (f"{what}: {len(data) / 1024:.0f} KiB in "
+                                     f"{time.perf_counter() - t0:.1f} s, downloading")
+        return io.BytesIO(data)
 
     def _on_open_session(self, *_):
         """Restore a session file; a bad one changes nothing and says why here."""
@@ -126,6 +191,7 @@ class SharingView:
 
     def panel(self) -> pn.viewable.Viewable:
         return pn.Column(pn.Row(self.bvh, self.session_file, self.gif, self.mp4),
+                         pn.Row(self.progress, self.progress_text),
                          pn.Row(pn.pane.Markdown("**Open a session file**",
                                                  margin=(12, 10, 0, 10)), self.open_session),
                          self.link, self.command, self.message, sizing_mode="stretch_width")
