@@ -77,3 +77,53 @@ def test_preview_renders_the_spliced_take(tmp_path):
     code = main(["splice", str(BODY), str(HAND), "-o", str(tmp_path / "o.bvh"), "--quiet",
                  "--preview", str(png)])
     assert code == 0 and png.stat().st_size > 1000
+
+
+def test_session_file_from_the_app_gives_the_apps_map(tmp_path, sample_dir):
+    """``--session`` reads the JSON the app downloads: same side, bands, tolerance, points
+    (alignment-grid frames) and roles, hence the same frame map; flags override it."""
+    import numpy as np
+
+    from engine.io.session import read_session
+    from webapp import config
+    from webapp.state import Session
+
+    cfg = config.AppConfig(sample_dir=sample_dir.resolve(), upload_dir=tmp_path / "up")
+    app = Session(cfg)
+    app.load_sample("bye-hello")
+    app.set_roles({"body": {"right.wrist": "Hand_R"}})
+    app.param.update(band=0.25, refine_band=0.08)
+    app.add_point(40, 30, 2)
+    app.add_point(80, 50)
+    app.tolerance = 1
+    assert app.error == "" and len(app.points) == 2
+    session = tmp_path / "handsplice-session.json"
+    session.write_text(app.to_json())  # what the app's "Session JSON" button downloads
+    assert read_session(session).roles == {"body": {"right.wrist": "Hand_R"}}
+    pair = cfg.sample("bye-hello")
+    rep = tmp_path / "r.json"
+    assert main(["splice", str(pair.body), str(pair.hand), "-o", str(tmp_path / "o.bvh"),
+                 "--session", str(session), "--report", str(rep), "--quiet"]) == 0
+    report = json.loads(rep.read_text())
+    app_map = np.asarray(app.solution.cache["engine"].map)
+    assert np.allclose(report["map"], app_map, atol=1e-4)  # the report keeps 4 decimals
+    params = report["parameters"]
+    assert params["band"] == 0.25 and params["refine_band"] == 0.08
+    assert params["points_given"] == [[40, 30, 2.0], [80, 50, 1.0]]
+    # flags win over the file: --band, and --match replaces the file's points
+    rep2 = tmp_path / "r2.json"
+    assert main(["splice", str(pair.body), str(pair.hand), "-o", str(tmp_path / "o2.bvh"),
+                 "--session", str(session), "--report", str(rep2), "--quiet",
+                 "--band", "0.4", "--match", "60:40"]) == 0
+    params = json.loads(rep2.read_text())["parameters"]
+    assert params["band"] == 0.4 and params["refine_band"] == 0.08
+    assert params["points_given"] == [[60, 40, 0.0]]
+
+
+def test_bad_session_file_is_one_line(tmp_path, capsys):
+    bad = tmp_path / "s.json"
+    bad.write_text('{"points": [{"body": 5}]}')
+    assert main(["splice", str(BODY), str(HAND), "-o", str(tmp_path / "o.bvh"), "--quiet",
+                 "--session", str(bad)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "s.json: points[0].hand: missing" in err[0]

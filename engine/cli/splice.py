@@ -5,7 +5,7 @@
     handsplice splice BODY HAND -o OUT.bvh [--side auto|both|right|left]
         [--band 0.3] [--refine-band 0.1] [--match BODY_FRAME:HAND_FRAME[:TOL] ...]
         [--report REPORT.json] [--preview OUT.gif] [--roles MAP.json]
-        [--theta window|trunk|none] [--quiet]
+        [--session SESSION.json] [--theta window|trunk|none] [--quiet]
 
 * ``--side``: ``auto`` (default) splices both hands, aligned jointly, when both takes
   have both, else the side they share; ``both``/``right``/``left`` insist.
@@ -14,6 +14,13 @@
   for several points; they must increase in both frames.
 * ``--roles MAP.json``: joint-role overrides, ``{"body": {"right.wrist": "Name"},
   "hand": {...}}``, or one flat map applied to whichever take has those joints.
+* ``--session SESSION.json``: the session file the browser app downloads
+  (:mod:`engine.io.session`): side, band widths, global tolerance, matching points
+  and role overrides, so an alignment tuned in the app is replayed here on BODY and
+  HAND. Its points are in the app's alignment-grid frames (the cost matrix's: hand
+  frames resampled to the body's rate), as the app shows them. Flags given on the
+  command line win over the file: ``--side``, ``--band``, ``--refine-band``,
+  ``--roles``, and ``--match`` (which replaces all of the file's points).
 * ``--report``: REPORT.json (see ``engine.splice.report``): the frame map, both
   passes' paths, costs and bands, the parameters and per-stage times.
 * ``--preview OUT.gif`` (or .mp4/.png): a skinned preview of the spliced take.
@@ -37,17 +44,20 @@ def add_parser(subparsers) -> None:
     p.add_argument("body", help="body take (.bvh)")
     p.add_argument("hand", help="hand take with finger joints (.bvh)")
     p.add_argument("-o", "--output", required=True, metavar="OUT.bvh", help="spliced take")
-    p.add_argument("--side", default="auto", choices=["auto", "both", "right", "left"],
+    p.add_argument("--side", default=None, choices=["auto", "both", "right", "left"],
                    help="hands to splice (default auto: both when both takes have both)")
-    p.add_argument("--band", type=float, default=0.3,
+    p.add_argument("--band", type=float, default=None,
                    help="pass-1 band width, fraction of the body length (default 0.3)")
-    p.add_argument("--refine-band", type=float, default=0.1,
+    p.add_argument("--refine-band", type=float, default=None,
                    help="pass-2 band width around the pass-1 path (default 0.1)")
     p.add_argument("--match", action="append", default=[], metavar="BODY:HAND[:TOL]",
                    help="matching point: body frame, hand frame, tolerance in hand frames")
     p.add_argument("--report", metavar="REPORT.json", help="write the alignment report")
     p.add_argument("--preview", metavar="OUT.gif", help="render a preview (.gif, .mp4, .png)")
     p.add_argument("--roles", metavar="MAP.json", help="joint-role overrides")
+    p.add_argument("--session", metavar="SESSION.json",
+                   help="the browser app's session file (side, bands, tolerance, matching "
+                        "points, roles); flags given here override it")
     p.add_argument("--theta", default="window", choices=["window", "trunk", "none"],
                    help="vertical-axis rotation of pass 1: eq. 7 window (default), trunk "
                         "heading difference, or none")
@@ -128,6 +138,15 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.output)
     if out.suffix.lower() != ".bvh":
         raise ParameterError(f"{out.name}: the output must be a .bvh file")
+    spec = None
+    if getattr(args, "session", None):
+        from engine.io.session import read_session
+
+        spec = read_session(args.session)
+    args.side = args.side or (spec.side if spec else "auto")
+    args.band = args.band if args.band is not None else (spec.band if spec else 0.3)
+    args.refine_band = args.refine_band if args.refine_band is not None else (
+        spec.refine_band if spec else 0.1)
     if not (0.0 <= args.band <= 10.0):
         raise ParameterError(f"--band {args.band}: expected a fraction of the body length, "
                              "e.g. 0.3")
@@ -138,6 +157,10 @@ def run(args: argparse.Namespace) -> int:
         if suffix not in (".gif", ".mp4", ".png"):
             raise ParameterError(f"--preview {args.preview}: expected a .gif, .mp4 or .png file")
     points = [parse_match(m) for m in args.match]
+    # --match points are hand-file frames; a session's are alignment-grid frames (the app's)
+    hand_points = bool(points) or spec is None
+    if not points and spec is not None:
+        points = spec.constraint_points()
 
     body = load_take(args.body)
     hand = load_take(args.hand)
@@ -155,7 +178,9 @@ def run(args: argparse.Namespace) -> int:
             raise ParameterError(f"{args.roles} line {err.lineno}: not valid JSON "
                                  f"({err.msg})") from None
         body_roles, hand_roles = split_roles(mapping, body, hand)
-    for x, y, _ in points:
+    elif spec is not None and spec.roles:
+        body_roles, hand_roles = split_roles(spec.roles, body, hand)
+    for x, y, _ in points if hand_points else ():
         if x >= body.n_frames:
             raise ParameterError(f"--match {x}:{y}: body frame {x} is past the body take's "
                                  f"last frame {body.n_frames - 1}")
@@ -168,7 +193,8 @@ def run(args: argparse.Namespace) -> int:
 
     progress = _Progress(args.quiet)
     result = pipeline.splice(body, hand, side=args.side, band=args.band,
-                             refine_band=args.refine_band, points=points, hand_points=True,
+                             refine_band=args.refine_band, points=points,
+                             hand_points=hand_points,
                              theta=args.theta, body_roles=body_roles, hand_roles=hand_roles,
                              progress=progress)
     progress("write", 0.0)
