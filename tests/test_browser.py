@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import socket
 import subprocess
 import sys
@@ -405,6 +406,55 @@ def test_a_bad_link_opens_the_demo_and_says_why(browser, server):
         other.wait_for_function("() => !location.search.includes('nope')", timeout=30_000)
         assert "sample=nope" not in other.url and "band=0.5" not in other.url
         assert other.locator(".hs-share-url input").input_value().find("nope") < 0
+        assert not other.errors, other.errors
+    finally:
+        other.context.close()
+
+
+def _band_cells(status: str) -> int:
+    match = re.search(r"band ([\d,]+) cells", status)
+    assert match, status
+    return int(match.group(1).replace(",", ""))
+
+
+def _nudge_slider(page, index: int, key: str, times: int) -> None:
+    """Move the ``index``-th parameter slider (0 band W1, 1 band W2, 2 global tolerance)
+    by ``times`` steps with the keyboard, as a user can (each step is one release)."""
+    handle = page.locator(".hs-params .noUi-handle").nth(index)
+    handle.scroll_into_view_if_needed()
+    handle.focus()
+    for _ in range(times):
+        handle.press(key)
+
+
+def test_band_and_global_tolerance_sliders_change_the_band(browser, server):
+    other = _open(browser, server)
+    try:
+        cells0 = _band_cells(_status(other))
+        rev = _revision(other)
+        _nudge_slider(other, 0, "ArrowLeft", 5)  # W1 0.30 -> 0.25
+        _wait_revision(other, rev)
+        deadline = time.monotonic() + 30
+        while _band_cells(_status(other)) >= cells0:
+            assert time.monotonic() < deadline, _status(other)
+            other.wait_for_timeout(50)
+        cells1 = _band_cells(_status(other))
+        # a matching point without its own tolerance follows the global one
+        path = other.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
+        k = len(path["x"]) // 2
+        rev = _revision(other)
+        other.mouse.click(*other.evaluate(f"hs.xy({path['x'][k]}, {path['y'][k]})"))
+        _wait_revision(other, rev)
+        _wait_tolerances(other, [None])
+        cells2 = _band_cells(_status(other))
+        assert cells2 < cells1  # a point with T = 0 pins the band
+        rev = _revision(other)
+        _nudge_slider(other, 2, "ArrowRight", 6)  # T 0 -> 6 frames
+        _wait_revision(other, rev)
+        deadline = time.monotonic() + 30
+        while _band_cells(_status(other)) <= cells2:
+            assert time.monotonic() < deadline, _status(other)
+            other.wait_for_timeout(50)
         assert not other.errors, other.errors
     finally:
         other.context.close()
