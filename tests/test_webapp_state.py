@@ -520,3 +520,47 @@ def test_video_export_runs_off_the_event_loop_with_progress(session, monkeypatch
     assert frames.shape[0] >= 10 and not view.gif.disabled
     assert view.progress.value == 100 and "KiB" in view.progress_text.object
     assert view.gif.filename == f"{DEMO}-spliced.gif"
+
+
+def test_failed_exports_download_nothing_and_say_why(session, monkeypatch):
+    """A failing BVH or GIF export sends no file to the browser (no empty download);
+    the page shows the error. Drives Panel's own transfer paths (sync and async)."""
+    import asyncio
+
+    from webapp.views import sharing
+
+    view = sharing.SharingView(session)
+    view.bvh._clicks += 1  # a working download first: one transfer, real bytes
+    assert view.bvh._transfers == 1 and len(view.bvh.data) > 1000
+    first = view.bvh.data
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("renderer exploded")
+
+    monkeypatch.setattr(backend, "bvh_bytes", broken)
+    monkeypatch.setattr(backend, "preview_video", broken)
+    view.bvh._clicks += 1  # the button's click, as the browser sends it
+    assert view.bvh._transfers == 1 and view.bvh.data == first  # nothing new was sent
+    assert view.message.visible and "spliced BVH: " in view.message.object
+    assert "renderer exploded" in view.message.object
+
+    view.message.visible = False
+    asyncio.run(view.gif._async_sync_data())  # Panel's path for a coroutine callback
+    assert view.gif._transfers == 0 and view.gif.data is None
+    assert view.message.visible and "preview GIF: " in view.message.object
+    assert "renderer exploded" in view.message.object
+    assert not view.progress.visible and not view.gif.disabled and not view.mp4.disabled
+
+
+def test_command_line_uses_the_session_file_then_explicit_flags(session):
+    from webapp.views import sharing
+
+    session.add_point(40, 20, 0)
+    view = sharing.SharingView(session)
+    first, second = view.command.object.split("<br>", 1)
+    assert first == (f"$ handsplice splice {session.take_paths()[0].name} "
+                     f"{session.take_paths()[1].name} -o spliced.bvh "
+                     f"--session {sharing.SESSION_FILENAME}")
+    assert "--match" not in first
+    assert "explicit flags" in second and "$ handsplice splice " in second
+    assert "--match 40:" in second and "--band" in second

@@ -403,3 +403,13 @@ def cli_command(prepared: Prepared, body: str, hand: str, side: str, band: float
     if roles:
         parts += ["--roles", "ROLES.json"]
     return " ".join(parts)
+
+
+def cli_session_command(body: str, hand: str, session_file: str,
+                        output: str = "spliced.bvh") -> str:
+    """The ``handsplice splice`` command line that redoes this splice from the session file
+    the page downloads (side, bands, tolerance, matching points and roles all come from it)."""
+    import shlex
+
+    return " ".join(["handsplice", "splice", shlex.quote(body), shlex.quote(hand), "-o",
+                     shlex.quote(output), "--session", shlex.quote(session_file)])

@@ -5,7 +5,8 @@ after every edit), so copying it shares the session; the field below shows it to
 
 GIF/MP4 exports take seconds: they render on a worker thread while the event loop
 goes on serving every session (this one included); a progress bar and a line of
-text follow the frames, and the file downloads when it is ready.
+text follow the frames, and the file downloads when it is ready. An export that fails
+downloads nothing: its callback returns None and the page shows why.
 """
 
 from __future__ import annotations
@@ -25,6 +26,19 @@ from webapp.state import Session
 _EXPORTS = ThreadPoolExecutor(max_workers=2, thread_name_prefix="hs-export")
 #: how often the page's progress follows an export, seconds
 PROGRESS_INTERVAL = 0.25
+#: the name the page gives the downloaded session file (the command line refers to it)
+SESSION_FILENAME = "handsplice-session.json"
+
+
+class _Download(pn.widgets.FileDownload):
+    """A download button whose callback may return None: then nothing is sent and the
+    browser downloads nothing (Panel 1.9's FileDownload would raise on None, and the
+    browser only saves a file when the server sends new data)."""
+
+    def _sync_data(self, fileobj):
+        if fileobj is None:
+            return
+        super()._sync_data(fileobj)
 
 
 class SharingView:
@@ -38,16 +52,16 @@ class SharingView:
         self.session = session
         self.message = pn.pane.Alert("", alert_type="danger", visible=False,
                                      css_classes=["hs-share-error"])
-        self.bvh = pn.widgets.FileDownload(callback=self._bvh, filename="spliced.bvh",
+        self.bvh = _Download(callback=self._bvh, filename="spliced.bvh",
                                            label="Spliced BVH", color="primary",
                                            css_classes=["hs-download-bvh"], width=160)
-        self.session_file = pn.widgets.FileDownload(
-            callback=self._session_json, filename="handsplice-session.json",
+        self.session_file = _Download(
+            callback=self._session_json, filename=SESSION_FILENAME,
             label="Session JSON", css_classes=["hs-download-session"], width=160)
-        self.gif = pn.widgets.FileDownload(callback=self._gif, filename="preview.gif",
+        self.gif = _Download(callback=self._gif, filename="preview.gif",
                                            label="Preview GIF", css_classes=["hs-download-gif"],
                                            width=160)
-        self.mp4 = pn.widgets.FileDownload(callback=self._mp4, filename="preview.mp4",
+        self.mp4 = _Download(callback=self._mp4, filename="preview.mp4",
                                            label="Preview MP4", css_classes=["hs-download-mp4"],
                                            width=160)
         self.progress = pn.indicators.Progress(value=0, max=100, visible=False, width=300,
@@ -80,7 +94,7 @@ class SharingView:
         except Exception as exc:  # shown in the page, never a traceback
             self.message.object = f"{what}: {backend.one_line(exc)}"
             self.message.visible = True
-            return io.BytesIO(b"")
+            return None  # nothing downloads
         self.message.visible = False
         return io.BytesIO(data)
 
@@ -98,13 +112,16 @@ class SharingView:
     async def _mp4(self):
         return await self._video("mp4", self.mp4, "preview MP4")
 
-    async def _video(self, fmt: str, widget, what: str) -> io.BytesIO:
-        """Render the preview video on a worker thread; the page shows its progress."""
+    async def _video(self, fmt: str, widget, what: str) -> io.BytesIO | None:
+        """Render the preview video on a worker thread; the page shows its progress.
+
+        Returns the file's bytes, or None (nothing downloads) when the export fails or
+        another export of this session is still running; the page then says why."""
         s = self.session
         if self._exporting:
             self.message.object = f"{what}: another export of this session is still running"
             self.message.visible = True
-            return io.BytesIO(b"")
+            return None
         widget.filename = f"{s.output_stem()}.{fmt}"
         prepared, solution = s.prepared, s.solution  # this state, whatever is edited meanwhile
         counts = {"done": 0, "total": 1}
@@ -141,7 +158,7 @@ class SharingView:
             self.message.object = f"{what}: {backend.one_line(exc)}"
             self.message.visible = True
             self.progress.visible = self.progress_text.visible = False
-            return io.BytesIO(b"")
+            return None
         finally:
             self._exporting = False
             self.gif.disabled = self.mp4.disabled = False
@@ -185,9 +202,13 @@ class SharingView:
             paths = s.take_paths()
             body = s.body_name or paths[0].name
             hand = s.hand_name or paths[1].name
-            cmd = backend.cli_command(s.prepared, body, hand, s.side, s.band, s.refine_band,
-                                      s.constraint_points(), s.roles)
-            self.command.object = "$ " + cmd.replace("&", "&amp;").replace("<", "&lt;")
+            session_cmd = backend.cli_session_command(body, hand, SESSION_FILENAME)
+            flags_cmd = backend.cli_command(s.prepared, body, hand, s.side, s.band,
+                                            s.refine_band, s.constraint_points(), s.roles)
+            self.command.object = (
+                "$ " + _html(session_cmd) + "<br>"
+                "<span style='color:#777'># or with explicit flags (--match takes hand-file "
+                "frames):</span><br>$ " + _html(flags_cmd))
 
     def panel(self) -> pn.viewable.Viewable:
         return pn.Column(pn.Row(self.bvh, self.session_file, self.gif, self.mp4),
@@ -195,3 +216,7 @@ class SharingView:
                          pn.Row(pn.pane.Markdown("**Open a session file**",
                                                  margin=(12, 10, 0, 10)), self.open_session),
                          self.link, self.command, self.message, sizing_mode="stretch_width")
+
+
+def _html(text: str) -> str:
+    return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
