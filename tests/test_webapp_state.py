@@ -13,7 +13,7 @@ from engine.io.session import MatchPoint, SessionError
 from webapp import backend, config, uploads
 from webapp.state import Session
 
-DEMO = "bye-hello"
+DEMO = "wave-ok"
 
 
 @pytest.fixture(scope="module")
