@@ -182,6 +182,25 @@ def test_cost_views_at_screen_resolution_and_full_detail(session):
     assert cum[n - 1, m - 1] == pytest.approx(session.solution.pass1.cost)
 
 
+def test_cumulative_view_too_large_is_refused_with_a_message(cfg, monkeypatch):
+    from engine.splice import pipeline
+
+    # as for a long pair: no tabulated pass-1 costs and no solver kept (one-shot solves)
+    monkeypatch.setattr(backend, "DENSE_PASS1_MAX_CELLS", 0)
+    monkeypatch.setattr(backend, "_PREPARED", {})  # not the server-wide cache of prepared pairs
+    monkeypatch.setattr(backend, "_PREPARED_ORDER", [])
+    monkeypatch.setattr(pipeline, "INCREMENTAL_MAX_CELLS", 0)
+    monkeypatch.setattr(pipeline, "CUMULATIVE_MAX_CELLS", 100)
+    s = Session(cfg)
+    s.load_sample(DEMO)
+    assert s.error == "" and s.solution.pass1.band_cells > 100
+    s.matrix = "cumulative1"
+    assert s.cost_view((-0.5, s.n - 0.5, -0.5, s.m - 0.5), 100) is None
+    assert "cumulative-cost view" in s.error and "limit 100" in s.error
+    s.matrix = "pass1"  # the local cost still shows
+    assert s.cost_view((-0.5, s.n - 0.5, -0.5, s.m - 0.5), 100).image.size > 0
+
+
 def test_spliced_take_and_downloads(session):
     session.add_point(90, 40, 2)
     motion = session.spliced()

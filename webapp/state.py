@@ -356,9 +356,16 @@ class Session(param.Parameterized):
             self.frame = int(np.clip(round(x), 0, self.n - 1))
 
     def cost_view(self, ranges, max_pixels: int):
+        """The visible part of the shown matrix, or None (no takes, or a view that is refused,
+        e.g. a cumulative view too large to hold: the reason goes to ``error``)."""
         if self.prepared is None:
             return None
-        return backend.cost_view(self.prepared, self.solution, self.matrix, ranges, max_pixels)
+        try:
+            return backend.cost_view(self.prepared, self.solution, self.matrix, ranges,
+                                     max_pixels)
+        except HandSpliceError as exc:
+            self.error = backend.one_line(exc)
+            return None
 
     def spliced(self):
         """The spliced Motion for the current alignment (cached per revision)."""

@@ -56,6 +56,18 @@ def _free_port(address: str) -> int:
         return int(sock.getsockname()[1])
 
 
+def _drop_closed_websocket_writes(loop, context: dict) -> None:
+    """asyncio exception handler: a browser tab that closed while the server was still
+    sending to it leaves un-awaited tornado write tasks failing with ``WebSocketClosedError``
+    (bokeh already logs a one-line warning for it); drop those, report everything else."""
+    from tornado.iostream import StreamClosedError
+    from tornado.websocket import WebSocketClosedError
+
+    if isinstance(context.get("exception"), WebSocketClosedError | StreamClosedError):
+        return
+    loop.default_exception_handler(context)
+
+
 def run(args: argparse.Namespace) -> int:
     _check_args(args)
     import panel as pn
@@ -98,6 +110,7 @@ def run(args: argparse.Namespace) -> int:
     print("press Ctrl+C to stop", flush=True)
     try:
         server.start()
+        server.io_loop.asyncio_loop.set_exception_handler(_drop_closed_websocket_writes)
         server.io_loop.start()
     finally:
         server.stop()
