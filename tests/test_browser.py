@@ -427,18 +427,29 @@ def _nudge_slider(page, index: int, key: str, times: int) -> None:
         handle.press(key)
 
 
+def _settle(page, quiet: float = 1.0, timeout: float = 30.0) -> str:
+    """Poll until the session's revision has not moved for ``quiet`` seconds (every step of a
+    keyboard-driven slider recomputed), then return the status line."""
+    deadline = time.monotonic() + timeout
+    rev, since = _revision(page), time.monotonic()
+    while time.monotonic() - since < quiet:
+        assert time.monotonic() < deadline, f"no quiet {quiet} s within {timeout} s"
+        page.wait_for_timeout(100)
+        now = _revision(page)
+        if now != rev:
+            rev, since = now, time.monotonic()
+    return _status(page)
+
+
 def test_band_and_global_tolerance_sliders_change_the_band(browser, server):
     other = _open(browser, server)
     try:
-        cells0 = _band_cells(_status(other))
+        cells0 = _band_cells(_settle(other))
         rev = _revision(other)
         _nudge_slider(other, 0, "ArrowLeft", 5)  # W1 0.30 -> 0.25
         _wait_revision(other, rev)
-        deadline = time.monotonic() + 30
-        while _band_cells(_status(other)) >= cells0:
-            assert time.monotonic() < deadline, _status(other)
-            other.wait_for_timeout(50)
-        cells1 = _band_cells(_status(other))
+        cells1 = _band_cells(_settle(other))
+        assert cells1 < cells0
         # a matching point without its own tolerance follows the global one
         path = other.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
         k = len(path["x"]) // 2
@@ -446,15 +457,14 @@ def test_band_and_global_tolerance_sliders_change_the_band(browser, server):
         other.mouse.click(*other.evaluate(f"hs.xy({path['x'][k]}, {path['y'][k]})"))
         _wait_revision(other, rev)
         _wait_tolerances(other, [None])
-        cells2 = _band_cells(_status(other))
+        cells2 = _band_cells(_settle(other))
         assert cells2 < cells1  # a point with T = 0 pins the band
         rev = _revision(other)
         _nudge_slider(other, 2, "ArrowRight", 6)  # T 0 -> 6 frames
         _wait_revision(other, rev)
-        deadline = time.monotonic() + 30
-        while _band_cells(_status(other)) <= cells2:
-            assert time.monotonic() < deadline, _status(other)
-            other.wait_for_timeout(50)
+        status = _settle(other)
+        assert _band_cells(status) > cells2, (
+            status, other.evaluate("hs.cols('hs-tol-source', ['x', 'y0', 'y1'])"))
         assert not other.errors, other.errors
     finally:
         other.context.close()
