@@ -23,26 +23,21 @@ from __future__ import annotations
 import argparse
 import json
 import re
-import socket
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
-import urllib.request
 from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 
 from benchmarks._results import write_section
+from webapp.launch import PAGE_HELPERS, launch_chromium, running_server
 
 ROOT = Path(__file__).resolve().parents[1]
 MOCAP = ROOT.parent / "shared" / "data" / "mocap"
 FIGURES = Path(__file__).with_name("figures")
-CHROMIUM = "/usr/bin/chromium"
-ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking",
-        "--disable-component-update", "--disable-sync", "--no-first-run"]
 
 WATCH = """
 () => {
@@ -54,18 +49,6 @@ WATCH = """
   };
   requestAnimationFrame(tick);
   window.addEventListener('pointerup', () => { window.hsUp = performance.now(); }, true);
-}
-"""
-XY = """
-([x, y]) => {
-  const fig = Bokeh.documents[0].get_model_by_name('hs-cost-figure');
-  const v = Bokeh.index.find_one(fig);
-  let r = v.canvas_view.el.getBoundingClientRect();
-  if (r.top < 0 || r.bottom > window.innerHeight) {
-    v.canvas_view.el.scrollIntoView({block: 'center'});
-    r = v.canvas_view.el.getBoundingClientRect();
-  }
-  return [r.left + v.frame.x_scale.compute(x), r.top + v.frame.y_scale.compute(y)];
 }
 """
 READY = """
@@ -81,41 +64,11 @@ READY = """
 """
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 @contextmanager
 def serve(*extra: str):
     """``handsplice serve`` on a free port; yields (url, seconds until it answered)."""
-    port = _free_port()
-    exe = Path(sys.executable).with_name("handsplice")
-    log = tempfile.TemporaryFile()
-    t0 = time.perf_counter()
-    proc = subprocess.Popen([str(exe), "serve", "--port", str(port), *extra], cwd=ROOT,
-                            stdout=log, stderr=subprocess.STDOUT)
-    url = f"http://127.0.0.1:{port}/"
-    try:
-        while True:
-            if proc.poll() is not None:
-                log.seek(0)
-                raise RuntimeError(f"serve exited: {log.read().decode()[-2000:]}")
-            try:
-                with urllib.request.urlopen(url, timeout=5):
-                    break
-            except OSError:
-                time.sleep(0.2)
-        yield url, time.perf_counter() - t0
-    finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-        log.close()
+    with tempfile.TemporaryFile() as log, running_server(*extra, log=log) as started:
+        yield started
 
 
 def big_pair(folder: Path) -> tuple[int, int]:
@@ -143,17 +96,18 @@ def measure_drags(browser, url: str, drags: int) -> dict:
     page.goto(url)
     page.wait_for_function(READY, timeout=120_000)
     page.evaluate(WATCH)
+    page.evaluate(PAGE_HELPERS)
     n = len(page.evaluate("() => Array.from(Bokeh.documents[0]"
                           ".get_model_by_name('hs-band-source').data.x)"))
     x, y0, y1 = n // 2, int(n * 0.45), int(n * 0.45) + 60
-    page.mouse.click(*page.evaluate(XY, [x, y0]))
+    page.mouse.click(*page.evaluate("([x, y]) => hs.xy(x, y)", [x, y0]))
     page.wait_for_function("() => window.hsChanged !== null", timeout=60_000)
     latencies, server_ms = [], []
     for k in range(drags):
         a, b = (y0, y1) if k % 2 == 0 else (y1, y0)
         page.evaluate("() => { window.hsChanged = null; window.hsUp = null; }")
-        start = page.evaluate(XY, [x, a])
-        end = page.evaluate(XY, [x, b])
+        start = page.evaluate("([x, y]) => hs.xy(x, y)", [x, a])
+        end = page.evaluate("([x, y]) => hs.xy(x, y)", [x, b])
         page.mouse.move(*start)
         page.mouse.down()
         page.mouse.move(*end, steps=4)
@@ -225,7 +179,7 @@ def main(argv=None) -> int:
         tmp = Path(tmp)
         (tmp / "big").mkdir()
         n, m = big_pair(tmp / "big")
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
+        browser = launch_chromium(p)
         with serve("--upload-dir", str(tmp / "up")) as (url, start_demo):
             loads = measure_loads(browser, url, args.loads)
             shot = FIGURES / "app_demo.png"

@@ -12,50 +12,15 @@ from __future__ import annotations
 import json
 import os
 import re
-import socket
-import subprocess
-import sys
 import time
-import urllib.request
-from pathlib import Path
 
 import pytest
 
+from webapp.launch import PAGE_HELPERS, launch_chromium, running_server
+
 pytestmark = pytest.mark.browser
 
-ROOT = Path(__file__).resolve().parents[1]
-CHROMIUM = "/usr/bin/chromium"
-ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking",
-        "--disable-component-update", "--disable-sync", "--no-first-run"]
-
-# page-side helpers: data -> screen coordinates of the matrix, and source snapshots
-HELPERS = """
-window.hs = {
-  model(name) { return Bokeh.documents[0].get_model_by_name(name); },
-  xy(x, y) {
-    const v = Bokeh.index.find_one(this.model('hs-cost-figure'));
-    let r = v.canvas_view.el.getBoundingClientRect();
-    if (r.top < 0 || r.bottom > window.innerHeight) {  // bring the matrix into view first
-      v.canvas_view.el.scrollIntoView({block: 'center'});
-      r = v.canvas_view.el.getBoundingClientRect();
-    }
-    return [r.left + v.frame.x_scale.compute(x), r.top + v.frame.y_scale.compute(y)];
-  },
-  cols(name, keys) {
-    const d = this.model(name).data;
-    return Object.fromEntries(keys.map(k => [k, Array.from(d[k] ?? [])]));
-  },
-};
-"""
-
-
 SERVER_LOG: dict = {}
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @pytest.fixture(scope="module")
@@ -64,48 +29,19 @@ def server(tmp_path_factory):
     if os.environ.get("HANDSPLICE_TEST_URL"):
         yield os.environ["HANDSPLICE_TEST_URL"].rstrip("/") + "/"
         return
-    port = _free_port()
     uploads = tmp_path_factory.mktemp("uploads")
     log_path = tmp_path_factory.mktemp("log") / "serve.log"
-    log = log_path.open("w+")
-    exe = Path(sys.executable).with_name("handsplice")
-    proc = subprocess.Popen([str(exe), "serve", "--port", str(port), "--upload-dir",
-                             str(uploads)], cwd=ROOT, stdout=log, stderr=subprocess.STDOUT)
-    url = f"http://127.0.0.1:{port}/"
-    deadline = time.monotonic() + 120
-    try:
-        while True:
-            if proc.poll() is not None:
-                log.seek(0)
-                pytest.fail(f"handsplice serve exited ({proc.returncode}):\n{log.read()[-3000:]}")
-            try:
-                with urllib.request.urlopen(url, timeout=5) as r:
-                    if r.status == 200:
-                        break
-            except OSError:
-                pass
-            if time.monotonic() > deadline:
-                pytest.fail("handsplice serve did not answer within 120 s")
-            time.sleep(0.25)
+    with log_path.open("w+") as log, running_server("--upload-dir", str(uploads),
+                                                    log=log) as (url, _):
         SERVER_LOG["path"] = log_path
         yield url
-    finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-        log.close()
 
 
 @pytest.fixture(scope="module")
 def browser():
     sync_api = pytest.importorskip("playwright.sync_api")
-    if not Path(CHROMIUM).exists():
-        pytest.fail(f"{CHROMIUM} is missing (apt-get install chromium)")
     with sync_api.sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
+        b = launch_chromium(p)
         yield b
         b.close()
 
@@ -122,7 +58,7 @@ def _open(browser, url: str):
         "() => window.Bokeh && Bokeh.documents.length && "
         "Bokeh.documents[0].get_model_by_name('hs-path-source')?.data.x?.length > 0",
         timeout=60_000)
-    page.evaluate(HELPERS)
+    page.evaluate(PAGE_HELPERS)
     page.errors = errors
     return page
 

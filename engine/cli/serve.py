@@ -48,14 +48,6 @@ def _check_args(args: argparse.Namespace) -> None:
         raise ValueError(f"--max-upload-mb: expected a positive size, got {args.max_upload_mb}")
 
 
-def _free_port(address: str) -> int:
-    import socket
-
-    with socket.socket() as sock:
-        sock.bind((address, 0))
-        return int(sock.getsockname()[1])
-
-
 def _drop_closed_websocket_writes(loop, context: dict) -> None:
     """asyncio exception handler: a browser tab that closed while the server was still
     sending to it leaves un-awaited tornado write tasks failing with ``WebSocketClosedError``
@@ -74,6 +66,7 @@ def run(args: argparse.Namespace) -> int:
 
     from webapp import config
     from webapp.app import create_app, warm_up
+    from webapp.launch import free_port
 
     if args.sample_dir is not None and not (args.sample_dir / "samples.json").is_file():
         raise ValueError(f"--sample-dir: {args.sample_dir} has no samples.json")
@@ -88,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
 
     host = "127.0.0.1" if args.address in ("0.0.0.0", "::", "") else args.address
     if args.port == 0:  # pick the port now so the websocket origin check can name it
-        args.port = _free_port(args.address)
+        args.port = free_port(args.address)
     server = pn.serve(
         {"/": create_app},
         port=args.port,
