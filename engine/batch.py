@@ -354,14 +354,10 @@ def splice_pair(body, hand, job: PairJob):
     takes, as ``handsplice splice --match`` reads them. Returns ``(Motion, report dict)``
     with the report of :func:`engine.splice.report.build_report`.
     """
-    from engine.motion import Motion
     from engine.splice import pipeline
     from engine.splice.report import build_report
 
-    for take, path, role in ((body, job.body, "body"), (hand, job.hand, "hand")):
-        if not isinstance(take, Motion):
-            raise HandSpliceError(f"{Path(path).name}: holds markers; the {role} take must be a skeletal "
-                       "take (.bvh)")
+    pipeline.require_skeletal(body, hand)
     options = {"side": job.side}
     if job.band is not None:
         options["band"] = job.band

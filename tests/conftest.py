@@ -30,3 +30,19 @@ def mocap_dir() -> Path:
 @pytest.fixture(scope="session")
 def sample_dir() -> Path:
     return SAMPLE_DATA
+
+
+@pytest.fixture(scope="module")
+def bandai():
+    """``bandai("2_wave-right-hand")`` -> the Bandai-Namco take ``dataset-2_wave-right-hand_
+    normal_001.bvh`` from ../shared/data/mocap, read once per test module."""
+    from engine.io.bvh import read_bvh
+
+    cache = {}
+
+    def load(name):
+        if name not in cache:
+            cache[name] = read_bvh(MOCAP / "bandai-namco" / f"dataset-{name}_normal_001.bvh")
+        return cache[name]
+
+    return load

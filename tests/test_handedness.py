@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import MOCAP
 from gesture_traj import REST, build, phrase_psh_r
 
 from engine.errors import ParameterError
@@ -94,21 +93,6 @@ def test_threshold_parameter_is_validated():
         classify(np.zeros((5, 3)), np.zeros((5, 3)), np.zeros(5, bool), 30.0)
 
 
-BANDAI = MOCAP / "bandai-namco"
-
-
-@pytest.fixture(scope="module")
-def bandai():
-    from engine.io.bvh import read_bvh
-
-    cache = {}
-
-    def load(name):
-        if name not in cache:
-            cache[name] = read_bvh(BANDAI / f"dataset-{name}_normal_001.bvh")
-        return cache[name]
-
-    return load
 
 
 @pytest.mark.parametrize("take, want", [("2_wave-right-hand", "RH"), ("2_wave-both-hands", "2H"),

@@ -123,21 +123,6 @@ def test_bad_trajectory_shape_is_an_error():
     assert one.labels.tolist() == [0]
 
 
-BANDAI = MOCAP / "bandai-namco"
-
-
-@pytest.fixture(scope="module")
-def bandai():
-    from engine.io.bvh import read_bvh
-
-    cache = {}
-
-    def load(name):
-        if name not in cache:
-            cache[name] = read_bvh(BANDAI / f"dataset-{name}_normal_001.bvh")
-        return cache[name]
-
-    return load
 
 
 def test_wave_right_hand_phases(bandai):

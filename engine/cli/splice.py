@@ -130,10 +130,10 @@ def run(args: argparse.Namespace) -> int:
     import json
     from pathlib import Path
 
-    from engine.errors import HandSpliceError, ParameterError
+    from engine.errors import ParameterError
     from engine.io import load_take
     from engine.io.bvh import write_bvh
-    from engine.motion import Motion
+    from engine.splice import pipeline
 
     out = Path(args.output)
     if out.suffix.lower() != ".bvh":
@@ -164,12 +164,7 @@ def run(args: argparse.Namespace) -> int:
 
     body = load_take(args.body)
     hand = load_take(args.hand)
-    if not isinstance(body, Motion):
-        raise HandSpliceError(f"{Path(args.body).name}: holds markers; the body take must be a "
-                              "skeletal take (.bvh) to receive fingers")
-    if not isinstance(hand, Motion):
-        raise HandSpliceError(f"{Path(args.hand).name}: holds markers; the hand take must be a "
-                              "skeletal take (.bvh) with finger joints")
+    pipeline.require_skeletal(body, hand)
     body_roles = hand_roles = None
     if args.roles:
         try:
@@ -188,7 +183,6 @@ def run(args: argparse.Namespace) -> int:
             raise ParameterError(f"--match {x}:{y}: hand frame {y} is past the hand take's "
                                  f"last frame {hand.n_frames - 1}")
 
-    from engine.splice import pipeline
     from engine.splice.report import build_report, write_report
 
     progress = _Progress(args.quiet)

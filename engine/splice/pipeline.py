@@ -140,6 +140,20 @@ def _take_name(take) -> str:
     return Path(src).name if src else "the take"
 
 
+def require_skeletal(body, hand) -> None:
+    """Raise ``HandSpliceError`` unless both takes are skeletal (``Motion``): marker takes
+    (C3D/TRC) can be aligned, but have no skeleton to receive fingers (body) or no finger
+    rotations to give (hand). Call it before the passes to fail fast on long takes."""
+    if not isinstance(body, Motion):
+        raise HandSpliceError(f"{_take_name(body)}: holds markers; a marker take has no "
+                              "skeleton to receive fingers: the body take must be a skeletal "
+                              "take (.bvh)")
+    if not isinstance(hand, Motion):
+        raise HandSpliceError(f"{_take_name(hand)}: holds markers; a marker take has no finger "
+                              "rotations to give: the hand take must be a skeletal take (.bvh) "
+                              "with finger joints")
+
+
 def _roles_for(take, overrides):
     from engine.roles import find_roles, side_from_name
 
@@ -537,12 +551,7 @@ def transfer(features: SpliceFeatures, result: SpliceAlignment,
     """The body take with the hand take's wrists and fingers sampled at ``result.map``."""
     progress = progress or _noop
     body, hand = features.body, features.hand
-    if not isinstance(body, Motion):
-        raise HandSpliceError(f"{_take_name(body)}: a marker take has no skeleton to splice "
-                              "fingers onto (the body take must be a BVH)")
-    if not isinstance(hand, Motion):
-        raise HandSpliceError(f"{_take_name(hand)}: a marker take has no finger joint "
-                              "rotations to transfer (the hand take must be a BVH)")
+    require_skeletal(body, hand)
     progress("transfer", 0.0)
     plan = plan_for(features)
     out = TR.apply_transfer(plan, body, hand, result.map, body_fk=features.body_fk)
