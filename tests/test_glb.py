@@ -46,7 +46,7 @@ def spliced(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def gltf(spliced):
-    pygltflib = pytest.importorskip("pygltflib")  # a test dependency (pyproject [test])
+    import pygltflib  # a test dependency (pyproject [test])
     doc = pygltflib.GLTF2().load_binary(str(spliced[1]))
     return doc, doc.binary_blob()
 
@@ -250,3 +250,44 @@ def test_glb_loads_in_threejs_and_animates_as_the_bvh(spliced, tmp_path):
     want = expected_positions(motion)[frames]
     err = np.abs(got - want).max()
     assert err < TOL_M, f"three.js joint positions differ from FK by {err * 1000:.3f} mm"
+
+
+def test_glb_frame_range_and_refused_options(tmp_path, capsys):
+    import pygltflib
+    out = tmp_path / "cut.glb"
+    assert main(["render", str(BODY), "-o", str(out), "--frames", "10:40", "--quiet"]) == 0
+    doc = pygltflib.GLTF2().load_binary(str(out))
+    times = accessor(doc, doc.binary_blob(), doc.animations[0].samplers[0].input)
+    assert len(times) == 30 and times[0, 0] == 0.0
+    world, _ = animated_world(doc, doc.binary_blob(), 30)
+    want = expected_positions(read_bvh(BODY))[10:40]
+    assert np.abs(world[:, doc.skins[0].joints][..., :3, 3] - want).max() < TOL_M
+    bad = tmp_path / "bad.glb"
+    for extra in (["--frame", "3"], ["--trails"], ["--frames", "0:40:2"], ["--frames", "90:10"]):
+        assert main(["render", str(BODY), "-o", str(bad), *extra]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("handsplice: error:"), err
+    assert not bad.exists()
+
+
+def test_app_glb_download_callback(tmp_path):
+    """The sharing view's GLB button returns the session's spliced take as GLB bytes."""
+    import pygltflib
+    from webapp import config
+    from webapp.state import Session
+    from webapp.views import sharing
+
+    cfg = config.AppConfig(sample_dir=SAMPLE_DATA.resolve(), upload_dir=tmp_path / "uploads",
+                           default_sample="wave-ok")
+    session = Session(cfg)
+    session.load_sample("wave-ok")
+    assert session.error == ""
+    view = sharing.SharingView(session)
+    data = view._glb()
+    assert data is not None and view.glb.filename == f"{session.output_stem()}.glb"
+    doc = pygltflib.GLTF2.load_from_bytes(data.getvalue())
+    motion = session.spliced()
+    assert [doc.nodes[j].name for j in doc.skins[0].joints] == list(motion.skeleton.names)
+    world, _ = animated_world(doc, doc.binary_blob(), motion.n_frames)
+    want = expected_positions(motion)
+    assert np.abs(world[:, doc.skins[0].joints][..., :3, 3] - want).max() < TOL_M
