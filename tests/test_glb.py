@@ -273,6 +273,7 @@ def test_glb_frame_range_and_refused_options(tmp_path, capsys):
 def test_app_glb_download_callback(tmp_path):
     """The sharing view's GLB button returns the session's spliced take as GLB bytes."""
     import pygltflib
+
     from webapp import config
     from webapp.state import Session
     from webapp.views import sharing
