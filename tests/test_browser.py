@@ -305,9 +305,10 @@ def test_download_glb_is_the_spliced_take_in_3d(page, tmp_path):
     motion = read_bvh(saved["bvh"])
     doc = pygltflib.GLTF2().load_binary(str(saved["glb"]))
     blob = doc.binary_blob()
-    joints = doc.skins[0].joints
-    assert [doc.nodes[j].name for j in joints] == list(motion.skeleton.names)
-    world, _ = animated_world(doc, blob, motion.n_frames)
+    world, names = animated_world(doc, blob, motion.n_frames)
+    by_name = {names[j]: j for j in doc.skins[0].joints}  # the BVH file lists joints depth-first
+    assert sorted(by_name) == sorted(motion.skeleton.names)
+    joints = [by_name[n] for n in motion.skeleton.names]
     scale = motion.meters_per_unit  # the demo body is in centimetres, Y up
     assert motion.meta.units == "cm" and motion.meta.up_axis == "y"
     want = forward_kinematics(motion)[0] * scale
