@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import ROOT, SAMPLE_DATA
+from conftest import ROOT, SAMPLE_DATA, mocap_files
 
 from engine import rotations as rot
 from engine.cli import main
@@ -201,6 +201,48 @@ def test_glb_passes_the_khronos_validator(spliced):
     info = report["info"]
     assert info["version"] == "2.0" and info["animationCount"] == 1 and info["hasSkins"]
     assert info["totalVertexCount"] > 1000 and info["drawCallCount"] == 1
+
+
+def _one_per_family() -> list[Path]:
+    """The first BVH of each capture family of the shared data (Y and Z up; m, cm, mm,
+    dm, inches and unknown units; bodies with and without fingers, hands alone)."""
+    first: dict[str, Path] = {}
+    for path in mocap_files():
+        first.setdefault(path.parent.name, path)
+    z_up = SAMPLE_DATA / "animated-drawings" / "fair1_dab.bvh"  # Z up, inches
+    return [*first.values(), z_up]
+
+
+@pytest.mark.parametrize("path", _one_per_family(), ids=lambda p: f"{p.parent.name}-{p.stem}")
+def test_glb_of_each_capture_family_validates_and_follows_fk(path, tmp_path):
+    """Every family: no validator error or warning, joints where FK puts them (display
+    space: the renderer's scale and up axis)."""
+    import pygltflib
+
+    from engine.mesh.anatomy import find_anatomy
+    from engine.render.scene import display_transform
+    from engine.roles import side_from_name
+
+    _js_ready()
+    from playwright._impl._driver import compute_driver_executable
+
+    motion = read_bvh(path).frames(0, 90)
+    out = tmp_path / "take.glb"
+    assert main(["render", str(path), "-o", str(out), "--frames", "0:90", "--quiet"]) == 0
+    proc = subprocess.run([str(compute_driver_executable()[0]), "validate-gltf.mjs", str(out)],
+                          cwd=JS, capture_output=True, text=True, timeout=300)
+    issues = json.loads(proc.stdout)["issues"]
+    assert issues["numErrors"] == 0 and issues["numWarnings"] == 0, issues["messages"][:10]
+    doc = pygltflib.GLTF2().load_binary(str(out))
+    world, _ = animated_world(doc, doc.binary_blob(), motion.n_frames)
+    pos, rots = forward_kinematics(motion)
+    anatomy = find_anatomy(motion.skeleton, pos[0], rots[0],
+                           side_hint=side_from_name(path.name))
+    scale, axes = display_transform(motion, anatomy)
+    want = scale * pos @ axes.T
+    size = np.linalg.norm(np.ptp(want[0], axis=0))
+    assert 0.1 < size < 3.0  # metres: a hand or a person
+    assert np.abs(world[:, doc.skins[0].joints][..., :3, 3] - want).max() < TOL_M
 
 
 def _serve_js(page, glb: Path) -> str:
