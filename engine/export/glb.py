@@ -147,8 +147,10 @@ def glb_bytes(motion: Motion, roles=None, frames: range | None = None) -> bytes:
     ibm = np.linalg.inv(world)
     ibm[:, 3] = (0.0, 0.0, 0.0, 1.0)
     ibm_acc = buf.add(np.swapaxes(ibm, 1, 2).reshape(j_count, 16), "MAT4", FLOAT)  # column-major
-    gltf["skins"].append({"joints": list(range(j_count)), "inverseBindMatrices": ibm_acc,
-                          "skeleton": roots[0], "name": "skeleton"})
+    skin = {"joints": list(range(j_count)), "inverseBindMatrices": ibm_acc, "name": "skeleton"}
+    if len(roots) == 1:  # the common root of all joints (none when the file has several)
+        skin["skeleton"] = roots[0]
+    gltf["skins"].append(skin)
 
     # mesh: the mannequin's bind-pose vertices in display space
     verts = scale * mesh.vertices @ axes.T
