@@ -127,7 +127,6 @@ class _Progress:
 
 
 def run(args: argparse.Namespace) -> int:
-    import json
     from pathlib import Path
 
     from engine.errors import ParameterError
@@ -167,11 +166,9 @@ def run(args: argparse.Namespace) -> int:
     pipeline.require_skeletal(body, hand)
     body_roles = hand_roles = None
     if args.roles:
-        try:
-            mapping = json.loads(Path(args.roles).read_text(encoding="utf-8"))
-        except json.JSONDecodeError as err:
-            raise ParameterError(f"{args.roles} line {err.lineno}: not valid JSON "
-                                 f"({err.msg})") from None
+        from engine.roles import read_roles_json
+
+        mapping = read_roles_json(args.roles)
         body_roles, hand_roles = split_roles(mapping, body, hand)
     elif spec is not None and spec.roles:
         body_roles, hand_roles = split_roles(spec.roles, body, hand)

@@ -64,10 +64,11 @@ from pathlib import Path
 
 import numpy as np
 
+from engine import limits
 from engine import rotations as rot
 from engine.atomic import write_text
 from engine.errors import MotionFormatError
-from engine import limits
+from engine.io.numbers import NOT_NUMERIC_RE, NUMBER_RE, WHOLE_RE
 from engine.limits import MAX_ABS_VALUE, MAX_DEPTH, MAX_FRAMES, MAX_JOINTS
 from engine.motion import (
     POSITION_CHANNELS,
@@ -83,12 +84,8 @@ _CHANNEL_LOOKUP = {c.lower(): c for c in _CHANNEL_NAMES}
 _AXIS = {"X": 0, "Y": 1, "Z": 2}
 _FRAMES_RE = re.compile(r"^\s*frames\s*:?\s*(\S*)\s*$", re.IGNORECASE)
 _FRAME_TIME_RE = re.compile(r"^\s*frame\s+time\s*:?\s*(\S*)\s*$", re.IGNORECASE)
-# numbers as BVH writers write them: ASCII digits only (Python's float() also takes
-# "1_000", "\u0663" (Arabic-Indic 3), "nan" and "infinity", which no exporter writes)
-_NUMBER_RE = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
-_WHOLE_RE = re.compile(r"[0-9]+")
-# a character that cannot be part of any data value (checked over the whole MOTION data)
-_NOT_DATA_RE = re.compile(r"[^0-9eE+\-.\s]")
+# numbers are ASCII (engine.io.numbers): float() would also take "1_000" and "\u0663"
+_NUMBER_RE, _WHOLE_RE, _NOT_DATA_RE = NUMBER_RE, WHOLE_RE, NOT_NUMERIC_RE
 
 
 # --------------------------------------------------------------------------- reading
