@@ -62,6 +62,8 @@ MAX_SESSION_BYTES = 4 * 1024 * 1024
 MAX_ROLES_BYTES = 1024 * 1024
 #: nesting depth of a session or roles JSON document (real ones: 3).
 MAX_JSON_DEPTH = 32
+#: bytes of one ELAN annotation file (a take's phases: a few kB).
+MAX_EAF_BYTES = 16 * 1024 * 1024
 #: rows of a batch manifest.
 MAX_MANIFEST_ROWS = 100_000
 

@@ -51,11 +51,15 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help(sys.stderr)
         return 2
+    from engine.atomic import Terminated, handle_termination
+
+    handle_termination()  # SIGTERM unwinds like Ctrl-C: temporary outputs are removed
     try:
         return int(args.func(args) or 0)
-    except KeyboardInterrupt:
-        print("handsplice: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        terminated = isinstance(exc, Terminated)
+        print(f"handsplice: {'terminated' if terminated else 'interrupted'}", file=sys.stderr)
+        return 143 if terminated else 130
     except (HandSpliceError, ValueError, OSError, KeyError) as exc:
         if args.debug:
             raise
