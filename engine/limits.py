@@ -66,6 +66,10 @@ MAX_JSON_DEPTH = 32
 MAX_EAF_BYTES = 16 * 1024 * 1024
 #: rows of a batch manifest.
 MAX_MANIFEST_ROWS = 100_000
+#: default limits of one batch pair (``handsplice batch --pair-seconds/--pair-memory-mb``):
+#: wall time in seconds and resident memory in MB of the process splicing it.
+PAIR_SECONDS = 900.0
+PAIR_MEMORY_MB = 2048.0
 
 
 def check_rate(fps: float, source: str | None, line: int | None = None,

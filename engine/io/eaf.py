@@ -209,7 +209,7 @@ def read_eaf(path: str | Path, fps: float | None = None) -> GestureAnnotations:
     if fps is None:
         if "fps" not in props:
             raise ParameterError(f"{name}: no 'fps' property; pass the take's frame rate")
-        fps = _property_number(path, "fps", props["fps"])
+        fps = check_rate(_property_number(path, "fps", props["fps"]), path, field="property 'fps'")
     if not (np.isfinite(fps) and fps > 0):
         raise ParameterError(f"{name}: fps must be positive, got {fps!r}")
     check_rate(fps, path, field="fps")
