@@ -335,10 +335,13 @@ def mutate(seed: bytes, mutators, rng: random.Random, binary: bool = False,
     data, used = seed, []
     for _ in range(rng.randint(1, 4)):
         fn = rng.choice(mutators + [m_flip_byte] * (1 if rng.random() < 0.15 else 0))
-        if fn.__name__.startswith("m_") or binary:
-            new = fn(data, rng)
-        else:
-            new = fn(data.decode("utf-8", "replace"), rng).encode("utf-8")
+        try:
+            if fn.__name__.startswith("m_") or binary:
+                new = fn(data, rng)
+            else:
+                new = fn(data.decode("utf-8", "replace"), rng).encode("utf-8")
+        except (IndexError, ValueError, struct.error):  # nothing for it to act on
+            continue
         if len(new) < limit or len(seed) >= limit:
             data = new
             used.append(fn.__name__)

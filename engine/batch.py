@@ -332,6 +332,10 @@ def run_pair(job: PairJob, outdir: str | Path, thumbnails: str = "render",
         record = _base_record(job)
         record.update(status="failed", error=f"the pair {exc}" if isinstance(exc, LimitExceeded)
                       else one_line(exc), seconds=f"{time.perf_counter() - t0:.2f}")
+    if memory_mb and record.get("status") == "failed" and \
+            str(record.get("error", "")).startswith("MemoryError"):  # RLIMIT_DATA in the child
+        record["error"] = (f"the pair used more than the memory limit of {memory_mb:g} MB "
+                           f"({record['error']})")[:500]
     record["worker"] = f"{platform.node()}:{os.getpid()}"
     return record
 
