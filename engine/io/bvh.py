@@ -45,8 +45,11 @@ Errors are ``MotionFormatError`` naming the file and line: missing ``HIERARCHY``
 ``MOTION``, unbalanced braces, duplicate joint names, bad ``OFFSET``/``CHANNELS``,
 missing or bad ``Frames:``/``Frame Time:``, rows with the wrong number of values
 ("expected 96 values, found 93"), non-numeric text, NaN or infinity, truncation,
-binary data, text that is not UTF-8, an empty file, and absurd sizes (more than
-1,000 joints or 2,000,000 frames).
+binary data, text that is not UTF-8, an empty file, numbers Python would read but no
+exporter writes (``1_000``, Arabic-Indic or full-width digits: ``engine.io.numbers``),
+data rows when no joint has channels, braces in a joint name, and absurd sizes, checked
+before anything is allocated (``engine.limits``: more than 1,000 joints or 100 levels,
+2,000,000 frames, a rate outside 1-10,000 fps, 6 hours, too many poses for the file).
 
 Writer precision: data values are written with ``precision`` decimals (default 6,
 error <= 5e-7 degrees or file units); offsets and the frame time exactly (shortest
