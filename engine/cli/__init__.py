@@ -53,7 +53,8 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     from engine.atomic import Terminated, handle_termination
 
-    handle_termination()  # SIGTERM unwinds like Ctrl-C: temporary outputs are removed
+    if args.command != "serve":  # the server keeps its own signal handling (tornado)
+        handle_termination()  # SIGTERM unwinds like Ctrl-C: temporary outputs are removed
     try:
         return int(args.func(args) or 0)
     except KeyboardInterrupt as exc:
