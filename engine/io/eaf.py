@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import csv
 import io
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -201,7 +202,9 @@ def read_eaf(path: str | Path, fps: float | None = None) -> GestureAnnotations:
         raise MotionFormatError(path, f"more than {MAX_EAF_BYTES:,} bytes; refusing an absurd "
                                       "annotation file")
     try:
-        eaf = Eaf(path)
+        with warnings.catch_warnings():  # "unknown version of ELAN spec": newer ELAN, readable
+            warnings.simplefilter("ignore", UserWarning)
+            eaf = Eaf(path)
         props = {str(k): str(v) for k, v in eaf.get_properties()}
     except (Exception, RecursionError) as exc:  # pympi raises bare exceptions on bad XML
         raise MotionFormatError(path, f"not a readable ELAN file ({type(exc).__name__}: "
