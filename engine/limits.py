@@ -60,8 +60,6 @@ MAX_UPLOAD_BYTES = 32 * 1024 * 1024
 MAX_SESSION_BYTES = 4 * 1024 * 1024
 #: bytes of one JSON file of joint-role overrides (``--roles``).
 MAX_ROLES_BYTES = 1024 * 1024
-#: nesting depth of a session or roles JSON document (real ones: 3).
-MAX_JSON_DEPTH = 32
 #: bytes of one ELAN annotation file (a take's phases: a few kB).
 MAX_EAF_BYTES = 16 * 1024 * 1024
 #: rows of a batch manifest.
