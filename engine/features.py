@@ -47,6 +47,7 @@ from engine import rotations as rot
 from engine.errors import ParameterError, RoleError
 from engine.fastkin import forward_kinematics
 from engine.kinematics import rest_positions
+from engine.limits import check_grid
 from engine.motion import MarkerSet, Motion
 
 MARKER_NAMES = ("wrist_radial", "wrist_ulnar", "forearm", "hand")
@@ -161,7 +162,7 @@ def resample_points(points: np.ndarray, fps: float, target_fps: float) -> np.nda
     f = p.shape[0]
     if f == 0 or fps == target_fps:
         return p.copy()
-    n_out = max(1, int(round((f - 1) * target_fps / fps)) + 1)
+    n_out = check_grid("resampling", f, fps, target_fps)  # bounded before allocating
     t = np.clip(np.arange(n_out) * (fps / target_fps), 0.0, f - 1)
     i0 = np.floor(t).astype(np.int64)
     i1 = np.minimum(i0 + 1, f - 1)

@@ -16,11 +16,12 @@ not zoom or swing.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from engine import rotations as rot
-from engine.errors import ParameterError
+from engine.errors import ParameterError, RoleError
 from engine.kinematics import forward_kinematics
 from engine.mesh.anatomy import Anatomy, find_anatomy
 from engine.mesh.mannequin import build_mannequin
@@ -126,6 +127,14 @@ class TakeView:
 
             anatomy = find_anatomy(motion.skeleton, bind_pos, bind_rot, roles=roles,
                                    side_hint=side_from_name(motion.meta.source or ""))
+        name = Path(motion.meta.source).name if motion.meta.source else label or "take"
+        if anatomy.kind != "body" and not anatomy.hands:
+            raise RoleError(f"{name}: neither a body (hips, spine, arms or legs) nor a hand "
+                            "(wrist with fingers) found by joint name; nothing to draw "
+                            "(rename the joints or pass --roles)")
+        if not (np.ptp(pos, axis=(0, 1)) > 0).any():
+            raise ParameterError(f"{name}: every joint sits at one point in every frame (all "
+                                 "offsets and motion zero); nothing to draw")
         if mesh is None:
             mesh = build_mannequin(motion.skeleton, anatomy, pose=(bind_pos, bind_rot))
         elif mesh.bind_positions.shape[0] != motion.skeleton.n_joints:

@@ -34,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from engine import limits
 from engine import metrics as M
 from engine.dtw import Aligner, Band, align_features
 from engine.errors import HandSpliceError, ParameterError, RoleError
@@ -238,6 +239,8 @@ def prepare(body: Motion | MarkerSet, hand: Motion | MarkerSet, side: str = "aut
         hand_sides = with_fingers
     sides = resolve_sides(side, body_sides, hand_sides, body_name, hand_name)
     fps = float(body.fps)
+    # the alignment grid: the hand take at the body's rate, bounded before anything is built
+    limits.check_grid(hand_name, hand.n_frames, float(hand.fps), fps)
     timings: dict[str, float] = {}
 
     body_fk = forward_kinematics(body) if isinstance(body, Motion) else None
@@ -498,6 +501,7 @@ def align_passes(features: SpliceFeatures, band: float = BAND, refine_band: floa
     t0 = time.perf_counter()
     progress("pass 1", 0.0)
     band1 = Band.from_constraints(n, m, float(band), pts)
+    limits.check_band("pass 1", band1.area)
     if incremental is None:
         incremental = band1.area <= INCREMENTAL_MAX_CELLS
     same = previous is not None and previous.features_id == id(features)
@@ -514,6 +518,7 @@ def align_passes(features: SpliceFeatures, band: float = BAND, refine_band: floa
     hand2 = M.angle_features(features.hand_markers, -hand_heading).rows()
     radius = refine_radius(n, m, refine_band)
     band2 = Band.around_path(al1.path, n, m, radius, points=pts if pts else None)
+    limits.check_band("pass 2", band2.area)
     solver2 = None
     if same and previous.pass2.solver is not None and \
             np.array_equal(previous.pass2.rows[1], hand2):
