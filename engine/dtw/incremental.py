@@ -209,6 +209,11 @@ class Aligner:
         return self._problem.m
 
     @property
+    def stores_every_row(self) -> bool:
+        """True once ``cumulative_cost()`` was used (γ of every row: 8 bytes per cell)."""
+        return self._every == 1
+
+    @property
     def band(self) -> Band | None:
         """Band of the last solve."""
         return self._band

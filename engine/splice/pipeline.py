@@ -62,7 +62,8 @@ DEAD_ZONE = 0.1
 STEP1 = 0.0
 STEP2 = 0.05
 #: one-shot solves (1 byte per cell) above this band area; incremental ``Aligner`` below
-INCREMENTAL_MAX_CELLS = 12_000_000
+#: (about 3-4 bytes per cell resident: backpointers both ways, γ of every 8th row)
+INCREMENTAL_MAX_CELLS = 100_000_000
 #: band cells above which the cumulative-cost (γ) view is refused when no incremental
 #: solver was kept: γ for every band cell costs about 18 bytes per cell (~290 MB here).
 CUMULATIVE_MAX_CELLS = 16_000_000
@@ -676,12 +677,13 @@ def cost_image(features: SpliceFeatures, kind: str, rows, cols,
         if result is None:
             return np.full((rows.size, cols.size), np.nan)
         pr = result.pass1 if kind == "cumulative1" else result.pass2
-        if pr.solver is None:
+        if pr.solver is None or not pr.solver.stores_every_row:  # γ of every row: 8 bytes per cell
             if pr.band.area > CUMULATIVE_MAX_CELLS:
                 raise ParameterError(
                     f"the cumulative-cost view of this pass needs γ for {pr.band.area:,} band "
                     f"cells (limit {CUMULATIVE_MAX_CELLS:,}, about 18 bytes each): narrow the "
                     "band or add matching points, or view the local cost")
+        if pr.solver is None:
             pr.solver = Aligner(pr.rows[0], pr.rows[1], metric=pr.metric)
             pr.solver.solve(pr.band)
         bv = pr.solver.cumulative_cost()
