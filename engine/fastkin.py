@@ -7,7 +7,8 @@ numpy's per-call overhead, which dominates for a few hundred frames:
 * :func:`forward_kinematics` - world positions and rotations of every joint;
 * :func:`qmul`, :func:`qmul_conj` - batched quaternion products ``a * b`` and
   ``a^-1 * b`` over ``(F, K, 4)`` arrays;
-* :func:`continuous` - flip quaternion signs so consecutive frames share a hemisphere.
+* :func:`continuous` - flip quaternion signs so consecutive frames share a hemisphere
+  (:func:`continuous_inplace` without copies).
 """
 
 from __future__ import annotations
@@ -111,3 +112,25 @@ def continuous(q: np.ndarray) -> np.ndarray:
     flips = np.where(dots < 0, -1.0, 1.0)
     sign = np.concatenate([np.ones((1,) + flips.shape[1:]), np.cumprod(flips, axis=0)], axis=0)
     return q * sign[..., None]
+
+
+@numba.njit(cache=True)
+def _continuous_kernel(q):
+    frames, joints = q.shape[0], q.shape[1]
+    for j in range(joints):
+        for f in range(1, frames):
+            d = (q[f, j, 0] * q[f - 1, j, 0] + q[f, j, 1] * q[f - 1, j, 1]
+                 + q[f, j, 2] * q[f - 1, j, 2] + q[f, j, 3] * q[f - 1, j, 3])
+            if d < 0.0:
+                for c in range(4):
+                    q[f, j, c] = -q[f, j, c]
+
+
+def continuous_inplace(q: np.ndarray) -> None:
+    """:func:`continuous` in place for a C-contiguous float64 ``(F, J, 4)`` array (no copies:
+    frame ``f`` is flipped when its dot product with the already corrected ``f - 1`` is
+    negative, which is the same sign as :func:`continuous`'s cumulative product)."""
+    if q.ndim != 3 or q.shape[-1] != 4 or q.dtype != np.float64 or not q.flags.c_contiguous:
+        raise ValueError(f"continuous_inplace: need a C-contiguous float64 (F, J, 4) array, "
+                         f"got {q.dtype} {q.shape}")
+    _continuous_kernel(q)

@@ -37,14 +37,12 @@ import numpy as np
 from engine import metrics as M
 from engine.dtw import Aligner, Band, align_features
 from engine.errors import HandSpliceError, ParameterError, RoleError
-from engine.fastkin import forward_kinematics
 from engine.features import (
     HandFrame,
     hand_frame,
     marker_set_markers,
     marker_set_yaw,
-    motion_markers,
-    skeleton_yaw,
+    take_markers,
     take_sides,
 )
 from engine.motion import MarkerSet, Motion
@@ -241,23 +239,26 @@ def prepare(body: Motion | MarkerSet, hand: Motion | MarkerSet, side: str = "aut
     fps = float(body.fps)
     timings: dict[str, float] = {}
 
-    body_fk = forward_kinematics(body) if isinstance(body, Motion) else None
-    hand_fk = forward_kinematics(hand) if isinstance(hand, Motion) else None
+    # forward kinematics by blocks of frames (features.take_markers): the body keeps its
+    # world rotations for the transfer, the hand take keeps nothing
     body_frames: dict[str, HandFrame] = {}
     hand_frames: dict[str, HandFrame] = {}
-    bm, hm = [], []
-    for s in sides:
-        if isinstance(body, Motion):
-            body_frames[s] = hand_frame(body, rb, s)
-            bm.append(motion_markers(body, s, rb, frame=body_frames[s], fk=body_fk).markers)
-        else:
-            bm.append(marker_set_markers(body, s).markers)
-        if isinstance(hand, Motion):
-            hand_frames[s] = hand_frame(hand, rh, s)
-            hm.append(motion_markers(hand, s, rh, fps=fps, frame=hand_frames[s],
-                                     fk=hand_fk).markers)
-        else:
-            hm.append(marker_set_markers(hand, s, fps=fps).markers)
+    body_fk = None
+    if isinstance(body, Motion):
+        body_frames = {s: hand_frame(body, rb, s) for s in sides}
+        bmk, body_yaw, body_rot = take_markers(body, rb, body_frames, keep_rotations=True)
+        body_fk = (None, body_rot)
+        bm = [bmk[s] for s in sides]
+    else:
+        bm = [marker_set_markers(body, s).markers for s in sides]
+        body_yaw = marker_set_yaw(body)
+    if isinstance(hand, Motion):
+        hand_frames = {s: hand_frame(hand, rh, s) for s in sides}
+        hmk, hand_yaw, _ = take_markers(hand, rh, hand_frames, fps=fps)
+        hm = [hmk[s] for s in sides]
+    else:
+        hm = [marker_set_markers(hand, s, fps=fps).markers for s in sides]
+        hand_yaw = marker_set_yaw(hand)
     body_markers = np.concatenate(bm, axis=1)
     hand_markers = np.concatenate(hm, axis=1)
     n, m = body_markers.shape[0], hand_markers.shape[0]
@@ -266,10 +267,6 @@ def prepare(body: Motion | MarkerSet, hand: Motion | MarkerSet, side: str = "aut
                              f"{hand_name} {m} frames at {fps:g} fps")
 
     # trunk headings (radians about the vertical), where the takes have a trunk
-    body_yaw = skeleton_yaw(body, rb, body_fk) if isinstance(body, Motion) \
-        else marker_set_yaw(body)
-    hand_yaw = skeleton_yaw(hand, rh, hand_fk) if isinstance(hand, Motion) \
-        else marker_set_yaw(hand)
     if hand_yaw is not None:
         from engine.features import resample_points
 
