@@ -83,8 +83,8 @@ def theta_bin(num, den, nb):
     """θ bin of ``atan2(num, den)`` (float32 operands): ``floor(θ nb / 2π + 0.5) mod nb``,
     θ to about 1e-5 rad (a polynomial, no libm call).
 
-    float32 and branch-free (selects only) so column loops vectorise 8 wide; NaN gives
-    bin 0. Returns int32.
+    float32 and branch-free (selects only) so column loops vectorise 8 wide. Returns
+    int32 in ``0..nb-1`` for any input (NaN included: never outside the code table).
     """
     ax = abs(den)
     ay = abs(num)
@@ -168,17 +168,9 @@ def cell_theta_sums(body_row, hand_row, half):
 
 @numba.njit(cache=True, nogil=True)
 def _unpack(rows, hand, nb, half):
-    """Per-frame arrays of one take's rows.
-
-    Returns coords ``(F + 4, K)`` x and z of each frame's own markers, padded by two
-    repeated frames at each end (padded index ``p`` is frame ``clip(p - 2)``; the
-    hand's transposed to ``(K, F + 4)``), centroids ``(F,)`` x and z, the masks P, Q
-    (body ``(F,)``; hand ``(nb, F)``) and the yaw bins ``(F,)``.
-    """
+    """Per-frame arrays of one take's rows: window centroids ``(F,)`` x and z
+    (float32), the masks P, Q (``(1 or nb, F, 2)``), the yaw bins and steps ``(F,)``."""
     f = rows.shape[0]
-    k = half // WINDOW
-    cx = np.zeros((f + 4, k), np.float32)
-    cz = np.zeros((f + 4, k), np.float32)
     mx = np.zeros(f, np.float32)
     mz = np.zeros(f, np.float32)
     yaw = np.zeros(f, np.int64)
@@ -197,29 +189,68 @@ def _unpack(rows, hand, nb, half):
         for b in range(width):
             pq[b, r, 0] = np.uint64(row[off + 2 * b])
             pq[b, r, 1] = np.uint64(row[off + 2 * b + 1])
-    for p in range(f + 4):
-        r = min(max(p - 2, 0), f - 1)
-        for c in range(k):
-            cx[p, c] = np.float32(rows[r, HEADER + 2 * k + c])  # window slot 2: the frame
-            cz[p, c] = np.float32(rows[r, HEADER + half + 2 * k + c])
-    if hand:
-        return cx.T.copy(), cz.T.copy(), mx, mz, pq, yaw, step
-    return cx, cz, mx, mz, pq, yaw, step
+    return mx, mz, pq, yaw, step
+
+
+def _padded_coords(rows: np.ndarray, half: int):
+    """x and z ``(F + 4, K)`` float32 of the frames the rows' windows hold, in row order
+    (padded index ``p`` = row ``p - 2``'s own frame; two frames beyond each end from the
+    end rows' windows), or None when the windows are not those of consecutive frames.
+
+    Rows of a whole take, of a contiguous part of one, or of either reversed (the
+    backward passes) qualify; any other selection of rows (e.g. every other frame) does
+    not, and the caller falls back to the per-cell metric.
+    """
+    f = rows.shape[0]
+    k = half // WINDOW
+    win = rows[:, HEADER: HEADER + 2 * half].reshape(f, 2, WINDOW, k)  # (F, x|z, slot, K)
+    first, last = win[0], win[f - 1]
+    for step in (1, -1):  # window slot d holds row r + step (d - 2)
+        pad = np.empty((f + 4, 2, k))
+        pad[2: f + 2] = win[:, :, 2]
+        for d in range(WINDOW):  # the frames beyond the ends, from the end rows
+            off = step * (d - 2)
+            if off < 0:
+                pad[2 + off] = first[:, d]
+            elif off > 0:
+                pad[f + 1 + off] = last[:, d]
+        if all(np.array_equal(win[:, :, d], pad[2 + step * (d - 2): 2 + step * (d - 2) + f])
+               for d in range(WINDOW)):
+            return (np.ascontiguousarray(pad[:, 0], np.float32),
+                    np.ascontiguousarray(pad[:, 1], np.float32))
+    return None
 
 
 class PhaseProblem:
-    """The row kernel's arrays for one (body rows, hand rows) pair (see :func:`prepare`)."""
+    """The row kernel's arrays for one (body rows, hand rows) pair (see :func:`prepare`).
+
+    ``fallback`` is True when the rows are not consecutive frames of a take (then the
+    forward pass uses the per-cell metric; same costs, slower).
+    """
 
     def __init__(self, a: np.ndarray, b: np.ndarray):
         half, nb, mode = int(a[0, 0]), int(a[0, 1]), int(a[0, 2])
         self.half, self.nb, self.mode = half, nb, mode
-        bx, bz, bmx, bmz, bpq, byaw, bstep = _unpack(a, False, nb, half)
-        hx, hz, hmx, hmz, hpq, hyaw, _ = _unpack(b, True, nb, half)
+        self.n, self.m = a.shape[0], b.shape[0]
+        self.fallback = False
+        k = half // WINDOW
+        if mode == MODE_WINDOW:
+            body_c = _padded_coords(a, half)
+            hand_c = _padded_coords(b, half)
+            if body_c is None or hand_c is None:
+                self.fallback, self.a, self.b = True, a, b
+                return
+            bx, bz = body_c
+            hx, hz = hand_c[0].T.copy(), hand_c[1].T.copy()  # (K, m + 4): columns contiguous
+        else:
+            bx = bz = np.zeros((self.n + 4, k), np.float32)
+            hx = hz = np.zeros((k, self.m + 4), np.float32)
+        bmx, bmz, bpq, byaw, bstep = _unpack(a, False, nb, half)
+        hmx, hmz, hpq, hyaw, _ = _unpack(b, True, nb, half)
         bp = np.ascontiguousarray(bpq[0, :, 0])
         bq = np.ascontiguousarray(bpq[0, :, 1])
         self.body = (bx, bz, bmx, bmz, bp, bq, byaw, bstep)
         self.hand = (hx, hz, hmx, hmz, hpq, hyaw)
-        self.n, self.m = a.shape[0], b.shape[0]
 
     def args(self) -> tuple:
         return (*self.body, *self.hand, self.mode, self.nb, self.half)
@@ -232,6 +263,11 @@ def prepare(a: np.ndarray, b: np.ndarray) -> PhaseProblem:
 
 def forward(state: PhaseProblem, lo, hi, start, i0, i1, bp, gamma, keep_gamma):
     """Rows ``i0..i1-1`` of the DTW forward pass (as ``engine.dtw.kernels.forward_*``)."""
+    if state.fallback:
+        from engine.metrics import splice_phase
+
+        return K.forward_metric(splice_phase, state.a, state.b, lo, hi, start, i0, i1, bp,
+                                gamma, keep_gamma)
     return _forward(*state.args(), lo, hi, start, i0, i1, bp, gamma, keep_gamma)
 
 

@@ -48,27 +48,32 @@ def test_row_kernel_gives_the_per_cell_costs_exactly(case, theta):
 
 
 def test_per_cell_cost_is_eq6_with_theta_quantised(feats):
-    """Against the dense numpy reference with exact θ: equal wherever θ is not within
-    1e-3 rad of a bin edge (there float rounding may pick either bin)."""
+    """Against numpy: θ of eq. 7 in float64 (``cell_theta_window``) rounded to its bin, the
+    hand's sign codes turned by the bin's angle (``rotated_codes``), Σ (s − s')². Equal
+    wherever θ is not within 1e-3 rad of a bin edge (there rounding may pick either bin)."""
     bp, hp = feats.body_phase, feats.hand_phase
-    rows = np.arange(0, feats.n, 23)
-    cols = np.arange(0, feats.m, 3)
-    ref = M.phase_cost_reference(bp, hp)[np.ix_(rows, cols)]
-    a, b = feats.pass1_rows
-    got = M.cost_grid(M.splice_phase, a, b, rows, cols)
+    nb = feats.n_bins
+    rows = np.arange(0, feats.n, 11)
+    cols = np.arange(0, feats.m, 2)
     ii, jj = np.meshgrid(rows, cols, indexing="ij")
     th = M.cell_theta_window(bp, hp, ii, jj)
-    width = 2 * np.pi / feats.n_bins
-    edge = np.abs((th / width + 0.5) - np.round(th / width + 0.5)) * width < 1e-3
-    assert (~edge).sum() > 0.99 * edge.size
+    x = th * nb / (2 * np.pi) + 0.5
+    bins = np.floor(x).astype(int) % nb
+    edge = np.abs(x - np.round(x)) * (2 * np.pi / nb) < 1e-3
+    hand_codes = M.rotated_codes(hp, nb).astype(int)  # (m, nb, C)
+    body_codes = bp.codes.astype(int)
+    ref = np.sum((body_codes[ii] - hand_codes[jj, bins]) ** 2, axis=-1)
+    a, b = feats.pass1_rows
+    got = M.cost_grid(M.splice_phase, a, b, rows, cols)
+    assert (~edge).sum() > 0.95 * edge.size
     assert np.array_equal(got[~edge], ref[~edge])
 
 
 def test_pass1_path_equals_the_naive_dtw(feats):
     a, b = feats.pass1_rows
-    n = 240
+    n = min(feats.n, feats.m)
     a, b = a[:n], b[:n]
-    band = Band.from_constraints(n, n, 0.3, [(120, 118, 3)])
+    band = Band.from_constraints(n, n, 0.3, [(n // 2, n // 2 - 2, 3)])
     cost = M.cost_grid(M.splice_phase, a, b, np.arange(n), np.arange(n))
     total, path, _ = dtw_banded(cost.tolist(), band.lo.tolist(), band.hi.tolist())
     got = align_features(a, b, band, metric="splice_phase")
@@ -110,7 +115,9 @@ def test_popcount_and_theta_bins():
     r = rng.uniform(0.01, 10.0, th.size)  # any length
     got = _bins(r * np.sin(th), r * np.cos(th), nb)
     assert np.array_equal(got[far], exact[far])
-    assert list(_bins(np.array([np.nan, 0.0, 0.0]), np.array([1.0, 0.0, -1.0]), nb)) == [0, 0, 36]
+    odd = _bins(np.array([np.nan, 1.0, np.nan, 0.0, 0.0]), np.array([1.0, np.nan, np.nan, 0.0, -1.0]), nb)
+    assert ((odd >= 0) & (odd < nb)).all()  # never indexes outside the code table
+    assert list(odd[3:]) == [0, 36]
 
 
 # --------------------------------------------------------------------------------------------
@@ -148,3 +155,15 @@ def test_transfer_by_blocks_equals_one_block(case, feats, monkeypatch):
     ref = continuous(q)
     TR.continuous_inplace(q)
     assert np.array_equal(q, ref)
+
+
+def test_rows_of_every_other_frame_fall_back_to_the_per_cell_metric(feats):
+    a, b = feats.pass1_rows
+    a, b = np.ascontiguousarray(a[::2]), np.ascontiguousarray(b[::2])
+    assert PK.prepare(a, b).fallback
+    n, m = a.shape[0], b.shape[0]
+    band = Band.from_constraints(n, m, 0.4, [])
+    cost = M.cost_grid(M.splice_phase, a, b, np.arange(n), np.arange(m))
+    total, _, _ = dtw_banded(cost.tolist(), band.lo.tolist(), band.hi.tolist())
+    assert align_features(a, b, band, metric="splice_phase").cost == total
+    assert not PK.prepare(*feats.pass1_rows).fallback
