@@ -86,9 +86,21 @@ def make_long_pair(seconds: float, fps: float = 120.0, seed: int = 0):
                                           shrink=0.6, yaw_deg=20.0, noise_deg=0.5, roles=roles)
     body_t = np.arange(body.n_frames) / body.fps
     truth = np.interp(body_t, orig_t, hand_t) * hand.fps
+    body, hand = _exact_offsets(body), _exact_offsets(hand)
     body = replace(body, meta=replace(body.meta, source=f"long{seconds:g}s-body.bvh"))
     hand = replace(hand, meta=replace(hand.meta, source=f"long{seconds:g}s-hand.bvh"))
     return body, hand, truth
+
+
+def _exact_offsets(motion):
+    """Joints without position channels sit exactly at their OFFSET (interpolation leaves
+    1e-6 of rounding, which BVH cannot hold)."""
+    sk = motion.skeleton
+    trans = motion.translations.copy()
+    for j in range(sk.n_joints):
+        if not sk.has_position_channels(j):
+            trans[:, j] = sk.offsets[j]
+    return replace(motion, translations=trans)
 
 
 def pair_files(seconds: float, fps: float = 120.0, seed: int = 0) -> tuple[Path, Path, Path]:

@@ -167,3 +167,19 @@ def test_rows_of_every_other_frame_fall_back_to_the_per_cell_metric(feats):
     total, _, _ = dtw_banded(cost.tolist(), band.lo.tolist(), band.hi.tolist())
     assert align_features(a, b, band, metric="splice_phase").cost == total
     assert not PK.prepare(*feats.pass1_rows).fallback
+
+
+def test_fast_sampling_and_normalising_match_the_numpy_ones(case):
+    from engine import kinematics, rotations
+    from engine.fastkin import normalize_inplace, sample
+
+    hand = case.hand
+    t = np.r_[-1.0, np.linspace(0, hand.n_frames - 1, 301), hand.n_frames + 3.5]
+    r, tr = sample(hand, t)
+    r_ref, tr_ref = kinematics.sample(hand, t)
+    assert np.allclose(r, r_ref, atol=1e-12) and np.allclose(tr, tr_ref, atol=1e-12)
+    q = np.random.default_rng(3).standard_normal((20, 4, 4))
+    q[3, 1] = 0.0
+    ref = rotations.normalize(q)
+    normalize_inplace(q)
+    assert np.allclose(q, ref, atol=1e-15)

@@ -34,9 +34,16 @@ import numpy as np
 
 from engine import rotations as rot
 from engine.errors import RoleError
-from engine.fastkin import continuous_inplace, forward_kinematics, qmul, qmul_conj
+from engine.fastkin import (
+    continuous_inplace,
+    forward_kinematics,
+    normalize_inplace,
+    qmul,
+    qmul_conj,
+    sample,
+)
 from engine.features import HAND_TO_FOREARM, HandFrame
-from engine.kinematics import rest_positions, sample
+from engine.kinematics import rest_positions
 from engine.motion import Motion, Skeleton
 from engine.roles import FINGERS
 
@@ -355,4 +362,4 @@ def _transfer_block(plan: TransferPlan, body: Motion, hand: Motion, t: np.ndarra
             if top.any():
                 r_rel[:, top] = qmul_conj(g_h[:, [fh.hand_joint]], g_h[:, src[top]])
             rots[:, new] = _conj_u(u, r_rel, u)
-    rots[:] = rot.normalize(rots)
+    normalize_inplace(rots)  # rots is a contiguous block of frames of the output
