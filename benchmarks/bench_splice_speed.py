@@ -30,6 +30,7 @@ import importlib.util
 import json
 import statistics
 import subprocess
+import sys
 import time
 
 import numpy as np
@@ -125,6 +126,7 @@ def _old_metrics():
     path.write_text(src)
     spec = importlib.util.spec_from_file_location("old_metrics", path)
     mod = importlib.util.module_from_spec(spec)
+    sys.modules["old_metrics"] = mod  # dataclasses look their module up
     spec.loader.exec_module(mod)
     return mod
 

@@ -21,8 +21,11 @@ Implementation notes (where this differs from the paper, and why)
 ------------------------------------------------------------------
 * θ is quantised to ``n_bins`` directions (default 72, 5°): the hand take's sign
   codes are precomputed for every direction and packed into two 48-bit masks
-  (positive, negative), so a band cell costs two short dot products (θ of eq. 7),
-  a polynomial ``atan2`` and three popcounts instead of rotating 16 vectors.
+  (positive, negative), so a band cell costs θ of eq. 7, a polynomial ``atan2``
+  and three popcounts instead of rotating 16 vectors. Whole band rows go through
+  the row kernel of :mod:`engine.phase_kernel` (θ by diagonal sums of per-frame
+  products, about a tenth of the per-cell time); :func:`splice_phase` computes one
+  cell with the same float32 arithmetic, so both give the same costs bit for bit.
   :func:`phase_cost_reference` computes eq. 6 with exact θ (tests compare).
 * The window of eq. 7 uses frames ``i-2..i+2`` clipped at the take's ends
   (edge frames repeated), so every window holds 5 × markers points.
@@ -366,7 +369,8 @@ def rotated_codes(hand: PhaseFeatures, n_bins: int = THETA_BINS) -> np.ndarray:
 #
 #   header : [L, n_bins, mode, yaw_bin, step]  L = length of the x (or z) half of the window;
 #            step = constant added to every cell (0 in hand rows)
-#   window : 2L values (centred x then z of the eq.-7 window; empty in yaw mode)
+#   window : 2L values (x then z of the eq.-7 window, not centred but shifted by the take's
+#            mean; empty in yaw mode)
 #   codes  : body: 2 values (P, Q); hand: 2 * n_bins values (P_b, Q_b for every θ bin b)
 #
 # P and Q are bit masks of the components whose sign is +1 and -1 (up to 48 components:
