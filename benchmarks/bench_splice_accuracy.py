@@ -101,8 +101,8 @@ def _untrimmed(seed: int) -> Case:
     return make_case(("beat", "lafan1")[seed % 2], seed, realism=Realism(untrimmed_s=(1.0, 2.0)))
 
 
-@family("noisy", 12, "2 deg rotation jitter on every joint + single-frame spikes (1 % of "
-        "frames, 10-30 deg on half the arm joints) in both takes", _DEV)
+@family("noisy", 12, "hand take (glove/optical noise): 2 deg rotation jitter on every joint + "
+        "single-frame spikes (1 % of frames, 10-30 deg on half the arm and hand joints)", _DEV)
 def _noisy(seed: int) -> Case:
     return _rotating(seed, Realism(jitter_deg=2.0, spike_rate=0.01))
 

@@ -527,55 +527,50 @@ def unmatched_frames(path: np.ndarray, n: int, m: int) -> int:
     return int(p[0].sum()) + (n - 1 - int(p[-1, 0])) + (m - 1 - int(p[-1, 1]))
 
 
-def _typical_skip(al, rows, skip_chance: float, limits) -> Ends:
-    n, m = len(rows[0]), len(rows[1])
-    matched = al.cost - skip_chance * unmatched_frames(al.path, n, m)
-    typical = max(matched, 0.0) / len(al.path)
-    return Ends(limits[0], limits[1], min(skip_chance, typical))
-
-
-def pass_ends(features: SpliceFeatures, kind: str, max_unmatched_s: float | None,
-              band: float, refine_band: float) -> tuple[Ends, Ends]:
-    """The ``Ends`` of pass 1 and pass 2 for a pair and options (cached on ``features``).
+def pass1_ends(features: SpliceFeatures, kind: str, max_unmatched_s: float | None) -> Ends:
+    """Open ends of pass 1: ``skip`` = half the cost of matching unrelated frames.
 
     Open ends charge ``skip`` per unmatched frame (``engine.dtw.Ends``), so every frame
     of both takes is paid for, matched or not, and a short overlap is not cheaper by
-    itself. Per pass, ``skip`` is the smaller of
-
-    * half the cost of matching unrelated frames (:func:`chance_cost`): a stretch at
-      an end whose cells are no better than chance is left out;
-    * the mean local cost per cell of the open path found with the first value (on the
-      pair without matching points): an end stretch stays matched on the diagonal while
-      its cells cost less than about twice a typical matched cell, and the path does
-      not absorb extra frames of one take by horizontal or vertical runs whose cells
-      cost more than a typical matched cell (pass 2's costs change smoothly, so the
-      neighbours of the true start cost far less than chance).
-
-    It does not depend on matching points, so an edit gives the same result as a fresh
-    solve and keeps the incremental solvers' rows.
+    itself (plain subsequence DTW, skip 0, would cut every end). With half the chance
+    cost (:func:`chance_cost`) an end stretch is left out only when its cells are no
+    better than matching random frames (a diagonal cell covers a frame of each take).
+    Pass 1's sign costs are coarse, so nothing stricter is safe there. Cached on
+    ``features`` (it depends on the pair and the limits only).
     """
     if kind == "fixed":
-        return Ends(), Ends()
+        return Ends()
+    limits = unmatched_limits(features.n, features.m, features.fps, max_unmatched_s)
     cache = features.params.setdefault("_ends", {})
-    key = (max_unmatched_s, float(band), float(refine_band))
-    if key in cache:
-        return cache[key]
-    n, m = features.n, features.m
-    limits = unmatched_limits(n, m, features.fps, max_unmatched_s)
-    rows1 = features.pass1_rows
-    e1 = Ends(limits[0], limits[1], 0.5 * chance_cost(rows1, "splice_phase"))
-    band1 = Band.from_constraints(n, m, float(band), (), open_ends=True)
-    al1 = align_features(*rows1, band1, metric="splice_phase", ends=e1)
-    ends1 = _typical_skip(al1, rows1, e1.skip, limits)
-    body_heading, hand_heading = pass2_headings(features, al1.path)
-    rows2 = (M.angle_features(features.body_markers, -body_heading).rows(
-        features.params.get("step2", 0.0)),
-        M.angle_features(features.hand_markers, -hand_heading).rows())
-    e2 = Ends(limits[0], limits[1], 0.5 * chance_cost(rows2, "splice_angle"))
-    band2 = Band.around_path(al1.path, n, m, refine_radius(n, m, refine_band), open_ends=True)
-    al2 = align_features(*rows2, band2, metric="splice_angle", ends=e2)
-    cache[key] = (ends1, _typical_skip(al2, rows2, e2.skip, limits))
-    return cache[key]
+    if "chance1" not in cache:
+        cache["chance1"] = chance_cost(features.pass1_rows, "splice_phase")
+    return Ends(limits[0], limits[1], 0.5 * cache["chance1"])
+
+
+def _solve_pass2(rows, band: Band, solver, incremental: bool, pass1: Ends):
+    """Pass 2 with open ends (when ``pass1`` is open): returns (Alignment, solver, Ends).
+
+    ``skip`` is the smaller of half the chance cost and the mean local cost per cell of
+    the open path found with it. Pass 2's angle costs change smoothly, so the neighbours
+    of the true start cost far less than chance: with the typical matched cost, the
+    path does not absorb extra frames of one take by horizontal or vertical runs whose
+    cells cost more than a typical matched cell, and an end stretch stays matched on the
+    diagonal while its cells cost less than about twice that. The band around the
+    pass-1 path keeps the ends near pass 1's.
+    """
+    if pass1.fixed:
+        al, solver = _solve(rows, "splice_angle", band, solver, incremental, Ends())
+        return al, solver, Ends()
+    n, m = len(rows[0]), len(rows[1])
+    first = Ends(pass1.body, pass1.hand, 0.5 * chance_cost(rows, "splice_angle"))
+    al = align_features(*rows, band, metric="splice_angle", ends=first)
+    matched = al.cost - first.skip * unmatched_frames(al.path, n, m)
+    typical = max(matched, 0.0) / len(al.path)
+    ends = Ends(pass1.body, pass1.hand, min(first.skip, typical))
+    if ends == first and not incremental and solver is None:
+        return al, None, ends
+    al, solver = _solve(rows, "splice_angle", band, solver, incremental, ends)
+    return al, solver, ends
 
 
 def pass2_headings(features: SpliceFeatures, path1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -640,7 +635,7 @@ def align_passes(features: SpliceFeatures, band: float = BAND, refine_band: floa
         incremental = band1.area <= INCREMENTAL_MAX_CELLS
     same = previous is not None and previous.features_id == id(features)
     solver1 = previous.pass1.solver if same else None
-    ends1, ends2 = pass_ends(features, kind, max_unmatched_s, band, refine_band)
+    ends1 = pass1_ends(features, kind, max_unmatched_s)
     al1, solver1 = _solve(features.pass1_rows, "splice_phase", band1, solver1, incremental,
                           ends1)
     t1 = time.perf_counter()
@@ -659,7 +654,7 @@ def align_passes(features: SpliceFeatures, band: float = BAND, refine_band: floa
     if same and previous.pass2.solver is not None and \
             np.array_equal(previous.pass2.rows[1], hand2):
         solver2 = previous.pass2.solver
-    al2, solver2 = _solve((body2, hand2), "splice_angle", band2, solver2, incremental, ends2)
+    al2, solver2, ends2 = _solve_pass2((body2, hand2), band2, solver2, incremental, ends1)
     t2 = time.perf_counter()
     timings["pass2"] = t2 - t1
     progress("pass 2", 1.0)
