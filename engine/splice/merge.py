@@ -83,6 +83,45 @@ def merge_path(path: np.ndarray, n: int, m: int, blend: float = BLEND_FRAMES) ->
     return smooth_warp(median_warp(path, n), blend, m)
 
 
+def still_runs(speed: np.ndarray, threshold: float, min_frames: int, gap: int = 2
+               ) -> list[tuple[int, int]]:
+    """Runs ``[first, last]`` of at least ``min_frames`` frames with ``speed < threshold``
+    (runs apart by at most ``gap`` moving frames, a noise blip, are joined)."""
+    still = np.asarray(speed) < threshold
+    moving = np.flatnonzero(~still)
+    if moving.size:  # fill short interruptions between still frames
+        edges = np.diff(np.concatenate([[0], (~still).astype(np.int8), [0]]))
+        for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True):
+            if b - a <= gap and a > 0 and b < still.size:
+                still[a:b] = True
+    edges = np.diff(np.concatenate([[0], still.astype(np.int8), [0]]))
+    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    return [(int(a), int(b) - 1) for a, b in zip(starts, stops, strict=True)
+            if b - a >= min_frames]
+
+
+def straighten_holds(warp: np.ndarray, body_holds, hand_holds, slack: float) -> np.ndarray:
+    """The warp made linear across holds matched to holds (METHOD: holds).
+
+    In a hold both takes are still, every cell of the rectangle costs the same and the
+    DTW path inside it is arbitrary (diagonal, then a vertical or horizontal run): the
+    timing inside and the exit from the hold are left to chance. Where a body hold
+    ``[b0, b1]`` is matched to a hand hold ``[h0, h1]`` (the warp enters within
+    ``slack`` frames of ``h0`` and leaves within ``slack`` of ``h1``), the hold
+    boundaries are matched to each other and the warp runs straight between them.
+    ``warp (n,)`` grid columns per body frame (unsmoothed); returns a new array.
+    """
+    w = np.asarray(warp, dtype=float).copy()
+    for b0, b1 in body_holds:
+        if b1 <= b0:
+            continue
+        for h0, h1 in hand_holds:
+            if abs(w[b0] - h0) <= slack and abs(w[b1] - h1) <= slack and h1 > h0:
+                w[b0:b1 + 1] = h0 + (np.arange(b0, b1 + 1) - b0) * (h1 - h0) / (b1 - b0)
+                break
+    return np.maximum.accumulate(w)
+
+
 def grid_to_hand_frames(warp: np.ndarray, body_fps: float, hand_fps: float,
                         hand_frames: int) -> np.ndarray:
     """Grid columns (hand resampled to the body's rate) -> frames of the original hand take."""

@@ -467,6 +467,28 @@ def _check_points(points, n: int, m: int) -> list[tuple[int, int, float]]:
     return out
 
 
+#: a hold: every alignment marker slower than the take's velocity dead zone for at least
+#: this long (seconds); holds matched within HOLD_SLACK_S are straightened (merge)
+HOLD_MIN_S = 0.4
+HOLD_SLACK_S = 0.15
+
+
+def holds(phase: M.PhaseFeatures, fps: float) -> list[tuple[int, int]]:
+    """Frame runs ``[first, last]`` where the take's arms hold still, ≥ :data:`HOLD_MIN_S`:
+    the mean marker speed is below sqrt(3) times the pass-1 velocity dead zone (a marker
+    whose three velocity components read 0 moves slower than that)."""
+    speed = np.linalg.norm(phase.velocity, axis=-1).mean(axis=1)
+    return MG.still_runs(speed, np.sqrt(3.0) * phase.zone.velocity,
+                         max(2, int(round(HOLD_MIN_S * fps))))
+
+
+def straighten_holds(features: SpliceFeatures, warp: np.ndarray) -> np.ndarray:
+    """:func:`engine.splice.merge.straighten_holds` with the pair's holds."""
+    return MG.straighten_holds(warp, holds(features.body_phase, features.fps),
+                               holds(features.hand_phase, features.fps),
+                               HOLD_SLACK_S * features.fps)
+
+
 def _solve(rows, metric: str, band: Band, solver=None, incremental: bool = False,
            ends: Ends | None = None):
     """Solve one pass; returns (Alignment, solver or None)."""
@@ -660,7 +682,7 @@ def align_passes(features: SpliceFeatures, band: float = BAND, refine_band: floa
     progress("pass 2", 1.0)
 
     progress("merge", 0.0)
-    warp = MG.merge_path(al2.path, n, m, blend)
+    warp = MG.smooth_warp(straighten_holds(features, MG.median_warp(al2.path, n)), blend, m)
     hand_map = features.grid_to_hand(warp)
     overlap = al2.overlap
     timings["merge"] = time.perf_counter() - t2
