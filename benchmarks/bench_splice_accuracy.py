@@ -290,6 +290,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="a few seeds per family, no RESULTS.md")
     ap.add_argument("--tuning", action="store_true", help="run the tuning seeds instead")
+    ap.add_argument("--seeds", type=int, default=0,
+                    help="only the first N reported seeds of each family (no RESULTS.md)")
     ap.add_argument("--families", default="",
                     help=f"comma-separated subset of {', '.join(FAMILIES)} (no RESULTS.md)")
     args = ap.parse_args(argv)
@@ -300,8 +302,8 @@ def main(argv=None) -> int:
     seeds = {}
     for f in names:
         fam = FAMILIES[f]
-        seeds[f] = (list(fam.tuning_seeds) if args.tuning
-                    else list(range(3 if args.quick else fam.seeds)))
+        count = 3 if args.quick else (min(args.seeds, fam.seeds) if args.seeds else fam.seeds)
+        seeds[f] = list(fam.tuning_seeds) if args.tuning else list(range(count))
     results = []
     t0 = time.perf_counter()
     for fam, seed_list in seeds.items():
@@ -319,7 +321,7 @@ def main(argv=None) -> int:
     md = markdown(table, results, seeds)
     print(md)
     print(f"\n{time.perf_counter() - t0:.0f} s")
-    if not (args.quick or args.tuning or args.families):
+    if not (args.quick or args.tuning or args.families or args.seeds):
         write_section("splice_accuracy", md)
     return 0
 
