@@ -81,3 +81,14 @@ def test_holds_are_straightened_boundary_to_boundary():
     np.testing.assert_array_equal(MG.straighten_holds(warp, [(50, 79)], [(90, 99)], 3), warp)
     assert MG.still_runs(np.r_[np.ones(5), np.zeros(12), 1.0, np.zeros(3), np.ones(4)], 0.5, 10) \
         == [(5, 20)]
+
+
+def test_app_shades_the_unmatched_ends():
+    from webapp.views.cost_matrix import _unmatched_quads
+
+    path = np.array([[0, 5], [1, 6], [2, 7], [3, 7]])
+    q = _unmatched_quads(path, 6, 9)
+    # body rows 4..5 after the overlap; hand columns 0..4 before and 8 after it
+    assert list(zip(q["left"], q["right"], q["bottom"], q["top"], strict=True)) == [
+        (3.5, 5.5, -0.5, 8.5), (-0.5, 5.5, -0.5, 4.5), (-0.5, 5.5, 7.5, 8.5)]
+    assert _unmatched_quads(np.array([[0, 0], [5, 8]]), 6, 9)["left"] == []

@@ -49,8 +49,8 @@ def test_samples_json_lists_the_demo_pair(cfg):
 def test_loading_the_demo_pair_solves_both_passes(session):
     sol = session.solution
     assert session.n == sol.pass1.band.n and session.m == sol.pass1.band.m
-    assert sol.pass1.path[0].tolist() == [0, 0]
-    assert sol.pass1.path[-1].tolist() == [session.n - 1, session.m - 1]
+    assert 0 in sol.pass1.path[0].tolist()  # open ends: starts on the first row or column
+    assert sol.pass1.path[-1][0] == session.n - 1 or sol.pass1.path[-1][1] == session.m - 1
     assert sol.pass2.band_cells < sol.pass1.band_cells  # pass 2 searches a narrower band
     assert sol.warp.shape == (session.n,)
     text = session.status_text()
