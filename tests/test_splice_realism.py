@@ -92,3 +92,21 @@ def test_app_shades_the_unmatched_ends():
     assert list(zip(q["left"], q["right"], q["bottom"], q["top"], strict=True)) == [
         (3.5, 5.5, -0.5, 8.5), (-0.5, 5.5, -0.5, 4.5), (-0.5, 5.5, 7.5, 8.5)]
     assert _unmatched_quads(np.array([[0, 0], [5, 8]]), 6, 9)["left"] == []
+
+
+def test_pass1_row_kernel_with_open_ends_equals_the_cost_matrix():
+    """The pass-1 row kernel (engine.phase_kernel) honours open ends exactly as the plain
+    kernels do on the tabulated local costs."""
+    from engine import metrics as M
+    from engine.dtw import Band, Ends, align, align_features
+
+    case = make_case("bandai", 4)
+    f = P.prepare(case.body, case.hand)
+    a, b = f.pass1_rows
+    cost = M.cost_grid(M.splice_phase, a, b, np.arange(f.n), np.arange(f.m))
+    band = Band.from_constraints(f.n, f.m, 0.4, [(0, 12, 2)], open_ends=True)
+    for ends in (Ends(f.n // 2, f.m // 2, 7.5), Ends(10, 30, 0.0)):
+        got = align_features(a, b, band, metric="splice_phase", ends=ends)
+        ref = align(cost, band, ends)
+        assert got.cost == pytest.approx(ref.cost, rel=1e-9)
+        np.testing.assert_array_equal(got.path, ref.path)
