@@ -55,6 +55,21 @@ def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray) -> np.ndarray:
     return pose
 
 
+def display_transform(motion: Motion, anatomy: Anatomy) -> tuple[float, np.ndarray]:
+    """``(scale, axes)`` with ``p_display = scale * axes @ p_file`` (metres, +Y up).
+
+    ``axes`` (3, 3) is the identity for Y-up files, ``(x, y, z) -> (x, z, -y)`` for
+    Z-up ones; ``scale`` the file's metres per unit, or, units unknown, the scale that
+    makes the character 1.75 m tall (a hand: 19 cm). The renderer and the glTF export
+    share it."""
+    axes = _Z_UP if motion.meta.up_axis.lower() == "z" else np.eye(3)
+    if motion.meta.units in ("m", "cm", "mm", "in", "dm"):
+        scale = motion.meters_per_unit
+    else:
+        scale = 1.75 / anatomy.height if anatomy.height > 0 else 1.0
+    return float(scale), axes
+
+
 @dataclass
 class TakeView:
     """One take ready to draw: world joints of every frame, mesh and framing.
@@ -126,11 +141,7 @@ class TakeView:
             raise ValueError(f"{label or 'take'}: the mesh is bound to "
                              f"{mesh.bind_positions.shape[0]} joints, the skeleton has "
                              f"{motion.skeleton.n_joints}")
-        axes = _Z_UP if motion.meta.up_axis.lower() == "z" else np.eye(3)
-        if motion.meta.units in ("m", "cm", "mm", "in", "dm"):
-            scale = motion.meters_per_unit
-        else:
-            scale = 1.75 / anatomy.height if anatomy.height > 0 else 1.0
+        scale, axes = display_transform(motion, anatomy)
         disp = scale * np.einsum("ij,fkj->fki", axes, pos)
         visible = np.ones(motion.skeleton.n_joints, bool)
         visible[list(anatomy.hidden)] = False
