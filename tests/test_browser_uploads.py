@@ -302,7 +302,7 @@ def test_the_payload_runs_when_a_page_injects_it(page):
 def test_a_session_file_with_html_in_sample_runs_no_script(page, tmp_path):
     session = tmp_path / "session.json"
     session.write_text(json.dumps({"format": "handsplice-session", "version": 1,
-                                   "sample": PAYLOAD}))
+                                   "inputs": {"sample": PAYLOAD}}))
     page.locator(".hs-open-session input[type=file]").set_input_files(str(session))
     alert = page.locator(".hs-share-error")
     alert.wait_for(state="visible", timeout=BUSY_S * 1000)

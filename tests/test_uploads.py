@@ -149,10 +149,14 @@ def test_errors_never_echo_file_contents_at_length(cfg):
 
 
 def test_the_check_runs_within_a_time_budget_off_the_event_loop(cfg):
-    """A file that takes longer than the budget is refused and its reader stopped, while
-    an event loop (the server's) keeps ticking every few milliseconds."""
-    slow = dataclasses.replace(cfg, upload_check_seconds=0.05)
-    staged = uploads.stage_bytes(slow, "long.bvh", BODY.read_bytes())
+    """A file whose reading never ends (a FIFO nobody writes to) is refused when the budget
+    runs out and its reader is stopped, while an event loop (the server's) keeps ticking."""
+    budget = 1.5
+    slow = dataclasses.replace(cfg, upload_check_seconds=budget)
+    cfg.upload_dir.mkdir(parents=True)
+    fifo = cfg.upload_dir / ".part-fifo.bvh"
+    os.mkfifo(fifo)
+    staged = uploads.Staged(fifo, "endless.bvh", 1)
 
     async def run():
         gaps, done = [], asyncio.Event()
@@ -167,18 +171,21 @@ def test_the_check_runs_within_a_time_budget_off_the_event_loop(cfg):
 
         ticker = asyncio.create_task(tick())
         loop = asyncio.get_running_loop()
+        t0 = time.perf_counter()
         try:
-            with pytest.raises(uploads.UploadError, match="budget"):
+            with pytest.raises(uploads.UploadError, match="budget") as info:
                 await loop.run_in_executor(None, uploads.check, slow, staged)
         finally:
             done.set()
             await ticker
-        return gaps
+        return gaps, time.perf_counter() - t0, str(info.value)
 
-    gaps = asyncio.run(run())
-    assert gaps and max(gaps) < 0.5, max(gaps)
+    gaps, seconds, message = asyncio.run(run())
+    assert message == ("endless.bvh: reading it took longer than the server's 1.5 s budget "
+                       "for one file")
+    assert seconds >= budget and len(gaps) > 50 and max(gaps) < budget / 2, max(gaps)
     assert not [p for p in multiprocessing.active_children() if p.name == "hs-upload-check"]
-    assert not list(cfg.upload_dir.glob(".part-*"))  # the staging file is gone
+    assert not fifo.exists()  # the staging entry is gone
     assert not list(cfg.upload_dir.glob("*.bvh"))  # nothing kept
 
 

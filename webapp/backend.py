@@ -109,10 +109,13 @@ def _file_key(path: Path) -> tuple:
     return (str(path), st.st_size, st.st_mtime_ns)
 
 
-def prepare(body_path: Path, hand_path: Path, side: str, roles: dict | None = None) -> Prepared:
+def prepare(body_path: Path, hand_path: Path, side: str, roles: dict | None = None,
+            takes: tuple | None = None) -> Prepared:
     """Load both takes and compute the per-pair features (cached per server).
 
     ``roles``: ``{"body": {"right.wrist": NAME}, "hand": {...}}`` joint-role overrides.
+    ``takes``: ``(body, hand)`` already read from these files (an upload's check read
+    them), or None entries to read here.
     """
     import json
 
@@ -123,7 +126,7 @@ def prepare(body_path: Path, hand_path: Path, side: str, roles: dict | None = No
         hit = _PREPARED.get(key)
         if hit is not None:
             return hit
-    prepared = _prepare(Path(body_path), Path(hand_path), side, key, roles)
+    prepared = _prepare(Path(body_path), Path(hand_path), side, key, roles, takes)
     with _PREPARE_LOCK:
         _PREPARED[key] = prepared
         _PREPARED_ORDER.append(key)
@@ -138,12 +141,14 @@ def _normalised(x: np.ndarray) -> np.ndarray:
     return (x - x.min()) / span if span > 0 else np.zeros_like(x)
 
 
-def _prepare(body_path: Path, hand_path: Path, side: str, key: tuple, roles: dict) -> Prepared:
+def _prepare(body_path: Path, hand_path: Path, side: str, key: tuple, roles: dict,
+             takes: tuple | None = None) -> Prepared:
     from engine.io import load_take
     from engine.splice import pipeline
 
-    body = load_take(body_path)
-    hand = load_take(hand_path)
+    body, hand = takes or (None, None)
+    body = body if body is not None else load_take(body_path)
+    hand = hand if hand is not None else load_take(hand_path)
     features = pipeline.prepare(body, hand, side=side, body_roles=roles.get("body") or None,
                                 hand_roles=roles.get("hand") or None)
     body_speed, hand_speed = pipeline.wrist_speeds(features)

@@ -20,7 +20,7 @@ DEFAULT_MAX_UPLOAD = MAX_UPLOAD_BYTES  # the default; ``handsplice serve --max-u
 DEFAULT_UPLOAD_FILES = 200
 DEFAULT_UPLOAD_TOTAL_BYTES = 4 * 1024**3
 #: budget of one upload's check (the reader runs in a child process): seconds and bytes
-DEFAULT_CHECK_SECONDS = 120.0
+DEFAULT_CHECK_SECONDS = 300.0
 DEFAULT_CHECK_BYTES = 4 * 1024**3
 
 

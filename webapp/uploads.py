@@ -19,6 +19,7 @@ contents (:func:`_bounded`), and never the server's paths.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import multiprocessing
 import os
@@ -26,7 +27,7 @@ import re
 import stat
 import time
 import uuid
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from engine.errors import HandSpliceError
@@ -58,12 +59,14 @@ class Staged:
 @dataclass(frozen=True)
 class Kept:
     """A checked upload kept by content hash; ``summary`` describes the take
-    (``kind`` "skeleton" or "markers", ``frames``, ``fps``, ``joints``/``markers``)."""
+    (``kind`` "skeleton" or "markers", ``frames``, ``fps``, ``joints``/``markers``) and
+    ``take`` is what the reader read (handed over by the child: not read twice)."""
 
     digest: str
     path: Path
     name: str
     summary: dict
+    take: object = field(default=None, compare=False, repr=False)  # Motion or MarkerSet
 
 
 def sha256(data: bytes) -> str:
@@ -128,10 +131,10 @@ class Incoming:
         self.ext = _extension(self.name)
         self.size = 0
         self.path = cfg.upload_dir / f".part-{uuid.uuid4().hex}{self.ext}"
+        self._fd = None
         try:
             cfg.upload_dir.mkdir(parents=True, exist_ok=True)
-            self._fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW
-                               | getattr(os, "O_CLOEXEC", 0), 0o600)
+            self._fd = _open_staging(self.path)
         except OSError as exc:
             raise UploadError(f"{self.name}: the server cannot store uploads "
                               f"({_os_reason(exc)})") from None
@@ -170,6 +173,12 @@ class Incoming:
             os.close(fd)
 
 
+def _open_staging(path: Path) -> int:
+    """A new file for writing, created exclusively and never through a symlink."""
+    return os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW
+                   | getattr(os, "O_CLOEXEC", 0), 0o600)
+
+
 def stage_bytes(cfg: AppConfig, filename: str | None, data: bytes | None) -> Staged:
     """An upload held in memory (a test, a small file) written to a staging file."""
     name = display_name(filename)
@@ -195,7 +204,8 @@ def check(cfg: AppConfig, staged: Staged) -> Kept:
     either way.
     """
     try:
-        summary = _read_in_child(staged, cfg.upload_check_seconds, cfg.upload_check_bytes)
+        summary, take = _read_in_child(staged, cfg.upload_check_seconds,
+                                       cfg.upload_check_bytes)
         digest = _file_sha256(staged.path)
         target = cfg.upload_dir / f"{digest}{staged.path.suffix}"
         try:
@@ -207,7 +217,9 @@ def check(cfg: AppConfig, staged: Staged) -> Kept:
     finally:
         _discard(staged.path)
     enforce_quota(cfg, keep={target.name})
-    return Kept(digest, target, staged.name, summary)
+    if take is not None and hasattr(take, "meta"):  # the kept file's name, as a read gives
+        take = dataclasses.replace(take, meta=dataclasses.replace(take.meta, source=str(target)))
+    return Kept(digest, target, staged.name, summary, take)
 
 
 def store(cfg: AppConfig, filename: str, data: bytes | None) -> tuple[str, object]:
@@ -215,10 +227,8 @@ def store(cfg: AppConfig, filename: str, data: bytes | None) -> tuple[str, objec
 
     ``take`` is the Motion or MarkerSet read from the kept file.
     """
-    from engine.io import load_take
-
     kept = check(cfg, stage_bytes(cfg, filename, data))
-    return kept.digest, load_take(kept.path)
+    return kept.digest, kept.take
 
 
 def _file_sha256(path: Path) -> str:
@@ -260,7 +270,7 @@ def _read_in_child(staged: Staged, seconds: float, memory: int) -> dict:
             raise UploadError(f"{staged.name}: reading it took longer than the server's "
                               f"{seconds:g} s budget for one file")
         try:
-            verdict, detail = receive.recv()
+            verdict, detail, take = receive.recv()
         except (EOFError, OSError):  # the child died: out of memory or worse
             raise UploadError(f"{staged.name}: cannot be read within the server's "
                               f"{memory / 2**30:.1f} GiB memory budget") from None
@@ -271,7 +281,7 @@ def _read_in_child(staged: Staged, seconds: float, memory: int) -> dict:
         child.join(5)
     if verdict != "ok":
         raise UploadError(_bounded(_rename(detail, staged.path, staged.name)))
-    return detail
+    return detail, take
 
 
 def _child_read(path: str, memory: int, conn) -> None:  # runs in the child process
@@ -291,14 +301,15 @@ def _child_read(path: str, memory: int, conn) -> None:  # runs in the child proc
         else:
             summary = {"kind": "skeleton", "joints": int(take.skeleton.n_joints)}
         summary.update(frames=int(take.n_frames), fps=float(take.fps))
-        conn.send(("ok", summary))
+        conn.send(("ok", summary, take))
     except MemoryError:
         conn.send(("refused", f"{Path(path).name}: reading it needs more than the server's "
-                              f"{memory / 2**30:.1f} GiB memory budget"))
+                              f"{memory / 2**30:.1f} GiB memory budget", None))
     except HandSpliceError as exc:
-        conn.send(("refused", str(exc)))
+        conn.send(("refused", str(exc), None))
     except Exception as exc:  # noqa: BLE001 - any reader failure is a refusal, never a crash
-        conn.send(("refused", f"{Path(path).name}: cannot be read ({type(exc).__name__})"))
+        conn.send(("refused", f"{Path(path).name}: cannot be read ({type(exc).__name__})",
+                   None))
     finally:
         conn.close()
 

@@ -11,6 +11,7 @@ goes through :mod:`webapp.safe_text`.
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import functools
 from concurrent.futures import ThreadPoolExecutor
 
@@ -50,9 +51,9 @@ class InputsView:
         self.sample.param.watch(self._on_sample, "value")
         limit = f"{cfg.max_upload_bytes / 2**20:.0f} MiB"
         self.body_file = TakeDropper(cfg, css_classes=["hs-upload-body"], width=280,
-                                     name="body take")
+                                     label="body take")
         self.hand_file = TakeDropper(cfg, css_classes=["hs-upload-hand"], width=280,
-                                     name="hand take")
+                                     label="hand take")
         for which, dropper in (("body", self.body_file), ("hand", self.hand_file)):
             dropper.on_progress = self._on_progress
             dropper.on_staged = lambda staged, w=which: self._on_staged(w, staged)
@@ -189,12 +190,15 @@ class InputsView:
         loop = asyncio.get_running_loop()
         self.uploaded.object += " <span class='hs-opening'>aligning…</span>"
         try:
-            await loop.run_in_executor(_WORKERS, backend.prepare, body.path, hand.path, s.side,
-                                       dict(s.roles))
+            await loop.run_in_executor(_WORKERS, functools.partial(
+                backend.prepare, body.path, hand.path, s.side, dict(s.roles),
+                takes=(body.take, hand.take)))
         except Exception as exc:  # the reason is shown; nothing changes
             self._show_uploaded()
             self._show_error(f"{body.name} + {hand.name}: {one_line(exc)}")
             return
+        # the engine's cache holds the takes now: this view keeps only their names
+        self._pending = {k: dataclasses.replace(v, take=None) for k, v in self._pending.items()}
         before = s.error
         s.load_uploads(body.digest, hand.digest, body.name, hand.name)
         if s.body_sha256 != body.digest or s.hand_sha256 != hand.digest:
