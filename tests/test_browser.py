@@ -427,6 +427,84 @@ def test_malformed_upload_is_rejected_with_a_message(page, tmp_path):
     assert "Traceback" not in page.content()
 
 
+def _table_points(page) -> list[tuple[int, int]]:
+    """(body, hand) of every row of the points table, as the page shows them."""
+    rows = page.locator(".hs-points .tabulator-row")
+    out = []
+    for k in range(rows.count()):
+        row = rows.nth(k)
+        out.append(tuple(int(float(row.locator(f"[tabulator-field='{f}']").inner_text()))
+                         for f in ("body frame", "hand frame")))
+    return out
+
+
+def _start_busy_session(page) -> None:
+    """Make ``page``'s session edit without pause (a point moved every 60 ms), so the server
+    solves for another session all the time."""
+    page.evaluate("""() => {
+      const src = hs.model('hs-points-source'); let k = 0;
+      window.hsBusy = setInterval(() => {
+        k = (k + 1) % 40;
+        src.data = {x: [30 + k], y: [30 + k], tol: [NaN]};
+      }, 60);
+    }""")
+
+
+@pytest.mark.parametrize("busy", [False, True], ids=["alone", "beside-a-busy-session"])
+def test_quick_clicks_and_a_drag_all_reach_the_session(browser, server, tmp_path, busy):
+    """Five clicks 50 ms apart and a drag while the previous edit is solved: every point
+    (the dragged one at its new place) is in the matrix, the table, the status line and the
+    downloaded session file; nothing drawn in the page is lost."""
+    page = _open(browser, server)
+    other = _open(browser, server) if busy else None
+    try:
+        if other is not None:
+            _start_busy_session(other)
+            rev = _revision(other)
+            _wait_revision(other, rev)  # the other session is solving
+        path = page.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
+        n = len(page.evaluate("hs.cols('hs-band-source', ['x'])")["x"])
+        xs = [n * k // 6 for k in range(1, 6)]
+        cells = [(x, path["y"][path["x"].index(x)]) for x in xs]
+        screen = [page.evaluate(f"hs.xy({x}, {y})") for x, y in cells]  # before any click
+        rev = _revision(page)
+        for xy in screen:
+            page.mouse.click(*xy)
+            page.wait_for_timeout(50)
+        # drag the third point up while the server is still busy with the clicks
+        x3, y3 = cells[2]
+        target = y3 + 4
+        _drag(page, x3, y3, x3, target)
+        assert _revision(page) < rev + 6, "the server answered all edits before the drag"
+        want = sorted([*cells[:2], (x3, target), *cells[3:]])
+        want = [tuple(c) for c in want]
+        deadline = time.monotonic() + 60
+        while True:  # every edit answered, and the page shows the session's five points
+            shown = page.evaluate("() => [hs.cols('hs-points-source', ['x', 'y']),"
+                                  " hs.model('hs-points-source')._hs?.pending.length ?? -1]")
+            got = sorted((round(x), round(y)) for x, y in zip(shown[0]["x"], shown[0]["y"]))
+            if got == want and shown[1] == 0:
+                break
+            assert time.monotonic() < deadline, (got, want, shown, _status(page))
+            page.wait_for_timeout(100)
+        deadline = time.monotonic() + 30
+        while "5 matching points" not in _status(page) or _table_points(page) != want:
+            assert time.monotonic() < deadline, (_status(page), _table_points(page), want)
+            page.wait_for_timeout(100)
+        with page.expect_download(timeout=30_000) as info:
+            page.locator(".hs-download-session button").click()
+        spath = tmp_path / "quick.json"
+        info.value.save_as(spath)
+        data = json.loads(spath.read_text())
+        assert [(p["body"], p["hand"]) for p in data["points"]] == want
+        assert not page.errors, page.errors
+    finally:
+        if other is not None:
+            other.evaluate("() => clearInterval(window.hsBusy)")
+            other.context.close()
+        page.context.close()
+
+
 def test_server_log_has_no_tracebacks(page):
     """Whatever the page did, the server raised nothing (run last: it reads the whole log)."""
     path = SERVER_LOG.get("path")

@@ -275,6 +275,78 @@ class Session(param.Parameterized):
         self.set_points(pts)
         return self.points != before or tuple(sorted(pts, key=lambda p: p.body)) == before
 
+    def apply_view_edits(self, edits) -> int:
+        """Browser edits of the matching points, in the order they were made.
+
+        ``edits``: iterable of ``(before, after)``, each a list of ``(x, y, tol)`` as the
+        page held its points before and after one click, drag or delete. The page may be
+        several edits ahead of the session (it does not wait for the server's answer), so
+        each edit is applied as what it did (one point added, moved or deleted) to the
+        points the session holds now, not as a whole list: an edit made in the page while
+        the server was changing the points (undo, a table edit) keeps both. Each edit is
+        solved and is one undo step; a refused edit sets ``error`` and the next ones go on.
+        Returns how many edits changed the points.
+        """
+        changed = 0
+        for before, after in edits:
+            before, after = self._view_cells(before), self._view_cells(after)
+            if before == after:
+                continue
+            pts = self._merged(list(self.points), before, after)
+            if pts is None or tuple(self._normalise(pts)) == self.points:
+                continue
+            old = self.points
+            self.set_points(pts)
+            changed += self.points != old
+        return changed
+
+    def _view_cells(self, edited) -> list[tuple[int, int, float | None]]:
+        """The page's ``(x, y, tol)`` floats as matrix cells (rounded, clipped; NaN tol = None)."""
+        cells = []
+        for x, y, *rest in edited:
+            if x is None or y is None or not (np.isfinite(x) and np.isfinite(y)):
+                continue
+            tol = rest[0] if rest else None
+            tol = None if tol is None or not np.isfinite(tol) else float(tol)
+            cells.append((int(np.clip(round(x), 0, max(self.n - 1, 0))),
+                          int(np.clip(round(y), 0, max(self.m - 1, 0))), tol))
+        return cells
+
+    @staticmethod
+    def _merged(points: list[MatchPoint], before: list, after: list) -> list | None:
+        """``points`` with the one edit ``before -> after`` of the page applied (by index in
+        the page's list: a click appends, a drag changes entries in place, Backspace removes)."""
+        def find(cell):
+            for k, p in enumerate(points):
+                if (p.body, p.hand) == cell[:2]:
+                    return k
+            return None
+
+        if len(after) == len(before) + 1 and after[:len(before)] == before:
+            x, y, tol = after[-1]
+            return [*points, MatchPoint(x, y, tol)]
+        if len(after) == len(before):
+            for old, new in zip(before, after):
+                if old == new:
+                    continue
+                k = find(old)
+                if k is None:  # the session dropped that point meanwhile: the drag places it
+                    points.append(MatchPoint(new[0], new[1], new[2]))
+                else:
+                    points[k] = MatchPoint(new[0], new[1], points[k].tolerance)
+            return points
+        if len(after) < len(before):
+            remaining = list(after)
+            for cell in before:
+                if cell in remaining:
+                    remaining.remove(cell)
+                    continue
+                k = find(cell)
+                if k is not None:
+                    del points[k]
+            return points
+        return [MatchPoint(*c) for c in after]  # not one click, drag or delete: take it whole
+
     def _normalise(self, points) -> tuple[MatchPoint, ...]:
         out = []
         for p in points:

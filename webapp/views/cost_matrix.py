@@ -5,10 +5,16 @@ point (body frame, hand frame) sits at (x, y) and the band of row i is the verti
 stretch [lo_i, hi_i] above x = i.
 
 Editing: with the point tool active (the default) a click adds a matching point,
-a drag moves one, Backspace deletes the selected one. The browser only sends the
-edited point list when a drag ends; the session validates it, recomputes band and
-path, and pushes the new band and path back (only those sources change, so the
-page does not re-render the figure).
+a drag moves one, Backspace deletes the selected one. The page never waits for the
+server: each click, drag end or delete becomes a numbered edit (the point list
+before and after it) in a queue the page sends whole until the server has answered
+(``hs-edit-queue``). The server applies the new edits one by one, in order, as what
+they did (add, move, delete) to the session's points; then it sends the session's
+points back with the number of the last edit they include (``hs-server-points``),
+and the page adopts them only when no newer edit of its own is still unanswered.
+So quick clicks all arrive, an old answer never overwrites a newer click, and a
+refused edit disappears with the reason shown. Only the band, path and point
+sources change, so the page does not re-render the figure.
 
 Large matrices: the image is a view of at most ``max_pixels`` cells per axis of the
 visible range, fetched again (throttled) when the visible range changes, so a
@@ -18,12 +24,15 @@ full detail.
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import panel as pn
 from bokeh.events import DoubleTap, RangesUpdate, Tap
 from bokeh.models import (
     ColorBar,
     ColumnDataSource,
+    CustomJS,
     HoverTool,
     LinearColorMapper,
     PointDrawTool,
@@ -72,6 +81,84 @@ def _phase_colors() -> dict:
         return {int(k): v for k, v in PHASE_COLORS.items()}
     except ImportError:
         return {}
+
+
+def _rows(cols) -> list[tuple[float, float, float]]:
+    """The page's ``{"x": [...], "y": [...], "tol": [...]}`` as ``(x, y, tol)`` rows."""
+    if not isinstance(cols, dict):
+        return []
+    xs, ys, tols = (list(cols.get(k) or []) for k in ("x", "y", "tol"))
+    tols += [None] * (len(xs) - len(tols))
+
+    def num(v):
+        return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else None
+
+    return [(num(x), num(y), num(t)) for x, y, t in zip(xs, ys, tols)]
+
+
+#: the page side of the edit queue (see ``CostMatrixView``): every change of the points the
+#: user makes (click, drag end, Backspace) becomes a numbered edit {seq, before, after}; all
+#: edits the server has not answered yet are sent together, so none is lost or reordered
+_JS_STATE = """
+const cols = (d) => ({x: Array.from(d.x ?? []), y: Array.from(d.y ?? []),
+                      tol: Array.from(d.tol ?? []).map(v => (v == null || Number.isNaN(v)) ? null : v)});
+const st = (src._hs ??= {seq: 0, pending: [], syncing: false, shown: cols(server.data)});
+const dragging = () => {
+  const view = Bokeh.index.find_one(fig);
+  const tool_view = view?.tool_views?.get(tool);
+  return tool_view != null && tool_view._basepoint != null;
+};
+const adopt = () => {  // show the session's points once every edit sent is answered
+  const acked = server.tags[0] ?? 0;
+  st.pending = st.pending.filter(e => e.seq > acked);
+  if (st.pending.length || dragging()) return;  // a drag in progress adopts when it ends
+  const d = server.data;
+  st.syncing = true;
+  try {
+    src.data = {x: Array.from(d.x ?? []), y: Array.from(d.y ?? []),
+                tol: Array.from(d.tol ?? []).map(v => v == null ? NaN : v)};
+  } finally {
+    st.syncing = false;
+  }
+  st.shown = cols(src.data);
+};
+"""
+
+_JS_SEND_EDIT = _JS_STATE + """
+if (st.syncing) return;
+const after = cols(src.data);
+const before = st.shown;
+if (JSON.stringify(before) !== JSON.stringify(after)) {
+  st.seq = Math.max(st.seq, server.tags[0] ?? 0) + 1;
+  st.pending.push({seq: st.seq, before: before, after: after});
+  st.shown = after;
+  queue.data = {edits: [JSON.stringify(st.pending)]};
+}
+adopt();
+"""
+
+#: Bokeh reports a second click within 300 ms as a double tap, which the point tool ignores:
+#: quick clicks were lost in the page itself. A double tap is handed to the tool as a tap.
+_JS_DOUBLE_TAP_IS_A_TAP = """
+const view = Bokeh.index.find_one(fig);
+const tool_view = view?.tool_views?.get(tool);
+if (tool_view == null || tool_view._doubletap != null || tool.active === false) return;
+tool_view._tap({type: "tap", sx: cb_obj.sx, sy: cb_obj.sy,
+                modifiers: cb_obj.modifiers ?? {shift: false, ctrl: false, alt: false}});
+"""
+
+#: Bokeh turns a pointer held still for 300 ms into a "press", after which moves are ignored:
+#: a point pressed a moment before it is dragged (or a drag started while the page is busy
+#: drawing the previous answer) stayed put. Nothing here uses presses, so they wait a minute.
+_JS_NO_PRESS = """
+const gestures = Bokeh.require("core/ui_gestures").UIGestures;
+gestures.press_threshold = 60000;
+"""
+
+#: the page adopts the session's points once the server has answered every edit it sent
+_JS_RECONCILE = _JS_STATE + """
+adopt();
+"""
 
 
 class CostMatrixView:
@@ -178,7 +265,24 @@ class CostMatrixView:
         hand.min_border_top, hand.min_border_bottom, hand.min_border_right = 6, 6, 2
         self.body_figure, self.hand_figure = body, hand
 
-        self.points_source.on_change("data", self._on_points_edited)
+        # the edit queue: the page numbers its edits and sends every unanswered one; the
+        # session's points come back in ``server_points`` with the last edit they include
+        self.edit_source = ColumnDataSource({"edits": ["[]"]}, name="hs-edit-queue")
+        self.server_points = ColumnDataSource({"x": [], "y": [], "tol": []}, tags=[0],
+                                              name="hs-server-points")
+        self._acked = 0
+        args = {"src": self.points_source, "queue": self.edit_source,
+                "server": self.server_points, "fig": fig, "tool": self.point_tool}
+        self.points_source.js_on_change("data", CustomJS(args=args, code=_JS_SEND_EDIT))
+        reconcile = CustomJS(args=args, code=_JS_RECONCILE)
+        fig.js_on_event(DoubleTap, CustomJS(args=args, code=_JS_NO_PRESS
+                                            + _JS_DOUBLE_TAP_IS_A_TAP))
+        doc = pn.state.curdoc
+        if doc is not None:
+            doc.js_on_event("document_ready", CustomJS(code=_JS_NO_PRESS))
+        self.server_points.js_on_change("data", reconcile)
+        self.server_points.js_on_change("tags", reconcile)
+        self.edit_source.on_change("data", self._on_edits)
         fig.on_event(RangesUpdate, self._on_range)
         fig.on_event(Tap, self._on_tap)
         fig.on_event(DoubleTap, self._on_tap)
@@ -248,16 +352,17 @@ class CostMatrixView:
     def _sync_points(self):
         pts = self.session.points
         tol = [self.session.tolerance if p.tolerance is None else p.tolerance for p in pts]
-        self._syncing = True
-        try:
-            self.points_source.data = {"x": [p.body for p in pts], "y": [p.hand for p in pts],
-                                       "tol": [None if p.tolerance is None else p.tolerance
-                                               for p in pts]}
-            self.tol_source.data = {"x": [p.body for p in pts],
-                                    "y0": [p.hand - t - 0.5 for p, t in zip(pts, tol)],
-                                    "y1": [p.hand + t + 0.5 for p, t in zip(pts, tol)]}
-        finally:
-            self._syncing = False
+        data = {"x": [p.body for p in pts], "y": [p.hand for p in pts],
+                "tol": [None if p.tolerance is None else p.tolerance for p in pts]}
+        # data first, then the answered edit number: the page adopts the session's points
+        # once nothing it sent is still unanswered (a newer click is never overwritten)
+        self.server_points.data = data
+        self.server_points.tags = [self._acked]
+        if pn.state.curdoc is None or pn.state.curdoc.session_context is None:
+            self.points_source.data = dict(data)  # no page: nothing to reconcile
+        self.tol_source.data = {"x": [p.body for p in pts],
+                                "y0": [p.hand - t - 0.5 for p, t in zip(pts, tol)],
+                                "y1": [p.hand + t + 0.5 for p, t in zip(pts, tol)]}
 
     def _visible(self) -> tuple[float, float, float, float]:
         return (self.x_range.start, self.x_range.end, self.y_range.start, self.y_range.end)
@@ -289,21 +394,28 @@ class CostMatrixView:
 
     # ------------------------------------------------------------ page -> session
 
-    def _on_points_edited(self, attr, old, new):
-        if self._syncing:
-            return
-        xs, ys = list(new.get("x", [])), list(new.get("y", []))
-        tols = list(new.get("tol", [])) + [None] * (len(xs) - len(new.get("tol", [])))
-        edited = [(x, y, t) for x, y, t in zip(xs, ys, tols)]
+    def _on_edits(self, attr, old, new):
+        """The page's queue of unanswered edits changed: apply the new ones in order (after
+        Bokeh has applied the browser's patch, so the answers go out at once)."""
         doc = pn.state.curdoc
         if doc is None or doc.session_context is None:
-            self._apply_edit(edited)
-        else:  # after Bokeh has finished applying the browser's patch: changes go out at once
-            doc.add_next_tick_callback(lambda: self._apply_edit(edited))
+            self._apply_edits()
+        else:
+            doc.add_next_tick_callback(self._apply_edits)
 
-    def _apply_edit(self, edited) -> None:
-        if not self.session.set_points_from_view(edited):
-            self._sync_points()  # rejected: put the points back where the session has them
+    def _apply_edits(self) -> None:
+        try:
+            queue = json.loads((self.edit_source.data.get("edits") or ["[]"])[0])
+        except (TypeError, ValueError):
+            return
+        fresh = sorted((e for e in queue if isinstance(e, dict)
+                        and int(e.get("seq", 0)) > self._acked), key=lambda e: int(e["seq"]))
+        if not fresh:
+            return
+        for edit in fresh:  # one at a time: each is solved before the next is merged
+            self.session.apply_view_edits([(_rows(edit.get("before")), _rows(edit.get("after")))])
+            self._acked = int(edit["seq"])
+        self._sync_points()
 
     def _on_range(self, event):
         self._pending_range = (event.x0, event.x1, event.y0, event.y1)
