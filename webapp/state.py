@@ -36,6 +36,10 @@ MATRIX_LABELS = {
     "cumulative2": "Pass 2 cumulative cost γ in the band",
 }
 UNDO_LIMIT = 200
+#: changes of one slider less than this many seconds apart (a drag, a run of arrow-key
+#: steps) are one undo step
+SLIDER_PARAMS = ("band", "refine_band", "tolerance")
+SLIDER_RUN_S = 1.5
 
 
 @dataclass(frozen=True)
@@ -79,8 +83,9 @@ class Session(param.Parameterized):
     refine_band = param.Number(default=0.1, bounds=(0.01, 1.0), step=0.01,
                                doc="pass-2 band width W2 around the pass-1 path, fraction")
     tolerance = param.Number(default=0.0, bounds=(0.0, 500.0), step=1.0,
-                             doc="global matching-point tolerance T in frames")
-    points = param.Parameter(default=(), doc="matching points: tuple of MatchPoint")
+                             doc="global matching-point tolerance T in hand frames")
+    points = param.Parameter(default=(), doc="matching points: tuple of MatchPoint, body and "
+                                             "hand frames each in its own file's numbering")
 
     # display
     matrix = param.Selector(default="pass1", objects=list(MATRIX_LABELS),
@@ -89,7 +94,11 @@ class Session(param.Parameterized):
 
     # results (written by the session only)
     n = param.Integer(default=0, constant=True, doc="body frames (rows)")
-    m = param.Integer(default=0, constant=True, doc="hand frames at body rate (columns)")
+    m = param.Integer(default=0, constant=True, doc="alignment-grid columns: the hand take "
+                      "at the body's rate (internal; people see hand-file frames)")
+    m_hand = param.Integer(default=0, constant=True, doc="frames of the hand file")
+    fps = param.Number(default=30.0, constant=True, doc="body frame rate")
+    hand_fps = param.Number(default=30.0, constant=True, doc="hand file's frame rate")
     solution = param.Parameter(default=None, doc="backend.Solution of the current state")
     compute_ms = param.Number(default=0.0, doc="wall time of the last recompute, ms")
     error = param.String(default="", doc="why the last edit or input was rejected")
@@ -103,6 +112,7 @@ class Session(param.Parameterized):
         self._undo: list[Snapshot] = []
         self._redo: list[Snapshot] = []
         self._applying = False
+        self._slider_run: tuple[str, float] | None = None
         self.prepared: backend.Prepared | None = None
         super().__init__(**params)
         self.param.watch(self._on_edit, list(EDIT_PARAMS))
@@ -174,11 +184,10 @@ class Session(param.Parameterized):
         self.prepared = prepared
         self._undo.clear()
         self._redo.clear()
-        with param.edit_constant(self):
-            self.n, self.m = prepared.n, prepared.m
+        self._set_sizes(prepared)
         self._applying = True
         try:
-            kept = tuple(p for p in self.points if p.body < self.n and p.hand < self.m)
+            kept = tuple(p for p in self.points if p.body < self.n and p.hand < self.m_hand)
             self.param.update(points=kept, frame=min(self.frame, max(self.n - 1, 0)))
         finally:
             self._applying = False
@@ -197,8 +206,17 @@ class Session(param.Parameterized):
         if not self._solve():
             self._apply(old)  # rejected: back to the values that worked
             return
-        self._undo.append(Snapshot(old))
-        del self._undo[:-UNDO_LIMIT]
+        now = time.monotonic()
+        run = self._slider_run
+        if (len(old) == 1 and (name := next(iter(old))) in SLIDER_PARAMS and run is not None
+                and run[0] == name and now - run[1] < SLIDER_RUN_S and self._undo
+                and set(self._undo[-1].values) == {name}):
+            self._slider_run = (name, now)  # the same slider again: one undo step for the run
+        else:
+            self._undo.append(Snapshot(old))
+            del self._undo[:-UNDO_LIMIT]
+            self._slider_run = (next(iter(old)), now) if len(old) == 1 and \
+                next(iter(old)) in SLIDER_PARAMS else None
         self._redo.clear()
         self._update_history_flags()
 
@@ -224,6 +242,7 @@ class Session(param.Parameterized):
         if not source:
             return False
         snap = source.pop()
+        self._slider_run = None
         target.append(Snapshot(self._current(snap.values)))
         self._apply(snap.values)
         self._solve()
@@ -254,7 +273,8 @@ class Session(param.Parameterized):
 
     def set_point_tolerance(self, index: int, tolerance: float | None) -> None:
         if tolerance is not None and not (np.isfinite(tolerance) and tolerance >= 0):
-            self.error = f"points[{index}].tolerance: expected a number >= 0, got {tolerance}"
+            self.error = (f"tolerance of matching point {index + 1}: expected a number of hand "
+                          f"frames ≥ 0 (empty = the global tolerance), got {tolerance}")
             return
         pts = list(self.points)
         pts[index] = MatchPoint(pts[index].body, pts[index].hand,
@@ -268,7 +288,7 @@ class Session(param.Parameterized):
             if x is None or y is None or not (np.isfinite(x) and np.isfinite(y)):
                 continue
             body = int(np.clip(round(x), 0, max(self.n - 1, 0)))
-            hand = int(np.clip(round(y), 0, max(self.m - 1, 0)))
+            hand = int(np.clip(round(y), 0, max(self.m_hand - 1, 0)))
             tol = None if tol is None or (isinstance(tol, float) and np.isnan(tol)) else float(tol)
             pts.append(MatchPoint(body, hand, tol))
         before = self.points
@@ -309,7 +329,7 @@ class Session(param.Parameterized):
             tol = rest[0] if rest else None
             tol = None if tol is None or not np.isfinite(tol) else float(tol)
             cells.append((int(np.clip(round(x), 0, max(self.n - 1, 0))),
-                          int(np.clip(round(y), 0, max(self.m - 1, 0))), tol))
+                          int(np.clip(round(y), 0, max(self.m_hand - 1, 0))), tol))
         return cells
 
     @staticmethod
@@ -360,12 +380,20 @@ class Session(param.Parameterized):
     # ------------------------------------------------------------ compute
 
     def _check_points(self) -> None:
-        spec = SessionSpec(points=self.points)
-        session_io.validate(spec)
-        for k, p in enumerate(self.points):
-            if not (0 <= p.body < self.n and 0 <= p.hand < self.m):
-                raise HandSpliceError(f"points[{k}]: ({p.body}, {p.hand}) is outside the "
-                                      f"{self.n} x {self.m} matrix")
+        """Refuse points the page cannot keep, saying why in the page's words."""
+        pts = self.points
+        for p in pts:
+            if not (0 <= p.body < self.n and 0 <= p.hand < self.m_hand):
+                raise HandSpliceError(
+                    f"matching point (body {p.body}, hand {p.hand}) not kept: it is outside "
+                    f"the takes (body frames 0–{self.n - 1}, hand frames 0–{self.m_hand - 1})")
+        for a, b in zip(pts, pts[1:]):
+            if not (b.body > a.body and b.hand > a.hand):
+                raise HandSpliceError(
+                    f"matching point (body {b.body}, hand {b.hand}) not kept: matching points "
+                    f"go forward in both takes, and point (body {a.body}, hand {a.hand}) "
+                    f"{'is at the same body frame' if b.body == a.body else 'comes later in the hand take'}")
+        session_io.validate(SessionSpec(points=pts))
 
     def _solve(self, t0: float | None = None) -> bool:
         """Recompute band and path for the current state; False (and ``error``) if rejected."""
@@ -384,9 +412,21 @@ class Session(param.Parameterized):
         self.revision += 1
         return True
 
-    def constraint_points(self) -> list[tuple[int, int, float]]:
-        """``[(body, hand, tol), ...]`` with the global tolerance filled in."""
+    def user_points(self) -> list[tuple[int, int, float]]:
+        """``[(body, hand, tol), ...]`` in each file's frames, the global tolerance filled in
+        (what ``handsplice splice --match`` takes)."""
         return [p.resolved(self.tolerance) for p in self.points]
+
+    def constraint_points(self) -> list[tuple[int, int, float]]:
+        """The matching points on the alignment grid (what the solver takes)."""
+        if self.prepared is None:
+            return self.user_points()
+        return backend.points_to_grid(self.prepared, self.user_points())
+
+    @property
+    def hand_scale(self) -> float:
+        """Hand-file frames per alignment-grid column (hand fps / body fps)."""
+        return self.hand_fps / self.fps if self.fps else 1.0
 
     def recompute(self) -> bool:
         return self._solve()
@@ -414,10 +454,10 @@ class Session(param.Parameterized):
         return self.prepared.body_phases, self.prepared.hand_phases
 
     def hand_frame_for(self, body_frame: int) -> int:
-        """The hand frame the current (pass-2) path matches to ``body_frame`` (median)."""
-        if self.solution is None:
+        """The hand-file frame the current alignment matches to ``body_frame``."""
+        if self.solution is None or self.prepared is None:
             return 0
-        return int(round(self.solution.warp[int(np.clip(body_frame, 0, self.n - 1))]))
+        return backend.frame_triplet(self.prepared, self.solution, body_frame)[1]
 
     def frame_pair(self) -> tuple[int, int]:
         return self.frame, self.hand_frame_for(self.frame)
@@ -462,6 +502,7 @@ class Session(param.Parameterized):
         if not self.sample and self.hand_sha256:
             hand = TakeRef(sha256=self.hand_sha256, name=self.hand_name or None)
         return SessionSpec(sample=self.sample, body=body, hand=hand, side=self.side,
+                           hand_frames="file",
                            band=self.band, refine_band=self.refine_band,
                            tolerance=self.tolerance, points=self.points, roles=dict(self.roles),
                            view={"matrix": self.matrix, "frame": self.frame})
@@ -515,13 +556,17 @@ class Session(param.Parameterized):
         roles = dict(spec.roles)
         prepared = backend.prepare(paths[0], paths[1], spec.side, roles)
         points = self._normalise(spec.points)
+        if spec.hand_frames == "grid":  # an old file or link: hand frames on the grid
+            points = self._normalise(backend.grid_points_to_hand(
+                prepared, [(p.body, p.hand, p.tolerance) for p in points]))
         session_io.validate(SessionSpec(points=points))
         for k, p in enumerate(points):
-            if not (p.body < prepared.n and p.hand < prepared.m):
+            if not (p.body < prepared.n and p.hand < prepared.m_hand):
                 raise HandSpliceError(f"points[{k}]: ({p.body}, {p.hand}) is outside the "
-                                      f"{prepared.n} x {prepared.m} matrix of these takes")
+                                      f"{prepared.n} x {prepared.m_hand} matrix of these takes")
+        grid = backend.points_to_grid(prepared, [p.resolved(spec.tolerance) for p in points])
         solution = backend.solve(prepared, band=spec.band, refine_band=spec.refine_band,
-                                 points=[p.resolved(spec.tolerance) for p in points])
+                                 points=grid)
         values = dict(inputs, side=spec.side, roles=roles, band=spec.band,
                       refine_band=spec.refine_band, tolerance=spec.tolerance, points=points,
                       matrix=spec.view.get("matrix", self.matrix),
@@ -534,8 +579,7 @@ class Session(param.Parameterized):
         session (a frame of the new takes has a hand frame in the new solution)."""
         prepared = staged["prepared"]
         self.prepared = prepared
-        with param.edit_constant(self):
-            self.n, self.m = prepared.n, prepared.m
+        self._set_sizes(prepared)
         self.param.update(solution=staged["solution"], compute_ms=staged["compute_ms"])
         self._apply(staged["values"])
         self._undo.clear()
@@ -544,6 +588,11 @@ class Session(param.Parameterized):
         self.error = ""
         self.revision += 1
         self._update_history_flags()
+
+    def _set_sizes(self, prepared) -> None:
+        with param.edit_constant(self):
+            self.param.update(n=prepared.n, m=prepared.m, m_hand=prepared.m_hand,
+                              fps=prepared.fps, hand_fps=prepared.hand_fps)
 
     def to_json(self) -> str:
         return session_io.format_session(self.to_spec())
