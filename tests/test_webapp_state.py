@@ -596,3 +596,61 @@ def test_command_line_uses_the_session_file_then_explicit_flags(session):
     assert "--match" not in first
     assert "explicit flags" in second and "$ handsplice splice " in second
     assert "--match 40:" in second and "--band" in second
+
+
+def test_a_run_of_one_slider_is_one_undo_step(session, monkeypatch):
+    """Arrow-key steps (each a release) of one slider within the run window undo at once;
+    another parameter, or a pause, starts a new step."""
+    from webapp import state
+
+    session.tolerance = 1
+    session.tolerance = 2
+    session.tolerance = 3
+    session.band = 0.25
+    session.undo()
+    assert session.band == 0.3 and session.tolerance == 3
+    session.undo()
+    assert session.tolerance == 0  # the three steps were one
+    monkeypatch.setattr(state, "SLIDER_RUN_S", 0.0)  # every step is a pause
+    session.tolerance = 1
+    session.tolerance = 2
+    session.undo()
+    assert session.tolerance == 1
+
+
+def test_lesson_next_row_finishes_the_current_row():
+    from webapp.views.teaching import TeachingModel, short_number
+
+    mdl = TeachingModel()
+    rows = [sum(1 for i, _ in mdl.order if i == r) for r in range(mdl.n)]
+    assert mdl.next_row_step() == rows[0]  # from the start: all of row 0
+    mdl.step = 2  # part of row 0 done: the rest of it, not row 1
+    assert mdl.next_row_step() == rows[0]
+    mdl.step = rows[0]
+    assert mdl.next_row_step() == rows[0] + rows[1]
+    mdl.metric = "value"
+    mdl.step = len(mdl.order)
+    texts = [short_number(g) for g in mdl.gamma[np.isfinite(mdl.gamma)].ravel()]
+    assert texts and max(map(len, texts)) <= 4
+    assert [short_number(x) for x in (0, 0.1234, 3.5, 12.34, 340.2, 2345, 23456, 0.004)] == \
+        ["0", "0.12", "3.5", "12.3", "340", "2345", "2e4", "4e-3"]
+
+
+def test_points_table_shows_whole_frames_times_and_the_global_tolerance(session):
+    from webapp.views.controls import _points_frame
+
+    session.add_point(60, 80)
+    session.add_point(120, 170, 3)
+    frame = _points_frame(session)
+    assert frame["body frame"].tolist() == [60, 120] and str(frame["hand frame"].dtype) == "int64"
+    assert frame["tolerance"].tolist() == ["", "3"]
+    assert frame["effective"].tolist() == ["0 (global)", "3"]
+    assert frame["seconds"][0] == f"{60 / session.fps:.2f} s · {80 / session.hand_fps:.2f} s"
+
+
+def test_page_errors_use_the_pages_words():
+    from engine.errors import RoleError
+
+    text = backend.one_line(RoleError("h.bvh has no left hand (hands found: right); "
+                                      "try --side right"))
+    assert "--side" not in text and "choose side right in the page" in text

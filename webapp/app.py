@@ -121,8 +121,8 @@ def create_app() -> pn.viewable.Viewable:
         work.append(pn.Column(
             pn.pane.Markdown("### 3 · Preview", margin=(0, 10)),
             pn.pane.Markdown(PreviewView.TEXT, css_classes=["hs-section-text"],
-                             width=760, margin=(0, 10)),
-            PreviewView(session).panel(), sizing_mode=None, width=790))
+                             width=680, margin=(0, 10)),
+            PreviewView(session).panel(), sizing_mode=None, width=700))
     except ImportError:
         pass
     alignment = _section(

@@ -340,7 +340,9 @@ def preview_for(prepared: Prepared, solution: Solution):
     takes = [prepared.body, prepared.hand, spliced]
     if not all(hasattr(t, "skeleton") for t in takes):
         raise HandSpliceError("previews need skeleton takes (BVH); marker takes have no mesh")
-    preview = Preview(takes, labels=["body take", "hand take", "spliced"], size=(960, 360))
+    sides = tuple(getattr(prepared.features, "sides", ()) or (prepared.side,))
+    preview = Preview(takes, labels=["body take", "hand take", "spliced"], size=(960, 360),
+                      close_up_sides=sides)
     solution.cache["preview"] = preview
     with _PREVIEW_LOCK:  # close the previous solutions' OpenGL contexts of this pair
         old = _PREVIEWS.pop(id(prepared), None)

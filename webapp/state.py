@@ -36,10 +36,10 @@ MATRIX_LABELS = {
     "cumulative2": "Pass 2 cumulative cost γ in the band",
 }
 UNDO_LIMIT = 200
-#: changes of one slider less than this many seconds apart (a drag, a run of arrow-key
-#: steps) are one undo step
+#: changes of one slider that follow each other with less than this many idle seconds
+#: between them (a drag, a run of arrow-key steps) are one undo step
 SLIDER_PARAMS = ("band", "refine_band", "tolerance")
-SLIDER_RUN_S = 1.5
+SLIDER_RUN_S = 3.0
 
 
 @dataclass(frozen=True)
@@ -203,20 +203,22 @@ class Session(param.Parameterized):
         old = {e.name: e.old for e in events if not _same(e.old, e.new)}
         if not old:
             return  # nothing changed (e.g. the same points set again): no recompute, no undo
+        started = time.monotonic()
         if not self._solve():
             self._apply(old)  # rejected: back to the values that worked
             return
-        now = time.monotonic()
+        # the idle time since the last step of this slider was solved (not the time between
+        # steps: steps queued behind a slow solve still belong to one run)
         run = self._slider_run
-        if (len(old) == 1 and (name := next(iter(old))) in SLIDER_PARAMS and run is not None
-                and run[0] == name and now - run[1] < SLIDER_RUN_S and self._undo
+        name = next(iter(old)) if len(old) == 1 and next(iter(old)) in SLIDER_PARAMS else None
+        if (name is not None and run is not None and run[0] == name
+                and started - run[1] < SLIDER_RUN_S and self._undo
                 and set(self._undo[-1].values) == {name}):
-            self._slider_run = (name, now)  # the same slider again: one undo step for the run
+            pass  # the same slider again: the run stays one undo step
         else:
             self._undo.append(Snapshot(old))
             del self._undo[:-UNDO_LIMIT]
-            self._slider_run = (next(iter(old)), now) if len(old) == 1 and \
-                next(iter(old)) in SLIDER_PARAMS else None
+        self._slider_run = None if name is None else (name, time.monotonic())
         self._redo.clear()
         self._update_history_flags()
 

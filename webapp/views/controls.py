@@ -43,11 +43,11 @@ def _points_frame(session: Session) -> pd.DataFrame:
     return pd.DataFrame({
         "body frame": pd.Series([p.body for p in pts], dtype="int64"),
         "hand frame": pd.Series([p.hand for p in pts], dtype="int64"),
-        "time": [f"{p.body / fps:.2f} s · {p.hand / hand_fps:.2f} s" for p in pts],
+        "seconds": [f"{p.body / fps:.2f} s · {p.hand / hand_fps:.2f} s" for p in pts],
         "tolerance": ["" if p.tolerance is None else f"{p.tolerance:g}" for p in pts],
         "effective": [f"{session.tolerance:g} (global)" if p.tolerance is None
                       else f"{p.tolerance:g}" for p in pts],
-    }, columns=["body frame", "hand frame", "time", "tolerance", "effective"])
+    }, columns=["body frame", "hand frame", "seconds", "tolerance", "effective"])
 
 
 class PointsTable:
@@ -61,25 +61,27 @@ class PointsTable:
         self._syncing = False
         self.table = pn.widgets.Tabulator(
             _points_frame(session), show_index=False, sizing_mode="stretch_width", height=180,
-            titles={"body frame": "body", "hand frame": "hand", "time": "times",
+            titles={"body frame": "body", "hand frame": "hand", "seconds": "times",
                     "tolerance": "tol.", "effective": "tol. in use"},
-            widths={"body frame": 58, "hand frame": 58, "time": 112, "tolerance": 50,
-                    "effective": 90},
+            widths={"body frame": 56, "hand frame": 56, "seconds": 124, "tolerance": 50,
+                    "effective": 96},
             header_align="center",
             header_tooltips={"body frame": "body frame (body file's numbering)",
                              "hand frame": "hand frame (hand file's numbering)",
-                             "time": "body time · hand time",
+                             "seconds": "body time · hand time",
                              "tolerance": "this point's tolerance in hand frames; "
                                           "empty = the global tolerance",
                              "effective": "the tolerance this point uses, hand frames"},
-            formatters={"body frame": {"type": "plaintext"}, "hand frame": {"type": "plaintext"}},
-            editors={"effective": None, "time": None,
+            formatters={"body frame": {"type": "plaintext"}, "hand frame": {"type": "plaintext"},
+                        "seconds": {"type": "plaintext"}},
+            editors={"effective": None, "seconds": None,
                      "tolerance": {"type": "input"},
                      "body frame": {"type": "number", "min": 0, "step": 1},
                      "hand frame": {"type": "number", "min": 0, "step": 1}},
             text_align={"tolerance": "right"},
             buttons={"delete": '<span title="delete this point" style="color:#c62828">✕</span>'},
             css_classes=["hs-points"], selectable=False, layout="fit_data_table",
+            configuration={"columnDefaults": {"headerSort": False}},
         )
         self.table.on_edit(self._on_edit)
         self.table.on_click(self._on_click)
@@ -200,11 +202,28 @@ document.addEventListener('keydown', (ev) => {
   const target = ev.composedPath()[0];
   if (target && (target.tagName === 'INPUT' && !['range', 'checkbox', 'radio', 'button']
       .includes(target.type) || target.tagName === 'TEXTAREA' || target.isContentEditable)) return;
-  const host = find(redo ? '.hs-redo' : '.hs-undo');
-  const button = host && (host.shadowRoot ?? host).querySelector('button');
   ev.preventDefault();
-  if (button && !button.disabled) button.click();
+  // presses are queued and done in order; a button still disabled may be waiting for the
+  // server's answer to the edit before (a redo re-enables Undo): each waits up to 10 s
+  queue.push(redo ? '.hs-redo' : '.hs-undo');
+  if (queue.length === 1) next(100);
 }, true);
+const queue = [];
+const next = (tries) => {
+  if (!queue.length) return;
+  const host = find(queue[0]);
+  const button = host && (host.shadowRoot ?? host).querySelector('button');
+  if (button && !button.disabled) {
+    button.click();
+    queue.shift();
+    setTimeout(() => next(100), 50);
+  } else if (tries > 0) {
+    setTimeout(() => next(tries - 1), 100);
+  } else {
+    queue.shift();
+    next(100);
+  }
+};
 """
 
 

@@ -196,7 +196,8 @@ def phase_legend_html(colors: dict) -> str:
     names = [(1, "P", "preparation"), (2, "S", "stroke"), (3, "H", "hold"),
              (4, "R", "retraction"), (0, "–", "rest")]
     swatches = "".join(
-        f'<span class="hs-phase-key" data-phase="{letter}" style="margin-right:10px">'
+        f'<span class="hs-phase-key" data-phase="{letter}" '
+        f'style="margin-right:10px;white-space:nowrap">'
         f'<span style="display:inline-block;width:12px;height:10px;background:'
         f'{colors.get(code, "#cccccc")};margin-right:3px;vertical-align:-1px"></span>'
         f"<b>{letter}</b> {name}</span>" for code, letter, name in names)
@@ -547,6 +548,6 @@ class CostMatrixView:
             pn.Row(pn.Spacer(width=AXIS_SIGNAL_SIZE, margin=0),
                    pn.pane.Bokeh(self.body_figure, sizing_mode="fixed", margin=0),
                    sizing_mode=None, width=size + AXIS_SIGNAL_SIZE, margin=0),
-            pn.pane.HTML(phase_legend_html(self._colors), css_classes=["hs-legend"],
+            pn.pane.HTML(phase_legend_html(self._colors), css_classes=["hs-legends"],
                          width=size + AXIS_SIGNAL_SIZE, margin=(4, 0)),
             sizing_mode=None, width=size + AXIS_SIGNAL_SIZE, margin=(0, 10))

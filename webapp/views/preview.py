@@ -29,8 +29,8 @@ class PreviewView:
             "hands close up. Drag the frame slider or press Play (the take's real speed); "
             "with *Pick frames* a click on the matrix jumps there.")
 
-    def __init__(self, session: Session, size: tuple[int, int] = (760, 260),
-                 closeup_size: tuple[int, int] = (360, 300)):
+    def __init__(self, session: Session, size: tuple[int, int] = (680, 240),
+                 closeup_size: tuple[int, int] = (330, 300)):
         self.session = session
         self.size = size
         self.closeup_size = closeup_size
@@ -46,7 +46,7 @@ class PreviewView:
         n = max(session.n, 1)
         self.slider = pn.widgets.IntSlider(label="Body frame", start=0, end=max(n - 1, 1),
                                            value=session.frame, css_classes=["hs-frame-slider"],
-                                           width=370)
+                                           width=330)
         self.play = pn.widgets.Toggle(label="▶ Play", value=False, width=90,
                                       css_classes=["hs-play"])
         self.camera = pn.widgets.Select(label="Camera", options=["three-quarter", "front", "side"],

@@ -188,7 +188,7 @@ class TeachingView:
         self.model = model or TeachingModel()
         mdl = self.model
         n, m = mdl.n, mdl.m
-        self.cells = ColumnDataSource(self._cells())
+        self.cells = ColumnDataSource(self._cells(), name="hs-teach-cells")
         fig = figure(width=520, height=450, x_range=Range1d(-0.5, n - 0.5),
                      y_range=Range1d(-0.5, m - 0.5), tools="", toolbar_location=None,
                      x_axis_label="body frame i", y_axis_label="hand frame j",
