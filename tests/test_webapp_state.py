@@ -654,3 +654,15 @@ def test_page_errors_use_the_pages_words():
     text = backend.one_line(RoleError("h.bvh has no left hand (hands found: right); "
                                       "try --side right"))
     assert "--side" not in text and "choose side right in the page" in text
+
+
+def test_sample_credits_and_the_no_share_warning(session):
+    from webapp.views.credits import NO_SHARE_TEXT, credits_html, no_share_alert
+
+    text = credits_html(session)
+    assert "wave-ok" in text and "CC BY-NC 4.0" in text and "MIT" in text
+    assert "jaanga/gestification" in text and NO_SHARE_TEXT not in text
+    alert = no_share_alert(session)
+    assert not alert.visible
+    session.load_sample("bye-hello")  # Bandai dataset-1: CC BY-NC-ND
+    assert alert.visible and NO_SHARE_TEXT in credits_html(session)

@@ -89,7 +89,7 @@ def _initial_state(session: Session, args: dict[str, str] | None = None) -> None
 
 def create_app() -> pn.viewable.Viewable:
     """Build the page for one browser session."""
-    from webapp.views import controls
+    from webapp.views import controls, credits
     from webapp.views.cost_matrix import CostMatrixView
     from webapp.views.inputs import InputsView
     from webapp.views.sharing import SharingView
@@ -133,7 +133,7 @@ def create_app() -> pn.viewable.Viewable:
     )
     sections = [
         pn.pane.HTML(HEADER, sizing_mode="stretch_width", margin=(10, 10, 0, 10)),
-        _section("1 · Takes", "", inputs.panel()),
+        _section("1 · Takes", "", inputs.panel(), credits.credits_pane(session)),
         alignment,
     ]
     sections.append(_section("4 · Share", SharingView.TEXT, SharingView(session).panel()))

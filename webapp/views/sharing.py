@@ -211,7 +211,10 @@ class SharingView:
                 "frames):</span><br>$ " + _html(flags_cmd))
 
     def panel(self) -> pn.viewable.Viewable:
-        return pn.Column(pn.Row(self.bvh, self.session_file, self.gif, self.mp4),
+        from webapp.views.credits import no_share_alert
+
+        return pn.Column(no_share_alert(self.session),
+                         pn.Row(self.bvh, self.session_file, self.gif, self.mp4),
                          pn.Row(self.progress, self.progress_text),
                          pn.Row(pn.pane.Markdown("**Open a session file**",
                                                  margin=(12, 10, 0, 10)), self.open_session),
