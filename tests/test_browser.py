@@ -603,6 +603,10 @@ def test_one_frame_numbering_from_hover_to_session_file(browser, server, tmp_pat
         assert tb == x and abs(th - y) <= 1 and th > 184
         hover = _hover_text(page, tb, th, "matching point")
         assert f"body frame {tb} · hand frame {th}" in hover, hover
+        assert "global (0 hand frames)" in hover and "?" not in hover, hover
+        row = page.locator(".hs-points .tabulator-row").first
+        assert row.locator("[tabulator-field='effective']").inner_text() == "0 (global)"
+        assert row.locator("[tabulator-field='tolerance']").inner_text().strip() == ""
         cell = _hover_text(page, tb + 0.3, th, "hand frame:")
         assert f"{th} · {th / rates['hand_fps'][0]:.2f} s" in cell, cell
         assert "inside" in cell and "cost" in cell

@@ -182,7 +182,8 @@ if (k < 0) return "outside (no band)";
 return (band.data.lo[k] <= y && y <= band.data.hi[k]) ? "inside (searched)" : "outside (never searched)";
 """
 _JS_TOL = """
-if (value == null || Number.isNaN(value)) return `global (${rates.data.tol[0]} hand frames)`;
+if (value == null || !Number.isFinite(Number(value)))
+  return `global (${rates.data.tol[0]} hand frames)`;
 return `${value} hand frames`;
 """
 _JS_TICK = """
