@@ -39,7 +39,7 @@ UNDO_LIMIT = 200
 #: changes of one slider that follow each other with less than this many idle seconds
 #: between them (a drag, a run of arrow-key steps) are one undo step
 SLIDER_PARAMS = ("band", "refine_band", "tolerance")
-SLIDER_RUN_S = 3.0
+SLIDER_RUN_S = 5.0
 
 
 @dataclass(frozen=True)
