@@ -182,6 +182,7 @@ if (k < 0) return "outside (no band)";
 return (band.data.lo[k] <= y && y <= band.data.hi[k]) ? "inside (searched)" : "outside (never searched)";
 """
 _JS_TOL = """
+value = src.data.tol[value];  // by row: Bokeh prints a NaN field without formatting it
 if (value == null || !Number.isFinite(Number(value)))
   return `global (${rates.data.tol[0]} hand frames)`;
 return `${value} hand frames`;
@@ -289,8 +290,8 @@ class CostMatrixView:
         fig.toolbar.active_tap = self.point_tool
         fig.add_tools(HoverTool(renderers=[points], name="hs-point-hover", tooltips=[
             ("matching point", "body frame @x{0} · hand frame @y{0}"),
-            ("tolerance", "@tol{custom}")], formatters={"@tol": CustomJSHover(
-                args={"rates": self.rates}, code=_JS_TOL)}))
+            ("tolerance", "$index{custom}")], formatters={"$index": CustomJSHover(
+                args={"rates": self.rates, "src": self.points_source}, code=_JS_TOL)}))
         # every cell: both frames with their times, the local cost, inside the band or not
         fig.add_tools(HoverTool(
             renderers=[image], name="hs-cell-hover", tooltips=[
