@@ -348,6 +348,9 @@ class CostMatrixView:
         self.server_points = ColumnDataSource({"x": [], "y": [], "tol": []}, tags=[0],
                                               name="hs-server-points")
         self._acked = 0
+        self._page_up = False
+        if pn.state.curdoc is not None and pn.state.curdoc.session_context is not None:
+            pn.state.onload(lambda: setattr(self, "_page_up", True))
         args = {"src": self.points_source, "queue": self.edit_source,
                 "server": self.server_points, "fig": fig, "tool": self.point_tool}
         self.points_source.js_on_change("data", CustomJS(args=args, code=_JS_SEND_EDIT))
@@ -449,8 +452,8 @@ class CostMatrixView:
         # once nothing it sent is still unanswered (a newer click is never overwritten)
         self.server_points.data = data
         self.server_points.tags = [self._acked]
-        if pn.state.curdoc is None or pn.state.curdoc.session_context is None:
-            self.points_source.data = dict(data)  # no page: nothing to reconcile
+        if not self._page_up:  # the page is not up yet: its first points are the session's
+            self.points_source.data = dict(data)
         self.tol_source.data = {"x": [p.body for p in pts],
                                 "y0": [p.hand - t - 0.5 for p, t in zip(pts, tol)],
                                 "y1": [p.hand + t + 0.5 for p, t in zip(pts, tol)]}

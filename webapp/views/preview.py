@@ -127,6 +127,12 @@ class PreviewView:
 
             def run():
                 self._scheduled = False
+                from webapp.views.sharing import exports_running
+
+                if exports_running():  # the renderer is busy: try again soon
+                    self._scheduled = True
+                    doc.add_timeout_callback(run, 500)
+                    return
                 self.render()
 
             doc.add_next_tick_callback(run)
