@@ -106,7 +106,7 @@ def test_view_edits_round_clip_and_sort(session):
     # dragged past the matrix edge: clipped to the last row; crossing the other point: refused
     assert not session.set_points_from_view([(20, 5, 3.0), (1e9, 2, None)])
     assert session.points == (MatchPoint(20, 5, 3.0), MatchPoint(80, 31))
-    assert f"({session.n - 1}, 2)" in session.error
+    assert f"{session.n - 1}:2 crosses 20:5:3" in session.error
 
 
 def test_undo_redo_across_points_and_parameters(session):

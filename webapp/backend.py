@@ -56,8 +56,8 @@ class Solution:
     pass2: PassResult
     warp: np.ndarray
     points: tuple = ()
-    band: float = 0.3
-    refine_band: float = 0.1
+    band: object = None  # engine.dtw.constraints.Width (or a fraction) as given
+    refine_band: object = None
     seconds: float = 0.0
     cache: dict = field(default_factory=dict, compare=False, repr=False)
 
@@ -167,13 +167,14 @@ def _phases(features) -> tuple[np.ndarray | None, np.ndarray | None]:
         return None, None
 
 
-def solve(prepared: Prepared, band: float, refine_band: float, points, previous=None) -> Solution:
-    """Pass 1 and pass 2 for band widths ``band``/``refine_band`` (fractions of n) and
-    matching points ``[(body, hand, tol), ...]``; ValueError/HandSpliceError if infeasible."""
+def solve(prepared: Prepared, band, refine_band, points, previous=None) -> Solution:
+    """Pass 1 and pass 2 for band widths ``band``/``refine_band`` (``constraints.Width``,
+    fractions of n or ``"10s"``) and matching points ``[(body, hand, tol), ...]``;
+    ValueError/HandSpliceError if infeasible (the checks are engine.dtw.constraints')."""
     from engine.splice import pipeline
 
     t0 = time.perf_counter()
-    points = tuple((int(x), int(y), float(t)) for x, y, t in points)
+    points = tuple(points)
     with prepared.lock:
         earlier = None if previous is None else previous.cache.get("engine")
         if earlier is None and prepared.pass1_cost is not None:
@@ -384,8 +385,8 @@ def _has_pyav() -> bool:
     return True
 
 
-def cli_command(prepared: Prepared, body: str, hand: str, side: str, band: float,
-                refine_band: float, points, roles: dict | None = None) -> str:
+def cli_command(prepared: Prepared, body: str, hand: str, side: str, band,
+                refine_band, points, roles: dict | None = None) -> str:
     """The ``handsplice splice`` command line that reproduces this alignment.
 
     Matching points are converted from alignment-grid columns to the hand file's own
@@ -393,13 +394,14 @@ def cli_command(prepared: Prepared, body: str, hand: str, side: str, band: float
     """
     import shlex
 
+    from engine.dtw import constraints as C
+
     feats = prepared.features
-    scale = float(feats.hand_fps) / float(feats.fps)
     parts = ["handsplice", "splice", shlex.quote(body), shlex.quote(hand), "-o", "spliced.bvh",
-             "--side", side, "--band", f"{band:g}", "--refine-band", f"{refine_band:g}"]
-    for x, y, tol in points:
-        h = int(round(float(np.asarray(feats.grid_to_hand(np.array([float(y)]))).ravel()[0])))
-        parts += ["--match", f"{x}:{h}" + (f":{tol * scale:.3g}" if tol else "")]
+             "--side", side, "--band", C.BAND.parse(band).text(),
+             "--refine-band", C.REFINE_BAND.parse(refine_band).text()]
+    for x, h, tol in C.points_to_hand(points, feats.fps, feats.hand_fps, feats.m_hand):
+        parts += ["--match", C.MatchPoint(x, h, tol or None).text()]
     if roles:
         parts += ["--roles", "ROLES.json"]
     return " ".join(parts)

@@ -36,6 +36,7 @@ import numpy as np
 
 from engine import metrics as M
 from engine.dtw import Aligner, Band, align_features
+from engine.dtw import constraints as C
 from engine.errors import HandSpliceError, ParameterError, RoleError
 from engine.fastkin import forward_kinematics
 from engine.features import (
@@ -53,9 +54,7 @@ from engine.splice import transfer as TR
 
 Progress = Callable[[str, float], None]
 
-#: defaults (the paper's values where it gives them)
-BAND = 0.30
-REFINE_BAND = 0.10
+#: defaults (the paper's values where it gives them); band widths: engine.dtw.constraints
 SMOOTHING_S = 0.2
 DEAD_ZONE = 0.1
 #: constant added to every cell (charges non-diagonal steps; 0 = the paper)
@@ -410,33 +409,6 @@ class SpliceAlignment:
     features_id: int = 0
 
 
-def refine_radius(n: int, m: int, refine_band: float) -> int:
-    """Pass-2 band radius (frames, Chebyshev) for width ``refine_band * n`` around the path.
-
-    The vertical half-width of a diagonal band of width ``W`` is
-    ``Λ = W sqrt(n² + m²) / (2n)``; a Chebyshev radius ``r`` around a path of slope
-    ``m/n`` spans about ``r (1 + m/n)`` columns either side, so ``r = Λ / (1 + m/n)``.
-    """
-    if not (np.isfinite(refine_band) and refine_band >= 0):
-        raise ParameterError(f"refine band must be a fraction >= 0, got {refine_band}")
-    lam = refine_band * n * np.hypot(n, m) / (2.0 * n)
-    return max(1, int(round(lam / (1.0 + m / n))))
-
-
-def _check_points(points, n: int, m: int) -> list[tuple[int, int, float]]:
-    out = []
-    for k, p in enumerate(points or ()):
-        try:
-            vals = [float(v) for v in p]
-        except (TypeError, ValueError):
-            raise ParameterError(f"matching point {k}: expected (body, hand[, tol]), got {p!r}") \
-                from None
-        if len(vals) not in (2, 3):
-            raise ParameterError(f"matching point {k}: expected (body, hand[, tol]), got {p!r}")
-        out.append((int(round(vals[0])), int(round(vals[1])), vals[2] if len(vals) == 3 else 0.0))
-    return out
-
-
 def _solve(rows, metric: str, band: Band, solver=None, incremental: bool = False):
     """Solve one pass; returns (Alignment, solver or None)."""
     a, b = rows
@@ -468,7 +440,7 @@ def pass2_headings(features: SpliceFeatures, path1: np.ndarray) -> tuple[np.ndar
     return body, np.full(m, c)
 
 
-def align_passes(features: SpliceFeatures, band: float = BAND, refine_band: float = REFINE_BAND,
+def align_passes(features: SpliceFeatures, band=None, refine_band=None,
                  points: Sequence = (), previous: SpliceAlignment | None = None,
                  blend: float = MG.BLEND_FRAMES, incremental: bool | None = None,
                  progress: Progress | None = None) -> SpliceAlignment:
@@ -477,8 +449,11 @@ def align_passes(features: SpliceFeatures, band: float = BAND, refine_band: floa
     Parameters
     ----------
     features : SpliceFeatures from :func:`prepare`
-    band : pass-1 band width as a fraction of n (paper: 0.30)
-    refine_band : pass-2 band width around the pass-1 path, fraction of n (paper: 0.10)
+    band : pass-1 band width: a fraction of n (paper: 0.30), seconds (``"10s"``) or a
+        ``constraints.Width``; None = ``constraints.BAND.default_for`` (the paper's fraction,
+        at most 10 s on long takes)
+    refine_band : pass-2 band width around the pass-1 path, the same forms (paper: 0.10,
+        at most 2 s)
     points : ``[(body_frame, grid_hand_frame, tol), ...]`` user matching points
         (grid units; tol in grid frames). Carried over to pass 2.
     previous : the last result for the same ``features`` (reuses DTW rows that the
@@ -491,10 +466,10 @@ def align_passes(features: SpliceFeatures, band: float = BAND, refine_band: floa
     """
     progress = progress or _noop
     n, m = features.n, features.m
-    pts = _check_points(points, n, m)
+    pts = C.point_triples(points)
     timings: dict[str, float] = {}
-    if not (np.isfinite(band) and band >= 0):
-        raise ParameterError(f"band must be a fraction >= 0, got {band}")
+    band = C.BAND.resolve(band, n, features.fps)
+    refine_band = C.REFINE_BAND.resolve(refine_band, n, features.fps)
     t0 = time.perf_counter()
     progress("pass 1", 0.0)
     band1 = Band.from_constraints(n, m, float(band), pts)
@@ -512,7 +487,7 @@ def align_passes(features: SpliceFeatures, band: float = BAND, refine_band: floa
     body2 = M.angle_features(features.body_markers, -body_heading).rows(
         features.params.get("step2", 0.0))
     hand2 = M.angle_features(features.hand_markers, -hand_heading).rows()
-    radius = refine_radius(n, m, refine_band)
+    radius = C.refine_radius(n, m, refine_band)
     band2 = Band.around_path(al1.path, n, m, radius, points=pts if pts else None)
     solver2 = None
     if same and previous.pass2.solver is not None and \
@@ -585,8 +560,8 @@ class SpliceResult:
     timings: dict
 
 
-def splice(body: Motion, hand: Motion, side: str = "auto", band: float = BAND,
-           refine_band: float = REFINE_BAND, points: Sequence = (), hand_points: bool = False,
+def splice(body: Motion, hand: Motion, side: str = "auto", band=None,
+           refine_band=None, points: Sequence = (), hand_points: bool = False,
            theta: str = "window", body_roles=None, hand_roles=None,
            blend: float = MG.BLEND_FRAMES, smoothing_s: float = SMOOTHING_S,
            dead_zone: float = DEAD_ZONE, n_bins: int = M.THETA_BINS,
@@ -604,14 +579,11 @@ def splice(body: Motion, hand: Motion, side: str = "auto", band: float = BAND,
                     theta=theta, n_bins=n_bins, smoothing_s=smoothing_s, dead_zone=dead_zone,
                     step1=step1, step2=step2, progress=progress)
     t1 = time.perf_counter()
-    pts = _check_points(points, feats.n, feats.m_hand if hand_points else feats.m)
+    pts = C.point_triples(points)
     if hand_points and pts:
         # check order and range in the user's own frame numbers first
-        Band.from_constraints(feats.n, feats.m_hand, None, pts)
-        pts = [(x, int(round(float(feats.hand_to_grid(y)))),
-                float(np.ceil(float(feats.hand_to_grid(t)) - 1e-9)) if t else 0.0)
-               for x, y, t in pts]
-        pts = [(x, min(y, feats.m - 1), t) for x, y, t in pts]
+        C.check_points(pts, feats.n, feats.m_hand)
+        pts = C.points_to_grid(pts, feats.fps, feats.hand_fps, feats.m)
     result = align_passes(feats, band=band, refine_band=refine_band, points=pts, blend=blend,
                           incremental=False, progress=progress)
     t2 = time.perf_counter()
