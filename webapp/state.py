@@ -263,6 +263,30 @@ class Session(param.Parameterized):
     def _update_history_flags(self) -> None:
         self.param.update(can_undo=bool(self._undo), can_redo=bool(self._redo))
 
+    def set_constraints(self, band=None, refine_band=None, tolerance=None, points=None) -> bool:
+        """Band widths (a fraction, ``"10s"`` or a ``Width``), the global tolerance and the
+        matching points as a person types them, checked by engine.dtw.constraints as every
+        front is; one undoable edit. False (and ``error``, nothing changed) if refused."""
+        values: dict = {}
+        try:
+            for name, rule, value in (("band", C.BAND, band),
+                                      ("refine_band", C.REFINE_BAND, refine_band)):
+                width = rule.parse(value)
+                if width is not None and width.unit == C.SECONDS:
+                    values[f"{name}_s"] = width.value
+                elif width is not None:
+                    values.update({name: width.value, f"{name}_s": None})
+            if tolerance is not None:
+                values["tolerance"] = C.parse_tolerance(tolerance)
+            if points is not None:
+                values["points"] = C.parse_points(points)
+        except C.ConstraintError as exc:
+            self.error = str(exc)
+            return False
+        self.error = ""
+        self.param.update(**values)
+        return not self.error
+
     # matching-point edits (each one undoable)
 
     def set_points(self, points) -> None:
