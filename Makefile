@@ -1,6 +1,8 @@
 # HandSplice: two commands do all the set-up on a fresh Debian machine (root or sudo).
 #   make demo   - install, then open the app on the bundled sample pair (http://127.0.0.1:5006)
-#   make test   - install everything the tests need (Chromium, Mesa EGL included), lint, run all tests
+#   make test   - install everything the tests need (Chromium, Mesa EGL included), lint
+#                 (ruff check, ruff format --check, lint-imports layering contracts), run all tests
+#   make bench  - run every benchmark (benchmarks/run_all.py; results in benchmarks/RESULTS.md)
 
 PYTHON ?= python3
 VENV   := .venv
@@ -19,11 +21,14 @@ demo: system-deps venv
 
 test: system-deps venv
 	$(BIN)/ruff check engine webapp tests benchmarks
+	$(BIN)/ruff format --check engine webapp tests benchmarks
+	$(BIN)/lint-imports
 	$(BIN)/python -m pytest -q
 
 lint: venv
 	$(BIN)/ruff check engine webapp tests benchmarks
 	$(BIN)/ruff format --check engine webapp tests benchmarks
+	$(BIN)/lint-imports
 
 # System packages: headless OpenGL (EGL on Mesa llvmpipe, OSMesa fallback) and Chromium for browser tests.
 system-deps:

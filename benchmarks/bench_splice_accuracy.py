@@ -2,7 +2,7 @@
 
 Run: ``.venv/bin/python -m benchmarks.bench_splice_accuracy [--quick]``
 
-Cases come from :mod:`engine.splice.split` (BEAT split; Bandai and LAFAN1
+Cases come from :mod:`benchmarks.split` (BEAT split; Bandai and LAFAN1
 body takes with synthetic finger signals), each with its own seed. For each case
 and method we measure
 
@@ -28,11 +28,11 @@ import time
 import numpy as np
 
 from benchmarks._results import write_section
+from benchmarks.split import Case, finger_error, finger_pairs, make_case
 from engine.dtw import Band, align_features
 from engine.splice import merge as MG
 from engine.splice import pipeline as P
 from engine.splice import transfer as TR
-from engine.splice.split import Case, finger_error, finger_pairs, make_case
 
 FAMILIES = {"beat": 20, "bandai": 18, "lafan1": 12}
 TUNING_SEEDS = range(100, 108)
@@ -145,7 +145,7 @@ def per_case_wins(results: list[dict]) -> list[str]:
 
 def markdown(table: dict, results: list[dict], seeds: dict) -> str:
     out = ["## Splice accuracy (issue 5)", "",
-           "Split real captures with known truth (`engine/splice/split.py`): **beat** = the "
+           "Split real captures with known truth (`benchmarks/split.py`): **beat** = the "
            "BEAT take (body + 30 captured finger joints) split into a body take without fingers "
            "and a hand take; **bandai**, **lafan1** = real body-only takes (Bandai-Namco takes, "
            "20 s LAFAN1 crops) carrying a synthetic finger-curl signal of known timing. Hand takes: "

@@ -4,7 +4,7 @@ Run: ``.venv/bin/python -m benchmarks.bench_splice_speed``
 
 * **569-frame pair** (the size of the paper's "Directions", 10.95 s in Matlab):
   a LAFAN1 crop (569 frames, 30 fps) with synthetic fingers, split into a body take
-  and a hand take (``engine.splice.split``). Engine time = prepare (FK, markers,
+  and a hand take (``benchmarks.split``). Engine time = prepare (FK, markers,
   sign codes) + pass 1 + pass 2 + merge + transfer, warm (JIT compiled), median of
   20 calls. Goal < 50 ms.
 * **14,400-frame pair**: LAFAN1 resampled to 120 fps, 2 minutes, the same split.
@@ -30,10 +30,10 @@ PAPER_569_S = 10.95
 
 
 def make_pair(n: int, fps: float, seed: int = 0):
+    from benchmarks.split import MOCAP, add_fingers, make_hand_take, strip_fingers
     from engine.io.bvh import read_bvh
     from engine.kinematics import resample
     from engine.roles import find_roles
-    from engine.splice.split import MOCAP, add_fingers, make_hand_take, strip_fingers
 
     base = read_bvh(MOCAP / "lafan1/multipleActions1_subject1.bvh")
     if fps != base.fps:
@@ -120,7 +120,7 @@ def main(argv=None) -> int:
         "Engine time = prepare (FK, virtual markers, dead zones, sign codes for 72 θ bins) + "
         "pass 1 (30 % band, sign metric with θ per cell) + pass 2 (band around the pass-1 path, "
         "angle metric) + merge + transfer; both hands aligned jointly. Pairs split from LAFAN1 "
-        "with synthetic fingers (`engine/splice/split.py`).", "",
+        "with synthetic fingers (`benchmarks/split.py`).", "",
         "| pair | frames (body x hand) | time | goal | status | reference |",
         "|---|---|---|---|---|---|",
         f"| 569-frame pair, warm (median of 20) | {body.n_frames} x {hand.n_frames} | "

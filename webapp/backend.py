@@ -159,10 +159,12 @@ def _prepare(body_path: Path, hand_path: Path, side: str, key: tuple, roles: dic
 
 
 def _phases(features) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Gesture phases of the first spliced arm's wrist: body ``(n,)``, hand ``(m,)``."""
     try:
-        from engine.splice import pipeline
+        from engine.gesture.phases import marker_phase_labels
 
-        return pipeline.phase_labels(features)
+        return (marker_phase_labels(features.body_markers, features.fps),
+                marker_phase_labels(features.hand_markers, features.fps))
     except (ImportError, AttributeError, HandSpliceError, ValueError):
         return None, None
 
@@ -330,13 +332,10 @@ def render_frame(prepared: Prepared, solution: Solution, body_frame: int, camera
 
 
 def png_bytes(image: np.ndarray) -> bytes:
-    import io
+    """PNG bytes of ``image (H, W, 3) uint8`` (engine.render.video's encoder)."""
+    from engine.render.video import to_png_bytes
 
-    from PIL import Image
-
-    buf = io.BytesIO()
-    Image.fromarray(np.asarray(image, dtype=np.uint8)).save(buf, format="PNG", optimize=False)
-    return buf.getvalue()
+    return to_png_bytes(np.asarray(image, dtype=np.uint8))
 
 
 def preview_video(prepared: Prepared, solution: Solution, fmt: str, camera: str = "three-quarter",
@@ -349,9 +348,9 @@ def preview_video(prepared: Prepared, solution: Solution, fmt: str, camera: str 
     total) when the file is encoded. Safe to call from a worker thread (the renderer
     serialises OpenGL calls), which is how the app runs it.
     """
-    import io
+    import tempfile
 
-    import imageio.v3 as iio
+    from engine.render.video import write_gif, write_mp4
 
     if prepared is None or solution is None:
         raise HandSpliceError("no takes loaded")
@@ -366,23 +365,14 @@ def preview_video(prepared: Prepared, solution: Solution, fmt: str, camera: str 
         if progress is not None:
             progress(done, total)
     fps = max(1.0, float(prepared.body.fps) / step)
-    buf = io.BytesIO()
-    if fmt == "gif":
-        iio.imwrite(buf, np.stack(frames), extension=".gif", duration=1000.0 / fps, loop=0)
-    else:
-        iio.imwrite(buf, np.stack(frames), extension=".mp4", fps=fps, codec="libx264",
-                    plugin="pyav" if _has_pyav() else None)
+    # one video encoder for the CLI and the app: engine.render.video
+    with tempfile.TemporaryDirectory(prefix="handsplice-video-") as folder:
+        path = Path(folder) / f"preview.{fmt}"
+        (write_gif if fmt == "gif" else write_mp4)(frames, path, fps)
+        data = path.read_bytes()
     if progress is not None:
         progress(total, total)
-    return buf.getvalue()
-
-
-def _has_pyav() -> bool:
-    try:
-        import av  # noqa: F401
-    except ImportError:
-        return False
-    return True
+    return data
 
 
 def cli_command(prepared: Prepared, body: str, hand: str, side: str, band,

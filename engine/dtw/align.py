@@ -74,7 +74,7 @@ def align(cost, band: Band) -> Alignment:
         Allowed cells; must be for ``n`` rows and ``m`` columns.
     """
     problem = Problem.from_cost(cost)
-    return problem.solve(_check_band(band, problem))
+    return problem.solve(check_band(band, problem))
 
 
 def align_features(a, b, band: Band, metric: str | Dispatcher = "sqeuclidean") -> Alignment:
@@ -96,10 +96,10 @@ def align_features(a, b, band: Band, metric: str | Dispatcher = "sqeuclidean") -
         ``register_metric``, or a ``numba.njit`` function ``f(a_row, b_row)``.
     """
     problem = Problem.from_features(a, b, metric)
-    return problem.solve(_check_band(band, problem))
+    return problem.solve(check_band(band, problem))
 
 
-def _check_band(band, problem: Problem) -> Band:
+def check_band(band, problem: Problem) -> Band:
     if not isinstance(band, Band):
         raise TypeError(f"band must be an engine.dtw.Band, got {type(band).__name__}")
     band.check_fits((problem.n, problem.m), problem.what)

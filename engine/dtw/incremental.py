@@ -69,7 +69,7 @@ import numpy as np
 from numba.core.dispatcher import Dispatcher
 
 from . import kernels as K
-from .align import Alignment, Problem, _check_band, check_total
+from .align import Alignment, Problem, check_band, check_total
 from .band import Band
 from .views import BandValues
 
@@ -189,7 +189,7 @@ class Aligner:
 
     def solve(self, band: Band) -> Alignment:
         """Optimal path in ``band``, reusing every row the edit cannot change."""
-        _check_band(band, self._problem)
+        check_band(band, self._problem)
         with self._lock:
             return self._solve(band)
 

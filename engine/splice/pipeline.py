@@ -610,18 +610,6 @@ def wrist_speeds(features: SpliceFeatures) -> tuple[np.ndarray, np.ndarray]:
     return speed(features.body_phase), speed(features.hand_phase)
 
 
-def phase_labels(features: SpliceFeatures) -> tuple[np.ndarray, np.ndarray]:
-    """Gesture phase codes (``engine.gesture.phases.Phase``) of the first spliced arm's wrist:
-    body ``(n,)`` and hand ``(m,)`` (alignment grid)."""
-    from engine.gesture.phases import segment_trajectory
-
-    def labels(markers: np.ndarray) -> np.ndarray:
-        wrist = 0.5 * (markers[:, 0] + markers[:, 1])
-        return np.asarray(segment_trajectory(wrist, features.fps).labels)
-
-    return labels(features.body_markers), labels(features.hand_markers)
-
-
 def cost_image(features: SpliceFeatures, kind: str, rows, cols,
                result: SpliceAlignment | None = None) -> np.ndarray:
     """Cost matrix values at body frames ``rows`` × grid hand frames ``cols``.
