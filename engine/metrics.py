@@ -41,9 +41,10 @@ import numba
 import numpy as np
 
 from engine.errors import ParameterError
+from engine.jit import FASTMATH_REASSOC
 
-# numba options in one place: no nnan/ninf (NaN gaps in capture data are real)
-_FASTMATH = {"contract", "arcp", "reassoc", "nsz", "afn"}
+# numba options: engine.jit (no nnan/ninf: NaN gaps in capture data are real)
+_FASTMATH = set(FASTMATH_REASSOC)
 
 #: window of eq. 7 in frames (the paper: 5 frames × 4 markers = 20 points)
 THETA_WINDOW = 5
@@ -355,7 +356,6 @@ def rotated_codes(hand: PhaseFeatures, n_bins: int = THETA_BINS) -> np.ndarray:
 # 8 markers x (3 velocity + 3 acceleration)), stored exactly as float64 integers. With
 # s, s' in {-1, 0, 1}: (s - s')^2 = [P xor P'] + [Q xor Q'] + 2 [(P and Q') or (Q and P')].
 
-_HEADER = 5
 MODE_WINDOW = 0
 MODE_YAW = 1
 MAX_COMPONENTS = 48
@@ -379,7 +379,14 @@ def _yaw_bins(yaw: np.ndarray, n_bins: int) -> np.ndarray:
 def phase_rows(body: PhaseFeatures, hand: PhaseFeatures, theta: str = "window",
                n_bins: int = THETA_BINS, yaw_offset: float = 0.0, step: float = 0.0
                ) -> tuple[np.ndarray, np.ndarray]:
-    """Rows for the ``"splice_phase"`` metric: ``(n, 4+2L+2B)`` body (zero padded) and hand.
+    """Rows for the ``"splice_phase"`` metric: body ``(n, 5 + W + 2B)`` and hand
+    ``(m, 5 + W + 2B)`` float64, with ``B = n_bins`` and ``W`` the θ-window columns
+    (``body.window.shape[1]`` for ``theta="window"``, else 0).
+
+    Columns: 5 header values (window half-width, ``B``, θ mode, trunk-yaw bin, ``step``;
+    the hand's step is 0), the ``W`` window values (eq. 7), then the packed sign codes:
+    the body's ``(p, q)`` followed by ``2B - 2`` zeros (padding to the hand's width), the
+    hand's ``(p, q)`` pair for each of the ``B`` θ directions.
 
     theta : ``"window"`` (eq. 7), ``"trunk"`` (θ = body yaw − hand yaw − ``yaw_offset``)
         or ``"none"`` (θ = 0).
@@ -528,14 +535,6 @@ def splice_phase(body_row, hand_row):
     q2 = np.uint64(hand_row[k + 2 * b + 1])
     cost = _popcount(p ^ p2) + _popcount(q ^ q2) + np.uint64(2) * _popcount((p & q2) | (q & p2))
     return float(cost) + body_row[4]
-
-
-@numba.njit(cache=True, fastmath=_FASTMATH, nogil=True)
-def splice_phase_theta(body_row, hand_row):
-    """θ (radians, quantised to the bin the metric uses) of one cell, for reports and views."""
-    nb = int(body_row[1])
-    b = _theta_bin(body_row, hand_row)
-    return 2.0 * np.pi * b / nb
 
 
 # --------------------------------------------------------------------------------------------

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from engine import tolerances as T
 from engine.errors import HandSpliceError
 
 
@@ -100,7 +101,7 @@ _PREPARED_LIMIT = 4
 #: pass-1 local costs are tabulated once per pair up to this many cells (8 bytes each):
 #: a drag then re-solves from the table (a few ns per cell) instead of evaluating the
 #: sign metric with its θ (eq. 7) per cell (tens of ns)
-DENSE_PASS1_MAX_CELLS = 6_000_000
+DENSE_PASS1_MAX_CELLS = T.DENSE_PASS1_MAX_CELLS  # engine.tolerances: every cell budget
 _PREPARE_LOCK = threading.Lock()
 
 
@@ -151,7 +152,7 @@ def _prepare(body_path: Path, hand_path: Path, side: str, key: tuple, roles: dic
     n, m = features.n, features.m
     pass1_cost = None
     if n * m <= DENSE_PASS1_MAX_CELLS:
-        pass1_cost = _local_costs(features.pass1_rows, "splice_phase", np.arange(n),
+        pass1_cost = _local_costs(features.pass1_rows, pipeline.DEFAULT_METRICS[0], np.arange(n),
                                   np.arange(m))
     return Prepared(key=key, body=body, hand=hand, side=side, n=n, m=m, features=features,
                     body_signal=_normalised(body_speed), hand_signal=_normalised(hand_speed),
@@ -256,9 +257,10 @@ def cost_view(prepared: Prepared, solution: Solution | None, kind: str, ranges,
     if kind == "pass1" and prepared.pass1_cost is not None:
         image = prepared.pass1_cost[np.ix_(rows, cols)]
     elif kind == "pass1":
-        image = _local_costs(prepared.features.pass1_rows, "splice_phase", rows, cols)
+        image = _local_costs(prepared.features.pass1_rows, pipeline.DEFAULT_METRICS[0], rows,
+                             cols)
     elif kind == "pass2" and engine_result is not None:
-        image = _local_costs(engine_result.pass2.rows, "splice_angle", rows, cols)
+        image = _local_costs(engine_result.pass2.rows, engine_result.pass2.metric, rows, cols)
     else:
         with prepared.lock:
             image = pipeline.cost_image(prepared.features, kind, rows, cols, engine_result)

@@ -41,9 +41,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from engine.errors import ParameterError
+from engine.tolerances import FRAME_EPS
 
 # slack when rounding tolerances and band edges computed in floating point
-EPS = 1e-9
+EPS = FRAME_EPS
 
 DRIFT_NOTE = (
     "Default time widths: pass 1 W1 = 10 s, pass 2 W2 = 2 s (applied when narrower than "

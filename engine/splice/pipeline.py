@@ -35,8 +35,10 @@ from pathlib import Path
 import numpy as np
 
 from engine import metrics as M
+from engine import tolerances as T
 from engine.dtw import Aligner, Band, align_features
 from engine.dtw import constraints as C
+from engine.dtw.kernels import get_metric, metric_names
 from engine.errors import HandSpliceError, ParameterError, RoleError
 from engine.fastkin import forward_kinematics
 from engine.features import (
@@ -55,16 +57,18 @@ from engine.splice import transfer as TR
 Progress = Callable[[str, float], None]
 
 #: defaults (the paper's values where it gives them); band widths: engine.dtw.constraints
+#: the registered local-cost metrics of pass 1 (eq. 6, on ``metrics.phase_rows`` rows) and
+#: pass 2 (eqs. 8-9, on ``AngleFeatures.rows``); any metric in ``engine.dtw``'s registry that
+#: reads the same rows may replace them (``metrics=`` of :func:`align_passes`)
+DEFAULT_METRICS = ("splice_phase", "splice_angle")
 SMOOTHING_S = 0.2
 DEAD_ZONE = 0.1
 #: constant added to every cell (charges non-diagonal steps; 0 = the paper)
 STEP1 = 0.0
 STEP2 = 0.05
-#: one-shot solves (1 byte per cell) above this band area; incremental ``Aligner`` below
-INCREMENTAL_MAX_CELLS = 12_000_000
-#: band cells above which the cumulative-cost (γ) view is refused when no incremental
-#: solver was kept: γ for every band cell costs about 18 bytes per cell (~290 MB here).
-CUMULATIVE_MAX_CELLS = 16_000_000
+#: cell budgets: engine.tolerances (one place, with the app's)
+INCREMENTAL_MAX_CELLS = T.INCREMENTAL_MAX_CELLS
+CUMULATIVE_MAX_CELLS = T.CUMULATIVE_MAX_CELLS
 
 
 def _noop(stage: str, fraction: float) -> None:
@@ -319,8 +323,8 @@ def heading_offset(body: M.PhaseFeatures, hand: M.PhaseFeatures, cells: np.ndarr
     th = M.cell_theta_window(body, hand, i, j)
     yb = body.yaw[i] if body.yaw is not None else 0.0
     v = np.angle(np.exp(1j * (yb - th)))
-    w = _wrist_speed(body)[i] * _wrist_speed(hand)[j] + 1e-12
-    bins = 72
+    w = _wrist_speed(body)[i] * _wrist_speed(hand)[j] + T.TINY
+    bins = M.THETA_BINS  # 5° bins
     k = np.floor((v + np.pi) / (2 * np.pi) * bins).astype(np.int64) % bins
     hist = np.bincount(k, weights=w, minlength=bins)
     hist = hist + 0.5 * (np.roll(hist, 1) + np.roll(hist, -1))
@@ -350,7 +354,7 @@ class PassResult:
     band : engine.dtw.Band
     rows : (a, b) float64 rows of the pass's metric (the local-cost inputs: the
         cost of cell (i, j) is ``metric(a[i], b[j])``)
-    metric : ``"splice_phase"`` or ``"splice_angle"``
+    metric : name of the pass's metric in ``engine.dtw``'s registry
     solver : engine.dtw.Aligner or None (kept for incremental re-solves and γ)
     seconds : float
     """
@@ -365,7 +369,7 @@ class PassResult:
 
     def local_costs(self, rows_idx=None, cols_idx=None) -> np.ndarray:
         """Local costs on a grid of cells (all cells by default: small takes only)."""
-        fn = _METRIC_FUNCS[self.metric]
+        fn = get_metric(self.metric).cell
         a, b = self.rows
         r = np.arange(len(a)) if rows_idx is None else np.asarray(rows_idx)
         c = np.arange(len(b)) if cols_idx is None else np.asarray(cols_idx)
@@ -374,10 +378,21 @@ class PassResult:
     def path_costs(self) -> np.ndarray:
         """(k,) local cost of every path cell."""
         a, b = self.rows
-        return M.path_values(_METRIC_FUNCS[self.metric], a, b, self.path)
+        return M.path_values(get_metric(self.metric).cell, a, b, self.path)
 
 
-_METRIC_FUNCS = {"splice_phase": M.splice_phase, "splice_angle": M.splice_angle}
+def check_metrics(metrics) -> tuple[str, str]:
+    """The (pass 1, pass 2) metric names, each registered with ``engine.dtw``."""
+    M.register_metrics()
+    if isinstance(metrics, str) or len(metrics) != 2:
+        raise ParameterError(f"metrics: expected (pass-1 name, pass-2 name), got {metrics!r}")
+    known = metric_names()
+    for k, name in enumerate(metrics):
+        if name not in known:
+            raise ParameterError(f"metrics[{k}]: unknown metric {name!r}; known: "
+                                 f"{', '.join(known)} (add one with "
+                                 "engine.dtw.register_metric)")
+    return metrics[0], metrics[1]
 
 
 @dataclass
@@ -407,6 +422,7 @@ class SpliceAlignment:
     blend: float
     timings: dict = field(default_factory=dict)
     features_id: int = 0
+    metrics: tuple[str, str] = DEFAULT_METRICS
 
 
 def _solve(rows, metric: str, band: Band, solver=None, incremental: bool = False):
@@ -441,6 +457,7 @@ def pass2_headings(features: SpliceFeatures, path1: np.ndarray) -> tuple[np.ndar
 
 
 def align_passes(features: SpliceFeatures, band=None, refine_band=None,
+                 metrics: Sequence[str] = DEFAULT_METRICS,
                  points: Sequence = (), previous: SpliceAlignment | None = None,
                  blend: float = MG.BLEND_FRAMES, incremental: bool | None = None,
                  progress: Progress | None = None) -> SpliceAlignment:
@@ -454,6 +471,8 @@ def align_passes(features: SpliceFeatures, band=None, refine_band=None,
         at most 10 s on long takes)
     refine_band : pass-2 band width around the pass-1 path, the same forms (paper: 0.10,
         at most 2 s)
+    metrics : (pass-1, pass-2) metric names from ``engine.dtw``'s registry (default
+        :data:`DEFAULT_METRICS`); a metric reads that pass's rows
     points : ``[(body_frame, grid_hand_frame, tol), ...]`` user matching points
         (grid units; tol in grid frames). Carried over to pass 2.
     previous : the last result for the same ``features`` (reuses DTW rows that the
@@ -468,6 +487,7 @@ def align_passes(features: SpliceFeatures, band=None, refine_band=None,
     n, m = features.n, features.m
     pts = C.point_triples(points)
     timings: dict[str, float] = {}
+    metric1, metric2 = check_metrics(metrics)
     band = C.BAND.resolve(band, n, features.fps)
     refine_band = C.REFINE_BAND.resolve(refine_band, n, features.fps)
     t0 = time.perf_counter()
@@ -475,9 +495,10 @@ def align_passes(features: SpliceFeatures, band=None, refine_band=None,
     band1 = Band.from_constraints(n, m, float(band), pts)
     if incremental is None:
         incremental = band1.area <= INCREMENTAL_MAX_CELLS
-    same = previous is not None and previous.features_id == id(features)
+    same = previous is not None and previous.features_id == id(features) and \
+        getattr(previous, "metrics", DEFAULT_METRICS) == (metric1, metric2)
     solver1 = previous.pass1.solver if same else None
-    al1, solver1 = _solve(features.pass1_rows, "splice_phase", band1, solver1, incremental)
+    al1, solver1 = _solve(features.pass1_rows, metric1, band1, solver1, incremental)
     t1 = time.perf_counter()
     timings["pass1"] = t1 - t0
     progress("pass 1", 1.0)
@@ -493,7 +514,7 @@ def align_passes(features: SpliceFeatures, band=None, refine_band=None,
     if same and previous.pass2.solver is not None and \
             np.array_equal(previous.pass2.rows[1], hand2):
         solver2 = previous.pass2.solver
-    al2, solver2 = _solve((body2, hand2), "splice_angle", band2, solver2, incremental)
+    al2, solver2 = _solve((body2, hand2), metric2, band2, solver2, incremental)
     t2 = time.perf_counter()
     timings["pass2"] = t2 - t1
     progress("pass 2", 1.0)
@@ -504,16 +525,16 @@ def align_passes(features: SpliceFeatures, band=None, refine_band=None,
     timings["merge"] = time.perf_counter() - t2
     progress("merge", 1.0)
     p1 = PassResult(path=np.asarray(al1.path), cost=float(al1.cost), band=band1,
-                    rows=features.pass1_rows, metric="splice_phase", solver=solver1,
+                    rows=features.pass1_rows, metric=metric1, solver=solver1,
                     seconds=timings["pass1"])
     p2 = PassResult(path=np.asarray(al2.path), cost=float(al2.cost), band=band2,
-                    rows=(body2, hand2), metric="splice_angle",
+                    rows=(body2, hand2), metric=metric2,
                     solver=solver2, seconds=timings["pass2"])
     return SpliceAlignment(pass1=p1, pass2=p2, warp=warp, map=hand_map,
                            body_heading=body_heading, hand_heading=hand_heading,
                            points=pts, band=float(band), refine_band=float(refine_band),
                            radius=radius, blend=float(blend), timings=timings,
-                           features_id=id(features))
+                           features_id=id(features), metrics=(metric1, metric2))
 
 
 # --------------------------------------------------------------------------------------------
@@ -566,7 +587,8 @@ def splice(body: Motion, hand: Motion, side: str = "auto", band=None,
            blend: float = MG.BLEND_FRAMES, smoothing_s: float = SMOOTHING_S,
            dead_zone: float = DEAD_ZONE, n_bins: int = M.THETA_BINS,
            step1: float = STEP1, step2: float = STEP2,
-           progress: Progress | None = None, transfer_fingers: bool = True) -> SpliceResult:
+           progress: Progress | None = None, transfer_fingers: bool = True,
+           metrics: Sequence[str] = DEFAULT_METRICS) -> SpliceResult:
     """Align and splice in one call (CLI, batch and benchmarks).
 
     ``points`` are ``(body_frame, hand_frame[, tol])``; with ``hand_points=True`` the
@@ -584,7 +606,8 @@ def splice(body: Motion, hand: Motion, side: str = "auto", band=None,
         # check order and range in the user's own frame numbers first
         C.check_points(pts, feats.n, feats.m_hand)
         pts = C.points_to_grid(pts, feats.fps, feats.hand_fps, feats.m)
-    result = align_passes(feats, band=band, refine_band=refine_band, points=pts, blend=blend,
+    result = align_passes(feats, band=band, refine_band=refine_band, metrics=metrics,
+                          points=pts, blend=blend,
                           incremental=False, progress=progress)
     t2 = time.perf_counter()
     motion = transfer(feats, result, progress) if transfer_fingers else None
@@ -622,16 +645,17 @@ def cost_image(features: SpliceFeatures, kind: str, rows, cols,
     """
     rows = np.asarray(rows, dtype=np.int64)
     cols = np.asarray(cols, dtype=np.int64)
+    metric1, metric2 = DEFAULT_METRICS if result is None else result.metrics
     if kind == "pass1":
         a, b = features.pass1_rows
-        return M.cost_grid(M.splice_phase, a, b, rows, cols)
+        return M.cost_grid(get_metric(metric1).cell, a, b, rows, cols)
     if kind == "pass2":
         if result is not None:
             a, b = result.pass2.rows
         else:
             a = M.angle_features(features.body_markers).rows()
             b = M.angle_features(features.hand_markers).rows()
-        return M.cost_grid(M.splice_angle, a, b, rows, cols)
+        return M.cost_grid(get_metric(metric2).cell, a, b, rows, cols)
     if kind in ("cumulative1", "cumulative2"):
         if result is None:
             return np.full((rows.size, cols.size), np.nan)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pandas as pd
 import panel as pn
 
-from webapp.state import MATRIX_LABELS, Session
+from webapp.state import Session
 
 MATRIX_CHOICES = {"Pass 1": "pass1", "Pass 2": "pass2", "Cumulative 1": "cumulative1",
                   "Cumulative 2": "cumulative2"}
@@ -156,10 +156,6 @@ def undo_redo(session: Session) -> pn.viewable.Viewable:
 
     session.param.watch(flags, ["can_undo", "can_redo"])
     return pn.Row(undo, redo, clear)
-
-
-def matrix_title(session: Session) -> str:
-    return MATRIX_LABELS[session.matrix]
 
 
 def _escape(text: str) -> str:
