@@ -1,4 +1,4 @@
-"""Local-cost metrics for the two splicing passes (METHOD.md sections 2 and 3).
+"""Local-cost metrics for the two splicing passes (docs/method.md sections 2 and 3).
 
 Pass 1 (phase matching, Majkowska et al. eq. 6): signs of the first and second
 derivatives of the four arm markers, with a dead zone so a held hand reads 0,

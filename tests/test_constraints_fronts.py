@@ -199,14 +199,15 @@ def test_every_front_accepts_or_refuses_alike(case, tmp_path, capsys, app):
 def test_defaults_are_the_papers_fractions_on_short_takes_and_seconds_on_long():
     assert C.BAND.default_for(187, 30.0) == C.Width(0.30)
     assert C.REFINE_BAND.default_for(187, 30.0) == C.Width(0.10)
-    two_minutes = 120 * 120
-    assert C.BAND.default_for(two_minutes, 120.0) == C.Width(C.BAND.default_s, C.SECONDS)
-    assert C.REFINE_BAND.default_for(two_minutes, 120.0) == \
-        C.Width(C.REFINE_BAND.default_s, C.SECONDS)
-    # the rule is continuous: the switch happens where both give the same width
-    n_switch = int(C.BAND.default_s * 30.0 / C.BAND.default)
-    assert C.BAND.default_for(n_switch, 30.0).frames(n_switch, 30.0) == \
-        pytest.approx(C.BAND.default_s * 30.0, abs=30.0 * 0.3)
+    two_minutes, ten_minutes = 120 * 120, 600 * 120
+    assert C.BAND.default_for(two_minutes, 120.0) == C.Width(16.4, C.SECONDS)
+    assert C.BAND.default_for(ten_minutes, 120.0) == C.Width(36.7, C.SECONDS)
+    assert C.REFINE_BAND.default_for(two_minutes, 120.0) == C.Width(2.0, C.SECONDS)
+    # the rule is continuous: the switch (25 s for W1) is where both give the same width
+    for n in (24 * 30, 26 * 30):
+        width = C.BAND.default_for(n, 30.0)
+        assert width.unit == (C.FRACTION if n < 25 * 30 else C.SECONDS)
+        assert width.frames(n, 30.0) == pytest.approx(0.3 * 25 * 30, rel=0.05)
 
 
 @pytest.mark.parametrize(("text", "width"), [

@@ -18,7 +18,7 @@ always has non-decreasing ``lo`` and ``hi``; the set of paths is unchanged.
 Constructors
 ------------
 ``Band.full(n, m)``, ``Band.sakoe_chiba(n, m, width)``,
-``Band.from_constraints(n, m, width, points)`` (METHOD.md §4, eqs. 4-5),
+``Band.from_constraints(n, m, width, points)`` (docs/method.md §4, eqs. 4-5),
 ``Band.around_path(path, n, m, radius, points=None)`` (pass 2) and
 ``band.intersect(other)``. Errors are ``ParameterError`` (a ``ValueError``)
 naming the row or matching point at fault.
@@ -237,7 +237,7 @@ class Band:
         """Diagonal band of width ``width * n`` frames (the paper's W).
 
         Centre line from the virtual cell ``(-1, -1)`` to ``(n-1, m-1)``
-        (METHOD.md's 1-based ``(0, 0)`` to ``(n, m)``), so row ``i`` is centred
+        (the paper's 1-based ``(0, 0)`` to ``(n, m)``), so row ``i`` is centred
         on column ``(i + 1) * m / n - 1``; vertical half-width
         ``Λ = W * sqrt(n² + m²) / (2 n)`` with ``W = width * n``. Equal to
         ``from_constraints(n, m, width, [])``.
@@ -252,7 +252,7 @@ class Band:
         width: float | None,
         points: Iterable[Sequence[float]] = (),
     ) -> Band:
-        """Band through user matching points (METHOD.md §4, Majkowska et al. eqs. 4-5).
+        """Band through user matching points (docs/method.md §4, Majkowska et al. eqs. 4-5).
 
         Parameters
         ----------

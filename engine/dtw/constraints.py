@@ -47,14 +47,20 @@ from engine.tolerances import FRAME_EPS
 EPS = FRAME_EPS
 
 DRIFT_NOTE = (
-    "Default time widths: pass 1 W1 = 10 s, pass 2 W2 = 2 s (applied when narrower than "
-    "the paper's 0.30 / 0.10 of the body take, i.e. from about 33 s / 20 s of take on). "
-    "Chosen from the drift measured between performances of one gesture script (Bandai "
-    "wave and bye takes; see benchmarks/RESULTS.md 'band widths in seconds'): the pass-1 "
-    "path stays within about 1.3 s of the diagonal, while speech-gesture studies report "
-    "local tempo differences of a few seconds between repetitions; Λ = W/√2 ≈ 7 s of "
-    "vertical reach covers both with a margin. Pass 2 only corrects the pass-1 path "
-    "locally (errors under half a second here), so 2 s (radius about 0.7 s) is ample."
+    "Default time widths on long takes: pass 1 W1 = 1.5 s x sqrt(T / 1 s) for a body take "
+    "of T seconds (16.4 s at 2 minutes, 36.7 s at 10), pass 2 W2 = 2 s; each applies when "
+    "narrower than the paper's 0.30 / 0.10 of the take (from 25 s / 20 s of take on). "
+    "Why: between two performances of one script the hand take's local rate wanders "
+    "(the accuracy bench's model: rate exp(sigma * noise), sigma 0.15-0.3, 1 s "
+    "correlation, which the short-take accuracy figures are measured on). That is a random "
+    "walk, so the drift from the diagonal grows as sqrt(T): over 20 warps the worst "
+    "drift was 0.85 s at 6 s, 2.45 s at 20 s, 8.3 s at 2 min and 16.8 s at 10 min "
+    "(sigma 0.3; benchmarks/RESULTS.md, 'Band widths in seconds'). W1's vertical "
+    "half-width (about W1 / sqrt 2 when both takes last about as long) is then 11.6 s at "
+    "2 min and 26 s at 10 min, at least 1.4x the worst drift, with half the cells of a "
+    "30 % band at 2 minutes and a fifth at 10. Pass 2 only corrects the pass-1 path "
+    "locally, an error that does not grow with the take: the 2 s the paper's 0.10 gives a "
+    "20 s take (radius about 0.7 s) is kept."
 )
 
 
@@ -155,14 +161,15 @@ class WidthRule:
     default: float  # fraction of the body take (the paper's value, short takes)
     lo: float
     hi: float
-    default_s: float  # seconds (long takes)
+    default_s: float  # seconds (long takes); times sqrt(T / 1 s) when ``grows``
     lo_s: float
     hi_s: float
+    grows: bool = False  # the long-take width grows as the square root of the take
 
     @property
     def expected(self) -> str:
         return (f"a fraction of the body take from {self.lo:g} to {self.hi:g} or seconds "
-                f"like {self.default_s:g}s (from {self.lo_s:g} to {self.hi_s:g} s)")
+                f"like 10s (from {self.lo_s:g} to {self.hi_s:g} s)")
 
     def parse(self, value) -> Width | None:
         """A :class:`Width` from a number (fraction), text (``"0.3"``, ``"10s"``) or a Width;
@@ -188,9 +195,16 @@ class WidthRule:
     def default_for(self, n: int, fps: float) -> Width:
         """The default width for a body take of ``n`` frames at ``fps``: the paper's
         fraction, or the time width when that is narrower (long takes)."""
-        if self.default * n > self.default_s * float(fps):
-            return Width(self.default_s, SECONDS)
+        seconds = self.long_take_seconds(n / float(fps))
+        if self.default * n > seconds * float(fps):
+            return Width(seconds, SECONDS)
         return Width(self.default, FRACTION)
+
+    def long_take_seconds(self, duration_s: float) -> float:
+        """The time width (seconds, 0.1 s steps) for a take of ``duration_s`` seconds."""
+        if not self.grows:
+            return self.default_s
+        return round(self.default_s * math.sqrt(max(duration_s, 0.0)), 1)
 
     def resolve(self, value, n: int, fps: float) -> float:
         """The width (given, or the default) as a fraction of ``n``."""
@@ -201,7 +215,7 @@ class WidthRule:
 
 
 BAND = WidthRule("band", "pass-1 band width W1", default=0.30, lo=0.02, hi=1.0,
-                 default_s=10.0, lo_s=0.1, hi_s=3600.0)
+                 default_s=1.5, lo_s=0.1, hi_s=3600.0, grows=True)
 REFINE_BAND = WidthRule("refine_band", "pass-2 band width W2 around the pass-1 path",
                         default=0.10, lo=0.01, hi=1.0, default_s=2.0, lo_s=0.05, hi_s=3600.0)
 

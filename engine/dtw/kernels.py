@@ -1,6 +1,6 @@
 """Numba kernels for banded DTW and the registry of local-cost metrics.
 
-Storage (METHOD.md §4, "Memory"): a band is kept row by row. Cell ``(i, j)`` of
+Storage (docs/method.md §4, "Memory"): a band is kept row by row. Cell ``(i, j)`` of
 band row ``i`` (``lo[i] <= j <= hi[i]``) has the flat index
 ``start[i] + j - lo[i]``; ``start`` is the exclusive prefix sum of the row
 widths (``Band.start``). Backpointers are one byte per band cell
@@ -37,7 +37,7 @@ A metric is a numba function of two feature rows returning the local cost::
 
     align_features(body, hand, band, metric="forearm_palm_angle")
 
-The pass-1 sign-code cost (METHOD.md §2: sum of squared differences of the
+The pass-1 sign-code cost (docs/method.md §2: sum of squared differences of the
 velocity and acceleration sign codes) is the squared Euclidean distance of the
 concatenated sign vectors, so ``"sqeuclidean"`` serves it as is (and fast).
 

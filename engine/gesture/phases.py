@@ -1,4 +1,4 @@
-"""Gesture phases from the wrist's motion relative to the body (METHOD.md §8).
+"""Gesture phases from the wrist's motion relative to the body (docs/method.md §8).
 
 Each hand's wrist path, expressed in a body frame (origin at the same-side
 shoulder or at the pelvis, pelvis yaw removed, metres), is cut into the phases
