@@ -9,8 +9,9 @@ Tolerances
 
 Budgets (band cells; memory grows with them)
     ``INCREMENTAL_MAX_CELLS``: up to this pass-1 band area the splice keeps incremental
-    ``Aligner`` solvers (γ for the cumulative views, partial re-solves); above it a
-    one-shot solve (1 byte per cell).
+    ``Aligner`` solvers (γ for the cumulative views, partial re-solves; about 3-4 bytes
+    per cell resident: backpointers both ways, γ of every 8th row); above it a one-shot
+    solve (1 byte per cell).
     ``CUMULATIVE_MAX_CELLS``: the cumulative-cost (γ) view of a pass solved one-shot is
     refused above this many cells (about 18 bytes per cell, ~290 MB here).
     ``DENSE_PASS1_MAX_CELLS``: the app tabulates the pass-1 local costs of a pair once
@@ -22,6 +23,6 @@ from __future__ import annotations
 FRAME_EPS = 1e-9
 TINY = 1e-12
 
-INCREMENTAL_MAX_CELLS = 12_000_000
+INCREMENTAL_MAX_CELLS = 100_000_000
 CUMULATIVE_MAX_CELLS = 16_000_000
 DENSE_PASS1_MAX_CELLS = 6_000_000

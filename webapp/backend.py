@@ -352,7 +352,7 @@ def preview_video(prepared: Prepared, solution: Solution, fmt: str, camera: str 
     """
     import tempfile
 
-    from engine.render.video import write_gif, write_mp4
+    from engine.render.video import gif_bytes, write_mp4
 
     if prepared is None or solution is None:
         raise HandSpliceError("no takes loaded")
@@ -368,10 +368,13 @@ def preview_video(prepared: Prepared, solution: Solution, fmt: str, camera: str 
             progress(done, total)
     fps = max(1.0, float(prepared.body.fps) / step)
     # one video encoder for the CLI and the app: engine.render.video
-    with tempfile.TemporaryDirectory(prefix="handsplice-video-") as folder:
-        path = Path(folder) / f"preview.{fmt}"
-        (write_gif if fmt == "gif" else write_mp4)(frames, path, fps)
-        data = path.read_bytes()
+    if fmt == "gif":
+        data = gif_bytes(frames, fps)  # exact timing: per-frame centisecond delays
+    else:
+        with tempfile.TemporaryDirectory(prefix="handsplice-video-") as folder:
+            path = Path(folder) / "preview.mp4"
+            write_mp4(frames, path, fps)
+            data = path.read_bytes()
     if progress is not None:
         progress(total, total)
     return data

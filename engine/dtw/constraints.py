@@ -207,7 +207,14 @@ class WidthRule:
         return round(self.default_s * math.sqrt(max(duration_s, 0.0)), 1)
 
     def resolve(self, value, n: int, fps: float) -> float:
-        """The width (given, or the default) as a fraction of ``n``."""
+        """The width (given, or the default) as a fraction of ``n``, for the engine's own
+        calls: a plain number is a fraction taken as it is (any finite value >= 0: the
+        benchmarks and tests use bands outside the users' range); text and ``Width``
+        values are parsed and checked as every front does."""
+        if isinstance(value, int | float | np.number) and not isinstance(value, bool):
+            if not (math.isfinite(value) and value >= 0):
+                raise ConstraintError(self.name, f"expected {self.expected}, got {_show(value)}")
+            return float(value)
         width = self.parse(value)
         if width is None:
             width = self.default_for(n, fps)
