@@ -5,7 +5,7 @@
 #                 glTF validator for the GLB tests), lint (ruff check, ruff format --check,
 #                 lint-imports layering contracts), run all tests
 #   make bench  - run every benchmark (benchmarks/run_all.py; results in benchmarks/RESULTS.md)
-# Proven on minimal (debootstrap minbase) Debian 12 and 13 roots by tools/fresh-check.
+# Tried on minimal (debootstrap minbase) Debian 12 and 13 roots by tools/fresh-check.
 
 PYTHON ?= python3
 VENV   := .venv

@@ -230,7 +230,7 @@ def test_width_refusals_name_the_field_and_range(text):
 
 
 def test_ends_and_open_end_limit():
-    assert C.parse_ends(None) == C.DEFAULT_ENDS == "fixed"
+    assert C.parse_ends(None) == C.DEFAULT_ENDS == "open"  # as the pipeline (issue 12)
     assert C.parse_ends("Open") == "open"
     with pytest.raises(C.ConstraintError, match="ends: expected fixed or open"):
         C.parse_ends("loose")

@@ -34,8 +34,10 @@ def test_a_registered_toy_metric_drives_pass_2(pair):
     register_metric("toy_l1", _toy_l1, replace=True)  # the one registration
     assert "toy_l1" in metric_names()
     body, hand = pair
-    default = P.splice(body, hand, side="right")
-    toy = P.splice(body, hand, side="right", metrics=("splice_phase", "toy_l1"))
+    # fixed ends: the pass cost is then exactly the metric summed along the path (open ends
+    # add skip costs for unmatched frames)
+    default = P.splice(body, hand, side="right", ends="fixed")
+    toy = P.splice(body, hand, side="right", ends="fixed", metrics=("splice_phase", "toy_l1"))
     assert toy.motion is not None and toy.motion.n_frames == body.n_frames
     a2 = toy.alignment.pass2
     assert a2.metric == "toy_l1" and toy.alignment.metrics == ("splice_phase", "toy_l1")

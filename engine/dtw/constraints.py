@@ -287,7 +287,7 @@ def parse_tolerance(value, field: str = "tolerance") -> float:
 # ---------------------------------------------------------------------------------------
 
 ENDS = ("fixed", "open")
-DEFAULT_ENDS = "fixed"
+DEFAULT_ENDS = "open"  # as engine.splice.pipeline.ENDS (open-end DTW, issue 12)
 #: the open-end limit, seconds (None = half of the shorter take)
 MAX_UNMATCHED = Range("max_unmatched_s", 0.0, 0.0, 3600.0, "seconds")
 
@@ -447,7 +447,7 @@ def _bad_point(k: int, where: str, detail: str) -> ConstraintError:
                            text=f"{where} {detail}")
 
 
-def check_points(points, n: int, m: int, order: bool = True
+def check_points(points, n: int, m: int, order: bool = True, open_ends: bool = False
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Validated ``(xs, ys, tols)`` int64 arrays of matching points in an ``n x m`` matrix.
 
@@ -504,11 +504,11 @@ def check_points(points, n: int, m: int, order: bool = True
                                            f"their hand frames {py:g} and {y:g} are more than "
                                            "one step apart after tolerances; increase a "
                                            "tolerance or move a point")
-        if order and x == 0 and y - t > 0:
+        if order and not open_ends and x == 0 and y - t > 0:
             raise _bad_point(k, where + ":", f"every path starts at (0, 0), so on body frame 0 "
                                              f"it covers hand frame 0; the tolerance must be "
                                              f"at least {y:g}")
-        if order and x == n - 1 and y + t < m - 1:
+        if order and not open_ends and x == n - 1 and y + t < m - 1:
             raise _bad_point(k, where + ":", f"every path ends at ({n - 1}, {m - 1}), so on "
                                              f"body frame {n - 1} it covers hand frame "
                                              f"{m - 1}; the tolerance must be at least "
