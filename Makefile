@@ -2,7 +2,9 @@
 # prerequisites: apt-get install -y make git python3-venv).
 #   make demo   - install, then open the app on the bundled sample pair (http://127.0.0.1:5006)
 #   make test   - install everything the tests need (Chromium, Mesa EGL, npm's three.js and
-#                 glTF validator for the GLB tests), lint, run all tests
+#                 glTF validator for the GLB tests), lint (ruff check, ruff format --check,
+#                 lint-imports layering contracts), run all tests
+#   make bench  - run every benchmark (benchmarks/run_all.py; results in benchmarks/RESULTS.md)
 # Tried on minimal (debootstrap minbase) Debian 12 and 13 roots by tools/fresh-check.
 
 PYTHON ?= python3
@@ -27,11 +29,14 @@ demo: demo-deps venv
 
 test: test-deps venv js
 	$(BIN)/ruff check engine webapp tests benchmarks
+	$(BIN)/ruff format --check engine webapp tests benchmarks
+	$(BIN)/lint-imports
 	$(BIN)/python -m pytest -q
 
 lint: venv
 	$(BIN)/ruff check engine webapp tests benchmarks
 	$(BIN)/ruff format --check engine webapp tests benchmarks
+	$(BIN)/lint-imports
 
 # System packages: only the missing ones are installed, so a second run needs no root and no apt.
 # A package counts as present when dpkg has it installed ("ii"); npm also when an npm command

@@ -7,7 +7,7 @@ Measures
 * **A 14,400 x 14,400 splice** (2 minutes at 120 fps): the LAFAN1 take
   ``multipleActions1_subject1`` resampled from 30 to 120 fps and cut to 14,400
   frames is the body; the hand take is the same performance with synthetic fingers
-  (``engine.splice.split.add_fingers``) re-timed by a smooth random warp, arms
+  (``benchmarks.split.add_fingers``) re-timed by a smooth random warp, arms
   shrunk, trunk still, noise (``make_hand_take``), also 14,400 frames at 120 fps.
   Both are written to BVH and read back, as a user's files would be. Each splice
   runs in a fresh child process (after a small warm-up splice for the JIT); the
@@ -50,9 +50,9 @@ SOURCES = ["lafan1/multipleActions1_subject1.bvh", "lafan1/dance1_subject1.bvh"]
 def make_pair(folder: Path, frames: int, seed: int, source: str = SOURCE, start_s: float = 0.0
               ) -> tuple[Path, Path]:
     """Write ``body.bvh`` / ``hand.bvh`` of ``frames`` frames at 120 fps (module docstring)."""
+    from benchmarks.split import MOCAP, add_fingers, make_hand_take
     from engine.io.bvh import read_bvh, write_bvh
     from engine.kinematics import resample
-    from engine.splice.split import MOCAP, add_fingers, make_hand_take
 
     rng = np.random.default_rng(seed)
     take = resample(read_bvh(MOCAP / source), FPS)

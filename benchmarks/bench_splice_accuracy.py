@@ -2,7 +2,7 @@
 
 Run: ``.venv/bin/python -m benchmarks.bench_splice_accuracy [--quick]``
 
-Cases come from :mod:`engine.splice.split` (BEAT split; Bandai and LAFAN1
+Cases come from :mod:`benchmarks.split` (BEAT split; Bandai and LAFAN1
 body takes with synthetic finger signals), each with its own seed. Families are
 registered in ``FAMILIES`` by the ``@family(name, seeds, note)`` decorator (one
 function ``seed -> Case`` each); ``--families a,b`` runs a subset. For each case
@@ -32,11 +32,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from benchmarks._results import write_section
+from benchmarks.split import Case, Realism, finger_error, finger_pairs, make_case
 from engine.dtw import Band, align_features
 from engine.splice import merge as MG
 from engine.splice import pipeline as P
 from engine.splice import transfer as TR
-from engine.splice.split import Case, Realism, finger_error, finger_pairs, make_case
 
 
 @dataclass(frozen=True)

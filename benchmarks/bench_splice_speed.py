@@ -4,7 +4,7 @@ Run: ``.venv/bin/python -m benchmarks.bench_splice_speed [--quick] [--no-10min]`
 
 * **569-frame pair** (the size of the paper's "Directions", 10.95 s in Matlab): a
   LAFAN1 crop (30 fps) with synthetic fingers, split into a body and a hand take
-  (``engine.splice.split``). Engine time = prepare + pass 1 + pass 2 + merge +
+  (``benchmarks.split``). Engine time = prepare + pass 1 + pass 2 + merge +
   transfer, warm, median of 10 calls. Goal < 50 ms.
 * **Pass-1 kernel**: ns per band cell of the pass-1 DTW (``splice_phase`` metric, its
   row kernel now) on the 2-minute pair's rows, 30 % band, beside today's per-cell
@@ -81,10 +81,10 @@ print(json.dumps({"frames": [body.n_frames, hand.n_frames], "read_s": read_s, "w
 
 def make_pair(n: int, fps: float, seed: int = 0):
     """A LAFAN1 crop of ``n`` frames at ``fps`` split into (body, hand) (the short pair)."""
+    from benchmarks.split import MOCAP, add_fingers, make_hand_take, strip_fingers
     from engine.io.bvh import read_bvh
     from engine.kinematics import resample
     from engine.roles import find_roles
-    from engine.splice.split import MOCAP, add_fingers, make_hand_take, strip_fingers
 
     base = read_bvh(MOCAP / "lafan1/multipleActions1_subject1.bvh")
     if fps != base.fps:

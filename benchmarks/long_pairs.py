@@ -7,7 +7,7 @@ Used by ``bench_splice_speed`` and ``bench_dtw`` (issue 13).
   other (alternating, each shifted so the root continues where the last stopped)
   until long enough, resampled, given synthetic fingers; the body take without
   fingers, the hand take the same performance re-timed by a smooth random warp
-  (``engine.splice.split.make_hand_take``: rate ``exp(0.2 n(t))``, ``n`` smooth
+  (``benchmarks.split.make_hand_take``: rate ``exp(0.2 n(t))``, ``n`` smooth
   noise of 1 s correlation), arms shrunk, trunk still, turned 20°, 0.5° noise.
   Returns the takes and the true hand frame of every body frame.
 * :func:`pair_files` - the same pair written to BVH once and reused (the timing
@@ -62,7 +62,10 @@ def make_long_pair(seconds: float, fps: float = 120.0, seed: int = 0):
     from engine.io.bvh import read_bvh
     from engine.kinematics import resample
     from engine.roles import find_roles
-    from engine.splice.split import MOCAP, add_fingers, make_hand_take, strip_fingers
+    try:
+        from benchmarks.split import MOCAP, add_fingers, make_hand_take, strip_fingers
+    except ImportError:  # the baseline tree (git archive BASELINE) had it in the package
+        from engine.splice.split import MOCAP, add_fingers, make_hand_take, strip_fingers
 
     takes = [read_bvh(MOCAP / s) for s in SOURCES]
     base_fps = takes[0].fps

@@ -7,11 +7,12 @@ A *manifest* is a CSV file with a header row and one pair per row::
     takes/walk02.bvh,hands/count.bvh,both,,,,
 
 Columns ``body``, ``hand`` and ``side`` (``right``, ``left``, ``both`` or ``auto``,
-as ``handsplice splice --side``) are required; ``band`` (pass-1 band width, fraction of the body length, (0, 1]),
-``refine_band`` (pass-2 band, (0, 1]), ``match`` (matching points
-``BODY:HAND[:TOL]`` separated by ``;`` or spaces, frames 0-based, the splice
-engine's convention) and ``name`` (the output file stem) are optional; an empty
-cell means the default. Relative paths resolve against the manifest's folder.
+as ``handsplice splice --side``) are required; ``band`` (pass-1 band width: a
+fraction of the body take or seconds like ``10s``), ``refine_band`` (pass-2 band,
+the same forms), ``match`` (matching points ``BODY:HAND[:TOL]`` separated by ``;``
+or spaces, frames 0-based in each file's own numbering, as ``handsplice splice
+--match``) and ``name`` (the output file stem) are optional; an empty cell means
+the default. Ranges and error text are :mod:`engine.dtw.constraints`' (as every front). Relative paths resolve against the manifest's folder.
 Blank lines and lines starting with ``#`` are skipped. A malformed manifest
 raises :class:`ManifestError` naming the CSV line and column, before anything runs.
 
@@ -64,6 +65,7 @@ from typing import Any
 
 from engine import __version__
 from engine.atomic import atomic_path, clean_stale, write_text, write_texts
+from engine.dtw import constraints as C
 from engine.errors import HandSpliceError
 from engine.limits import MAX_MANIFEST_ROWS, PAIR_MEMORY_MB, PAIR_SECONDS
 
@@ -103,8 +105,8 @@ class PairJob:
     body: str
     hand: str
     side: str
-    band: float | None = None
-    refine_band: float | None = None
+    band: float | str | None = None  # a fraction, or seconds as text ("10s")
+    refine_band: float | str | None = None
     match: tuple[tuple[int, int, float | None], ...] = ()
 
     def options(self) -> dict:
@@ -209,9 +211,15 @@ def _parse_row(cells: dict[str, str], path: Path, line: int, base: Path) -> Pair
     if side not in SIDES:
         raise fail("side", f"expected right, left, both or auto, got "
                            f"{cells.get('side', '')[:40]!r}")
-    band = _fraction(cells.get("band", ""), "band", fail)
-    refine = _fraction(cells.get("refine_band", ""), "refine_band", fail)
-    match = _match_points(cells.get("match", ""), fail)
+    try:
+        band = C.BAND.parse(cells.get("band", ""))
+        refine = C.REFINE_BAND.parse(cells.get("refine_band", ""))
+        match = tuple((p.body, p.hand, p.tolerance)
+                      for p in C.parse_points(cells.get("match", "")))
+    except C.ConstraintError as exc:  # the manifest's column is "match" for the points
+        raise fail(re.sub(r"^points", "match", exc.field), exc.detail) from None
+    band = None if band is None else band.to_json()
+    refine = None if refine is None else refine.to_json()
     name = cells.get("name", "")
     if name:
         if _NAME_OK.search(name) or name.startswith(".") or len(name) > 120:
@@ -221,43 +229,6 @@ def _parse_row(cells: dict[str, str], path: Path, line: int, base: Path) -> Pair
         name = _auto_name(takes["body"], takes["hand"], side)
     return PairJob(line=line, name=name, body=takes["body"], hand=takes["hand"], side=side,
                    band=band, refine_band=refine, match=match)
-
-
-def _fraction(text: str, column: str, fail) -> float | None:
-    if not text:
-        return None
-    try:
-        x = float(text)
-    except ValueError:
-        raise fail(column, f"expected a number in (0, 1], got {text[:40]!r}") from None
-    if not (math.isfinite(x) and 0 < x <= 1):
-        raise fail(column, f"expected a number in (0, 1], got {text[:40]!r}")
-    return x
-
-
-def _match_points(text: str, fail) -> tuple[tuple[int, int, float | None], ...]:
-    if not text:
-        return ()
-    points = []
-    for k, item in enumerate(t for t in re.split(r"[;\s]+", text) if t):
-        parts = item.split(":")
-        if len(parts) not in (2, 3):
-            raise fail("match", f"point {k + 1} {item[:40]!r}: expected BODY:HAND or "
-                                "BODY:HAND:TOL")
-        try:
-            body, hand = int(parts[0]), int(parts[1])
-            tol = float(parts[2]) if len(parts) == 3 else None
-        except ValueError:
-            raise fail("match", f"point {k + 1} {item[:40]!r}: frames are whole numbers, the "
-                                "tolerance a number") from None
-        if body < 0 or hand < 0 or (tol is not None and not (math.isfinite(tol) and tol >= 0)):
-            raise fail("match", f"point {k + 1} {item[:40]!r}: frames and tolerance must be "
-                                ">= 0")
-        if points and not (body > points[-1][0] and hand > points[-1][1]):
-            raise fail("match", f"point {k + 1} {item[:40]!r}: must come after point {k} in "
-                                "both takes")
-        points.append((body, hand, tol))
-    return tuple(points)
 
 
 def _auto_name(body: str, hand: str, side: str) -> str:
@@ -425,8 +396,9 @@ def _where(exc: BaseException) -> str:
 def _base_record(job: PairJob) -> dict:
     rec = dict.fromkeys(SUMMARY_COLUMNS, "")
     rec.update(name=job.name, line=job.line, body=job.body, hand=job.hand, side=job.side,
-               band="" if job.band is None else f"{job.band:g}",
-               refine_band="" if job.refine_band is None else f"{job.refine_band:g}",
+               band="" if job.band is None else C.BAND.parse(job.band).text(),
+               refine_band="" if job.refine_band is None
+               else C.REFINE_BAND.parse(job.refine_band).text(),
                match=job.match_text())
     return rec
 

@@ -16,9 +16,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from engine.jit import FASTMATH
 from engine.motion import Motion
 
-_FASTMATH = {"contract", "arcp", "nsz", "afn"}
+_FASTMATH = set(FASTMATH)  # engine.jit: the one place for numba options
 
 
 @numba.njit(cache=True, fastmath=_FASTMATH, inline="always")

@@ -9,8 +9,8 @@ are the labelled markers themselves (pyomeca ``STYLr``, ``STYLu``, ``LARM*``,
 
 Output convention (:class:`ArmMarkers`): ``(F, 4, 3)`` in metres, y up, order
 ``p1`` radial wrist, ``p2`` ulnar wrist, ``p3`` forearm, ``p4`` back of the hand
-(METHOD.md §3: ``f = p3 - (p1+p2)/2``, ``h = p4 - (p1+p2)/2``), with the shoulder
-position subtracted when the take has a shoulder (METHOD.md §2.1).
+(docs/method.md §3: ``f = p3 - (p1+p2)/2``, ``h = p4 - (p1+p2)/2``), with the shoulder
+position subtracted when the take has a shoulder (docs/method.md §2.1).
 
 The hand's rest frame (:class:`HandFrame`)
 ------------------------------------------

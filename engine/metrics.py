@@ -1,4 +1,4 @@
-"""Local-cost metrics for the two splicing passes (METHOD.md sections 2 and 3).
+"""Local-cost metrics for the two splicing passes (docs/method.md sections 2 and 3).
 
 Pass 1 (phase matching, Majkowska et al. eq. 6): signs of the first and second
 derivatives of the four arm markers, with a dead zone so a held hand reads 0,
@@ -45,9 +45,10 @@ import numpy as np
 
 from engine import phase_kernel as PK
 from engine.errors import ParameterError
+from engine.jit import FASTMATH_REASSOC
 
-# numba options in one place: no nnan/ninf (NaN gaps in capture data are real)
-_FASTMATH = {"contract", "arcp", "reassoc", "nsz", "afn"}
+# numba options: engine.jit (no nnan/ninf: NaN gaps in capture data are real)
+_FASTMATH = set(FASTMATH_REASSOC)
 
 #: window of eq. 7 in frames (the paper: 5 frames × 4 markers = 20 points)
 THETA_WINDOW = 5
@@ -466,7 +467,14 @@ def _yaw_bins(yaw: np.ndarray, n_bins: int) -> np.ndarray:
 def phase_rows(body: PhaseFeatures, hand: PhaseFeatures, theta: str = "window",
                n_bins: int = THETA_BINS, yaw_offset: float = 0.0, step: float = 0.0
                ) -> tuple[np.ndarray, np.ndarray]:
-    """Rows for the ``"splice_phase"`` metric: ``(n, 4+2L+2B)`` body (zero padded) and hand.
+    """Rows for the ``"splice_phase"`` metric: body ``(n, 5 + 2h + 2B)`` and hand
+    ``(m, 5 + 2h + 2B)`` float64, with ``B = n_bins`` and ``h`` the θ-window half-width
+    (``THETA_WINDOW`` × markers for ``theta="window"``, else 0).
+
+    Columns: 5 header values (``h``, ``B``, θ mode, trunk-yaw bin, ``step``; the hand's
+    step is 0), ``2h`` raw window values (eq. 7), then the packed sign codes: the body's
+    ``(p, q)`` followed by ``2B - 2`` zeros (padding to the hand's width), the hand's
+    ``(p, q)`` pair for each of the ``B`` θ directions.
 
     theta : ``"window"`` (eq. 7), ``"trunk"`` (θ = body yaw − hand yaw − ``yaw_offset``)
         or ``"none"`` (θ = 0).
@@ -593,14 +601,6 @@ def splice_phase(body_row, hand_row):
     p2 = np.uint64(hand_row[k + 2 * b])
     q2 = np.uint64(hand_row[k + 2 * b + 1])
     return float(np.int64(PK.cell_cost(p, q, p2, q2))) + body_row[4]
-
-
-@numba.njit(cache=True, nogil=True)
-def splice_phase_theta(body_row, hand_row):
-    """θ (radians, quantised to the bin the metric uses) of one cell, for reports and views."""
-    nb = int(body_row[1])
-    b = _theta_bin(body_row, hand_row)
-    return 2.0 * np.pi * b / nb
 
 
 # --------------------------------------------------------------------------------------------

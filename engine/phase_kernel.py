@@ -1,4 +1,4 @@
-"""Pass-1 kernel: the ``splice_phase`` cost of a whole band row at a time (METHOD.md §2).
+"""Pass-1 kernel: the ``splice_phase`` cost of a whole band row at a time (docs/method.md §2).
 
 :func:`engine.metrics.splice_phase` computes one cell: θ of eq. 7 from the two
 5-frame windows (a 5·K-point complex dot product), then the sign-code cost of the
@@ -265,8 +265,9 @@ def forward(state: PhaseProblem, lo, hi, start, i0, i1, bp, gamma, keep_gamma, e
             last_row):
     """Rows ``i0..i1-1`` of the DTW forward pass (as ``engine.dtw.kernels.forward_*``,
     open ends included: ``ends``, ``last_col``, ``last_row``)."""
-    if state.fallback:
-        from engine.metrics import splice_phase
+    if state.fallback:  # the per-cell metric from the registry (engine.metrics registers
+        # it; importing engine.metrics here would make an import cycle)
+        splice_phase = K.get_metric("splice_phase").cell
 
         return K.forward_metric(splice_phase, state.a, state.b, lo, hi, start, i0, i1, bp,
                                 gamma, keep_gamma, ends, last_col, last_row)

@@ -816,7 +816,7 @@ _SIDED_LABEL = (re.compile(r"^(R|L|RIGHT|LEFT)[_ .-]?(.+)$"), re.compile(r"^(.+?
 
 @dataclass(frozen=True, eq=False)
 class MarkerRoles:
-    """Marker indices per side for the alignment markers of METHOD.md (a marker set's
+    """Marker indices per side for the alignment markers of docs/method.md (a marker set's
     counterpart of ``Roles``): ``shoulder``, ``elbow``, ``forearm``, ``wrist_radial``,
     ``wrist_ulnar``, ``hand`` (back of the hand, 2nd metacarpal head), None if absent.
     ``unsided`` holds the roles of labels that carry no side when no hint was given."""

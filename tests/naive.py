@@ -114,7 +114,7 @@ def band_is_feasible(lo, hi, m):
 
 
 def constraint_band(n, m, width, points):
-    """METHOD.md eqs. 4-5 row by row, plus the points' own rows; no widening.
+    """docs/method.md eqs. 4-5 row by row, plus the points' own rows; no widening.
 
     ``points``: [(x, y, tol)], valid and sorted. Returns (lo, hi) lists; a row
     may come out empty (lo > hi) or disconnected: the caller compares it with

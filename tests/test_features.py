@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from conftest import MOCAP
 
+from benchmarks.split import strip_fingers
 from engine import features as FE
 from engine import rotations as rot
 from engine.errors import RoleError
@@ -15,7 +16,6 @@ from engine.io import load_take
 from engine.io.bvh import read_bvh
 from engine.motion import Motion, Skeleton
 from engine.roles import find_roles
-from engine.splice.split import strip_fingers
 
 
 @pytest.fixture(scope="module")

@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 from naive import dtw_banded
 
+from benchmarks.split import make_case
 from engine import metrics as M
 from engine import phase_kernel as PK
 from engine.dtw import Aligner, Band, align_features
 from engine.splice import pipeline as P
 from engine.splice import transfer as TR
-from engine.splice.split import make_case
 
 
 @pytest.fixture(scope="module")

@@ -79,18 +79,22 @@ def test_cli_paths_and_roles_round_trip():
 def test_defaults_from_empty_object():
     spec = parse_session("{}")
     assert (spec.side, spec.band, spec.refine_band, spec.tolerance, spec.points) == \
-        ("right", 0.3, 0.1, 0.0, ())
+        ("right", None, None, 0.0, ())  # no width: the default for the take (constraints)
 
 
 @pytest.mark.parametrize(("data", "field", "words"), [
     ({"points": [{"body": 1, "hand": 2}, {"body": 5, "hand": 9, "tolerance": -1}]},
-     "points[1].tolerance", "expected a number >= 0"),
+     "points[1].tolerance", "expected a number of frames from 0 to 500, got -1"),
     ({"points": [{"body": 10, "hand": 2}, {"body": 5, "hand": 9}]}, "points[1]", "after"),
     ({"points": [{"body": 1.5, "hand": 2}]}, "points[0].body", "whole frame"),
     ({"points": [{"hand": 2}]}, "points[0].body", "missing"),
-    ({"band": 0}, "band", "> 0"),
-    ({"band": "wide"}, "band", "expected a number"),
-    ({"refine_band": 1.5}, "refine_band", "<= 1"),
+    ({"band": 0}, "band", "from 0.02 to 1"),
+    ({"band": 0.01}, "band", "from 0.02 to 1"),
+    ({"band": "wide"}, "band", "expected a fraction of the body take"),
+    ({"band": "0.3"}, "band", "expected a fraction of the body take"),
+    ({"tolerance": 1000}, "tolerance", "from 0 to 500"),
+    ({"refine_band": 1.5}, "refine_band", "from 0.01 to 1"),
+    ({"refine_band": 0.001}, "refine_band", "from 0.01 to 1"),
     ({"side": "middle"}, "side", "right, left, both"),
     ({"inputs": {"body": {"sha256": "xyz"}}}, "inputs.body.sha256", "64"),
     ({"inputs": {"sample": "a", "body": {"path": "x"}}}, "inputs", "not both"),
@@ -127,7 +131,7 @@ def test_query_round_trip():
 
 
 def test_query_errors():
-    with pytest.raises(SessionError, match="pts"):
+    with pytest.raises(SessionError, match=r"points\[0\]"):
         from_query({"pts": "1:2:3:4"})
     with pytest.raises(SessionError, match="band"):
         from_query({"band": "x"})

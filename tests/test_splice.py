@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from conftest import MOCAP
 
+from benchmarks.split import finger_error, finger_pairs, make_case
 from engine import rotations as rot
 from engine.errors import ParameterError, RoleError
 from engine.io.bvh import read_bvh, write_bvh
@@ -15,7 +16,6 @@ from engine.roles import find_roles
 from engine.splice import merge as MG
 from engine.splice import pipeline as P
 from engine.splice.report import build_report, dumps
-from engine.splice.split import finger_error, finger_pairs, make_case
 
 
 @pytest.fixture(scope="module")
@@ -240,7 +240,7 @@ def test_report_has_the_map_both_passes_and_timings(beat_case, beat_result):
 
 
 def test_partial_hand_takes_rooted_at_the_shoulder_or_forearm(beat_case):
-    from engine.splice.split import subset
+    from benchmarks.split import subset
 
     hand = beat_case.hand
     sk = hand.skeleton

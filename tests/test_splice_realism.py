@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from engine.splice.split import Realism, make_case
 
 from engine.splice import merge as MG
 from engine.splice import pipeline as P
 from engine.splice.report import build_report
-from engine.splice.split import Realism, make_case
 
 
 def _timing_ms(case, result):

@@ -270,8 +270,8 @@ def test_upload_folder_problems_are_one_line_upload_errors(cfg, tmp_path, monkey
 def test_upload_limit_has_one_source():
     import argparse
 
-    from engine.cli import serve
     from engine.limits import MAX_UPLOAD_BYTES
+    from webapp import serve_cli as serve
 
     assert config.AppConfig().max_upload_bytes == MAX_UPLOAD_BYTES
     parser = argparse.ArgumentParser()

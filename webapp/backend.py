@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from engine import tolerances as T
 from engine.errors import HandSpliceError
 
 #: command-line wording in engine messages -> what the page calls the same control
@@ -67,8 +68,8 @@ class Solution:
     pass2: PassResult
     warp: np.ndarray
     points: tuple = ()
-    band: float = 0.3
-    refine_band: float = 0.1
+    band: object = None  # engine.dtw.constraints.Width (or a fraction) as given
+    refine_band: object = None
     seconds: float = 0.0
     cache: dict = field(default_factory=dict, compare=False, repr=False)
 
@@ -139,7 +140,7 @@ _PREPARED_LIMIT = 4
 #: pass-1 local costs are tabulated once per pair up to this many cells (8 bytes each):
 #: a drag then re-solves from the table (a few ns per cell) instead of evaluating the
 #: sign metric with its θ (eq. 7) per cell (tens of ns)
-DENSE_PASS1_MAX_CELLS = 6_000_000
+DENSE_PASS1_MAX_CELLS = T.DENSE_PASS1_MAX_CELLS  # engine.tolerances: every cell budget
 _PREPARE_LOCK = threading.Lock()
 
 
@@ -195,7 +196,7 @@ def _prepare(body_path: Path, hand_path: Path, side: str, key: tuple, roles: dic
     n, m = features.n, features.m
     pass1_cost = None
     if n * m <= DENSE_PASS1_MAX_CELLS:
-        pass1_cost = _local_costs(features.pass1_rows, "splice_phase", np.arange(n),
+        pass1_cost = _local_costs(features.pass1_rows, pipeline.DEFAULT_METRICS[0], np.arange(n),
                                   np.arange(m))
     return Prepared(key=key, body=body, hand=hand, side=side, n=n, m=m, features=features,
                     body_signal=_normalised(body_speed), hand_signal=_normalised(hand_speed),
@@ -203,21 +204,24 @@ def _prepare(body_path: Path, hand_path: Path, side: str, key: tuple, roles: dic
 
 
 def _phases(features) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Gesture phases of the first spliced arm's wrist: body ``(n,)``, hand ``(m,)``."""
     try:
-        from engine.splice import pipeline
+        from engine.gesture.phases import marker_phase_labels
 
-        return pipeline.phase_labels(features)
+        return (marker_phase_labels(features.body_markers, features.fps),
+                marker_phase_labels(features.hand_markers, features.fps))
     except (ImportError, AttributeError, HandSpliceError, ValueError):
         return None, None
 
 
-def solve(prepared: Prepared, band: float, refine_band: float, points, previous=None) -> Solution:
-    """Pass 1 and pass 2 for band widths ``band``/``refine_band`` (fractions of n) and
-    matching points ``[(body, hand, tol), ...]``; ValueError/HandSpliceError if infeasible."""
+def solve(prepared: Prepared, band, refine_band, points, previous=None) -> Solution:
+    """Pass 1 and pass 2 for band widths ``band``/``refine_band`` (``constraints.Width``,
+    fractions of n or ``"10s"``) and matching points ``[(body, hand, tol), ...]``;
+    ValueError/HandSpliceError if infeasible (the checks are engine.dtw.constraints')."""
     from engine.splice import pipeline
 
     t0 = time.perf_counter()
-    points = tuple((int(x), int(y), float(t)) for x, y, t in points)
+    points = tuple(points)
     with prepared.lock:
         earlier = None if previous is None else previous.cache.get("engine")
         if earlier is None and prepared.pass1_cost is not None:
@@ -297,9 +301,10 @@ def cost_view(prepared: Prepared, solution: Solution | None, kind: str, ranges,
     if kind == "pass1" and prepared.pass1_cost is not None:
         image = prepared.pass1_cost[np.ix_(rows, cols)]
     elif kind == "pass1":
-        image = _local_costs(prepared.features.pass1_rows, "splice_phase", rows, cols)
+        image = _local_costs(prepared.features.pass1_rows, pipeline.DEFAULT_METRICS[0], rows,
+                             cols)
     elif kind == "pass2" and engine_result is not None:
-        image = _local_costs(engine_result.pass2.rows, "splice_angle", rows, cols)
+        image = _local_costs(engine_result.pass2.rows, engine_result.pass2.metric, rows, cols)
     else:
         with prepared.lock:
             image = pipeline.cost_image(prepared.features, kind, rows, cols, engine_result)
@@ -426,13 +431,10 @@ def render_closeup(prepared: Prepared, solution: Solution, body_frame: int,
 
 
 def png_bytes(image: np.ndarray) -> bytes:
-    import io
+    """PNG bytes of ``image (H, W, 3) uint8`` (engine.render.video's encoder)."""
+    from engine.render.video import to_png_bytes
 
-    from PIL import Image
-
-    buf = io.BytesIO()
-    Image.fromarray(np.asarray(image, dtype=np.uint8)).save(buf, format="PNG", optimize=False)
-    return buf.getvalue()
+    return to_png_bytes(np.asarray(image, dtype=np.uint8))
 
 
 def preview_video(prepared: Prepared, solution: Solution, fmt: str, camera: str = "three-quarter",
@@ -445,11 +447,9 @@ def preview_video(prepared: Prepared, solution: Solution, fmt: str, camera: str 
     total) when the file is encoded. Safe to call from a worker thread (the renderer
     serialises OpenGL calls), which is how the app runs it.
     """
-    import io
+    import tempfile
 
-    import imageio.v3 as iio
-
-    from engine.render.video import gif_bytes
+    from engine.render.video import gif_bytes, write_mp4
 
     if prepared is None or solution is None:
         raise HandSpliceError("no takes loaded")
@@ -464,27 +464,21 @@ def preview_video(prepared: Prepared, solution: Solution, fmt: str, camera: str 
         if progress is not None:
             progress(done, total)
     fps = max(1.0, float(prepared.body.fps) / step)
-    buf = io.BytesIO()
+    # one video encoder for the CLI and the app: engine.render.video
     if fmt == "gif":
-        buf.write(gif_bytes(frames, fps))  # exact timing: per-frame centisecond delays
+        data = gif_bytes(frames, fps)  # exact timing: per-frame centisecond delays
     else:
-        iio.imwrite(buf, np.stack(frames), extension=".mp4", fps=fps, codec="libx264",
-                    plugin="pyav" if _has_pyav() else None)
+        with tempfile.TemporaryDirectory(prefix="handsplice-video-") as folder:
+            path = Path(folder) / "preview.mp4"
+            write_mp4(frames, path, fps)
+            data = path.read_bytes()
     if progress is not None:
         progress(total, total)
-    return buf.getvalue()
+    return data
 
 
-def _has_pyav() -> bool:
-    try:
-        import av  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
-def cli_command(prepared: Prepared, body: str, hand: str, side: str, band: float,
-                refine_band: float, points, roles: dict | None = None) -> str:
+def cli_command(prepared: Prepared, body: str, hand: str, side: str, band,
+                refine_band, points, roles: dict | None = None) -> str:
     """The ``handsplice splice`` command line that reproduces this alignment.
 
     ``points``: ``[(body, hand, tol)]`` in each file's own frames (the page's and
@@ -492,10 +486,14 @@ def cli_command(prepared: Prepared, body: str, hand: str, side: str, band: float
     """
     import shlex
 
+    from engine.dtw import constraints as C
+
+    feats = prepared.features
     parts = ["handsplice", "splice", shlex.quote(body), shlex.quote(hand), "-o", "spliced.bvh",
-             "--side", side, "--band", f"{band:g}", "--refine-band", f"{refine_band:g}"]
-    for x, y, tol in points:
-        parts += ["--match", f"{int(x)}:{int(y)}" + (f":{tol:g}" if tol else "")]
+             "--side", side, "--band", C.BAND.parse(band).text(),
+             "--refine-band", C.REFINE_BAND.parse(refine_band).text()]
+    for x, h, tol in C.points_to_hand(points, feats.fps, feats.hand_fps, feats.m_hand):
+        parts += ["--match", C.MatchPoint(x, h, tol or None).text()]
     if roles:
         parts += ["--roles", "ROLES.json"]
     return " ".join(parts)

@@ -22,12 +22,13 @@ from urllib.parse import urlencode
 import numpy as np
 import param
 
+from engine.dtw import constraints as C
 from engine.errors import HandSpliceError
 from engine.io import session as session_io
 from engine.io.session import MatchPoint, SessionSpec, TakeRef
 from webapp import backend, config
 
-EDIT_PARAMS = ("band", "refine_band", "tolerance", "points")
+EDIT_PARAMS = ("band", "band_s", "refine_band", "refine_band_s", "tolerance", "points")
 INPUT_PARAMS = ("sample", "body_sha256", "hand_sha256", "side", "roles")
 MATRIX_LABELS = {
     "pass1": "Pass 1 local cost D1 (signs of velocity, acceleration)",
@@ -78,11 +79,20 @@ class Session(param.Parameterized):
                                        '"hand": {...}} for unusual joint names')
 
     # parameters and constraints (undoable edits)
-    band = param.Number(default=0.3, bounds=(0.02, 1.0), step=0.01,
+    # defaults and ranges: engine.dtw.constraints (the same for links, files and widgets)
+    band = param.Number(default=C.BAND.default, bounds=(C.BAND.lo, C.BAND.hi), step=0.01,
                         doc="pass-1 band width W1, fraction of the body take's length")
-    refine_band = param.Number(default=0.1, bounds=(0.01, 1.0), step=0.01,
+    band_s = param.Number(default=None, allow_None=True, bounds=(C.BAND.lo_s, C.BAND.hi_s),
+                          step=0.5, doc="pass-1 band width W1 in seconds; wins over the "
+                                        "fraction when set (long takes get one by default)")
+    refine_band = param.Number(default=C.REFINE_BAND.default,
+                               bounds=(C.REFINE_BAND.lo, C.REFINE_BAND.hi), step=0.01,
                                doc="pass-2 band width W2 around the pass-1 path, fraction")
-    tolerance = param.Number(default=0.0, bounds=(0.0, 500.0), step=1.0,
+    refine_band_s = param.Number(default=None, allow_None=True,
+                                 bounds=(C.REFINE_BAND.lo_s, C.REFINE_BAND.hi_s), step=0.1,
+                                 doc="pass-2 band width W2 in seconds; wins when set")
+    tolerance = param.Number(default=C.TOLERANCE.default, bounds=(C.TOLERANCE.lo,
+                             C.TOLERANCE.hi), step=1.0,
                              doc="global matching-point tolerance T in hand frames")
     points = param.Parameter(default=(), doc="matching points: tuple of MatchPoint, body and "
                                              "hand frames each in its own file's numbering")
@@ -188,12 +198,32 @@ class Session(param.Parameterized):
         self._applying = True
         try:
             kept = tuple(p for p in self.points if p.body < self.n and p.hand < self.m_hand)
-            self.param.update(points=kept, frame=min(self.frame, max(self.n - 1, 0)))
+            self.param.update(points=kept, frame=min(self.frame, max(self.n - 1, 0)),
+                              **self._long_take_widths(prepared))
         finally:
             self._applying = False
         self.inputs_revision += 1
         self._solve(t0=t0)
         self._update_history_flags()
+
+    def _long_take_widths(self, prepared) -> dict:
+        """Time widths for a long take when the fractions are still the defaults (the
+        constraints' rule: the paper's fraction, at most a few seconds)."""
+        out = {}
+        for name, rule in (("band", C.BAND), ("refine_band", C.REFINE_BAND)):
+            if getattr(self, f"{name}_s") is None and getattr(self, name) == rule.default:
+                width = rule.default_for(prepared.n, prepared.features.fps)
+                if width.unit == C.SECONDS:
+                    out[f"{name}_s"] = width.value
+        return out
+
+    def widths(self) -> tuple[C.Width, C.Width]:
+        """The pass-1 and pass-2 band widths in force (seconds when set, else fractions)."""
+        band = C.Width(self.band_s, C.SECONDS) if self.band_s is not None \
+            else C.Width(self.band)
+        refine = C.Width(self.refine_band_s, C.SECONDS) if self.refine_band_s is not None \
+            else C.Width(self.refine_band)
+        return band, refine
 
     # ------------------------------------------------------------ edits
 
@@ -254,6 +284,30 @@ class Session(param.Parameterized):
     def _update_history_flags(self) -> None:
         self.param.update(can_undo=bool(self._undo), can_redo=bool(self._redo))
 
+    def set_constraints(self, band=None, refine_band=None, tolerance=None, points=None) -> bool:
+        """Band widths (a fraction, ``"10s"`` or a ``Width``), the global tolerance and the
+        matching points as a person types them, checked by engine.dtw.constraints as every
+        front is; one undoable edit. False (and ``error``, nothing changed) if refused."""
+        values: dict = {}
+        try:
+            for name, rule, value in (("band", C.BAND, band),
+                                      ("refine_band", C.REFINE_BAND, refine_band)):
+                width = rule.parse(value)
+                if width is not None and width.unit == C.SECONDS:
+                    values[f"{name}_s"] = width.value
+                elif width is not None:
+                    values.update({name: width.value, f"{name}_s": None})
+            if tolerance is not None:
+                values["tolerance"] = C.parse_tolerance(tolerance)
+            if points is not None:
+                values["points"] = C.parse_points(points)
+        except C.ConstraintError as exc:
+            self.error = str(exc)
+            return False
+        self.error = ""
+        self.param.update(**values)
+        return not self.error
+
     # matching-point edits (each one undoable)
 
     def set_points(self, points) -> None:
@@ -274,10 +328,12 @@ class Session(param.Parameterized):
         self.set_points(pts)
 
     def set_point_tolerance(self, index: int, tolerance: float | None) -> None:
-        if tolerance is not None and not (np.isfinite(tolerance) and tolerance >= 0):
-            self.error = (f"tolerance of matching point {index + 1}: expected a number of hand "
-                          f"frames ≥ 0 (empty = the global tolerance), got {tolerance}")
-            return
+        if tolerance is not None:
+            try:
+                tolerance = C.parse_tolerance(tolerance, f"points[{index}].tolerance")
+            except C.ConstraintError as exc:
+                self.error = str(exc)
+                return
         pts = list(self.points)
         pts[index] = MatchPoint(pts[index].body, pts[index].hand,
                                 None if tolerance is None else float(tolerance))
@@ -370,14 +426,13 @@ class Session(param.Parameterized):
         return [MatchPoint(*c) for c in after]  # not one click, drag or delete: take it whole
 
     def _normalise(self, points) -> tuple[MatchPoint, ...]:
-        out = []
-        for p in points:
-            if not isinstance(p, MatchPoint):
-                p = MatchPoint(int(p[0]), int(p[1]), None if len(p) < 3 or p[2] is None
-                               else float(p[2]))
-            out.append(p)
-        out.sort(key=lambda p: (p.body, p.hand))
-        return tuple(out)
+        """Points placed anywhere, in body-frame order; refused (``error``) when they break a
+        constraint (engine.dtw.constraints): the points stay as they were."""
+        try:
+            return C.sort_points(points)
+        except C.ConstraintError as exc:
+            self.error = str(exc)
+            return self.points
 
     # ------------------------------------------------------------ compute
 
@@ -389,13 +444,14 @@ class Session(param.Parameterized):
                 raise HandSpliceError(
                     f"matching point (body {p.body}, hand {p.hand}) not kept: it is outside "
                     f"the takes (body frames 0–{self.n - 1}, hand frames 0–{self.m_hand - 1})")
-        for a, b in zip(pts, pts[1:]):
-            if not (b.body > a.body and b.hand > a.hand):
+        for a, b in zip(pts, pts[1:]):  # equal hand frames are a hold (constraints)
+            if not (b.body > a.body and b.hand >= a.hand):
+                where = "is at the same body frame" if b.body == a.body else \
+                    "comes later in the hand take"
                 raise HandSpliceError(
                     f"matching point (body {b.body}, hand {b.hand}) not kept: matching points "
                     f"go forward in both takes, and point (body {a.body}, hand {a.hand}) "
-                    f"{'is at the same body frame' if b.body == a.body else 'comes later in the hand take'}")
-        session_io.validate(SessionSpec(points=pts))
+                    f"{where}")
 
     def _solve(self, t0: float | None = None) -> bool:
         """Recompute band and path for the current state; False (and ``error``) if rejected."""
@@ -404,7 +460,8 @@ class Session(param.Parameterized):
         t0 = time.perf_counter() if t0 is None else t0
         try:
             self._check_points()
-            sol = backend.solve(self.prepared, band=self.band, refine_band=self.refine_band,
+            band, refine = self.widths()
+            sol = backend.solve(self.prepared, band=band, refine_band=refine,
                                 points=self.constraint_points(), previous=self.solution)
         except (HandSpliceError, ValueError) as exc:
             self.error = backend.one_line(exc)
@@ -503,9 +560,10 @@ class Session(param.Parameterized):
             body = TakeRef(sha256=self.body_sha256, name=self.body_name or None)
         if not self.sample and self.hand_sha256:
             hand = TakeRef(sha256=self.hand_sha256, name=self.hand_name or None)
+        band, refine = self.widths()
         return SessionSpec(sample=self.sample, body=body, hand=hand, side=self.side,
                            hand_frames="file",
-                           band=self.band, refine_band=self.refine_band,
+                           band=band, refine_band=refine,
                            tolerance=self.tolerance, points=self.points, roles=dict(self.roles),
                            view={"matrix": self.matrix, "frame": self.frame})
 
@@ -557,20 +615,27 @@ class Session(param.Parameterized):
                                               "body and hand takes (none are open)")
         roles = dict(spec.roles)
         prepared = backend.prepare(paths[0], paths[1], spec.side, roles)
-        points = self._normalise(spec.points)
+        points = tuple(spec.points)  # checked by engine.dtw.constraints when the spec was made
         if spec.hand_frames == "grid":  # an old file or link: hand frames on the grid
             points = self._normalise(backend.grid_points_to_hand(
                 prepared, [(p.body, p.hand, p.tolerance) for p in points]))
-        session_io.validate(SessionSpec(points=points))
         for k, p in enumerate(points):
             if not (p.body < prepared.n and p.hand < prepared.m_hand):
                 raise HandSpliceError(f"points[{k}]: ({p.body}, {p.hand}) is outside the "
                                       f"{prepared.n} x {prepared.m_hand} matrix of these takes")
+        fps = prepared.features.fps
+        band = spec.band or C.BAND.default_for(prepared.n, fps)
+        refine = spec.refine_band or C.REFINE_BAND.default_for(prepared.n, fps)
         grid = backend.points_to_grid(prepared, [p.resolved(spec.tolerance) for p in points])
-        solution = backend.solve(prepared, band=spec.band, refine_band=spec.refine_band,
-                                 points=grid)
-        values = dict(inputs, side=spec.side, roles=roles, band=spec.band,
-                      refine_band=spec.refine_band, tolerance=spec.tolerance, points=points,
+        solution = backend.solve(prepared, band=band, refine_band=refine, points=grid)
+        widths = {}
+        for name, width in (("band", band), ("refine_band", refine)):
+            if width.unit == C.SECONDS:
+                widths[f"{name}_s"] = width.value
+            else:
+                widths.update({name: width.value, f"{name}_s": None})
+        values = dict(inputs, side=spec.side, roles=roles, **widths,
+                      tolerance=spec.tolerance, points=points,
                       matrix=spec.view.get("matrix", self.matrix),
                       frame=int(min(spec.view.get("frame", 0), max(prepared.n - 1, 0))))
         return {"values": values, "prepared": prepared, "solution": solution,

@@ -21,7 +21,11 @@ from engine import __version__
 from engine.errors import HandSpliceError
 
 # module names under engine.cli, in the order shown by --help
-SUBCOMMANDS = ["info", "splice", "analyze", "synthesize", "render", "serve", "batch"]
+SUBCOMMANDS = ["info", "splice", "analyze", "synthesize", "render", "batch"]
+#: subcommands that live in other packages, imported by name when the parser is built
+#: (no static import: the engine never depends on the web app; without the app installed
+#: the subcommand is simply absent)
+PLUGINS = {"serve": "webapp.serve_cli"}
 
 
 class _Parser(argparse.ArgumentParser):
@@ -35,11 +39,13 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true", help="show tracebacks for errors")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for name in SUBCOMMANDS:
+        importlib.import_module(f"engine.cli.{name}").add_parser(sub)
+    for module_name in PLUGINS.values():
         try:
-            module = importlib.import_module(f"engine.cli.{name}")
+            module = importlib.import_module(module_name)
         except ModuleNotFoundError as exc:
-            if exc.name == f"engine.cli.{name}":
-                continue  # subcommand not built yet
+            if exc.name is not None and module_name.startswith(exc.name):
+                continue  # that package is not installed: no such subcommand
             raise
         module.add_parser(sub)
     return parser

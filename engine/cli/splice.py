@@ -3,15 +3,18 @@
 ::
 
     handsplice splice BODY HAND -o OUT.bvh [--side auto|both|right|left]
-        [--band 0.3] [--refine-band 0.1] [--match BODY_FRAME:HAND_FRAME[:TOL] ...]
+        [--band 0.3|10s] [--refine-band 0.1|2s] [--match BODY_FRAME:HAND_FRAME[:TOL] ...]
         [--report REPORT.json] [--preview OUT.gif] [--roles MAP.json]
         [--session SESSION.json] [--theta window|trunk|none] [--quiet]
 
 * ``--side``: ``auto`` (default) splices both hands, aligned jointly, when both takes
   have both, else the side they share; ``both``/``right``/``left`` insist.
+* ``--band``, ``--refine-band``: a fraction of the body take (``0.3``) or seconds
+  (``10s``); default the paper's 0.3 and 0.1, at most 10 s and 2 s on long takes
+  (ranges and defaults: :mod:`engine.dtw.constraints`).
 * ``--match B:H[:T]``: body frame ``B`` matches frame ``H`` of the hand take (as
   numbered in the hand file, 0-based) within ``T`` hand frames (default 0). Repeat
-  for several points; they must increase in both frames.
+  for several points; body frames increase, hand frames never decrease.
 * ``--roles MAP.json``: joint-role overrides, ``{"body": {"right.wrist": "Name"},
   "hand": {...}}``, or one flat map applied to whichever take has those joints.
 * ``--session SESSION.json``: the session file the browser app downloads
@@ -46,10 +49,12 @@ def add_parser(subparsers) -> None:
     p.add_argument("-o", "--output", required=True, metavar="OUT.bvh", help="spliced take")
     p.add_argument("--side", default=None, choices=["auto", "both", "right", "left"],
                    help="hands to splice (default auto: both when both takes have both)")
-    p.add_argument("--band", type=float, default=None,
-                   help="pass-1 band width, fraction of the body length (default 0.3)")
-    p.add_argument("--refine-band", type=float, default=None,
-                   help="pass-2 band width around the pass-1 path (default 0.1)")
+    p.add_argument("--band", default=None, metavar="W1",
+                   help="pass-1 band width: fraction of the body take (0.3) or seconds (10s); "
+                        "default 0.3, at most 10s on long takes")
+    p.add_argument("--refine-band", default=None, metavar="W2",
+                   help="pass-2 band width around the pass-1 path, the same forms; "
+                        "default 0.1, at most 2s")
     p.add_argument("--match", action="append", default=[], metavar="BODY:HAND[:TOL]",
                    help="matching point: body frame, hand frame, tolerance in hand frames")
     p.add_argument("--report", metavar="REPORT.json", help="write the alignment report")
@@ -69,24 +74,6 @@ def add_parser(subparsers) -> None:
                         "(default: half of the shorter take)")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     p.set_defaults(func=run)
-
-
-def parse_match(text: str) -> tuple[int, int, float]:
-    """``"120:98"`` or ``"120:98:2"`` -> (120, 98, 2.0); ParameterError otherwise."""
-    from engine.errors import ParameterError
-
-    parts = text.split(":")
-    if len(parts) not in (2, 3):
-        raise ParameterError(f"--match {text!r}: expected BODY_FRAME:HAND_FRAME[:TOL]")
-    try:
-        body, hand = int(parts[0]), int(parts[1])
-        tol = float(parts[2]) if len(parts) == 3 else 0.0
-    except ValueError:
-        raise ParameterError(f"--match {text!r}: frames must be whole numbers and the "
-                             "tolerance a number") from None
-    if body < 0 or hand < 0 or not tol >= 0:
-        raise ParameterError(f"--match {text!r}: frames and tolerance must be >= 0")
-    return body, hand, tol
 
 
 def split_roles(mapping: dict, body, hand) -> tuple[dict | None, dict | None]:
@@ -136,6 +123,7 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from engine.atomic import write_texts
+    from engine.dtw import constraints as C
     from engine.errors import ParameterError
     from engine.io import load_take
     from engine.io.bvh import format_bvh
@@ -150,19 +138,16 @@ def run(args: argparse.Namespace) -> int:
 
         spec = read_session(args.session)
     args.side = args.side or (spec.side if spec else "auto")
-    args.band = args.band if args.band is not None else (spec.band if spec else 0.3)
-    args.refine_band = args.refine_band if args.refine_band is not None else (
-        spec.refine_band if spec else 0.1)
-    if not (0.0 <= args.band <= 10.0):
-        raise ParameterError(f"--band {args.band}: expected a fraction of the body length, "
-                             "e.g. 0.3")
-    if not (0.0 <= args.refine_band <= 10.0):
-        raise ParameterError(f"--refine-band {args.refine_band}: expected a fraction, e.g. 0.1")
+    band = C.BAND.parse(args.band)
+    refine_band = C.REFINE_BAND.parse(args.refine_band)
+    if spec is not None:
+        band = band if band is not None else spec.band
+        refine_band = refine_band if refine_band is not None else spec.refine_band
     if args.preview:
         suffix = Path(args.preview).suffix.lower()
         if suffix not in (".gif", ".mp4", ".png"):
             raise ParameterError(f"--preview {args.preview}: expected a .gif, .mp4 or .png file")
-    points = [parse_match(m) for m in args.match]
+    points = [p.resolved(0.0) for p in C.parse_points(list(args.match))]
     # --match points are hand-file frames; so are a session file's since version 2 (version
     # 1 files hold alignment-grid frames)
     hand_points = bool(points) or spec is None or spec.hand_frames == "file"
@@ -180,19 +165,14 @@ def run(args: argparse.Namespace) -> int:
         body_roles, hand_roles = split_roles(mapping, body, hand)
     elif spec is not None and spec.roles:
         body_roles, hand_roles = split_roles(spec.roles, body, hand)
-    for x, y, _ in points if hand_points else ():
-        if x >= body.n_frames:
-            raise ParameterError(f"--match {x}:{y}: body frame {x} is past the body take's "
-                                 f"last frame {body.n_frames - 1}")
-        if y >= hand.n_frames:
-            raise ParameterError(f"--match {x}:{y}: hand frame {y} is past the hand take's "
-                                 f"last frame {hand.n_frames - 1}")
+    if hand_points:  # in the files' own frames, before the long work
+        C.check_points(points, body.n_frames, hand.n_frames)
 
     from engine.splice.report import build_report, dumps
 
     progress = _Progress(args.quiet)
-    result = pipeline.splice(body, hand, side=args.side, band=args.band,
-                             refine_band=args.refine_band, points=points,
+    result = pipeline.splice(body, hand, side=args.side, band=band,
+                             refine_band=refine_band, points=points,
                              hand_points=hand_points,
                              theta=args.theta, body_roles=body_roles, hand_roles=hand_roles,
                              progress=progress, ends=args.ends,

@@ -141,7 +141,7 @@ def align(cost, band: Band, ends: Ends | None = None) -> Alignment:
         Open ends (default: fixed, (0, 0) to (n-1, m-1)).
     """
     problem = Problem.from_cost(cost)
-    return problem.solve(_check_band(band, problem), as_ends(ends))
+    return problem.solve(check_band(band, problem), as_ends(ends))
 
 
 def align_features(a, b, band: Band, metric: str | Dispatcher = "sqeuclidean",
@@ -166,10 +166,10 @@ def align_features(a, b, band: Band, metric: str | Dispatcher = "sqeuclidean",
         Open ends (default: fixed).
     """
     problem = Problem.from_features(a, b, metric)
-    return problem.solve(_check_band(band, problem), as_ends(ends))
+    return problem.solve(check_band(band, problem), as_ends(ends))
 
 
-def _check_band(band, problem: Problem) -> Band:
+def check_band(band, problem: Problem) -> Band:
     if not isinstance(band, Band):
         raise TypeError(f"band must be an engine.dtw.Band, got {type(band).__name__}")
     band.check_fits((problem.n, problem.m), problem.what)

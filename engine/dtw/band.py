@@ -32,9 +32,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from engine.dtw.constraints import EPS as _EPS
+from engine.dtw.constraints import check_points, half_width
 from engine.errors import ParameterError
-
-_EPS = 1e-9  # slack when rounding band edges computed in floating point
 
 
 def _as_count(value, name: str) -> int:
@@ -298,7 +298,7 @@ class Band:
                 raise ParameterError(f"band width must be a number (fraction of n), got {width!r}")
             if not math.isfinite(width) or width < 0:
                 raise ParameterError(f"band width must be a finite fraction >= 0, got {width!r}")
-        xs, ys, tols = _parse_points(points, n, m, open_ends)
+        xs, ys, tols = check_points(points, n, m, open_ends=open_ends)
         hard_lo, hard_hi = _tolerance_clips(n, m, xs, ys, tols)
         if width is None:
             return cls(hard_lo, hard_hi, m, open_ends=open_ends)
@@ -400,77 +400,6 @@ def check_path(path, n: int, m: int, open_ends: bool = False) -> np.ndarray:
     return arr
 
 
-def _point_text(k: int, x, y, tol) -> str:
-    return f"points[{k}] = (x={x:g}, y={y:g}, tol={tol:g})"
-
-
-def _parse_points(points, n: int, m: int, open_ends: bool = False):
-    """Validated (xs, ys, tols) int64 arrays of the user's matching points."""
-    if points is None:
-        points = ()
-    xs, ys, tols = [], [], []
-    for k, p in enumerate(points):
-        try:
-            vals = [float(v) for v in p]
-        except (TypeError, ValueError):
-            raise ParameterError(f"points[{k}] = {p!r}: expected (x, y) or (x, y, tol)") from None
-        if len(vals) not in (2, 3):
-            raise ParameterError(f"points[{k}] = {p!r}: expected (x, y) or (x, y, tol)")
-        x, y = vals[0], vals[1]
-        tol = vals[2] if len(vals) == 3 else 0.0
-        where = _point_text(k, x, y, tol)
-        if not all(math.isfinite(v) for v in (x, y, tol)):
-            raise ParameterError(f"{where}: values must be finite")
-        if x != round(x) or y != round(y):
-            raise ParameterError(f"{where}: body and hand frames must be whole numbers")
-        if tol < 0:
-            raise ParameterError(f"{where}: tolerance must be >= 0 frames")
-        if not (0 <= x <= n - 1 and 0 <= y <= m - 1):
-            raise ParameterError(
-                f"{where} is outside the {n} x {m} matrix (x in 0..{n - 1}, y in 0..{m - 1})"
-            )
-        t = math.floor(tol + _EPS)
-        if xs:
-            px, py, pt = xs[-1], ys[-1], tols[-1]
-            before = _point_text(k - 1, px, py, pt)
-            if x == px and y == py:
-                raise ParameterError(f"{where} duplicates {before}")
-            if x == px:
-                raise ParameterError(
-                    f"{where} is on the same body frame as {before}; give one point per body frame "
-                    "(a larger tolerance covers a range of hand frames)"
-                )
-            if x < px:
-                raise ParameterError(
-                    f"{where} is out of order: body frames must increase (after {before})"
-                )
-            if y < py:
-                raise ParameterError(
-                    f"{where} crosses {before}: the hand frame goes back from {py:g} to {y:g} "
-                    "while the body frame advances, and a path cannot go back in time"
-                )
-            if x == px + 1 and y - t > py + pt + 1:
-                raise ParameterError(
-                    f"{where} and {before} are on consecutive body frames, but their hand frames "
-                    f"{py:g} and {y:g} are more than one step apart after tolerances; "
-                    "increase a tolerance or move a point"
-                )
-        if x == 0 and y - t > 0 and not open_ends:
-            raise ParameterError(
-                f"{where}: every path starts at (0, 0), so on body frame 0 it covers hand frame 0; "
-                f"the tolerance must be at least {y:g}"
-            )
-        if x == n - 1 and y + t < m - 1 and not open_ends:
-            raise ParameterError(
-                f"{where}: every path ends at ({n - 1}, {m - 1}), so on body frame {n - 1} it "
-                f"covers hand frame {m - 1}; the tolerance must be at least {m - 1 - y:g}"
-            )
-        xs.append(int(x))
-        ys.append(int(y))
-        tols.append(int(t))
-    return (np.array(xs, np.int64), np.array(ys, np.int64), np.array(tols, np.int64))
-
-
 def _anchors(n: int, m: int, xs, ys):
     """Anchor rows/columns: virtual start (-1, -1), the points, end (n-1, m-1)."""
     ax = [-1, *xs.tolist()]
@@ -508,7 +437,7 @@ def _diagonal_segments(n: int, m: int, w_frames: float, xs, ys):
     for k in range(1, len(ax)):
         x0, y0, x1, y1 = ax[k - 1], ay[k - 1], ax[k], ay[k]
         dx, dy = x1 - x0, y1 - y0
-        lam = w_frames * math.hypot(dx, dy) / (2.0 * dx)  # Λ_k, eq. 4
+        lam = half_width(w_frames, dx, dy)  # Λ_k, eq. 4
         t = np.arange(1, dx + 1, dtype=np.float64)
         c = y0 + dy * t / dx  # exact at t = dx
         rows = slice(x0 + 1, x1 + 1)

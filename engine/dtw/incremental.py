@@ -72,7 +72,7 @@ import numpy as np
 from numba.core.dispatcher import Dispatcher
 
 from . import kernels as K
-from .align import FIXED, Alignment, Ends, Problem, _check_band, as_ends, check_ends, check_total
+from .align import FIXED, Alignment, Ends, Problem, as_ends, check_band, check_ends, check_total
 from .band import Band
 from .views import BandValues
 
@@ -226,7 +226,7 @@ class Aligner:
 
         ``ends`` (``engine.dtw.Ends``, default fixed): open ends; a change of ends
         recomputes every row (the virtual start row and column change)."""
-        _check_band(band, self._problem)
+        check_band(band, self._problem)
         ends = as_ends(ends)
         check_ends(band, ends)
         with self._lock:

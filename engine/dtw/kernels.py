@@ -278,7 +278,7 @@ def _use_pair(lo, hi, i, i1):
 # local cost rows
 # ---------------------------------------------------------------------------
 @njit_cached()
-def _fill_builtin(a, bT, kind, i, lo, hi, crow):
+def fill_builtin(a, bT, kind, i, lo, hi, crow):
     """``crow[lo..hi]`` = cost of ``a[i]`` against ``b[lo..hi]`` (``bT`` is ``b.T``, contiguous)."""
     w = hi - lo + 1
     out = crow[lo : hi + 1]
@@ -295,7 +295,7 @@ def _fill_builtin(a, bT, kind, i, lo, hi, crow):
 
 
 @njit()
-def _fill_metric(metric, a, b, i, lo, hi, crow):
+def fill_metric(metric, a, b, i, lo, hi, crow):
     ai = a[i]
     for j in range(lo, hi + 1):
         crow[j] = metric(ai, b[j])
@@ -393,8 +393,8 @@ def forward_builtin(a, bT, kind, lo, hi, start, i0, i1, bp, gamma, keep_gamma, e
     i = i0
     while i < i1:
         if _use_pair(lo, hi, i, i1):
-            _fill_builtin(a, bT, kind, i, lo[i], hi[i], crow_a)
-            _fill_builtin(a, bT, kind, i + 1, lo[i + 1], hi[i + 1], crow_b)
+            fill_builtin(a, bT, kind, i, lo[i], hi[i], crow_a)
+            fill_builtin(a, bT, kind, i + 1, lo[i + 1], hi[i + 1], crow_b)
             bad = _dp_pair(
                 prev,
                 mid,
@@ -421,7 +421,7 @@ def forward_builtin(a, bT, kind, lo, hi, start, i0, i1, bp, gamma, keep_gamma, e
             prev, mid, cur = cur, prev, mid
             i += 2
         else:
-            _fill_builtin(a, bT, kind, i, lo[i], hi[i], crow_a)
+            fill_builtin(a, bT, kind, i, lo[i], hi[i], crow_a)
             if _dp_row(prev, cur, crow_a, lo[i], hi[i], bp[start[i] : start[i + 1]],
                        _left0(lo, i, ends)):
                 return i, np.nan
@@ -442,7 +442,7 @@ def forward_metric(metric, a, b, lo, hi, start, i0, i1, bp, gamma, keep_gamma, e
     crow = np.zeros(m)
     _init_prev(prev, gamma, lo, hi, start, i0, ends)
     for i in range(i0, i1):  # the metric dominates; one row at a time is enough
-        _fill_metric(metric, a, b, i, lo[i], hi[i], crow)
+        fill_metric(metric, a, b, i, lo[i], hi[i], crow)
         if _dp_row(prev, cur, crow, lo[i], hi[i], bp[start[i] : start[i + 1]],
                    _left0(lo, i, ends)):
             return i, np.nan
@@ -490,14 +490,14 @@ def best_end(last_row, last_col, lo, hi, ends, i_max):
 def cost_row_builtin(a, bT, kind, i, lo, hi):
     """Local costs of row ``i``, columns ``lo..hi`` (for error messages and views)."""
     crow = np.zeros(bT.shape[1])
-    _fill_builtin(a, bT, kind, i, lo, hi, crow)
+    fill_builtin(a, bT, kind, i, lo, hi, crow)
     return crow[lo : hi + 1].copy()
 
 
 @njit()
 def cost_row_metric(metric, a, b, i, lo, hi):
     crow = np.zeros(b.shape[0])
-    _fill_metric(metric, a, b, i, lo, hi, crow)
+    fill_metric(metric, a, b, i, lo, hi, crow)
     return crow[lo : hi + 1].copy()
 
 

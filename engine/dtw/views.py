@@ -226,7 +226,7 @@ def _blocks_builtin(a, bT, kind, lo, hi, rpp, cpp, h, w, use_min):
     acc, cnt = _new_blocks(h, w, use_min)
     crow = np.zeros(bT.shape[1])
     for i in range(lo.shape[0]):
-        K._fill_builtin(a, bT, kind, i, lo[i], hi[i], crow)
+        K.fill_builtin(a, bT, kind, i, lo[i], hi[i], crow)
         _accumulate(acc, cnt, crow, 0, i // rpp, lo[i], hi[i], cpp, use_min)
     return acc, cnt
 
@@ -236,6 +236,6 @@ def _blocks_metric(metric, a, b, lo, hi, rpp, cpp, h, w, use_min):
     acc, cnt = _new_blocks(h, w, use_min)
     crow = np.zeros(b.shape[0])
     for i in range(lo.shape[0]):
-        K._fill_metric(metric, a, b, i, lo[i], hi[i], crow)
+        K.fill_metric(metric, a, b, i, lo[i], hi[i], crow)
         _accumulate(acc, cnt, crow, 0, i // rpp, lo[i], hi[i], cpp, use_min)
     return acc, cnt

@@ -1,4 +1,4 @@
-"""Gesture analysis and hand synthesis (Heloir et al. 2010; Jin & Hahn 2005; METHOD.md §7-8).
+"""Gesture analysis and hand synthesis (Heloir et al. 2010; Jin & Hahn 2005; docs/method.md §7-8).
 
 - ``phases``: ``Phase`` codes (REST=0, PREPARATION=1, STROKE=2, HOLD=3,
   RETRACTION=4), ``PHASE_COLORS``, ``segment_phases(motion)`` -> per-frame labels,

@@ -6,7 +6,7 @@ Body frame, per frame: origin at the pelvis (or a shoulder), axes
 heading is the pelvis's yaw: the pelvis's world rotation applied to the rest
 pose's right-to-left shoulder line, projected on the ground plane. Removing it
 and the root translation leaves the arm's motion relative to the body, so
-walking and turning do not look like gestures (Jin & Hahn §4, METHOD.md §7-8).
+walking and turning do not look like gestures (Jin & Hahn §4, docs/method.md §7-8).
 
 Units: ``Motion.meters_per_unit`` when the file's units are known; otherwise the
 scale that makes the rest arm (shoulder to wrist) 0.55 m long.

@@ -4,7 +4,7 @@ Per phrase, ``L_RH`` and ``L_LH`` are the path lengths (metres) of the right and
 left wrist during the phrase's expressive phase (strokes, or an independent
 hold), and ``d`` its duration (seconds). If ``|L_RH - L_LH| / d`` is below the
 threshold (0.12 m/s in the paper) the phrase is ``2H``, else ``RH`` when
-``L_RH > L_LH`` and ``LH`` otherwise (METHOD.md §8).
+``L_RH > L_LH`` and ``LH`` otherwise (docs/method.md §8).
 
 Choices of this implementation (the paper leaves them open):
 

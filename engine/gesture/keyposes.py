@@ -1,4 +1,4 @@
-"""Key poses from the pose-space distance map (Jin & Hahn 2005, §4; METHOD.md §7).
+"""Key poses from the pose-space distance map (Jin & Hahn 2005, §4; docs/method.md §7).
 
 ``M(i, j) = sum_t w_t |P_t(i) - P_t(j)|`` over the arm's shoulder, elbow, wrist
 and hand tip (Jin & Hahn eq. 1), with the root translation and the pelvis yaw

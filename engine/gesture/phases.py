@@ -1,4 +1,4 @@
-"""Gesture phases from the wrist's motion relative to the body (METHOD.md §8).
+"""Gesture phases from the wrist's motion relative to the body (docs/method.md §8).
 
 Each hand's wrist path, expressed in a body frame (origin at the same-side
 shoulder or at the pelvis, pelvis yaw removed, metres), is cut into the phases
@@ -539,3 +539,13 @@ def segment_phases(motion, params: PhaseParameters | None = None, arms=None,
     return GesturePhases(hands=hands, fps=float(motion.fps), n_frames=motion.n_frames,
                          params=params, paths=paths)
 
+
+def marker_phase_labels(markers: np.ndarray, fps: float) -> np.ndarray:
+    """Gesture phase codes (:class:`Phase`) per frame of the wrist of a virtual-marker set.
+
+    markers : (frames, 4A, 3) float, metres (``engine.features`` markers: the first two of
+        each arm straddle the wrist); the first arm's wrist centre is segmented.
+    Returns ``(frames,)`` int codes.
+    """
+    wrist = 0.5 * (markers[:, 0] + markers[:, 1])
+    return np.asarray(segment_trajectory(wrist, fps).labels)

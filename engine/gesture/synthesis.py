@@ -1,4 +1,4 @@
-"""Hand motion without a matching hand capture (Jin & Hahn 2005, §5; METHOD.md §7).
+"""Hand motion without a matching hand capture (Jin & Hahn 2005, §5; docs/method.md §7).
 
 Three ways to give a body take moving fingers:
 

@@ -16,14 +16,14 @@ Schema (version 2)::
               | {"body": TAKE, "hand": TAKE},            # TAKE = {"path": "walk.bvh"}
                                                          #      | {"sha256": HEX64, "name": "walk.bvh"}
       "side": "right" | "left" | "both",
-      "band": 0.3,            # pass-1 band width W1, fraction of the body length (0, 1]
-      "refine_band": 0.1,     # pass-2 band width W2 around the pass-1 path, fraction (0, 1]
-      "tolerance": 0,         # global matching-point tolerance T, frames >= 0
+      "band": 0.3,            # pass-1 band width W1: fraction of the body take, or "10s"
+      "refine_band": 0.1,     # pass-2 band width W2 around the pass-1 path, the same forms
+      "tolerance": 0,         # global matching-point tolerance T, frames
       "points": [{"body": 120, "hand": 98, "tolerance": null}, ...],
-                              # matching points (body frame, hand frame), 0-based, strictly
-                              # increasing in both, each in its own file's numbering (as
-                              # handsplice splice --match); tolerance in hand frames,
-                              # null = the global one
+                              # matching points (body frame, hand frame), 0-based; body
+                              # frames increase, hand frames never decrease; each in its
+                              # own file's numbering (as handsplice splice --match);
+                              # tolerance in hand frames, null = the global one
       "roles": {"body": {"right.wrist": "RHand"},        # optional joint-role overrides per
                 "hand": {"right.index1": "rIdx1"}},      # take (as handsplice splice --roles)
       "view": {"matrix": "pass1", "frame": 0}            # optional, app display only
@@ -34,18 +34,21 @@ tolerances) of the hand take at its own frame rate. Version 1 files (the app bef
 it showed one frame numbering) hold hand frames on the alignment grid (the hand take
 resampled to the body's rate); they are still read, with ``hand_frames == "grid"``
 telling the reader to convert (``engine.splice.pipeline.grid_points_to_hand``).
+Ranges, defaults and the error text of bands, tolerances and points are
+:mod:`engine.dtw.constraints`' (the same for every front).
 """
 
 from __future__ import annotations
 
 import json
-import math
 import re
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from engine.atomic import write_text
+from engine.dtw import constraints as C
+from engine.dtw.constraints import MatchPoint, Width
 from engine.errors import ParameterError
 from engine.limits import MAX_SESSION_BYTES
 
@@ -55,7 +58,7 @@ VERSION = 2
 HAND_FRAMES = {1: "grid", 2: "file"}
 SIDES = ("right", "left", "both")
 MATRIX_VIEWS = ("pass1", "pass2", "cumulative1", "cumulative2")
-MAX_POINTS = 10_000
+MAX_POINTS = C.MAX_POINTS
 MAX_TEXT = MAX_SESSION_BYTES  # a session is small; refuse anything bigger (engine.limits)
 _HEX64 = re.compile(r"^[0-9a-f]{64}$")
 
@@ -69,23 +72,6 @@ class SessionError(ParameterError):
         self.detail = message
         where = f"{source}: " if source else ""
         super().__init__(f"{where}{field_name}: {message}" if field_name else f"{where}{message}")
-
-
-@dataclass(frozen=True)
-class MatchPoint:
-    """A user matching point: body frame ``body`` corresponds to hand frame ``hand``.
-
-    ``tolerance`` in frames (>= 0), or None to use the session's global tolerance.
-    """
-
-    body: int
-    hand: int
-    tolerance: float | None = None
-
-    def resolved(self, global_tolerance: float) -> tuple[int, int, float]:
-        """``(x, y, tol)`` as the DTW band expects it."""
-        tol = global_tolerance if self.tolerance is None else self.tolerance
-        return (self.body, self.hand, float(tol))
 
 
 @dataclass(frozen=True)
@@ -110,8 +96,8 @@ class SessionSpec:
     body: TakeRef | None = None
     hand: TakeRef | None = None
     side: str = "right"
-    band: float = 0.3
-    refine_band: float = 0.1
+    band: Width | None = None
+    refine_band: Width | None = None
     tolerance: float = 0.0
     points: tuple[MatchPoint, ...] = ()
     roles: dict = field(default_factory=dict)
@@ -119,12 +105,16 @@ class SessionSpec:
     #: "file": hand frames of the hand file (version 2); "grid": alignment grid (version 1)
     hand_frames: str = "file"
 
+    def __post_init__(self):
+        # one normal form, checked by engine.dtw.constraints (ConstraintError names the field)
+        object.__setattr__(self, "band", C.BAND.parse(self.band))
+        object.__setattr__(self, "refine_band", C.REFINE_BAND.parse(self.refine_band))
+        object.__setattr__(self, "tolerance", C.parse_tolerance(self.tolerance))
+        object.__setattr__(self, "points", C.parse_points(tuple(self.points)))
+
     def constraint_points(self) -> list[tuple[int, int, float]]:
         """Matching points as ``[(body_frame, hand_frame, tolerance), ...]`` for the DTW band."""
         return [p.resolved(self.tolerance) for p in self.points]
-
-    def with_changes(self, **changes) -> SessionSpec:
-        return validate(replace(self, **changes))
 
 
 # ---------------------------------------------------------------- dict <-> spec
@@ -145,13 +135,14 @@ def to_dict(spec: SessionSpec) -> dict:
         "version": 1 if spec.hand_frames == "grid" else VERSION,
         "inputs": inputs,
         "side": spec.side,
-        "band": spec.band,
-        "refine_band": spec.refine_band,
         "tolerance": _num_out(spec.tolerance),
         "points": [{"body": p.body, "hand": p.hand,
                     "tolerance": None if p.tolerance is None else _num_out(p.tolerance)}
                    for p in spec.points],
     }
+    for key, width in (("band", spec.band), ("refine_band", spec.refine_band)):
+        if width is not None:
+            out[key] = width.to_json()
     if spec.roles:
         out["roles"] = spec.roles
     if spec.view:
@@ -169,20 +160,6 @@ class _Reader:
 
     def fail(self, field_name: str, message: str) -> SessionError:
         return SessionError(self.source, field_name, message)
-
-    def number(self, value, field_name: str, lo: float, hi: float, lo_open: bool = False) -> float:
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise self.fail(field_name, f"expected a number, got {_show(value)}")
-        try:
-            x = float(value)
-        except OverflowError:  # a huge JSON integer
-            x = math.inf
-        bad_lo = x <= lo if lo_open else x < lo
-        if not math.isfinite(x) or bad_lo or x > hi:
-            lo_txt = f"> {lo:g}" if lo_open else f">= {lo:g}"
-            rng = f"{lo_txt} and <= {hi:g}" if math.isfinite(hi) else lo_txt
-            raise self.fail(field_name, f"expected a number {rng}, got {_show(value)}")
-        return x
 
     def integer(self, value, field_name: str) -> int:
         if isinstance(value, bool) or not isinstance(value, int | float) or (
@@ -268,33 +245,16 @@ def from_dict(data: Any, source: str | None = None) -> SessionSpec:
     side = data.get("side", "right")
     if side not in SIDES:
         raise r.fail("side", f"expected one of {', '.join(SIDES)}, got {_show(side)}")
-    band = r.number(data.get("band", 0.3), "band", 0.0, 1.0, lo_open=True)
-    refine = r.number(data.get("refine_band", 0.1), "refine_band", 0.0, 1.0, lo_open=True)
-    tolerance = r.number(data.get("tolerance", 0), "tolerance", 0.0, 1e6)
-
-    raw_points = data.get("points", [])
-    if not isinstance(raw_points, list):
-        raise r.fail("points", f"expected a list, got {_show(raw_points)}")
-    if len(raw_points) > MAX_POINTS:
-        raise r.fail("points", f"expected at most {MAX_POINTS} points, got {len(raw_points)}")
-    points = []
-    for k, raw in enumerate(raw_points):
-        where = f"points[{k}]"
-        if isinstance(raw, list | tuple) and len(raw) in (2, 3):
-            raw = dict(zip(("body", "hand", "tolerance"), raw))
-        if not isinstance(raw, dict):
-            raise r.fail(where, f'expected {{"body": ..., "hand": ...}}, got {_show(raw)}')
-        unknown = set(raw) - {"body", "hand", "tolerance"}
-        if unknown:
-            raise r.fail(f"{where}.{sorted(unknown)[0]}", "unknown field")
-        for key in ("body", "hand"):
-            if key not in raw:
-                raise r.fail(f"{where}.{key}", "missing")
-        tol = raw.get("tolerance")
-        points.append(MatchPoint(
-            body=r.integer(raw["body"], f"{where}.body"),
-            hand=r.integer(raw["hand"], f"{where}.hand"),
-            tolerance=None if tol is None else r.number(tol, f"{where}.tolerance", 0.0, 1e6)))
+    try:
+        band = C.BAND.parse(_json_number_or_text(data.get("band")))
+        refine = C.REFINE_BAND.parse(_json_number_or_text(data.get("refine_band")))
+        tolerance = C.parse_tolerance(_json_number(data.get("tolerance", 0)))
+        raw_points = data.get("points", [])
+        if not isinstance(raw_points, list):
+            raise C.ConstraintError("points", f"expected a list, got {_show(raw_points)}")
+        points = C.parse_points([_json_point(p) for p in raw_points])
+    except C.ConstraintError as exc:
+        raise SessionError(source, exc.field, exc.detail) from None
 
     roles = data.get("roles", {})
     if not isinstance(roles, dict):
@@ -324,6 +284,30 @@ def from_dict(data: Any, source: str | None = None) -> SessionSpec:
     return validate(spec, source)
 
 
+def _json_number(value):
+    """JSON numbers only (a JSON string "0.3" is not a number here)."""
+    if isinstance(value, str):
+        return object()  # refused by constraints with the field's expected text
+    return value
+
+
+def _json_number_or_text(value):
+    """A band width: a JSON number (fraction) or a text with a unit ("10s")."""
+    if isinstance(value, str) and not value.strip().lower().endswith(("s", "sec", "seconds")):
+        return object()
+    return value
+
+
+def _json_point(raw):
+    """A JSON point object or list, with numbers only (no "B:H" text in a session file)."""
+    if isinstance(raw, dict):
+        return {k: _json_number(v) if k in ("body", "hand", "tolerance") else v
+                for k, v in raw.items()}
+    if isinstance(raw, list):
+        return [_json_number(v) for v in raw]
+    return object()
+
+
 def _role_map(r: _Reader, mapping, field_name: str) -> dict:
     """``{"right.wrist": "Name" or None}`` checked by ``engine.roles.normalize_overrides``."""
     from engine.roles import normalize_overrides
@@ -344,13 +328,7 @@ def _role_map(r: _Reader, mapping, field_name: str) -> dict:
 
 
 def validate(spec: SessionSpec, source: str | None = None) -> SessionSpec:
-    """Check relations between fields: matching points strictly increasing in both frames."""
-    r = _Reader(source)
-    for k in range(1, len(spec.points)):
-        a, b = spec.points[k - 1], spec.points[k]
-        if not (b.body > a.body and b.hand > a.hand):
-            raise r.fail(f"points[{k}]", f"expected frames after points[{k - 1}] "
-                         f"({a.body}, {a.hand}) in both takes, got ({b.body}, {b.hand})")
+    """``spec`` (its fields are checked when it is made, by ``engine.dtw.constraints``)."""
     return spec
 
 
@@ -418,13 +396,13 @@ def to_query(spec: SessionSpec) -> dict[str, str]:
             if take is not None and take.sha256:
                 q[key] = take.sha256
     q["side"] = spec.side
-    q["band"] = f"{spec.band:g}"
-    q["refine"] = f"{spec.refine_band:g}"
+    if spec.band is not None:
+        q["band"] = spec.band.text()
+    if spec.refine_band is not None:
+        q["refine"] = spec.refine_band.text()
     q["tol"] = f"{spec.tolerance:g}"
     if spec.points:
-        q["pts"] = ",".join(f"{p.body}:{p.hand}" + ("" if p.tolerance is None
-                                                     else f":{p.tolerance:g}")
-                            for p in spec.points)
+        q["pts"] = ",".join(p.text() for p in spec.points)
         if spec.hand_frames == "file":
             q["frames"] = "hand"
     if spec.roles:
@@ -447,18 +425,18 @@ def from_query(query: dict[str, str]) -> SessionSpec:
         data["inputs"] = {k: {"sha256": str(q[k]).lower()} for k in ("body", "hand") if q.get(k)}
     if "side" in q:
         data["side"] = q["side"]
-    for key, field_name in (("band", "band"), ("refine", "refine_band"), ("tol", "tolerance")):
-        if key in q:
-            data[field_name] = _query_number(q[key], key, source)
-    if q.get("pts"):
-        points = []
-        for k, item in enumerate(str(q["pts"]).split(",")):
-            parts = item.split(":")
-            if len(parts) not in (2, 3):
-                raise SessionError(source, f"pts[{k}]", f"expected BODY:HAND[:TOL], got {item!r}")
-            nums = [_query_number(x, f"pts[{k}]", source) for x in parts]
-            points.append(dict(zip(("body", "hand", "tolerance"), nums)))
-        data["points"] = points
+    try:  # the same parsers as every front (engine.dtw.constraints)
+        for key, rule in (("band", C.BAND), ("refine", C.REFINE_BAND)):
+            if key in q:
+                width = rule.parse(str(q[key]))
+                data[rule.name] = None if width is None else width.to_json()
+        if "tol" in q:
+            data["tolerance"] = C.parse_tolerance(str(q["tol"]))
+        if q.get("pts"):
+            data["points"] = [[p.body, p.hand, p.tolerance]
+                              for p in C.parse_points(str(q["pts"]))]
+    except C.ConstraintError as exc:
+        raise SessionError(source, exc.field, exc.detail) from None
     if q.get("roles"):
         try:
             data["roles"] = json.loads(str(q["roles"]))

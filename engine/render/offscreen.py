@@ -162,7 +162,7 @@ class Preview:
             for k, (v, f, w) in enumerate(zip(self.views, picks, widths, strict=True)):
                 img = self._render(k, v.check_frame(f), (w, height), phases=self._phases(k, phases, take),
                                    **options)
-                panels.append(_label_image(img, v.label) if n > 1 else img)
+                panels.append(label_image(img, v.label) if n > 1 else img)
             out = np.concatenate(panels, axis=1)
             for x in np.cumsum(widths)[:-1]:
                 out[:, max(0, x - 1): x + 1] = 255
@@ -380,7 +380,7 @@ def _label(motion: Motion, k: int) -> str:
     return Path(src).stem if src else f"take {k}"
 
 
-def _label_image(img: np.ndarray, text: str) -> np.ndarray:
+def label_image(img: np.ndarray, text: str) -> np.ndarray:
     """Write ``text`` in the top-left corner of ``img`` (PIL default font)."""
     if not text:
         return img

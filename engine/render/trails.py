@@ -1,4 +1,4 @@
-"""Motion trails of both hands, coloured by gesture phase (METHOD.md §8).
+"""Motion trails of both hands, coloured by gesture phase (docs/method.md §8).
 
 The trail of a hand is the 3-D path of its wrist joint over a frame range, drawn
 as a tube (``style="line"``) or as a ball at each sample (``style="spheres"``:

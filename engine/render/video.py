@@ -65,11 +65,11 @@ def contact_sheet(images: Sequence[np.ndarray], columns: int | None = None,
         raise ValueError("contact_sheet: no images")
     tiles = [_as_frame(im, f"images[{k}]") for k, im in enumerate(images)]
     if labels is not None:
-        from engine.render.offscreen import _label_image
+        from engine.render.offscreen import label_image
 
         if len(labels) != len(tiles):
             raise ValueError(f"contact_sheet: {len(labels)} labels for {len(tiles)} images")
-        tiles = [_label_image(t, lab) for t, lab in zip(tiles, labels, strict=True)]
+        tiles = [label_image(t, lab) for t, lab in zip(tiles, labels, strict=True)]
     n = len(tiles)
     cols = columns or int(np.ceil(np.sqrt(n)))
     rows = int(np.ceil(n / cols))

@@ -1,4 +1,4 @@
-"""Merging and smoothing (METHOD.md §5): a DTW path -> a monotone warp ``w(i)``.
+"""Merging and smoothing (docs/method.md §5): a DTW path -> a monotone warp ``w(i)``.
 
 The path may match one body frame ``i`` to several hand frames. The paper takes,
 per body frame, the median position of each marker over those hand frames; for

@@ -36,7 +36,10 @@ import numpy as np
 
 from engine import limits
 from engine import metrics as M
+from engine import tolerances as T
 from engine.dtw import Aligner, Band, Ends, align_features
+from engine.dtw import constraints as C
+from engine.dtw.kernels import get_metric, metric_names
 from engine.errors import HandSpliceError, ParameterError, RoleError
 from engine.features import (
     HandFrame,
@@ -52,9 +55,11 @@ from engine.splice import transfer as TR
 
 Progress = Callable[[str, float], None]
 
-#: defaults (the paper's values where it gives them)
-BAND = 0.30
-REFINE_BAND = 0.10
+#: defaults (the paper's values where it gives them); band widths: engine.dtw.constraints
+#: the registered local-cost metrics of pass 1 (eq. 6, on ``metrics.phase_rows`` rows) and
+#: pass 2 (eqs. 8-9, on ``AngleFeatures.rows``); any metric in ``engine.dtw``'s registry that
+#: reads the same rows may replace them (``metrics=`` of :func:`align_passes`)
+DEFAULT_METRICS = ("splice_phase", "splice_angle")
 SMOOTHING_S = 0.2
 DEAD_ZONE = 0.1
 #: constant added to every cell (charges non-diagonal steps; 0 = the paper)
@@ -70,12 +75,9 @@ MAX_UNMATCHED_SHARE = 0.5
 EASE_FRAMES = 3.0
 #: random cell pairs that estimate the cost of matching unrelated frames (the skip cost)
 CHANCE_CELLS = 4096
-#: one-shot solves (1 byte per cell) above this band area; incremental ``Aligner`` below
-#: (about 3-4 bytes per cell resident: backpointers both ways, γ of every 8th row)
-INCREMENTAL_MAX_CELLS = 100_000_000
-#: band cells above which the cumulative-cost (γ) view is refused when no incremental
-#: solver was kept: γ for every band cell costs about 18 bytes per cell (~290 MB here).
-CUMULATIVE_MAX_CELLS = 16_000_000
+#: cell budgets: engine.tolerances (one place, with the app's)
+INCREMENTAL_MAX_CELLS = T.INCREMENTAL_MAX_CELLS
+CUMULATIVE_MAX_CELLS = T.CUMULATIVE_MAX_CELLS
 
 
 def _noop(stage: str, fraction: float) -> None:
@@ -362,7 +364,7 @@ class PassResult:
     band : engine.dtw.Band
     rows : (a, b) float64 rows of the pass's metric (the local-cost inputs: the
         cost of cell (i, j) is ``metric(a[i], b[j])``)
-    metric : ``"splice_phase"`` or ``"splice_angle"``
+    metric : name of the pass's metric in ``engine.dtw``'s registry
     solver : engine.dtw.Aligner or None (kept for incremental re-solves and γ)
     seconds : float
     """
@@ -378,7 +380,7 @@ class PassResult:
 
     def local_costs(self, rows_idx=None, cols_idx=None) -> np.ndarray:
         """Local costs on a grid of cells (all cells by default: small takes only)."""
-        fn = _METRIC_FUNCS[self.metric]
+        fn = get_metric(self.metric).cell
         a, b = self.rows
         r = np.arange(len(a)) if rows_idx is None else np.asarray(rows_idx)
         c = np.arange(len(b)) if cols_idx is None else np.asarray(cols_idx)
@@ -387,10 +389,22 @@ class PassResult:
     def path_costs(self) -> np.ndarray:
         """(k,) local cost of every path cell."""
         a, b = self.rows
-        return M.path_values(_METRIC_FUNCS[self.metric], a, b, self.path)
+        return M.path_values(get_metric(self.metric).cell, a, b, self.path)
 
 
-_METRIC_FUNCS = {"splice_phase": M.splice_phase, "splice_angle": M.splice_angle}
+
+def check_metrics(metrics) -> tuple[str, str]:
+    """The (pass 1, pass 2) metric names, each registered with ``engine.dtw``."""
+    M.register_metrics()
+    if isinstance(metrics, str) or len(metrics) != 2:
+        raise ParameterError(f"metrics: expected (pass-1 name, pass-2 name), got {metrics!r}")
+    known = metric_names()
+    for k, name in enumerate(metrics):
+        if name not in known:
+            raise ParameterError(f"metrics[{k}]: unknown metric {name!r}; known: "
+                                 f"{', '.join(known)} (add one with "
+                                 "engine.dtw.register_metric)")
+    return metrics[0], metrics[1]
 
 
 @dataclass
@@ -424,6 +438,7 @@ class SpliceAlignment:
     blend: float
     timings: dict = field(default_factory=dict)
     features_id: int = 0
+    metrics: tuple[str, str] = DEFAULT_METRICS
     overlap: tuple = ((0, 0), (0, 0))
     ends: str = ENDS
     max_unmatched_s: float | None = None
@@ -439,33 +454,6 @@ class SpliceAlignment:
         if i1 < n - 1:
             out.append((i1 + 1, n - 1))
         return out
-
-
-def refine_radius(n: int, m: int, refine_band: float) -> int:
-    """Pass-2 band radius (frames, Chebyshev) for width ``refine_band * n`` around the path.
-
-    The vertical half-width of a diagonal band of width ``W`` is
-    ``Λ = W sqrt(n² + m²) / (2n)``; a Chebyshev radius ``r`` around a path of slope
-    ``m/n`` spans about ``r (1 + m/n)`` columns either side, so ``r = Λ / (1 + m/n)``.
-    """
-    if not (np.isfinite(refine_band) and refine_band >= 0):
-        raise ParameterError(f"refine band must be a fraction >= 0, got {refine_band}")
-    lam = refine_band * n * np.hypot(n, m) / (2.0 * n)
-    return max(1, int(round(lam / (1.0 + m / n))))
-
-
-def _check_points(points, n: int, m: int) -> list[tuple[int, int, float]]:
-    out = []
-    for k, p in enumerate(points or ()):
-        try:
-            vals = [float(v) for v in p]
-        except (TypeError, ValueError):
-            raise ParameterError(f"matching point {k}: expected (body, hand[, tol]), got {p!r}") \
-                from None
-        if len(vals) not in (2, 3):
-            raise ParameterError(f"matching point {k}: expected (body, hand[, tol]), got {p!r}")
-        out.append((int(round(vals[0])), int(round(vals[1])), vals[2] if len(vals) == 3 else 0.0))
-    return out
 
 
 #: a hold: every alignment marker slower than the take's velocity dead zone for at least
@@ -539,7 +527,7 @@ def chance_cost(rows, metric: str, seed: int = 0) -> float:
     rng = np.random.default_rng(seed)
     cells = np.column_stack([rng.integers(0, len(a), CHANCE_CELLS),
                              rng.integers(0, len(b), CHANCE_CELLS)])
-    vals = M.path_values(_METRIC_FUNCS[metric], a, b, cells)
+    vals = M.path_values(get_metric(metric).cell, a, b, cells)
     vals = vals[np.isfinite(vals)]
     return float(vals.mean()) if vals.size else 0.0
 
@@ -570,7 +558,8 @@ def pass1_ends(features: SpliceFeatures, kind: str, max_unmatched_s: float | Non
     return Ends(limits[0], limits[1], 0.5 * cache["chance1"])
 
 
-def _solve_pass2(rows, band: Band, solver, incremental: bool, pass1: Ends):
+def _solve_pass2(rows, band: Band, solver, incremental: bool, pass1: Ends,
+                 metric: str = DEFAULT_METRICS[1]):
     """Pass 2 with open ends (when ``pass1`` is open): returns (Alignment, solver, Ends).
 
     ``skip`` is the smaller of half the chance cost and the mean local cost per cell of
@@ -582,17 +571,17 @@ def _solve_pass2(rows, band: Band, solver, incremental: bool, pass1: Ends):
     pass-1 path keeps the ends near pass 1's.
     """
     if pass1.fixed:
-        al, solver = _solve(rows, "splice_angle", band, solver, incremental, Ends())
+        al, solver = _solve(rows, metric, band, solver, incremental, Ends())
         return al, solver, Ends()
     n, m = len(rows[0]), len(rows[1])
-    first = Ends(pass1.body, pass1.hand, 0.5 * chance_cost(rows, "splice_angle"))
-    al = align_features(*rows, band, metric="splice_angle", ends=first)
+    first = Ends(pass1.body, pass1.hand, 0.5 * chance_cost(rows, metric))
+    al = align_features(*rows, band, metric=metric, ends=first)
     matched = al.cost - first.skip * unmatched_frames(al.path, n, m)
     typical = max(matched, 0.0) / len(al.path)
     ends = Ends(pass1.body, pass1.hand, min(first.skip, typical))
     if ends == first and not incremental and solver is None:
         return al, None, ends
-    al, solver = _solve(rows, "splice_angle", band, solver, incremental, ends)
+    al, solver = _solve(rows, metric, band, solver, incremental, ends)
     return al, solver, ends
 
 
@@ -616,7 +605,8 @@ def pass2_headings(features: SpliceFeatures, path1: np.ndarray) -> tuple[np.ndar
     return body, np.full(m, c)
 
 
-def align_passes(features: SpliceFeatures, band: float = BAND, refine_band: float = REFINE_BAND,
+def align_passes(features: SpliceFeatures, band=None, refine_band=None,
+                 metrics: Sequence[str] = DEFAULT_METRICS,
                  points: Sequence = (), previous: SpliceAlignment | None = None,
                  blend: float = MG.BLEND_FRAMES, incremental: bool | None = None,
                  progress: Progress | None = None, ends: str = ENDS,
@@ -645,12 +635,13 @@ def align_passes(features: SpliceFeatures, band: float = BAND, refine_band: floa
     """
     progress = progress or _noop
     n, m = features.n, features.m
-    pts = _check_points(points, n, m)
+    pts = C.point_triples(points)
+    metric1, metric2 = check_metrics(metrics)
     kind, max_unmatched_s = check_ends_option(ends, max_unmatched_s)
     is_open = kind == "open"
     timings: dict[str, float] = {}
-    if not (np.isfinite(band) and band >= 0):
-        raise ParameterError(f"band must be a fraction >= 0, got {band}")
+    band = C.BAND.resolve(band, n, features.fps)
+    refine_band = C.REFINE_BAND.resolve(refine_band, n, features.fps)
     t0 = time.perf_counter()
     progress("pass 1", 0.0)
     band1 = Band.from_constraints(n, m, float(band), pts, open_ends=is_open)
@@ -660,7 +651,7 @@ def align_passes(features: SpliceFeatures, band: float = BAND, refine_band: floa
     same = previous is not None and previous.features_id == id(features)
     solver1 = previous.pass1.solver if same else None
     ends1 = pass1_ends(features, kind, max_unmatched_s)
-    al1, solver1 = _solve(features.pass1_rows, "splice_phase", band1, solver1, incremental,
+    al1, solver1 = _solve(features.pass1_rows, metric1, band1, solver1, incremental,
                           ends1)
     t1 = time.perf_counter()
     timings["pass1"] = t1 - t0
@@ -671,7 +662,7 @@ def align_passes(features: SpliceFeatures, band: float = BAND, refine_band: floa
     body2 = M.angle_features(features.body_markers, -body_heading).rows(
         features.params.get("step2", 0.0))
     hand2 = M.angle_features(features.hand_markers, -hand_heading).rows()
-    radius = refine_radius(n, m, refine_band)
+    radius = C.refine_radius(n, m, refine_band)
     band2 = Band.around_path(al1.path, n, m, radius, points=pts if pts else None,
                              open_ends=is_open)
     limits.check_band("pass 2", band2.area)
@@ -679,7 +670,8 @@ def align_passes(features: SpliceFeatures, band: float = BAND, refine_band: floa
     if same and previous.pass2.solver is not None and \
             np.array_equal(previous.pass2.rows[1], hand2):
         solver2 = previous.pass2.solver
-    al2, solver2, ends2 = _solve_pass2((body2, hand2), band2, solver2, incremental, ends1)
+    al2, solver2, ends2 = _solve_pass2((body2, hand2), band2, solver2, incremental, ends1,
+                                        metric2)
     t2 = time.perf_counter()
     timings["pass2"] = t2 - t1
     progress("pass 2", 1.0)
@@ -691,16 +683,17 @@ def align_passes(features: SpliceFeatures, band: float = BAND, refine_band: floa
     timings["merge"] = time.perf_counter() - t2
     progress("merge", 1.0)
     p1 = PassResult(path=np.asarray(al1.path), cost=float(al1.cost), band=band1,
-                    rows=features.pass1_rows, metric="splice_phase", solver=solver1,
+                    rows=features.pass1_rows, metric=metric1, solver=solver1,
                     seconds=timings["pass1"], ends=ends1)
     p2 = PassResult(path=np.asarray(al2.path), cost=float(al2.cost), band=band2,
-                    rows=(body2, hand2), metric="splice_angle",
+                    rows=(body2, hand2), metric=metric2,
                     solver=solver2, seconds=timings["pass2"], ends=ends2)
     return SpliceAlignment(pass1=p1, pass2=p2, warp=warp, map=hand_map,
                            body_heading=body_heading, hand_heading=hand_heading,
                            points=pts, band=float(band), refine_band=float(refine_band),
                            radius=radius, blend=float(blend), timings=timings,
-                           features_id=id(features), overlap=overlap, ends=kind,
+                           features_id=id(features), metrics=(metric1, metric2),
+                           overlap=overlap, ends=kind,
                            max_unmatched_s=max_unmatched_s)
 
 
@@ -750,35 +743,32 @@ class SpliceResult:
 
 def hand_points_to_grid(features: SpliceFeatures, points) -> list[tuple[int, int, float]]:
     """Matching points ``(body, hand, tol)`` with ``hand`` and ``tol`` in frames of the hand
-    file -> alignment-grid columns (hand rounded to the nearest column, tolerance rounded
-    up so the grid band holds every hand frame the user allowed)."""
-    out = []
-    for x, y, t in points:
-        col = int(round(float(features.hand_to_grid(float(y)))))
-        tol = float(np.ceil(float(features.hand_to_grid(float(t))) - 1e-9)) if t else 0.0
-        out.append((int(x), min(col, features.m - 1), tol))
-    return out
+    file -> alignment-grid columns (:func:`engine.dtw.constraints.points_to_grid` at this
+    pair's frame rates)."""
+    return C.points_to_grid(points, features.fps, features.hand_fps, features.m)
 
 
 def grid_points_to_hand(features: SpliceFeatures, points) -> list[tuple[int, int, float | None]]:
     """The inverse for reading old (version 1) session files: ``(body, grid column, tol or
-    None)`` -> ``(body, hand-file frame, tol in hand frames or None)``, rounded."""
-    scale = float(features.hand_fps) / float(features.fps)
+    None)`` -> ``(body, hand-file frame, tol in hand frames or None)``
+    (:func:`engine.dtw.constraints.points_to_hand`)."""
     out = []
     for x, y, t in points:
-        frame = int(round(float(features.grid_to_hand(float(y)))))
-        out.append((int(x), frame, None if t is None else round(float(t) * scale, 3)))
+        ((bx, hy, ht),) = C.points_to_hand([(x, y, t or 0.0)], features.fps, features.hand_fps,
+                                           features.m_hand)
+        out.append((bx, hy, None if t is None else ht))
     return out
 
 
-def splice(body: Motion, hand: Motion, side: str = "auto", band: float = BAND,
-           refine_band: float = REFINE_BAND, points: Sequence = (), hand_points: bool = False,
+def splice(body: Motion, hand: Motion, side: str = "auto", band=None,
+           refine_band=None, points: Sequence = (), hand_points: bool = False,
            theta: str = "window", body_roles=None, hand_roles=None,
            blend: float = MG.BLEND_FRAMES, smoothing_s: float = SMOOTHING_S,
            dead_zone: float = DEAD_ZONE, n_bins: int = M.THETA_BINS,
            step1: float = STEP1, step2: float = STEP2,
            progress: Progress | None = None, transfer_fingers: bool = True,
-           ends: str = ENDS, max_unmatched_s: float | None = None) -> SpliceResult:
+           ends: str = ENDS, max_unmatched_s: float | None = None,
+           metrics: Sequence[str] = DEFAULT_METRICS) -> SpliceResult:
     """Align and splice in one call (CLI, batch and benchmarks).
 
     ``points`` are ``(body_frame, hand_frame[, tol])``; with ``hand_points=True`` the
@@ -792,13 +782,14 @@ def splice(body: Motion, hand: Motion, side: str = "auto", band: float = BAND,
                     theta=theta, n_bins=n_bins, smoothing_s=smoothing_s, dead_zone=dead_zone,
                     step1=step1, step2=step2, progress=progress)
     t1 = time.perf_counter()
-    pts = _check_points(points, feats.n, feats.m_hand if hand_points else feats.m)
+    pts = C.point_triples(points)
     if hand_points and pts:
         # check order and range in the user's own frame numbers first
-        Band.from_constraints(feats.n, feats.m_hand, None, pts,
-                              open_ends=check_ends_option(ends, None)[0] == "open")
+        C.check_points(pts, feats.n, feats.m_hand,
+                       open_ends=check_ends_option(ends, None)[0] == "open")
         pts = hand_points_to_grid(feats, pts)
-    result = align_passes(feats, band=band, refine_band=refine_band, points=pts, blend=blend,
+    result = align_passes(feats, band=band, refine_band=refine_band, metrics=metrics,
+                          points=pts, blend=blend,
                           incremental=False, progress=progress, ends=ends,
                           max_unmatched_s=max_unmatched_s)
     t2 = time.perf_counter()
@@ -825,18 +816,6 @@ def wrist_speeds(features: SpliceFeatures) -> tuple[np.ndarray, np.ndarray]:
     return speed(features.body_phase), speed(features.hand_phase)
 
 
-def phase_labels(features: SpliceFeatures) -> tuple[np.ndarray, np.ndarray]:
-    """Gesture phase codes (``engine.gesture.phases.Phase``) of the first spliced arm's wrist:
-    body ``(n,)`` and hand ``(m,)`` (alignment grid)."""
-    from engine.gesture.phases import segment_trajectory
-
-    def labels(markers: np.ndarray) -> np.ndarray:
-        wrist = 0.5 * (markers[:, 0] + markers[:, 1])
-        return np.asarray(segment_trajectory(wrist, features.fps).labels)
-
-    return labels(features.body_markers), labels(features.hand_markers)
-
-
 def cost_image(features: SpliceFeatures, kind: str, rows, cols,
                result: SpliceAlignment | None = None) -> np.ndarray:
     """Cost matrix values at body frames ``rows`` × grid hand frames ``cols``.
@@ -849,16 +828,17 @@ def cost_image(features: SpliceFeatures, kind: str, rows, cols,
     """
     rows = np.asarray(rows, dtype=np.int64)
     cols = np.asarray(cols, dtype=np.int64)
+    metric1, metric2 = DEFAULT_METRICS if result is None else result.metrics
     if kind == "pass1":
         a, b = features.pass1_rows
-        return M.cost_grid(M.splice_phase, a, b, rows, cols)
+        return M.cost_grid(get_metric(metric1).cell, a, b, rows, cols)
     if kind == "pass2":
         if result is not None:
             a, b = result.pass2.rows
         else:
             a = M.angle_features(features.body_markers).rows()
             b = M.angle_features(features.hand_markers).rows()
-        return M.cost_grid(M.splice_angle, a, b, rows, cols)
+        return M.cost_grid(get_metric(metric2).cell, a, b, rows, cols)
     if kind in ("cumulative1", "cumulative2"):
         if result is None:
             return np.full((rows.size, cols.size), np.nan)

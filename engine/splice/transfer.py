@@ -1,4 +1,4 @@
-"""Transfer the hand take's wrist and finger rotations onto the body skeleton (METHOD.md §6).
+"""Transfer the hand take's wrist and finger rotations onto the body skeleton (docs/method.md §6).
 
 The body keeps every joint down to the forearm. Per spliced side:
 

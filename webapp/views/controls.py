@@ -7,7 +7,7 @@ import panel as pn
 from bokeh.models import CustomJS
 
 from webapp import safe_text
-from webapp.state import MATRIX_LABELS, Session
+from webapp.state import Session
 
 MATRIX_CHOICES = {"Pass 1": "pass1", "Pass 2": "pass2", "Cumulative 1": "cumulative1",
                   "Cumulative 2": "cumulative2"}
@@ -16,12 +16,19 @@ MATRIX_CHOICES = {"Pass 1": "pass1", "Pass 2": "pass2", "Cumulative 1": "cumulat
 def parameter_widgets(session: Session) -> pn.viewable.Viewable:
     """Band widths and global tolerance (recompute on release: throttled) and matrix choice."""
     params = pn.Param(
-        session.param, parameters=["band", "refine_band", "tolerance"], show_name=False,
+        session.param, parameters=["band", "band_s", "refine_band", "refine_band_s",
+                                   "tolerance"], show_name=False,
         widgets={
             "band": {"type": pn.widgets.FloatSlider, "throttled": True,
                      "label": "Pass-1 band width W1 (fraction of body frames)", "step": 0.01},
+            # a width in seconds wins over the fraction; empty = use the fraction (ranges:
+            # engine.dtw.constraints, as for links and session files)
+            "band_s": {"type": pn.widgets.FloatInput, "name": "W1 in seconds (empty: fraction)",
+                       "step": 0.5},
             "refine_band": {"type": pn.widgets.FloatSlider, "throttled": True,
                             "label": "Pass-2 band width W2 around the pass-1 path", "step": 0.01},
+            "refine_band_s": {"type": pn.widgets.FloatInput,
+                              "name": "W2 in seconds (empty: fraction)", "step": 0.1},
             "tolerance": {"type": pn.widgets.FloatSlider, "throttled": True, "end": 60.0,
                           "label": "Global tolerance T (hand frames)", "step": 1.0},
         },
@@ -227,7 +234,3 @@ const next = (tries) => {
   }
 };
 """
-
-
-def matrix_title(session: Session) -> str:
-    return MATRIX_LABELS[session.matrix]

@@ -226,8 +226,8 @@ class SharingView:
             body = s.body_name or paths[0].name
             hand = s.hand_name or paths[1].name
             session_cmd = backend.cli_session_command(body, hand, SESSION_FILENAME)
-            flags_cmd = backend.cli_command(s.prepared, body, hand, s.side, s.band,
-                                            s.refine_band, s.user_points(), s.roles)
+            flags_cmd = backend.cli_command(s.prepared, body, hand, s.side, *s.widths(),
+                                            s.constraint_points(), s.roles)
             self.command.object = (
                 "$ " + safe_text.html(session_cmd) + "<br>"
                 "<span style='color:#777'># or with explicit flags (--match takes hand-file "

@@ -38,9 +38,10 @@ from engine.kinematics import forward_kinematics, rest_positions, sample
 from engine.motion import Motion, Skeleton
 from engine.roles import FINGERS, find_roles
 
-#: the shared real captures (``HANDSPLICE_MOCAP`` overrides), as tests/conftest.py finds them
+#: the shared real captures beside the checkout (``HANDSPLICE_MOCAP`` overrides), as
+#: tests/conftest.py finds them; this bench lives in the repository, not the package
 MOCAP = Path(os.environ.get("HANDSPLICE_MOCAP",
-                            Path(__file__).resolve().parents[2].parent / "shared" / "data" / "mocap"))
+                            Path(__file__).resolve().parents[1].parent / "shared" / "data" / "mocap"))
 BEAT = "beat/1_wayne_0_1_1.bvh"
 BANDAI = ["bandai-namco/dataset-2_wave-both-hands_normal_001.bvh",
           "bandai-namco/dataset-1_call_normal_001.bvh",

@@ -1,5 +1,8 @@
 """``handsplice serve``: run the browser app (Panel on a Bokeh server).
 
+This subcommand lives with the app (the engine never imports the web layer); the
+engine's CLI finds it by name at run time (``engine.cli.PLUGINS``).
+
 Listens on 127.0.0.1 by default; ``--address 0.0.0.0`` exposes it on every
 interface (explicit opt-in). ``handsplice serve BODY HAND`` opens the user's own
 takes from disk (any size the engine reads; nothing is uploaded): the pair is read

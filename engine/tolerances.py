@@ -1,0 +1,28 @@
+"""Numerical tolerances and work budgets, in one place (beside :mod:`engine.limits`,
+which bounds outside input).
+
+Tolerances
+    ``FRAME_EPS``: slack when a frame number or a band edge computed in floating point is
+    rounded (``floor(t + FRAME_EPS)``), so 2.9999999999 frames counts as 3.
+    ``TINY``: guard added to a norm or a weight sum before dividing (unit vectors of
+    near-zero length, weights that may all be zero); far below any real value.
+
+Budgets (band cells; memory grows with them)
+    ``INCREMENTAL_MAX_CELLS``: up to this pass-1 band area the splice keeps incremental
+    ``Aligner`` solvers (γ for the cumulative views, partial re-solves; about 3-4 bytes
+    per cell resident: backpointers both ways, γ of every 8th row); above it a one-shot
+    solve (1 byte per cell).
+    ``CUMULATIVE_MAX_CELLS``: the cumulative-cost (γ) view of a pass solved one-shot is
+    refused above this many cells (about 18 bytes per cell, ~290 MB here).
+    ``DENSE_PASS1_MAX_CELLS``: the app tabulates the pass-1 local costs of a pair once
+    up to this many cells (8 bytes each), so a drag re-solves from the table.
+"""
+
+from __future__ import annotations
+
+FRAME_EPS = 1e-9
+TINY = 1e-12
+
+INCREMENTAL_MAX_CELLS = 100_000_000
+CUMULATIVE_MAX_CELLS = 16_000_000
+DENSE_PASS1_MAX_CELLS = 6_000_000

@@ -1,0 +1,258 @@
+"""One rule set for every front: the same band widths, tolerances and matching points fed
+to the CLI flags, the batch manifest, the session file, the app's link and the app's
+Session are accepted by all (with the same spliced BVH) or refused by all with the same
+one-line reason from engine.dtw.constraints.
+
+The pair (Bandai wave body, BEAT hand) shares one frame rate (30 fps), so the hand file's
+frames and the app's alignment grid coincide and every front reads the same numbers.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pytest
+from conftest import MOCAP
+
+from engine.cli import main
+from engine.dtw import constraints as C
+
+BODY = MOCAP / "bandai-namco" / "dataset-2_wave-right-hand_normal_001.bvh"
+HAND = MOCAP / "beat" / "1_wayne_0_1_1.bvh"
+
+# (band, refine_band, points as (body, hand, tolerance or None)); tolerance None = global 0
+CASES = {
+    "paper fractions, tolerance 200": ("0.25", "0.08", [(40, 30, 200), (120, 150, 2)]),
+    "equal hand frames (a hold)": ("0.3", "0.1", [(40, 30, None), (80, 30, None)]),
+    "widths in seconds": ("3s", "0.5s", [(60, 50, 2)]),
+    "defaults": (None, None, []),
+    "band below its range": ("0.01", None, []),
+    "refine band below its range": (None, "0.001", []),
+    "seconds past the range": ("4000s", None, []),
+    "tolerance past the range": (None, None, [(40, 30, 1000)]),
+    "points crossing": (None, None, [(40, 30, None), (80, 20, None)]),
+    "body frames out of order": (None, None, [(80, 30, None), (40, 50, None)]),
+    "point outside the takes": (None, None, [(40, 30, None), (5000, 60, None)]),
+}
+
+
+def _expected(band, refine, points, n, m):
+    """None (accepted) or the ConstraintError every front must show."""
+    try:
+        C.BAND.parse(band)
+        C.REFINE_BAND.parse(refine)
+        pts = C.parse_points([p for p in points])
+        C.check_points([p.resolved(0.0) for p in pts], n, m)
+    except C.ConstraintError as exc:
+        return exc
+    return None
+
+
+def _bvh_text(motion) -> str:
+    from engine.io.bvh import format_bvh
+
+    return format_bvh(motion)
+
+
+def _point_text(points) -> list[str]:
+    return [C.MatchPoint(b, h, t).text() for b, h, t in points]
+
+
+# ---------------------------------------------------------------- the five fronts
+# each returns ("ok", BVH text) or ("refused", the one line shown)
+
+
+def _cli(tmp, band, refine, points, capsys):
+    out = tmp / "cli.bvh"
+    argv = ["splice", str(BODY), str(HAND), "-o", str(out), "--side", "right", "--quiet"]
+    argv += ["--band", band] if band is not None else []
+    argv += ["--refine-band", refine] if refine is not None else []
+    for text in _point_text(points):
+        argv += ["--match", text]
+    capsys.readouterr()
+    code = main(argv)
+    err = capsys.readouterr().err.strip().splitlines()
+    if code != 0:
+        assert code == 2 and len(err) == 1
+        return "refused", err[0]
+    return "ok", out.read_text()
+
+
+def _manifest(tmp, band, refine, points, capsys):
+    from engine import batch
+    from engine.errors import HandSpliceError
+    from engine.io import load_take
+
+    text = "body,hand,side,band,refine_band,match\n" + ",".join(
+        [str(BODY), str(HAND), "right", band or "", refine or "", ";".join(_point_text(points))])
+    try:
+        (job,) = batch.parse_manifest(text + "\n", tmp / "m.csv")
+        motion, _ = batch.splice_pair(load_take(job.body), load_take(job.hand), job)
+    except HandSpliceError as exc:
+        return "refused", batch.one_line(exc)
+    return "ok", _bvh_text(motion)
+
+
+def _session_file(tmp, band, refine, points, capsys):
+    data = {"format": "handsplice-session", "version": 1, "side": "right",
+            "points": [{"body": b, "hand": h, "tolerance": t} for b, h, t in points]}
+    for key, value in (("band", band), ("refine_band", refine)):
+        if value is not None:  # JSON: a fraction is a number, seconds a text ("3s")
+            data[key] = value if value.endswith("s") else float(value)
+    path = tmp / "s.json"
+    path.write_text(json.dumps(data))
+    out = tmp / "session.bvh"
+    capsys.readouterr()
+    code = main(["splice", str(BODY), str(HAND), "-o", str(out), "--session", str(path),
+                 "--quiet"])
+    err = capsys.readouterr().err.strip().splitlines()
+    if code != 0:
+        assert code == 2 and len(err) == 1
+        return "refused", err[0]
+    return "ok", out.read_text()
+
+
+def _link(tmp, band, refine, points, capsys, app):
+    from webapp import backend
+
+    query = {"sample": "pair", "side": "right"}
+    if band is not None:
+        query["band"] = band
+    if refine is not None:
+        query["refine"] = refine
+    if points:
+        query["pts"] = ",".join(_point_text(points))
+    before = app.to_spec()
+    try:
+        app.from_query(query)
+    except (backend.HandSpliceError, ValueError, KeyError) as exc:
+        assert app.to_spec() == before  # a refused link changes nothing
+        return "refused", backend.one_line(exc)
+    return "ok", _bvh_text(app.spliced())
+
+
+def _session(tmp, band, refine, points, capsys, app):
+    before = app.to_spec()
+    ok = app.set_constraints(band=band, refine_band=refine, tolerance=0,
+                             points=[list(p) for p in points])
+    if not ok:
+        assert app.to_spec() == before
+        return "refused", app.error
+    return "ok", _bvh_text(app.spliced())
+
+
+@pytest.fixture(scope="module")
+def app(tmp_path_factory):
+    from webapp import config
+    from webapp.state import Session
+
+    samples = tmp_path_factory.mktemp("samples")
+    shutil.copy(BODY, samples / BODY.name)
+    shutil.copy(HAND, samples / HAND.name)
+    (samples / "samples.json").write_text(json.dumps({
+        "format": "handsplice-samples", "version": 1,
+        "pairs": [{"name": "pair", "body": BODY.name, "hand": HAND.name, "side": "right"}]}))
+    cfg = config.AppConfig(sample_dir=samples, upload_dir=samples / "up")
+    return Session(cfg)
+
+
+def _fresh(app):
+    """The app on the pair with default constraints (each case starts from here)."""
+    app.load_sample("pair")
+    app.from_query({"sample": "pair", "side": "right", "band": "0.3", "refine": "0.1",
+                    "tol": "0"})
+    return app
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", list(CASES))
+def test_every_front_accepts_or_refuses_alike(case, tmp_path, capsys, app):
+    band, refine, points = CASES[case]
+    app = _fresh(app)
+    expected = _expected(band, refine, points, app.n, app.m)
+    results = {
+        "cli": _cli(tmp_path, band, refine, points, capsys),
+        "manifest": _manifest(tmp_path, band, refine, points, capsys),
+        "session file": _session_file(tmp_path, band, refine, points, capsys),
+        "link": _link(tmp_path, band, refine, points, capsys, _fresh(app)),
+        "session": _session(tmp_path, band, refine, points, capsys, _fresh(app)),
+    }
+    if expected is None:
+        assert {k: v[0] for k, v in results.items()} == dict.fromkeys(results, "ok"), results
+        texts = {k: v[1] for k, v in results.items()}
+        assert len(set(texts.values())) == 1, [k for k in texts if texts[k] != texts["cli"]]
+    else:
+        for front, (status, message) in results.items():
+            assert status == "refused", (front, message)
+            assert "\n" not in message
+            # the same reason; only the source in front and the manifest's column name
+            # ("match" for the points) differ
+            assert message.endswith(expected.detail), (front, message, expected.detail)
+            fields = {expected.field}
+            if front == "manifest":  # checked when the manifest is read: its column name
+                fields.add(expected.field.replace("points", "match"))
+            assert any(f"{f}: " in message or f"{f} = " in message for f in fields), \
+                (front, message)
+
+
+def test_defaults_are_the_papers_fractions_on_short_takes_and_seconds_on_long():
+    assert C.BAND.default_for(187, 30.0) == C.Width(0.30)
+    assert C.REFINE_BAND.default_for(187, 30.0) == C.Width(0.10)
+    two_minutes, ten_minutes = 120 * 120, 600 * 120
+    assert C.BAND.default_for(two_minutes, 120.0) == C.Width(16.4, C.SECONDS)
+    assert C.BAND.default_for(ten_minutes, 120.0) == C.Width(36.7, C.SECONDS)
+    assert C.REFINE_BAND.default_for(two_minutes, 120.0) == C.Width(2.0, C.SECONDS)
+    # the rule is continuous: the switch (25 s for W1) is where both give the same width
+    for n in (24 * 30, 26 * 30):
+        width = C.BAND.default_for(n, 30.0)
+        assert width.unit == (C.FRACTION if n < 25 * 30 else C.SECONDS)
+        assert width.frames(n, 30.0) == pytest.approx(0.3 * 25 * 30, rel=0.05)
+
+
+@pytest.mark.parametrize(("text", "width"), [
+    ("0.3", C.Width(0.3)), ("10s", C.Width(10.0, "s")), (" 2.5 s ", C.Width(2.5, "s")),
+    ("4 seconds", C.Width(4.0, "s")), (0.25, C.Width(0.25)), (C.Width(5, "s"), C.Width(5, "s")),
+])
+def test_width_text_forms(text, width):
+    assert C.BAND.parse(text) == width
+    assert C.BAND.parse(width.text()) == width  # the text a front writes reads back
+
+
+@pytest.mark.parametrize("text", ["0", "1.5", "-1", "nan", "inf", "wide", "3 m", "0.05s",
+                                  "1e400", True])
+def test_width_refusals_name_the_field_and_range(text):
+    with pytest.raises(C.ConstraintError) as info:
+        C.BAND.parse(text)
+    assert info.value.field == "band"
+    assert str(info.value).startswith("band: expected a fraction of the body take from 0.02 "
+                                      "to 1 or seconds like 10s")
+
+
+def test_ends_and_open_end_limit():
+    assert C.parse_ends(None) == C.DEFAULT_ENDS == "open"  # as the pipeline (issue 12)
+    assert C.parse_ends("Open") == "open"
+    with pytest.raises(C.ConstraintError, match="ends: expected fixed or open"):
+        C.parse_ends("loose")
+    assert C.parse_max_unmatched(None) is None
+    assert C.parse_max_unmatched("2.5s") == 2.5
+    with pytest.raises(C.ConstraintError, match="max_unmatched_s: expected a number of "
+                                                "seconds from 0 to 3600"):
+        C.parse_max_unmatched(-1)
+    # default: half of the shorter take (alignment-grid frames)
+    assert C.max_unmatched_frames(None, 300, 200, 30.0) == 100
+    assert C.max_unmatched_frames(2.0, 300, 200, 30.0) == 60
+
+
+def test_shared_command_line_replays_the_apps_tolerance_exactly():
+    """The app's tolerance in grid frames -> the shared --match in hand-file frames -> back:
+    the same whole number of grid frames (a tolerance of 200 at 30 vs 40 fps gave 201)."""
+    for body_fps, hand_fps in ((30.0, 40.0), (30.0, 37.037037), (120.0, 30.0), (30.0, 120.0)):
+        for tol in (0, 1, 2, 7, 200, 499):
+            (_, _, t_hand), = C.points_to_hand([(10, 5, tol)], body_fps, hand_fps, 10_000)
+            if t_hand > C.TOLERANCE.hi:  # past the range in the hand file's frames
+                continue
+            text = C.MatchPoint(10, 5, t_hand or None).text()
+            (_, _, back), = C.points_to_grid([C.parse_point(text).resolved()], body_fps,
+                                             hand_fps, 10_000)
+            assert back == tol, (body_fps, hand_fps, tol, text)
