@@ -11,7 +11,7 @@ import pytest
 from engine.errors import HandSpliceError
 from engine.io.session import MatchPoint, SessionError
 from webapp import backend, config, uploads
-from webapp.state import Session
+from webapp.state import Session, page_words
 
 DEMO = "wave-ok"
 
@@ -100,7 +100,8 @@ def test_infeasible_points_are_rejected_and_leave_state_alone(session):
     session.add_point(40, 20, 0)
     rev, points, undo = session.revision, session.points, session.can_undo
     session.add_point(60, 10, 0)  # after (40, 20) in body frames but before it in hand frames
-    assert "(body 60, hand 10) not kept" in session.error and "points[" not in session.error
+    shown = page_words(session.error)  # what the page's alert says
+    assert "(body 60, hand 10) not kept" in shown and "points[" not in shown
     assert session.points == points and session.revision == rev and session.can_undo == undo
     session.add_point(session.n + 5, session.m_hand - 1, 0)
     assert "outside" in session.error and session.points == points
@@ -112,7 +113,7 @@ def test_view_edits_round_clip_and_sort(session):
     # dragged past the matrix edge: clipped to the last row; crossing the other point: refused
     assert not session.set_points_from_view([(20, 5, 3.0), (1e9, 2, None)])
     assert session.points == (MatchPoint(20, 5, 3.0), MatchPoint(80, 31))
-    assert f"(body {session.n - 1}, hand 2) not kept" in session.error
+    assert f"(body {session.n - 1}, hand 2) not kept" in page_words(session.error)
 
 
 def test_undo_redo_across_points_and_parameters(session):

@@ -65,6 +65,20 @@ def _same(a, b) -> bool:
         return False
 
 
+def page_words(message: str) -> str:
+    """A constraint refusal (``engine.dtw.constraints``' one text for every front) in the
+    page's words: ``points[1]: 60:10:0 crosses 40:20:0: ...`` becomes ``matching point
+    (body 60, hand 10) not kept: it crosses (body 40, hand 20): ...``."""
+    import re
+
+    point = r"(\d+):(\d+)(?::[\d.]+)?"
+    text = re.sub(rf"^points\[\d+\](?:\.\w+)?: {point} ",
+                  r"matching point (body \1, hand \2) not kept: it ", message)
+    text = re.sub(r"^points\[\d+\] = \(x=(\d+), y=(\d+), tol=[\d.]+\) ",
+                  r"matching point (body \1, hand \2) not kept: it ", text)
+    return re.sub(rf"\b{point}\b", r"(body \1, hand \2)", text)
+
+
 class Session(param.Parameterized):
     """State of one browser session (or one test)."""
 
@@ -437,21 +451,10 @@ class Session(param.Parameterized):
     # ------------------------------------------------------------ compute
 
     def _check_points(self) -> None:
-        """Refuse points the page cannot keep, saying why in the page's words."""
-        pts = self.points
-        for p in pts:
-            if not (0 <= p.body < self.n and 0 <= p.hand < self.m_hand):
-                raise HandSpliceError(
-                    f"matching point (body {p.body}, hand {p.hand}) not kept: it is outside "
-                    f"the takes (body frames 0–{self.n - 1}, hand frames 0–{self.m_hand - 1})")
-        for a, b in zip(pts, pts[1:]):  # equal hand frames are a hold (constraints)
-            if not (b.body > a.body and b.hand >= a.hand):
-                where = "is at the same body frame" if b.body == a.body else \
-                    "comes later in the hand take"
-                raise HandSpliceError(
-                    f"matching point (body {b.body}, hand {b.hand}) not kept: matching points "
-                    f"go forward in both takes, and point (body {a.body}, hand {a.hand}) "
-                    f"{where}")
+        """Refuse points outside the takes or out of order: the rule and its text are
+        ``engine.dtw.constraints``' (the page shows it in its own words: ``page_words``)."""
+        C.check_points(self.user_points(), self.n, self.m_hand,
+                       open_ends=C.DEFAULT_ENDS == "open")
 
     def _solve(self, t0: float | None = None) -> bool:
         """Recompute band and path for the current state; False (and ``error``) if rejected."""
@@ -619,10 +622,8 @@ class Session(param.Parameterized):
         if spec.hand_frames == "grid":  # an old file or link: hand frames on the grid
             points = self._normalise(backend.grid_points_to_hand(
                 prepared, [(p.body, p.hand, p.tolerance) for p in points]))
-        for k, p in enumerate(points):
-            if not (p.body < prepared.n and p.hand < prepared.m_hand):
-                raise HandSpliceError(f"points[{k}]: ({p.body}, {p.hand}) is outside the "
-                                      f"{prepared.n} x {prepared.m_hand} matrix of these takes")
+        C.check_points([p.resolved(spec.tolerance) for p in points], prepared.n,
+                       prepared.m_hand, open_ends=C.DEFAULT_ENDS == "open")
         fps = prepared.features.fps
         band = spec.band or C.BAND.default_for(prepared.n, fps)
         refine = spec.refine_band or C.REFINE_BAND.default_for(prepared.n, fps)

@@ -7,7 +7,7 @@ import panel as pn
 from bokeh.models import CustomJS
 
 from webapp import safe_text
-from webapp.state import Session
+from webapp.state import Session, page_words
 
 MATRIX_CHOICES = {"Pass 1": "pass1", "Pass 2": "pass2", "Cumulative 1": "cumulative1",
                   "Cumulative 2": "cumulative2"}
@@ -159,7 +159,7 @@ def error_alert(session: Session) -> pn.viewable.Viewable:
                           sizing_mode="stretch_width")
 
     def update(*_):
-        alert.object = safe_text.markdown(session.error)
+        alert.object = safe_text.markdown(page_words(session.error))
         alert.visible = bool(session.error)
 
     session.param.watch(update, ["error"])
