@@ -524,7 +524,7 @@ def main(argv=None) -> int:
         print(text)
         from benchmarks._results import write_section
 
-        write_section("dtw_long_edits", text)
+        write_section("dtw_long_edits_" + "_".join(f"{x:g}min" for x in args.minutes), text)
         return 0
     rng = np.random.default_rng(0)
     sizes = ((500, 5), (1000, 5)) if args.quick else ((2000, 41), (8000, 9))
