@@ -516,13 +516,15 @@ def main(argv=None) -> int:
     parser.add_argument("--no-memory", action="store_true", help="skip the 20,000 runs")
     parser.add_argument("--long-edits", action="store_true",
                         help="only the long-take edit runs (RESULTS.md section dtw_long_edits)")
+    parser.add_argument("--minutes", type=float, nargs="+", default=[2.0, 10.0],
+                        help="pair lengths for --long-edits")
     args = parser.parse_args(argv)
     if args.long_edits:
-        text = report_long_edits(bench_long_edits())
+        text = report_long_edits(bench_long_edits(tuple(60.0 * x for x in args.minutes)))
         print(text)
         from benchmarks._results import write_section
 
-        write_section("dtw_long_edits", text)
+        write_section("dtw_long_edits_" + "_".join(f"{x:g}min" for x in args.minutes), text)
         return 0
     rng = np.random.default_rng(0)
     sizes = ((500, 5), (1000, 5)) if args.quick else ((2000, 41), (8000, 9))

@@ -250,6 +250,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="30-second pair only, prints only")
     ap.add_argument("--no-10min", action="store_true")
+    ap.add_argument("--reps", type=int, default=5, help="pass-1 kernel repetitions")
     args = ap.parse_args(argv)
     fps = 120.0
     short = bench_short(3 if args.quick else 10)
@@ -258,7 +259,7 @@ def main(argv=None) -> int:
     baseline = LP.baseline_tree()
     seconds = 30.0 if args.quick else 120.0
     files = LP.pair_files(seconds, fps)
-    kernel = bench_pass1_kernel(files[0], files[1], 3 if args.quick else 5)
+    kernel = bench_pass1_kernel(files[0], files[1], 3 if args.quick else args.reps)
     print(json.dumps(kernel), flush=True)
     truth = np.load(files[2])
     n = truth.shape[0]

@@ -115,7 +115,7 @@ def continuous(q: np.ndarray) -> np.ndarray:
     return q * sign[..., None]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _continuous_kernel(q):
     frames, joints = q.shape[0], q.shape[1]
     for j in range(joints):
@@ -145,7 +145,7 @@ def _unit4(w, x, y, z):
     return 1.0, 0.0, 0.0, 0.0
 
 
-@numba.njit(cache=True, fastmath=_FASTMATH)
+@numba.njit(cache=True, fastmath=_FASTMATH, nogil=True)
 def _sample_kernel(rot, trans, t, out_r, out_t):
     frames = rot.shape[0]
     for k in range(t.shape[0]):
@@ -193,7 +193,7 @@ def sample(motion: Motion, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return out_r, out_t
 
 
-@numba.njit(cache=True, fastmath=_FASTMATH)
+@numba.njit(cache=True, fastmath=_FASTMATH, nogil=True)
 def _normalize_kernel(q):
     for f in range(q.shape[0]):
         for j in range(q.shape[1]):
