@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -47,6 +47,7 @@ from engine.features import (
     skeleton_yaw,
     take_sides,
 )
+from engine.hand_side import match_chirality, undecided_message
 from engine.motion import MarkerSet, Motion
 from engine.splice import merge as MG
 from engine.splice import transfer as TR
@@ -154,7 +155,10 @@ def require_skeletal(body, hand) -> None:
                               "with finger joints")
 
 
-def _roles_for(take, overrides):
+def _roles_for(take, overrides, side: str | None = None):
+    """Roles from joint names; a hand-only rig without a side gets it from the file name,
+    else ``side`` (``--side right|left``), else its geometry (``engine.hand_side``)."""
+    from engine.hand_side import sided_roles
     from engine.roles import find_roles, side_from_name
 
     if isinstance(take, MarkerSet):
@@ -162,7 +166,8 @@ def _roles_for(take, overrides):
     if overrides is not None and not isinstance(overrides, dict):
         return overrides  # a Roles object
     hint = side_from_name(take.meta.source) if take.meta.source else None
-    return find_roles(take.skeleton, overrides=overrides or None, side_hint=hint)
+    roles = find_roles(take.skeleton, overrides=overrides or None, side_hint=hint)
+    return sided_roles(take, roles, side)
 
 
 def resolve_sides(side: str, body_sides: Sequence[str], hand_sides: Sequence[str],
@@ -225,13 +230,16 @@ def prepare(body: Motion | MarkerSet, hand: Motion | MarkerSet, side: str = "aut
     if theta not in ("window", "trunk", "none"):
         raise ParameterError(f"theta must be 'window', 'trunk' or 'none', got {theta!r}")
     rb = _roles_for(body, body_roles)
-    rh = _roles_for(hand, hand_roles)
+    rh = _roles_for(hand, hand_roles, side)
     body_name, hand_name = _take_name(body), _take_name(hand)
     body_sides = _hand_sides(body, rb)
     hand_sides = _hand_sides(hand, rh)
     if isinstance(hand, Motion):  # a hand take without fingers cannot give any
         with_fingers = [s for s in hand_sides if rh.side(s).has_fingers]
         if not with_fingers:
+            undecided = undecided_message(hand_name, hand, rh)
+            if undecided:
+                raise RoleError(undecided)
             raise RoleError(f"{hand_name} has no finger joints (hands found: "
                             f"{', '.join(hand_sides) or 'none'}); the hand take must carry "
                             "the fingers to splice")
@@ -241,6 +249,9 @@ def prepare(body: Motion | MarkerSet, hand: Motion | MarkerSet, side: str = "aut
     timings: dict[str, float] = {}
 
     body_fk = forward_kinematics(body) if isinstance(body, Motion) else None
+    side_notes: list[str] = []
+    if isinstance(hand, Motion):  # a hand take written in left-handed axes: mirror it
+        hand, side_notes = match_chirality(body, hand, rb, rh, sides, body_fk)
     hand_fk = forward_kinematics(hand) if isinstance(hand, Motion) else None
     body_frames: dict[str, HandFrame] = {}
     hand_frames: dict[str, HandFrame] = {}
@@ -302,7 +313,7 @@ def prepare(body: Motion | MarkerSet, hand: Motion | MarkerSet, side: str = "aut
         params={"side": side, "sides": list(sides), "theta": theta, "n_bins": n_bins,
                 "smoothing_s": smoothing_s, "dead_zone": dead_zone, "step1": step1,
                 "step2": step2},
-        timings=timings)
+        timings=timings, notes=side_notes)
 
 
 def heading_offset(body: M.PhaseFeatures, hand: M.PhaseFeatures, cells: np.ndarray) -> float:
@@ -566,6 +577,7 @@ def plan_for(features: SpliceFeatures) -> TR.TransferPlan:
         cached = TR.plan_transfer(features.body, features.hand, features.body_roles,
                                   features.hand_roles, features.body_frames,
                                   features.hand_frames, features.sides)
+        cached = replace(cached, notes=tuple(features.notes) + cached.notes)
         features.params["_plan"] = cached
     return cached
 
