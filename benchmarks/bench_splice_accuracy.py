@@ -37,6 +37,7 @@ from engine.splice import merge as MG
 from engine.splice import pipeline as P
 from engine.splice import transfer as TR
 from engine.splice.split import Case, Realism, finger_error, finger_pairs, make_case
+from engine.splice.split_rigs import make_rig_case
 
 
 @dataclass(frozen=True)
@@ -116,6 +117,32 @@ def _holds(seed: int) -> Case:
 def _fps(seed: int) -> Case:
     rates = (25.0, 30.0, 50.0, 60.0, 100.0, 120.0)
     return _rotating(seed, Realism(body_fps=rates, hand_fps=rates))
+
+
+# issue 12 item 4: hand takes from other rigs (engine/splice/split_rigs.py). Body takes at
+# 25/30/60/120 fps, hand takes at 25-120 fps (Leap 36-40), either one the faster.
+# Developed on seeds 300-303.
+_RIG_DEV = tuple(range(300, 304))
+
+
+@family("left", 12, "left-handed performer (take mirrored, sides swapped): the left hand "
+        "only; body 25-120 fps, hand 25-120 fps", _RIG_DEV)
+def _left(seed: int) -> Case:
+    return make_rig_case("left", seed)
+
+
+@family("manipnet", 12, "ManipNet rig: real ManipNet finger capture (4-joint thumb with "
+        "THUMB_CMC_AA) on the body's wrist; hand take rooted at a 6-DoF WRIST, no side in "
+        "names or file name (side from geometry); odd seeds left; body 25-120 fps, hand "
+        "25-120 fps", _RIG_DEV)
+def _manipnet(seed: int) -> Case:
+    return make_rig_case("manipnet", seed)
+
+
+@family("leap", 12, "Leap rig (gestification): rForeArm root at the wrist > rHand > "
+        "fingers, millimetres, hand 36-40 fps; odd seeds left; body 25-120 fps", _RIG_DEV)
+def _leap(seed: int) -> Case:
+    return make_rig_case("leap", seed)
 
 
 TUNING_SEEDS = range(100, 108)

@@ -304,6 +304,10 @@ def prepare(body: Motion | MarkerSet, hand: Motion | MarkerSet, side: str = "aut
     timings["features"] = time.perf_counter() - t1
     progress("features", 1.0)
     M.register_metrics()
+    if hand_frames and all(not hand_frames[s].elbow_apart for s in sides):
+        side_notes.append("the hand take has no measured forearm: pass 2 (hand direction "
+                          "relative to the forearm) has nothing to refine; the alignment is "
+                          "pass 1's")
     return SpliceFeatures(
         body=body, hand=hand, sides=tuple(sides), n=n, m=m, m_hand=hand.n_frames, fps=fps,
         hand_fps=float(hand.fps), body_markers=body_markers, hand_markers=hand_markers,
@@ -479,6 +483,16 @@ def pass2_headings(features: SpliceFeatures, path1: np.ndarray) -> tuple[np.ndar
     return body, np.full(m, c)
 
 
+def hand_lacks_forearm(features: SpliceFeatures) -> bool:
+    """True when no spliced arm of the hand take has a measured forearm (ManipNet's wrist
+    root, Leap's forearm joint at the wrist). D2 (pass 2) compares the hand's direction
+    relative to the forearm; there it never changes, so pass 2 has nothing to refine and
+    the pass-1 path is the alignment."""
+    frames = features.hand_frames
+    return bool(frames) and all(s in frames and not frames[s].elbow_apart
+                                for s in features.sides)
+
+
 def align_passes(features: SpliceFeatures, band: float = BAND, refine_band: float = REFINE_BAND,
                  points: Sequence = (), previous: SpliceAlignment | None = None,
                  blend: float = MG.BLEND_FRAMES, incremental: bool | None = None,
@@ -535,7 +549,7 @@ def align_passes(features: SpliceFeatures, band: float = BAND, refine_band: floa
     progress("pass 2", 1.0)
 
     progress("merge", 0.0)
-    warp = MG.merge_path(al2.path, n, m, blend)
+    warp = MG.merge_path(al1.path if hand_lacks_forearm(features) else al2.path, n, m, blend)
     hand_map = features.grid_to_hand(warp)
     timings["merge"] = time.perf_counter() - t2
     progress("merge", 1.0)
