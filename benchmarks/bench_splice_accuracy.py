@@ -263,7 +263,10 @@ def per_case_wins(results: list[dict]) -> list[str]:
 
 
 def markdown(table: dict, results: list[dict], seeds: dict) -> str:
-    out = ["## Splice accuracy (issue 5)", "",
+    title = "## Splice accuracy (issue 5)"
+    if set(seeds) != set(FAMILIES):
+        title += ": families " + ", ".join(seeds)
+    out = [title, "",
            "Split real captures with known truth (`engine/splice/split.py`): **beat** = the "
            "BEAT take (body + 30 captured finger joints) split into a body take without fingers "
            "and a hand take; **bandai**, **lafan1** = real body-only takes (Bandai-Namco takes, "
@@ -316,6 +319,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="a few seeds per family, no RESULTS.md")
     ap.add_argument("--tuning", action="store_true", help="run the tuning seeds instead")
+    ap.add_argument("--section", default="",
+                    help="with --families: write the table to this RESULTS.md section")
     ap.add_argument("--families", default="",
                     help=f"comma-separated subset of {', '.join(FAMILIES)} (no RESULTS.md)")
     args = ap.parse_args(argv)
@@ -347,6 +352,8 @@ def main(argv=None) -> int:
     print(f"\n{time.perf_counter() - t0:.0f} s")
     if not (args.quick or args.tuning or args.families):
         write_section("splice_accuracy", md)
+    elif args.section and args.families and not (args.quick or args.tuning):
+        write_section(args.section, md)
     return 0
 
 
