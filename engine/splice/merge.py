@@ -28,14 +28,21 @@ BLEND_FRAMES = 3.0
 def median_warp(path: np.ndarray, n: int) -> np.ndarray:
     """Median matched column per row of ``path (k, 2)``: ``(n,)`` float, non-decreasing.
 
-    Every row ``0..n-1`` must appear in the path (true of any DTW path).
+    The path visits a run of rows ``i0..i1`` (every row with fixed ends; an open-end
+    path may start below row 0 or end above row ``n-1``). Rows before ``i0`` hold the
+    first matched column and rows after ``i1`` the last one: no timing is invented
+    outside the overlap, the hand pose holds (``smooth_warp`` eases into it).
     """
     path = np.asarray(path, dtype=np.int64).reshape(-1, 2)
     if len(path) == 0:
         raise ParameterError("merge: the path is empty")
     rows, cols = path[:, 0], path[:, 1]
-    if rows.min() != 0 or rows.max() != n - 1 or np.any(np.diff(rows) < 0):
-        raise ParameterError(f"merge: the path must visit rows 0..{n - 1} in order")
+    if rows.min() < 0 or rows.max() > n - 1 or np.any(np.diff(rows) < 0):
+        raise ParameterError(f"merge: the path must visit rows within 0..{n - 1} in order")
+    i0, i1 = int(rows[0]), int(rows[-1])
+    if i0 > 0 or i1 < n - 1:
+        inner = median_warp(path - np.array([i0, 0]), i1 - i0 + 1)
+        return np.concatenate([np.full(i0, inner[0]), inner, np.full(n - 1 - i1, inner[-1])])
     # rows are sorted: each row's columns are a contiguous sorted run
     starts = np.searchsorted(rows, np.arange(n), side="left")
     stops = np.searchsorted(rows, np.arange(n), side="right")
