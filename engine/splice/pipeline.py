@@ -685,9 +685,10 @@ def align_passes(features: SpliceFeatures, band: float = BAND, refine_band: floa
     progress("pass 2", 1.0)
 
     progress("merge", 0.0)
-    warp = MG.merge_path(al1.path if hand_lacks_forearm(features) else al2.path, n, m, blend)
+    final = al1 if hand_lacks_forearm(features) else al2
+    warp = MG.merge_path(final.path, n, m, blend)
     hand_map = features.grid_to_hand(warp)
-    overlap = al2.overlap
+    overlap = final.overlap
     timings["merge"] = time.perf_counter() - t2
     progress("merge", 1.0)
     p1 = PassResult(path=np.asarray(al1.path), cost=float(al1.cost), band=band1,
