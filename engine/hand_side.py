@@ -131,6 +131,12 @@ def geometric_side(motion: Motion, arm, fk=None) -> SideVote:
     return SideVote(None, thumb, curl, thumb_agree, curl_agree, reason)
 
 
+def _both_cues(vote: SideVote) -> bool:
+    """Thumb and finger flexion both clearly on the same side."""
+    return all(v is not None and abs(v) >= MIN_CUE and a >= MIN_AGREE
+               for v, a in ((vote.thumb, vote.thumb_agree), (vote.curl, vote.curl_agree)))
+
+
 def mirror_skeleton(sk: Skeleton, axis: int = 0) -> Skeleton:
     """``sk`` reflected across the plane ``axis = 0`` (offsets and End Sites)."""
     flip = np.ones(3)
@@ -207,7 +213,7 @@ def match_chirality(body, hand: Motion, body_roles, hand_roles, sides, body_fk=N
 
     For each spliced side the body expects a hand of that side (or, when the body has
     fingers there, the hand its own fingers form). When every spliced side's hand in the
-    hand take forms the other hand, clearly, the take was written in left-handed axes
+    hand take forms the other hand, clearly (thumb and flexion both agree), the take was written in left-handed axes
     (a Unity export) and is mirrored (:func:`mirror_take`); a note says so. Returns
     (hand take, notes).
     """
@@ -215,7 +221,7 @@ def match_chirality(body, hand: Motion, body_roles, hand_roles, sides, body_fk=N
     flips = []
     for s in sides:
         vote = geometric_side(hand, hand_roles.side(s), hand_fk)
-        if vote.side is None:
+        if vote.side is None or not _both_cues(vote):  # mirror only on clear evidence
             return hand, notes
         expected = s
         if isinstance(body, Motion) and body_roles.side(s).has_fingers:

@@ -221,3 +221,23 @@ def test_a_manipnet_rig_pair_is_timed_by_pass_1_within_a_body_frame():
     # every ManipNet finger joint is grafted and the thumb keeps its 4 joints
     names = res.motion.skeleton.names
     assert sum("THUMB_CMC_AA" in n for n in names) == 1
+
+
+def test_geometric_side_ignores_units_and_orientation():
+    """The same hand in centimetres instead of metres, turned 120 deg about a tilted axis
+    (another up axis, another facing): the same side."""
+    hand = mirror_take(_manipnet("right", 300))  # back to right-handed axes: a right hand
+    arm = find_roles(hand.skeleton, side_hint="right").right
+    assert geometric_side(hand, arm).side == "right"
+    turn = rot.from_axis_angle(np.array([0.3, 0.5, 0.8]) / np.linalg.norm([0.3, 0.5, 0.8]),
+                               np.radians(120.0))
+    rots, trans = hand.rotations.copy(), hand.translations * 100.0
+    root = 0
+    rots[:, root] = rot.multiply(turn, rots[:, root])
+    trans[:, root] = rot.rotate(turn, trans[:, root])
+    sk = hand.skeleton
+    moved = replace(hand, rotations=rots, translations=trans,
+                    skeleton=replace(sk, offsets=sk.offsets * 100.0,
+                                     end_sites={j: v * 100.0 for j, v in sk.end_sites.items()}))
+    assert geometric_side(moved, arm).side == "right"
+    assert geometric_side(mirror_take(moved, axis=2), arm).side == "left"
