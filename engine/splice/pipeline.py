@@ -658,7 +658,10 @@ def align_passes(features: SpliceFeatures, band: float = BAND, refine_band: floa
     band1 = Band.from_constraints(n, m, float(band), pts, open_ends=is_open)
     if incremental is None:
         incremental = band1.area <= INCREMENTAL_MAX_CELLS
-    same = previous is not None and previous.features_id == id(features)
+    # a forearm-less hand take is aligned by pass 1, whose sign costs tie often: solve it
+    # afresh (re-solves after edits may break ties otherwise), so the app and the CLI agree
+    same = previous is not None and previous.features_id == id(features) \
+        and not hand_lacks_forearm(features)
     solver1 = previous.pass1.solver if same else None
     ends1 = pass1_ends(features, kind, max_unmatched_s)
     al1, solver1 = _solve(features.pass1_rows, "splice_phase", band1, solver1, incremental,
