@@ -37,6 +37,7 @@ from engine.dtw import Band, align_features
 from engine.splice import merge as MG
 from engine.splice import pipeline as P
 from engine.splice import transfer as TR
+from benchmarks.split_rigs import make_rig_case
 
 
 @dataclass(frozen=True)
@@ -117,6 +118,32 @@ def _holds(seed: int) -> Case:
 def _fps(seed: int) -> Case:
     rates = (25.0, 30.0, 50.0, 60.0, 100.0, 120.0)
     return _rotating(seed, Realism(body_fps=rates, hand_fps=rates))
+
+
+# issue 12 item 4: hand takes from other rigs (benchmarks/split_rigs.py). Body takes at
+# 25/30/60/120 fps, hand takes at 25-120 fps (Leap 36-40), either one the faster.
+# Developed on seeds 300-303.
+_RIG_DEV = tuple(range(300, 304))
+
+
+@family("left", 12, "left-handed performer (take mirrored, sides swapped): the left hand "
+        "only; body 25-120 fps, hand 25-120 fps", _RIG_DEV)
+def _left(seed: int) -> Case:
+    return make_rig_case("left", seed)
+
+
+@family("manipnet", 12, "ManipNet rig: real ManipNet finger capture (4-joint thumb with "
+        "THUMB_CMC_AA) on the body's wrist; hand take rooted at a 6-DoF WRIST, no side in "
+        "names or file name (side from geometry); odd seeds left; body 25-120 fps, hand "
+        "25-120 fps", _RIG_DEV)
+def _manipnet(seed: int) -> Case:
+    return make_rig_case("manipnet", seed)
+
+
+@family("leap", 12, "Leap rig (gestification): rForeArm root at the wrist > rHand > "
+        "fingers, millimetres, hand 36-40 fps; odd seeds left; body 25-120 fps", _RIG_DEV)
+def _leap(seed: int) -> Case:
+    return make_rig_case("leap", seed)
 
 
 TUNING_SEEDS = range(100, 108)
@@ -237,8 +264,11 @@ def per_case_wins(results: list[dict]) -> list[str]:
 
 
 def markdown(table: dict, results: list[dict], seeds: dict) -> str:
-    out = ["## Splice accuracy (issue 5)", "",
-           "Split real captures with known truth (`engine/splice/split.py`): **beat** = the "
+    title = "## Splice accuracy (issue 5)"
+    if set(seeds) != set(FAMILIES):
+        title += ": families " + ", ".join(seeds)
+    out = [title, "",
+           "Split real captures with known truth (`benchmarks/split.py`): **beat** = the "
            "BEAT take (body + 30 captured finger joints) split into a body take without fingers "
            "and a hand take; **bandai**, **lafan1** = real body-only takes (Bandai-Namco takes, "
            "20 s LAFAN1 crops) carrying a synthetic finger-curl signal of known timing. Hand takes: "
@@ -292,6 +322,8 @@ def main(argv=None) -> int:
     ap.add_argument("--tuning", action="store_true", help="run the tuning seeds instead")
     ap.add_argument("--seeds", type=int, default=0,
                     help="only the first N reported seeds of each family (no RESULTS.md)")
+    ap.add_argument("--section", default="",
+                    help="with --families: write the table to this RESULTS.md section")
     ap.add_argument("--families", default="",
                     help=f"comma-separated subset of {', '.join(FAMILIES)} (no RESULTS.md)")
     args = ap.parse_args(argv)
@@ -323,6 +355,8 @@ def main(argv=None) -> int:
     print(f"\n{time.perf_counter() - t0:.0f} s")
     if not (args.quick or args.tuning or args.families or args.seeds):
         write_section("splice_accuracy", md)
+    elif args.section and args.families and not (args.quick or args.tuning):
+        write_section(args.section, md)
     return 0
 
 

@@ -275,10 +275,14 @@ def hand_frame(motion: Motion, roles, side: str) -> HandFrame:
     palm_vec = np.mean([_rest_vec(rest, wrist, j) for j in bases], axis=0) if bases else None
     palm_length = float(np.linalg.norm(palm_vec)) if palm_vec is not None else None
 
+    # without a forearm the hand points along its middle metacarpal (the hand's axis, in
+    # line with the forearm), else along the mean of the finger bases
+    middle = arm.fingers.get("middle", [])
+    axis_vec = _rest_vec(rest, wrist, middle[0]) if middle and middle[0] in bases else palm_vec
     if elbow_apart:
         along = _unit(forearm_vec)
-    elif palm_vec is not None and palm_length > 1e-6 * scale:
-        along = _unit(palm_vec)
+    elif axis_vec is not None and np.linalg.norm(axis_vec) > 1e-6 * scale:
+        along = _unit(axis_vec)
     elif arm.hand_end is not None:
         along = _unit(_rest_vec(rest, wrist, arm.hand_end))
     elif sk.end_sites.get(hand_joint) is not None and np.linalg.norm(sk.end_sites[hand_joint]) > 0:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from engine.splice.split import Realism, make_case
+from benchmarks.split import Realism, make_case
 
 from engine.splice import merge as MG
 from engine.splice import pipeline as P

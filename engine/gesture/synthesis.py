@@ -574,9 +574,12 @@ def graft_fingers(body, sides=("right", "left"), donor=None, roles=None):
         n, jn = motion.n_frames, plan.skeleton.n_joints
         rots = np.zeros((n, jn, 4))
         rots[..., 0] = 1.0
-        rots[:, :motion.skeleton.n_joints] = motion.rotations
+        bi = np.array([plan.out(j) for j in range(motion.skeleton.n_joints)])
+        rots[:, bi] = motion.rotations
         trans = np.broadcast_to(plan.skeleton.offsets, (n, jn, 3)).copy()
-        trans[:, :motion.skeleton.n_joints] = motion.translations
+        # a body joint below a joint inserted in its chain keeps its motion less the offset
+        trans[:, bi] = motion.translations + (plan.skeleton.offsets[bi]
+                                              - motion.skeleton.offsets)
         motion = Motion(plan.skeleton, rots, trans, motion.fps, motion.meta)
     return motion
 

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -49,6 +49,7 @@ from engine.features import (
     take_markers,
     take_sides,
 )
+from engine.hand_side import match_chirality, undecided_message
 from engine.motion import MarkerSet, Motion
 from engine.splice import merge as MG
 from engine.splice import transfer as TR
@@ -166,7 +167,10 @@ def require_skeletal(body, hand) -> None:
                               "with finger joints")
 
 
-def _roles_for(take, overrides):
+def _roles_for(take, overrides, side: str | None = None):
+    """Roles from joint names; a hand-only rig without a side gets it from the file name,
+    else ``side`` (``--side right|left``), else its geometry (``engine.hand_side``)."""
+    from engine.hand_side import sided_roles
     from engine.roles import find_roles, side_from_name
 
     if isinstance(take, MarkerSet):
@@ -174,7 +178,8 @@ def _roles_for(take, overrides):
     if overrides is not None and not isinstance(overrides, dict):
         return overrides  # a Roles object
     hint = side_from_name(take.meta.source) if take.meta.source else None
-    return find_roles(take.skeleton, overrides=overrides or None, side_hint=hint)
+    roles = find_roles(take.skeleton, overrides=overrides or None, side_hint=hint)
+    return sided_roles(take, roles, side)
 
 
 def resolve_sides(side: str, body_sides: Sequence[str], hand_sides: Sequence[str],
@@ -237,13 +242,16 @@ def prepare(body: Motion | MarkerSet, hand: Motion | MarkerSet, side: str = "aut
     if theta not in ("window", "trunk", "none"):
         raise ParameterError(f"theta must be 'window', 'trunk' or 'none', got {theta!r}")
     rb = _roles_for(body, body_roles)
-    rh = _roles_for(hand, hand_roles)
+    rh = _roles_for(hand, hand_roles, side)
     body_name, hand_name = _take_name(body), _take_name(hand)
     body_sides = _hand_sides(body, rb)
     hand_sides = _hand_sides(hand, rh)
     if isinstance(hand, Motion):  # a hand take without fingers cannot give any
         with_fingers = [s for s in hand_sides if rh.side(s).has_fingers]
         if not with_fingers:
+            undecided = undecided_message(hand_name, hand, rh)
+            if undecided:
+                raise RoleError(undecided)
             raise RoleError(f"{hand_name} has no finger joints (hands found: "
                             f"{', '.join(hand_sides) or 'none'}); the hand take must carry "
                             "the fingers to splice")
@@ -254,6 +262,9 @@ def prepare(body: Motion | MarkerSet, hand: Motion | MarkerSet, side: str = "aut
     limits.check_grid(hand_name, hand.n_frames, float(hand.fps), fps)
     timings: dict[str, float] = {}
 
+    side_notes: list[str] = []
+    if isinstance(hand, Motion):  # a hand take written in left-handed axes: mirror it
+        hand, side_notes = match_chirality(body, hand, rb, rh, sides)
     # forward kinematics by blocks of frames (features.take_markers): the body keeps its
     # world rotations for the transfer, the hand take keeps nothing
     body_frames: dict[str, HandFrame] = {}
@@ -306,6 +317,10 @@ def prepare(body: Motion | MarkerSet, hand: Motion | MarkerSet, side: str = "aut
     timings["features"] = time.perf_counter() - t1
     progress("features", 1.0)
     M.register_metrics()
+    if hand_frames and all(not hand_frames[s].elbow_apart for s in sides):
+        side_notes.append("the hand take has no measured forearm: pass 2 (hand direction "
+                          "relative to the forearm) has nothing to refine; the alignment is "
+                          "pass 1's")
     return SpliceFeatures(
         body=body, hand=hand, sides=tuple(sides), n=n, m=m, m_hand=hand.n_frames, fps=fps,
         hand_fps=float(hand.fps), body_markers=body_markers, hand_markers=hand_markers,
@@ -315,7 +330,7 @@ def prepare(body: Motion | MarkerSet, hand: Motion | MarkerSet, side: str = "aut
         params={"side": side, "sides": list(sides), "theta": theta, "n_bins": n_bins,
                 "smoothing_s": smoothing_s, "dead_zone": dead_zone, "step1": step1,
                 "step2": step2},
-        timings=timings)
+        timings=timings, notes=side_notes)
 
 
 def heading_offset(body: M.PhaseFeatures, hand: M.PhaseFeatures, cells: np.ndarray) -> float:
@@ -605,6 +620,16 @@ def pass2_headings(features: SpliceFeatures, path1: np.ndarray) -> tuple[np.ndar
     return body, np.full(m, c)
 
 
+def hand_lacks_forearm(features: SpliceFeatures) -> bool:
+    """True when no spliced arm of the hand take has a measured forearm (ManipNet's wrist
+    root, Leap's forearm joint at the wrist). D2 (pass 2) compares the hand's direction
+    relative to the forearm; there it never changes, so pass 2 has nothing to refine and
+    the pass-1 path is the alignment."""
+    frames = features.hand_frames
+    return bool(frames) and all(s in frames and not frames[s].elbow_apart
+                                for s in features.sides)
+
+
 def align_passes(features: SpliceFeatures, band=None, refine_band=None,
                  metrics: Sequence[str] = DEFAULT_METRICS,
                  points: Sequence = (), previous: SpliceAlignment | None = None,
@@ -648,7 +673,10 @@ def align_passes(features: SpliceFeatures, band=None, refine_band=None,
     limits.check_band("pass 1", band1.area)
     if incremental is None:
         incremental = band1.area <= INCREMENTAL_MAX_CELLS
-    same = previous is not None and previous.features_id == id(features)
+    # a forearm-less hand take is aligned by pass 1, whose sign costs tie often: solve it
+    # afresh (re-solves after edits may break ties otherwise), so the app and the CLI agree
+    same = previous is not None and previous.features_id == id(features) \
+        and not hand_lacks_forearm(features)
     solver1 = previous.pass1.solver if same else None
     ends1 = pass1_ends(features, kind, max_unmatched_s)
     al1, solver1 = _solve(features.pass1_rows, metric1, band1, solver1, incremental,
@@ -677,9 +705,10 @@ def align_passes(features: SpliceFeatures, band=None, refine_band=None,
     progress("pass 2", 1.0)
 
     progress("merge", 0.0)
-    warp = MG.smooth_warp(straighten_holds(features, MG.median_warp(al2.path, n)), blend, m)
+    final = al1 if hand_lacks_forearm(features) else al2
+    warp = MG.smooth_warp(straighten_holds(features, MG.median_warp(final.path, n)), blend, m)
     hand_map = features.grid_to_hand(warp)
-    overlap = al2.overlap
+    overlap = final.overlap
     timings["merge"] = time.perf_counter() - t2
     progress("merge", 1.0)
     p1 = PassResult(path=np.asarray(al1.path), cost=float(al1.cost), band=band1,
@@ -722,6 +751,7 @@ def plan_for(features: SpliceFeatures) -> TR.TransferPlan:
         cached = TR.plan_transfer(features.body, features.hand, features.body_roles,
                                   features.hand_roles, features.body_frames,
                                   features.hand_frames, features.sides)
+        cached = replace(cached, notes=tuple(features.notes) + cached.notes)
         features.params["_plan"] = cached
     return cached
 

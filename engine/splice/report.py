@@ -103,9 +103,10 @@ def build_report(result, body_path=None, hand_path=None, output_path=None,
         sk = plan.skeleton
         report["transfer"] = {
             "sides": {sp.side: {
-                "wrist": sk.names[sp.body_frame.wrist] if sp.wrist else None,
+                "wrist": sk.names[plan.out(sp.body_frame.wrist)] if sp.wrist else None,
                 "fingers": [sk.names[m.body] for m in sp.mapped],
                 "grafted": [sk.names[new] for new, _ in sp.grafted],
+                "inserted": [sk.names[new] for new in sp.inserted],
                 "graft_scale": round(float(sp.scale), 6),
                 "body_dorsal_from": sp.body_frame.dorsal_source,
                 "hand_dorsal_from": sp.hand_frame.dorsal_source,

@@ -50,11 +50,13 @@ from engine.roles import FINGERS
 
 @dataclass(frozen=True)
 class FingerMap:
-    """One body finger joint driven by the hand take.
+    """One output finger joint driven by the hand take (a body joint or one inserted).
 
-    body : body joint index; hand : hand-take joint index
-    body_parent, hand_parent : the previous matched joints (hand joints for joint 1)
+    body : output joint index; hand : hand-take joint index
+    body_parent, hand_parent : the previous driven joints (the hand joints above joint 1)
     u_parent, u_child : (4,) quaternions ``U`` for the parent and the joint
+    between : output indices of body joints between ``body_parent`` and ``body`` (twist
+        joints the hand take lacks: they keep the body's rotations), root side first
     """
 
     body: int
@@ -63,30 +65,42 @@ class FingerMap:
     hand_parent: int
     u_parent: np.ndarray
     u_child: np.ndarray
+    between: tuple[int, ...] = ()
 
 
 @dataclass(frozen=True)
 class SidePlan:
-    """How one side is transferred."""
+    """How one side is transferred. Joint indices of ``body_frame`` are the body take's;
+    ``TransferPlan.body_index`` turns them into output indices."""
 
     side: str
     body_frame: HandFrame
     hand_frame: HandFrame
     u_hand: np.ndarray  # (4,) quaternion F_body F_hand^T of the hand frames
     wrist: bool  # transfer the wrist rotation
-    mapped: tuple[FingerMap, ...]
-    grafted: tuple[tuple[int, int], ...]  # (new body joint, hand-take joint)
+    mapped: tuple[FingerMap, ...]  # body finger joints and joints inserted in their chains
+    grafted: tuple[tuple[int, int], ...]  # (new output joint, hand-take joint)
     scale: float  # hand-take file units -> body file units for grafted offsets
+    inserted: tuple[int, ...] = ()  # output joints inserted in the body's finger chains
 
 
 @dataclass(frozen=True)
 class TransferPlan:
-    """Output skeleton (body + grafted fingers) and the per-side plans."""
+    """Output skeleton (body + inserted and grafted finger joints) and the per-side plans.
+
+    ``body_index[j]`` is the output index of body joint ``j`` (body joints keep their
+    order; a joint inserted above a body finger joint comes just before it).
+    """
 
     skeleton: Skeleton
     sides: tuple[SidePlan, ...]
     n_body_joints: int
     notes: tuple[str, ...] = field(default_factory=tuple)
+    body_index: np.ndarray | None = None
+
+    def out(self, body_joint: int) -> int:
+        """Output index of a body joint."""
+        return int(body_joint if self.body_index is None else self.body_index[body_joint])
 
 
 def _unit(v):
@@ -94,20 +108,32 @@ def _unit(v):
     return v / n if n > 1e-12 else v
 
 
+def _bone_along(rest: np.ndarray, skeleton: Skeleton, j: int) -> np.ndarray | None:
+    """Unit rest direction of the bone below ``j``: to the first descendant (first child
+    first) that sits away from it, else along the End Site of ``j`` or of a zero-length
+    descendant; None when there is none."""
+    stack = list(reversed(skeleton.children(j)))
+    while stack:
+        c = stack.pop()
+        v = rest[c] - rest[j]
+        if np.linalg.norm(v) > 1e-9:
+            return _unit(v)
+        stack.extend(reversed(skeleton.children(c)))
+    for k in [j] + skeleton.descendants(j)[1:]:
+        end = skeleton.end_sites.get(k)
+        if end is not None and np.linalg.norm(rest[k] - rest[j] + end) > 1e-9:
+            return _unit(rest[k] - rest[j] + np.asarray(end, dtype=float))
+    return None
+
+
 def _joint_frame(rest: np.ndarray, skeleton: Skeleton, j: int, dorsal: np.ndarray,
                  fallback_along: np.ndarray, side: str) -> np.ndarray:
     """(3, 3) rest anatomical frame of joint ``j``: bone direction, radial, dorsal."""
-    kids = skeleton.children(j)
-    along = None
-    for c in kids:
-        v = rest[c] - rest[j]
-        if np.linalg.norm(v) > 1e-9:
-            along = _unit(v)
-            break
-    if along is None and j in skeleton.end_sites and np.linalg.norm(skeleton.end_sites[j]) > 1e-9:
-        along = _unit(np.asarray(skeleton.end_sites[j], dtype=float))
+    along = _bone_along(rest, skeleton, j)
     if along is None:
         p = skeleton.parents[j]
+        while p >= 0 and np.linalg.norm(rest[j] - rest[p]) <= 1e-9:
+            p = skeleton.parents[p]
         v = rest[j] - rest[p] if p >= 0 else np.zeros(3)
         along = _unit(v) if np.linalg.norm(v) > 1e-9 else fallback_along
     n = dorsal - along * np.dot(dorsal, along)
@@ -124,21 +150,110 @@ def _quat(m: np.ndarray) -> np.ndarray:
     return rot.from_matrix(m)
 
 
+def _finger_chain(sk: Skeleton, arm, finger: str, hand_joint: int) -> list[int]:
+    """Every joint of ``finger``'s chain below ``hand_joint``, proximal first: from the
+    joint below the hand (metacarpal, unnamed or joint 1) to the deepest role joint
+    (tip, else the last numbered one), then on through single children (unnamed tips)."""
+    named = [j for j in arm.fingers[finger] if hand_joint in sk.chain_to_root(j)]
+    if not named:
+        return []
+    last = named[-1]
+    tip = arm.tips[finger]
+    if tip is not None and last in sk.chain_to_root(tip):
+        last = tip
+    while len(sk.children(last)) == 1:
+        last = sk.children(last)[0]
+    path = sk.chain_to_root(last)
+    return path[:path.index(hand_joint)][::-1]
+
+
+def _anchors(sk: Skeleton, arm, finger: str, chain: list[int]) -> dict[int, int]:
+    """Role number -> joint on ``chain``: metacarpal 0, joints 1..3, tip 4."""
+    out = {k: j for k, j in zip(arm.numbers[finger], arm.fingers[finger], strict=True)
+           if j in chain}
+    if arm.metacarpals[finger] in chain:
+        out[0] = arm.metacarpals[finger]
+    if arm.tips[finger] in chain:
+        out[4] = arm.tips[finger]
+    return out
+
+
+class _Builder:
+    """The output skeleton under construction: body joints (keys ``("b", j)``) and new
+    joints (``("n", k)``), each with a parent key, offset, channels and End Site."""
+
+    def __init__(self, sk: Skeleton):
+        self.parent = {("b", j): (("b", int(p)) if p >= 0 else None)
+                       for j, p in enumerate(sk.parents)}
+        self.offset = {("b", j): np.asarray(sk.offsets[j], dtype=float)
+                       for j in range(sk.n_joints)}
+        self.name = {("b", j): sk.names[j] for j in range(sk.n_joints)}
+        self.channels = {("b", j): sk.channels[j] for j in range(sk.n_joints)}
+        self.end = {("b", j): v for j, v in sk.end_sites.items()}
+        self.n_body = sk.n_joints
+        self.new_keys: list[tuple[str, int]] = []
+        self.taken = list(sk.names)
+
+    def add(self, name: str, parent, offset, channels) -> tuple[str, int]:
+        key = ("n", len(self.new_keys))
+        self.new_keys.append(key)
+        self.parent[key] = parent
+        self.offset[key] = np.asarray(offset, dtype=float)
+        self.name[key] = name
+        self.channels[key] = channels
+        self.taken.append(name)
+        return key
+
+    def build(self) -> tuple[Skeleton, dict]:
+        """(skeleton, key -> output index); a joint that gained children here loses a
+        zero-length End Site (Blender draws one as a stub)."""
+        order: list = []
+        placed: set = set()
+
+        def emit(key):
+            todo = []
+            while key is not None and key not in placed:
+                todo.append(key)
+                key = self.parent[key]
+            for k in reversed(todo):
+                placed.add(k)
+                order.append(k)
+
+        for j in range(self.n_body):
+            emit(("b", j))
+        for key in self.new_keys:
+            emit(key)
+        index = {k: i for i, k in enumerate(order)}
+        parents = [index[self.parent[k]] if self.parent[k] is not None else -1 for k in order]
+        with_new_kids = {self.parent[k] for k in self.new_keys}
+        ends = {}
+        for k, v in self.end.items():
+            if k in with_new_kids and k[0] == "b":
+                continue  # fingers now hang here: the old End Site would be a stub
+            ends[index[k]] = np.asarray(v, dtype=float)
+        skeleton = Skeleton(names=tuple(self.name[k] for k in order), parents=np.array(parents),
+                            offsets=np.array([self.offset[k] for k in order]),
+                            channels=tuple(self.channels[k] for k in order), end_sites=ends)
+        return skeleton, index
+
+
 def plan_transfer(body: Motion, hand: Motion, body_roles, hand_roles,
                   body_frames: dict[str, HandFrame], hand_frames: dict[str, HandFrame],
                   sides: tuple[str, ...]) -> TransferPlan:
-    """Decide, per side, which body joints the hand take drives and what to graft.
+    """Decide, per side, which body joints the hand take drives and what to insert or graft.
+
+    Every joint of the hand take's finger chains is carried: a joint matched by role
+    (metacarpal, 1..3, tip) drives the body's joint; a joint the body's finger lacks
+    (ManipNet ``THUMB_CMC_AA``, twist or extra joints) is inserted in the body's chain
+    (on the body's bone, at the hand take's share of the chain length) or, past the
+    body's last joint, appended; a finger the body lacks is grafted whole.
 
     Raises ``RoleError`` when the hand take has no finger joints on a side.
     """
     sk_b, sk_h = body.skeleton, hand.skeleton
-    rest_b, rest_h = rest_positions(sk_b), rest_positions(sk_h)
-    names = list(sk_b.names)
-    parents = list(sk_b.parents)
-    offsets = [o for o in sk_b.offsets]
-    channels = list(sk_b.channels)
-    end_sites = dict(sk_b.end_sites)
-    plans = []
+    rest_h = rest_positions(sk_h)
+    bld = _Builder(sk_b)
+    drafts = []
     notes = []
     for side in sides:
         fb, fh = body_frames[side], hand_frames[side]
@@ -146,7 +261,6 @@ def plan_transfer(body: Motion, hand: Motion, body_roles, hand_roles,
         if not any(arm_h.fingers[f] for f in FINGERS):
             raise RoleError(f"{side} hand of {_src(hand)}: no finger joints to transfer")
         u_hand_m = fb.basis @ fh.basis.T
-        u_hand = _quat(u_hand_m)
         # the wrist's rotation relative to the forearm means something only when the hand
         # take measured a forearm (an elbow joint away from the wrist). Leap takes put the
         # whole hand orientation on a forearm joint sitting at the wrist (the wrist's own
@@ -156,62 +270,140 @@ def plan_transfer(body: Motion, hand: Motion, body_roles, hand_roles,
             notes.append(f"{side}: the hand take has no measured forearm (no elbow joint away "
                          "from the wrist); the body keeps its own wrist rotation")
         hand_b, hand_h = fb.hand_joint, fh.hand_joint
-        mapped: list[FingerMap] = []
-        grafted: list[tuple[int, int]] = []
+        driven: list[tuple] = []  # (body key, hand joint, body parent key, hand parent)
+        grafted: list[tuple] = []  # (new key, hand joint)
+        inserted: list[tuple] = []
         size = graft_scale(fb, fh)
+        order = _rotation_order(sk_b, fb.wrist)
+        wrist_name = sk_b.names[fb.wrist]
         for finger in FINGERS:
-            hj = [j for j in arm_h.fingers[finger] if hand_h in sk_h.chain_to_root(j)]
-            if not hj:
+            chain_h = _finger_chain(sk_h, arm_h, finger, hand_h)
+            if not chain_h:
                 continue
-            bj = [j for j in arm_b.fingers[finger] if hand_b in sk_b.chain_to_root(j)]
-            if bj:
-                num_h = dict(zip(arm_h.numbers[finger], arm_h.fingers[finger], strict=True))
-                num_b = dict(zip(arm_b.numbers[finger], arm_b.fingers[finger], strict=True))
-                prev_b, prev_h = hand_b, hand_h
-                u_prev = u_hand
-                for k in sorted(num_b):
-                    if k not in num_h:
-                        break
-                    b, h = num_b[k], num_h[k]
-                    if prev_h not in sk_h.chain_to_root(h):
-                        break
-                    frame_b = _joint_frame(rest_b, sk_b, b, fb.dorsal, fb.along, side)
-                    frame_h = _joint_frame(rest_h, sk_h, h, fh.dorsal, fh.along, side)
-                    u_child = _quat(frame_b @ frame_h.T)
-                    mapped.append(FingerMap(b, h, prev_b, prev_h, u_prev, u_child))
-                    prev_b, prev_h, u_prev = b, h, u_child
+            chain_b = _finger_chain(sk_b, arm_b, finger, hand_b)
+            if chain_b:
+                _carry_chain(bld, sk_b, sk_h, rest_h, finger, arm_b, arm_h, chain_b, chain_h,
+                             hand_b, hand_h, wrist_name, size, u_hand_m, driven, inserted)
                 continue
             # graft the hand take's subtree of this finger under the body's hand joint
-            root = hj[0]
-            chain = sk_h.chain_to_root(root)
-            top = chain[chain.index(hand_h) - 1] if hand_h in chain else root
-            sub = sk_h.descendants(top)
+            top = chain_h[0]
             new_index = {}
-            order = _rotation_order(sk_b, fb.wrist)
-            for a in sub:
-                p = sk_h.parents[a]
+            for a in sk_h.descendants(top):
                 if a == top:
-                    parent_new = hand_b
+                    parent_new = ("b", hand_b)
                     off_h = rest_h[a] - rest_h[hand_h]
                 else:
-                    parent_new = new_index[p]
+                    parent_new = new_index[sk_h.parents[a]]
                     off_h = sk_h.offsets[a]
-                name = _graft_name(sk_b.names[fb.wrist], finger, arm_h, a, sk_h.names[a], names)
-                new_index[a] = len(names)
-                names.append(name)
-                parents.append(parent_new)
-                offsets.append(size * (u_hand_m @ np.asarray(off_h, dtype=float)))
-                channels.append(tuple(f"{c}rotation" for c in order))
+                name = _graft_name(wrist_name, finger, arm_h, a, sk_h.names[a], bld.taken)
+                key = bld.add(name, parent_new, size * (u_hand_m @ np.asarray(off_h, float)),
+                              tuple(f"{c}rotation" for c in order))
+                new_index[a] = key
                 if a in sk_h.end_sites:
-                    end_sites[new_index[a]] = size * (u_hand_m @ np.asarray(sk_h.end_sites[a]))
-                grafted.append((new_index[a], a))
+                    bld.end[key] = size * (u_hand_m @ np.asarray(sk_h.end_sites[a]))
+                grafted.append((key, a))
+        drafts.append((side, fb, fh, u_hand_m, bool(wrist), driven, grafted, inserted, size))
+    skeleton, index = bld.build()
+    rest_o = rest_positions(skeleton)
+    body_index = np.array([index[("b", j)] for j in range(sk_b.n_joints)])
+    plans = []
+    for side, fb, fh, u_hand_m, wrist, driven, grafted, inserted, size in drafts:
+        u_hand = _quat(u_hand_m)
+        frames_u = {}
+        mapped = []
+        for key, h, parent_key, h_parent in driven:
+            b = index[key]
+            frame_b = _joint_frame(rest_o, skeleton, b, fb.dorsal, fb.along, side)
+            frame_h = _joint_frame(rest_h, sk_h, h, fh.dorsal, fh.along, side)
+            u_child = _quat(frame_b @ frame_h.T)
+            frames_u[key] = u_child
+            u_parent = frames_u.get(parent_key, u_hand)
+            bp = index[parent_key]
+            between = []
+            j = int(skeleton.parents[b])
+            while j != bp and j >= 0:
+                between.append(j)
+                j = int(skeleton.parents[j])
+            mapped.append(FingerMap(b, h, bp, h_parent, u_parent, u_child, tuple(between[::-1])))
         plans.append(SidePlan(side=side, body_frame=fb, hand_frame=fh, u_hand=u_hand,
-                              wrist=bool(wrist), mapped=tuple(mapped), grafted=tuple(grafted),
-                              scale=size))
-    skeleton = Skeleton(names=tuple(names), parents=np.array(parents), offsets=np.array(offsets),
-                        channels=tuple(channels), end_sites=end_sites)
+                              wrist=wrist, mapped=tuple(mapped),
+                              grafted=tuple((index[k], a) for k, a in grafted), scale=size,
+                              inserted=tuple(index[k] for k in inserted)))
+        n_ins = len(inserted)
+        if n_ins:
+            notes.append(f"{side}: {n_ins} finger joint{'s' if n_ins > 1 else ''} of the hand "
+                         f"take the body lacks inserted in its finger chains: "
+                         + ", ".join(skeleton.names[index[k]] for k in inserted))
     return TransferPlan(skeleton=skeleton, sides=tuple(plans), n_body_joints=sk_b.n_joints,
-                        notes=tuple(notes))
+                        notes=tuple(notes), body_index=body_index)
+
+
+def _carry_chain(bld: _Builder, sk_b: Skeleton, sk_h: Skeleton, rest_h: np.ndarray,
+                 finger: str, arm_b, arm_h, chain_b: list[int], chain_h: list[int],
+                 hand_b: int, hand_h: int, wrist_name: str, size: float, u_hand_m: np.ndarray,
+                 driven: list, inserted: list) -> None:
+    """Drive the body's finger chain with every joint of the hand take's chain.
+
+    Matched joints (same role number, in order along both chains) drive body joints.
+    Hand joints between two matched ones go in new joints on the body's bone above the
+    next matched body joint, at the hand chain's length fractions (so the chord from one
+    matched joint to the next keeps the hand take's direction); hand joints past the
+    last matched one are appended below it. Appends (body key, hand joint, body parent
+    key, hand parent) to ``driven`` and new keys to ``inserted``.
+    """
+    anc_h = _anchors(sk_h, arm_h, finger, chain_h)
+    anc_b = _anchors(sk_b, arm_b, finger, chain_b)
+    pairs = []
+    for k in sorted(set(anc_h) & set(anc_b)):
+        h, b = anc_h[k], anc_b[k]
+        if pairs and (chain_h.index(h) <= chain_h.index(pairs[-1][0])
+                      or chain_b.index(b) <= chain_b.index(pairs[-1][1])):
+            continue
+        pairs.append((h, b))
+    if not pairs:
+        return
+    chans = sk_b.channels[chain_b[0]]
+    rot_chans = tuple(c for c in chans if c.endswith("rotation")) or \
+        ("Zrotation", "Xrotation", "Yrotation")
+    prev_key, prev_h = ("b", hand_b), hand_h
+    for h, b in pairs:
+        extras = chain_h[chain_h.index(prev_h) + 1 if prev_h in chain_h else 0:chain_h.index(h)]
+        key_b = ("b", b)
+        if extras:
+            lengths = np.array([np.linalg.norm(rest_h[e] - rest_h[sk_h.parents[e]])
+                                for e in extras + [h]])
+            total = float(lengths.sum())
+            frac = np.cumsum(lengths) / total if total > 1e-12 else np.zeros(lengths.size)
+            bone = bld.offset[key_b]
+            parent, done = bld.parent[key_b], 0.0
+            for e, f in zip(extras, frac[:-1], strict=True):
+                name = _unique(f"{sk_b.names[b]}_{sk_h.names[e]}", bld.taken)
+                key = bld.add(name, parent, (f - done) * bone, rot_chans)
+                driven.append((key, e, prev_key, prev_h))
+                inserted.append(key)
+                prev_key, prev_h, parent, done = key, e, key, f
+            bld.parent[key_b] = parent
+            bld.offset[key_b] = (1.0 - done) * bone
+        driven.append((key_b, h, prev_key, prev_h))
+        prev_key, prev_h = key_b, h
+    # hand joints past the last matched one: appended below it
+    for e in chain_h[chain_h.index(prev_h) + 1:]:
+        name = _unique(f"{wrist_name}_{finger}_{sk_h.names[e]}", bld.taken)
+        key = bld.add(name, prev_key, size * (u_hand_m @ np.asarray(sk_h.offsets[e], float)),
+                      rot_chans)
+        if e in sk_h.end_sites:
+            bld.end[key] = size * (u_hand_m @ np.asarray(sk_h.end_sites[e], float))
+        driven.append((key, e, prev_key, prev_h))
+        inserted.append(key)
+        prev_key, prev_h = key, e
+
+
+def _unique(base: str, taken: list[str]) -> str:
+    name, c = base, 2
+    while name in taken:
+        name = f"{base}_{c}"
+        c += 1
+    return name
 
 
 def graft_scale(body: HandFrame, hand: HandFrame) -> float:
@@ -247,11 +439,7 @@ def _graft_name(wrist_name: str, finger: str, arm_h, joint: int, hand_name: str,
             base = f"{wrist_name}_{finger}{k}"
     if base is None:
         base = f"{wrist_name}_{finger}_{hand_name}"
-    name, c = base, 2
-    while name in taken:
-        name = f"{base}_{c}"
-        c += 1
-    return name
+    return _unique(base, taken)
 
 
 def _conj_u(u: np.ndarray, r: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -309,17 +497,22 @@ def apply_transfer(plan: TransferPlan, body: Motion, hand: Motion, hand_times: n
 def _transfer_block(plan: TransferPlan, body: Motion, hand: Motion, t: np.ndarray,
                     g_b: np.ndarray, f0: int, f1: int, rots: np.ndarray, trans: np.ndarray,
                     nb: int) -> None:
-    """Body frames ``f0..f1-1`` of :func:`apply_transfer` into ``rots``/``trans`` (views)."""
+    """Body frames ``f0..f1-1`` of :func:`apply_transfer` into ``rots``/``trans`` (views).
+
+    Body joint ``j`` is output joint ``plan.body_index[j]`` (joints inserted in finger
+    chains sit between body joints)."""
     n = f1 - f0
-    jn = plan.skeleton.n_joints
+    sk_o = plan.skeleton
     h_local, h_trans = sample(hand, t)
     h_motion = replace(hand, rotations=h_local, translations=h_trans, fps=body.fps)
     _, g_h = forward_kinematics(h_motion)
     body_rot = body.rotations[f0:f1]
-    rots[:, :nb] = body_rot
-    trans[:, :nb] = body.translations[f0:f1]
-    rots[:, nb:] = rot.identity((n, jn - nb))
-    trans[:, nb:] = plan.skeleton.offsets[nb:]
+    bi = np.arange(nb) if plan.body_index is None else np.asarray(plan.body_index)
+    rots[:] = rot.identity((n, sk_o.n_joints))
+    trans[:] = sk_o.offsets
+    rots[:, bi] = body_rot
+    # a body joint below an inserted one keeps its motion less the inserted offset
+    trans[:, bi] = body.translations[f0:f1] + (sk_o.offsets[bi] - body.skeleton.offsets)
     sk_b = body.skeleton
     for sp in plan.sides:
         fb, fh = sp.body_frame, sp.hand_frame
@@ -336,7 +529,7 @@ def _transfer_block(plan: TransferPlan, body: Motion, hand: Motion, t: np.ndarra
                         break
                     between = qmul(body_rot[:, j], between)
                 local = qmul(local, rot.conjugate(between))
-            rots[:, fb.wrist] = local
+            rots[:, bi[fb.wrist]] = local
         if sp.mapped:
             hp = [fm.hand_parent for fm in sp.mapped]
             hj = [fm.hand for fm in sp.mapped]
@@ -345,19 +538,16 @@ def _transfer_block(plan: TransferPlan, body: Motion, hand: Motion, t: np.ndarra
             u_c = np.stack([fm.u_child for fm in sp.mapped])
             desired = _conj_u(u_p, r_rel, u_c)
             for k, fm in enumerate(sp.mapped):
-                # body joints between the matched parent and this joint keep their rotations
+                # body joints between the driven parent and this joint keep their rotations
                 between = None
-                j = sk_b.parents[fm.body]
-                while j != fm.body_parent and j >= 0:
-                    between = body_rot[:, j] if between is None else \
-                        qmul(body_rot[:, j], between)
-                    j = sk_b.parents[j]
+                for j in fm.between:
+                    between = rots[:, j] if between is None else qmul(between, rots[:, j])
                 rots[:, fm.body] = desired[:, k] if between is None else \
                     qmul_conj(between, desired[:, k])
         if sp.grafted:
             new = np.array([g[0] for g in sp.grafted])
             src = np.array([g[1] for g in sp.grafted])
-            top = plan.skeleton.parents[new] == fb.hand_joint
+            top = sk_o.parents[new] == bi[fb.hand_joint]
             r_rel = h_local[:, src].copy()
             if top.any():
                 r_rel[:, top] = qmul_conj(g_h[:, [fh.hand_joint]], g_h[:, src[top]])
