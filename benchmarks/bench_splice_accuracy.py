@@ -33,11 +33,11 @@ import numpy as np
 
 from benchmarks._results import write_section
 from benchmarks.split import Case, Realism, finger_error, finger_pairs, make_case
+from benchmarks.split_rigs import make_rig_case
 from engine.dtw import Band, align_features
 from engine.splice import merge as MG
 from engine.splice import pipeline as P
 from engine.splice import transfer as TR
-from benchmarks.split_rigs import make_rig_case
 
 
 @dataclass(frozen=True)

@@ -33,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks.split import MOCAP, Case, base_take, make_hand_take, strip_fingers, subset
 from engine.features import hand_frame
 from engine.hand_side import mirror_take
 from engine.io.bvh import read_bvh
@@ -40,7 +41,6 @@ from engine.kinematics import resample
 from engine.motion import Motion, Skeleton
 from engine.roles import FINGERS, find_roles
 from engine.splice import transfer as TR
-from benchmarks.split import MOCAP, Case, base_take, make_hand_take, strip_fingers, subset
 
 RIG_KINDS = ("left", "manipnet", "leap")
 MANIPNET = {"right": "manipnet/mug1_rightHand.bvh", "left": "manipnet/mug1_leftHand.bvh"}

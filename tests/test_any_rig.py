@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from conftest import MOCAP
 
+from benchmarks.split import strip_fingers
 from engine import rotations as rot
 from engine.errors import RoleError
 from engine.fastkin import forward_kinematics
@@ -23,7 +24,6 @@ from engine.kinematics import sample
 from engine.roles import find_roles
 from engine.splice import pipeline as P
 from engine.splice import transfer as TR
-from benchmarks.split import strip_fingers
 
 MANIPNET = {"right": MOCAP / "manipnet" / "mug1_rightHand.bvh",
             "left": MOCAP / "manipnet" / "mug1_leftHand.bvh"}
@@ -204,8 +204,8 @@ def test_a_manipnet_rig_pair_is_timed_by_pass_1_within_a_body_frame():
     """The bench's ManipNet family, one case: a wrist-rooted hand take (no forearm) whose
     names and file name carry no side. Its side comes from geometry, pass 2 has nothing to
     compare (no forearm), so the alignment is pass 1's, within a body frame (median)."""
-    from engine.splice import merge as MG
     from benchmarks.split_rigs import make_rig_case
+    from engine.splice import merge as MG
 
     case = make_rig_case("manipnet", 0)
     assert case.hand.skeleton.names[:3] == ("WRIST", "THUMB_CMC_FE", "THUMB_CMC_AA")

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from benchmarks.split import Realism, make_case
 
+from benchmarks.split import Realism, make_case
 from engine.splice import merge as MG
 from engine.splice import pipeline as P
 from engine.splice.report import build_report
