@@ -1,0 +1,111 @@
+"""Min-marginal costs: the cheapest path through every band cell (docs/method.md, "Trust").
+
+For a banded DTW problem with local costs ``D`` and cumulative costs γ (forward,
+from ``(0, 0)``) and β (backward, the same recurrence run on both sequences
+reversed, from ``(n-1, m-1)``), the cheapest monotone path that is forced
+through cell ``(i, j)`` costs::
+
+    T(i, j) = γ(i, j) + β(i, j) - D(i, j)        (D is counted in both γ and β)
+
+``T`` equals the optimal total ``T*`` on the optimal path and grows as a cell
+moves away from every cheap path. ``T - T*`` (the *extra cost* of a cell) is
+what the splice's uncertainty is built on (:mod:`engine.splice.uncertainty`): a
+row whose cells far from the chosen column have small extra cost is a row where
+the alignment could move at little price.
+
+Cost: two forward passes with γ kept for every band cell (8 bytes per cell per
+direction, float64) plus the row reductions; about two solves' time.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._config import njit_cached
+from .align import Problem, check_total
+from .band import Band
+
+
+@dataclass(frozen=True, eq=False)
+class RowSpread:
+    """Per-row summaries of the extra cost ``T - T*`` over a band.
+
+    total : float, the optimal total ``T*``
+    spread : (n,) float, columns; the root-mean-square distance of the row's cells from
+        ``centre`` weighted by ``exp(-(T - T*) / temperature)``
+    reach : (n,) float, columns; the largest ``|j - centre|`` with ``T - T* <= margin``
+    """
+
+    total: float
+    spread: np.ndarray
+    reach: np.ndarray
+
+
+def _gamma(problem: Problem, band: Band) -> tuple[np.ndarray, float]:
+    """γ for every band cell (flat, ``band.start`` offsets) and the total."""
+    bp = np.empty(band.area, np.uint8)
+    gamma = np.empty(band.area, np.float64)
+    bad, total = problem.forward(band.lo, band.hi, band.start, 0, band.n, bp, gamma, 1)
+    if bad >= 0:
+        raise problem.bad_cost_error(int(bad), band)
+    check_total(total)
+    return gamma, float(total)
+
+
+@njit_cached()
+def _row_spread(gf, gb, lo, hi, start, rlo, rstart, n, m, centre, total, temperature, margin,
+                spread, reach):
+    """Rows of ``spread``/``reach`` from ``gf`` = γ - D (forward problem) and ``gb`` = γ of
+    the reversed problem on the reversed band (``rlo``, ``rstart``): cell ``(i, j)`` is
+    reversed cell ``(n-1-i, m-1-j)``, so ``T(i, j) = gf + gb``."""
+    for i in range(n):
+        ri = n - 1 - i
+        c = centre[i]
+        wsum = 0.0
+        dsum = 0.0
+        far = 0.0
+        for j in range(lo[i], hi[i] + 1):
+            rj = m - 1 - j
+            t = gf[start[i] + j - lo[i]] + gb[rstart[ri] + rj - rlo[ri]]
+            extra = t - total
+            if extra < 0.0:
+                extra = 0.0
+            d = j - c
+            if extra <= margin and abs(d) > far:
+                far = abs(d)
+            if temperature > 0.0:
+                w = np.exp(-extra / temperature)
+                wsum += w
+                dsum += w * d * d
+        spread[i] = np.sqrt(dsum / wsum) if wsum > 0.0 else 0.0
+        reach[i] = far
+
+
+def row_spread(a, b, band: Band, metric, centre, temperature: float, margin: float) -> RowSpread:
+    """Per-row spread of the cheap cells around ``centre`` for features ``a``, ``b``.
+
+    a : (n, d) float body feature rows; b : (m, d) float hand feature rows
+    band : Band over (n, m); metric : a registered metric name or numba function
+    centre : (n,) float, the column each row is measured from (the chosen warp)
+    temperature : float > 0, cost units; the weight of a cell is ``exp(-extra / temperature)``
+    margin : float >= 0, cost units; ``reach`` counts cells with ``extra <= margin``
+    """
+    problem = Problem.from_features(a, b, metric)
+    band.check_fits((problem.n, problem.m), problem.what)
+    gf, total = _gamma(problem, band)
+    # γf - D: subtract each cell's local cost once, row by row (no n x m array)
+    for i in range(band.n):
+        lo, hi = int(band.lo[i]), int(band.hi[i])
+        s = int(band.start[i])
+        gf[s : s + hi - lo + 1] -= problem.cost_row(i, lo, hi)
+    rband = band.reversed()
+    gb, _ = _gamma(problem.reversed(), rband)
+    n, m = band.n, band.m
+    spread = np.empty(n)
+    reach = np.empty(n)
+    centre = np.ascontiguousarray(np.broadcast_to(np.asarray(centre, np.float64), (n,)))
+    _row_spread(gf, gb, band.lo, band.hi, band.start, rband.lo, rband.start, n, m, centre,
+                total, float(temperature), float(margin), spread, reach)
+    return RowSpread(total=total, spread=spread, reach=reach)

@@ -1,0 +1,146 @@
+"""How far the matched hand time could move: uncertainty per body frame (docs/method.md, "Trust").
+
+For each pass, every band cell gets the cost of the cheapest path forced through it
+(:mod:`engine.dtw.marginals`). A row where cells far from the chosen warp cost
+little more than the optimum is a row the alignment could move at little price:
+the fingers there may be mistimed. Per body frame ``i``::
+
+    spread_p(i) = sqrt( Σ_j w_ij (j - warp_i)² / Σ_j w_ij ),  w_ij = exp(-(T_p(i, j) - T_p*) / τ_p)
+
+for pass ``p`` in {1, 2}, with the temperature ``τ_p`` = ``KAPPA`` × the pass's mean
+local cost per path step (the cost of a few frames' typical mismatch: scale-free
+across metrics and takes). The two passes are combined in quadrature (pass 1 decides
+the gesture phase, pass 2 the timing within it) and converted to milliseconds of the
+hand take. Costs: about two extra solves per pass (forward and backward γ, 16 bytes
+per band cell).
+
+Strokes: the body take's stroke phases (:mod:`engine.gesture.phases`) each get the
+largest uncertainty inside them and a verdict against the 100 ms threshold at which
+viewers notice hand/body desync (Jörg, Hodgins & O'Sullivan 2010): ``ok`` below
+``AMBER_MS``, ``check`` up to ``DESYNC_MS``, ``desync`` above.
+
+Suggestions: the least certain body frames, one per region (at least
+``SUGGEST_GAP_S`` apart), as candidate matching points.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from engine.dtw import Band
+from engine.dtw.marginals import row_spread
+
+#: temperature = KAPPA x the pass's mean local cost per path step (chosen on the tuning seeds)
+KAPPA = 4.0
+#: relative floor of the temperature (a perfect match must not make every row certain)
+TEMPERATURE_FLOOR = 1e-3
+#: viewers notice hand/body desync above about 0.1 s (Jörg, Hodgins & O'Sullivan 2010)
+DESYNC_MS = 100.0
+AMBER_MS = 50.0
+#: suggested matching points are at least this far apart (seconds of the body take)
+SUGGEST_GAP_S = 1.0
+SUGGESTIONS = 3
+
+
+@dataclass(frozen=True)
+class Stroke:
+    """One stroke of the body take: frames ``start..end`` (inclusive), its worst uncertainty."""
+
+    start: int
+    end: int
+    uncertainty_ms: float
+    verdict: str  # "ok" | "check" | "desync"
+
+    def as_dict(self) -> dict:
+        return {"start": self.start, "end": self.end,
+                "uncertainty_ms": round(float(self.uncertainty_ms), 1), "verdict": self.verdict}
+
+
+@dataclass(frozen=True)
+class Uncertainty:
+    """Uncertainty of one splice alignment.
+
+    ms : (n,) float, milliseconds of the hand take per body frame
+    pass1_ms, pass2_ms : (n,) float, each pass's part
+    fps : float, body frames per second
+    """
+
+    ms: np.ndarray
+    pass1_ms: np.ndarray
+    pass2_ms: np.ndarray
+    fps: float
+
+    def suggestions(self, count: int = SUGGESTIONS, gap_s: float = SUGGEST_GAP_S) -> list[int]:
+        """Body frames of the ``count`` least certain places, at least ``gap_s`` apart."""
+        gap = max(1, int(round(gap_s * self.fps)))
+        order = np.argsort(-self.ms, kind="stable")
+        chosen: list[int] = []
+        for i in order:
+            if self.ms[i] <= 0.0 or len(chosen) >= count:
+                break
+            if all(abs(int(i) - c) >= gap for c in chosen):
+                chosen.append(int(i))
+        return chosen
+
+
+def verdict(ms: float) -> str:
+    """``ok`` / ``check`` / ``desync`` for an uncertainty in milliseconds."""
+    if ms > DESYNC_MS:
+        return "desync"
+    return "check" if ms > AMBER_MS else "ok"
+
+
+def pass_spread(result, warp: np.ndarray, kappa: float = KAPPA) -> np.ndarray:
+    """(n,) grid columns: the weighted spread of one pass's cheap cells around ``warp``.
+
+    result : pipeline.PassResult (rows, metric, band, path, cost)
+    warp : (n,) float, grid hand frame per body frame
+    """
+    a, b = result.rows
+    temperature = kappa * max(float(result.cost) / max(len(result.path), 1), TEMPERATURE_FLOOR)
+    return row_spread(a, b, result.band, result.metric, warp, temperature, margin=0.0).spread
+
+
+def alignment_uncertainty(features, alignment) -> Uncertainty:
+    """Uncertainty per body frame of a :class:`~engine.splice.pipeline.SpliceAlignment`."""
+    warp = np.asarray(alignment.warp, np.float64)
+    p1, p2 = alignment.pass1, alignment.pass2
+    s1 = pass_spread(p1, warp)
+    s2 = pass_spread(p2, warp)
+    frame_ms = 1000.0 / float(features.fps)
+    ms1, ms2 = s1 * frame_ms, s2 * frame_ms
+    return Uncertainty(ms=np.hypot(ms1, ms2), pass1_ms=ms1, pass2_ms=ms2,
+                       fps=float(features.fps))
+
+
+def strokes(uncertainty: Uncertainty, labels: np.ndarray, stroke_label: int) -> list[Stroke]:
+    """Stroke runs of ``labels`` ((n,) ints, one phase per body frame) with their verdicts."""
+    labels = np.asarray(labels)
+    out: list[Stroke] = []
+    n = len(labels)
+    i = 0
+    while i < n:
+        if labels[i] != stroke_label:
+            i += 1
+            continue
+        j = i
+        while j + 1 < n and labels[j + 1] == stroke_label:
+            j += 1
+        worst = float(uncertainty.ms[i : j + 1].max())
+        out.append(Stroke(start=i, end=j, uncertainty_ms=worst, verdict=verdict(worst)))
+        i = j + 1
+    return out
+
+
+def summary_line(stroke_list: list[Stroke]) -> str:
+    """``"3 of 12 strokes may show desync: body frames 120-140, ..."`` (or that none may)."""
+    bad = [s for s in stroke_list if s.verdict == "desync"]
+    if not stroke_list:
+        return "no gesture strokes found in the body take"
+    if not bad:
+        return f"none of {len(stroke_list)} strokes is likely to show desync (all under " \
+               f"{DESYNC_MS:.0f} ms)"
+    where = ", ".join(f"{s.start}-{s.end}" for s in bad[:6]) + (", ..." if len(bad) > 6 else "")
+    return f"{len(bad)} of {len(stroke_list)} strokes may show desync: body frames {where}"
