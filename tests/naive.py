@@ -161,3 +161,70 @@ def trim(lo, hi):
     for i in range(len(hi2) - 2, -1, -1):
         hi2[i] = min(hi2[i], hi2[i + 1])
     return lo2, hi2
+
+
+def dtw_banded_open(cost, lo, hi, skip=0.0, max_body=0, max_hand=0):
+    """(total, path) of banded DTW with open ends (engine.dtw.Ends), plainly.
+
+    A path may start at (0, 0), at (i, 0) with i <= max_body or at (0, j) with
+    j <= max_hand, and end at (n-1, m-1), (i, m-1) with n-1-i <= max_body or (n-1, j)
+    with m-1-j <= max_hand; every frame left unmatched costs ``skip``. Written as the
+    virtual row and column -1: γ(-1, -1) = 0, γ(-1, c) = skip·(c+1) for c+1 <= max_hand,
+    γ(r, -1) = skip·(r+1) for r+1 <= max_body. Ties at the end: the last row wins (the
+    larger column first), then the larger row. ``max_body = max_hand = 0`` is
+    :func:`dtw_banded`.
+    """
+    n = len(lo)
+    m = len(cost[0])
+    gamma = {}
+
+    def g(i, j):
+        if i == -1 and j == -1:
+            return 0.0
+        if i == -1:
+            return skip * (j + 1) if j + 1 <= max_hand else INF
+        if j == -1:
+            return skip * (i + 1) if i + 1 <= max_body else INF
+        return gamma.get((i, j), INF)
+
+    back = {}
+    for i in range(n):
+        for j in range(lo[i], hi[i] + 1):
+            candidates = [
+                (g(i - 1, j - 1), (i - 1, j - 1)),
+                (g(i - 1, j), (i - 1, j)),
+                (g(i, j - 1), (i, j - 1)),
+            ]
+            best_value, best_cell = candidates[0]
+            for value, cell in candidates[1:]:
+                if value < best_value:
+                    best_value, best_cell = value, cell
+            gamma[(i, j)] = float(cost[i][j]) + best_value
+            back[(i, j)] = best_cell
+    ends = [(n - 1, j) for j in range(m - 1, -1, -1) if m - 1 - j <= max_hand]
+    ends += [(i, m - 1) for i in range(n - 2, -1, -1) if n - 1 - i <= max_body]
+    total, end = INF, (n - 1, m - 1)
+    for i, j in ends:
+        if (i, j) in gamma:
+            t = gamma[(i, j)] + skip * ((m - 1 - j) + (n - 1 - i))
+            if t < total:
+                total, end = t, (i, j)
+    path = [end]
+    while True:
+        prev = back[path[-1]]
+        if prev[0] < 0 or prev[1] < 0:
+            break
+        path.append(prev)
+    return total, path[::-1]
+
+
+def is_open_path(path, n, m, max_body, max_hand):
+    """True if ``path`` is monotone and continuous and starts and ends within the limits."""
+    path = [tuple(int(v) for v in p) for p in path]
+    (i0, j0), (i1, j1) = path[0], path[-1]
+    if not ((i0 == 0 and j0 <= max_hand) or (j0 == 0 and i0 <= max_body)):
+        return False
+    if not ((i1 == n - 1 and m - 1 - j1 <= max_hand) or (j1 == m - 1 and n - 1 - i1 <= max_body)):
+        return False
+    return all((b[0] - a[0], b[1] - a[1]) in ((1, 0), (0, 1), (1, 1))
+               for a, b in zip(path, path[1:]))

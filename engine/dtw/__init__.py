@@ -12,6 +12,7 @@ Quick reference::
     result = align(cost, band)                  # cost: (n, m) local costs
     result = align_features(a, b, band)         # a: (n, d), b: (m, d), metric="sqeuclidean"
     result.path, result.cost, result.band
+    result = align_features(a, b, band, ends=Ends(body=60, hand=60, skip=0.5))  # open ends
 
     solver = Aligner(a, b, metric="sqeuclidean")   # incremental: keeps rows
     solver.solve(band); solver.solve(edited_band)  # recomputes only rows that can change
@@ -21,15 +22,17 @@ Modules: ``band`` (Band), ``align`` (Alignment, align, align_features),
 kernels and the metric registry: ``register_metric``).
 """
 
-from .align import Alignment, align, align_features
+from .align import FIXED, Alignment, Ends, align, align_features
 from .band import Band, check_path
 from .incremental import Aligner, SolveStats
 from .kernels import metric_names, register_metric
 from .views import BandValues, CostImage, cost_image, local_cost_image
 
 __all__ = [
+    "FIXED",
     "Aligner",
     "Alignment",
+    "Ends",
     "Band",
     "BandValues",
     "CostImage",

@@ -29,6 +29,60 @@ from .band import Band
 _NO_GAMMA = np.empty(0, np.float64)
 
 
+@dataclass(frozen=True)
+class Ends:
+    """Where a path may start and end (open ends).
+
+    A path starts at ``(0, 0)`` or, leaving the first frames of one take unmatched,
+    at ``(i, 0)`` with ``i <= body`` or ``(0, j)`` with ``j <= hand``; it ends at
+    ``(n-1, m-1)``, ``(i, m-1)`` with ``n-1-i <= body`` or ``(n-1, j)`` with
+    ``m-1-j <= hand``. The limits hold at each end separately (frames).
+
+    Every unmatched frame costs ``skip`` (local-cost units per frame): the total of a
+    path is the sum of its cells' local costs plus ``skip`` times the frames of both
+    takes it leaves out, so every frame of both takes is paid for whether matched or
+    not and a shorter overlap is not cheaper by itself (plain subsequence DTW, skip 0,
+    favours cutting). A path on the diagonal covers two frames per cell, so an end
+    stretch is left out when its cells cost more than about ``2 * skip`` each. The
+    splice sets ``skip`` from the cost of matching unrelated frames
+    (``engine.splice.pipeline``). ``Ends()`` (limits 0) are the paper's fixed ends.
+    """
+
+    body: int = 0
+    hand: int = 0
+    skip: float = 0.0
+
+    def __post_init__(self):
+        for name in ("body", "hand"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < 0:
+                raise ParameterError(f"open ends: {name} must be a whole number of frames >= 0, "
+                                     f"got {v!r}")
+        if not (np.isfinite(self.skip) and self.skip >= 0):
+            raise ParameterError(f"open ends: skip must be a finite cost >= 0, got {self.skip!r}")
+
+    @property
+    def fixed(self) -> bool:
+        """True when every path runs from (0, 0) to (n-1, m-1)."""
+        return self.body == 0 and self.hand == 0
+
+    def array(self) -> np.ndarray:
+        """``[skip, body, hand]`` float64, as the kernels read it."""
+        return np.array([float(self.skip), float(self.body), float(self.hand)])
+
+
+FIXED = Ends()
+
+
+def as_ends(ends) -> Ends:
+    """``None`` -> fixed ends; an ``Ends`` as is."""
+    if ends is None:
+        return FIXED
+    if not isinstance(ends, Ends):
+        raise TypeError(f"ends must be an engine.dtw.Ends, got {type(ends).__name__}")
+    return ends
+
+
 @dataclass(frozen=True, eq=False)
 class Alignment:
     """Result of a DTW alignment.
@@ -37,16 +91,27 @@ class Alignment:
     ----------
     path : (k, 2) int64 array
         Cells ``(i, j)`` (body frame, hand frame) from ``(0, 0)`` to
-        ``(n-1, m-1)``; each step is ``(1, 0)``, ``(0, 1)`` or ``(1, 1)``.
+        ``(n-1, m-1)`` (with open ends: from the first row or column to the last
+        row or column); each step is ``(1, 0)``, ``(0, 1)`` or ``(1, 1)``.
     cost : float
-        Sum of the local costs of the path's cells (γ(n-1, m-1)).
+        Sum of the local costs of the path's cells (γ(n-1, m-1)), plus
+        ``ends.skip`` per frame left unmatched.
     band : Band
         The band the path was searched in.
+    ends : Ends
+        The open ends allowed (``Ends()``: fixed).
     """
 
     path: np.ndarray
     cost: float
     band: Band
+    ends: Ends = FIXED
+
+    @property
+    def overlap(self) -> tuple[tuple[int, int], tuple[int, int]]:
+        """((first, last) body frame, (first, last) hand frame) the path matches."""
+        p = self.path
+        return ((int(p[0, 0]), int(p[-1, 0])), (int(p[0, 1]), int(p[-1, 1])))
 
     @property
     def n(self) -> int:
@@ -62,7 +127,7 @@ class Alignment:
         )
 
 
-def align(cost, band: Band) -> Alignment:
+def align(cost, band: Band, ends: Ends | None = None) -> Alignment:
     """Optimal banded DTW path through a precomputed local-cost matrix.
 
     Parameters
@@ -72,12 +137,15 @@ def align(cost, band: Band) -> Alignment:
         Only cells inside ``band`` are read.
     band : Band
         Allowed cells; must be for ``n`` rows and ``m`` columns.
+    ends : Ends, optional
+        Open ends (default: fixed, (0, 0) to (n-1, m-1)).
     """
     problem = Problem.from_cost(cost)
-    return problem.solve(_check_band(band, problem))
+    return problem.solve(_check_band(band, problem), as_ends(ends))
 
 
-def align_features(a, b, band: Band, metric: str | Dispatcher = "sqeuclidean") -> Alignment:
+def align_features(a, b, band: Band, metric: str | Dispatcher = "sqeuclidean",
+                   ends: Ends | None = None) -> Alignment:
     """Optimal banded DTW path between two feature sequences.
 
     The local cost ``metric(a[i], b[j])`` is computed inside the kernel for
@@ -94,9 +162,11 @@ def align_features(a, b, band: Band, metric: str | Dispatcher = "sqeuclidean") -
     metric : str or numba function
         ``"sqeuclidean"`` (default), ``"euclidean"``, a name registered with
         ``register_metric``, or a ``numba.njit`` function ``f(a_row, b_row)``.
+    ends : Ends, optional
+        Open ends (default: fixed).
     """
     problem = Problem.from_features(a, b, metric)
-    return problem.solve(_check_band(band, problem))
+    return problem.solve(_check_band(band, problem), as_ends(ends))
 
 
 def _check_band(band, problem: Problem) -> Band:
@@ -188,19 +258,25 @@ class Problem:
         return Problem(self.kind, self.n, self.m, self.what, a=a, b=b, metric=self.metric, **extra)
 
     # -- kernels ---------------------------------------------------------
-    def forward(self, lo, hi, start, i0, i1, bp, gamma, keep_gamma: int):
+    def forward(self, lo, hi, start, i0, i1, bp, gamma, keep_gamma: int, ends, last_col,
+                last_row):
         """Rows ``i0..i1-1`` of γ; returns (bad_row, total) as the kernels do.
 
         ``keep_gamma``: which rows' γ go to ``gamma`` (0 none, 1 all, k every
-        k-th and the last; ``kernels._keep``)."""
+        k-th and the last; ``kernels._keep``). ``ends``: ``Ends.array()``;
+        ``last_col`` (n,) and ``last_row`` (m,) receive γ of the last column and
+        of row ``i1 - 1`` (``kernels.best_end``)."""
         if self.kind == "matrix":
-            return K.forward_matrix(self.cost, lo, hi, start, i0, i1, bp, gamma, keep_gamma)
+            return K.forward_matrix(self.cost, lo, hi, start, i0, i1, bp, gamma, keep_gamma,
+                                    ends, last_col, last_row)
         if self.kind == "builtin":
             return K.forward_builtin(
-                self.a, self.bT, self.metric.kind, lo, hi, start, i0, i1, bp, gamma, keep_gamma
+                self.a, self.bT, self.metric.kind, lo, hi, start, i0, i1, bp, gamma, keep_gamma,
+                ends, last_col, last_row
             )
         return K.forward_metric(
-            self.metric.cell, self.a, self.b, lo, hi, start, i0, i1, bp, gamma, keep_gamma
+            self.metric.cell, self.a, self.b, lo, hi, start, i0, i1, bp, gamma, keep_gamma,
+            ends, last_col, last_row
         )
 
     def cost_row(self, i: int, lo: int, hi: int) -> np.ndarray:
@@ -237,16 +313,34 @@ class Problem:
             "fill capture gaps (or make the metric return +inf) before aligning"
         )
 
-    def solve(self, band: Band) -> Alignment:
+    def solve(self, band: Band, ends: Ends = FIXED) -> Alignment:
         """One-shot forward pass (two γ rows, one byte per cell) and backtrack."""
+        check_ends(band, ends)
         bp = np.empty(band.area, np.uint8)  # every entry is written by the forward pass
-        bad_row, total = self.forward(band.lo, band.hi, band.start, 0, band.n, bp, _NO_GAMMA, 0)
+        last_col = np.empty(band.n)
+        last_row = np.empty(band.m)
+        e = ends.array()
+        bad_row, _ = self.forward(band.lo, band.hi, band.start, 0, band.n, bp, _NO_GAMMA, 0, e,
+                                  last_col, last_row)
         if bad_row >= 0:
             raise self.bad_cost_error(int(bad_row), band)
+        total, i, j = K.best_end(last_row, last_col, band.lo, band.hi, e, band.n - 1)
         check_total(total)
-        path = K.backtrack(bp, band.lo, band.start, band.n - 1, band.m - 1)
+        path = K.backtrack(bp, band.lo, band.start, i, j)
         path.flags.writeable = False
-        return Alignment(path=path, cost=float(total), band=band)
+        return Alignment(path=path, cost=float(total), band=band, ends=ends)
+
+
+def check_ends(band: Band, ends: Ends) -> None:
+    """``ParameterError`` unless some path of ``band`` can start and end within ``ends``."""
+    if band.lo[0] > ends.hand:
+        raise ParameterError(
+            f"the band's first body frame starts at hand frame {band.lo[0]}, but at most "
+            f"{ends.hand} hand frames may be left unmatched at the start")
+    if band.hi[-1] < band.m - 1 - ends.hand:
+        raise ParameterError(
+            f"the band's last body frame ends at hand frame {band.hi[-1]}, but at most "
+            f"{ends.hand} of the {band.m} hand frames may be left unmatched at the end")
 
 
 def check_total(total: float) -> None:

@@ -64,6 +64,7 @@ class Band:
     lo: np.ndarray
     hi: np.ndarray
     m: int
+    open_ends: bool = False
     start: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self):
@@ -92,11 +93,11 @@ class Band:
             raise ParameterError(
                 f"band row {i}: columns {lo[i]}..{hi[i]} are not a range inside 0..{m - 1}"
             )
-        if lo[0] != 0:
+        if lo[0] != 0 and not self.open_ends:
             raise ParameterError(
                 f"band row 0 starts at column {lo[0]}, but every path starts at (0, 0)"
             )
-        if hi[-1] != m - 1:
+        if hi[-1] != m - 1 and not self.open_ends:
             raise ParameterError(
                 f"band row {n - 1} ends at column {hi[-1]}, but every path ends at "
                 f"({n - 1}, {m - 1})"
@@ -200,6 +201,7 @@ class Band:
             value.flags.writeable = False
             object.__setattr__(band, name, value)
         object.__setattr__(band, "m", self.m)
+        object.__setattr__(band, "open_ends", self.open_ends)
         return band
 
     def intersect(self, other: Band) -> Band:
@@ -220,7 +222,7 @@ class Band:
                 f"and {other.lo[i]}..{other.hi[i]})"
             )
         try:
-            return Band(lo, hi, self.m)
+            return Band(lo, hi, self.m, open_ends=self.open_ends or other.open_ends)
         except ParameterError as err:
             raise ParameterError(f"intersection of bands admits no path: {err}") from None
 
@@ -251,6 +253,7 @@ class Band:
         m: int,
         width: float | None,
         points: Iterable[Sequence[float]] = (),
+        open_ends: bool = False,
     ) -> Band:
         """Band through user matching points (METHOD.md §4, Majkowska et al. eqs. 4-5).
 
@@ -283,6 +286,10 @@ class Band:
         a small ``width``, or a corner outside it) it is widened by the fewest
         cells that connect it, never beyond the tolerance clips. Points that
         contradict each other raise ``ParameterError`` naming them.
+
+        ``open_ends``: paths may start and end away from the corners
+        (``engine.dtw.Ends``), so a point may sit on the first or last body frame
+        at any hand frame; the band need not hold the corners.
         """
         n = _as_count(n, "n (body frames)")
         m = _as_count(m, "m (hand frames)")
@@ -291,15 +298,15 @@ class Band:
                 raise ParameterError(f"band width must be a number (fraction of n), got {width!r}")
             if not math.isfinite(width) or width < 0:
                 raise ParameterError(f"band width must be a finite fraction >= 0, got {width!r}")
-        xs, ys, tols = _parse_points(points, n, m)
+        xs, ys, tols = _parse_points(points, n, m, open_ends)
         hard_lo, hard_hi = _tolerance_clips(n, m, xs, ys, tols)
         if width is None:
-            return cls(hard_lo, hard_hi, m)
+            return cls(hard_lo, hard_hi, m, open_ends=open_ends)
         soft_lo, soft_hi = _diagonal_segments(n, m, float(width) * n, xs, ys)
         lo = np.maximum(soft_lo, hard_lo)
         hi = np.minimum(soft_hi, hard_hi)
         _connect(lo, hi, hard_lo, hard_hi, m)
-        return cls(lo, hi, m)
+        return cls(lo, hi, m, open_ends=open_ends)
 
     @classmethod
     def around_path(
@@ -309,6 +316,7 @@ class Band:
         m: int,
         radius: int,
         points: Iterable[Sequence[float]] | None = None,
+        open_ends: bool = False,
     ) -> Band:
         """Cells within ``radius`` frames (Chebyshev distance) of a path (pass 2).
 
@@ -318,24 +326,34 @@ class Band:
         the band is feasible. With ``points`` the band is intersected with
         those points' tolerance clips (``from_constraints(n, m, None, points)``),
         so pass 2 keeps the user's matching points.
+
+        ``open_ends``: the path may start on the first row or column and end on
+        the last row or column (an open-end path); rows it does not visit take
+        the column range of its nearest end cell, so the band lets pass 2 move
+        the ends by up to ``radius`` frames. The band is then an open-end band.
         """
         n = _as_count(n, "n (body frames)")
         m = _as_count(m, "m (hand frames)")
         if isinstance(radius, bool) or not isinstance(radius, int | np.integer) or radius < 0:
             raise ParameterError(f"radius must be a whole number of frames >= 0, got {radius!r}")
-        path = check_path(path, n, m)
+        path = check_path(path, n, m, open_ends)
         first = np.full(n, m, np.int64)
         last = np.full(n, -1, np.int64)
         np.minimum.at(first, path[:, 0], path[:, 1])
         np.maximum.at(last, path[:, 0], path[:, 1])
+        i0, i1 = int(path[0, 0]), int(path[-1, 0])
+        first[:i0] = path[0, 1]
+        last[:i0] = path[0, 1]
+        first[i1 + 1:] = path[-1, 1]
+        last[i1 + 1:] = path[-1, 1]
         rows = np.arange(n)
         r = int(radius)
         lo = np.maximum(first[np.maximum(rows - r, 0)] - r, 0)
         hi = np.minimum(last[np.minimum(rows + r, n - 1)] + r, m - 1)
-        band = cls(lo, hi, m)
+        band = cls(lo, hi, m, open_ends=open_ends)
         if points is not None:
             try:
-                band = band.intersect(cls.from_constraints(n, m, None, points))
+                band = band.intersect(cls.from_constraints(n, m, None, points, open_ends))
             except ParameterError as err:
                 raise ParameterError(
                     f"the matching points are not within {r} frames of the path: {err}"
@@ -346,8 +364,9 @@ class Band:
 # ---------------------------------------------------------------------------
 # helpers
 # ---------------------------------------------------------------------------
-def check_path(path, n: int, m: int) -> np.ndarray:
-    """Validate a warping path (k, 2) from (0, 0) to (n-1, m-1); return it as int64."""
+def check_path(path, n: int, m: int, open_ends: bool = False) -> np.ndarray:
+    """Validate a warping path (k, 2) from (0, 0) to (n-1, m-1) (``open_ends``: from the
+    first row or column to the last row or column); return it as int64."""
     arr = np.asarray(path)
     if arr.ndim != 2 or arr.shape[1] != 2 or arr.shape[0] == 0:
         raise ParameterError(
@@ -357,7 +376,14 @@ def check_path(path, n: int, m: int) -> np.ndarray:
         if arr.dtype.kind != "f" or np.any(arr != np.round(arr)):
             raise ParameterError("path cells must be whole frame numbers")
     arr = arr.astype(np.int64)
-    if tuple(arr[0]) != (0, 0) or tuple(arr[-1]) != (n - 1, m - 1):
+    if open_ends:
+        if (min(arr[0]) != 0 or (arr[-1, 0] != n - 1 and arr[-1, 1] != m - 1)
+                or arr[:, 0].max() > n - 1 or arr[:, 1].max() > m - 1 or arr.min() < 0):
+            raise ParameterError(
+                f"an open-end path must start on body frame 0 or hand frame 0 and end on body "
+                f"frame {n - 1} or hand frame {m - 1}, got {tuple(int(v) for v in arr[0])} to "
+                f"{tuple(int(v) for v in arr[-1])}")
+    elif tuple(arr[0]) != (0, 0) or tuple(arr[-1]) != (n - 1, m - 1):
         raise ParameterError(
             f"path must run from (0, 0) to ({n - 1}, {m - 1}), "
             f"got {tuple(int(v) for v in arr[0])} to {tuple(int(v) for v in arr[-1])}"
@@ -378,7 +404,7 @@ def _point_text(k: int, x, y, tol) -> str:
     return f"points[{k}] = (x={x:g}, y={y:g}, tol={tol:g})"
 
 
-def _parse_points(points, n: int, m: int):
+def _parse_points(points, n: int, m: int, open_ends: bool = False):
     """Validated (xs, ys, tols) int64 arrays of the user's matching points."""
     if points is None:
         points = ()
@@ -429,12 +455,12 @@ def _parse_points(points, n: int, m: int):
                     f"{py:g} and {y:g} are more than one step apart after tolerances; "
                     "increase a tolerance or move a point"
                 )
-        if x == 0 and y - t > 0:
+        if x == 0 and y - t > 0 and not open_ends:
             raise ParameterError(
                 f"{where}: every path starts at (0, 0), so on body frame 0 it covers hand frame 0; "
                 f"the tolerance must be at least {y:g}"
             )
-        if x == n - 1 and y + t < m - 1:
+        if x == n - 1 and y + t < m - 1 and not open_ends:
             raise ParameterError(
                 f"{where}: every path ends at ({n - 1}, {m - 1}), so on body frame {n - 1} it "
                 f"covers hand frame {m - 1}; the tolerance must be at least {m - 1 - y:g}"

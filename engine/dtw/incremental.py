@@ -69,7 +69,7 @@ import numpy as np
 from numba.core.dispatcher import Dispatcher
 
 from . import kernels as K
-from .align import Alignment, Problem, _check_band, check_total
+from .align import FIXED, Alignment, Ends, Problem, _check_band, as_ends, check_ends, check_total
 from .band import Band
 from .views import BandValues
 
@@ -104,11 +104,13 @@ class _Side:
     order) are valid for the current band.
     """
 
-    def __init__(self, n: int):
+    def __init__(self, n: int, m: int):
         self.gamma = np.empty(0, np.float64)
         self.bp = np.empty(0, np.uint8)
         self.has = np.zeros(n, bool)
         self.valid = 0
+        self.last_col = np.full(n, np.inf)  # γ(i, m-1) per row (open ends, kernels.best_end)
+        self.last_row = np.full(m, np.inf)  # γ of the last row computed
 
     def ensure(self, area: int, keep: int) -> None:
         """Capacity for ``area`` cells, keeping the first ``keep`` entries."""
@@ -166,8 +168,9 @@ class Aligner:
         """Forget all stored rows (the next solve is a full one)."""
         self._band: Band | None = None
         self._rband: Band | None = None
-        self._fwd = _Side(self.n)  # forward rows [0, fwd.valid) are valid for self._band
-        self._bwd = _Side(self.n)  # backward rows [n - bwd.valid, n) are valid
+        self._fwd = _Side(self.n, self.m)  # forward rows [0, fwd.valid) valid for self._band
+        self._bwd = _Side(self.n, self.m)  # backward rows [n - bwd.valid, n) are valid
+        self._ends: Ends = FIXED
         self._every = self.GAMMA_EVERY  # 1 once cumulative_cost() was asked for
         self._last: Alignment | None = None
         self.last_stats: SolveStats | None = None
@@ -187,10 +190,20 @@ class Aligner:
         """Band of the last solve."""
         return self._band
 
-    def solve(self, band: Band) -> Alignment:
-        """Optimal path in ``band``, reusing every row the edit cannot change."""
+    def solve(self, band: Band, ends: Ends | None = None) -> Alignment:
+        """Optimal path in ``band``, reusing every row the edit cannot change.
+
+        ``ends`` (``engine.dtw.Ends``, default fixed): open ends; a change of ends
+        recomputes every row (the virtual start row and column change)."""
         _check_band(band, self._problem)
+        ends = as_ends(ends)
+        check_ends(band, ends)
         with self._lock:
+            if ends != self._ends:
+                every = self._every
+                self.reset()
+                self._every = every
+                self._ends = ends
             return self._solve(band)
 
     def cumulative_cost(self) -> BandValues:
@@ -258,8 +271,9 @@ class Aligner:
         forward = (f0, max(f0, junction + 1))
         backward = (junction + 1, junction + 1)
         if junction == n - 1:
-            total = self._fwd_total(band)
-            path = K.backtrack(fwd.bp, band.lo, band.start, n - 1, self.m - 1)
+            total, i_end, j_end = K.best_end(self._fwd_last_row(band), fwd.last_col, band.lo,
+                                             band.hi, self._ends.array(), n - 1)
+            path = K.backtrack(fwd.bp, band.lo, band.start, i_end, j_end)
         else:
             cells += self._backward(rband, junction + 1)
             backward = (junction + 1, self._last_backward_end)
@@ -270,7 +284,7 @@ class Aligner:
             cells += self._backward(rband, split + 1)
             backward = (split + 1, n)
         path.flags.writeable = False
-        self._last = Alignment(path=path, cost=float(total), band=band)
+        self._last = Alignment(path=path, cost=float(total), band=band, ends=self._ends)
         self.last_stats = SolveStats(
             forward, backward, cells, band.area, junction, time.perf_counter() - t0
         )
@@ -306,7 +320,8 @@ class Aligner:
             return 0
         side.ensure(band.area, int(band.start[side.valid]))
         every = self._every
-        bad, _ = problem.forward(band.lo, band.hi, band.start, i0, i1, side.bp, side.gamma, every)
+        bad, _ = problem.forward(band.lo, band.hi, band.start, i0, i1, side.bp, side.gamma, every,
+                                 self._ends.array(), side.last_col, side.last_row)
         if bad >= 0:
             side.valid = min(side.valid, i0)
             raise problem.bad_cost_error(int(bad), band, reversed_=problem is not self._problem)
@@ -319,8 +334,13 @@ class Aligner:
         side.valid = max(side.valid, i1)
         return int(band.start[i1] - band.start[i0])
 
-    def _fwd_total(self, band: Band) -> float:
-        return float(self._fwd.gamma[band.area - 1])  # last cell of the last row is (n-1, m-1)
+    def _fwd_last_row(self, band: Band) -> np.ndarray:
+        """γ of row n-1 by column (valid inside its band row; the last row is always stored)."""
+        row = np.full(self.m, np.inf)
+        i = band.n - 1
+        w = int(band.hi[i] - band.lo[i] + 1)
+        row[band.lo[i] : band.hi[i] + 1] = self._fwd.gamma[band.start[i] : band.start[i] + w]
+        return row
 
     def _join(self, band: Band, rband: Band, J: int):
         """Cheapest crossing from row J (forward γ) to row J + 1 (backward β)."""
@@ -328,4 +348,5 @@ class Aligner:
         return K.join_path(
             fwd.gamma, fwd.bp, band.lo, band.hi, band.start,
             bwd.gamma, bwd.bp, rband.lo, rband.hi, rband.start, J,
+            self._ends.array(), fwd.last_col, bwd.last_col,
         )  # fmt: skip

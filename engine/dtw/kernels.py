@@ -88,18 +88,19 @@ PAIR_MIN_WIDTH = 32  # rows narrower than this are done one at a time
 
 
 @njit_cached()
-def _dp_row(prev, cur, crow, lo, hi, bp_row):
+def _dp_row(prev, cur, crow, lo, hi, bp_row, left0):
     """Row ``i`` of γ into ``cur`` from row ``i - 1`` in ``prev``.
 
     ``crow``: local costs by absolute column; ``bp_row``: the row's
-    backpointers (``hi - lo + 1`` bytes). Returns True if a local cost in the
-    row was NaN or -inf.
+    backpointers (``hi - lo + 1`` bytes); ``left0``: γ(i, lo - 1) (+inf, or
+    the open-start edge ``_edge`` when ``lo == 0``). Returns True if a local
+    cost in the row was NaN or -inf.
     """
     w = hi - lo + 1
     p = prev[lo : hi + 2]  # p[k] = γ(i-1, lo+k-1), p[k+1] = γ(i-1, lo+k)
     out = cur[lo + 1 : hi + 2]
     cost = crow[lo : hi + 1]
-    left = INF
+    left = left0
     bad = False
     for k in range(w):
         diag = p[k]
@@ -117,19 +118,21 @@ def _dp_row(prev, cur, crow, lo, hi, bp_row):
 
 
 @njit_cached()
-def _dp_pair(prev, mid, cur, crow_a, crow_b, lo_a, hi_a, lo_b, hi_b, bp_a, bp_b):
+def _dp_pair(prev, mid, cur, crow_a, crow_b, lo_a, hi_a, lo_b, hi_b, bp_a, bp_b, left_a0,
+             left_b0):
     """Rows ``i`` (``prev`` -> ``mid``) and ``i + 1`` (``mid`` -> ``cur``) interleaved.
 
-    Needs ``lo_a <= lo_b <= hi_a + 1`` (a trimmed, feasible band). Returns a
-    bit set: 1 if row ``i`` had a NaN/-inf local cost, 2 if row ``i + 1`` had.
-    Pads ``mid`` for row ``i + 1``'s reads.
+    Needs ``lo_a <= lo_b <= hi_a + 1`` (a trimmed, feasible band). ``left_a0``,
+    ``left_b0``: γ at column ``lo - 1`` of each row (``_dp_row``'s ``left0``).
+    Returns a bit set: 1 if row ``i`` had a NaN/-inf local cost, 2 if row
+    ``i + 1`` had. Pads ``mid`` for row ``i + 1``'s reads.
     """
     # phase 1: row i alone, columns lo_a .. min(hi_a, lo_b)
     end1 = min(hi_a, lo_b)
     pa = prev[lo_a : hi_a + 2]
     out_a = mid[lo_a + 1 : hi_a + 2]
     cost_a = crow_a[lo_a : hi_a + 1]
-    left_a = INF
+    left_a = left_a0
     bad_a = False
     for k in range(end1 - lo_a + 1):
         diag = pa[k]
@@ -142,14 +145,14 @@ def _dp_pair(prev, mid, cur, crow_a, crow_b, lo_a, hi_a, lo_b, hi_b, bp_a, bp_b)
         bad_a |= not (c > NEG_INF)
         out_a[k] = g
         left_a = g
-    mid[lo_a] = INF
+    mid[lo_a] = left_a0
     for q in range(hi_a + 2, hi_b + 2):
         mid[q] = INF
     # phase 2: row i at column t = lo_b+1 .. hi_a, row i+1 at column t-1
     w_b = hi_b - lo_b + 1
     cost_b = crow_b[lo_b : hi_b + 1]
     out_b = cur[lo_b + 1 : hi_b + 2]
-    left_b = INF
+    left_b = left_b0
     bad_b = False
     done_b = 0
     if hi_a >= lo_b + 1:
@@ -201,15 +204,44 @@ def _dp_pair(prev, mid, cur, crow_a, crow_b, lo_a, hi_a, lo_b, hi_b, bp_a, bp_b)
 
 
 @njit_cached()
-def _init_prev(prev, gamma, lo, hi, start, i0):
-    """Set ``prev`` to γ row ``i0 - 1`` (from ``gamma``) or to the virtual row -1."""
+def _edge(i, ends):
+    """γ(i, -1): the cost of leaving body frames ``0..i`` unmatched (open start), or +inf.
+
+    ``ends`` = ``[skip, max_body, max_hand]`` (float64): cost per unmatched frame and
+    how many frames of each take may stay unmatched at each end (0, 0: fixed ends).
+    """
+    if i + 1 <= ends[1]:
+        return ends[0] * (i + 1)
+    return INF
+
+
+@njit_cached()
+def _left0(lo, i, ends):
+    """γ(i, lo[i] - 1): the open-start edge when row ``i`` reaches column 0, else +inf."""
+    if lo[i] == 0:
+        return _edge(i, ends)
+    return INF
+
+
+@njit_cached()
+def _init_prev(prev, gamma, lo, hi, start, i0, ends):
+    """Set ``prev`` to γ row ``i0 - 1`` (from ``gamma``) or to the virtual row -1.
+
+    Row -1 is γ(-1, -1) = 0 and, with open ends, γ(-1, c) = skip · (c + 1) for the
+    first ``max_hand`` columns (a path entering (0, c + 1) leaves hand frames
+    ``0..c`` unmatched).
+    """
     prev[:] = INF
     if i0 == 0:
         prev[0] = 0.0  # γ(-1, -1) = 0: the path starts with a diagonal step into (0, 0)
+        m = prev.shape[0] - 1
+        for c in range(min(int(ends[2]), m)):
+            prev[c + 1] = ends[0] * (c + 1)
     else:
         r = i0 - 1
         w = hi[r] - lo[r] + 1
         prev[lo[r] + 1 : lo[r] + 1 + w] = gamma[start[r] : start[r] + w]
+        prev[lo[r]] = _left0(lo, r, ends)
 
 
 @njit_cached()
@@ -219,9 +251,10 @@ def _store_row(buf, gamma, lo, hi, start, i):
 
 
 @njit_cached()
-def _pad_row(buf, lo, hi, i):
-    """+inf in ``buf`` (row ``i``) at the columns row ``i + 1`` reads outside row ``i``."""
-    buf[lo[i]] = INF  # column lo[i] - 1
+def _pad_row(buf, lo, hi, i, ends):
+    """+inf in ``buf`` (row ``i``) at the columns row ``i + 1`` reads outside row ``i``
+    (the open-start edge at column -1)."""
+    buf[lo[i]] = _left0(lo, i, ends)  # column lo[i] - 1
     if i + 1 < lo.shape[0]:
         for k in range(hi[i] + 2, hi[i + 1] + 2):  # columns hi[i] + 1 .. hi[i+1]
             buf[k] = INF
@@ -279,15 +312,34 @@ def _fill_metric(metric, a, b, i, lo, hi, crow):
 # be any float64 array; 1 every row; k > 1 every k-th row and the last one).
 # For i0 > 0 row i0 - 1 must already be in ``gamma``. The three kernels share
 # the row functions and differ only in where a row's local costs come from.
+#
+# Open ends: ``ends`` = [skip, max_body, max_hand] sets the virtual row -1 and
+# column -1 (``_init_prev``, ``_edge``); [0, 0, 0] is the paper's fixed start.
+# ``last_col[i]`` receives γ(i, m - 1) for every computed row whose band
+# reaches the last column (+inf otherwise) and ``last_row`` γ of row i1 - 1
+# (valid inside its band): ``best_end`` picks the open end from them.
 
 
 @njit_cached()
-def forward_matrix(cost, lo, hi, start, i0, i1, bp, gamma, keep_gamma):
+def _row_done(buf, lo, hi, i, ends, last_col, m):
+    _pad_row(buf, lo, hi, i, ends)
+    last_col[i] = buf[m] if hi[i] == m - 1 else INF
+
+
+@njit_cached()
+def _finish(prev, last_row, m):
+    last_row[:] = prev[1 : m + 1]
+    return prev[m]
+
+
+@njit_cached()
+def forward_matrix(cost, lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col,
+                   last_row):
     m = cost.shape[1]
     prev = np.empty(m + 1)
     mid = np.full(m + 1, INF)
     cur = np.full(m + 1, INF)
-    _init_prev(prev, gamma, lo, hi, start, i0)
+    _init_prev(prev, gamma, lo, hi, start, i0, ends)
     i = i0
     while i < i1:
         if _use_pair(lo, hi, i, i1):
@@ -303,10 +355,13 @@ def forward_matrix(cost, lo, hi, start, i0, i1, bp, gamma, keep_gamma):
                 hi[i + 1],
                 bp[start[i] : start[i + 1]],
                 bp[start[i + 1] : start[i + 2]],
+                _left0(lo, i, ends),
+                _left0(lo, i + 1, ends),
             )
             if bad:
                 return (i if bad & 1 else i + 1), np.nan
-            _pad_row(cur, lo, hi, i + 1)
+            last_col[i] = mid[m] if hi[i] == m - 1 else INF
+            _row_done(cur, lo, hi, i + 1, ends, last_col, m)
             if _keep(keep_gamma, i, i1):
                 _store_row(mid, gamma, lo, hi, start, i)
             if _keep(keep_gamma, i + 1, i1):
@@ -314,25 +369,27 @@ def forward_matrix(cost, lo, hi, start, i0, i1, bp, gamma, keep_gamma):
             prev, mid, cur = cur, prev, mid
             i += 2
         else:
-            if _dp_row(prev, cur, cost[i], lo[i], hi[i], bp[start[i] : start[i + 1]]):
+            if _dp_row(prev, cur, cost[i], lo[i], hi[i], bp[start[i] : start[i + 1]],
+                       _left0(lo, i, ends)):
                 return i, np.nan
-            _pad_row(cur, lo, hi, i)
+            _row_done(cur, lo, hi, i, ends, last_col, m)
             if _keep(keep_gamma, i, i1):
                 _store_row(cur, gamma, lo, hi, start, i)
             prev, cur = cur, prev
             i += 1
-    return -1, prev[m]
+    return -1, _finish(prev, last_row, m)
 
 
 @njit_cached()
-def forward_builtin(a, bT, kind, lo, hi, start, i0, i1, bp, gamma, keep_gamma):
+def forward_builtin(a, bT, kind, lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col,
+                    last_row):
     m = bT.shape[1]
     prev = np.empty(m + 1)
     mid = np.full(m + 1, INF)
     cur = np.full(m + 1, INF)
     crow_a = np.zeros(m)
     crow_b = np.zeros(m)
-    _init_prev(prev, gamma, lo, hi, start, i0)
+    _init_prev(prev, gamma, lo, hi, start, i0, ends)
     i = i0
     while i < i1:
         if _use_pair(lo, hi, i, i1):
@@ -350,10 +407,13 @@ def forward_builtin(a, bT, kind, lo, hi, start, i0, i1, bp, gamma, keep_gamma):
                 hi[i + 1],
                 bp[start[i] : start[i + 1]],
                 bp[start[i + 1] : start[i + 2]],
+                _left0(lo, i, ends),
+                _left0(lo, i + 1, ends),
             )
             if bad:
                 return (i if bad & 1 else i + 1), np.nan
-            _pad_row(cur, lo, hi, i + 1)
+            last_col[i] = mid[m] if hi[i] == m - 1 else INF
+            _row_done(cur, lo, hi, i + 1, ends, last_col, m)
             if _keep(keep_gamma, i, i1):
                 _store_row(mid, gamma, lo, hi, start, i)
             if _keep(keep_gamma, i + 1, i1):
@@ -362,32 +422,68 @@ def forward_builtin(a, bT, kind, lo, hi, start, i0, i1, bp, gamma, keep_gamma):
             i += 2
         else:
             _fill_builtin(a, bT, kind, i, lo[i], hi[i], crow_a)
-            if _dp_row(prev, cur, crow_a, lo[i], hi[i], bp[start[i] : start[i + 1]]):
+            if _dp_row(prev, cur, crow_a, lo[i], hi[i], bp[start[i] : start[i + 1]],
+                       _left0(lo, i, ends)):
                 return i, np.nan
-            _pad_row(cur, lo, hi, i)
+            _row_done(cur, lo, hi, i, ends, last_col, m)
             if _keep(keep_gamma, i, i1):
                 _store_row(cur, gamma, lo, hi, start, i)
             prev, cur = cur, prev
             i += 1
-    return -1, prev[m]
+    return -1, _finish(prev, last_row, m)
 
 
 @njit()
-def forward_metric(metric, a, b, lo, hi, start, i0, i1, bp, gamma, keep_gamma):
+def forward_metric(metric, a, b, lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col,
+                   last_row):
     m = b.shape[0]
     prev = np.empty(m + 1)
     cur = np.full(m + 1, INF)
     crow = np.zeros(m)
-    _init_prev(prev, gamma, lo, hi, start, i0)
+    _init_prev(prev, gamma, lo, hi, start, i0, ends)
     for i in range(i0, i1):  # the metric dominates; one row at a time is enough
         _fill_metric(metric, a, b, i, lo[i], hi[i], crow)
-        if _dp_row(prev, cur, crow, lo[i], hi[i], bp[start[i] : start[i + 1]]):
+        if _dp_row(prev, cur, crow, lo[i], hi[i], bp[start[i] : start[i + 1]],
+                   _left0(lo, i, ends)):
             return i, np.nan
-        _pad_row(cur, lo, hi, i)
+        _row_done(cur, lo, hi, i, ends, last_col, m)
         if _keep(keep_gamma, i, i1):
             _store_row(cur, gamma, lo, hi, start, i)
         prev, cur = cur, prev
-    return -1, prev[m]
+    return -1, _finish(prev, last_row, m)
+
+
+@njit_cached()
+def best_end(last_row, last_col, lo, hi, ends, i_max):
+    """The open end of the cheapest path: (total, i, j).
+
+    Candidates: ``(n-1, j)`` with ``m-1-j <= max_hand`` (total γ + skip·(m-1-j)) and
+    ``(i, m-1)`` with ``n-1-i <= max_body`` (γ + skip·(n-1-i)); only rows ``<= i_max``
+    are read from ``last_col`` (``last_row`` is γ of row n-1). Ties: the last row wins,
+    there the larger column; then the larger row. Fixed ends ([skip, 0, 0]) give
+    γ(n-1, m-1) at (n-1, m-1).
+    """
+    n = lo.shape[0]
+    m = last_row.shape[0]
+    best = INF
+    bi = n - 1
+    bj = m - 1
+    if i_max >= n - 1:
+        j_min = max(lo[n - 1], m - 1 - int(ends[2]))
+        for j in range(hi[n - 1], j_min - 1, -1):
+            t = last_row[j] + ends[0] * (m - 1 - j)
+            if t < best:
+                best = t
+                bi = n - 1
+                bj = j
+    for i in range(min(n - 2, i_max), max(0, n - 1 - int(ends[1])) - 1, -1):
+        if hi[i] == m - 1:
+            t = last_col[i] + ends[0] * (n - 1 - i)
+            if t < best:
+                best = t
+                bi = i
+                bj = m - 1
+    return best, bi, bj
 
 
 @njit_cached()
@@ -410,15 +506,14 @@ def cost_row_metric(metric, a, b, i, lo, hi):
 # ---------------------------------------------------------------------------
 @njit_cached()
 def backtrack(bp, lo, start, i, j):
-    """Path (k, 2) int64 from (0, 0) to (i, j), following the backpointers."""
+    """Path (k, 2) int64 ending at (i, j), following the backpointers back to where it
+    entered the matrix: (0, 0), or with open ends any (0, c) or (r, 0)."""
     path = np.empty((i + j + 1, 2), np.int64)
     k = 0
     while True:
         path[k, 0] = i
         path[k, 1] = j
         k += 1
-        if i == 0 and j == 0:
-            break
         step = bp[start[i] + j - lo[i]]
         if step == DIAGONAL:
             i -= 1
@@ -427,13 +522,25 @@ def backtrack(bp, lo, start, i, j):
             i -= 1
         else:
             j -= 1
-        if i < 0 or j < 0:  # cannot happen for a feasible band; keep the loop finite
-            return path[:0]
+        if i < 0 or j < 0:  # came from the virtual row or column -1: the start
+            break
     return path[:k][::-1].copy()
 
 
 @njit_cached()
-def join_path(gamma, bp, lo, hi, start, rgamma, rbp, rlo, rhi, rstart, J):
+def _reversed_tail(rbp, rlo, rstart, r, c, n, m):
+    """Backtrack in the reversed problem from reversed cell (r, c); original order."""
+    tail = backtrack(rbp, rlo, rstart, r, c)
+    k = tail.shape[0]
+    out = np.empty((k, 2), np.int64)
+    for q in range(k):
+        out[q, 0] = n - 1 - tail[k - 1 - q, 0]
+        out[q, 1] = m - 1 - tail[k - 1 - q, 1]
+    return out
+
+
+@njit_cached()
+def join_path(gamma, bp, lo, hi, start, rgamma, rbp, rlo, rhi, rstart, J, ends, fcol, rcol):
     """Optimal path through the cheapest crossing from row ``J`` to row ``J + 1``.
 
     ``gamma``/``bp`` (band ``lo``, ``hi``, ``start``) hold forward γ of row
@@ -441,7 +548,13 @@ def join_path(gamma, bp, lo, hi, start, rgamma, rbp, rlo, rhi, rstart, J):
     band ``rlo``, ``rhi``, ``rstart``) hold β of row ``J + 1`` and the backward
     backpointers of rows ``J + 1..n-1``, in reversed order. The crossing is
     ``(J, j) -> (J + 1, j + 1)`` (preferred on a tie) or ``(J + 1, j)``; the
-    first cheapest ``j`` wins. Returns (total, path (k, 2) int64).
+    first cheapest ``j`` wins.
+
+    With open ends (``ends``, see ``_edge``) a path may also end at ``(i, m-1)``
+    for a row ``i <= J`` (forward ``fcol[i]`` = γ(i, m-1)) or start at ``(i, 0)``
+    for a row ``i > J`` (``rcol[n-1-i]`` = β(i, 0), the reversed problem's
+    ``last_col``); those count only when strictly cheaper than every crossing.
+    Returns (total, path (k, 2) int64).
     """
     n = lo.shape[0]
     m = rhi[n - 1] + 1
@@ -469,15 +582,34 @@ def join_path(gamma, bp, lo, hi, start, rgamma, rbp, rlo, rhi, rstart, J):
             best = t
             best_j = j
             best_next = nxt
+    kind = 0
+    end_row = -1
+    skip = ends[0]
+    for i in range(max(0, n - 1 - int(ends[1])), J + 1):  # paths ending above the junction
+        if hi[i] == m - 1:
+            t = fcol[i] + skip * (n - 1 - i)
+            if t < best:
+                best = t
+                kind = 1
+                end_row = i
+    for i in range(J + 1, min(int(ends[1]), n - 1) + 1):  # paths starting below it
+        if lo[i] == 0:
+            t = rcol[n - 1 - i] + skip * i
+            if t < best:
+                best = t
+                kind = 2
+                end_row = i
+    if kind == 1:
+        return best, backtrack(bp, lo, start, end_row, m - 1)
+    if kind == 2:
+        return best, _reversed_tail(rbp, rlo, rstart, n - 1 - end_row, m - 1, n, m)
     head = backtrack(bp, lo, start, J, best_j)
-    tail = backtrack(rbp, rlo, rstart, r, m - 1 - best_next)
+    tail = _reversed_tail(rbp, rlo, rstart, r, m - 1 - best_next, n, m)
     k_head = head.shape[0]
     k_tail = tail.shape[0]
     path = np.empty((k_head + k_tail, 2), np.int64)
     path[:k_head] = head
-    for q in range(k_tail):
-        path[k_head + q, 0] = n - 1 - tail[k_tail - 1 - q, 0]
-        path[k_head + q, 1] = m - 1 - tail[k_tail - 1 - q, 1]
+    path[k_head:] = tail
     return best, path
 
 

@@ -271,8 +271,14 @@ def smooth_warp(rng: np.random.Generator, duration: float, scale: float, sigma: 
 
 def make_hand_take(full: Motion, rng: np.random.Generator, fps: float, scale: float,
                    warp_sigma: float, shrink: float, yaw_deg: float, noise_deg: float,
-                   roles=None) -> tuple[Motion, np.ndarray, np.ndarray]:
-    """The hand take from a full take; returns (hand, hand times s, original times s)."""
+                   roles=None, warp=None, perf_to_orig=None
+                   ) -> tuple[Motion, np.ndarray, np.ndarray]:
+    """The hand take from a full take; returns (hand, hand times s, original times s).
+
+    ``warp``: (hand times, performance times) to use instead of a new random
+    :func:`smooth_warp`; ``perf_to_orig``: maps performance times to times of ``full``
+    (holds), identity by default.
+    """
     roles = roles or find_roles(full.skeleton)
     sk = full.skeleton
     shrink_set, free = arm_joints(full, roles)
@@ -299,10 +305,12 @@ def make_hand_take(full: Motion, rng: np.random.Generator, fps: float, scale: fl
     still = replace(full, rotations=rots, translations=trans)
 
     duration = (full.n_frames - 1) / full.fps
-    th, t = smooth_warp(rng, duration, scale, warp_sigma)
+    th, t = warp if warp is not None else smooth_warp(rng, duration, scale, warp_sigma)
     m = int(np.floor(th[-1] * fps + 1e-9)) + 1
     hand_t = np.arange(m) / fps
     orig_t = np.interp(hand_t, th, t)
+    if perf_to_orig is not None:
+        orig_t = perf_to_orig(orig_t)
     local, tr = sample(still, orig_t * full.fps)
     if noise_deg > 0:
         axis = rng.normal(size=local.shape[:2] + (3,))
@@ -313,13 +321,39 @@ def make_hand_take(full: Motion, rng: np.random.Generator, fps: float, scale: fl
     return hand, hand_t, orig_t
 
 
-def make_case(family: str, seed: int, crop_s: float = 20.0, mocap: str | Path | None = None
-              ) -> Case:
-    """One seeded case of ``family`` (``"beat"``, ``"bandai"`` or ``"lafan1"``).
+@dataclass(frozen=True)
+class Realism:
+    """What makes a split pair look like two real capture sessions (issue 12).
 
-    ``mocap`` is the folder of real captures (default :data:`MOCAP`).
+    untrimmed_s : (lo, hi) seconds; the body take starts ``U(lo, hi)`` s later and ends
+        ``U(lo, hi)`` s earlier than the hand take (0 = both cover the whole take).
+    jitter_deg : rotation noise (degrees, per joint and frame) on both takes.
+    spike_rate : share of frames with a single-frame spike; on a spike frame each arm and
+        hand joint turns by ``spike_deg`` (10-30 degrees random) with probability 1/2.
+    holds : (count lo, count hi, length lo s, length hi s): the performer holds still at
+        that many places, for another random length in each take.
+    rush : local rate of the hand take outside holds (scale of the whole take; the hand
+        take "rushes" when > 1).
+    body_fps : frame rates to draw the body take's rate from (None = the capture's).
+    hand_fps : frame rates to draw the hand take's rate from (None = 60/90/100/120).
+
+    Random draws for these come from ``default_rng([seed, 1])``, after the base case's
+    draws, so a case with and without realism shares the same warp (a clean twin).
     """
-    rng = np.random.default_rng(seed)
+
+    untrimmed_s: tuple[float, float] = (0.0, 0.0)
+    jitter_deg: float = 0.0
+    spike_rate: float = 0.0
+    spike_deg: tuple[float, float] = (10.0, 30.0)
+    holds: tuple[int, int, float, float] | None = None
+    rush: float = 1.0
+    body_fps: tuple[float, ...] | None = None
+    hand_fps: tuple[float, ...] | None = None
+
+
+def base_take(family: str, seed: int, rng: np.random.Generator, crop_s: float = 20.0,
+              mocap: str | Path | None = None) -> tuple[Motion, str]:
+    """The full take (with fingers) of a ``family`` case and its name."""
     root = Path(mocap) if mocap is not None else MOCAP
     if family == "beat":
         full = read_bvh(root / BEAT)
@@ -339,6 +373,18 @@ def make_case(family: str, seed: int, crop_s: float = 20.0, mocap: str | Path | 
         name = f"{Path(path).stem}[{start}:{start + n}]/{seed}"
     else:
         raise ValueError(f"unknown family {family!r}")
+    return full, name
+
+
+def make_case(family: str, seed: int, crop_s: float = 20.0, mocap: str | Path | None = None,
+              realism: Realism | None = None) -> Case:
+    """One seeded case of ``family`` (``"beat"``, ``"bandai"`` or ``"lafan1"``).
+
+    ``mocap`` is the folder of real captures (default :data:`MOCAP`). ``realism``
+    (:class:`Realism`) adds untrimmed ends, noise, holds or other frame rates.
+    """
+    rng = np.random.default_rng(seed)
+    full, name = base_take(family, seed, rng, crop_s, mocap)
     roles = find_roles(full.skeleton)
     body = strip_fingers(full, roles)
     body = replace(body, meta=replace(body.meta, source=f"{full.meta.source}#body"))
@@ -350,11 +396,137 @@ def make_case(family: str, seed: int, crop_s: float = 20.0, mocap: str | Path | 
         "yaw_deg": float(rng.uniform(-60.0, 60.0)),
         "noise_deg": 0.5,
     }
+    if realism is not None:
+        return _realistic_case(full, body, roles, rng, params, name, family, seed, realism)
     hand, hand_t, orig_t = make_hand_take(full, rng, roles=roles, **params)
     body_t = np.arange(body.n_frames) / body.fps
     truth = np.interp(body_t, orig_t, hand_t) * hand.fps
     return Case(name=name, family=family, seed=seed, body=body, hand=hand, truth=truth,
                 reference=full, params=params)
+
+
+def _hold_maps(rng: np.random.Generator, duration: float, real: Realism):
+    """Time maps with holds: (body-performance times, hand-performance times, original
+    times), sampled together at 1 ms of the body performance (all non-decreasing).
+
+    Hold ``k`` sits at original time ``t_k``; the body holds ``La_k`` s, the hand ``Lb_k``
+    s, drawn independently from the same range. Inside a hold the maps are linear, so the
+    truth of a body frame in a hold is the hand frame as far through the hand's hold.
+    """
+    orig = np.linspace(0.0, duration, int(duration * 1000) + 2)
+    a, b = orig.copy(), orig.copy()
+    holds = []
+    if real.holds is not None:
+        k_lo, k_hi, l_lo, l_hi = real.holds
+        k = int(rng.integers(k_lo, k_hi + 1))
+        at = np.sort(rng.uniform(0.15, 0.85, size=k)) * duration
+        la = rng.uniform(l_lo, l_hi, size=k)
+        lb = rng.uniform(l_lo, l_hi, size=k)
+        for t, x, y in zip(at, la, lb, strict=True):
+            holds.append((float(t), float(x), float(y)))
+        # rebuild the grid with a 1 ms sampled hold inserted at each t_k
+        o_list, a_list, b_list = [], [], []
+        off_a = off_b = 0.0
+        prev = 0.0
+        for t, x, y in holds:
+            seg = orig[(orig >= prev) & (orig < t)]
+            o_list.append(seg)
+            a_list.append(seg + off_a)
+            b_list.append(seg + off_b)
+            steps = max(2, int(x * 1000))
+            f = np.linspace(0.0, 1.0, steps)
+            o_list.append(np.full(steps, t))
+            a_list.append(t + off_a + f * x)
+            b_list.append(t + off_b + f * y)
+            off_a += x
+            off_b += y
+            prev = t
+        seg = orig[orig >= prev]
+        o_list.append(seg)
+        a_list.append(seg + off_a)
+        b_list.append(seg + off_b)
+        orig = np.concatenate(o_list)
+        a = np.concatenate(a_list)
+        b = np.concatenate(b_list)
+        a = np.maximum.accumulate(a)
+        b = np.maximum.accumulate(b)
+    return a, b, orig, holds
+
+
+def _spiky(motion: Motion, rng: np.random.Generator, joints: np.ndarray, real: Realism
+           ) -> Motion:
+    """``motion`` with rotation jitter on every joint and single-frame spikes on ``joints``."""
+    local = motion.rotations.copy()
+    if real.jitter_deg > 0:
+        axis = rng.normal(size=local.shape[:2] + (3,))
+        axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
+        ang = np.radians(real.jitter_deg) * rng.normal(size=local.shape[:2])
+        local = rot.multiply(local, rot.from_axis_angle(axis, ang))
+    if real.spike_rate > 0 and joints.size:
+        f = local.shape[0]
+        frames = np.flatnonzero(rng.random(f) < real.spike_rate)
+        for fr in frames:
+            js = joints[rng.random(joints.size) < 0.5]
+            if not js.size:
+                continue
+            axis = rng.normal(size=(js.size, 3))
+            axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
+            ang = np.radians(rng.uniform(*real.spike_deg, size=js.size))
+            local[fr, js] = rot.multiply(local[fr, js], rot.from_axis_angle(axis, ang))
+    return replace(motion, rotations=local)
+
+
+def _realistic_case(full: Motion, body_full: Motion, roles, rng, params, name, family, seed,
+                    real: Realism) -> Case:
+    """A case whose takes differ as two capture sessions do (see :class:`Realism`)."""
+    rr = np.random.default_rng([seed, 1])
+    duration = (full.n_frames - 1) / full.fps
+    a_t, b_t, o_t, holds = _hold_maps(rr, duration, real)
+    body_fps = float(rr.choice(real.body_fps)) if real.body_fps else float(full.fps)
+    if real.hand_fps:
+        params["fps"] = float(rr.choice(real.hand_fps))
+    lo, hi = real.untrimmed_s
+    cut0 = float(rr.uniform(lo, hi)) if hi > 0 else 0.0
+    cut1 = float(rr.uniform(lo, hi)) if hi > 0 else 0.0
+    # body frames: body-performance times cut0 .. end - cut1
+    span = a_t[-1] - cut0 - cut1
+    n = int(np.floor(span * body_fps + 1e-9)) + 1
+    s = cut0 + np.arange(n) / body_fps
+    body_orig = np.interp(s, a_t, o_t)
+    rots, trans = sample(body_full, body_orig * full.fps)
+    body = replace(body_full, rotations=rots, translations=trans, fps=body_fps)
+    rrots, rtrans = sample(full, body_orig * full.fps)
+    reference = replace(full, rotations=rrots, translations=rtrans, fps=body_fps)
+
+    # the hand take: warp over the hand performance (with its holds), rushed
+    scale = params["scale"] / real.rush
+    th, tb = smooth_warp(rng, b_t[-1], scale, params["warp_sigma"])
+    hand_fps = params["fps"]
+
+    def perf_to_orig(t):
+        return np.interp(t, b_t, o_t)
+
+    hand, hand_t, _ = make_hand_take(
+        full, rng, roles=roles, fps=hand_fps, scale=scale, warp_sigma=params["warp_sigma"],
+        shrink=params["shrink"], yaw_deg=params["yaw_deg"], noise_deg=params["noise_deg"],
+        warp=(th, tb), perf_to_orig=perf_to_orig)
+    # truth: body frame -> body performance time -> hand performance time -> hand time
+    tb_of_s = np.interp(s, a_t, b_t)
+    truth = np.interp(tb_of_s, tb, th) * hand_fps
+    if real.jitter_deg > 0 or real.spike_rate > 0:
+        sk = full.skeleton
+        _, free = arm_joints(full, roles)
+        free_h = np.array(sorted(free), dtype=np.int64)
+        free_names = {sk.names[j] for j in free}
+        free_b = np.array([j for j, nm in enumerate(body.skeleton.names) if nm in free_names],
+                          dtype=np.int64)
+        hand = _spiky(hand, rr, free_h, real)
+        body = _spiky(body, rr, free_b, real)
+    params = {**params, "body_fps": body_fps, "untrimmed_s": [cut0, cut1],
+              "holds": holds, "rush": real.rush, "jitter_deg": real.jitter_deg,
+              "spike_rate": real.spike_rate}
+    return Case(name=name, family=family, seed=seed, body=body, hand=hand, truth=truth,
+                reference=reference, params=params)
 
 
 # --------------------------------------------------------------------------------------------
