@@ -7,6 +7,10 @@ through cell ``(i, j)`` costs::
 
     T(i, j) = γ(i, j) + β(i, j) - D(i, j)        (D is counted in both γ and β)
 
+With open ends (:class:`engine.dtw.Ends`) γ carries the skip cost of the frames left
+out at the start and β those at the end, so ``T`` is still the total of the cheapest
+path through the cell and ``T*`` is the best open end's total.
+
 ``T`` equals the optimal total ``T*`` on the optimal path and grows as a cell
 moves away from every cheap path. ``T - T*`` (the *extra cost* of a cell) is
 what the splice's uncertainty is built on (:mod:`engine.splice.uncertainty`): a
@@ -24,7 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._config import njit_cached
-from .align import Problem, check_total
+from . import kernels as K
+from .align import FIXED, Ends, Problem, check_total
 from .band import Band
 
 
@@ -43,13 +48,20 @@ class RowSpread:
     reach: np.ndarray
 
 
-def _gamma(problem: Problem, band: Band) -> tuple[np.ndarray, float]:
-    """γ for every band cell (flat, ``band.start`` offsets) and the total."""
+def _gamma(problem: Problem, band: Band, ends: Ends) -> tuple[np.ndarray, float]:
+    """γ for every band cell (flat, ``band.start`` offsets) and the optimal total.
+
+    With open ends γ includes the skip cost of the frames left out before the cell."""
     bp = np.empty(band.area, np.uint8)
     gamma = np.empty(band.area, np.float64)
-    bad, total = problem.forward(band.lo, band.hi, band.start, 0, band.n, bp, gamma, 1)
+    last_col = np.empty(band.n)
+    last_row = np.empty(band.m)
+    e = ends.array()
+    bad, _ = problem.forward(band.lo, band.hi, band.start, 0, band.n, bp, gamma, 1, e,
+                             last_col, last_row)
     if bad >= 0:
         raise problem.bad_cost_error(int(bad), band)
+    total, _, _ = K.best_end(last_row, last_col, band.lo, band.hi, e, band.n - 1)
     check_total(total)
     return gamma, float(total)
 
@@ -83,7 +95,8 @@ def _row_spread(gf, gb, lo, hi, start, rlo, rstart, n, m, centre, total, tempera
         reach[i] = far
 
 
-def row_spread(a, b, band: Band, metric, centre, temperature: float, margin: float) -> RowSpread:
+def row_spread(a, b, band: Band, metric, centre, temperature: float, margin: float,
+               ends: Ends = FIXED) -> RowSpread:
     """Per-row spread of the cheap cells around ``centre`` for features ``a``, ``b``.
 
     a : (n, d) float body feature rows; b : (m, d) float hand feature rows
@@ -91,17 +104,19 @@ def row_spread(a, b, band: Band, metric, centre, temperature: float, margin: flo
     centre : (n,) float, the column each row is measured from (the chosen warp)
     temperature : float > 0, cost units; the weight of a cell is ``exp(-extra / temperature)``
     margin : float >= 0, cost units; ``reach`` counts cells with ``extra <= margin``
+    ends : engine.dtw.Ends, the open ends of the pass (the same limits hold at both ends,
+        so the backward pass on the reversed problem uses them as they are)
     """
     problem = Problem.from_features(a, b, metric)
     band.check_fits((problem.n, problem.m), problem.what)
-    gf, total = _gamma(problem, band)
+    gf, total = _gamma(problem, band, ends)
     # γf - D: subtract each cell's local cost once, row by row (no n x m array)
     for i in range(band.n):
         lo, hi = int(band.lo[i]), int(band.hi[i])
         s = int(band.start[i])
         gf[s : s + hi - lo + 1] -= problem.cost_row(i, lo, hi)
     rband = band.reversed()
-    gb, _ = _gamma(problem.reversed(), rband)
+    gb, _ = _gamma(problem.reversed(), rband, ends)
     n, m = band.n, band.m
     spread = np.empty(n)
     reach = np.empty(n)
