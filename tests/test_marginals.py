@@ -111,7 +111,8 @@ def test_open_ends_through_costs_match_brute_force(seed):
     col = np.full(n, m / 2.0)
     rs = row_spread(a, b, band, "sqeuclidean", col, 0.5, 0.3, ends=ends)
     assert rs.total == pytest.approx(total)
-    extra = np.maximum(through - total, 0.0)
+    row_best = np.maximum(through.min(axis=1, keepdims=True), total)
+    extra = np.maximum(through - row_best, 0.0)
     d = np.arange(m)[None, :] - col[:, None]
     w = np.exp(-extra / 0.5)
     assert np.allclose(rs.spread, np.sqrt((w * d**2).sum(1) / w.sum(1)))

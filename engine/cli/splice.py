@@ -191,12 +191,17 @@ def run(args: argparse.Namespace) -> int:
                              hand_points=hand_points,
                              theta=args.theta, body_roles=body_roles, hand_roles=hand_roles,
                              progress=progress)
+    from engine.splice.uncertainty import assess
+
+    progress("trust", 0.0)
+    trust = assess(result.features, result.alignment)
+    progress("trust", 1.0)
     progress("write", 0.0)
     write_bvh(result.motion, out)
     progress("write", 1.0)
     if args.report:
         write_report(args.report, build_report(result, args.body, args.hand, out,
-                                               points_given=points))
+                                               points_given=points, assessment=trust))
     if args.preview:
         _preview(result.motion, args.preview, args.quiet)
     if not args.quiet:
@@ -204,6 +209,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"wrote {out} ({result.features.n} frames, {sides} hand"
               f"{'s' if len(result.features.sides) > 1 else ''}, "
               f"{result.timings['total']:.2f} s)", file=sys.stderr)
+        print(f"splice: {trust.summary}", file=sys.stderr)
     return 0
 
 

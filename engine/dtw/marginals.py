@@ -39,8 +39,9 @@ class RowSpread:
 
     total : float, the optimal total ``T*``
     spread : (n,) float, columns; the root-mean-square distance of the row's cells from
-        ``centre`` weighted by ``exp(-(T - T*) / temperature)``
-    reach : (n,) float, columns; the largest ``|j - centre|`` with ``T - T* <= margin``
+        ``centre`` weighted by ``exp(-(T - T_i) / temperature)``, ``T_i`` the row's cheapest
+        through-cost (``T*`` on every row the optimal path visits)
+    reach : (n,) float, columns; the largest ``|j - centre|`` with ``T - T_i <= margin``
     """
 
     total: float
@@ -75,13 +76,23 @@ def _row_spread(gf, gb, lo, hi, start, rlo, rstart, n, m, centre, total, tempera
     for i in range(n):
         ri = n - 1 - i
         c = centre[i]
+        # the row's cheapest through-cost: T* on rows the optimal path visits; higher on
+        # rows an open-ended path leaves unmatched (their spread is then about the cheapest
+        # way to match that row at all)
+        best = np.inf
+        for j in range(lo[i], hi[i] + 1):
+            t = gf[start[i] + j - lo[i]] + gb[rstart[ri] + m - 1 - j - rlo[ri]]
+            if t < best:
+                best = t
+        if best < total:
+            best = total
         wsum = 0.0
         dsum = 0.0
         far = 0.0
         for j in range(lo[i], hi[i] + 1):
             rj = m - 1 - j
             t = gf[start[i] + j - lo[i]] + gb[rstart[ri] + rj - rlo[ri]]
-            extra = t - total
+            extra = t - best
             if extra < 0.0:
                 extra = 0.0
             d = j - c

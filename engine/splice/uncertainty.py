@@ -29,11 +29,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from engine.dtw import Band
+from engine.dtw.align import FIXED
 from engine.dtw.marginals import row_spread
 
 #: temperature = KAPPA x the pass's mean local cost per path step (chosen on the tuning seeds)
-KAPPA = 4.0
+KAPPA = 1.0
 #: relative floor of the temperature (a perfect match must not make every row certain)
 TEMPERATURE_FLOOR = 1e-3
 #: viewers notice hand/body desync above about 0.1 s (Jörg, Hodgins & O'Sullivan 2010)
@@ -100,7 +100,9 @@ def pass_spread(result, warp: np.ndarray, kappa: float = KAPPA) -> np.ndarray:
     """
     a, b = result.rows
     temperature = kappa * max(float(result.cost) / max(len(result.path), 1), TEMPERATURE_FLOOR)
-    return row_spread(a, b, result.band, result.metric, warp, temperature, margin=0.0).spread
+    ends = getattr(result, "ends", None) or FIXED
+    return row_spread(a, b, result.band, result.metric, warp, temperature, margin=0.0,
+                      ends=ends).spread
 
 
 def alignment_uncertainty(features, alignment) -> Uncertainty:
@@ -144,3 +146,51 @@ def summary_line(stroke_list: list[Stroke]) -> str:
                f"{DESYNC_MS:.0f} ms)"
     where = ", ".join(f"{s.start}-{s.end}" for s in bad[:6]) + (", ..." if len(bad) > 6 else "")
     return f"{len(bad)} of {len(stroke_list)} strokes may show desync: body frames {where}"
+
+
+@dataclass(frozen=True)
+class Assessment:
+    """Everything the report, the CLI and the app say about trust in one alignment.
+
+    uncertainty : Uncertainty
+    strokes : list of Stroke (the body take's strokes, first spliced arm)
+    suggestions : list of (body frame, hand-file frame) the least certain places, with the
+        hand frame the alignment matches there now (a user checks and corrects it)
+    """
+
+    uncertainty: Uncertainty
+    strokes: list
+    suggestions: list
+
+    @property
+    def summary(self) -> str:
+        return summary_line(self.strokes)
+
+    def report_fields(self) -> dict:
+        """``uncertainty_ms``, ``strokes``, ``suggested_points`` and ``desync`` for REPORT.json."""
+        return {
+            "uncertainty_ms": [round(float(v), 1) for v in self.uncertainty.ms],
+            "strokes": [s.as_dict() for s in self.strokes],
+            "suggested_points": [[int(b), round(float(h), 2)] for b, h in self.suggestions],
+            "desync": {"threshold_ms": DESYNC_MS, "summary": self.summary},
+        }
+
+
+def assess(features, alignment, stroke_labels: np.ndarray | None = None) -> Assessment:
+    """Uncertainty, strokes and suggested points of a splice alignment.
+
+    features : pipeline.SpliceFeatures; alignment : pipeline.SpliceAlignment
+    stroke_labels : (n,) phase codes of the body take (default: the first spliced arm's
+        wrist, :func:`engine.splice.pipeline.phase_labels`)
+    """
+    from engine.gesture.phases import Phase
+
+    unc = alignment_uncertainty(features, alignment)
+    if stroke_labels is None:
+        from engine.splice.pipeline import phase_labels
+
+        stroke_labels = phase_labels(features)[0]
+    hand_map = np.asarray(alignment.map, np.float64)
+    picks = [(i, float(hand_map[i])) for i in unc.suggestions()]
+    return Assessment(uncertainty=unc, strokes=strokes(unc, stroke_labels, int(Phase.STROKE)),
+                      suggestions=picks)
