@@ -73,15 +73,28 @@ class Uncertainty:
     fps: float
 
     def suggestions(self, count: int = SUGGESTIONS, gap_s: float = SUGGEST_GAP_S) -> list[int]:
-        """Body frames of the ``count`` least certain places, at least ``gap_s`` apart."""
+        """Body frames of the ``count`` least certain places, at least ``gap_s`` apart.
+
+        A place is scored by the uncertainty summed over ``gap_s`` around it, so a long
+        uncertain stretch (many mistimed frames, where one matching point fixes most) comes
+        before a one-frame spike; the frame returned is the least certain one of the stretch.
+        """
         gap = max(1, int(round(gap_s * self.fps)))
-        order = np.argsort(-self.ms, kind="stable")
+        n = len(self.ms)
+        csum = np.concatenate([[0.0], np.cumsum(self.ms)])
+        half = gap // 2
+        lo = np.clip(np.arange(n) - half, 0, n)
+        hi = np.clip(np.arange(n) + half + 1, 0, n)
+        score = csum[hi] - csum[lo]
+        order = np.argsort(-score, kind="stable")
         chosen: list[int] = []
         for i in order:
-            if self.ms[i] <= 0.0 or len(chosen) >= count:
+            if score[i] <= 0.0 or len(chosen) >= count:
                 break
-            if all(abs(int(i) - c) >= gap for c in chosen):
-                chosen.append(int(i))
+            a, b = int(lo[i]), int(hi[i])
+            peak = a + int(np.argmax(self.ms[a:b]))
+            if all(abs(peak - c) >= gap for c in chosen):
+                chosen.append(peak)
         return chosen
 
 
