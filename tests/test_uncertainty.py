@@ -70,3 +70,21 @@ def test_suggestions_are_apart_and_worst_first():
     ms[50], ms[55], ms[200], ms[120] = 300, 290, 200, 100
     unc = U.Uncertainty(ms=ms, pass1_ms=ms, pass2_ms=ms * 0, fps=30.0)
     assert unc.suggestions(3) == [50, 200, 120]
+
+
+def test_session_drops_an_assessment_of_an_older_edit(tmp_path):
+    from webapp import config
+    from webapp.state import Session
+
+    cfg = config.get()
+    s = Session(cfg)
+    s.load_sample(config.demo_sample_name(cfg.sample_dir))
+    assert s.solution is not None
+    old = s.revision
+    stale = s.assess()
+    s.band = 0.5  # an edit: a new solution, its trust not yet known
+    assert s.revision > old and s.trust is None
+    assert not s.update_trust(stale, revision=old)
+    assert s.trust is None
+    assert s.update_trust(revision=s.revision)
+    assert len(s.trust.uncertainty.ms) == s.n

@@ -87,11 +87,13 @@ def create_app() -> pn.viewable.Viewable:
     from webapp.views.cost_matrix import CostMatrixView
     from webapp.views.inputs import InputsView
     from webapp.views.sharing import SharingView
+    from webapp.views.trust import TrustView
 
     session = Session(config.get())
     _initial_state(session)
     inputs = InputsView(session)
     matrix = CostMatrixView(session)
+    trust = TrustView(session, matrix)
     points = controls.PointsTable(session)
     pick = pn.widgets.RadioButtonGroup(options=["Edit points", "Pick frames"],
                                        value="Edit points", css_classes=["hs-click-mode"])
@@ -109,7 +111,8 @@ def create_app() -> pn.viewable.Viewable:
     alignment = _section(
         "2 · Alignment", ALIGN_TEXT,
         controls.status_line(session), controls.error_alert(session),
-        pn.Row(matrix.panel(), side_panel, sizing_mode="stretch_width"),
+        pn.Row(pn.Column(matrix.panel(), trust.panel(), margin=0), side_panel,
+               sizing_mode="stretch_width"),
     )
     sections = [
         pn.pane.HTML(HEADER, sizing_mode="stretch_width", margin=(10, 10, 0, 10)),

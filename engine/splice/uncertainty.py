@@ -65,12 +65,16 @@ class Uncertainty:
     ms : (n,) float, milliseconds of the hand take per body frame
     pass1_ms, pass2_ms : (n,) float, each pass's part
     fps : float, body frames per second
+    visibility : (n,) float in [0, 1] or None: how well a person can tell the moment from
+        the pose (the body wrist's speed against its median: a held pose looks the same
+        for the whole hold, so a matching point cannot be placed there with confidence)
     """
 
     ms: np.ndarray
     pass1_ms: np.ndarray
     pass2_ms: np.ndarray
     fps: float
+    visibility: np.ndarray | None = None
 
     def suggestions(self, count: int = SUGGESTIONS, gap_s: float = SUGGEST_GAP_S) -> list[int]:
         """Body frames of the ``count`` least certain places, at least ``gap_s`` apart.
@@ -86,13 +90,16 @@ class Uncertainty:
         lo = np.clip(np.arange(n) - half, 0, n)
         hi = np.clip(np.arange(n) + half + 1, 0, n)
         score = csum[hi] - csum[lo]
+        if self.visibility is not None:
+            score = score * self.visibility
         order = np.argsort(-score, kind="stable")
         chosen: list[int] = []
         for i in order:
             if score[i] <= 0.0 or len(chosen) >= count:
                 break
             a, b = int(lo[i]), int(hi[i])
-            peak = a + int(np.argmax(self.ms[a:b]))
+            local = self.ms[a:b] * (1.0 if self.visibility is None else self.visibility[a:b])
+            peak = a + int(np.argmax(local))
             if all(abs(peak - c) >= gap for c in chosen):
                 chosen.append(peak)
         return chosen
@@ -126,8 +133,12 @@ def alignment_uncertainty(features, alignment) -> Uncertainty:
     s2 = pass_spread(p2, warp)
     frame_ms = 1000.0 / float(features.fps)
     ms1, ms2 = s1 * frame_ms, s2 * frame_ms
+    from engine.splice.pipeline import wrist_speeds
+
+    speed = wrist_speeds(features)[0]
+    typical = float(np.median(speed)) or 1.0
     return Uncertainty(ms=np.hypot(ms1, ms2), pass1_ms=ms1, pass2_ms=ms2,
-                       fps=float(features.fps))
+                       fps=float(features.fps), visibility=speed / (speed + typical))
 
 
 def strokes(uncertainty: Uncertainty, labels: np.ndarray, stroke_label: int) -> list[Stroke]:
