@@ -27,8 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._config import njit_cached
 from . import kernels as K
+from ._config import njit_cached
 from .align import FIXED, Ends, Problem, check_total
 from .band import Band
 

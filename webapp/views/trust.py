@@ -1,10 +1,11 @@
 """Trust in the alignment on the page: confidence strip, uncertain region, desync meter,
 suggested matching points (issue 17; the numbers come from ``engine.splice.uncertainty``).
 
-* a strip under the matrix, one cell per body frame, green / amber / red for an
-  uncertainty under 50 ms / up to 100 ms / above (viewers notice desync above ~100 ms);
+* a strip under the body take's phase track, one cell per body frame, green / amber /
+  red for an uncertainty under 50 ms / up to 100 ms / above (viewers notice desync
+  above ~100 ms);
 * a light region around the path on the matrix: ± the uncertainty, in hand frames;
-* the desync meter: each gesture stroke of the body take outlined on the phase track in
+* the desync meter: a bar under each gesture stroke of the body take's phase track in
   its verdict's colour, and a one-line summary;
 * up to three suggested matching points: the first click shows that moment in the
   preview (body take and hand take side by side), the second places the point.
@@ -20,8 +21,7 @@ import html
 
 import numpy as np
 import panel as pn
-from bokeh.models import ColumnDataSource, HoverTool, Range1d
-from bokeh.plotting import figure
+from bokeh.models import ColumnDataSource, HoverTool
 
 from webapp.state import Session
 from webapp.views._dispatch import with_document_lock
@@ -64,35 +64,32 @@ class TrustView:
                                               name="hs-uncertain-region-source")
         fig.varea(x="x", y1="lo", y2="hi", source=self.region_source, fill_color=REGION_COLOR,
                   fill_alpha=0.22, name="hs-uncertain-region", level="underlay")
+        # two rows under the body take's phase track (which spans -0.32..-0.08): the desync
+        # meter (one bar per stroke) and the confidence strip (one cell per body frame)
+        body_fig = matrix.body_figure
+        body_fig.y_range.start = -0.80
         self.meter_source = ColumnDataSource(
             {"start": [], "stop": [], "color": [], "verdict": [], "ms": []},
             name="hs-desync-meter-source")
-        meter = matrix.body_figure.quad(left="start", right="stop", bottom=-0.345, top=-0.055,
-                                        fill_alpha=0.0, line_color="color", line_width=2.5,
-                                        source=self.meter_source, name="hs-desync-meter")
-        matrix.body_figure.add_tools(HoverTool(renderers=[meter], tooltips=[
-            ("stroke", "@start{0}–@stop{0}"), ("uncertainty", "@ms{0} ms"),
+        meter = body_fig.quad(left="start", right="stop", bottom=-0.52, top=-0.37,
+                              color="color", line_color="#202020", line_width=1,
+                              source=self.meter_source, name="hs-desync-meter")
+        body_fig.add_tools(HoverTool(renderers=[meter], tooltips=[
+            ("stroke", "body frames @start{0}–@stop{0}"), ("timing uncertainty", "@ms{0} ms"),
             ("verdict", "@verdict")]))
         self.strip_source = ColumnDataSource({"start": [], "stop": [], "color": [],
                                               "verdict": []}, name="hs-confidence-source")
-        strip = figure(frame_width=matrix.figure.frame_width, frame_height=14,
-                       x_range=matrix.x_range, y_range=Range1d(0, 1), tools="",
-                       toolbar_location=None, name="hs-confidence-strip")
-        quads = strip.quad(left="start", right="stop", bottom=0, top=1, color="color",
-                           source=self.strip_source)
-        strip.add_tools(HoverTool(renderers=[quads], tooltips=[("body frames",
-                                                               "@start{0}–@stop{0}"),
-                                                              ("timing", "@verdict")]))
-        strip.axis.visible = False
-        strip.grid.visible = False
-        strip.outline_line_color = None
-        strip.min_border_left, strip.min_border_right = 10, 60
-        strip.min_border_top = strip.min_border_bottom = 0
-        self.strip = strip
+        quads = body_fig.quad(left="start", right="stop", bottom=-0.78, top=-0.58,
+                              color="color", source=self.strip_source,
+                              name="hs-confidence-strip")
+        body_fig.add_tools(HoverTool(renderers=[quads], tooltips=[
+            ("body frames", "@start{0}–@stop{0}"), ("timing", "@verdict")]))
+        body_fig.frame_height = body_fig.frame_height + 22
         self.summary = pn.pane.HTML("", css_classes=["hs-desync-summary"],
                                     styles={"font-size": "13px"}, margin=(2, 10))
         self.buttons = [pn.widgets.Button(name="", visible=False, button_type="light",
-                                          css_classes=["hs-suggestion"], margin=(2, 4))
+                                          css_classes=["hs-suggestion"], margin=(2, 4),
+                                          width=300)
                         for _ in range(3)]
         for k, b in enumerate(self.buttons):
             b.on_click(lambda _e, k=k: self._on_suggestion(k))
@@ -186,10 +183,17 @@ class TrustView:
         s.add_point(body, s.hand_frame_for(body))
 
     def panel(self) -> pn.viewable.Viewable:
+        legend = " ".join(
+            f'<span style="display:inline-block;width:10px;height:10px;background:{c};'
+            f'margin:0 3px 0 10px"></span>{html.escape(VERDICT_WORDS[k])}'
+            for k, c in VERDICT_COLORS.items())
         return pn.Column(
-            pn.Row(pn.Spacer(width=90, margin=0), pn.pane.Bokeh(self.strip, margin=0),
-                   margin=0),
+            pn.pane.HTML("Under the body's gesture phases: <b>desync meter</b> (one bar per "
+                         "stroke) and <b>timing confidence</b> per body frame; the light "
+                         "region around the path is where the match could move." + "<br>"
+                         + legend, styles={"font-size": "12px"}, margin=(2, 10)),
             self.summary,
-            pn.Row(pn.pane.HTML("<b>Least certain places:</b>", margin=(8, 4, 0, 10)),
+            pn.Row(pn.pane.HTML("<b>Least certain places:</b>", margin=(8, 4, 0, 10),
+                                width=170),
                    *self.buttons, margin=0),
             margin=0)
