@@ -1,5 +1,6 @@
 # HandSplice app image: serves the browser app on 0.0.0.0:5006 with headless rendering
-# (pyrender on Mesa EGL/llvmpipe, OSMesa as fallback, chosen automatically).
+# (pyrender on Mesa EGL/llvmpipe, OSMesa as fallback, chosen automatically; pyglet headless,
+# so no X libraries). Emulated step by step as the non-root user by `tools/fresh-check docker`.
 #   docker build -t handsplice .
 #   docker run --rm -p 5006:5006 handsplice
 FROM python:3.11-slim-bookworm
@@ -11,7 +12,6 @@ ENV PYTHONDONTWRITEBYTECODE=1 \
 
 RUN apt-get update \
  && apt-get install -y --no-install-recommends libgl1 libegl1 libegl-mesa0 libgl1-mesa-dri libosmesa6 \
-      libglib2.0-0 fonts-dejavu-core \
  && rm -rf /var/lib/apt/lists/*
 
 WORKDIR /app

@@ -22,7 +22,12 @@ Per pair ``NAME`` the output folder receives (every file written atomically)::
     NAME.png            a thumbnail (engine.render; a stick-figure fallback without OpenGL)
     .handsplice-batch/NAME.json   the done marker: input hashes, options, outputs
 
-and at the end ``summary.csv`` and ``index.html`` (one row and thumbnail per pair).
+and ``summary.csv`` (rewritten as pairs finish) and, at the end, ``index.html`` (one row
+and thumbnail per pair).
+
+Limits: each pair runs in a forked child process (``engine.sandbox``) that is stopped
+after ``pair_seconds`` (default 900) or beyond ``pair_memory_mb`` MB resident (default
+2048); the pair is then failed with that reason, its temporary files removed.
 
 Resuming: a pair is *skipped* when its done marker exists, records the same
 SHA-256 of both input files and the same options, and its outputs still exist.
@@ -58,9 +63,9 @@ from pathlib import Path
 from typing import Any
 
 from engine import __version__
-from engine.atomic import atomic_path, write_text
+from engine.atomic import atomic_path, clean_stale, write_text, write_texts
 from engine.errors import HandSpliceError
-from engine.limits import MAX_MANIFEST_ROWS
+from engine.limits import MAX_MANIFEST_ROWS, PAIR_MEMORY_MB, PAIR_SECONDS
 
 REQUIRED_COLUMNS = ("body", "hand", "side")
 OPTIONAL_COLUMNS = ("band", "refine_band", "match", "name")
@@ -303,16 +308,44 @@ def is_done(job: PairJob, outdir: Path) -> dict | None:
 
 
 def run_pair(job: PairJob, outdir: str | Path, thumbnails: str = "render",
-             splice: Callable | None = None) -> dict:
+             splice: Callable | None = None, seconds: float | None = PAIR_SECONDS,
+             memory_mb: float | None = PAIR_MEMORY_MB) -> dict:
     """Splice one pair and write its outputs; never raises (errors go into the record).
+
+    The pair runs in a forked child process (``engine.sandbox``) stopped after
+    ``seconds`` of wall time or beyond ``memory_mb`` MB of resident memory (``None`` or
+    0: no limit); a stopped pair is recorded as failed and leaves no partial outputs.
 
     Returns the pair's summary record (``SUMMARY_COLUMNS``) with ``status`` ``"done"``
     or ``"failed"`` and, when failed, a one-line ``error``.
     """
+    from engine.sandbox import ChildFailed, LimitExceeded, run_limited
+
+    t0 = time.perf_counter()
+    try:
+        if seconds or memory_mb:
+            record = run_limited(_run_pair_here, (job, outdir, thumbnails, splice),
+                                 seconds=seconds, memory_mb=memory_mb)
+        else:
+            record = _run_pair_here(job, outdir, thumbnails, splice)
+    except (LimitExceeded, ChildFailed) as exc:
+        record = _base_record(job)
+        record.update(status="failed", error=f"the pair {exc}" if isinstance(exc, LimitExceeded)
+                      else one_line(exc), seconds=f"{time.perf_counter() - t0:.2f}")
+    if memory_mb and record.get("status") == "failed" and \
+            str(record.get("error", "")).startswith("MemoryError"):  # RLIMIT_DATA in the child
+        record["error"] = (f"the pair used more than the memory limit of {memory_mb:g} MB "
+                           f"({record['error']})")[:500]
+    record["worker"] = f"{platform.node()}:{os.getpid()}"
+    return record
+
+
+def _run_pair_here(job: PairJob, outdir: str | Path, thumbnails: str = "render",
+                   splice: Callable | None = None) -> dict:
+    """``run_pair`` in this process, without limits."""
     outdir = Path(outdir)
     t0 = time.perf_counter()
     record = _base_record(job)
-    record["worker"] = f"{platform.node()}:{os.getpid()}"
     try:
         key = input_key(job)  # hashed before reading: a file changed meanwhile reruns next time
         from engine.io import load_take
@@ -321,14 +354,15 @@ def run_pair(job: PairJob, outdir: str | Path, thumbnails: str = "render",
         hand = load_take(job.hand)
         motion, report = (splice or splice_pair)(body, hand, job)
         outs = outputs_of(job, outdir)
-        from engine.io.bvh import write_bvh
+        from engine.io.bvh import format_bvh
 
-        write_bvh(motion, outs["output"])
         report = dict(report)
         report["output"] = outs["output"].name
         report.setdefault("batch", {"name": job.name, "line": job.line, "body": job.body,
                                     "hand": job.hand, **job.options()})
-        write_text(outs["report"], json.dumps(_jsonable(report)) + "\n")
+        # the spliced take and its report: both replaced, or neither
+        write_texts([(outs["output"], format_bvh(motion)),
+                     (outs["report"], json.dumps(_jsonable(report)) + "\n")])
         kind = "none"
         if thumbnails != "none":
             kind = write_thumbnail(motion, outs["thumbnail"], prefer=thumbnails)
@@ -489,7 +523,9 @@ class BatchResult:
 
 def run_batch(manifest: str | Path, outdir: str | Path, scheduler: str | None = None,
               workers: int = 2, thumbnails: str = "render", progress=None,
-              client=None, splice: Callable | None = None) -> BatchResult:
+              client=None, splice: Callable | None = None,
+              pair_seconds: float | None = PAIR_SECONDS,
+              pair_memory_mb: float | None = PAIR_MEMORY_MB) -> BatchResult:
     """Run every pair of ``manifest`` into ``outdir`` (module docstring).
 
     Parameters
@@ -502,15 +538,26 @@ def run_batch(manifest: str | Path, outdir: str | Path, scheduler: str | None = 
     client : an existing ``distributed.Client`` (tests); overrides ``scheduler``
     splice : ``f(body, hand, job) -> (Motion, report dict)`` instead of :func:`splice_pair`
         (must be picklable for the workers)
+    pair_seconds, pair_memory_mb : limits of one pair (wall seconds, resident MB; None or
+        0: none); a pair beyond them is stopped and recorded as failed
+
+    ``summary.csv`` is rewritten as pairs finish (finished pairs, manifest order; at most
+    once a second), and complete at the end with ``index.html``.
     """
     t0 = time.perf_counter()
     if thumbnails not in ("render", "stick", "none"):
         raise HandSpliceError(f"thumbnails: expected render, stick or none, got {thumbnails!r}")
     if client is None and scheduler is None and not (isinstance(workers, int) and workers >= 1):
         raise HandSpliceError(f"--workers: expected a whole number >= 1, got {workers!r}")
+    for label, value in (("pair_seconds", pair_seconds), ("pair_memory_mb", pair_memory_mb)):
+        if value is not None and not (isinstance(value, int | float) and math.isfinite(value)
+                                      and value >= 0):
+            raise HandSpliceError(f"{label}: expected a number >= 0 (0: no limit), got {value!r}")
     jobs = read_manifest(manifest)
     outdir = Path(outdir).resolve()
     outdir.mkdir(parents=True, exist_ok=True)
+    for folder in (outdir, outdir / MARKER_DIR):  # temporary files of a killed run
+        clean_stale(folder)
     show = Progress(len(jobs), progress)
 
     records: dict[str, dict] = {}
@@ -525,9 +572,11 @@ def run_batch(manifest: str | Path, outdir: str | Path, scheduler: str | None = 
         else:
             todo.append(job)
 
+    summary = _SummaryWriter(jobs, records, outdir / "summary.csv")
     if todo:
+        limits = (pair_seconds, pair_memory_mb)
         for rec in _run_on_dask(todo, outdir, thumbnails, scheduler, workers, client, show,
-                                splice):
+                                splice, limits, on_record=summary.add):
             records[rec["name"]] = rec
     ordered = [records[j.name] for j in jobs]
     result = BatchResult(records=ordered, seconds=time.perf_counter() - t0)
@@ -538,8 +587,27 @@ def run_batch(manifest: str | Path, outdir: str | Path, scheduler: str | None = 
     return result
 
 
+class _SummaryWriter:
+    """``summary.csv`` rewritten (atomically) as pairs finish: at most once per ``every_s``."""
+
+    def __init__(self, jobs: list[PairJob], records: dict[str, dict], path: Path,
+                 every_s: float = 1.0):
+        self.jobs, self.records, self.path, self.every_s = jobs, records, path, every_s
+        self.last = -math.inf
+
+    def add(self, rec: dict) -> None:
+        self.records[rec["name"]] = rec
+        now = time.monotonic()
+        if now - self.last >= self.every_s:
+            self.last = now
+            write_summary_csv([self.records[j.name] for j in self.jobs
+                               if j.name in self.records], self.path)
+
+
 def _run_on_dask(todo: list[PairJob], outdir: Path, thumbnails: str, scheduler: str | None,
-                 workers: int, client, show: Progress, splice: Callable | None) -> list[dict]:
+                 workers: int, client, show: Progress, splice: Callable | None,
+                 limits: tuple = (PAIR_SECONDS, PAIR_MEMORY_MB),
+                 on_record: Callable | None = None) -> list[dict]:
     from distributed import Client, as_completed
 
     own_cluster = own_client = None
@@ -563,7 +631,8 @@ def _run_on_dask(todo: list[PairJob], outdir: Path, thumbnails: str, scheduler: 
         def fill() -> None:
             while pending and len(running) < _capacity(client):
                 job = pending.pop()
-                fut = client.submit(run_pair, job, str(outdir), thumbnails, splice, pure=False,
+                fut = client.submit(run_pair, job, str(outdir), thumbnails, splice, *limits,
+                                    pure=False,
                                     key=f"handsplice_pair-{batch_id}-{len(todo) - len(pending)}")
                 running[fut] = job
                 done_iter.add(fut)
@@ -583,6 +652,8 @@ def _run_on_dask(todo: list[PairJob], outdir: Path, thumbnails: str, scheduler: 
                        "error": f"the task did not finish: {why}"}
             out.append(rec)
             show.update(rec)
+            if on_record is not None:
+                on_record(rec)
             fut.release()
             fill()
         return out

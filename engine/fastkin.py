@@ -7,7 +7,8 @@ numpy's per-call overhead, which dominates for a few hundred frames:
 * :func:`forward_kinematics` - world positions and rotations of every joint;
 * :func:`qmul`, :func:`qmul_conj` - batched quaternion products ``a * b`` and
   ``a^-1 * b`` over ``(F, K, 4)`` arrays;
-* :func:`continuous` - flip quaternion signs so consecutive frames share a hemisphere.
+* :func:`continuous` - flip quaternion signs so consecutive frames share a hemisphere
+  (:func:`continuous_inplace` without copies).
 """
 
 from __future__ import annotations
@@ -111,3 +112,100 @@ def continuous(q: np.ndarray) -> np.ndarray:
     flips = np.where(dots < 0, -1.0, 1.0)
     sign = np.concatenate([np.ones((1,) + flips.shape[1:]), np.cumprod(flips, axis=0)], axis=0)
     return q * sign[..., None]
+
+
+@numba.njit(cache=True)
+def _continuous_kernel(q):
+    frames, joints = q.shape[0], q.shape[1]
+    for j in range(joints):
+        for f in range(1, frames):
+            d = (q[f, j, 0] * q[f - 1, j, 0] + q[f, j, 1] * q[f - 1, j, 1]
+                 + q[f, j, 2] * q[f - 1, j, 2] + q[f, j, 3] * q[f - 1, j, 3])
+            if d < 0.0:
+                for c in range(4):
+                    q[f, j, c] = -q[f, j, c]
+
+
+def continuous_inplace(q: np.ndarray) -> None:
+    """:func:`continuous` in place for a C-contiguous float64 ``(F, J, 4)`` array (no copies:
+    frame ``f`` is flipped when its dot product with the already corrected ``f - 1`` is
+    negative, which is the same sign as :func:`continuous`'s cumulative product)."""
+    if q.ndim != 3 or q.shape[-1] != 4 or q.dtype != np.float64 or not q.flags.c_contiguous:
+        raise ValueError(f"continuous_inplace: need a C-contiguous float64 (F, J, 4) array, "
+                         f"got {q.dtype} {q.shape}")
+    _continuous_kernel(q)
+
+
+@numba.njit(cache=True, fastmath=_FASTMATH, inline="always")
+def _unit4(w, x, y, z):
+    n = np.sqrt(w * w + x * x + y * y + z * z)
+    if n > 0.0:
+        return w / n, x / n, y / n, z / n
+    return 1.0, 0.0, 0.0, 0.0
+
+
+@numba.njit(cache=True, fastmath=_FASTMATH)
+def _sample_kernel(rot, trans, t, out_r, out_t):
+    frames = rot.shape[0]
+    for k in range(t.shape[0]):
+        tk = min(max(t[k], 0.0), frames - 1.0)
+        i0 = int(np.floor(tk))
+        i1 = min(i0 + 1, frames - 1)
+        w = tk - i0
+        for j in range(rot.shape[1]):
+            aw, ax, ay, az = _unit4(rot[i0, j, 0], rot[i0, j, 1], rot[i0, j, 2], rot[i0, j, 3])
+            bw, bx, by, bz = _unit4(rot[i1, j, 0], rot[i1, j, 1], rot[i1, j, 2], rot[i1, j, 3])
+            dot = aw * bw + ax * bx + ay * by + az * bz
+            if dot < 0.0:
+                bw, bx, by, bz, dot = -bw, -bx, -by, -bz, -dot
+            theta = np.arccos(min(dot, 1.0))
+            s = np.sin(theta)
+            if s < 1e-6:
+                w0, w1 = 1.0 - w, w
+            else:
+                w0, w1 = np.sin((1.0 - w) * theta) / s, np.sin(w * theta) / s
+            qw, qx, qy, qz = _unit4(w0 * aw + w1 * bw, w0 * ax + w1 * bx, w0 * ay + w1 * by,
+                                    w0 * az + w1 * bz)
+            out_r[k, j, 0] = qw
+            out_r[k, j, 1] = qx
+            out_r[k, j, 2] = qy
+            out_r[k, j, 3] = qz
+            for c in range(3):
+                out_t[k, j, c] = trans[i0, j, c] * (1.0 - w) + trans[i1, j, c] * w
+
+
+def sample(motion: Motion, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`engine.kinematics.sample` (slerp / linear at fractional frames ``times (T,)``,
+    clipped to the take) in one numba loop: ``(T, J, 4)`` rotations, ``(T, J, 3)``
+    translations (equal to rounding)."""
+    if motion.n_frames == 0:
+        raise ValueError("sample: the motion has no frames")
+    t = np.ascontiguousarray(times, dtype=np.float64)
+    if t.ndim != 1 or not np.isfinite(t).all():
+        raise ValueError(f"sample: times must be a 1-D array of finite frame indices, got "
+                         f"shape {t.shape}")
+    rot = np.ascontiguousarray(motion.rotations, dtype=np.float64)
+    trans = np.ascontiguousarray(motion.translations, dtype=np.float64)
+    out_r = np.empty((t.shape[0],) + rot.shape[1:])
+    out_t = np.empty((t.shape[0],) + trans.shape[1:])
+    _sample_kernel(rot, trans, t, out_r, out_t)
+    return out_r, out_t
+
+
+@numba.njit(cache=True, fastmath=_FASTMATH)
+def _normalize_kernel(q):
+    for f in range(q.shape[0]):
+        for j in range(q.shape[1]):
+            w, x, y, z = _unit4(q[f, j, 0], q[f, j, 1], q[f, j, 2], q[f, j, 3])
+            q[f, j, 0] = w
+            q[f, j, 1] = x
+            q[f, j, 2] = y
+            q[f, j, 3] = z
+
+
+def normalize_inplace(q: np.ndarray) -> None:
+    """Unit quaternions in place (C-contiguous float64 ``(F, J, 4)``); zero -> identity."""
+    if q.ndim != 3 or q.shape[-1] != 4 or q.dtype != np.float64 or not q.flags.c_contiguous:
+        raise ValueError(f"normalize_inplace: need a C-contiguous float64 (F, J, 4) array, "
+                         f"got {q.dtype} {q.shape}")
+    _normalize_kernel(q)

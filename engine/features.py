@@ -47,6 +47,7 @@ from engine import rotations as rot
 from engine.errors import ParameterError, RoleError
 from engine.fastkin import forward_kinematics
 from engine.kinematics import rest_positions
+from engine.limits import check_grid
 from engine.motion import MarkerSet, Motion
 
 MARKER_NAMES = ("wrist_radial", "wrist_ulnar", "forearm", "hand")
@@ -161,7 +162,7 @@ def resample_points(points: np.ndarray, fps: float, target_fps: float) -> np.nda
     f = p.shape[0]
     if f == 0 or fps == target_fps:
         return p.copy()
-    n_out = max(1, int(round((f - 1) * target_fps / fps)) + 1)
+    n_out = check_grid("resampling", f, fps, target_fps)  # bounded before allocating
     t = np.clip(np.arange(n_out) * (fps / target_fps), 0.0, f - 1)
     i0 = np.floor(t).astype(np.int64)
     i1 = np.minimum(i0 + 1, f - 1)
@@ -371,15 +372,66 @@ def motion_markers(motion: Motion, side: str, roles=None, fps: float | None = No
     if frame is None:
         frame = hand_frame(motion, roles, side)
     pos, wrot = fk if fk is not None else forward_kinematics(motion)
-    mk = skeleton_markers(pos, wrot, frame)
+    mk = _arm_markers(motion, frame, pos, wrot)
     subtracted = frame.shoulder is not None
-    if subtracted:
-        mk = mk - pos[:, frame.shoulder][:, None, :]
-    mk = to_y_up(mk * motion.meters_per_unit, motion.meta.up_axis)
     if fps is not None:
         mk = resample_points(mk, motion.fps, fps)
     return ArmMarkers(markers=mk, fps=float(fps or motion.fps), side=side,
                       shoulder_subtracted=subtracted)
+
+
+def _arm_markers(motion: Motion, frame: HandFrame, pos: np.ndarray, wrot: np.ndarray
+                 ) -> np.ndarray:
+    """``(F, 4, 3)`` markers in metres, y up, shoulder subtracted, from FK results."""
+    mk = skeleton_markers(pos, wrot, frame)
+    if frame.shoulder is not None:
+        mk = mk - pos[:, frame.shoulder][:, None, :]
+    return to_y_up(mk * motion.meters_per_unit, motion.meta.up_axis)
+
+
+#: frames per block of forward kinematics in :func:`take_markers`
+FK_CHUNK = 4096
+
+
+def take_markers(motion: Motion, roles, frames: dict[str, HandFrame], fps: float | None = None,
+                 keep_rotations: bool = False, chunk: int = FK_CHUNK):
+    """Markers of several arms and the trunk yaw of a skeletal take, by blocks of frames.
+
+    The same values as :func:`motion_markers` and :func:`skeleton_yaw`, but forward
+    kinematics runs ``chunk`` frames at a time, so memory holds the outputs plus one
+    block of joint positions and rotations, not ``(F, J, 7)`` doubles for the whole take.
+
+    Returns ``(markers, yaw, rotations)``: ``{side: (F', 4, 3)}`` metres, y up (``F'``
+    frames at ``fps``, else the take's own); ``(F,)`` radians or None; world rotations
+    ``(F, J, 4)`` of every joint when ``keep_rotations`` (else None).
+    """
+    f = motion.n_frames
+    out = {s: np.empty((f, 4, 3)) for s in frames}
+    pair = _yaw_joints(roles)
+    lat = np.empty((f, 3)) if pair is not None else None
+    rots = np.empty((f, motion.skeleton.n_joints, 4)) if keep_rotations else None
+    for f0 in range(0, f, chunk):
+        f1 = min(f, f0 + chunk)
+        pos, wrot = forward_kinematics(motion.frames(f0, f1))
+        for s, frame in frames.items():
+            out[s][f0:f1] = _arm_markers(motion, frame, pos, wrot)
+        if pair is not None:
+            lat[f0:f1] = to_y_up(pos[:, pair[0]] - pos[:, pair[1]], motion.meta.up_axis)
+        if rots is not None:
+            rots[f0:f1] = wrot
+    yaw = np.unwrap(np.arctan2(lat[:, 0], lat[:, 2])) if lat is not None else None
+    if fps is not None:
+        out = {s: resample_points(mk, motion.fps, fps) for s, mk in out.items()}
+    return out, yaw, rots
+
+
+def _yaw_joints(roles) -> tuple[int, int] | None:
+    """(right, left) joints whose difference gives the trunk's lateral axis, or None."""
+    for role in ("shoulder", "clavicle"):
+        r, left = roles.get("right", role), roles.get("left", role)
+        if r is not None and left is not None:
+            return r, left
+    return None
 
 
 def skeleton_yaw(motion: Motion, roles, fk=None) -> np.ndarray | None:
@@ -389,13 +441,12 @@ def skeleton_yaw(motion: Motion, roles, fk=None) -> np.ndarray | None:
     ``yaw = atan2(l_x, l_z)`` of the left-to-right vector in y-up axes, so that
     ``θ = yaw_body - yaw_hand`` turns the hand take onto the body (eq. 7 sign).
     """
+    pair = _yaw_joints(roles)
+    if pair is None:
+        return None
     pos, _ = fk if fk is not None else forward_kinematics(motion)
-    for role in ("shoulder", "clavicle"):
-        r, left = roles.get("right", role), roles.get("left", role)
-        if r is not None and left is not None:
-            lat = to_y_up(pos[:, r] - pos[:, left], motion.meta.up_axis)
-            return np.unwrap(np.arctan2(lat[:, 0], lat[:, 2]))
-    return None
+    lat = to_y_up(pos[:, pair[0]] - pos[:, pair[1]], motion.meta.up_axis)
+    return np.unwrap(np.arctan2(lat[:, 0], lat[:, 2]))
 
 
 # --------------------------------------------------------------------------------------------

@@ -21,8 +21,11 @@ Implementation notes (where this differs from the paper, and why)
 ------------------------------------------------------------------
 * θ is quantised to ``n_bins`` directions (default 72, 5°): the hand take's sign
   codes are precomputed for every direction and packed into two 48-bit masks
-  (positive, negative), so a band cell costs two short dot products (θ of eq. 7),
-  a polynomial ``atan2`` and three popcounts instead of rotating 16 vectors.
+  (positive, negative), so a band cell costs θ of eq. 7, a polynomial ``atan2``
+  and three popcounts instead of rotating 16 vectors. Whole band rows go through
+  the row kernel of :mod:`engine.phase_kernel` (θ by diagonal sums of per-frame
+  products, about a tenth of the per-cell time); :func:`splice_phase` computes one
+  cell with the same float32 arithmetic, so both give the same costs bit for bit.
   :func:`phase_cost_reference` computes eq. 6 with exact θ (tests compare).
 * The window of eq. 7 uses frames ``i-2..i+2`` clipped at the take's ends
   (edge frames repeated), so every window holds 5 × markers points.
@@ -40,6 +43,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from engine import phase_kernel as PK
 from engine.errors import ParameterError
 
 # numba options in one place: no nnan/ninf (NaN gaps in capture data are real)
@@ -283,6 +287,23 @@ def _theta_windows(markers: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(np.concatenate([x, z], axis=1), dtype=np.float32)
 
 
+def _raw_windows(markers: np.ndarray, out: np.ndarray) -> None:
+    """``out (F, 2*W*K)`` = x then z of the W-frame window around each frame, not
+    centred per window (the pass-1 kernel subtracts each window's centroid in its sums,
+    which lets one product serve five cells; :mod:`engine.phase_kernel`) but shifted
+    by the take's mean horizontal position (θ does not change; float32 sums stay
+    accurate)."""
+    f, k, _ = markers.shape
+    half = THETA_WINDOW // 2
+    wk = THETA_WINDOW * k
+    cx = float(np.mean(markers[:, :, 0]))
+    cz = float(np.mean(markers[:, :, 2]))
+    for w in range(THETA_WINDOW):
+        idx = np.clip(np.arange(f) + (w - half), 0, f - 1)
+        out[:, w * k:(w + 1) * k] = markers[idx, :, 0] - cx
+        out[:, wk + w * k:wk + (w + 1) * k] = markers[idx, :, 2] - cz
+
+
 def window_theta(body: PhaseFeatures, hand: PhaseFeatures, i: int, j: int) -> float:
     """θ of eq. 7 (radians) for body frame ``i`` and hand frame ``j``.
 
@@ -348,16 +369,17 @@ def rotated_codes(hand: PhaseFeatures, n_bins: int = THETA_BINS) -> np.ndarray:
 #
 #   header : [L, n_bins, mode, yaw_bin, step]  L = length of the x (or z) half of the window;
 #            step = constant added to every cell (0 in hand rows)
-#   window : 2L values (centred x then z of the eq.-7 window; empty in yaw mode)
+#   window : 2L values (x then z of the eq.-7 window, not centred but shifted by the take's
+#            mean; empty in yaw mode)
 #   codes  : body: 2 values (P, Q); hand: 2 * n_bins values (P_b, Q_b for every θ bin b)
 #
 # P and Q are bit masks of the components whose sign is +1 and -1 (up to 48 components:
 # 8 markers x (3 velocity + 3 acceleration)), stored exactly as float64 integers. With
 # s, s' in {-1, 0, 1}: (s - s')^2 = [P xor P'] + [Q xor Q'] + 2 [(P and Q') or (Q and P')].
 
-_HEADER = 5
-MODE_WINDOW = 0
-MODE_YAW = 1
+_HEADER = PK.HEADER
+MODE_WINDOW = PK.MODE_WINDOW
+MODE_YAW = PK.MODE_YAW
 MAX_COMPONENTS = 48
 
 
@@ -396,12 +418,10 @@ def phase_rows(body: PhaseFeatures, hand: PhaseFeatures, theta: str = "window",
         raise ParameterError(f"theta must be 'window', 'trunk' or 'none', got {theta!r}")
     n, m = body.n_frames, hand.n_frames
     if theta == "window":
-        mode, half = MODE_WINDOW, body.window.shape[1] // 2
-        bwin, hwin = body.window.astype(np.float64), hand.window.astype(np.float64)
+        mode, half = MODE_WINDOW, THETA_WINDOW * body.markers.shape[1]
         byaw, hyaw = np.zeros(n), np.zeros(m)
     else:
         mode, half = MODE_YAW, 0
-        bwin, hwin = np.zeros((n, 0)), np.zeros((m, 0))
         if theta == "trunk":
             if body.yaw is None or hand.yaw is None:
                 raise ParameterError("theta='trunk' needs the trunk yaw of both takes")
@@ -409,17 +429,24 @@ def phase_rows(body: PhaseFeatures, hand: PhaseFeatures, theta: str = "window",
             hyaw = _yaw_bins(hand.yaw + yaw_offset, n_bins)
         else:
             byaw, hyaw = np.zeros(n), np.zeros(m)
-    bp, bq = pack_codes(body.codes)
+    # the DTW engine wants rows of one width: the body's codes are padded with zeros
+    width = _HEADER + 2 * half + 2 * n_bins
+    a = np.zeros((n, width))
+    b = np.zeros((m, width))
+    for rows, yaw, st in ((a, byaw, float(step)), (b, hyaw, 0.0)):
+        rows[:, 0] = half
+        rows[:, 1] = n_bins
+        rows[:, 2] = mode
+        rows[:, 3] = yaw
+        rows[:, 4] = st
+    if half:
+        _raw_windows(body.markers, a[:, _HEADER:_HEADER + 2 * half])
+        _raw_windows(hand.markers, b[:, _HEADER:_HEADER + 2 * half])
+    off = _HEADER + 2 * half
+    a[:, off], a[:, off + 1] = pack_codes(body.codes)
     hp, hq = rotated_packed_codes(hand, n_bins)  # (m, B) each
-    head_b = np.column_stack([np.full(n, half), np.full(n, n_bins), np.full(n, mode), byaw,
-                              np.full(n, float(step))])
-    head_h = np.column_stack([np.full(m, half), np.full(m, n_bins), np.full(m, mode), hyaw,
-                              np.zeros(m)])
-    hpq = np.stack([hp, hq], axis=2).reshape(m, 2 * n_bins)
-    # the DTW engine wants rows of one width: the body's are padded with zeros
-    pad = np.zeros((n, 2 * n_bins - 2))
-    a = np.ascontiguousarray(np.column_stack([head_b, bwin, bp, bq, pad]), dtype=np.float64)
-    b = np.ascontiguousarray(np.column_stack([head_h, hwin, hpq]), dtype=np.float64)
+    b[:, off:off + 2 * n_bins:2] = hp
+    b[:, off + 1:off + 2 * n_bins:2] = hq
     return a, b
 
 
@@ -468,69 +495,42 @@ def _rotated_packed_kernel(vel, acc, ev, ea, cos_t, sin_t, out_p, out_q):
             out_q[f, b] = float(neg)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _popcount(x):
-    x = x - ((x >> np.uint64(1)) & np.uint64(0x5555555555555555))
-    x = (x & np.uint64(0x3333333333333333)) + ((x >> np.uint64(2)) & np.uint64(0x3333333333333333))
-    x = (x + (x >> np.uint64(4))) & np.uint64(0x0F0F0F0F0F0F0F0F)
-    return (x * np.uint64(0x0101010101010101)) >> np.uint64(56)
+    """Population count of a uint64 (tests; kernels use ``phase_kernel.popcount``)."""
+    return PK.popcount(x)
 
 
-@numba.njit(cache=True, fastmath=_FASTMATH, inline="always")
-def _fast_atan2(y, x):
-    """atan2 to about 1e-5 rad (enough to pick a θ bin), no libm call."""
-    ax = abs(x)
-    ay = abs(y)
-    mx = max(ax, ay)
-    if mx == 0.0:
-        return 0.0
-    a = min(ax, ay) / mx
-    s = a * a
-    r = ((-0.0464964749 * s + 0.15931422) * s - 0.327622764) * s * a + a
-    if ay > ax:
-        r = 1.5707963267948966 - r
-    if x < 0.0:
-        r = 3.141592653589793 - r
-    if y < 0.0:
-        r = -r
-    return r
-
-
-@numba.njit(cache=True, fastmath=_FASTMATH, nogil=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def _theta_bin(body_row, hand_row):
-    """Index of the quantised θ (eq. 7) of one cell: window formula, or trunk-yaw difference."""
+    """Index of the quantised θ (eq. 7) of one cell: window formula, or trunk-yaw difference.
+
+    The same arithmetic as the pass-1 row kernel (:mod:`engine.phase_kernel`), so a cell
+    costs the same here and there, bit for bit."""
     half = int(body_row[0])
     nb = int(body_row[1])
     if body_row[2] == 0.0:
-        num = 0.0
-        den = 0.0
-        for t in range(half):
-            bx = body_row[5 + t]
-            bz = body_row[5 + half + t]
-            hx = hand_row[5 + t]
-            hz = hand_row[5 + half + t]
-            num += bx * hz - hx * bz
-            den += bx * hx + bz * hz
-        th = _fast_atan2(num, den)
-        return int(np.floor(th * (nb / (2.0 * np.pi)) + 0.5)) % nb
+        num, den = PK.cell_theta_sums(body_row, hand_row, half)
+        return PK.theta_bin(num, den, nb)
     return int(body_row[3] - hand_row[3]) % nb
 
 
-@numba.njit(cache=True, fastmath=_FASTMATH, nogil=True)
+@numba.njit(cache=True, nogil=True)
 def splice_phase(body_row, hand_row):
-    """Pass-1 local cost ``D1`` (eq. 6) of one cell from :func:`phase_rows` rows."""
+    """Pass-1 local cost ``D1`` (eq. 6) of one cell from :func:`phase_rows` rows.
+
+    Whole band rows go through :func:`engine.phase_kernel.forward` (same costs)."""
     half = int(body_row[0])
     b = _theta_bin(body_row, hand_row)
-    k = 5 + 2 * half
+    k = _HEADER + 2 * half
     p = np.uint64(body_row[k])
     q = np.uint64(body_row[k + 1])
     p2 = np.uint64(hand_row[k + 2 * b])
     q2 = np.uint64(hand_row[k + 2 * b + 1])
-    cost = _popcount(p ^ p2) + _popcount(q ^ q2) + np.uint64(2) * _popcount((p & q2) | (q & p2))
-    return float(cost) + body_row[4]
+    return float(np.int64(PK.cell_cost(p, q, p2, q2))) + body_row[4]
 
 
-@numba.njit(cache=True, fastmath=_FASTMATH, nogil=True)
+@numba.njit(cache=True, nogil=True)
 def splice_phase_theta(body_row, hand_row):
     """θ (radians, quantised to the bin the metric uses) of one cell, for reports and views."""
     nb = int(body_row[1])
@@ -748,7 +748,8 @@ def register_metrics() -> None:
     """Register ``"splice_phase"`` and ``"splice_angle"`` with ``engine.dtw`` (idempotent)."""
     from engine.dtw import register_metric
 
-    register_metric("splice_phase", splice_phase, replace=True)
+    register_metric("splice_phase", splice_phase, replace=True, prepare=PK.prepare,
+                    forward=PK.forward)
     register_metric("splice_angle", splice_angle, replace=True)
 
 

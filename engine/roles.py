@@ -652,12 +652,36 @@ def load_role_overrides(path: str | Path) -> dict[str, str | None]:
     the file and line for invalid JSON or keys.
     """
     path = Path(path)
-    text = path.read_text(encoding="utf-8", errors="replace")
+    return normalize_overrides(read_roles_json(path), source=path.name)
+
+
+def read_roles_json(path: str | Path):
+    """The JSON value of a roles file, unchecked (``load_role_overrides`` checks it).
+
+    Raises ``FileNotFoundError`` for a missing file and ``ParameterError`` naming the
+    file (and line) for a file over ``engine.limits.MAX_ROLES_BYTES``, text that is not
+    UTF-8, invalid JSON, or JSON nested too deeply to be a roles map.
+    """
+    from engine.limits import MAX_ROLES_BYTES
+
+    path = Path(path)
+    with open(path, "rb") as f:
+        raw = f.read(MAX_ROLES_BYTES + 1)
+    if len(raw) > MAX_ROLES_BYTES:
+        raise ParameterError(f"{path.name}: more than {MAX_ROLES_BYTES:,} bytes; a roles map is "
+                             "a small JSON object")
     try:
-        data = json.loads(text)
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ParameterError(f"{path.name}: not UTF-8 text (byte at offset {exc.start})") \
+            from None
+    try:
+        return json.loads(text)
     except json.JSONDecodeError as exc:
         raise ParameterError(f"{path.name} line {exc.lineno}: invalid JSON ({exc.msg})") from None
-    return normalize_overrides(data, source=path.name)
+    except RecursionError:
+        raise ParameterError(f"{path.name}: JSON nested too deeply; a roles map is "
+                             '{"right.wrist": "JointName", ...}') from None
 
 
 def _apply_overrides(sk: Skeleton, arms: dict[str, ArmRoles], source: dict[str, str],

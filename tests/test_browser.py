@@ -286,6 +286,36 @@ def test_download_bvh_and_session(page, tmp_path):
     assert read_session(spath).sample == data["inputs"]["sample"]
 
 
+def test_download_glb_is_the_spliced_take_in_3d(page, tmp_path):
+    """The GLB button downloads the spliced take: its joints move as the BVH download's."""
+    import numpy as np
+    import pygltflib
+    from test_glb import accessor, animated_world
+
+    from engine.io.bvh import read_bvh
+    from engine.kinematics import forward_kinematics
+
+    saved = {}
+    for name in ("glb", "bvh"):
+        with page.expect_download(timeout=60_000) as info:
+            page.locator(f".hs-download-{name} button").click()
+        saved[name] = tmp_path / f"spliced.{name}"
+        info.value.save_as(saved[name])
+    assert info.value.suggested_filename.endswith(".bvh")
+    motion = read_bvh(saved["bvh"])
+    doc = pygltflib.GLTF2().load_binary(str(saved["glb"]))
+    blob = doc.binary_blob()
+    world, names = animated_world(doc, blob, motion.n_frames)
+    by_name = {names[j]: j for j in doc.skins[0].joints}  # the BVH file lists joints depth-first
+    assert sorted(by_name) == sorted(motion.skeleton.names)
+    joints = [by_name[n] for n in motion.skeleton.names]
+    scale = motion.meters_per_unit  # the demo body is in centimetres, Y up
+    assert motion.meta.units == "cm" and motion.meta.up_axis == "y"
+    want = forward_kinematics(motion)[0] * scale
+    assert np.abs(world[:, joints][..., :3, 3] - want).max() < 1e-4
+    assert accessor(doc, blob, doc.meshes[0].primitives[0].attributes.POSITION).shape[0] > 1000
+
+
 def test_download_preview_gif(page, browser, server, tmp_path):
     """The export shows its progress, and another session stays responsive meanwhile."""
     other = _open(browser, server)

@@ -530,10 +530,10 @@ def test_malformed_text_names_file_and_line(case: str, tmp_path: Path):
 
 
 def test_too_many_joints_refused():
-    joints = "".join(f"JOINT j{k}\n{{\nOFFSET 0 1 0\nCHANNELS 0\n" for k in range(1001))
+    joints = "".join(f"JOINT j{k}\n{{\nOFFSET 0 1 0\nCHANNELS 0\n}}\n" for k in range(1001))
     text = f"HIERARCHY\nROOT r\n{{\nOFFSET 0 0 0\nCHANNELS 0\n{joints}"
     with pytest.raises(MotionFormatError, match="more than 1000 joints"):
-        parse_bvh(text, "deep.bvh")
+        parse_bvh(text, "wide.bvh")
 
 
 @pytest.mark.parametrize(

@@ -47,6 +47,17 @@ def chain_bvh(joints: int, frames: int = 1, frame_time: str = "0.0333333",
     return "\n".join(lines) + "\n"
 
 
+def fan_bvh(joints: int, frames: int = 1) -> str:
+    """A root with ``joints - 1`` children (one level deep), 3 rotation channels each."""
+    lines = ["HIERARCHY", "ROOT j0", "{", "OFFSET 0 0 0", "CHANNELS 3 Zrotation Xrotation Yrotation"]
+    for j in range(1, joints):
+        lines += [f"JOINT j{j}", "{", "OFFSET 0 1 0", "CHANNELS 3 Zrotation Xrotation Yrotation",
+                  "}"]
+    lines += ["}", "MOTION", f"Frames: {frames}", "Frame Time: 0.0333333"]
+    lines += [" ".join(["0"] * (3 * joints))] * frames
+    return "\n".join(lines) + "\n"
+
+
 def refused(call, *words: str) -> str:
     with pytest.raises(HandSpliceError) as info:
         call()
@@ -80,9 +91,18 @@ def test_bvh_more_rows_than_the_limit(monkeypatch):
 
 
 def test_bvh_absurd_joint_count():
-    refused(lambda: parse_bvh(chain_bvh(1001), "bones.bvh"), "more than 1000 joints")
-    m = parse_bvh(chain_bvh(1000), "deep.bvh")  # 1000 nested levels: fine, no recursion
-    assert m.skeleton.n_joints == 1000 and m.skeleton.parents[-1] == 998
+    refused(lambda: parse_bvh(fan_bvh(1001), "bones.bvh"), "more than 1000 joints")
+    m = parse_bvh(fan_bvh(1000), "wide.bvh")
+    assert m.skeleton.n_joints == 1000 and m.skeleton.parents[-1] == 0
+
+
+def test_bvh_absurd_depth():
+    depth = limits.MAX_DEPTH
+    m = parse_bvh(chain_bvh(depth), "deep.bvh")  # nested MAX_DEPTH levels: fine, no recursion
+    assert m.skeleton.n_joints == depth and m.skeleton.parents[-1] == depth - 2
+    msg = refused(lambda: parse_bvh(chain_bvh(depth + 1), "deeper.bvh"), "deeper.bvh line",
+                  f"nested more than {depth} deep")
+    assert f"'j{depth}'" in msg
 
 
 @pytest.mark.parametrize("frame_time, words", [
@@ -227,7 +247,7 @@ def test_upload_size_limit_and_refusals(app_dirs):
     msg = refused(lambda: uploads.store(cfg, "absurd.bvh", absurd), "absurd.bvh",
                   "refusing an absurd take")
     assert ".check-" not in msg  # the staging name is not shown to the user
-    refused(lambda: uploads.store(cfg, "bones.bvh", chain_bvh(1001).encode()), "joints")
+    refused(lambda: uploads.store(cfg, "bones.bvh", fan_bvh(1001).encode()), "joints")
     assert sorted(p.name for p in cfg.upload_dir.iterdir()) == []  # nothing kept
 
 

@@ -367,6 +367,8 @@ def preview_video(prepared: Prepared, solution: Solution, fmt: str, camera: str 
 
     import imageio.v3 as iio
 
+    from engine.render.video import gif_bytes
+
     if prepared is None or solution is None:
         raise HandSpliceError("no takes loaded")
     if fmt not in ("gif", "mp4"):
@@ -382,7 +384,7 @@ def preview_video(prepared: Prepared, solution: Solution, fmt: str, camera: str 
     fps = max(1.0, float(prepared.body.fps) / step)
     buf = io.BytesIO()
     if fmt == "gif":
-        iio.imwrite(buf, np.stack(frames), extension=".gif", duration=1000.0 / fps, loop=0)
+        buf.write(gif_bytes(frames, fps))  # exact timing: per-frame centisecond delays
     else:
         iio.imwrite(buf, np.stack(frames), extension=".mp4", fps=fps, codec="libx264",
                     plugin="pyav" if _has_pyav() else None)

@@ -5,7 +5,9 @@ its parser and sets ``func=run`` (``run(args) -> int``). Heavy imports (numba,
 pyrender, panel) stay inside ``run`` so ``handsplice info`` starts fast.
 
 Errors: a ``HandSpliceError`` / ``ValueError`` / ``OSError`` is bad input and
-prints one line ``handsplice: error: ...`` with exit status 2; anything else is
+prints one line ``handsplice: error: ...`` with exit status 2, as do ``MemoryError``
+and ``RecursionError`` (input beyond what ``engine.limits`` refuses up front, one line,
+never a traceback); anything else is
 a bug, printed on one line with exit status 1 (``--debug`` shows the traceback).
 """
 
@@ -49,11 +51,16 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help(sys.stderr)
         return 2
+    from engine.atomic import Terminated, handle_termination
+
+    if args.command != "serve":  # the server keeps its own signal handling (tornado)
+        handle_termination()  # SIGTERM unwinds like Ctrl-C: temporary outputs are removed
     try:
         return int(args.func(args) or 0)
-    except KeyboardInterrupt:
-        print("handsplice: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        terminated = isinstance(exc, Terminated)
+        print(f"handsplice: {'terminated' if terminated else 'interrupted'}", file=sys.stderr)
+        return 143 if terminated else 130
     except (HandSpliceError, ValueError, OSError, KeyError) as exc:
         if args.debug:
             raise
@@ -61,6 +68,14 @@ def main(argv: list[str] | None = None) -> int:
         if isinstance(exc, OSError) and getattr(exc, "filename", None):
             msg = f"{exc.filename}: {exc.strerror or msg}"
         print(f"handsplice: error: {msg}", file=sys.stderr)
+        return 2
+    except (MemoryError, RecursionError) as exc:  # input beyond what engine.limits foresaw
+        if args.debug:
+            raise
+        what = "memory" if isinstance(exc, MemoryError) else "nesting depth"
+        detail = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        print(f"handsplice: error: the input needs more {what} than this machine allows "
+              f"({detail}); refusing it", file=sys.stderr)
         return 2
     except Exception as exc:  # a bug: still one line unless --debug
         if args.debug:

@@ -3,7 +3,9 @@
 Splices every body/hand pair listed in a manifest CSV on dask.distributed (an
 embedded local cluster of ``N`` worker processes by default, or an existing
 scheduler), with a progress line per pair on stderr, and writes per pair the
-spliced BVH, its report and a thumbnail, then ``summary.csv`` and ``index.html``.
+spliced BVH, its report and a thumbnail; ``summary.csv`` grows as pairs finish, and
+``index.html`` comes at the end. Each pair runs under a time and a memory limit
+(``--pair-seconds``, ``--pair-memory-mb``); a pair beyond them is stopped and failed.
 Re-running skips finished pairs. See :mod:`engine.batch` for the manifest format.
 
 Exit status: 0 when every pair is done or skipped, 3 when the batch finished but
@@ -15,6 +17,8 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+
+from engine.limits import PAIR_MEMORY_MB, PAIR_SECONDS
 
 EXIT_PAIRS_FAILED = 3
 
@@ -37,6 +41,12 @@ def add_parser(subparsers) -> None:
     p.add_argument("--thumbnails", choices=["render", "stick", "none"], default="render",
                    help="thumbnail per pair: skinned render (stick figure without OpenGL), "
                         "stick figure, or none (default: render)")
+    p.add_argument("--pair-seconds", type=float, default=PAIR_SECONDS, metavar="S",
+                   help=f"stop a pair after S seconds and record it as failed (default "
+                        f"{PAIR_SECONDS:g}; 0: no limit)")
+    p.add_argument("--pair-memory-mb", type=float, default=PAIR_MEMORY_MB, metavar="MB",
+                   help=f"stop a pair whose process holds more than MB megabytes (default "
+                        f"{PAIR_MEMORY_MB:g}; 0: no limit)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
 
@@ -54,7 +64,8 @@ def run(args: argparse.Namespace) -> int:
         raise ParameterError("--workers applies to the local cluster; with --scheduler the "
                              "cluster's own workers run the pairs")
     result = run_batch(args.manifest, args.output, scheduler=args.scheduler, workers=workers,
-                       thumbnails=args.thumbnails, progress=None if args.quiet else sys.stderr)
+                       thumbnails=args.thumbnails, progress=None if args.quiet else sys.stderr,
+                       pair_seconds=args.pair_seconds, pair_memory_mb=args.pair_memory_mb)
     failed = result.count("failed")
     if failed:
         print(f"handsplice batch: {failed} of {len(result.records)} pairs failed "

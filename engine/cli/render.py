@@ -1,8 +1,8 @@
-"""``handsplice render FILE -o OUT.{png,gif,mp4}``: skinned previews of a take.
+"""``handsplice render FILE -o OUT.{png,gif,mp4,glb}``: skinned previews of a take.
 
 ::
 
-    handsplice render FILE -o OUT.{png,gif,mp4} [--frames A:B] [--frame N]
+    handsplice render FILE -o OUT.{png,gif,mp4,glb} [--frames A:B] [--frame N]
         [--compare OTHER.bvh] [--view single|side-by-side|overlay] [--trails]
         [--size WxH] [--camera front|side|three-quarter|hands] [--fps F]
         [--roles MAP.json] [--side right|left]
@@ -10,6 +10,9 @@
 * ``.png``: one frame (``--frame N``, default 0), or with ``--frames A:B`` a contact
   sheet of up to 12 frames of the range. ``.gif``/``.mp4``: the range (default the
   whole take) at ``--fps`` (default the take's rate, at most 30).
+* ``.glb``: the take in 3D (glTF 2.0 binary: the skinned mannequin with its
+  animation, ``engine.export.glb``) for Blender and browser glTF viewers; the range
+  ``--frames`` (default all) at the take's own rate.
 * ``--compare OTHER``: FILE and OTHER side by side (frames matched by time), or
   with ``--view overlay`` OTHER's stick figure over FILE's skinned mannequin.
 * ``--trails``: both hands' paths over the range, coloured by gesture phase
@@ -29,12 +32,13 @@ VIEW_CHOICES = ("single", "side-by-side", "overlay")
 
 def add_parser(subparsers) -> None:
     p = subparsers.add_parser(
-        "render", help="render a take as a skinned preview (.png, .gif, .mp4)",
+        "render", help="render a take as a skinned preview (.png, .gif, .mp4) or 3D file (.glb)",
         description="Render a take (or two, compared) with a procedural skinned mannequin: "
-                    "a PNG frame or contact sheet, a GIF or an MP4.")
+                    "a PNG frame or contact sheet, a GIF or an MP4; or export it in 3D as "
+                    "a GLB (glTF 2.0, skinned and animated).")
     p.add_argument("file", help="a .bvh take")
     p.add_argument("-o", "--output", required=True, metavar="OUT",
-                   help="output file: .png (frame or contact sheet), .gif or .mp4")
+                   help="output file: .png (frame or contact sheet), .gif, .mp4 or .glb (3D)")
     p.add_argument("--frames", metavar="A:B", help="frame range, Python slice (B exclusive)")
     p.add_argument("--frame", type=int, metavar="N", help="the frame of a .png (default 0)")
     p.add_argument("--compare", metavar="OTHER", help="a second take to compare with FILE")
@@ -64,8 +68,10 @@ def run(args: argparse.Namespace) -> int:
     from engine.render.video import FORMATS, frame_range, progress_printer, render_to_file
 
     out = Path(args.output)
+    if out.suffix.lower() == ".glb":
+        return _export_glb(args, out)
     if out.suffix.lower() not in FORMATS:
-        raise ParameterError(f"{out.name}: output must end in {', '.join(FORMATS)}")
+        raise ParameterError(f"{out.name}: output must end in {', '.join(FORMATS)} or .glb")
     if args.frame is not None and out.suffix.lower() != ".png":
         raise ParameterError("--frame picks the frame of a .png; use --frames A:B for a "
                              f"{out.suffix} clip")
@@ -97,6 +103,28 @@ def run(args: argparse.Namespace) -> int:
                        progress=progress, **kwargs)
     finally:
         preview.close()
+    if not args.quiet:
+        print(f"wrote {out}", file=sys.stderr)
+    return 0
+
+
+def _export_glb(args: argparse.Namespace, out) -> int:
+    """``-o OUT.glb``: the take in 3D; the picture options do not apply."""
+    from engine.errors import ParameterError
+    from engine.export.glb import write_glb
+    from engine.render.video import frame_range
+
+    for flag, given in (("--frame", args.frame is not None), ("--compare", args.compare),
+                        ("--view", args.view), ("--trails", args.trails),
+                        ("--fps", args.fps is not None)):
+        if given:
+            raise ParameterError(f"{flag} does not apply to a .glb (a 3D file of one take at "
+                                 "its own rate); use --frames A:B to cut it")
+    take = _load(args.file)
+    frames = frame_range(take.n_frames, args.frames) if args.frames else None
+    if frames is not None and frames.step != 1:
+        raise ParameterError(f"--frames {args.frames}: a .glb needs consecutive frames")
+    write_glb(take, out, roles=_roles(args, take), frames=frames)
     if not args.quiet:
         print(f"wrote {out}", file=sys.stderr)
     return 0

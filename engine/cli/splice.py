@@ -127,12 +127,12 @@ class _Progress:
 
 
 def run(args: argparse.Namespace) -> int:
-    import json
     from pathlib import Path
 
+    from engine.atomic import write_texts
     from engine.errors import ParameterError
     from engine.io import load_take
-    from engine.io.bvh import write_bvh
+    from engine.io.bvh import format_bvh
     from engine.splice import pipeline
 
     out = Path(args.output)
@@ -167,11 +167,9 @@ def run(args: argparse.Namespace) -> int:
     pipeline.require_skeletal(body, hand)
     body_roles = hand_roles = None
     if args.roles:
-        try:
-            mapping = json.loads(Path(args.roles).read_text(encoding="utf-8"))
-        except json.JSONDecodeError as err:
-            raise ParameterError(f"{args.roles} line {err.lineno}: not valid JSON "
-                                 f"({err.msg})") from None
+        from engine.roles import read_roles_json
+
+        mapping = read_roles_json(args.roles)
         body_roles, hand_roles = split_roles(mapping, body, hand)
     elif spec is not None and spec.roles:
         body_roles, hand_roles = split_roles(spec.roles, body, hand)
@@ -183,7 +181,7 @@ def run(args: argparse.Namespace) -> int:
             raise ParameterError(f"--match {x}:{y}: hand frame {y} is past the hand take's "
                                  f"last frame {hand.n_frames - 1}")
 
-    from engine.splice.report import build_report, write_report
+    from engine.splice.report import build_report, dumps
 
     progress = _Progress(args.quiet)
     result = pipeline.splice(body, hand, side=args.side, band=args.band,
@@ -197,11 +195,14 @@ def run(args: argparse.Namespace) -> int:
     trust = assess(result.features, result.alignment)
     progress("trust", 1.0)
     progress("write", 0.0)
-    write_bvh(result.motion, out)
-    progress("write", 1.0)
+    # the spliced take and its report are one result: both replaced, or neither
+    outputs = [(out, format_bvh(result.motion))]
     if args.report:
-        write_report(args.report, build_report(result, args.body, args.hand, out,
-                                               points_given=points, assessment=trust))
+        outputs.append((Path(args.report), dumps(build_report(result, args.body, args.hand, out,
+                                                              points_given=points,
+                                                              assessment=trust))))
+    write_texts(outputs)
+    progress("write", 1.0)
     if args.preview:
         _preview(result.motion, args.preview, args.quiet)
     if not args.quiet:

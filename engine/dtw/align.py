@@ -203,6 +203,7 @@ class Problem:
         self.b = arrays.get("b")
         self.bT = arrays.get("bT")
         self.metric: K.Metric | None = arrays.get("metric")
+        self._rows_state = None  # a metric's row-kernel data (Metric.prepare), made once
 
     @classmethod
     def from_cost(cls, cost) -> Problem:
@@ -273,6 +274,12 @@ class Problem:
             return K.forward_builtin(
                 self.a, self.bT, self.metric.kind, lo, hi, start, i0, i1, bp, gamma, keep_gamma,
                 ends, last_col, last_row
+            )
+        if self.metric.forward is not None:  # a metric with its own row kernel
+            if self._rows_state is None:
+                self._rows_state = self.metric.prepare(self.a, self.b)
+            return self.metric.forward(
+                self._rows_state, lo, hi, start, i0, i1, bp, gamma, keep_gamma
             )
         return K.forward_metric(
             self.metric.cell, self.a, self.b, lo, hi, start, i0, i1, bp, gamma, keep_gamma,

@@ -52,8 +52,10 @@ cost of an edit does not depend on where ``J`` lies, but the next edit does.
 Memory: one byte per band cell and direction for backpointers plus γ/β of
 every 8th row, i.e. about 3-4 bytes per cell resident (18 once
 ``cumulative_cost()`` is used; address space is reserved for 18 either way),
-e.g. 27 MB at most for 2,000 x 2,000 with a 30 % band. For one-shot large
-problems use ``align_features`` (1 byte per cell).
+e.g. 27 MB at most for 2,000 x 2,000 with a 30 % band. The γ stores are
+anonymous memory in 4 kB pages (``_sparse_floats``): only the pages of the
+rows kept become resident (numpy's huge pages made the whole store resident).
+For one-shot large problems use ``align_features`` (1 byte per cell).
 
 An ``Aligner`` is bound to one cost source; it serialises its calls with a
 lock (safe to share between threads, but calls do not run in parallel).
@@ -61,6 +63,7 @@ lock (safe to share between threads, but calls do not run in parallel).
 
 from __future__ import annotations
 
+import mmap
 import threading
 import time
 from dataclasses import dataclass
@@ -96,6 +99,26 @@ class SolveStats:
         return self.cells_computed / max(self.cells_in_band, 1)
 
 
+def _sparse_floats(count: int) -> np.ndarray:
+    """``count`` float64 in anonymous memory that becomes resident page by page as it
+    is written, never in huge pages.
+
+    γ is stored for every ``GAMMA_EVERY``-th row only, at the band's flat offsets:
+    the array spans the band, but only the pages of rows written are resident.
+    numpy asks the kernel for 2 MB huge pages on large arrays, which made every
+    page resident (about 8 bytes per band cell, 460 MB more per app session at
+    10k x 4k); plain 4 kB pages keep it near 1 byte per cell.
+    """
+    size = max(count, 1) * 8
+    buf = mmap.mmap(-1, size, flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS)
+    if hasattr(mmap, "MADV_NOHUGEPAGE"):
+        try:
+            buf.madvise(mmap.MADV_NOHUGEPAGE)
+        except OSError:  # kernels without transparent huge pages
+            pass
+    return np.frombuffer(buf, dtype=np.float64, count=max(count, 1))
+
+
 class _Side:
     """Stored rows of one direction (forward γ, or backward β in reversed row order).
 
@@ -112,15 +135,18 @@ class _Side:
         self.last_col = np.full(n, np.inf)  # γ(i, m-1) per row (open ends, kernels.best_end)
         self.last_row = np.full(m, np.inf)  # γ of the last row computed
 
-    def ensure(self, area: int, keep: int) -> None:
-        """Capacity for ``area`` cells, keeping the first ``keep`` entries."""
+    def ensure(self, area: int, start: np.ndarray) -> None:
+        """Capacity for ``area`` cells, keeping the stored rows below ``valid``
+        (band offsets ``start``, unchanged for those rows)."""
         if self.gamma.size >= area:
             return
         cap = int(area * 1.25) + 16
-        gamma = np.empty(cap, np.float64)
+        gamma = _sparse_floats(cap)
         bp = np.empty(cap, np.uint8)
-        gamma[:keep] = self.gamma[:keep]
+        keep = int(start[self.valid])
         bp[:keep] = self.bp[:keep]
+        for r in np.flatnonzero(self.has[: self.valid]):  # touch only the stored rows
+            gamma[start[r] : start[r + 1]] = self.gamma[start[r] : start[r + 1]]
         self.gamma, self.bp = gamma, bp
 
     def resume_row(self, row: int) -> int:
@@ -184,6 +210,11 @@ class Aligner:
     def m(self) -> int:
         """Hand frames (columns)."""
         return self._problem.m
+
+    @property
+    def stores_every_row(self) -> bool:
+        """True once ``cumulative_cost()`` was used (γ of every row: 8 bytes per cell)."""
+        return self._every == 1
 
     @property
     def band(self) -> Band | None:
@@ -318,7 +349,7 @@ class Aligner:
         """
         if i1 <= i0:
             return 0
-        side.ensure(band.area, int(band.start[side.valid]))
+        side.ensure(band.area, band.start)
         every = self._every
         bad, _ = problem.forward(band.lo, band.hi, band.start, i0, i1, side.bp, side.gamma, every,
                                  self._ends.array(), side.last_col, side.last_row)

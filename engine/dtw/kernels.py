@@ -640,6 +640,11 @@ class Metric:
     name: str
     cell: Dispatcher
     kind: int = -1
+    #: optional row kernel: ``prepare(a, b) -> state`` once per problem, then
+    #: ``forward(state, lo, hi, start, i0, i1, bp, gamma, keep_gamma)`` as the
+    #: ``forward_*`` kernels; must give exactly ``cell``'s costs (see engine.phase_kernel)
+    prepare: object = None
+    forward: object = None
 
 
 _METRICS: dict[str, Metric] = {
@@ -648,7 +653,8 @@ _METRICS: dict[str, Metric] = {
 }
 
 
-def register_metric(name: str, fn: Dispatcher | None = None, *, replace: bool = False):
+def register_metric(name: str, fn: Dispatcher | None = None, *, replace: bool = False,
+                    prepare=None, forward=None):
     """Register a numba metric ``fn(a_row, b_row) -> float`` under ``name``.
 
     Use as ``register_metric("name", fn)`` or as a decorator
@@ -667,13 +673,13 @@ def register_metric(name: str, fn: Dispatcher | None = None, *, replace: bool = 
             raise ValueError(f"metric name must be a non-empty string, got {name!r}")
         known = _METRICS.get(name)
         if known is not None and (known.kind >= 0 or not replace):
-            if known.cell is f:
+            if known.cell is f and known.forward is forward:
                 return f
             raise ValueError(
                 f"metric {name!r} is already registered"
                 + ("" if known.kind >= 0 else "; pass replace=True to replace it")
             )
-        _METRICS[name] = Metric(name, f)
+        _METRICS[name] = Metric(name, f, prepare=prepare, forward=forward)
         return f
 
     return _register if fn is None else _register(fn)

@@ -45,8 +45,11 @@ Errors are ``MotionFormatError`` naming the file and line: missing ``HIERARCHY``
 ``MOTION``, unbalanced braces, duplicate joint names, bad ``OFFSET``/``CHANNELS``,
 missing or bad ``Frames:``/``Frame Time:``, rows with the wrong number of values
 ("expected 96 values, found 93"), non-numeric text, NaN or infinity, truncation,
-binary data, text that is not UTF-8, an empty file, and absurd sizes (more than
-1,000 joints or 2,000,000 frames).
+binary data, text that is not UTF-8, an empty file, numbers Python would read but no
+exporter writes (``1_000``, Arabic-Indic or full-width digits: ``engine.io.numbers``),
+data rows when no joint has channels, braces in a joint name, and absurd sizes, checked
+before anything is allocated (``engine.limits``: more than 1,000 joints or 100 levels,
+2,000,000 frames, a rate outside 1-10,000 fps, 6 hours, too many poses for the file).
 
 Writer precision: data values are written with ``precision`` decimals (default 6,
 error <= 5e-7 degrees or file units); offsets and the frame time exactly (shortest
@@ -64,10 +67,12 @@ from pathlib import Path
 
 import numpy as np
 
+from engine import limits
 from engine import rotations as rot
 from engine.atomic import write_text
 from engine.errors import MotionFormatError
-from engine.limits import MAX_ABS_VALUE, MAX_FPS, MAX_FRAMES, MAX_JOINTS
+from engine.io.numbers import NOT_NUMERIC_RE, NUMBER_RE, WHOLE_RE
+from engine.limits import MAX_ABS_VALUE, MAX_DEPTH, MAX_FRAMES, MAX_JOINTS
 from engine.motion import (
     POSITION_CHANNELS,
     ROTATION_CHANNELS,
@@ -82,6 +87,8 @@ _CHANNEL_LOOKUP = {c.lower(): c for c in _CHANNEL_NAMES}
 _AXIS = {"X": 0, "Y": 1, "Z": 2}
 _FRAMES_RE = re.compile(r"^\s*frames\s*:?\s*(\S*)\s*$", re.IGNORECASE)
 _FRAME_TIME_RE = re.compile(r"^\s*frame\s+time\s*:?\s*(\S*)\s*$", re.IGNORECASE)
+# numbers are ASCII (engine.io.numbers): float() would also take "1_000" and "\u0663"
+_NUMBER_RE, _WHOLE_RE, _NOT_DATA_RE = NUMBER_RE, WHOLE_RE, NOT_NUMERIC_RE
 
 
 # --------------------------------------------------------------------------- reading
@@ -143,7 +150,7 @@ def parse_bvh(text: str, source: str = "") -> Motion:
     if not any(s.strip() for s in lines):
         raise MotionFormatError(where, "empty file (expected 'HIERARCHY')", line=1)
     skeleton, motion_line = _parse_hierarchy(lines, where)
-    fps, data = _parse_motion(lines, motion_line, skeleton, where)
+    fps, data = _parse_motion(lines, motion_line, skeleton, where, len(text))
     rotations, translations = _channels_to_pose(skeleton, data)
     probe = _probe_positions(skeleton, rotations, translations)
     meta = MotionMeta(
@@ -208,8 +215,19 @@ def _parse_hierarchy(lines: list[str], where: str | None) -> tuple[Skeleton, int
                 else:
                     k = len(tokens)
                 name = " ".join(rest)
+                if name.endswith("{") and name.count("{") == 1 and "}" not in name:
+                    name = name[:-1].rstrip()  # "JOINT Chest{": the brace opens the block
+                    pending_brace = True
+                else:
+                    pending_brace = False
                 if not name:
                     raise fail(f"{up} without a joint name", i)
+                if "{" in name or "}" in name:
+                    raise fail(f"joint name {name[:40]!r} contains a brace (a joint name is "
+                               "the text after ROOT/JOINT, without braces)", i)
+                if len(stack) >= MAX_DEPTH:
+                    raise fail(f"joint {name[:40]!r} is nested more than {MAX_DEPTH} deep; "
+                               "refusing an absurd skeleton", i)
                 if up == "ROOT" and stack:
                     raise fail(f"ROOT {name!r} inside another joint's block", i)
                 if up == "JOINT" and (not stack or stack[-1][1] < 0):
@@ -224,6 +242,9 @@ def _parse_hierarchy(lines: list[str], where: str | None) -> tuple[Skeleton, int
                 offsets.append(None)
                 channels.append(())
                 pending = (f"{up} {name}", len(names) - 1, i)
+                if pending_brace:
+                    stack.append((pending[0], pending[1], i))
+                    pending = None
                 continue
             if up == "END":
                 if k + 1 >= len(tokens) or tokens[k + 1].upper() != "SITE":
@@ -278,11 +299,10 @@ def _parse_hierarchy(lines: list[str], where: str | None) -> tuple[Skeleton, int
                     raise fail("CHANNELS outside a joint block", i)
                 if k + 1 >= len(tokens):
                     raise fail("CHANNELS without a count", i)
-                try:
-                    n = int(tokens[k + 1])
-                except ValueError:
-                    raise fail(f"CHANNELS count must be an integer, found {tokens[k + 1][:40]!r}",
-                               i) from None
+                if not _WHOLE_RE.fullmatch(tokens[k + 1]):
+                    raise fail(f"CHANNELS count must be a whole number 0-6, found "
+                               f"{tokens[k + 1][:40]!r}", i)
+                n = int(tokens[k + 1])
                 listed = tokens[k + 2:k + 2 + n]
                 if n < 0 or n > 6 or len(listed) != n:
                     raise fail(f"CHANNELS {tokens[k + 1]} lists {len(tokens) - k - 2} channel "
@@ -323,12 +343,10 @@ def _make_skeleton(names, parents, offsets, channels, end_sites) -> Skeleton:
 
 
 def _finite_numbers(vals: list[str], where: str | None, i: int, field: str) -> np.ndarray:
-    try:
-        out = np.array([float(v) for v in vals])
-    except ValueError:
-        bad = next(v for v in vals if not _is_float(v))
-        raise MotionFormatError(where, f"{field}: {bad[:40]!r} is not a number", line=i + 1) \
-            from None
+    bad = next((v for v in vals if not _NUMBER_RE.fullmatch(v)), None)
+    if bad is not None:
+        raise MotionFormatError(where, f"{field}: {bad[:40]!r} is not a number", line=i + 1)
+    out = np.array([float(v) for v in vals])
     if not np.all(np.isfinite(out)):
         bad = vals[int(np.flatnonzero(~np.isfinite(out))[0])]
         raise MotionFormatError(where, f"{field}: {bad!r} is not a finite number", line=i + 1)
@@ -339,17 +357,13 @@ def _finite_numbers(vals: list[str], where: str | None, i: int, field: str) -> n
     return out
 
 
-def _is_float(s: str) -> bool:
-    try:
-        float(s)
-    except ValueError:
-        return False
-    return True
+def _parse_motion(lines: list[str], motion_line: int, skeleton: Skeleton, where: str | None,
+                  text_bytes: int = 0) -> tuple[float, np.ndarray]:
+    """fps and the ``(F, C)`` channel data of the MOTION section.
 
-
-def _parse_motion(lines: list[str], motion_line: int, skeleton: Skeleton, where: str | None
-                  ) -> tuple[float, np.ndarray]:
-    """fps and the ``(F, C)`` channel data of the MOTION section."""
+    The header's frame count, the rate and the poses they ask for are checked against
+    ``engine.limits`` before any row is read (``text_bytes``: the size of the file).
+    """
     n_values = sum(len(c) for c in skeleton.channels)
     i = motion_line + 1
     rest = lines[motion_line].split()[1:]
@@ -370,13 +384,12 @@ def _parse_motion(lines: list[str], motion_line: int, skeleton: Skeleton, where:
     if not m:
         raise MotionFormatError(where, f"expected 'Frames: N', found {lines[i].strip()[:40]!r}",
                                 line=i + 1)
-    try:
-        n_frames = int(m.group(1))
-    except ValueError:
+    if m.group(1).startswith("-") and _WHOLE_RE.fullmatch(m.group(1)[1:]):
+        raise MotionFormatError(where, f"Frames: {m.group(1)[:40]} is negative", line=i + 1)
+    if not _WHOLE_RE.fullmatch(m.group(1)):
         raise MotionFormatError(where, f"Frames: {m.group(1)[:40]!r} is not a whole number",
-                                line=i + 1) from None
-    if n_frames < 0:
-        raise MotionFormatError(where, f"Frames: {n_frames} is negative", line=i + 1)
+                                line=i + 1)
+    n_frames = int(m.group(1)[:40])  # more digits than 40 are far beyond the limit anyway
     if n_frames > MAX_FRAMES:
         raise MotionFormatError(
             where, f"Frames: {n_frames} is more than {MAX_FRAMES:,}; refusing an absurd take",
@@ -387,28 +400,34 @@ def _parse_motion(lines: list[str], motion_line: int, skeleton: Skeleton, where:
     if not m:
         raise MotionFormatError(
             where, f"expected 'Frame Time: seconds', found {lines[i].strip()[:40]!r}", line=i + 1)
-    try:
-        frame_time = float(m.group(1))
-    except ValueError:
-        frame_time = float("nan")
+    frame_time = float(m.group(1)) if _NUMBER_RE.fullmatch(m.group(1)) else float("nan")
     if not (np.isfinite(frame_time) and frame_time > 0):
         raise MotionFormatError(
             where, f"Frame Time: {m.group(1)[:40]!r} is not a positive number of seconds",
             line=i + 1)
-    if frame_time < 1.0 / MAX_FPS:
-        raise MotionFormatError(
-            where, f"Frame Time: {m.group(1)[:40]!r} is more than {MAX_FPS:g} frames per second; "
-                   "refusing an absurd rate", line=i + 1)
     fps = _snap_fps(1.0 / frame_time)
+    limits.check_rate(fps, where, line=i + 1, field=f"Frame Time: {m.group(1)[:40]}")
     first_data = i + 1
+    limits.check_take(where, n_frames, fps, skeleton.n_joints, n_values, text_bytes,
+                      line=frames_line + 1)
 
-    if n_values == 0:  # no channels at all: data rows are empty lines, the pose is the rest pose
-        return fps, np.zeros((n_frames, 0))
     # data rows: every non-blank line after Frame Time
     row_lines = [k for k in range(first_data, len(lines)) if lines[k].strip()]
+    if n_values == 0:  # no channels at all: the pose is the rest pose, rows must be empty
+        if row_lines:
+            raise MotionFormatError(
+                where, f"data row {lines[row_lines[0]].strip()[:40]!r} but no joint has "
+                       "channels (CHANNELS 0 everywhere: expected no values)",
+                line=row_lines[0] + 1)
+        return fps, np.zeros((n_frames, 0))
     if len(row_lines) > MAX_FRAMES + 1:
         raise MotionFormatError(where, f"more than {MAX_FRAMES:,} data rows; refusing an absurd "
                                        f"take", line=row_lines[MAX_FRAMES] + 1)
+    limits.check_take(where, len(row_lines), fps, skeleton.n_joints, n_values, text_bytes,
+                      line=row_lines[-1] + 1 if row_lines else first_data)
+    odd = _NOT_DATA_RE.search("\n".join(lines[k] for k in row_lines))
+    if odd is not None:
+        raise _locate_bad_number([lines[k].split() for k in row_lines], row_lines, where)
     rows = [lines[k].split() for k in row_lines]
     counts = np.fromiter((len(r) for r in rows), dtype=np.int64, count=len(rows))
     bad = np.flatnonzero(counts != n_values)
@@ -449,19 +468,16 @@ def _locate_bad_number(rows: list[list[str]], row_lines: list[int], where: str |
                        ) -> MotionFormatError:
     """The error for the first value numpy cannot read as a float (slow path)."""
     for r, k in zip(rows, row_lines, strict=True):
-        try:
-            np.array(r, dtype=float)
-        except ValueError:
-            for c, v in enumerate(r):
-                try:
-                    np.array([v], dtype=float)
-                except ValueError:
-                    return MotionFormatError(
-                        where, f"value {c + 1} is {v[:40]!r}; expected a number", line=k + 1)
+        for c, v in enumerate(r):
+            if not _NUMBER_RE.fullmatch(v):
+                return MotionFormatError(
+                    where, f"value {c + 1} is {v[:40]!r}; expected a finite number", line=k + 1)
     return MotionFormatError(where, "a data value is not a number", line=row_lines[0] + 1)
 
 
 def _snap_fps(fps: float) -> float:
+    if not np.isfinite(fps):
+        return float(fps)
     near = round(fps)
     if near > 0 and abs(fps - near) <= 5e-4 * near:
         return float(near)

@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from engine import limits
 from engine.errors import MotionFormatError
 from engine.limits import MAX_ABS_VALUE, MAX_FRAMES, MAX_MARKERS
 from engine.motion import MarkerSet, MotionMeta
@@ -96,6 +97,11 @@ def parse_c3d(raw: bytes, source: str | Path = "<input>") -> MarkerSet:
         raise MotionFormatError(
             source, f"truncated C3D file (or damaged header): {n_frames} frames need {needed} "
                     f"bytes, the file has {len(raw)} (about {max(have, 0)} frames)")
+    fps = reader.float("POINT", "RATE", header["rate"])
+    if not (np.isfinite(fps) and fps > 0):
+        raise MotionFormatError(source, f"POINT:RATE must be a positive number, got {fps}")
+    limits.check_rate(fps, source, field="POINT:RATE")
+    limits.check_take(source, n_frames, fps, n_points, 3 * n_points, len(raw), what="markers")
     data = raw[offset:needed]
     if is_float:
         values = _floats(data, header["processor"], header["endian"])
@@ -117,9 +123,6 @@ def parse_c3d(raw: bytes, source: str | Path = "<input>") -> MarkerSet:
     if len(labels) < n_points:
         labels += [f"M{i + 1:03d}" for i in range(len(labels), n_points)]
     labels = labels[:n_points]
-    fps = reader.float("POINT", "RATE", header["rate"])
-    if not (np.isfinite(fps) and fps > 0):
-        raise MotionFormatError(source, f"POINT:RATE must be a positive number, got {fps}")
     units = _UNITS.get(reader.text("POINT", "UNITS").lower(), "unknown")
     up = reader.text("POINT", "Y_SCREEN").lower().lstrip("+-")
     up_axis = up if up in ("y", "z") else "z"  # MotionMeta knows y-up and z-up only

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import csv
 import io
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -33,6 +34,8 @@ import numpy as np
 from engine.atomic import atomic_path, write_text
 from engine.errors import MotionFormatError, ParameterError
 from engine.gesture.phases import GesturePhases, Phase, PhaseSegment
+from engine.io.numbers import is_number, is_whole
+from engine.limits import MAX_DURATION_S, MAX_EAF_BYTES, MAX_FRAMES, check_rate
 
 PHASE_TIERS = {"right": "Phase RH", "left": "Phase LH"}
 HANDEDNESS_TIER = "Handedness"
@@ -111,7 +114,9 @@ def write_eaf(path: str | Path, phases: GesturePhases, handedness=(), source: st
     source : the capture file's name, stored as a header property
     media : optional media file to link (e.g. a rendered video)
     """
-    from pympi.Elan import Eaf, to_eaf
+    from xml.etree.ElementTree import ElementTree
+
+    from pympi.Elan import Eaf, to_adocument
 
     eaf = Eaf(author="handsplice")
     eaf.add_property("fps", repr(float(phases.fps)))
@@ -128,8 +133,11 @@ def write_eaf(path: str | Path, phases: GesturePhases, handedness=(), source: st
             eaf.add_annotation(tier, start, stop, value)
     if "default" in eaf.get_tier_names() and not eaf.get_annotation_data_for_tier("default"):
         eaf.remove_tier("default")
+    # pympi's to_eaf renames an existing file to NAME.bak before writing, and the
+    # temporary file exists already: write the document ourselves (no .bak left behind)
+    document = to_adocument(eaf, True)
     with atomic_path(path) as tmp:
-        to_eaf(str(tmp), eaf)
+        ElementTree(document).write(str(tmp), xml_declaration=True, encoding="UTF-8")
 
 
 def _parse_phase(value: str, where: str) -> Phase:
@@ -178,32 +186,76 @@ def read_eaf(path: str | Path, fps: float | None = None) -> GestureAnnotations:
 
     ``fps`` converts milliseconds to frames; when omitted the file's ``fps``
     header property is used (files written by ``write_eaf`` have it).
+
+    Raises ``FileNotFoundError`` for a missing file, ``ParameterError`` when the frame
+    rate is neither given nor in the file, and ``MotionFormatError`` (file named) for
+    every damaged file: XML that is not ELAN, an ``fps`` or ``frames`` property that is
+    not a number in range, annotations with missing or absurd times, unknown values.
     """
     from pympi.Elan import Eaf
 
     path = str(path)
+    name = Path(path).name
     if not Path(path).is_file():
         raise FileNotFoundError(2, "No such file", path)
+    if Path(path).stat().st_size > MAX_EAF_BYTES:
+        raise MotionFormatError(path, f"more than {MAX_EAF_BYTES:,} bytes; refusing an absurd "
+                                      "annotation file")
     try:
-        eaf = Eaf(path)
-    except Exception as exc:  # pympi raises bare exceptions on malformed XML
-        raise MotionFormatError(path, f"not a readable ELAN file ({type(exc).__name__}: {exc})"
-                                ) from None
-    props = dict(eaf.get_properties())
+        with warnings.catch_warnings():  # "unknown version of ELAN spec": newer ELAN, readable
+            warnings.simplefilter("ignore", UserWarning)
+            eaf = Eaf(path)
+        props = {str(k): str(v) for k, v in eaf.get_properties()}
+    except (Exception, RecursionError) as exc:  # pympi raises bare exceptions on bad XML
+        raise MotionFormatError(path, f"not a readable ELAN file ({type(exc).__name__}: "
+                                      f"{_first_line(exc)})") from None
     if fps is None:
         if "fps" not in props:
-            raise ParameterError(f"{Path(path).name}: no 'fps' property; pass the take's frame rate")
-        fps = float(props["fps"])
+            raise ParameterError(f"{name}: no 'fps' property; pass the take's frame rate")
+        fps = check_rate(_property_number(path, "fps", props["fps"]), path, field="property 'fps'")
     if not (np.isfinite(fps) and fps > 0):
-        raise ParameterError(f"{Path(path).name}: fps must be positive, got {fps!r}")
-    n_frames = int(props["frames"]) if "frames" in props else None
+        raise ParameterError(f"{name}: fps must be positive, got {fps!r}")
+    check_rate(fps, path, field="fps")
+    n_frames = None
+    if "frames" in props:
+        text = props["frames"].strip()
+        if not (is_whole(text) and int(text[:20]) <= MAX_FRAMES):
+            raise MotionFormatError(path, f"property 'frames' is {text[:40]!r}; expected a whole "
+                                          f"number up to {MAX_FRAMES:,}")
+        n_frames = int(text)
+    max_ms = MAX_DURATION_S * 1000.0
     rows = []
-    for tier in eaf.get_tier_names():
-        for ann in eaf.get_annotation_data_for_tier(tier):
-            start, stop, value = ann[0], ann[1], ann[2]
-            where = f"{Path(path).name} tier {tier!r} at {start} ms"
-            rows.append((tier, _frame(start, fps), _frame(stop, fps), value, where))
+    try:
+        tiers = list(eaf.get_tier_names())
+        for tier in tiers:
+            for ann in eaf.get_annotation_data_for_tier(tier):
+                start, stop, value = ann[0], ann[1], ann[2]
+                where = f"{name} tier {str(tier)[:40]!r} at {start} ms"
+                if not all(isinstance(t, int | float) and np.isfinite(t) and 0 <= t <= max_ms
+                           for t in (start, stop)):
+                    raise MotionFormatError(path, f"tier {str(tier)[:40]!r}: annotation time "
+                                                  f"{start!r}-{stop!r} ms is not a time within "
+                                                  f"{MAX_DURATION_S / 3600:g} hours")
+                rows.append((str(tier), _frame(start, fps), _frame(stop, fps),
+                             "" if value is None else str(value), where))
+    except MotionFormatError:
+        raise
+    except (Exception, RecursionError) as exc:  # time slots, references pympi cannot resolve
+        raise MotionFormatError(path, f"damaged ELAN annotations ({type(exc).__name__}: "
+                                      f"{_first_line(exc)})") from None
     return _collect(path, fps, n_frames, rows, props.get("source", ""))
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0][:120] if text else "no detail"
+
+
+def _property_number(path: str, key: str, text: str) -> float:
+    text = text.strip()
+    if not is_number(text):
+        raise MotionFormatError(path, f"property {key!r} is {text[:40]!r}; expected a number")
+    return float(text)
 
 
 def format_csv(phases: GesturePhases, handedness=()) -> str:

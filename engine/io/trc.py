@@ -28,7 +28,9 @@ from pathlib import Path
 
 import numpy as np
 
+from engine import limits
 from engine.errors import MotionFormatError
+from engine.io.numbers import is_non_finite, is_number
 from engine.limits import MAX_ABS_VALUE, MAX_FRAMES, MAX_MARKERS
 from engine.motion import MarkerSet, MotionMeta
 
@@ -97,11 +99,11 @@ def parse_trc(data: bytes | str, source: str | Path = "<input>", up_axis: str = 
         raise MotionFormatError(source, f"{len(labels):,} markers is more than {MAX_MARKERS:,}; "
                                         "refusing an absurd file", line=4)
     if declared_markers:
-        try:
-            n_declared = int(float(declared_markers))
-        except ValueError:
-            raise MotionFormatError(source, f"NumMarkers is {declared_markers!r}, expected a "
-                                            "whole number", line=3) from None
+        if not (is_number(declared_markers) and float(declared_markers).is_integer()
+                and float(declared_markers) <= MAX_MARKERS):
+            raise MotionFormatError(source, f"NumMarkers is {declared_markers[:40]!r}, expected a "
+                                            "whole number", line=3)
+        n_declared = int(float(declared_markers))
         if n_declared != len(labels):
             raise MotionFormatError(source, f"header says {n_declared} markers (NumMarkers) but "
                                             f"the name row lists {len(labels)}", line=4)
@@ -125,6 +127,7 @@ def parse_trc(data: bytes | str, source: str | Path = "<input>", up_axis: str = 
         rows.append(_row_values(fields, number, labels, source))
     if not rows:
         raise MotionFormatError(source, "no data rows after the header", line=len(lines))
+    limits.check_take(source, len(rows), fps, len(labels), 3 * len(labels), len(text))
     table = np.asarray(rows, dtype=float)
     points = table[:, 2:].reshape(len(rows), len(labels), 3)
     meta = MotionMeta(units=units, up_axis=up_axis, source=str(source), format="trc")
@@ -153,14 +156,13 @@ def _header_number(header: dict, keys: tuple[str, ...], source) -> float:
         text = header.get(key, "")
         if not text:
             continue
-        try:
-            value = float(text)
-        except ValueError:
-            raise MotionFormatError(source, f"{key} is {text!r}, expected a number",
-                                    line=3) from None
+        if not (is_number(text) or is_non_finite(text)):
+            raise MotionFormatError(source, f"{key} is {text[:40]!r}, expected a number", line=3)
+        value = float(text)
         if not (math.isfinite(value) and value > 0):
-            raise MotionFormatError(source, f"{key} must be a positive number, got {text}", line=3)
-        return value
+            raise MotionFormatError(source, f"{key} must be a positive number, got {text[:40]}",
+                                    line=3)
+        return limits.check_rate(value, source, line=3, field=key)
     raise MotionFormatError(source, f"header has no {' or '.join(keys)}", line=2)
 
 
@@ -190,11 +192,10 @@ def _row_values(fields: list[str], number: int, labels: list[str], source) -> li
                 raise MotionFormatError(source, f"{what} is empty", line=number)
             out.append(math.nan)
             continue
-        try:
-            value = float(text)
-        except ValueError:
+        if not (is_number(text) or is_non_finite(text)):
             raise MotionFormatError(source, f"{_column_name(col, labels)}: {text[:20]!r} is not "
-                                            "a number", line=number) from None
+                                            "a number", line=number)
+        value = float(text)
         if not math.isfinite(value):
             raise MotionFormatError(source, f"{_column_name(col, labels)}: {text!r} is not finite",
                                     line=number)

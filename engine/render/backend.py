@@ -8,6 +8,11 @@ initialise a display; no OpenGL import), then ``libOSMesa``. A variable already
 set is respected, except an ``egl`` that does not work where OSMesa does. When
 neither works, :class:`RenderBackendError` says what to install.
 
+pyrender imports pyglet's window module on import (for its interactive viewer);
+without pyglet's headless mode that loads X11 libraries (libX11, libXrender) and
+fails on a machine without them, so :func:`ensure_platform` puts pyglet in headless
+mode first (:func:`headless_pyglet`, the one place that does it).
+
 OSMesa: pyrender's own OSMesa platform needs PyOpenGL >= 3.1.5 (pyrender pins
 3.1.0), so :class:`OSMesaPlatform` creates the core-profile context through
 ``ctypes`` instead.
@@ -90,15 +95,28 @@ def _osmesa_library() -> ctypes.CDLL | None:
 _CHOSEN: str | None = None
 
 
+def headless_pyglet() -> None:
+    """Put pyglet in headless mode (EGL, never X11); call before ``pyrender`` is imported.
+
+    pyglet reads ``PYGLET_HEADLESS`` when it is first imported; when it was imported
+    already, its option is set directly (effective until ``pyglet.window`` is imported).
+    """
+    os.environ["PYGLET_HEADLESS"] = "true"
+    pyglet = sys.modules.get("pyglet")
+    if pyglet is not None:
+        pyglet.options["headless"] = True
+
+
 def ensure_platform() -> str:
     """Choose and set ``PYOPENGL_PLATFORM`` (``"egl"`` or ``"osmesa"``) and return it.
 
     A value already set is kept, except ``egl`` when EGL does not work here and
     OSMesa does (the Makefile and the tests default to ``egl``): then ``osmesa`` is
     used. Raises :class:`RenderBackendError` naming the packages to install when
-    neither works. Decided once per process.
+    neither works. Decided once per process. Puts pyglet in headless mode first.
     """
     global _CHOSEN
+    headless_pyglet()
     if _CHOSEN is not None and os.environ.get("PYOPENGL_PLATFORM", "") == _CHOSEN:
         return _CHOSEN
     chosen = os.environ.get("PYOPENGL_PLATFORM", "").strip().lower()

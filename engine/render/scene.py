@@ -16,11 +16,12 @@ not zoom or swing.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from engine import rotations as rot
-from engine.errors import ParameterError
+from engine.errors import ParameterError, RoleError
 from engine.kinematics import forward_kinematics
 from engine.mesh.anatomy import Anatomy, find_anatomy
 from engine.mesh.mannequin import build_mannequin
@@ -52,6 +53,21 @@ def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray) -> np.ndarray:
     pose = np.eye(4)
     pose[:3, 0], pose[:3, 1], pose[:3, 2], pose[:3, 3] = right, true_up, back, eye
     return pose
+
+
+def display_transform(motion: Motion, anatomy: Anatomy) -> tuple[float, np.ndarray]:
+    """``(scale, axes)`` with ``p_display = scale * axes @ p_file`` (metres, +Y up).
+
+    ``axes`` (3, 3) is the identity for Y-up files, ``(x, y, z) -> (x, z, -y)`` for
+    Z-up ones; ``scale`` the file's metres per unit, or, units unknown, the scale that
+    makes the character 1.75 m tall (a hand: 19 cm). The renderer and the glTF export
+    share it."""
+    axes = _Z_UP if motion.meta.up_axis.lower() == "z" else np.eye(3)
+    if motion.meta.units in ("m", "cm", "mm", "in", "dm"):
+        scale = motion.meters_per_unit
+    else:
+        scale = 1.75 / anatomy.height if anatomy.height > 0 else 1.0
+    return float(scale), axes
 
 
 @dataclass
@@ -111,17 +127,21 @@ class TakeView:
 
             anatomy = find_anatomy(motion.skeleton, bind_pos, bind_rot, roles=roles,
                                    side_hint=side_from_name(motion.meta.source or ""))
+        name = Path(motion.meta.source).name if motion.meta.source else label or "take"
+        if anatomy.kind != "body" and not anatomy.hands:
+            raise RoleError(f"{name}: neither a body (hips, spine, arms or legs) nor a hand "
+                            "(wrist with fingers) found by joint name; nothing to draw "
+                            "(rename the joints or pass --roles)")
+        if not (np.ptp(pos, axis=(0, 1)) > 0).any():
+            raise ParameterError(f"{name}: every joint sits at one point in every frame (all "
+                                 "offsets and motion zero); nothing to draw")
         if mesh is None:
             mesh = build_mannequin(motion.skeleton, anatomy, pose=(bind_pos, bind_rot))
         elif mesh.bind_positions.shape[0] != motion.skeleton.n_joints:
             raise ValueError(f"{label or 'take'}: the mesh is bound to "
                              f"{mesh.bind_positions.shape[0]} joints, the skeleton has "
                              f"{motion.skeleton.n_joints}")
-        axes = _Z_UP if motion.meta.up_axis.lower() == "z" else np.eye(3)
-        if motion.meta.units in ("m", "cm", "mm", "in", "dm"):
-            scale = motion.meters_per_unit
-        else:
-            scale = 1.75 / anatomy.height if anatomy.height > 0 else 1.0
+        scale, axes = display_transform(motion, anatomy)
         disp = scale * np.einsum("ij,fkj->fki", axes, pos)
         visible = np.ones(motion.skeleton.n_joints, bool)
         visible[list(anatomy.hidden)] = False

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.atomic import atomic_path
+from engine.atomic import atomic_path, write_bytes
 from engine.errors import ParameterError
 
 Progress = Callable[[int, int], None]
@@ -84,25 +84,65 @@ def contact_sheet(images: Sequence[np.ndarray], columns: int | None = None,
     return sheet
 
 
-def write_gif(frames: Iterable[np.ndarray], path: str | Path, fps: float,
-              progress: Progress | None = None, total: int | None = None) -> Path:
-    """Write frames as a looping GIF at ``fps`` (Pillow; frame times in 10 ms steps)."""
-    from PIL import Image
+GIF_MIN_DELAY_CS = 2  # browsers play shorter GIF frame delays (0-1 cs) as 10 cs
 
+
+def gif_schedule(n: int, fps: float) -> tuple[list[int], list[int]]:
+    """Which of ``n`` frames at ``fps`` a GIF keeps, and each kept frame's delay in ms.
+
+    GIF delays are whole centiseconds: frame k is shown from ``round(100 k / fps)`` cs
+    (cumulative rounding), so the delays differ by at most 1 cs and the total is
+    ``round(100 n / fps)`` cs exactly (a fixed rounded delay drifts: 30 ms frames at
+    30 fps play 10 % fast). Above 50 fps a frame starting less than
+    ``GIF_MIN_DELAY_CS`` after the last kept one is dropped. Returns
+    ``(kept frame indices, delays in ms)``.
+    """
     if not fps > 0:
         raise ParameterError(f"fps {fps}: must be positive")
-    pil_frames = []
+    if n < 1:
+        raise ValueError("gif_schedule: no frames")
+    starts = [int(round(100.0 * k / fps)) for k in range(n)] + [int(round(100.0 * n / fps))]
+    kept = [0]
+    for k in range(1, n):
+        if starts[k] - starts[kept[-1]] >= GIF_MIN_DELAY_CS:
+            kept.append(k)
+    while len(kept) > 1 and starts[n] - starts[kept[-1]] < GIF_MIN_DELAY_CS:
+        kept.pop()  # the last kept frame too short: the one before lasts to the end
+    ends = [starts[k] for k in kept[1:]] + [starts[n]]
+    delays = [10 * (end - starts[k]) for k, end in zip(kept, ends)]
+    delays[-1] = max(delays[-1], 10 * GIF_MIN_DELAY_CS)  # only a take shorter than 2 cs
+    return kept, delays
+
+
+def gif_bytes(frames: Sequence[np.ndarray], fps: float) -> bytes:
+    """A looping GIF of ``(H, W, 3) uint8`` frames playing at exactly ``fps`` (see
+    :func:`gif_schedule`); Pillow."""
+    import io
+
+    from PIL import Image
+
+    kept, delays = gif_schedule(len(frames), fps)
+    images = [Image.fromarray(_as_frame(frames[k], f"frame {k}")) for k in kept]
+    buf = io.BytesIO()
+    images[0].save(buf, format="GIF", save_all=True, append_images=images[1:],
+                   duration=delays, loop=0, optimize=False, disposal=1)
+    return buf.getvalue()
+
+
+def write_gif(frames: Iterable[np.ndarray], path: str | Path, fps: float,
+              progress: Progress | None = None, total: int | None = None) -> Path:
+    """Write frames as a looping GIF playing at exactly ``fps`` (:func:`gif_bytes`)."""
+    if not fps > 0:
+        raise ParameterError(f"fps {fps}: must be positive")
+    collected = []
     for k, frame in enumerate(frames):
-        pil_frames.append(Image.fromarray(_as_frame(frame, f"frame {k}")))
+        collected.append(_as_frame(frame, f"frame {k}"))
         if progress:
             progress(k + 1, total or 0)
-    if not pil_frames:
+    if not collected:
         raise ValueError("write_gif: no frames")
-    duration = max(20, int(round(1000.0 / fps / 10.0)) * 10)
     path = Path(path)
-    with atomic_path(path) as tmp:
-        pil_frames[0].save(tmp, format="GIF", save_all=True, append_images=pil_frames[1:],
-                           duration=duration, loop=0, optimize=False, disposal=1)
+    write_bytes(path, gif_bytes(collected, fps))
     return path
 
 

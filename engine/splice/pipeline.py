@@ -34,17 +34,16 @@ from pathlib import Path
 
 import numpy as np
 
+from engine import limits
 from engine import metrics as M
 from engine.dtw import Aligner, Band, align_features
 from engine.errors import HandSpliceError, ParameterError, RoleError
-from engine.fastkin import forward_kinematics
 from engine.features import (
     HandFrame,
     hand_frame,
     marker_set_markers,
     marker_set_yaw,
-    motion_markers,
-    skeleton_yaw,
+    take_markers,
     take_sides,
 )
 from engine.motion import MarkerSet, Motion
@@ -62,7 +61,8 @@ DEAD_ZONE = 0.1
 STEP1 = 0.0
 STEP2 = 0.05
 #: one-shot solves (1 byte per cell) above this band area; incremental ``Aligner`` below
-INCREMENTAL_MAX_CELLS = 12_000_000
+#: (about 3-4 bytes per cell resident: backpointers both ways, γ of every 8th row)
+INCREMENTAL_MAX_CELLS = 100_000_000
 #: band cells above which the cumulative-cost (γ) view is refused when no incremental
 #: solver was kept: γ for every band cell costs about 18 bytes per cell (~290 MB here).
 CUMULATIVE_MAX_CELLS = 16_000_000
@@ -238,25 +238,30 @@ def prepare(body: Motion | MarkerSet, hand: Motion | MarkerSet, side: str = "aut
         hand_sides = with_fingers
     sides = resolve_sides(side, body_sides, hand_sides, body_name, hand_name)
     fps = float(body.fps)
+    # the alignment grid: the hand take at the body's rate, bounded before anything is built
+    limits.check_grid(hand_name, hand.n_frames, float(hand.fps), fps)
     timings: dict[str, float] = {}
 
-    body_fk = forward_kinematics(body) if isinstance(body, Motion) else None
-    hand_fk = forward_kinematics(hand) if isinstance(hand, Motion) else None
+    # forward kinematics by blocks of frames (features.take_markers): the body keeps its
+    # world rotations for the transfer, the hand take keeps nothing
     body_frames: dict[str, HandFrame] = {}
     hand_frames: dict[str, HandFrame] = {}
-    bm, hm = [], []
-    for s in sides:
-        if isinstance(body, Motion):
-            body_frames[s] = hand_frame(body, rb, s)
-            bm.append(motion_markers(body, s, rb, frame=body_frames[s], fk=body_fk).markers)
-        else:
-            bm.append(marker_set_markers(body, s).markers)
-        if isinstance(hand, Motion):
-            hand_frames[s] = hand_frame(hand, rh, s)
-            hm.append(motion_markers(hand, s, rh, fps=fps, frame=hand_frames[s],
-                                     fk=hand_fk).markers)
-        else:
-            hm.append(marker_set_markers(hand, s, fps=fps).markers)
+    body_fk = None
+    if isinstance(body, Motion):
+        body_frames = {s: hand_frame(body, rb, s) for s in sides}
+        bmk, body_yaw, body_rot = take_markers(body, rb, body_frames, keep_rotations=True)
+        body_fk = (None, body_rot)
+        bm = [bmk[s] for s in sides]
+    else:
+        bm = [marker_set_markers(body, s).markers for s in sides]
+        body_yaw = marker_set_yaw(body)
+    if isinstance(hand, Motion):
+        hand_frames = {s: hand_frame(hand, rh, s) for s in sides}
+        hmk, hand_yaw, _ = take_markers(hand, rh, hand_frames, fps=fps)
+        hm = [hmk[s] for s in sides]
+    else:
+        hm = [marker_set_markers(hand, s, fps=fps).markers for s in sides]
+        hand_yaw = marker_set_yaw(hand)
     body_markers = np.concatenate(bm, axis=1)
     hand_markers = np.concatenate(hm, axis=1)
     n, m = body_markers.shape[0], hand_markers.shape[0]
@@ -265,10 +270,6 @@ def prepare(body: Motion | MarkerSet, hand: Motion | MarkerSet, side: str = "aut
                              f"{hand_name} {m} frames at {fps:g} fps")
 
     # trunk headings (radians about the vertical), where the takes have a trunk
-    body_yaw = skeleton_yaw(body, rb, body_fk) if isinstance(body, Motion) \
-        else marker_set_yaw(body)
-    hand_yaw = skeleton_yaw(hand, rh, hand_fk) if isinstance(hand, Motion) \
-        else marker_set_yaw(hand)
     if hand_yaw is not None:
         from engine.features import resample_points
 
@@ -498,6 +499,7 @@ def align_passes(features: SpliceFeatures, band: float = BAND, refine_band: floa
     t0 = time.perf_counter()
     progress("pass 1", 0.0)
     band1 = Band.from_constraints(n, m, float(band), pts)
+    limits.check_band("pass 1", band1.area)
     if incremental is None:
         incremental = band1.area <= INCREMENTAL_MAX_CELLS
     same = previous is not None and previous.features_id == id(features)
@@ -514,6 +516,7 @@ def align_passes(features: SpliceFeatures, band: float = BAND, refine_band: floa
     hand2 = M.angle_features(features.hand_markers, -hand_heading).rows()
     radius = refine_radius(n, m, refine_band)
     band2 = Band.around_path(al1.path, n, m, radius, points=pts if pts else None)
+    limits.check_band("pass 2", band2.area)
     solver2 = None
     if same and previous.pass2.solver is not None and \
             np.array_equal(previous.pass2.rows[1], hand2):
@@ -676,12 +679,13 @@ def cost_image(features: SpliceFeatures, kind: str, rows, cols,
         if result is None:
             return np.full((rows.size, cols.size), np.nan)
         pr = result.pass1 if kind == "cumulative1" else result.pass2
-        if pr.solver is None:
+        if pr.solver is None or not pr.solver.stores_every_row:  # γ of every row: 8 bytes per cell
             if pr.band.area > CUMULATIVE_MAX_CELLS:
                 raise ParameterError(
                     f"the cumulative-cost view of this pass needs γ for {pr.band.area:,} band "
                     f"cells (limit {CUMULATIVE_MAX_CELLS:,}, about 18 bytes each): narrow the "
                     "band or add matching points, or view the local cost")
+        if pr.solver is None:
             pr.solver = Aligner(pr.rows[0], pr.rows[1], metric=pr.metric)
             pr.solver.solve(pr.band)
         bv = pr.solver.cumulative_cost()

@@ -34,9 +34,16 @@ import numpy as np
 
 from engine import rotations as rot
 from engine.errors import RoleError
-from engine.fastkin import continuous, forward_kinematics, qmul, qmul_conj
+from engine.fastkin import (
+    continuous_inplace,
+    forward_kinematics,
+    normalize_inplace,
+    qmul,
+    qmul_conj,
+    sample,
+)
 from engine.features import HAND_TO_FOREARM, HandFrame
-from engine.kinematics import rest_positions, sample
+from engine.kinematics import rest_positions
 from engine.motion import Motion, Skeleton
 from engine.roles import FINGERS
 
@@ -252,6 +259,11 @@ def _conj_u(u: np.ndarray, r: np.ndarray, v: np.ndarray) -> np.ndarray:
     return qmul(qmul(u, r), rot.conjugate(v))
 
 
+#: frames per block in :func:`apply_transfer` (bounds its temporaries: about 2 MB per
+#: 100 hand joints per 1,000 frames and array)
+TRANSFER_CHUNK = 2048
+
+
 def apply_transfer(plan: TransferPlan, body: Motion, hand: Motion, hand_times: np.ndarray,
                    body_fk=None) -> Motion:
     """The spliced take: ``body`` with the hand take sampled at ``hand_times``.
@@ -262,27 +274,50 @@ def apply_transfer(plan: TransferPlan, body: Motion, hand: Motion, hand_times: n
     body, hand : Motion
     hand_times : (n,) float
         Frame of the original hand take for every body frame (the merged warp).
-    body_fk : (positions, rotations), optional
-        Forward kinematics of the body take (reused from the features).
+    body_fk : (positions or None, rotations), optional
+        Forward kinematics of the body take (reused from the features; only the world
+        rotations ``(n, J, 4)`` are read).
 
     Returns a Motion on ``plan.skeleton`` at the body's frame rate and units.
+
+    Memory: the output's rotations and translations plus temporaries for
+    ``TRANSFER_CHUNK`` frames at a time (sampling, forward kinematics of the hand
+    take, relative rotations); every step is per frame except the sign continuity of
+    the quaternions, done in place at the end.
     """
     n = body.n_frames
     t = np.asarray(hand_times, dtype=float)
     if t.shape != (n,):
         raise ValueError(f"transfer: hand_times must have {n} entries, got {t.shape}")
-    h_local, h_trans = sample(hand, t)
-    h_motion = replace(hand, rotations=h_local, translations=h_trans, fps=body.fps)
-    _, g_h = forward_kinematics(h_motion)
-    if body_fk is None:
-        body_fk = forward_kinematics(body)
-    _, g_b = body_fk
+    g_b = body_fk[1] if body_fk is not None else None
     jn = plan.skeleton.n_joints
     nb = plan.n_body_joints
     rots = np.empty((n, jn, 4))
     trans = np.empty((n, jn, 3))
-    rots[:, :nb] = body.rotations
-    trans[:, :nb] = body.translations
+    for f0 in range(0, n, TRANSFER_CHUNK):
+        f1 = min(n, f0 + TRANSFER_CHUNK)
+        if g_b is None:
+            gb = forward_kinematics(body.frames(f0, f1))[1]
+        else:
+            gb = g_b[f0:f1]
+        _transfer_block(plan, body, hand, t[f0:f1], gb, f0, f1, rots[f0:f1], trans[f0:f1], nb)
+    continuous_inplace(rots)
+    return Motion(plan.skeleton, rots, trans, body.fps,
+                  replace(body.meta, format="derived"))
+
+
+def _transfer_block(plan: TransferPlan, body: Motion, hand: Motion, t: np.ndarray,
+                    g_b: np.ndarray, f0: int, f1: int, rots: np.ndarray, trans: np.ndarray,
+                    nb: int) -> None:
+    """Body frames ``f0..f1-1`` of :func:`apply_transfer` into ``rots``/``trans`` (views)."""
+    n = f1 - f0
+    jn = plan.skeleton.n_joints
+    h_local, h_trans = sample(hand, t)
+    h_motion = replace(hand, rotations=h_local, translations=h_trans, fps=body.fps)
+    _, g_h = forward_kinematics(h_motion)
+    body_rot = body.rotations[f0:f1]
+    rots[:, :nb] = body_rot
+    trans[:, :nb] = body.translations[f0:f1]
     rots[:, nb:] = rot.identity((n, jn - nb))
     trans[:, nb:] = plan.skeleton.offsets[nb:]
     sk_b = body.skeleton
@@ -299,7 +334,7 @@ def apply_transfer(plan: TransferPlan, body: Motion, hand: Motion, hand_times: n
                 for j in sk_b.chain_to_root(fb.hand_joint)[:-1]:
                     if j == fb.wrist:
                         break
-                    between = qmul(body.rotations[:, j], between)
+                    between = qmul(body_rot[:, j], between)
                 local = qmul(local, rot.conjugate(between))
             rots[:, fb.wrist] = local
         if sp.mapped:
@@ -314,8 +349,8 @@ def apply_transfer(plan: TransferPlan, body: Motion, hand: Motion, hand_times: n
                 between = None
                 j = sk_b.parents[fm.body]
                 while j != fm.body_parent and j >= 0:
-                    between = body.rotations[:, j] if between is None else \
-                        qmul(body.rotations[:, j], between)
+                    between = body_rot[:, j] if between is None else \
+                        qmul(body_rot[:, j], between)
                     j = sk_b.parents[j]
                 rots[:, fm.body] = desired[:, k] if between is None else \
                     qmul_conj(between, desired[:, k])
@@ -327,6 +362,4 @@ def apply_transfer(plan: TransferPlan, body: Motion, hand: Motion, hand_times: n
             if top.any():
                 r_rel[:, top] = qmul_conj(g_h[:, [fh.hand_joint]], g_h[:, src[top]])
             rots[:, new] = _conj_u(u, r_rel, u)
-    rots = continuous(rot.normalize(rots))
-    return Motion(plan.skeleton, rots, trans, body.fps,
-                  replace(body.meta, format="derived"))
+    normalize_inplace(rots)  # rots is a contiguous block of frames of the output

@@ -1,4 +1,4 @@
-"""Downloads (spliced BVH, preview GIF/MP4, session JSON) and the shareable link.
+"""Downloads (spliced BVH and GLB, preview GIF/MP4, session JSON) and the shareable link.
 
 The browser's address bar always carries the link of the current state (updated
 after every edit), so copying it shares the session; the field below shows it too.
@@ -42,7 +42,8 @@ class _Download(pn.widgets.FileDownload):
 
 
 class SharingView:
-    TEXT = ("Download the spliced take (BVH, opens in Blender and MotionBuilder), an animated "
+    TEXT = ("Download the spliced take (BVH, opens in Blender and MotionBuilder; or GLB: the "
+            "skinned mannequin in 3D for Blender and browser glTF viewers), an animated "
             "preview (GIF or MP4, a few seconds to render), or the session file. The link "
             "restores this exact state on this server: sample or uploaded files, parameters "
             "and matching points; so does opening a downloaded session file. The command line "
@@ -55,6 +56,8 @@ class SharingView:
         self.bvh = _Download(callback=self._bvh, filename="spliced.bvh",
                                            label="Spliced BVH", color="primary",
                                            css_classes=["hs-download-bvh"], width=160)
+        self.glb = _Download(callback=self._glb, filename="spliced.glb",
+                             label="Spliced GLB (3D)", css_classes=["hs-download-glb"], width=160)
         self.session_file = _Download(
             callback=self._session_json, filename=SESSION_FILENAME,
             label="Session JSON", css_classes=["hs-download-session"], width=160)
@@ -102,6 +105,13 @@ class SharingView:
         s = self.session
         self.bvh.filename = f"{s.output_stem()}.bvh"
         return self._guard(lambda: backend.bvh_bytes(s.spliced()), "spliced BVH")
+
+    def _glb(self):
+        from engine.export.glb import glb_bytes
+
+        s = self.session
+        self.glb.filename = f"{s.output_stem()}.glb"
+        return self._guard(lambda: glb_bytes(s.spliced()), "spliced GLB")
 
     def _session_json(self):
         return self._guard(lambda: self.session.to_json().encode("utf-8"), "session")
@@ -211,7 +221,7 @@ class SharingView:
                 "frames):</span><br>$ " + _html(flags_cmd))
 
     def panel(self) -> pn.viewable.Viewable:
-        return pn.Column(pn.Row(self.bvh, self.session_file, self.gif, self.mp4),
+        return pn.Column(pn.Row(self.bvh, self.glb, self.session_file, self.gif, self.mp4),
                          pn.Row(self.progress, self.progress_text),
                          pn.Row(pn.pane.Markdown("**Open a session file**",
                                                  margin=(12, 10, 0, 10)), self.open_session),

@@ -1,0 +1,449 @@
+"""Pass-1 kernel: the ``splice_phase`` cost of a whole band row at a time (METHOD.md §2).
+
+:func:`engine.metrics.splice_phase` computes one cell: θ of eq. 7 from the two
+5-frame windows (a 5·K-point complex dot product), then the sign-code cost of the
+hand take's codes turned by θ (three popcounts). Called once per band cell, the θ
+dot product dominates (about 42 ns per cell). This module computes the same costs
+a band row at a time, with the same arithmetic, in about a tenth of the time:
+
+* **θ by diagonal sums.** With ``x_f = (x + i z)`` the K horizontal marker
+  positions of frame ``f`` (complex), eq. 7's sums over the centred windows are
+  ``Σ_d C(i+d, j+d) − L conj(μ_i) ν_j`` with ``C(p, q) = Σ_k conj(x_p,k) y_q,k``
+  (d = −2..2, frames clipped at the ends, ``μ``/``ν`` the window centroids,
+  ``L = 5K`` points). Every ``C`` value serves five cells of one diagonal, so a
+  band row computes one new row of ``C`` (K complex products per cell, a loop
+  over columns that vectorises) and keeps the last five in a ring buffer.
+* **θ bins without libm**: a polynomial ``atan2`` (about 1e-5 rad) and a floor,
+  written without branches so the column loop vectorises.
+* **Bit-parallel codes.** Each frame's 6K ternary sign codes are two bit masks
+  (P: +1, Q: −1); the hand take's are precomputed for every θ bin and stored bin
+  by bin (``(n_bins, m)``) so neighbouring cells, which mostly share a bin, read
+  neighbouring words. ``Σ (s − s')² = |P ⊕ P'| + |Q ⊕ Q'| + 2 |(P ∧ Q') ∨ (Q ∧ P')|``
+  with a hardware popcount.
+
+Exactness: :func:`theta_bin` and :func:`cell_cost` are the *only* θ and cost
+arithmetic; the per-cell metric (:func:`engine.metrics.splice_phase`, used by
+views, reports and tests) calls them with the same operands in the same order
+(no fast-math: no contraction, no reassociation; the five diagonal terms are
+summed symmetrically, ``((C0 + C4) + (C1 + C3)) + C2``, so a reversed problem
+gives bit-identical sums). The row kernel therefore gives exactly the per-cell
+costs (tests compare every cell), and the DTW path is the same.
+
+Plugged into :mod:`engine.dtw` as the ``"splice_phase"`` metric's row kernel
+(``register_metric(..., prepare=prepare, forward=forward)``): ``align_features``,
+the incremental ``Aligner`` and its backward passes all use it.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+from llvmlite import ir
+from numba import types
+from numba.extending import intrinsic
+
+from engine.dtw import kernels as K
+
+#: frames in the eq.-7 window (centre ± 2)
+WINDOW = 5
+#: header of a ``splice_phase`` row: [half, n_bins, mode, yaw_bin, step]
+HEADER = 5
+MODE_WINDOW = 0
+MODE_YAW = 1
+
+_TWO_PI = 2.0 * np.pi
+_RING = 8  # ring-buffer rows of C (five in use; a power of two)
+
+
+@intrinsic
+def popcount(typingctx, x):
+    """Hardware population count of a uint64 (``llvm.ctpop``)."""
+    if not isinstance(x, types.Integer):
+        return None
+    sig = types.uint64(types.uint64)
+
+    def codegen(context, builder, signature, args):
+        value = builder.zext(args[0], ir.IntType(64)) if args[0].type.width < 64 else args[0]
+        return builder.ctpop(value)
+
+    return sig, codegen
+
+
+_F0 = np.float32(0.0)
+_C1 = np.float32(-0.0464964749)
+_C2 = np.float32(0.15931422)
+_C3 = np.float32(-0.327622764)
+_HALF_PI = np.float32(1.5707963267948966)
+_PI = np.float32(3.141592653589793)
+_HALF = np.float32(0.5)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def theta_bin(num, den, nb):
+    """θ bin of ``atan2(num, den)`` (float32 operands): ``floor(θ nb / 2π + 0.5) mod nb``,
+    θ to about 1e-5 rad (a polynomial, no libm call).
+
+    float32 and branch-free (selects only) so column loops vectorise 8 wide. Returns
+    int32 in ``0..nb-1`` for any input (NaN included: never outside the code table).
+    """
+    ax = abs(den)
+    ay = abs(num)
+    mx = max(ax, ay)
+    mn = min(ax, ay)
+    a = mn / mx if mx > _F0 else _F0
+    s = a * a
+    r = ((_C1 * s + _C2) * s + _C3) * s * a + a
+    r = _HALF_PI - r if ay > ax else r
+    r = _PI - r if den < _F0 else r
+    r = -r if num < _F0 else r
+    x = np.floor(r * np.float32(nb / _TWO_PI) + _HALF)
+    fnb = np.float32(nb)
+    x = x + fnb if x < _F0 else x
+    x = x if (x >= _F0 and x < fnb) else _F0  # NaN, or the wrap at exactly +π
+    return np.int32(x)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def cell_cost(p, q, p2, q2):
+    """Σ (s − s')² of ternary codes packed as masks (P, Q) and (P', Q') (uint64)."""
+    return popcount(p ^ p2) + popcount(q ^ q2) + np.uint64(2) * popcount((p & q2) | (q & p2))
+
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def window_means(row, half):
+    """Centroid ``(x, z)`` of the eq.-7 window stored in a ``splice_phase`` row."""
+    sx = 0.0
+    sz = 0.0
+    for t in range(half):
+        sx += row[HEADER + t]
+        sz += row[HEADER + half + t]
+    return sx / half, sz / half
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _slot(body_row, hand_row, half, k, d):
+    """``C`` of window slot ``d``: Σ_c conj(x_c) y_c over the K markers (real, imaginary)."""
+    re = np.float32(0.0)
+    im = np.float32(0.0)
+    for c in range(k):
+        t = d * k + c
+        bx = np.float32(body_row[HEADER + t])
+        bz = np.float32(body_row[HEADER + half + t])
+        hx = np.float32(hand_row[HEADER + t])
+        hz = np.float32(hand_row[HEADER + half + t])
+        re += bx * hx + bz * hz
+        im += bx * hz - hx * bz
+    return re, im
+
+
+@numba.njit(cache=True, nogil=True)
+def cell_theta_sums(body_row, hand_row, half):
+    """``(num, den)`` of eq. 7 for one cell from the two rows' windows (the row kernel's
+    arithmetic, term by term)."""
+    k = half // WINDOW
+    r0, i0 = _slot(body_row, hand_row, half, k, 0)
+    r1, i1 = _slot(body_row, hand_row, half, k, 1)
+    r2, i2 = _slot(body_row, hand_row, half, k, 2)
+    r3, i3 = _slot(body_row, hand_row, half, k, 3)
+    r4, i4 = _slot(body_row, hand_row, half, k, 4)
+    re = ((r0 + r4) + (r1 + r3)) + r2
+    im = ((i0 + i4) + (i1 + i3)) + i2
+    bmx, bmz = window_means(body_row, half)
+    hmx, hmz = window_means(hand_row, half)
+    mbx = np.float32(bmx)
+    mbz = np.float32(bmz)
+    mhx = np.float32(hmx)
+    mhz = np.float32(hmz)
+    n = np.float32(half)
+    den = re - n * (mbx * mhx + mbz * mhz)
+    num = im - n * (mbx * mhz - mhx * mbz)
+    return num, den
+
+
+# --------------------------------------------------------------------------------------------
+# per-problem data (from the rows) and the forward pass
+# --------------------------------------------------------------------------------------------
+
+
+@numba.njit(cache=True, nogil=True)
+def _unpack(rows, hand, nb, half):
+    """Per-frame arrays of one take's rows: window centroids ``(F,)`` x and z
+    (float32), the masks P, Q (``(1 or nb, F, 2)``), the yaw bins and steps ``(F,)``."""
+    f = rows.shape[0]
+    mx = np.zeros(f, np.float32)
+    mz = np.zeros(f, np.float32)
+    yaw = np.zeros(f, np.int64)
+    step = np.zeros(f)
+    width = nb if hand else 1
+    pq = np.zeros((width, f, 2), np.uint64)  # bin by bin: neighbouring cells, one cache line
+    off = HEADER + 2 * half
+    for r in range(f):
+        row = rows[r]
+        if half > 0:
+            sx, sz = window_means(row, half)
+            mx[r] = np.float32(sx)
+            mz[r] = np.float32(sz)
+        yaw[r] = int(row[3])
+        step[r] = row[4]
+        for b in range(width):
+            pq[b, r, 0] = np.uint64(row[off + 2 * b])
+            pq[b, r, 1] = np.uint64(row[off + 2 * b + 1])
+    return mx, mz, pq, yaw, step
+
+
+def _padded_coords(rows: np.ndarray, half: int):
+    """x and z ``(F + 4, K)`` float32 of the frames the rows' windows hold, in row order
+    (padded index ``p`` = row ``p - 2``'s own frame; two frames beyond each end from the
+    end rows' windows), or None when the windows are not those of consecutive frames.
+
+    Rows of a whole take, of a contiguous part of one, or of either reversed (the
+    backward passes) qualify; any other selection of rows (e.g. every other frame) does
+    not, and the caller falls back to the per-cell metric.
+    """
+    f = rows.shape[0]
+    k = half // WINDOW
+    win = rows[:, HEADER: HEADER + 2 * half].reshape(f, 2, WINDOW, k)  # (F, x|z, slot, K)
+    first, last = win[0], win[f - 1]
+    for step in (1, -1):  # window slot d holds row r + step (d - 2)
+        pad = np.empty((f + 4, 2, k))
+        pad[2: f + 2] = win[:, :, 2]
+        for d in range(WINDOW):  # the frames beyond the ends, from the end rows
+            off = step * (d - 2)
+            if off < 0:
+                pad[2 + off] = first[:, d]
+            elif off > 0:
+                pad[f + 1 + off] = last[:, d]
+        if all(np.array_equal(win[:, :, d], pad[2 + step * (d - 2): 2 + step * (d - 2) + f])
+               for d in range(WINDOW)):
+            return (np.ascontiguousarray(pad[:, 0], np.float32),
+                    np.ascontiguousarray(pad[:, 1], np.float32))
+    return None
+
+
+class PhaseProblem:
+    """The row kernel's arrays for one (body rows, hand rows) pair (see :func:`prepare`).
+
+    ``fallback`` is True when the rows are not consecutive frames of a take (then the
+    forward pass uses the per-cell metric; same costs, slower).
+    """
+
+    def __init__(self, a: np.ndarray, b: np.ndarray):
+        half, nb, mode = int(a[0, 0]), int(a[0, 1]), int(a[0, 2])
+        self.half, self.nb, self.mode = half, nb, mode
+        self.n, self.m = a.shape[0], b.shape[0]
+        self.fallback = False
+        k = half // WINDOW
+        if mode == MODE_WINDOW:
+            body_c = _padded_coords(a, half)
+            hand_c = _padded_coords(b, half)
+            if body_c is None or hand_c is None:
+                self.fallback, self.a, self.b = True, a, b
+                return
+            bx, bz = body_c
+            hx, hz = hand_c[0].T.copy(), hand_c[1].T.copy()  # (K, m + 4): columns contiguous
+        else:
+            bx = bz = np.zeros((self.n + 4, k), np.float32)
+            hx = hz = np.zeros((k, self.m + 4), np.float32)
+        bmx, bmz, bpq, byaw, bstep = _unpack(a, False, nb, half)
+        hmx, hmz, hpq, hyaw, _ = _unpack(b, True, nb, half)
+        bp = np.ascontiguousarray(bpq[0, :, 0])
+        bq = np.ascontiguousarray(bpq[0, :, 1])
+        self.body = (bx, bz, bmx, bmz, bp, bq, byaw, bstep)
+        self.hand = (hx, hz, hmx, hmz, hpq, hyaw)
+
+    def args(self) -> tuple:
+        return (*self.body, *self.hand, self.mode, self.nb, self.half)
+
+
+def prepare(a: np.ndarray, b: np.ndarray) -> PhaseProblem:
+    """Row-kernel data for ``splice_phase`` rows ``a`` (body, ``(n, d)``) and ``b`` (hand)."""
+    return PhaseProblem(a, b)
+
+
+def forward(state: PhaseProblem, lo, hi, start, i0, i1, bp, gamma, keep_gamma):
+    """Rows ``i0..i1-1`` of the DTW forward pass (as ``engine.dtw.kernels.forward_*``)."""
+    if state.fallback:
+        from engine.metrics import splice_phase
+
+        return K.forward_metric(splice_phase, state.a, state.b, lo, hi, start, i0, i1, bp,
+                                gamma, keep_gamma)
+    return _forward(*state.args(), lo, hi, start, i0, i1, bp, gamma, keep_gamma)
+
+
+def cost_rows(state: PhaseProblem, lo, hi, rows) -> list[np.ndarray]:
+    """Local costs ``(hi[i] - lo[i] + 1,)`` of band rows ``i`` in ``rows``, by the row kernel."""
+    lo = np.ascontiguousarray(lo, np.int64)
+    hi = np.ascontiguousarray(hi, np.int64)
+    out = []
+    for i in rows:
+        crow = _one_row(*state.args(), lo, hi, int(i))
+        out.append(crow[lo[i]: hi[i] + 1].copy())
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _c_row(p, clo, chi, bx, bz, hx, hz, cre, cim):
+    """Ring row ``p`` of C over padded hand columns ``clo..chi`` (float32).
+
+    Markers are added one after another (``_slot``'s order), two per sweep over the
+    columns; loops index slices from 0, so numba emits no negative-index wraparound
+    code and they vectorise.
+    """
+    s = p & (_RING - 1)
+    w = chi - clo + 1
+    re = cre[s, clo: chi + 1]
+    im = cim[s, clo: chi + 1]
+    for q in range(w):
+        re[q] = _F0
+        im[q] = _F0
+    k = bx.shape[1]
+    c = 0
+    while c + 1 < k:
+        xa = bx[p, c]
+        za = bz[p, c]
+        xb = bx[p, c + 1]
+        zb = bz[p, c + 1]
+        hxa = hx[c, clo: chi + 1]
+        hza = hz[c, clo: chi + 1]
+        hxb = hx[c + 1, clo: chi + 1]
+        hzb = hz[c + 1, clo: chi + 1]
+        for q in range(w):
+            re[q] = (re[q] + (xa * hxa[q] + za * hza[q])) + (xb * hxb[q] + zb * hzb[q])
+            im[q] = (im[q] + (xa * hza[q] - hxa[q] * za)) + (xb * hzb[q] - hxb[q] * zb)
+        c += 2
+    if c < k:
+        xa = bx[p, c]
+        za = bz[p, c]
+        hxa = hx[c, clo: chi + 1]
+        hza = hz[c, clo: chi + 1]
+        for q in range(w):
+            re[q] += xa * hxa[q] + za * hza[q]
+            im[q] += xa * hza[q] - hxa[q] * za
+
+
+@numba.njit(cache=True, nogil=True)
+def _ensure_c(i, next_p, i0, i1, lo, hi, bx, bz, hx, hz, cre, cim):
+    """Compute ring rows up to ``i + 4``; returns the next ring row to compute."""
+    while next_p <= i + 4:
+        r0 = max(next_p - 4, i0)
+        r1 = min(next_p, i1 - 1)
+        clo = lo[r0] + next_p - r0
+        chi = hi[r0] + next_p - r0
+        for r in range(r0 + 1, r1 + 1):
+            clo = min(clo, lo[r] + next_p - r)
+            chi = max(chi, hi[r] + next_p - r)
+        _c_row(next_p, clo, chi, bx, bz, hx, hz, cre, cim)
+        next_p += 1
+    return next_p
+
+
+@numba.njit(cache=True, nogil=True)
+def _fill(i, lo_i, hi_i, bmx, bmz, bpp, bqq, byaw, bstep, hmx, hmz, hpq, hyaw, mode, nb,
+          half, cre, cim, bins, crow):
+    """``crow[lo_i..hi_i]`` = local costs of band row ``i`` (ring rows ``i..i+4`` ready)."""
+    w = hi_i - lo_i + 1
+    out = bins[lo_i: hi_i + 1]
+    if mode == MODE_WINDOW:
+        # ring rows i..i+4 at columns j..j+4, as slices from lo_i (no wraparound code)
+        r0 = cre[i & (_RING - 1), lo_i:]
+        r1 = cre[(i + 1) & (_RING - 1), lo_i + 1:]
+        r2 = cre[(i + 2) & (_RING - 1), lo_i + 2:]
+        r3 = cre[(i + 3) & (_RING - 1), lo_i + 3:]
+        r4 = cre[(i + 4) & (_RING - 1), lo_i + 4:]
+        s0 = cim[i & (_RING - 1), lo_i:]
+        s1 = cim[(i + 1) & (_RING - 1), lo_i + 1:]
+        s2 = cim[(i + 2) & (_RING - 1), lo_i + 2:]
+        s3 = cim[(i + 3) & (_RING - 1), lo_i + 3:]
+        s4 = cim[(i + 4) & (_RING - 1), lo_i + 4:]
+        mx = hmx[lo_i:]
+        mz = hmz[lo_i:]
+        mbx = bmx[i]
+        mbz = bmz[i]
+        n = np.float32(half)
+        for k in range(w):
+            re = ((r0[k] + r4[k]) + (r1[k] + r3[k])) + r2[k]
+            im = ((s0[k] + s4[k]) + (s1[k] + s3[k])) + s2[k]
+            den = re - n * (mbx * mx[k] + mbz * mz[k])
+            num = im - n * (mbx * mz[k] - mx[k] * mbz)
+            out[k] = theta_bin(num, den, nb)
+    else:
+        yb = byaw[i]
+        hy = hyaw[lo_i:]
+        for k in range(w):
+            out[k] = np.int32((yb - hy[k]) % nb)
+    p = bpp[i]
+    q = bqq[i]
+    st = bstep[i]
+    cost = crow[lo_i: hi_i + 1]
+    for k in range(w):
+        b = out[k]
+        c = cell_cost(p, q, hpq[b, lo_i + k, 0], hpq[b, lo_i + k, 1])
+        cost[k] = float(np.int64(c)) + st  # signed: one instruction (unsigned is several)
+
+
+@numba.njit(cache=True, nogil=True)
+def _one_row(bx, bz, bmx, bmz, bpp, bqq, byaw, bstep, hx, hz, hmx, hmz, hpq, hyaw, mode,
+             nb, half, lo, hi, i):
+    m = hmx.shape[0]
+    cre = np.zeros((_RING, m + 4), np.float32)
+    cim = np.zeros((_RING, m + 4), np.float32)
+    bins = np.zeros(m, np.int32)
+    crow = np.zeros(m)
+    if mode == MODE_WINDOW:
+        _ensure_c(i, i, i, i + 1, lo, hi, bx, bz, hx, hz, cre, cim)
+    _fill(i, lo[i], hi[i], bmx, bmz, bpp, bqq, byaw, bstep, hmx, hmz, hpq, hyaw, mode, nb,
+          half, cre, cim, bins, crow)
+    return crow
+
+
+@numba.njit(cache=True, nogil=True)
+def _forward(bx, bz, bmx, bmz, bpp, bqq, byaw, bstep, hx, hz, hmx, hmz, hpq, hyaw, mode,
+             nb, half, lo, hi, start, i0, i1, bp, gamma, keep_gamma):
+    """As ``engine.dtw.kernels.forward_builtin``, local costs from :func:`_fill`."""
+    m = hmx.shape[0]
+    prev = np.empty(m + 1)
+    mid = np.full(m + 1, K.INF)
+    cur = np.full(m + 1, K.INF)
+    crow_a = np.zeros(m)
+    crow_b = np.zeros(m)
+    bins = np.zeros(m, np.int32)
+    window = mode == MODE_WINDOW
+    ring_w = m + 4 if window else 1
+    cre = np.empty((_RING, ring_w), np.float32)
+    cim = np.empty((_RING, ring_w), np.float32)
+    next_p = i0
+    K._init_prev(prev, gamma, lo, hi, start, i0)
+    i = i0
+    while i < i1:
+        if K._use_pair(lo, hi, i, i1):
+            if window:
+                next_p = _ensure_c(i + 1, next_p, i0, i1, lo, hi, bx, bz, hx, hz, cre, cim)
+            _fill(i, lo[i], hi[i], bmx, bmz, bpp, bqq, byaw, bstep, hmx, hmz, hpq, hyaw,
+                  mode, nb, half, cre, cim, bins, crow_a)
+            _fill(i + 1, lo[i + 1], hi[i + 1], bmx, bmz, bpp, bqq, byaw, bstep, hmx, hmz, hpq,
+                  hyaw, mode, nb, half, cre, cim, bins, crow_b)
+            bad = K._dp_pair(prev, mid, cur, crow_a, crow_b, lo[i], hi[i], lo[i + 1], hi[i + 1],
+                             bp[start[i]: start[i + 1]], bp[start[i + 1]: start[i + 2]])
+            if bad:
+                return (i if bad & 1 else i + 1), np.nan
+            K._pad_row(cur, lo, hi, i + 1)
+            if K._keep(keep_gamma, i, i1):
+                K._store_row(mid, gamma, lo, hi, start, i)
+            if K._keep(keep_gamma, i + 1, i1):
+                K._store_row(cur, gamma, lo, hi, start, i + 1)
+            prev, mid, cur = cur, prev, mid
+            i += 2
+        else:
+            if window:
+                next_p = _ensure_c(i, next_p, i0, i1, lo, hi, bx, bz, hx, hz, cre, cim)
+            _fill(i, lo[i], hi[i], bmx, bmz, bpp, bqq, byaw, bstep, hmx, hmz, hpq, hyaw,
+                  mode, nb, half, cre, cim, bins, crow_a)
+            if K._dp_row(prev, cur, crow_a, lo[i], hi[i], bp[start[i]: start[i + 1]]):
+                return i, np.nan
+            K._pad_row(cur, lo, hi, i)
+            if K._keep(keep_gamma, i, i1):
+                K._store_row(cur, gamma, lo, hi, start, i)
+            prev, cur = cur, prev
+            i += 1
+    return -1, prev[m]

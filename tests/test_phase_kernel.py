@@ -1,0 +1,185 @@
+"""The pass-1 row kernel (engine/phase_kernel.py) and the memory-bounded feature/transfer paths.
+
+The row kernel must give exactly the per-cell ``splice_phase`` costs (so the DTW path is the
+same), and those must be eq. 6 with θ quantised (the dense numpy reference), except where
+the exact θ lies on the edge between two bins.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+import pytest
+from naive import dtw_banded
+
+from engine import metrics as M
+from engine import phase_kernel as PK
+from engine.dtw import Aligner, Band, align_features
+from engine.splice import pipeline as P
+from engine.splice import transfer as TR
+from engine.splice.split import make_case
+
+
+@pytest.fixture(scope="module")
+def case():
+    return make_case("lafan1", 3, crop_s=6.0)
+
+
+@pytest.fixture(scope="module")
+def feats(case):
+    return P.prepare(case.body, case.hand)
+
+
+def _band_cells(band, rows):
+    return [(int(i), np.arange(band.lo[i], band.hi[i] + 1)) for i in rows]
+
+
+@pytest.mark.parametrize("theta", ["window", "trunk", "none"])
+def test_row_kernel_gives_the_per_cell_costs_exactly(case, theta):
+    f = P.prepare(case.body, case.hand, theta=theta)
+    a, b = f.pass1_rows
+    band = Band.from_constraints(f.n, f.m, 0.3, [])
+    state = PK.prepare(a, b)
+    rows = np.unique(np.r_[0, 1, 2, np.arange(0, f.n, 7), f.n - 2, f.n - 1])
+    got = PK.cost_rows(state, band.lo, band.hi, rows)
+    for (i, cols), row in zip(_band_cells(band, rows), got, strict=True):
+        ref = M.cost_grid(M.splice_phase, a, b, np.array([i]), cols)[0]
+        assert np.array_equal(row, ref), f"row {i}"
+
+
+def test_per_cell_cost_is_eq6_with_theta_quantised(feats):
+    """Against numpy: θ of eq. 7 in float64 (``cell_theta_window``) rounded to its bin, the
+    hand's sign codes turned by the bin's angle (``rotated_codes``), Σ (s − s')². Equal
+    wherever θ is not within 1e-3 rad of a bin edge (there rounding may pick either bin)."""
+    bp, hp = feats.body_phase, feats.hand_phase
+    nb = feats.n_bins
+    rows = np.arange(0, feats.n, 11)
+    cols = np.arange(0, feats.m, 2)
+    ii, jj = np.meshgrid(rows, cols, indexing="ij")
+    th = M.cell_theta_window(bp, hp, ii, jj)
+    x = th * nb / (2 * np.pi) + 0.5
+    bins = np.floor(x).astype(int) % nb
+    edge = np.abs(x - np.round(x)) * (2 * np.pi / nb) < 1e-3
+    hand_codes = M.rotated_codes(hp, nb).astype(int)  # (m, nb, C)
+    body_codes = bp.codes.astype(int)
+    ref = np.sum((body_codes[ii] - hand_codes[jj, bins]) ** 2, axis=-1)
+    a, b = feats.pass1_rows
+    got = M.cost_grid(M.splice_phase, a, b, rows, cols)
+    assert (~edge).sum() > 0.95 * edge.size
+    assert np.array_equal(got[~edge], ref[~edge])
+
+
+def test_pass1_path_equals_the_naive_dtw(feats):
+    a, b = feats.pass1_rows
+    n = min(feats.n, feats.m)
+    a, b = a[:n], b[:n]
+    band = Band.from_constraints(n, n, 0.3, [(n // 2, n // 2 - 2, 3)])
+    cost = M.cost_grid(M.splice_phase, a, b, np.arange(n), np.arange(n))
+    total, path, _ = dtw_banded(cost.tolist(), band.lo.tolist(), band.hi.tolist())
+    got = align_features(a, b, band, metric="splice_phase")
+    assert got.cost == total
+    assert [tuple(p) for p in got.path] == path
+
+
+def test_aligner_with_the_row_kernel_matches_a_full_solve_after_edits(feats):
+    a, b = feats.pass1_rows
+    n, m = feats.n, feats.m
+    pts = [[n // 4, m // 4, 2], [n // 2, m // 2, 2], [3 * n // 4, 3 * m // 4, 2]]
+    solver = Aligner(a, b, metric="splice_phase")
+    solver.solve(Band.from_constraints(n, m, 0.3, pts))
+    for shift in (9, -7, 4):  # forward and backward passes both use the row kernel
+        pts[2][1] = 3 * m // 4 + shift
+        band = Band.from_constraints(n, m, 0.3, pts)
+        inc = solver.solve(band)
+        ref = align_features(a, b, band, metric="splice_phase")
+        assert inc.cost == ref.cost
+        assert solver.last_stats.fraction < 0.75
+
+
+@numba.njit
+def _bins(y, x, nb):
+    out = np.zeros(y.shape[0], np.int64)
+    for k in range(y.shape[0]):
+        out[k] = PK.theta_bin(np.float32(y[k]), np.float32(x[k]), nb)
+    return out
+
+
+def test_popcount_and_theta_bins():
+    rng = np.random.default_rng(1)
+    x = rng.integers(0, 2**63, size=200, dtype=np.uint64)
+    assert [int(M._popcount(v)) for v in x] == [bin(int(v)).count("1") for v in x]
+    nb = 72
+    th = rng.uniform(-np.pi, np.pi, 5000)
+    exact = np.floor(th * nb / (2 * np.pi) + 0.5).astype(int) % nb
+    far = np.abs((th * nb / (2 * np.pi) + 0.5) % 1.0 - 0.5) < 0.49  # > ~1e-3 rad from an edge
+    r = rng.uniform(0.01, 10.0, th.size)  # any length
+    got = _bins(r * np.sin(th), r * np.cos(th), nb)
+    assert np.array_equal(got[far], exact[far])
+    odd = _bins(np.array([np.nan, 1.0, np.nan, 0.0, 0.0]), np.array([1.0, np.nan, np.nan, 0.0, -1.0]), nb)
+    assert ((odd >= 0) & (odd < nb)).all()  # never indexes outside the code table
+    assert list(odd[3:]) == [0, 36]
+
+
+# --------------------------------------------------------------------------------------------
+# memory: blockwise kinematics and transfer give the same numbers
+# --------------------------------------------------------------------------------------------
+
+
+def test_take_markers_by_blocks_equal_the_whole_take(case):
+    from engine.features import hand_frame, motion_markers, skeleton_yaw, take_markers
+    from engine.roles import find_roles
+
+    hand = case.hand
+    roles = find_roles(hand.skeleton)
+    frames = {s: hand_frame(hand, roles, s) for s in ("right", "left")}
+    mk, yaw, rots = take_markers(hand, roles, frames, fps=30.0, keep_rotations=True, chunk=37)
+    for s in frames:
+        ref = motion_markers(hand, s, roles, fps=30.0, frame=frames[s]).markers
+        assert np.array_equal(mk[s], ref)
+    assert np.array_equal(yaw, skeleton_yaw(hand, roles))
+    from engine.fastkin import forward_kinematics
+
+    assert np.array_equal(rots, forward_kinematics(hand)[1])
+
+
+def test_transfer_by_blocks_equals_one_block(case, feats, monkeypatch):
+    res = P.align_passes(feats)
+    whole = P.transfer(feats, res)
+    monkeypatch.setattr(TR, "TRANSFER_CHUNK", 50)
+    blocks = P.transfer(feats, res)
+    assert np.array_equal(whole.rotations, blocks.rotations)
+    assert np.array_equal(whole.translations, blocks.translations)
+    from engine.fastkin import continuous
+
+    q = np.random.default_rng(2).standard_normal((40, 3, 4))
+    ref = continuous(q)
+    TR.continuous_inplace(q)
+    assert np.array_equal(q, ref)
+
+
+def test_rows_of_every_other_frame_fall_back_to_the_per_cell_metric(feats):
+    a, b = feats.pass1_rows
+    a, b = np.ascontiguousarray(a[::2]), np.ascontiguousarray(b[::2])
+    assert PK.prepare(a, b).fallback
+    n, m = a.shape[0], b.shape[0]
+    band = Band.from_constraints(n, m, 0.4, [])
+    cost = M.cost_grid(M.splice_phase, a, b, np.arange(n), np.arange(m))
+    total, _, _ = dtw_banded(cost.tolist(), band.lo.tolist(), band.hi.tolist())
+    assert align_features(a, b, band, metric="splice_phase").cost == total
+    assert not PK.prepare(*feats.pass1_rows).fallback
+
+
+def test_fast_sampling_and_normalising_match_the_numpy_ones(case):
+    from engine import kinematics, rotations
+    from engine.fastkin import normalize_inplace, sample
+
+    hand = case.hand
+    t = np.r_[-1.0, np.linspace(0, hand.n_frames - 1, 301), hand.n_frames + 3.5]
+    r, tr = sample(hand, t)
+    r_ref, tr_ref = kinematics.sample(hand, t)
+    assert np.allclose(r, r_ref, atol=1e-12) and np.allclose(tr, tr_ref, atol=1e-12)
+    q = np.random.default_rng(3).standard_normal((20, 4, 4))
+    q[3, 1] = 0.0
+    ref = rotations.normalize(q)
+    normalize_inplace(q)
+    assert np.allclose(q, ref, atol=1e-15)
