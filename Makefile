@@ -3,7 +3,7 @@
 #   make demo   - install, then open the app on the bundled sample pair (http://127.0.0.1:5006)
 #   make test   - install everything the tests need (Chromium, Mesa EGL, npm's three.js and
 #                 glTF validator for the GLB tests), lint, run all tests
-# Proven on minimal (debootstrap minbase) Debian 12 and 13 roots by tools/fresh-check.
+# Tried on minimal (debootstrap minbase) Debian 12 and 13 roots by tools/fresh-check.
 
 PYTHON ?= python3
 VENV   := .venv

@@ -152,22 +152,73 @@ def up_vector(up_axis: str) -> np.ndarray:
     return np.array([0.0, 0.0, 1.0]) if up_axis == "z" else np.array([0.0, 1.0, 0.0])
 
 
+#: Hampel spike filter: a frame whose marker leaves the median of its 3-frame neighbourhood
+#: by more than this many robust standard deviations (of that distance, over the take) is
+#: replaced by the median
+SPIKE_SIGMAS = 5.0
+
+
+def despike(points: np.ndarray) -> np.ndarray:
+    """Single-frame spikes removed from trajectories ``(F, K, 3)`` (or ``(F, D)``).
+
+    Hampel filter per marker: ``r = |x - median(x[t-1..t+1])|``; frames with ``r`` above
+    ``SPIKE_SIGMAS`` times a robust scale of ``r`` over the take (1.4826 median, or the
+    90th percentile / 1.645 where most ``r`` are 0) take the median. Smooth motion and small jitter are left as they are
+    (their ``r`` is within the take's own spread); a glove or optical glitch of one frame
+    is removed before any derivative sees it. NaN gaps stay NaN.
+    """
+    p = np.asarray(points, dtype=float)
+    if p.shape[0] < 3:
+        return p.copy()
+    flat = p.reshape(p.shape[0], -1, p.shape[-1]) if p.ndim >= 3 else p[:, :, None]
+    stack = np.stack([np.concatenate([flat[:1], flat[:-1]]), flat,
+                      np.concatenate([flat[1:], flat[-1:]])])
+    med = np.median(stack, axis=0)
+    r = np.linalg.norm(flat - med, axis=-1)  # (F, K), >= 0
+    with np.errstate(invalid="ignore"):
+        # scale of r (half-normal-like): 1.4826 x median, or q90 / 1.645 where most r are 0
+        # (a monotone stretch is its own median)
+        scale = np.maximum(1.4826 * np.nanmedian(r, axis=0),
+                           np.nanquantile(r, 0.9, axis=0) / 1.645)
+        bad = r > SPIKE_SIGMAS * np.maximum(scale, 1e-9)
+    out = np.where(bad[..., None], med, flat)
+    return out.reshape(p.shape)
+
+
 def resample_points(points: np.ndarray, fps: float, target_fps: float) -> np.ndarray:
-    """Linear resampling of ``(F, ...)`` trajectories to ``target_fps``.
+    """Resampling of ``(F, ...)`` trajectories to ``target_fps`` without aliasing.
 
     Output has ``round((F-1) * target_fps / fps) + 1`` frames spanning the same
-    duration (as :func:`engine.kinematics.resample`).
+    duration (as :func:`engine.kinematics.resample`). Going to a lower rate, the
+    trajectories are first low-passed by a Gaussian of ``0.5 / target_fps`` seconds:
+    the new Nyquist frequency keeps about 30 % of its amplitude and frame-to-frame
+    jitter of the faster take does not fold into the slow motion. Then linear
+    interpolation. NaN gaps are filled for the filter and stay NaN in the output
+    (frames that interpolate a gap frame).
     """
     p = np.asarray(points, dtype=float)
     f = p.shape[0]
     if f == 0 or fps == target_fps:
         return p.copy()
     n_out = check_grid("resampling", f, fps, target_fps)  # bounded before allocating
+    gaps = None
+    if target_fps < fps and f > 1:
+        from scipy.ndimage import gaussian_filter1d
+
+        from engine.metrics import _fill_gaps
+
+        if np.isnan(p).any():
+            gaps = np.isnan(p).astype(float)
+            p = _fill_gaps(p)
+        p = gaussian_filter1d(p, 0.5 * fps / target_fps, axis=0, mode="nearest")
     t = np.clip(np.arange(n_out) * (fps / target_fps), 0.0, f - 1)
     i0 = np.floor(t).astype(np.int64)
     i1 = np.minimum(i0 + 1, f - 1)
     w = (t - i0).reshape((-1,) + (1,) * (p.ndim - 1))
-    return p[i0] * (1.0 - w) + p[i1] * w
+    out = p[i0] * (1.0 - w) + p[i1] * w
+    if gaps is not None:
+        out[(gaps[i0] * (1.0 - w) + gaps[i1] * w) > 0] = np.nan
+    return out
 
 
 # --------------------------------------------------------------------------------------------
@@ -360,7 +411,8 @@ def motion_markers(motion: Motion, side: str, roles=None, fps: float | None = No
     side : ``"right"`` or ``"left"``
     roles : engine.roles.Roles, optional (found from joint names if omitted)
     fps : float, optional
-        Resample the markers to this rate (linear interpolation).
+        Resample the markers to this rate (:func:`resample_points`: low-passed first
+        when the rate drops). Single-frame spikes are removed first (:func:`despike`).
     frame : HandFrame, optional (computed if omitted)
     fk : (positions, rotations), optional
         Precomputed forward kinematics of the whole take.
@@ -372,7 +424,7 @@ def motion_markers(motion: Motion, side: str, roles=None, fps: float | None = No
     if frame is None:
         frame = hand_frame(motion, roles, side)
     pos, wrot = fk if fk is not None else forward_kinematics(motion)
-    mk = _arm_markers(motion, frame, pos, wrot)
+    mk = despike(_arm_markers(motion, frame, pos, wrot))
     subtracted = frame.shoulder is not None
     if fps is not None:
         mk = resample_points(mk, motion.fps, fps)
@@ -420,6 +472,7 @@ def take_markers(motion: Motion, roles, frames: dict[str, HandFrame], fps: float
         if rots is not None:
             rots[f0:f1] = wrot
     yaw = np.unwrap(np.arctan2(lat[:, 0], lat[:, 2])) if lat is not None else None
+    out = {s: despike(mk) for s, mk in out.items()}  # as motion_markers
     if fps is not None:
         out = {s: resample_points(mk, motion.fps, fps) for s, mk in out.items()}
     return out, yaw, rots
@@ -484,7 +537,7 @@ def marker_set_markers(markers: MarkerSet, side: str, fps: float | None = None) 
     subtracted = arm.get("shoulder") is not None
     if subtracted:
         out = out - pts[:, arm["shoulder"]][:, None, :]
-    out = to_y_up(out * markers.meters_per_unit, markers.meta.up_axis)
+    out = despike(to_y_up(out * markers.meters_per_unit, markers.meta.up_axis))
     if fps is not None:
         out = resample_points(out, markers.fps, fps)
     return ArmMarkers(markers=out, fps=float(fps or markers.fps), side=side,

@@ -160,14 +160,53 @@ class DeadZone:
     acceleration: float
 
 
+#: a derivative component reads 0 below this many standard deviations of the take's own
+#: noise in that derivative (:func:`noise_floor`)
+NOISE_SIGMAS = 2.0
+
+
+def noise_floor(points: np.ndarray, fps: float, window_s: float = 0.2, polyorder: int = 3
+                ) -> tuple[float, float]:
+    """Standard deviation of the noise in one velocity and one acceleration component.
+
+    The high-passed signal ``r = x - SG(x)`` (what the Savitzky-Golay smoother of
+    :func:`derivatives` removes) is mostly noise; for white noise of deviation σ
+    through a projection smoother ``var(r) = σ² (1 - c0)`` (``c0``: centre coefficient),
+    so ``σ = 1.4826 MAD(r) / sqrt(1 - c0)`` (robust to real motion left in ``r``).
+    The derivative filters pass it as ``σ |c1| / dt`` and ``σ |c2| / dt²``.
+    Returns (units/s, units/s²); (0, 0) for takes shorter than the window.
+    """
+    from scipy.signal import savgol_coeffs
+
+    p = _fill_gaps(np.asarray(points, dtype=float))
+    f = p.shape[0]
+    w = savgol_window(fps, window_s, polyorder)
+    if f < w or w <= polyorder + 1:
+        return 0.0, 0.0
+    c0 = savgol_coeffs(w, polyorder, deriv=0, use="dot")
+    flat = p.reshape(f, -1)
+    r = flat - _sg_apply(flat, w, polyorder, 0, 1.0)
+    r = r[w // 2: f - w // 2]
+    if r.size == 0:
+        return 0.0, 0.0
+    mad = float(np.median(np.abs(r - np.median(r, axis=0))))
+    sigma = 1.4826 * mad / np.sqrt(max(1.0 - c0[w // 2], 1e-6))
+    dt = 1.0 / fps
+    c1 = savgol_coeffs(w, polyorder, deriv=1, use="dot")
+    c2 = savgol_coeffs(w, polyorder, deriv=2, use="dot")
+    return sigma * float(np.linalg.norm(c1)) / dt, sigma * float(np.linalg.norm(c2)) / dt ** 2
+
+
 def dead_zone(velocity: np.ndarray, acceleration: np.ndarray, relative: float = 0.1,
-              quantile: float = 0.9) -> DeadZone:
+              quantile: float = 0.9, noise: tuple[float, float] = (0.0, 0.0)) -> DeadZone:
     """Dead zone sized from the take's own speed and acceleration distribution.
 
     ``ε_v = relative · q(|v|)`` where ``q`` is the ``quantile`` of the per-frame
     speeds of all markers (the same for ``ε_a`` on accelerations). A take whose
     arm moves half as far (a hand captured in a small volume) gets half the
     threshold, so holds read 0 in both takes and the sign codes stay comparable.
+    ``noise`` (:func:`noise_floor`): the thresholds are at least ``NOISE_SIGMAS``
+    times the take's own noise in a velocity / acceleration component.
 
     velocity, acceleration : (F, K, 3) float
     """
@@ -179,6 +218,9 @@ def dead_zone(velocity: np.ndarray, acceleration: np.ndarray, relative: float = 
     accel = accel[np.isfinite(accel)]
     ev = relative * float(np.quantile(speed, quantile)) if speed.size else 0.0
     ea = relative * float(np.quantile(accel, quantile)) if accel.size else 0.0
+    # never below the take's own noise floor: jitter then does not flip a held hand's signs
+    ev = max(ev, NOISE_SIGMAS * float(noise[0]))
+    ea = max(ea, NOISE_SIGMAS * float(noise[1]))
     return DeadZone(velocity=ev, acceleration=ea)
 
 
@@ -259,8 +301,7 @@ def phase_features(markers: np.ndarray, fps: float, yaw: np.ndarray | None = Non
     if m.shape[0] < 1:
         raise ParameterError("phase features: the take has no frames")
     m = _fill_gaps(m)
-    v, a = derivatives(m, fps, window_s)
-    zone = dead_zone(v, a, relative)
+    v, a, zone = _filtered_derivatives(m, fps, window_s, relative)
     codes = np.concatenate(
         [sign_dead_zone(v, zone.velocity), sign_dead_zone(a, zone.acceleration)], axis=2
     )  # (F, K, 6)
@@ -273,6 +314,30 @@ def phase_features(markers: np.ndarray, fps: float, yaw: np.ndarray | None = Non
         codes=np.ascontiguousarray(codes.reshape(m.shape[0], -1)),
         window=_theta_windows(m), yaw=yaw, fps=float(fps), arms=m.shape[1] // 4,
     )
+
+
+#: widest derivative window, as a multiple of the asked one, for noisy takes
+MAX_WINDOW_FACTOR = 3.0
+
+
+def _filtered_derivatives(m: np.ndarray, fps: float, window_s: float, relative: float):
+    """Derivatives and dead zone, the window widened for a noisy take.
+
+    The window grows (1, 1.5, 2, 3 times ``window_s``) until the take's noise in a
+    velocity component (:func:`noise_floor`, times ``NOISE_SIGMAS``) is below the
+    motion-relative dead zone, so jitter does not decide the signs; the dead zone is
+    never below the noise floor of the window used.
+    """
+    best = None
+    for factor in (1.0, 1.5, 2.0, MAX_WINDOW_FACTOR):
+        w = window_s * factor
+        v, a = derivatives(m, fps, w)
+        noise = noise_floor(m, fps, w)
+        plain = dead_zone(v, a, relative)
+        best = (v, a, dead_zone(v, a, relative, noise=noise))
+        if NOISE_SIGMAS * noise[0] <= plain.velocity:
+            break
+    return best
 
 
 def _theta_windows(markers: np.ndarray) -> np.ndarray:

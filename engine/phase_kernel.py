@@ -261,14 +261,17 @@ def prepare(a: np.ndarray, b: np.ndarray) -> PhaseProblem:
     return PhaseProblem(a, b)
 
 
-def forward(state: PhaseProblem, lo, hi, start, i0, i1, bp, gamma, keep_gamma):
-    """Rows ``i0..i1-1`` of the DTW forward pass (as ``engine.dtw.kernels.forward_*``)."""
+def forward(state: PhaseProblem, lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col,
+            last_row):
+    """Rows ``i0..i1-1`` of the DTW forward pass (as ``engine.dtw.kernels.forward_*``,
+    open ends included: ``ends``, ``last_col``, ``last_row``)."""
     if state.fallback:
         from engine.metrics import splice_phase
 
         return K.forward_metric(splice_phase, state.a, state.b, lo, hi, start, i0, i1, bp,
-                                gamma, keep_gamma)
-    return _forward(*state.args(), lo, hi, start, i0, i1, bp, gamma, keep_gamma)
+                                gamma, keep_gamma, ends, last_col, last_row)
+    return _forward(*state.args(), lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col,
+                    last_row)
 
 
 def cost_rows(state: PhaseProblem, lo, hi, rows) -> list[np.ndarray]:
@@ -399,8 +402,9 @@ def _one_row(bx, bz, bmx, bmz, bpp, bqq, byaw, bstep, hx, hz, hmx, hmz, hpq, hya
 
 @numba.njit(cache=True, nogil=True)
 def _forward(bx, bz, bmx, bmz, bpp, bqq, byaw, bstep, hx, hz, hmx, hmz, hpq, hyaw, mode,
-             nb, half, lo, hi, start, i0, i1, bp, gamma, keep_gamma):
-    """As ``engine.dtw.kernels.forward_builtin``, local costs from :func:`_fill`."""
+             nb, half, lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col, last_row):
+    """As ``engine.dtw.kernels.forward_builtin`` (open ends included), local costs from
+    :func:`_fill`."""
     m = hmx.shape[0]
     prev = np.empty(m + 1)
     mid = np.full(m + 1, K.INF)
@@ -413,7 +417,7 @@ def _forward(bx, bz, bmx, bmz, bpp, bqq, byaw, bstep, hx, hz, hmx, hmz, hpq, hya
     cre = np.empty((_RING, ring_w), np.float32)
     cim = np.empty((_RING, ring_w), np.float32)
     next_p = i0
-    K._init_prev(prev, gamma, lo, hi, start, i0)
+    K._init_prev(prev, gamma, lo, hi, start, i0, ends)
     i = i0
     while i < i1:
         if K._use_pair(lo, hi, i, i1):
@@ -424,10 +428,12 @@ def _forward(bx, bz, bmx, bmz, bpp, bqq, byaw, bstep, hx, hz, hmx, hmz, hpq, hya
             _fill(i + 1, lo[i + 1], hi[i + 1], bmx, bmz, bpp, bqq, byaw, bstep, hmx, hmz, hpq,
                   hyaw, mode, nb, half, cre, cim, bins, crow_b)
             bad = K._dp_pair(prev, mid, cur, crow_a, crow_b, lo[i], hi[i], lo[i + 1], hi[i + 1],
-                             bp[start[i]: start[i + 1]], bp[start[i + 1]: start[i + 2]])
+                             bp[start[i]: start[i + 1]], bp[start[i + 1]: start[i + 2]],
+                             K._left0(lo, i, ends), K._left0(lo, i + 1, ends))
             if bad:
                 return (i if bad & 1 else i + 1), np.nan
-            K._pad_row(cur, lo, hi, i + 1)
+            last_col[i] = mid[m] if hi[i] == m - 1 else K.INF
+            K._row_done(cur, lo, hi, i + 1, ends, last_col, m)
             if K._keep(keep_gamma, i, i1):
                 K._store_row(mid, gamma, lo, hi, start, i)
             if K._keep(keep_gamma, i + 1, i1):
@@ -439,11 +445,12 @@ def _forward(bx, bz, bmx, bmz, bpp, bqq, byaw, bstep, hx, hz, hmx, hmz, hpq, hya
                 next_p = _ensure_c(i, next_p, i0, i1, lo, hi, bx, bz, hx, hz, cre, cim)
             _fill(i, lo[i], hi[i], bmx, bmz, bpp, bqq, byaw, bstep, hmx, hmz, hpq, hyaw,
                   mode, nb, half, cre, cim, bins, crow_a)
-            if K._dp_row(prev, cur, crow_a, lo[i], hi[i], bp[start[i]: start[i + 1]]):
+            if K._dp_row(prev, cur, crow_a, lo[i], hi[i], bp[start[i]: start[i + 1]],
+                         K._left0(lo, i, ends)):
                 return i, np.nan
-            K._pad_row(cur, lo, hi, i)
+            K._row_done(cur, lo, hi, i, ends, last_col, m)
             if K._keep(keep_gamma, i, i1):
                 K._store_row(cur, gamma, lo, hi, start, i)
             prev, cur = cur, prev
             i += 1
-    return -1, prev[m]
+    return -1, K._finish(prev, last_row, m)

@@ -73,10 +73,44 @@ def test_hand_take_resampled_to_the_body_rate():
     assert not native.shoulder_subtracted  # Leap takes have no shoulder
     assert at30.fps == 30.0
     assert at30.n_frames == int(round((hand.n_frames - 1) * 30.0 / hand.fps)) + 1
-    t = 1.0  # one second in: linear interpolation of the native samples
-    k = t * hand.fps
-    expect = native.markers[int(k)] * (1 - k % 1) + native.markers[int(k) + 1] * (k % 1)
+    # one second in: the native samples, low-passed (anti-aliasing), interpolated linearly
+    from scipy.ndimage import gaussian_filter1d
+
+    smooth = gaussian_filter1d(native.markers, 0.5 * hand.fps / 30.0, axis=0, mode="nearest")
+    k = 1.0 * hand.fps
+    expect = smooth[int(k)] * (1 - k % 1) + smooth[int(k) + 1] * (k % 1)
     assert np.allclose(at30.markers[30], expect, atol=1e-12)
+    # and the slow motion is kept: within 2 mm of plain interpolation
+    plain = native.markers[int(k)] * (1 - k % 1) + native.markers[int(k) + 1] * (k % 1)
+    assert np.abs(at30.markers[30] - plain).max() < 2e-3
+
+
+def test_resampling_does_not_alias_jitter():
+    """A 50 Hz jitter at 120 fps (above 30 fps's Nyquist) must not fold into a slow
+    wobble at 30 fps; the slow 1 Hz motion passes."""
+    t = np.arange(1200) / 120.0
+    slow = np.sin(2 * np.pi * 1.0 * t)
+    jitter = 0.2 * np.sin(2 * np.pi * 50.0 * t + 0.3)
+    out = FE.resample_points((slow + jitter)[:, None], 120.0, 30.0)[:, 0]
+    t30 = np.arange(len(out)) / 30.0
+    resid = out - np.sin(2 * np.pi * 1.0 * t30)
+    plain = (slow + jitter)[::4] - np.sin(2 * np.pi * 1.0 * t30[:300])  # no filter
+    assert np.abs(plain).max() > 0.15  # aliasing without a filter
+    assert np.abs(resid[5:-5]).max() < 0.05
+
+
+def test_despike_removes_single_frame_spikes_and_keeps_motion():
+    rng = np.random.default_rng(0)
+    t = np.arange(300) / 60.0
+    clean = np.stack([np.sin(t), np.cos(2 * t), 0.1 * t], axis=1)[:, None, :]  # (F, 1, 3)
+    noisy = clean + rng.normal(0, 0.002, clean.shape)
+    spiky = noisy.copy()
+    spikes = [40, 41 + 60, 200]
+    spiky[spikes] += 0.3
+    out = FE.despike(spiky)
+    assert np.abs(out - clean).max() < 0.05  # a spike frame takes a neighbour's value
+    untouched = np.setdiff1d(np.arange(300), spikes)
+    assert np.mean(np.all(out[untouched] == spiky[untouched], axis=(1, 2))) > 0.95
 
 
 def test_resample_points_keeps_the_duration():

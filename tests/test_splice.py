@@ -200,8 +200,9 @@ def test_cost_images_and_local_costs(beat_case):
     cum = P.cost_image(feats, "cumulative2", rows, cols, res)
     inside = res.pass2.band.contains(rows[:, None], cols[None, :])
     assert np.all(np.isnan(cum[~inside])) and np.all(np.isfinite(cum[inside]))
-    # the path's local costs add up to the pass cost
-    assert res.pass1.path_costs().sum() == pytest.approx(res.pass1.cost)
+    # the path's local costs plus the open ends' skip cost add up to the pass cost
+    skipped = P.unmatched_frames(res.pass1.path, feats.n, feats.m) * res.pass1.ends.skip
+    assert res.pass1.path_costs().sum() + skipped == pytest.approx(res.pass1.cost)
     s1, s2 = P.wrist_speeds(feats)
     assert s1.shape == (feats.n,) and s2.shape == (feats.m,)
 
@@ -222,8 +223,16 @@ def test_report_has_the_map_both_passes_and_timings(beat_case, beat_result):
     rep = json.loads(dumps(build_report(beat_result, output_path="x.bvh")))
     assert len(rep["map"]) == beat_case.body.n_frames
     for key in ("pass1", "pass2"):
-        assert rep[key]["path"][0] == [0, 0] and rep[key]["cost"] >= 0
+        # open ends (the default): the path starts on the first body or hand frame
+        assert 0 in rep[key]["path"][0] and rep[key]["cost"] >= 0
         assert len(rep[key]["band"]["lo"]) == beat_case.body.n_frames
+    p2 = rep["pass2"]["path"]
+    assert rep["overlap"]["body"] == [p2[0][0], p2[-1][0]]
+    assert 0 <= rep["overlap"]["hand"][0] <= rep["overlap"]["hand"][1] < beat_case.hand.n_frames
+    assert rep["parameters"]["ends"] == "open"
+    first, last = rep["overlap"]["body"]
+    assert rep["unmatched_body"] == ([[0, first - 1]] if first > 0 else []) + \
+        ([[last + 1, beat_case.body.n_frames - 1]] if last < beat_case.body.n_frames - 1 else [])
     assert rep["parameters"]["band"] == 0.3 and rep["parameters"]["refine_band"] == 0.1
     assert {"prepare", "pass1", "pass2", "merge", "transfer", "total"} <= set(rep["timings_s"])
     assert rep["sides"] == ["right", "left"]

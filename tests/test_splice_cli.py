@@ -29,8 +29,12 @@ def test_splice_writes_bvh_report_and_progress(tmp_path, capsys):
     assert len(report["map"]) == motion.n_frames
     assert report["parameters"]["points_given"] == [[60, 40, 3.0]]
     assert report["parameters"]["band"] == 0.4 and report["parameters"]["refine_band"] == 0.15
-    # the matching point holds in hand-take frames: body 60 -> hand 40 +- 3 (+ smoothing)
-    assert abs(report["map"][60] - 40) <= 4
+    # the matching point holds on the path: body 60 -> hand 40 +- 3 (hand-take frames; on
+    # the alignment grid as the report gives it); the smoothed map stays within a blend of it
+    [(x, y, tol)] = report["parameters"]["points"]
+    cols = [j for i, j in report["pass2"]["path"] if i == x]
+    assert x == 60 and cols and all(abs(j - y) <= tol for j in cols)
+    assert abs(report["map"][60] - 40) <= 3 + 2
     # trust: one uncertainty per body frame, strokes with verdicts, the CLI's summary line
     assert len(report["uncertainty_ms"]) == motion.n_frames
     assert all(u >= 0 for u in report["uncertainty_ms"])

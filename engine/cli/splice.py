@@ -61,6 +61,12 @@ def add_parser(subparsers) -> None:
     p.add_argument("--theta", default="window", choices=["window", "trunk", "none"],
                    help="vertical-axis rotation of pass 1: eq. 7 window (default), trunk "
                         "heading difference, or none")
+    p.add_argument("--ends", default="open", choices=["open", "fixed"],
+                   help="open (default): either take may begin earlier or end later than the "
+                        "other; fixed: first frames match and last frames match (the paper)")
+    p.add_argument("--max-unmatched", type=float, default=None, metavar="SECONDS",
+                   help="open ends: seconds of each take that may stay unmatched at each end "
+                        "(default: half of the shorter take)")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     p.set_defaults(func=run)
 
@@ -188,7 +194,8 @@ def run(args: argparse.Namespace) -> int:
                              refine_band=args.refine_band, points=points,
                              hand_points=hand_points,
                              theta=args.theta, body_roles=body_roles, hand_roles=hand_roles,
-                             progress=progress)
+                             progress=progress, ends=args.ends,
+                             max_unmatched_s=args.max_unmatched)
     from engine.splice.uncertainty import assess
 
     progress("trust", 0.0)

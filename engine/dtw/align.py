@@ -279,7 +279,8 @@ class Problem:
             if self._rows_state is None:
                 self._rows_state = self.metric.prepare(self.a, self.b)
             return self.metric.forward(
-                self._rows_state, lo, hi, start, i0, i1, bp, gamma, keep_gamma
+                self._rows_state, lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col,
+                last_row
             )
         return K.forward_metric(
             self.metric.cell, self.a, self.b, lo, hi, start, i0, i1, bp, gamma, keep_gamma,

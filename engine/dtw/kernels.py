@@ -641,8 +641,8 @@ class Metric:
     cell: Dispatcher
     kind: int = -1
     #: optional row kernel: ``prepare(a, b) -> state`` once per problem, then
-    #: ``forward(state, lo, hi, start, i0, i1, bp, gamma, keep_gamma)`` as the
-    #: ``forward_*`` kernels; must give exactly ``cell``'s costs (see engine.phase_kernel)
+    #: ``forward(state, lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col,
+    #: last_row)`` as the ``forward_*`` kernels (open ends included); must give exactly ``cell``'s costs (see engine.phase_kernel)
     prepare: object = None
     forward: object = None
 

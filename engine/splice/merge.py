@@ -28,14 +28,21 @@ BLEND_FRAMES = 3.0
 def median_warp(path: np.ndarray, n: int) -> np.ndarray:
     """Median matched column per row of ``path (k, 2)``: ``(n,)`` float, non-decreasing.
 
-    Every row ``0..n-1`` must appear in the path (true of any DTW path).
+    The path visits a run of rows ``i0..i1`` (every row with fixed ends; an open-end
+    path may start below row 0 or end above row ``n-1``). Rows before ``i0`` hold the
+    first matched column and rows after ``i1`` the last one: no timing is invented
+    outside the overlap, the hand pose holds (``smooth_warp`` eases into it).
     """
     path = np.asarray(path, dtype=np.int64).reshape(-1, 2)
     if len(path) == 0:
         raise ParameterError("merge: the path is empty")
     rows, cols = path[:, 0], path[:, 1]
-    if rows.min() != 0 or rows.max() != n - 1 or np.any(np.diff(rows) < 0):
-        raise ParameterError(f"merge: the path must visit rows 0..{n - 1} in order")
+    if rows.min() < 0 or rows.max() > n - 1 or np.any(np.diff(rows) < 0):
+        raise ParameterError(f"merge: the path must visit rows within 0..{n - 1} in order")
+    i0, i1 = int(rows[0]), int(rows[-1])
+    if i0 > 0 or i1 < n - 1:
+        inner = median_warp(path - np.array([i0, 0]), i1 - i0 + 1)
+        return np.concatenate([np.full(i0, inner[0]), inner, np.full(n - 1 - i1, inner[-1])])
     # rows are sorted: each row's columns are a contiguous sorted run
     starts = np.searchsorted(rows, np.arange(n), side="left")
     stops = np.searchsorted(rows, np.arange(n), side="right")
@@ -74,6 +81,45 @@ def smooth_warp(warp: np.ndarray, blend: float = BLEND_FRAMES, m: int | None = N
 def merge_path(path: np.ndarray, n: int, m: int, blend: float = BLEND_FRAMES) -> np.ndarray:
     """The warp ``w (n,)``: hand frame (DTW grid units, float) for every body frame."""
     return smooth_warp(median_warp(path, n), blend, m)
+
+
+def still_runs(speed: np.ndarray, threshold: float, min_frames: int, gap: int = 2
+               ) -> list[tuple[int, int]]:
+    """Runs ``[first, last]`` of at least ``min_frames`` frames with ``speed < threshold``
+    (runs apart by at most ``gap`` moving frames, a noise blip, are joined)."""
+    still = np.asarray(speed) < threshold
+    moving = np.flatnonzero(~still)
+    if moving.size:  # fill short interruptions between still frames
+        edges = np.diff(np.concatenate([[0], (~still).astype(np.int8), [0]]))
+        for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True):
+            if b - a <= gap and a > 0 and b < still.size:
+                still[a:b] = True
+    edges = np.diff(np.concatenate([[0], still.astype(np.int8), [0]]))
+    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    return [(int(a), int(b) - 1) for a, b in zip(starts, stops, strict=True)
+            if b - a >= min_frames]
+
+
+def straighten_holds(warp: np.ndarray, body_holds, hand_holds, slack: float) -> np.ndarray:
+    """The warp made linear across holds matched to holds (METHOD: holds).
+
+    In a hold both takes are still, every cell of the rectangle costs the same and the
+    DTW path inside it is arbitrary (diagonal, then a vertical or horizontal run): the
+    timing inside and the exit from the hold are left to chance. Where a body hold
+    ``[b0, b1]`` is matched to a hand hold ``[h0, h1]`` (the warp enters within
+    ``slack`` frames of ``h0`` and leaves within ``slack`` of ``h1``), the hold
+    boundaries are matched to each other and the warp runs straight between them.
+    ``warp (n,)`` grid columns per body frame (unsmoothed); returns a new array.
+    """
+    w = np.asarray(warp, dtype=float).copy()
+    for b0, b1 in body_holds:
+        if b1 <= b0:
+            continue
+        for h0, h1 in hand_holds:
+            if abs(w[b0] - h0) <= slack and abs(w[b1] - h1) <= slack and h1 > h0:
+                w[b0:b1 + 1] = h0 + (np.arange(b0, b1 + 1) - b0) * (h1 - h0) / (b1 - b0)
+                break
+    return np.maximum.accumulate(w)
 
 
 def grid_to_hand_frames(warp: np.ndarray, body_fps: float, hand_fps: float,

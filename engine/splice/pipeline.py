@@ -36,7 +36,7 @@ import numpy as np
 
 from engine import limits
 from engine import metrics as M
-from engine.dtw import Aligner, Band, align_features
+from engine.dtw import Aligner, Band, Ends, align_features
 from engine.errors import HandSpliceError, ParameterError, RoleError
 from engine.features import (
     HandFrame,
@@ -60,6 +60,16 @@ DEAD_ZONE = 0.1
 #: constant added to every cell (charges non-diagonal steps; 0 = the paper)
 STEP1 = 0.0
 STEP2 = 0.05
+#: where the alignment may start and end: "open" (either take may begin earlier or end
+#: later; up to ``MAX_UNMATCHED`` at each end) or "fixed" (the paper: corner to corner)
+ENDS = "open"
+#: default limit of unmatched frames at each end, as a share of the shorter take
+MAX_UNMATCHED_SHARE = 0.5
+#: frames (Gaussian σ, body frames) over which the fingers ease into the first matched hand
+#: pose / out of the last one at the ends of the overlap
+EASE_FRAMES = 3.0
+#: random cell pairs that estimate the cost of matching unrelated frames (the skip cost)
+CHANCE_CELLS = 4096
 #: one-shot solves (1 byte per cell) above this band area; incremental ``Aligner`` below
 #: (about 3-4 bytes per cell resident: backpointers both ways, γ of every 8th row)
 INCREMENTAL_MAX_CELLS = 100_000_000
@@ -364,6 +374,7 @@ class PassResult:
     metric: str
     solver: object = None
     seconds: float = 0.0
+    ends: Ends = field(default_factory=Ends)
 
     def local_costs(self, rows_idx=None, cols_idx=None) -> np.ndarray:
         """Local costs on a grid of cells (all cells by default: small takes only)."""
@@ -387,8 +398,12 @@ class SpliceAlignment:
     """Both passes and the merged warp.
 
     pass1, pass2 : PassResult
-    warp : (n,) float, grid hand frame per body frame (merged and smoothed)
+    warp : (n,) float, grid hand frame per body frame (merged and smoothed); outside the
+        overlap it holds the first / last matched hand frame (no invented timing)
     map : (n,) float, frame of the original hand take per body frame
+    overlap : ((first, last) body frame, (first, last) grid hand frame) the pass-2 path
+        matches (the whole takes with fixed ends)
+    ends : ``"open"`` or ``"fixed"``; max_unmatched_s : float or None (the limit asked for)
     body_heading, hand_heading : (n,), (m,) float radians, trunk headings removed from
         each take's pass-2 vectors (:func:`pass2_headings`)
     points : list of (body, grid hand, tol) matching points used
@@ -409,6 +424,21 @@ class SpliceAlignment:
     blend: float
     timings: dict = field(default_factory=dict)
     features_id: int = 0
+    overlap: tuple = ((0, 0), (0, 0))
+    ends: str = ENDS
+    max_unmatched_s: float | None = None
+
+    @property
+    def unmatched_body(self) -> list[tuple[int, int]]:
+        """Body frame ranges ``[first, last]`` outside the overlap (fingers eased, not timed)."""
+        (i0, i1), _ = self.overlap
+        n = len(self.warp)
+        out = []
+        if i0 > 0:
+            out.append((0, i0 - 1))
+        if i1 < n - 1:
+            out.append((i1 + 1, n - 1))
+        return out
 
 
 def refine_radius(n: int, m: int, refine_band: float) -> int:
@@ -438,15 +468,132 @@ def _check_points(points, n: int, m: int) -> list[tuple[int, int, float]]:
     return out
 
 
-def _solve(rows, metric: str, band: Band, solver=None, incremental: bool = False):
+#: a hold: every alignment marker slower than the take's velocity dead zone for at least
+#: this long (seconds); holds matched within HOLD_SLACK_S are straightened (merge)
+HOLD_MIN_S = 0.4
+HOLD_SLACK_S = 0.15
+
+
+def holds(phase: M.PhaseFeatures, fps: float) -> list[tuple[int, int]]:
+    """Frame runs ``[first, last]`` where the take's arms hold still, ≥ :data:`HOLD_MIN_S`:
+    the mean marker speed is below sqrt(3) times the pass-1 velocity dead zone (a marker
+    whose three velocity components read 0 moves slower than that)."""
+    speed = np.linalg.norm(phase.velocity, axis=-1).mean(axis=1)
+    return MG.still_runs(speed, np.sqrt(3.0) * phase.zone.velocity,
+                         max(2, int(round(HOLD_MIN_S * fps))))
+
+
+def straighten_holds(features: SpliceFeatures, warp: np.ndarray) -> np.ndarray:
+    """:func:`engine.splice.merge.straighten_holds` with the pair's holds."""
+    return MG.straighten_holds(warp, holds(features.body_phase, features.fps),
+                               holds(features.hand_phase, features.fps),
+                               HOLD_SLACK_S * features.fps)
+
+
+def _solve(rows, metric: str, band: Band, solver=None, incremental: bool = False,
+           ends: Ends | None = None):
     """Solve one pass; returns (Alignment, solver or None)."""
     a, b = rows
     if solver is not None:
-        return solver.solve(band), solver
+        return solver.solve(band, ends), solver
     if incremental:
         solver = Aligner(a, b, metric=metric)
-        return solver.solve(band), solver
-    return align_features(a, b, band, metric=metric), None
+        return solver.solve(band, ends), solver
+    return align_features(a, b, band, metric=metric, ends=ends), None
+
+
+def check_ends_option(ends: str, max_unmatched_s: float | None) -> tuple[str, float | None]:
+    """Validated ``(ends, max_unmatched_s)``: ``"open"`` or ``"fixed"``, seconds >= 0 or None.
+
+    The one place the splice reads the ends option (CLI ``--ends``/``--max-unmatched``,
+    batch, app)."""
+    kind = (ends or ENDS).lower() if isinstance(ends, str) else ends
+    if kind not in ("open", "fixed"):
+        raise ParameterError(f"ends must be 'open' or 'fixed', got {ends!r}")
+    if max_unmatched_s is not None:
+        try:
+            v = float(max_unmatched_s)
+        except (TypeError, ValueError):
+            raise ParameterError(f"max unmatched must be seconds >= 0, got {max_unmatched_s!r}") \
+                from None
+        if not (np.isfinite(v) and v >= 0):
+            raise ParameterError(f"max unmatched must be seconds >= 0, got {max_unmatched_s!r}")
+        max_unmatched_s = v
+    return kind, max_unmatched_s
+
+
+def unmatched_limits(n: int, m: int, fps: float, max_unmatched_s: float | None
+                     ) -> tuple[int, int]:
+    """Frames of the body take and of the hand take (grid) that may stay unmatched at each
+    end: ``max_unmatched_s`` seconds, else :data:`MAX_UNMATCHED_SHARE` of the shorter take."""
+    if max_unmatched_s is None:
+        k = int(MAX_UNMATCHED_SHARE * min(n, m))
+        return min(k, n - 1), min(k, m - 1)
+    k = int(round(max_unmatched_s * fps))
+    return min(k, n - 1), min(k, m - 1)
+
+
+def chance_cost(rows, metric: str, seed: int = 0) -> float:
+    """Mean local cost of :data:`CHANCE_CELLS` random cells: matching unrelated frames."""
+    a, b = rows
+    rng = np.random.default_rng(seed)
+    cells = np.column_stack([rng.integers(0, len(a), CHANCE_CELLS),
+                             rng.integers(0, len(b), CHANCE_CELLS)])
+    vals = M.path_values(_METRIC_FUNCS[metric], a, b, cells)
+    vals = vals[np.isfinite(vals)]
+    return float(vals.mean()) if vals.size else 0.0
+
+
+def unmatched_frames(path: np.ndarray, n: int, m: int) -> int:
+    """Frames of both takes an open-end path leaves out (0 for a corner-to-corner path)."""
+    p = np.asarray(path)
+    return int(p[0].sum()) + (n - 1 - int(p[-1, 0])) + (m - 1 - int(p[-1, 1]))
+
+
+def pass1_ends(features: SpliceFeatures, kind: str, max_unmatched_s: float | None) -> Ends:
+    """Open ends of pass 1: ``skip`` = half the cost of matching unrelated frames.
+
+    Open ends charge ``skip`` per unmatched frame (``engine.dtw.Ends``), so every frame
+    of both takes is paid for, matched or not, and a short overlap is not cheaper by
+    itself (plain subsequence DTW, skip 0, would cut every end). With half the chance
+    cost (:func:`chance_cost`) an end stretch is left out only when its cells are no
+    better than matching random frames (a diagonal cell covers a frame of each take).
+    Pass 1's sign costs are coarse, so nothing stricter is safe there. Cached on
+    ``features`` (it depends on the pair and the limits only).
+    """
+    if kind == "fixed":
+        return Ends()
+    limits = unmatched_limits(features.n, features.m, features.fps, max_unmatched_s)
+    cache = features.params.setdefault("_ends", {})
+    if "chance1" not in cache:
+        cache["chance1"] = chance_cost(features.pass1_rows, "splice_phase")
+    return Ends(limits[0], limits[1], 0.5 * cache["chance1"])
+
+
+def _solve_pass2(rows, band: Band, solver, incremental: bool, pass1: Ends):
+    """Pass 2 with open ends (when ``pass1`` is open): returns (Alignment, solver, Ends).
+
+    ``skip`` is the smaller of half the chance cost and the mean local cost per cell of
+    the open path found with it. Pass 2's angle costs change smoothly, so the neighbours
+    of the true start cost far less than chance: with the typical matched cost, the
+    path does not absorb extra frames of one take by horizontal or vertical runs whose
+    cells cost more than a typical matched cell, and an end stretch stays matched on the
+    diagonal while its cells cost less than about twice that. The band around the
+    pass-1 path keeps the ends near pass 1's.
+    """
+    if pass1.fixed:
+        al, solver = _solve(rows, "splice_angle", band, solver, incremental, Ends())
+        return al, solver, Ends()
+    n, m = len(rows[0]), len(rows[1])
+    first = Ends(pass1.body, pass1.hand, 0.5 * chance_cost(rows, "splice_angle"))
+    al = align_features(*rows, band, metric="splice_angle", ends=first)
+    matched = al.cost - first.skip * unmatched_frames(al.path, n, m)
+    typical = max(matched, 0.0) / len(al.path)
+    ends = Ends(pass1.body, pass1.hand, min(first.skip, typical))
+    if ends == first and not incremental and solver is None:
+        return al, None, ends
+    al, solver = _solve(rows, "splice_angle", band, solver, incremental, ends)
+    return al, solver, ends
 
 
 def pass2_headings(features: SpliceFeatures, path1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -472,7 +619,8 @@ def pass2_headings(features: SpliceFeatures, path1: np.ndarray) -> tuple[np.ndar
 def align_passes(features: SpliceFeatures, band: float = BAND, refine_band: float = REFINE_BAND,
                  points: Sequence = (), previous: SpliceAlignment | None = None,
                  blend: float = MG.BLEND_FRAMES, incremental: bool | None = None,
-                 progress: Progress | None = None) -> SpliceAlignment:
+                 progress: Progress | None = None, ends: str = ENDS,
+                 max_unmatched_s: float | None = None) -> SpliceAlignment:
     """Pass 1 (phase matching) and pass 2 (refinement), then merge and smooth.
 
     Parameters
@@ -487,24 +635,33 @@ def align_passes(features: SpliceFeatures, band: float = BAND, refine_band: floa
     blend : merge smoothing (Gaussian σ, body frames)
     incremental : keep ``Aligner`` solvers (γ for cumulative-cost views, partial
         re-solves); default when the pass-1 band has at most 12 M cells.
+    ends : ``"open"`` (default: either take may start earlier or end later; the
+        unmatched body frames hold the first / last matched hand pose, eased over
+        :data:`EASE_FRAMES`) or ``"fixed"`` (the paper: first to last frames).
+    max_unmatched_s : limit of unmatched seconds of each take at each end (default half
+        of the shorter take).
 
     Raises ``ParameterError`` for infeasible bands or points (naming the point).
     """
     progress = progress or _noop
     n, m = features.n, features.m
     pts = _check_points(points, n, m)
+    kind, max_unmatched_s = check_ends_option(ends, max_unmatched_s)
+    is_open = kind == "open"
     timings: dict[str, float] = {}
     if not (np.isfinite(band) and band >= 0):
         raise ParameterError(f"band must be a fraction >= 0, got {band}")
     t0 = time.perf_counter()
     progress("pass 1", 0.0)
-    band1 = Band.from_constraints(n, m, float(band), pts)
+    band1 = Band.from_constraints(n, m, float(band), pts, open_ends=is_open)
     limits.check_band("pass 1", band1.area)
     if incremental is None:
         incremental = band1.area <= INCREMENTAL_MAX_CELLS
     same = previous is not None and previous.features_id == id(features)
     solver1 = previous.pass1.solver if same else None
-    al1, solver1 = _solve(features.pass1_rows, "splice_phase", band1, solver1, incremental)
+    ends1 = pass1_ends(features, kind, max_unmatched_s)
+    al1, solver1 = _solve(features.pass1_rows, "splice_phase", band1, solver1, incremental,
+                          ends1)
     t1 = time.perf_counter()
     timings["pass1"] = t1 - t0
     progress("pass 1", 1.0)
@@ -515,33 +672,36 @@ def align_passes(features: SpliceFeatures, band: float = BAND, refine_band: floa
         features.params.get("step2", 0.0))
     hand2 = M.angle_features(features.hand_markers, -hand_heading).rows()
     radius = refine_radius(n, m, refine_band)
-    band2 = Band.around_path(al1.path, n, m, radius, points=pts if pts else None)
+    band2 = Band.around_path(al1.path, n, m, radius, points=pts if pts else None,
+                             open_ends=is_open)
     limits.check_band("pass 2", band2.area)
     solver2 = None
     if same and previous.pass2.solver is not None and \
             np.array_equal(previous.pass2.rows[1], hand2):
         solver2 = previous.pass2.solver
-    al2, solver2 = _solve((body2, hand2), "splice_angle", band2, solver2, incremental)
+    al2, solver2, ends2 = _solve_pass2((body2, hand2), band2, solver2, incremental, ends1)
     t2 = time.perf_counter()
     timings["pass2"] = t2 - t1
     progress("pass 2", 1.0)
 
     progress("merge", 0.0)
-    warp = MG.merge_path(al2.path, n, m, blend)
+    warp = MG.smooth_warp(straighten_holds(features, MG.median_warp(al2.path, n)), blend, m)
     hand_map = features.grid_to_hand(warp)
+    overlap = al2.overlap
     timings["merge"] = time.perf_counter() - t2
     progress("merge", 1.0)
     p1 = PassResult(path=np.asarray(al1.path), cost=float(al1.cost), band=band1,
                     rows=features.pass1_rows, metric="splice_phase", solver=solver1,
-                    seconds=timings["pass1"])
+                    seconds=timings["pass1"], ends=ends1)
     p2 = PassResult(path=np.asarray(al2.path), cost=float(al2.cost), band=band2,
                     rows=(body2, hand2), metric="splice_angle",
-                    solver=solver2, seconds=timings["pass2"])
+                    solver=solver2, seconds=timings["pass2"], ends=ends2)
     return SpliceAlignment(pass1=p1, pass2=p2, warp=warp, map=hand_map,
                            body_heading=body_heading, hand_heading=hand_heading,
                            points=pts, band=float(band), refine_band=float(refine_band),
                            radius=radius, blend=float(blend), timings=timings,
-                           features_id=id(features))
+                           features_id=id(features), overlap=overlap, ends=kind,
+                           max_unmatched_s=max_unmatched_s)
 
 
 # --------------------------------------------------------------------------------------------
@@ -594,13 +754,15 @@ def splice(body: Motion, hand: Motion, side: str = "auto", band: float = BAND,
            blend: float = MG.BLEND_FRAMES, smoothing_s: float = SMOOTHING_S,
            dead_zone: float = DEAD_ZONE, n_bins: int = M.THETA_BINS,
            step1: float = STEP1, step2: float = STEP2,
-           progress: Progress | None = None, transfer_fingers: bool = True) -> SpliceResult:
+           progress: Progress | None = None, transfer_fingers: bool = True,
+           ends: str = ENDS, max_unmatched_s: float | None = None) -> SpliceResult:
     """Align and splice in one call (CLI, batch and benchmarks).
 
     ``points`` are ``(body_frame, hand_frame[, tol])``; with ``hand_points=True`` the
     hand frame and tolerance are in frames of the original hand take (as a person
     reads them off the file) and are converted to the alignment grid, else they are
     grid units. With ``transfer_fingers=False`` only the alignment is computed.
+    ``ends``/``max_unmatched_s``: see :func:`align_passes`.
     """
     t0 = time.perf_counter()
     feats = prepare(body, hand, side=side, body_roles=body_roles, hand_roles=hand_roles,
@@ -610,13 +772,15 @@ def splice(body: Motion, hand: Motion, side: str = "auto", band: float = BAND,
     pts = _check_points(points, feats.n, feats.m_hand if hand_points else feats.m)
     if hand_points and pts:
         # check order and range in the user's own frame numbers first
-        Band.from_constraints(feats.n, feats.m_hand, None, pts)
+        Band.from_constraints(feats.n, feats.m_hand, None, pts,
+                              open_ends=check_ends_option(ends, None)[0] == "open")
         pts = [(x, int(round(float(feats.hand_to_grid(y)))),
                 float(np.ceil(float(feats.hand_to_grid(t)) - 1e-9)) if t else 0.0)
                for x, y, t in pts]
         pts = [(x, min(y, feats.m - 1), t) for x, y, t in pts]
     result = align_passes(feats, band=band, refine_band=refine_band, points=pts, blend=blend,
-                          incremental=False, progress=progress)
+                          incremental=False, progress=progress, ends=ends,
+                          max_unmatched_s=max_unmatched_s)
     t2 = time.perf_counter()
     motion = transfer(feats, result, progress) if transfer_fingers else None
     t3 = time.perf_counter()

@@ -17,6 +17,12 @@ Keys (all frame numbers 0-based):
                        constant, ``hand``)
 ``parameters``         band, refine_band, points (grid units and as given), theta, n_bins,
                        smoothing_s, dead_zone, step1, step2, blend
+``overlap``            ``{"body": [first, last], "hand": [first, last]}``: the frames the
+                       alignment matches (hand: frames of the original hand take); with open
+                       ends (the default) either take may begin earlier or end later
+``unmatched_body``     ``[[first, last], ...]`` body frame ranges outside the overlap: no timing
+                       is invented there, the fingers hold the first / last matched hand pose
+                       (eased in and out over a short blend)
 ``timings_s``          seconds per stage (prepare, pass1, pass2, merge, transfer, total)
 ``transfer``           per side: wrist transferred or kept, finger joints driven, joints
                        grafted (names), graft scale; ``notes``
@@ -93,6 +99,15 @@ def build_report(result, body_path=None, hand_path=None, output_path=None,
         },
         "timings_s": {k: round(float(v), 6) for k, v in result.timings.items()},
     }
+    (b0, b1), (h0, h1) = a.overlap
+    hand_ends = f.grid_to_hand(np.array([h0, h1], dtype=float))
+    report["overlap"] = {"body": [int(b0), int(b1)],
+                         "hand": [int(np.floor(hand_ends[0] + 1e-6)),
+                                  int(np.ceil(hand_ends[1] - 1e-6))]}
+    report["unmatched_body"] = [[int(x), int(y)] for x, y in a.unmatched_body]
+    report["parameters"]["ends"] = a.ends
+    report["parameters"]["max_unmatched_s"] = a.max_unmatched_s
+    report["parameters"]["skip"] = {"pass1": a.pass1.ends.skip, "pass2": a.pass2.ends.skip}
     plan = f.params.get("_plan")
     if plan is not None:
         sk = plan.skeleton

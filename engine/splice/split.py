@@ -327,7 +327,8 @@ class Realism:
 
     untrimmed_s : (lo, hi) seconds; the body take starts ``U(lo, hi)`` s later and ends
         ``U(lo, hi)`` s earlier than the hand take (0 = both cover the whole take).
-    jitter_deg : rotation noise (degrees, per joint and frame) on both takes.
+    jitter_deg : rotation noise (degrees, per joint and frame) on the hand take (and the
+        body take with ``noisy_body``).
     spike_rate : share of frames with a single-frame spike; on a spike frame each arm and
         hand joint turns by ``spike_deg`` (10-30 degrees random) with probability 1/2.
     holds : (count lo, count hi, length lo s, length hi s): the performer holds still at
@@ -349,6 +350,7 @@ class Realism:
     rush: float = 1.0
     body_fps: tuple[float, ...] | None = None
     hand_fps: tuple[float, ...] | None = None
+    noisy_body: bool = False
 
 
 def base_take(family: str, seed: int, rng: np.random.Generator, crop_s: float = 20.0,
@@ -521,7 +523,8 @@ def _realistic_case(full: Motion, body_full: Motion, roles, rng, params, name, f
         free_b = np.array([j for j, nm in enumerate(body.skeleton.names) if nm in free_names],
                           dtype=np.int64)
         hand = _spiky(hand, rr, free_h, real)
-        body = _spiky(body, rr, free_b, real)
+        if real.noisy_body:
+            body = _spiky(body, rr, free_b, real)
     params = {**params, "body_fps": body_fps, "untrimmed_s": [cut0, cut1],
               "holds": holds, "rush": real.rush, "jitter_deg": real.jitter_deg,
               "spike_rate": real.spike_rate}

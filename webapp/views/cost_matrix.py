@@ -118,6 +118,12 @@ class CostMatrixView:
                  name="hs-band-lo")
         fig.line(x="x", y="hi", source=self.band_source, color=BAND_COLOR, line_width=1.5,
                  name="hs-band-hi")
+        # open ends: frames of either take outside the path's overlap, lightly shaded
+        self.unmatched_source = ColumnDataSource(
+            {"left": [], "right": [], "bottom": [], "top": []}, name="hs-unmatched-source")
+        fig.quad(left="left", right="right", bottom="bottom", top="top",
+                 source=self.unmatched_source, fill_color="white", fill_alpha=0.14,
+                 line_alpha=0, name="hs-unmatched")
         self.other_path_source = ColumnDataSource({"x": [], "y": []}, name="hs-other-path")
         fig.line(x="x", y="y", source=self.other_path_source, color=OTHER_PATH_COLOR,
                  line_width=1.2, line_alpha=0.7, line_dash="dashed")
@@ -216,6 +222,7 @@ class CostMatrixView:
             self.band_source.data = {"x": [], "lo": [], "hi": []}
             self.path_source.data = {"x": [], "y": []}
             self.other_path_source.data = {"x": [], "y": []}
+            self.unmatched_source.data = _unmatched_quads(None, 0, 0)
             return
         shown, other = (sol.pass2, sol.pass1) if s.matrix in ("pass2", "cumulative2") \
             else (sol.pass1, sol.pass2)
@@ -228,6 +235,7 @@ class CostMatrixView:
                                  "hi": (hi + 0.5).astype(np.float32)}
         self.other_path_source.data = {"x": other.path[:, 0].astype(np.int32),
                                        "y": other.path[:, 1].astype(np.int32)}
+        self.unmatched_source.data = _unmatched_quads(shown.path, len(lo), shown.band.m)
         self._on_frame()
         if s.matrix.startswith("cumulative"):  # the cumulative cost depends on band and points
             self._image_key = None
@@ -343,3 +351,20 @@ class CostMatrixView:
                    pn.pane.Bokeh(self.body_figure, sizing_mode="fixed", margin=0),
                    sizing_mode=None, width=size + AXIS_SIGNAL_SIZE, margin=0),
             sizing_mode=None, width=size + AXIS_SIGNAL_SIZE, margin=(0, 10))
+
+
+def _unmatched_quads(path, n: int, m: int) -> dict:
+    """Quads over the body rows and hand columns an open-end ``path`` leaves unmatched."""
+    q = {"left": [], "right": [], "bottom": [], "top": []}
+    if path is None or len(path) == 0:
+        return q
+    (i0, j0), (i1, j1) = path[0], path[-1]
+    for left, right, bottom, top in ((-0.5, i0 - 0.5, -0.5, m - 0.5),
+                                     (i1 + 0.5, n - 0.5, -0.5, m - 0.5),
+                                     (-0.5, n - 0.5, -0.5, j0 - 0.5),
+                                     (-0.5, n - 0.5, j1 + 0.5, m - 0.5)):
+        if right > left and top > bottom:
+            for k, v in zip(("left", "right", "bottom", "top"), (left, right, bottom, top),
+                            strict=True):
+                q[k].append(float(v))
+    return q
