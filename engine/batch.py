@@ -330,8 +330,9 @@ def run_pair(job: PairJob, outdir: str | Path, thumbnails: str = "render",
             record = _run_pair_here(job, outdir, thumbnails, splice)
     except (LimitExceeded, ChildFailed) as exc:
         record = _base_record(job)
-        record.update(status="failed", error=f"the pair {exc}" if isinstance(exc, LimitExceeded)
-                      else one_line(exc), seconds=f"{time.perf_counter() - t0:.2f}")
+        why = f"the pair {exc}" if isinstance(exc, LimitExceeded) else f"the pair's {exc}"
+        record.update(status="failed", error=why[:500],
+                      seconds=f"{time.perf_counter() - t0:.2f}")
     if memory_mb and record.get("status") == "failed" and \
             str(record.get("error", "")).startswith("MemoryError"):  # RLIMIT_DATA in the child
         record["error"] = (f"the pair used more than the memory limit of {memory_mb:g} MB "

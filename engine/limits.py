@@ -54,8 +54,9 @@ MAX_BAND_CELLS = 200_000_000
 #: magnitude of any offset, position or angle value in a capture file (file units or
 #: degrees); larger values overflow forward kinematics and are never real.
 MAX_ABS_VALUE = 1e9
-#: bytes of one uploaded capture file (the web app).
-MAX_UPLOAD_BYTES = 32 * 1024 * 1024
+#: bytes of one uploaded capture file (the web app; sent in chunks): a 10-minute
+#: 120 fps BVH with fingers is about 250 MB, a 2-minute one about 50 MB.
+MAX_UPLOAD_BYTES = 200 * 1024 * 1024
 #: bytes of one session JSON file.
 MAX_SESSION_BYTES = 4 * 1024 * 1024
 #: bytes of one JSON file of joint-role overrides (``--roles``).

@@ -230,8 +230,10 @@ def run_limited(fn: Callable, args: tuple = (), seconds: float | None = None,
             if sig == signal.SIGKILL and memory_mb:
                 raise LimitExceeded(f"was killed (signal {sig}), likely out of memory "
                                     f"(limit {memory_mb:g} MB)") from None
-            raise ChildFailed(f"the child process died (signal {sig})") from None
-        raise ChildFailed("the child process ended without a result") from None
+            raise ChildFailed(f"process died (signal {sig}: a crash)") from None
+        code = os.WEXITSTATUS(status) if os.WIFEXITED(status) else status
+        raise ChildFailed(f"process died (exit status {code}) before giving a result") \
+            from None
     if kind == "memory":
         _RUNNERS.runner = None  # a MemoryError may leave the child in a poor state
         runner.close(stop=True)

@@ -250,11 +250,11 @@ def test_upload_folder_problems_are_one_line_upload_errors(cfg, tmp_path, monkey
     assert msg.startswith("hand.bvh: the server cannot store uploads (") and "\n" not in msg
     assert str(tmp_path) not in msg  # no server paths shown to the user
 
-    def denied(path, data):
+    def denied(path):
         raise PermissionError(13, "Permission denied", str(path))
 
     other = dataclasses.replace(cfg, upload_dir=tmp_path / "up")
-    monkeypatch.setattr(uploads, "write_bytes", denied)
+    monkeypatch.setattr(uploads, "_open_staging", denied)
     with pytest.raises(uploads.UploadError, match=r"^body\.bvh: the server cannot store "
                                                    r"uploads \(permission denied\)$"):
         uploads.store(other, "body.bvh", good)

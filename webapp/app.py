@@ -14,7 +14,7 @@ from webapp import config
 from webapp.backend import one_line
 from webapp.state import Session
 
-pn.extension("tabulator", notifications=False, sizing_mode="stretch_width")
+pn.extension("tabulator", "filedropper", notifications=False, sizing_mode="stretch_width")
 
 CSS = """
 .hs-section-text { color: #444; max-width: 980px; }
@@ -135,6 +135,10 @@ def create_app() -> pn.viewable.Viewable:
     page = pn.Column(*sections, sizing_mode="stretch_width", css_classes=["hs-app"],
                      styles={"max-width": "1280px", "margin": "0 auto"})
     page.session = session  # for tests and debugging
+    from webapp.views import connection
+
+    connection.install(pn.state.curdoc if pn.state.curdoc and pn.state.curdoc.session_context
+                       else None)
     return page
 
 

@@ -109,10 +109,13 @@ def _file_key(path: Path) -> tuple:
     return (str(path), st.st_size, st.st_mtime_ns)
 
 
-def prepare(body_path: Path, hand_path: Path, side: str, roles: dict | None = None) -> Prepared:
+def prepare(body_path: Path, hand_path: Path, side: str, roles: dict | None = None,
+            takes: tuple | None = None) -> Prepared:
     """Load both takes and compute the per-pair features (cached per server).
 
     ``roles``: ``{"body": {"right.wrist": NAME}, "hand": {...}}`` joint-role overrides.
+    ``takes``: ``(body, hand)`` already read from these files (an upload's check read
+    them), or None entries to read here.
     """
     import json
 
@@ -123,7 +126,7 @@ def prepare(body_path: Path, hand_path: Path, side: str, roles: dict | None = No
         hit = _PREPARED.get(key)
         if hit is not None:
             return hit
-    prepared = _prepare(Path(body_path), Path(hand_path), side, key, roles)
+    prepared = _prepare(Path(body_path), Path(hand_path), side, key, roles, takes)
     with _PREPARE_LOCK:
         _PREPARED[key] = prepared
         _PREPARED_ORDER.append(key)
@@ -138,12 +141,14 @@ def _normalised(x: np.ndarray) -> np.ndarray:
     return (x - x.min()) / span if span > 0 else np.zeros_like(x)
 
 
-def _prepare(body_path: Path, hand_path: Path, side: str, key: tuple, roles: dict) -> Prepared:
+def _prepare(body_path: Path, hand_path: Path, side: str, key: tuple, roles: dict,
+             takes: tuple | None = None) -> Prepared:
     from engine.io import load_take
     from engine.splice import pipeline
 
-    body = load_take(body_path)
-    hand = load_take(hand_path)
+    body, hand = takes or (None, None)
+    body = body if body is not None else load_take(body_path)
+    hand = hand if hand is not None else load_take(hand_path)
     features = pipeline.prepare(body, hand, side=side, body_roles=roles.get("body") or None,
                                 hand_roles=roles.get("hand") or None)
     body_speed, hand_speed = pipeline.wrist_speeds(features)
@@ -264,15 +269,30 @@ def cost_view(prepared: Prepared, solution: Solution | None, kind: str, ranges,
                     stride=(sx, sy))
 
 
+def marker_body(prepared: Prepared) -> bool:
+    """True when the body take holds markers (C3D/TRC): no skeleton to receive fingers."""
+    return not hasattr(prepared.body, "skeleton")
+
+
 def splice(prepared: Prepared, solution: Solution):
-    """The spliced Motion (body take with the hand take's wrist and fingers)."""
+    """The spliced Motion (body take with the hand take's wrist and fingers).
+
+    A marker body (C3D/TRC) cannot receive fingers: then it is the hand take retimed
+    to the body (one frame per body frame, at the body's rate), which is what such a
+    pair gives (``engine.splice.retime``)."""
     from engine.splice import pipeline
 
     cached = solution.cache.get("spliced")
     if cached is not None:
         return cached
     with prepared.lock:
-        motion = pipeline.transfer(prepared.features, solution.cache["engine"])
+        if marker_body(prepared):
+            from engine.splice.retime import retimed_hand
+
+            motion = retimed_hand(prepared.hand, solution.cache["engine"].map,
+                                  prepared.features.fps)
+        else:
+            motion = pipeline.transfer(prepared.features, solution.cache["engine"])
     solution.cache["spliced"] = motion
     return motion
 
@@ -298,10 +318,15 @@ def preview_for(prepared: Prepared, solution: Solution):
     if cached is not None:
         return cached
     spliced = splice(prepared, solution)
-    takes = [prepared.body, prepared.hand, spliced]
+    if marker_body(prepared):  # the markers are drawn apart (no mesh): hand | retimed hand
+        takes, labels = [prepared.hand, spliced], ["hand take", "hand retimed to the body"]
+    else:
+        takes, labels = [prepared.body, prepared.hand, spliced], ["body take", "hand take",
+                                                                   "spliced"]
     if not all(hasattr(t, "skeleton") for t in takes):
-        raise HandSpliceError("previews need skeleton takes (BVH); marker takes have no mesh")
-    preview = Preview(takes, labels=["body take", "hand take", "spliced"], size=(960, 360))
+        raise HandSpliceError("previews need a skeletal hand take (BVH); a marker hand take "
+                              "has no fingers to show")
+    preview = Preview(takes, labels=labels, size=(960, 360))
     solution.cache["preview"] = preview
     with _PREVIEW_LOCK:  # close the previous solutions' OpenGL contexts of this pair
         old = _PREVIEWS.pop(id(prepared), None)
@@ -339,8 +364,31 @@ def render_frame(prepared: Prepared, solution: Solution, body_frame: int, camera
     """(H, W, 3) uint8: body take, hand take and spliced result side by side."""
     preview = preview_for(prepared, solution)
     frames = frame_triplet(prepared, solution, body_frame)
+    if marker_body(prepared):
+        return _marker_body_frame(prepared, preview, frames, camera, trails, size)
     return preview.frame(frames[0], view="side_by_side", camera=camera, size=size,
                          frames=list(frames), trails=trails)
+
+
+def _marker_body_frame(prepared: Prepared, preview, frames, camera: str, trails: bool,
+                       size: tuple[int, int]) -> np.ndarray:
+    """Body markers (a third of the width, the aligned arm highlighted) | hand take |
+    hand retimed to the body."""
+    from engine.render.markers import marker_image
+    from engine.roles import find_marker_roles
+
+    w, h = size
+    left = w // 3
+    try:
+        arm = find_marker_roles(prepared.body.labels, side_hint=prepared.side).side(
+            prepared.side)
+        highlight = [k for k in arm.values() if k is not None]
+    except (HandSpliceError, KeyError, ValueError):
+        highlight = []
+    markers = marker_image(prepared.body, frames[0], (left, h), highlight, "body take")
+    hands = preview.frame(frames[1], view="side_by_side", camera=camera, size=(w - left, h),
+                          frames=[frames[1], frames[2]], trails=trails)
+    return np.concatenate([markers, hands[:, :, :3]], axis=1)
 
 
 def png_bytes(image: np.ndarray) -> bytes:

@@ -16,6 +16,12 @@ from engine.limits import MAX_UPLOAD_BYTES
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE_DIR = ROOT / "sample_data"
 DEFAULT_MAX_UPLOAD = MAX_UPLOAD_BYTES  # the default; ``handsplice serve --max-upload-mb`` sets it
+#: upload folder quota: at most this many kept files and bytes (least recently used go first)
+DEFAULT_UPLOAD_FILES = 200
+DEFAULT_UPLOAD_TOTAL_BYTES = 4 * 1024**3
+#: budget of one upload's check (the reader runs in a child process): seconds and bytes
+DEFAULT_CHECK_SECONDS = 300.0
+DEFAULT_CHECK_BYTES = 4 * 1024**3
 
 
 @dataclass(frozen=True)
@@ -36,9 +42,15 @@ class AppConfig:
     upload_dir: Path = ROOT / "uploads"
     default_sample: str | None = None
     max_upload_bytes: int = DEFAULT_MAX_UPLOAD
+    max_upload_files: int = DEFAULT_UPLOAD_FILES
+    max_upload_total_bytes: int = DEFAULT_UPLOAD_TOTAL_BYTES
+    upload_check_seconds: float = DEFAULT_CHECK_SECONDS
+    upload_check_bytes: int = DEFAULT_CHECK_BYTES
+    #: the pair named on the command line (``handsplice serve BODY HAND``), read from disk
+    local: SamplePair | None = None
 
     def samples(self) -> list[SamplePair]:
-        return load_samples(self.sample_dir)
+        return ([self.local] if self.local else []) + load_samples(self.sample_dir)
 
     def sample(self, name: str) -> SamplePair:
         for pair in self.samples():
@@ -57,22 +69,38 @@ def get() -> AppConfig:
 
 def configure(default_sample: str | None = None, upload_dir: Path | None = None,
               max_upload_bytes: int = DEFAULT_MAX_UPLOAD,
-              sample_dir: Path | None = None) -> AppConfig:
-    """Set the server-wide configuration; ``default_sample`` None = the samples.json demo pair."""
+              sample_dir: Path | None = None, **limits) -> AppConfig:
+    """Set the server-wide configuration; ``default_sample`` None = the samples.json demo pair.
+
+    ``limits``: ``local`` (the pair of ``serve BODY HAND``, opened first),
+    ``max_upload_files``, ``max_upload_total_bytes`` (the upload quota),
+    ``upload_check_seconds``, ``upload_check_bytes`` (the budget of one upload's check)."""
     global _CONFIG
     sample_dir = Path(sample_dir or SAMPLE_DIR).resolve()
     upload_dir = Path(upload_dir or Path.cwd() / "uploads").resolve()
     cfg = AppConfig(sample_dir=sample_dir, upload_dir=upload_dir,
-                    max_upload_bytes=int(max_upload_bytes))
+                    max_upload_bytes=int(max_upload_bytes), **limits)
     names = [p.name for p in cfg.samples()]
     if default_sample is not None and default_sample not in names:
         raise ValueError(f"--sample: no sample pair named {default_sample!r} in "
                          f"{sample_dir / 'samples.json'} (known: {', '.join(names) or 'none'})")
     if default_sample is None:
-        default_sample = demo_sample_name(sample_dir)
+        local = limits.get("local")
+        default_sample = local.name if local is not None else demo_sample_name(sample_dir)
     _CONFIG = AppConfig(sample_dir=sample_dir, upload_dir=upload_dir,
-                        default_sample=default_sample, max_upload_bytes=int(max_upload_bytes))
+                        default_sample=default_sample, max_upload_bytes=int(max_upload_bytes),
+                        **limits)
     return _CONFIG
+
+
+def local_pair(body: Path, hand: Path, side: str = "right") -> SamplePair:
+    """The pair of ``handsplice serve BODY HAND``: the user's own files, opened by path
+    (the server runs on their machine). Listed first among the sample pairs, under the
+    name ``BODY.name + HAND.name``."""
+    body, hand = Path(body).resolve(), Path(hand).resolve()
+    return SamplePair(name=f"{body.name} + {hand.name}", body=body, hand=hand, side=side,
+                      description="your takes, opened from disk",
+                      extra={"local": True})
 
 
 def _read_manifest(sample_dir: Path) -> dict | list | None:

@@ -74,7 +74,8 @@ def running_server(*serve_args: str, log: IO, timeout: float = 120.0
                 raise RuntimeError(f"handsplice serve exited ({proc.returncode}):\n"
                                    f"{_tail(log)}")
             try:
-                # a page build takes seconds on a loaded machine: wait for it, never re-ask
+                # building the first page can take long on a busy machine: a short
+                # timeout would abandon every attempt (and queue another page build)
                 with urllib.request.urlopen(url, timeout=60) as reply:
                     if reply.status == 200:
                         break

@@ -1,91 +1,359 @@
-"""Uploaded takes: size-limited, validated, stored by content hash.
+"""Uploaded takes: streamed to disk, checked within a budget, kept by content hash.
 
-An upload is checked by reading it with the engine's own reader
-(``engine.io.load_take``) before it is kept, so a malformed file is refused with
-the reader's one-line message (``walk.bvh line 212: expected 96 values, found
-93``). Kept files live in ``<upload_dir>/<sha256>.<ext>``; the server resolves an
-upload only from a 64-hex-digit hash, so a request can never name a path outside
-that folder.
+An upload arrives in chunks (the page's file droppers send a few MiB per websocket
+message) and is written straight to a staging file in the upload folder
+(:class:`Incoming`), so a 200 MB take never sits in the server's memory. It is then
+checked by reading it with the engine's own reader (``engine.io.load_take``) in a
+child process with a time and memory budget (:func:`check`): a malformed or hostile
+file is refused with the reader's one-line message (``walk.bvh line 212: expected 96
+values, found 93``), and one that takes too long or too much memory is stopped and
+refused, while the server goes on serving every other session.
+
+Kept files live in ``<upload_dir>/<sha256>.<ext>``. The server resolves an upload
+only from a 64-hex-digit hash and only to a regular file (never a symlink), so a
+request can never name a path outside that folder. The folder has a quota (files and
+bytes, :class:`webapp.config.AppConfig`): when a new upload goes over it, the least
+recently used uploads are removed first. Error messages never quote much of a file's
+contents (:func:`_bounded`), and never the server's paths.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
+import multiprocessing
+import os
 import re
+import stat
+import time
+import uuid
+from dataclasses import dataclass, field
 from pathlib import Path
 
-from engine.atomic import write_bytes
 from engine.errors import HandSpliceError
 from webapp.config import AppConfig
 
 EXTENSIONS = (".bvh", ".c3d", ".trc")
 _HEX64 = re.compile(r"^[0-9a-f]{64}$")
+_KEPT = re.compile(r"^[0-9a-f]{64}\.(bvh|c3d|trc)$")
+#: staging files of a server that was killed mid-upload are removed after this long
+STALE_STAGING_S = 3600.0
+#: quoted text from a file longer than this is cut in error messages
+QUOTE_CHARS = 80
+_CHUNK = 1 << 20
 
 
 class UploadError(HandSpliceError, ValueError):
-    """An upload was refused; the message says why (shown in the page)."""
+    """An upload was refused; the message says why in one line (shown in the page)."""
+
+
+@dataclass(frozen=True)
+class Staged:
+    """A received upload not yet checked: ``path`` in the upload folder, original ``name``."""
+
+    path: Path
+    name: str
+    size: int
+
+
+@dataclass(frozen=True)
+class Kept:
+    """A checked upload kept by content hash; ``summary`` describes the take
+    (``kind`` "skeleton" or "markers", ``frames``, ``fps``, ``joints``/``markers``) and
+    ``take`` is what the reader read (handed over by the child: not read twice)."""
+
+    digest: str
+    path: Path
+    name: str
+    summary: dict
+    take: object = field(default=None, compare=False, repr=False)  # Motion or MarkerSet
 
 
 def sha256(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
+def display_name(filename: str | None) -> str:
+    """The last component of a client-side file name (never a path), at most 120 chars."""
+    name = re.split(r"[\\/]", str(filename or ""))[-1].strip() or "upload"
+    return name if len(name) <= 120 else name[:100] + "…" + name[-19:]
+
+
+def _extension(name: str) -> str:
+    ext = Path(name).suffix.lower()
+    if ext not in EXTENSIONS:
+        raise UploadError(f"{name}: expected a .bvh, .c3d or .trc file")
+    return ext
+
+
+def _is_regular(path: Path) -> bool:
+    """True for a regular file; symlinks are never followed (``lstat``)."""
+    try:
+        return stat.S_ISREG(os.lstat(path).st_mode)
+    except OSError:
+        return False
+
+
 def path_for(cfg: AppConfig, digest: str) -> Path:
-    """The stored file of upload ``digest`` (UploadError when unknown or not a hash)."""
+    """The stored file of upload ``digest`` (UploadError when unknown, not a hash, or not a
+    regular file). Marks it as used, so the quota removes it last."""
     if not isinstance(digest, str) or not _HEX64.match(digest):
         raise UploadError(f"upload: expected a 64-digit hex hash, got {str(digest)[:70]!r}")
     for ext in EXTENSIONS:
         path = cfg.upload_dir / f"{digest}{ext}"
-        if path.is_file():
+        if os.path.lexists(path):
+            if not _is_regular(path):
+                raise UploadError(f"upload {digest[:12]}...: not a regular file on this server "
+                                  "(links are not followed)")
+            try:
+                os.utime(path, follow_symlinks=False)
+            except OSError:
+                pass  # a read-only folder: the quota order is only a preference
             return path
     raise UploadError(f"upload {digest[:12]}...: no such file on this server "
                       "(uploads are kept per server; upload the take again)")
 
 
-def store(cfg: AppConfig, filename: str, data: bytes | None) -> tuple[str, object]:
-    """Validate an uploaded file and keep it; returns ``(sha256, take)``.
+# ---------------------------------------------------------------- receiving
 
-    ``take`` is the Motion or MarkerSet read from it. Raises UploadError with a
-    one-line reason: empty, too large, unknown extension, or what the reader found.
+
+class Incoming:
+    """One upload being received: chunks are appended to a staging file.
+
+    ``write`` refuses (UploadError, staging file removed) as soon as the bytes pass
+    the upload limit; ``finish`` returns the :class:`Staged` file. The staging file is
+    created exclusively and never through a symlink.
     """
-    from engine.io import load_take
 
-    name = Path(filename or "upload").name
-    ext = Path(name).suffix.lower()
-    if ext not in EXTENSIONS:
-        raise UploadError(f"{name}: expected a .bvh, .c3d or .trc file")
+    def __init__(self, cfg: AppConfig, filename: str | None):
+        self.cfg = cfg
+        self.name = display_name(filename)
+        self.ext = _extension(self.name)
+        self.size = 0
+        self.path = cfg.upload_dir / f".part-{uuid.uuid4().hex}{self.ext}"
+        self._fd = None
+        try:
+            cfg.upload_dir.mkdir(parents=True, exist_ok=True)
+            self._fd = _open_staging(self.path)
+        except OSError as exc:
+            raise UploadError(f"{self.name}: the server cannot store uploads "
+                              f"({_os_reason(exc)})") from None
+
+    def write(self, data) -> None:
+        if self._fd is None:
+            raise UploadError(f"{self.name}: the upload was already closed")
+        self.size += len(data)
+        if self.size > self.cfg.max_upload_bytes:
+            self.discard()
+            raise UploadError(f"{self.name}: over the {self.cfg.max_upload_bytes / 2**20:.0f} "
+                              "MiB upload limit")
+        try:
+            view = memoryview(data)
+            while view:
+                view = view[os.write(self._fd, view):]
+        except OSError as exc:
+            self.discard()
+            raise UploadError(f"{self.name}: the server cannot store uploads "
+                              f"({_os_reason(exc)})") from None
+
+    def finish(self) -> Staged:
+        self._close()
+        if self.size == 0:
+            self.discard()
+            raise UploadError(f"{self.name}: the file is empty")
+        return Staged(self.path, self.name, self.size)
+
+    def discard(self) -> None:
+        self._close()
+        _discard(self.path)
+
+    def _close(self) -> None:
+        fd, self._fd = getattr(self, "_fd", None), None
+        if fd is not None:
+            os.close(fd)
+
+
+def _open_staging(path: Path) -> int:
+    """A new file for writing, created exclusively and never through a symlink."""
+    return os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW
+                   | getattr(os, "O_CLOEXEC", 0), 0o600)
+
+
+def stage_bytes(cfg: AppConfig, filename: str | None, data: bytes | None) -> Staged:
+    """An upload held in memory (a test, a small file) written to a staging file."""
+    name = display_name(filename)
+    _extension(name)
     if not data:
         raise UploadError(f"{name}: the file is empty")
     if len(data) > cfg.max_upload_bytes:
         raise UploadError(f"{name}: {len(data) / 2**20:.1f} MiB is over the "
                           f"{cfg.max_upload_bytes / 2**20:.0f} MiB upload limit")
-    digest = sha256(data)
-    target = cfg.upload_dir / f"{digest}{ext}"
-    staging = cfg.upload_dir / f".check-{digest}{ext}"
+    incoming = Incoming(cfg, name)
+    incoming.write(data)
+    return incoming.finish()
+
+
+# ---------------------------------------------------------------- checking
+
+
+def check(cfg: AppConfig, staged: Staged) -> Kept:
+    """Read a staged upload in a child process within the budget, then keep it by hash.
+
+    Blocks for as long as the check takes (call it off the event loop, e.g. in an
+    executor). Raises UploadError with a one-line reason; the staging file is removed
+    either way.
+    """
     try:
-        cfg.upload_dir.mkdir(parents=True, exist_ok=True)
-        write_bytes(staging, data)
-    except OSError as exc:
-        _discard(staging)
-        raise UploadError(f"{name}: the server cannot store uploads ({_os_reason(exc)})") \
-            from None
-    try:
+        summary, take = _read_in_child(staged, cfg.upload_check_seconds,
+                                       cfg.upload_check_bytes)
+        digest = _file_sha256(staged.path)
+        target = cfg.upload_dir / f"{digest}{staged.path.suffix}"
         try:
-            take = load_take(staging)
-        except HandSpliceError as exc:
-            raise UploadError(_rename(str(exc), staging.name, name)) from None
-        except (ValueError, OSError, KeyError, IndexError, RuntimeError) as exc:
-            raise UploadError(f"{name}: cannot be read ({type(exc).__name__}: "
-                              f"{_rename(str(exc), staging.name, name)})") from None
-        if not target.exists():
-            try:
-                staging.replace(target)
-            except OSError as exc:
-                raise UploadError(f"{name}: the server cannot store uploads "
-                                  f"({_os_reason(exc)})") from None
+            os.replace(staged.path, target)  # a symlink planted there is replaced, not followed
+            os.utime(target, follow_symlinks=False)
+        except OSError as exc:
+            raise UploadError(f"{staged.name}: the server cannot store uploads "
+                              f"({_os_reason(exc)})") from None
     finally:
-        _discard(staging)
-    return digest, take
+        _discard(staged.path)
+    enforce_quota(cfg, keep={target.name})
+    if take is not None and hasattr(take, "meta"):  # the kept file's name, as a read gives
+        take = dataclasses.replace(take, meta=dataclasses.replace(take.meta, source=str(target)))
+    return Kept(digest, target, staged.name, summary, take)
+
+
+def store(cfg: AppConfig, filename: str, data: bytes | None) -> tuple[str, object]:
+    """Check an upload held in memory and keep it; returns ``(sha256, take)``.
+
+    ``take`` is the Motion or MarkerSet read from the kept file.
+    """
+    kept = check(cfg, stage_bytes(cfg, filename, data))
+    return kept.digest, kept.take
+
+
+def _file_sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        while chunk := f.read(_CHUNK):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+_CONTEXT = None
+
+
+def _context():
+    """A forkserver context: children fork from a small clean process that has the
+    readers imported (fast, and never a copy of the busy server)."""
+    global _CONTEXT
+    if _CONTEXT is None:
+        ctx = multiprocessing.get_context("forkserver")
+        ctx.set_forkserver_preload(["engine.io", "engine.io.bvh", "engine.io.c3d",
+                                    "engine.io.trc"])
+        _CONTEXT = ctx
+    return _CONTEXT
+
+
+def _read_in_child(staged: Staged, seconds: float, memory: int) -> dict:
+    ctx = _context()
+    receive, send = ctx.Pipe(duplex=False)
+    child = ctx.Process(target=_child_read, args=(str(staged.path), memory, send),
+                        daemon=True, name="hs-upload-check")
+    try:
+        child.start()
+    except OSError as exc:
+        raise UploadError(f"{staged.name}: the server cannot check uploads now "
+                          f"({_os_reason(exc)})") from None
+    send.close()
+    try:
+        if not receive.poll(seconds):
+            raise UploadError(f"{staged.name}: reading it took longer than the server's "
+                              f"{seconds:g} s budget for one file")
+        try:
+            verdict, detail, take = receive.recv()
+        except (EOFError, OSError):  # the child died: out of memory or worse
+            raise UploadError(f"{staged.name}: cannot be read within the server's "
+                              f"{memory / 2**30:.1f} GiB memory budget") from None
+    finally:
+        receive.close()
+        if child.is_alive():
+            child.kill()
+        child.join(5)
+    if verdict != "ok":
+        raise UploadError(_bounded(_rename(detail, staged.path, staged.name)))
+    return detail, take
+
+
+def _child_read(path: str, memory: int, conn) -> None:  # runs in the child process
+    import resource
+
+    try:
+        resource.setrlimit(resource.RLIMIT_AS, (memory, memory))
+    except (ValueError, OSError):
+        pass
+    try:
+        from engine.io import load_take
+        from engine.motion import MarkerSet
+
+        take = load_take(path)
+        if isinstance(take, MarkerSet):
+            summary = {"kind": "markers", "markers": len(take.labels)}
+        else:
+            summary = {"kind": "skeleton", "joints": int(take.skeleton.n_joints)}
+        summary.update(frames=int(take.n_frames), fps=float(take.fps))
+        conn.send(("ok", summary, take))
+    except MemoryError:
+        conn.send(("refused", f"{Path(path).name}: reading it needs more than the server's "
+                              f"{memory / 2**30:.1f} GiB memory budget", None))
+    except HandSpliceError as exc:
+        conn.send(("refused", str(exc), None))
+    except Exception as exc:  # noqa: BLE001 - any reader failure is a refusal, never a crash
+        conn.send(("refused", f"{Path(path).name}: cannot be read ({type(exc).__name__})",
+                   None))
+    finally:
+        conn.close()
+
+
+# ---------------------------------------------------------------- the folder
+
+
+def enforce_quota(cfg: AppConfig, keep: set[str] = frozenset()) -> list[str]:
+    """Remove the least recently used uploads until the folder holds at most
+    ``cfg.max_upload_files`` files and ``cfg.max_upload_total_bytes`` bytes (``keep``:
+    names never removed); stale staging files go too. Returns the removed names.
+
+    Only regular files named ``<sha256>.<ext>`` count; links and other entries are
+    neither followed nor removed."""
+    kept: list[tuple[float, int, str]] = []
+    removed = []
+    now = time.time()
+    try:
+        entries = list(os.scandir(cfg.upload_dir))
+    except OSError:
+        return removed
+    for entry in entries:
+        try:
+            st = entry.stat(follow_symlinks=False)
+        except OSError:
+            continue
+        if not stat.S_ISREG(st.st_mode):
+            continue
+        if entry.name.startswith(".part-") and now - st.st_mtime > STALE_STAGING_S:
+            _discard(Path(entry.path))
+            removed.append(entry.name)
+        elif _KEPT.match(entry.name):
+            kept.append((st.st_mtime, st.st_size, entry.name))
+    kept.sort()
+    count, total = len(kept), sum(size for _, size, _ in kept)
+    for _, size, name in kept:
+        if count <= cfg.max_upload_files and total <= cfg.max_upload_total_bytes:
+            break
+        if name in keep:
+            continue
+        _discard(cfg.upload_dir / name)
+        removed.append(name)
+        count, total = count - 1, total - size
+    return removed
 
 
 def _discard(path: Path) -> None:
@@ -101,6 +369,20 @@ def _os_reason(exc: OSError) -> str:
     return reason[:1].lower() + reason[1:]
 
 
-def _rename(message: str, staged: str, original: str) -> str:
-    return message.strip().splitlines()[0].replace(staged, original) if message.strip() \
-        else original
+def _rename(message: str, staged: Path, original: str) -> str:
+    """The first line of ``message`` with the staging file named as the user's file."""
+    text = message.strip().splitlines()[0] if message.strip() else original
+    return text.replace(str(staged), original).replace(staged.name, original)
+
+
+_QUOTED = re.compile(r"('[^'\n]*'|\"[^\"\n]*\")")
+
+
+def _bounded(message: str) -> str:
+    """``message`` with any quoted file text over QUOTE_CHARS characters cut short, so an
+    error never echoes a file's contents at length."""
+    def cut(match: re.Match) -> str:
+        text = match.group(0)
+        return text if len(text) <= QUOTE_CHARS else text[:QUOTE_CHARS - 12] + "…" + text[0]
+
+    return _QUOTED.sub(cut, message)[:400]

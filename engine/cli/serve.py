@@ -1,7 +1,9 @@
 """``handsplice serve``: run the browser app (Panel on a Bokeh server).
 
 Listens on 127.0.0.1 by default; ``--address 0.0.0.0`` exposes it on every
-interface (explicit opt-in). Never opens a browser; prints the URL. Every
+interface (explicit opt-in). ``handsplice serve BODY HAND`` opens the user's own
+takes from disk (any size the engine reads; nothing is uploaded): the pair is read
+and prepared before the server listens, and is the page's default pair. Never opens a browser; prints the URL. Every
 browser session builds its own page and session state, so several users (or
 tabs) never share matching points or parameters.
 """
@@ -11,7 +13,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from engine.limits import MAX_UPLOAD_BYTES
+from engine.limits import MAX_SESSION_BYTES, MAX_UPLOAD_BYTES
+
+#: the largest websocket message the server accepts: an upload chunk (4 MiB) or a
+#: session file sent whole (base64: 4/3 of MAX_SESSION_BYTES), with room to spare
+WEBSOCKET_MAX_MESSAGE = 16 * 1024 * 1024 + 2 * MAX_SESSION_BYTES
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -21,6 +27,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         description="Serve the HandSplice browser app. Listens on localhost unless --address "
         "says otherwise; never opens a browser.",
     )
+    p.add_argument("body", nargs="?", type=Path, default=None,
+                   help="your body take (.bvh, .c3d or .trc), opened from disk; with HAND")
+    p.add_argument("hand", nargs="?", type=Path, default=None,
+                   help="your hand take (.bvh), opened from disk; with BODY")
+    p.add_argument("--side", choices=("right", "left"), default="right",
+                   help="which hand of BODY HAND to align and splice (default right)")
     p.add_argument("--port", type=int, default=5006, help="TCP port (default 5006; 0 = any free)")
     p.add_argument("--address", default="127.0.0.1",
                    help="interface to listen on (default 127.0.0.1; 0.0.0.0 = all interfaces)")
@@ -46,6 +58,18 @@ def _check_args(args: argparse.Namespace) -> None:
         raise ValueError(f"--port: expected 0..65535, got {args.port}")
     if args.max_upload_mb <= 0:
         raise ValueError(f"--max-upload-mb: expected a positive size, got {args.max_upload_mb}")
+    if (args.body is None) != (args.hand is None):
+        raise ValueError("serve: expected both BODY and HAND takes (or neither)")
+    if args.body is not None and args.sample is not None:
+        raise ValueError("serve: --sample and BODY HAND both choose the pair opened first; "
+                         "give one")
+    for what, path in (("BODY", args.body), ("HAND", args.hand)):
+        if path is None:
+            continue
+        if not path.is_file():
+            raise ValueError(f"{what} {path}: no such file")
+        if path.suffix.lower() not in (".bvh", ".c3d", ".trc"):
+            raise ValueError(f"{what} {path.name}: expected a .bvh, .c3d or .trc file")
 
 
 def _drop_closed_websocket_writes(loop, context: dict) -> None:
@@ -60,6 +84,13 @@ def _drop_closed_websocket_writes(loop, context: dict) -> None:
     loop.default_exception_handler(context)
 
 
+def _open_local(pair) -> None:
+    """Read and prepare a pair named on the command line (cached for the first page)."""
+    from webapp import backend
+
+    backend.prepare(pair.body, pair.hand, pair.side)
+
+
 def run(args: argparse.Namespace) -> int:
     _check_args(args)
     import panel as pn
@@ -70,11 +101,16 @@ def run(args: argparse.Namespace) -> int:
 
     if args.sample_dir is not None and not (args.sample_dir / "samples.json").is_file():
         raise ValueError(f"--sample-dir: {args.sample_dir} has no samples.json")
+    local = None
+    if args.body is not None:
+        local = config.local_pair(args.body, args.hand, args.side)
+        _open_local(local)  # a take the engine refuses: one line, exit 2, no server
     cfg = config.configure(
         sample_dir=args.sample_dir,
         default_sample=args.sample,
         upload_dir=args.upload_dir,
         max_upload_bytes=int(args.max_upload_mb * 1024 * 1024),
+        local=local,
     )
     if not args.no_warm:
         warm_up(cfg)
@@ -93,11 +129,15 @@ def run(args: argparse.Namespace) -> int:
         start=False,
         title="HandSplice",
         verbose=False,
-        websocket_max_message_size=cfg.max_upload_bytes * 2 + 1_000_000,
-        http_server_kwargs={"max_buffer_size": cfg.max_upload_bytes * 2 + 1_000_000},
+        # uploads come in chunks (webapp.views.dropper.CHUNK_BYTES); no message is larger
+        # than a chunk or a session file (base64), so the limit stays small
+        websocket_max_message_size=WEBSOCKET_MAX_MESSAGE,
+        http_server_kwargs={"max_buffer_size": WEBSOCKET_MAX_MESSAGE},
     )
     url = f"http://{host}:{args.port}/"
     print(f"HandSplice app: {url}", flush=True)
+    if local is not None:
+        print(f"your pair:      {local.body} + {local.hand} ({local.side} hand)", flush=True)
     if args.show_url and cfg.default_sample:
         print(f"demo pair:      {url}?sample={cfg.default_sample}", flush=True)
     print("press Ctrl+C to stop", flush=True)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import pandas as pd
 import panel as pn
 
+from webapp import safe_text
 from webapp.state import MATRIX_LABELS, Session
 
 MATRIX_CHOICES = {"Pass 1": "pass1", "Pass 2": "pass2", "Cumulative 1": "cumulative1",
@@ -119,7 +120,7 @@ def status_line(session: Session) -> pn.viewable.Viewable:
 
     def update(*_):
         text = session.status_text()
-        pane.object = f'<span data-revision="{session.revision}">{_escape(text)}</span>'
+        pane.object = f'<span data-revision="{session.revision}">{safe_text.html(text)}</span>'
 
     session.param.watch(update, ["revision", "compute_ms", "error"])
     update()
@@ -132,7 +133,7 @@ def error_alert(session: Session) -> pn.viewable.Viewable:
                           sizing_mode="stretch_width")
 
     def update(*_):
-        alert.object = _escape(session.error)
+        alert.object = safe_text.markdown(session.error)
         alert.visible = bool(session.error)
 
     session.param.watch(update, ["error"])
@@ -160,8 +161,3 @@ def undo_redo(session: Session) -> pn.viewable.Viewable:
 
 def matrix_title(session: Session) -> str:
     return MATRIX_LABELS[session.matrix]
-
-
-def _escape(text: str) -> str:
-    return (text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
-            .replace('"', "&quot;"))

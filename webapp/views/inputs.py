@@ -1,12 +1,41 @@
-"""Choosing the takes: a bundled sample pair, or two uploaded files (BVH/C3D/TRC)."""
+"""Choosing the takes: a bundled sample pair, or two uploaded files (BVH/C3D/TRC).
+
+Uploads arrive in chunks (:class:`webapp.views.dropper.TakeDropper`), are checked by
+the engine's reader in a child process off the event loop (:func:`webapp.uploads.check`)
+and the pair's features are computed on a worker thread, so a large or hostile file
+never holds up this or any other session. A refused file shows the reader's one-line
+reason and the pair that is open stays open. Every file name and message shown here
+goes through :mod:`webapp.safe_text`.
+"""
 
 from __future__ import annotations
 
+import asyncio
+import dataclasses
+import functools
+from concurrent.futures import ThreadPoolExecutor
+
 import panel as pn
 
-from webapp import uploads
+from webapp import backend, safe_text, uploads
 from webapp.backend import one_line
 from webapp.state import Session
+from webapp.views.dropper import TakeDropper
+
+#: upload checks and pair preparation of all sessions share these threads
+_WORKERS = ThreadPoolExecutor(max_workers=2, thread_name_prefix="hs-upload")
+#: the sample selector's entry while an uploaded pair is open
+UPLOADED = "(your uploaded pair)"
+
+MARKER_BODY_NOTE = (
+    "The body take holds **markers** (C3D/TRC): it has no skeleton to receive fingers. "
+    "The alignment, matching points and bands work as for any pair; *Spliced BVH* gives the "
+    "**hand take retimed to the body** (one frame per body frame, at the body's frame rate) "
+    "to pair with your markers in an animation tool, and the preview draws the body's "
+    "markers (the aligned arm in orange) beside the hand.")
+MARKER_HAND_NOTE = (
+    "The hand take holds **markers** (C3D/TRC): it has no finger rotations to give. The "
+    "alignment works; splicing and the preview need a skeletal hand take (.bvh).")
 
 
 class InputsView:
@@ -15,24 +44,30 @@ class InputsView:
     def __init__(self, session: Session):
         self.session = session
         cfg = session.config
-        names = [p.name for p in cfg.samples()]
-        self.sample = pn.widgets.Select(options=names,
-                                        value=session.sample if session.sample in names else None,
+        self._names = [p.name for p in cfg.samples()]
+        self.sample = pn.widgets.Select(options=self._sample_options(),
+                                        value=self._sample_value(),
                                         css_classes=["hs-sample"], width=260)
         self.sample.param.watch(self._on_sample, "value")
         limit = f"{cfg.max_upload_bytes / 2**20:.0f} MiB"
-        self.body_file = pn.widgets.FileInput(accept=",".join(uploads.EXTENSIONS),
-                                              css_classes=["hs-upload-body"], width=280)
-        self.hand_file = pn.widgets.FileInput(accept=",".join(uploads.EXTENSIONS),
-                                              css_classes=["hs-upload-hand"], width=280)
-        self.body_file.param.watch(lambda e: self._on_upload("body"), "value")
-        self.hand_file.param.watch(lambda e: self._on_upload("hand"), "value")
+        self.body_file = TakeDropper(cfg, css_classes=["hs-upload-body"], width=280,
+                                     label="body take")
+        self.hand_file = TakeDropper(cfg, css_classes=["hs-upload-hand"], width=280,
+                                     label="hand take")
+        for which, dropper in (("body", self.body_file), ("hand", self.hand_file)):
+            dropper.on_progress = self._on_progress
+            dropper.on_staged = lambda staged, w=which: self._on_staged(w, staged)
+            dropper.on_refused = lambda text, w=which: self._refuse(w, text)
         self.side = pn.widgets.RadioButtonGroup.from_param(session.param.side,
                                                            css_classes=["hs-side"], width=180)
         self.message = pn.pane.Alert("", alert_type="danger", visible=False,
                                      css_classes=["hs-upload-error"], sizing_mode="stretch_width")
-        self.uploaded = pn.pane.Markdown("", css_classes=["hs-upload-status"])
-        self._pending: dict[str, tuple[str, str]] = {}
+        self.uploaded = pn.pane.HTML("", css_classes=["hs-upload-status"],
+                                     sizing_mode="stretch_width")
+        self.note = pn.pane.Alert("", alert_type="info", visible=False,
+                                  css_classes=["hs-marker-note"], sizing_mode="stretch_width")
+        self._pending: dict[str, uploads.Kept] = {}
+        self._opening = False
         self.roles_body = pn.widgets.TextAreaInput(
             label="Body take", placeholder="right.wrist = RHand\nright.elbow = RForeArm",
             height=90, css_classes=["hs-roles-body"])
@@ -43,48 +78,135 @@ class InputsView:
                                              css_classes=["hs-roles-apply"])
         self.roles_apply.on_click(self._on_roles)
         self._show_roles()
-        session.param.watch(self._on_session_inputs, ["sample", "roles"])
+        session.param.watch(self._on_session_inputs,
+                            ["sample", "body_sha256", "hand_sha256", "roles"])
+        session.param.watch(self._show_note, ["inputs_revision"])
+        self._show_note()
         self.limit_note = pn.pane.Markdown(
-            f"BVH, C3D or TRC, up to {limit} each. Files are checked with the engine's reader "
-            "and kept on this server by content hash, so a shared link can name them.",
+            f"BVH, C3D or TRC, up to {limit} each (sent in chunks; the browser refuses larger "
+            "files before sending). Files are checked with the engine's reader and kept on "
+            "this server by content hash, so a shared link can name them. A C3D/TRC body "
+            "aligns with a BVH hand; what it cannot give is said here once it is open.",
             styles={"color": "#555", "font-size": "12px"})
 
+    # ------------------------------------------------------------ the sample selector
+
+    def _sample_options(self) -> list[str]:
+        uploaded = not self.session.sample and self.session.body_sha256
+        return ([UPLOADED] if uploaded else []) + self._names
+
+    def _sample_value(self) -> str | None:
+        s = self.session
+        if s.sample in self._names:
+            return s.sample
+        return UPLOADED if s.body_sha256 else None
+
     def _on_sample(self, event):
-        if event.new and event.new != self.session.sample:
+        if event.new and event.new != UPLOADED and event.new != self.session.sample:
             self.session.load_sample(event.new)
 
     def _on_session_inputs(self, *_):
-        """Follow inputs set by the session itself (a session file, undo of roles)."""
-        sample = self.session.sample if self.session.sample in self.sample.options else None
-        if self.sample.value != sample:
-            self.sample.value = sample
+        """Follow inputs set by the session itself (uploads, a session file, undo of roles):
+        the selector shows the open sample, or "your uploaded pair" (never a sample that
+        would then be loaded over the upload)."""
+        options, value = self._sample_options(), self._sample_value()
+        if list(self.sample.options) != options:
+            self.sample.param.update(options=options, value=value)
+        elif self.sample.value != value and value is not None:
+            self.sample.value = value
         self._show_roles()
 
-    def _on_upload(self, which: str):
-        widget = self.body_file if which == "body" else self.hand_file
-        if widget.value is None:
+    def _show_note(self, *_):
+        prepared = self.session.prepared
+        if prepared is None:
+            self.note.visible = False
             return
+        if backend.marker_body(prepared):
+            self.note.object = MARKER_BODY_NOTE
+        elif not hasattr(prepared.hand, "skeleton"):
+            self.note.object = MARKER_HAND_NOTE
+        else:
+            self.note.visible = False
+            return
+        self.note.visible = True
+
+    # ------------------------------------------------------------ uploads
+
+    def _on_progress(self, name: str, received: int, total: int):
+        self.uploaded.object = (f"<span class='hs-receiving'>receiving "
+                                f"<b>{safe_text.html(name)}</b>: {received / 2**20:.1f} of "
+                                f"{max(total, received) / 2**20:.1f} MiB</span>")
+
+    def _on_staged(self, which: str, staged: uploads.Staged):
+        self.uploaded.object = f"checking <b>{safe_text.html(staged.name)}</b>…"
+        pn.state.execute(functools.partial(self._check, which, staged))
+
+    async def _check(self, which: str, staged: uploads.Staged):
+        """Check the file off the event loop; open the pair once both takes are in."""
+        loop = asyncio.get_running_loop()
         try:
-            digest, _ = uploads.store(self.session.config, widget.filename or "", widget.value)
+            kept = await loop.run_in_executor(_WORKERS, uploads.check, self.session.config,
+                                              staged)
         except uploads.UploadError as exc:
-            self._show_error(one_line(exc))
-            self._pending.pop(which, None)
+            self._refuse(which, one_line(exc))
             return
         except Exception as exc:  # never a traceback in the page
-            self._show_error(f"{widget.filename}: cannot be read ({type(exc).__name__})")
+            self._refuse(which, f"{staged.name}: cannot be read ({type(exc).__name__})")
             return
-        self._pending[which] = (digest, widget.filename or "")
+        self._pending[which] = kept
         self.message.visible = False
-        done = [f"{k}: **{v[1]}**" for k, v in self._pending.items()]
-        self.uploaded.object = "Uploaded " + ", ".join(done) + (
-            "" if len(self._pending) == 2 else " — now the other take.")
+        self._show_uploaded()
         if len(self._pending) == 2:
-            (b, bn), (h, hn) = self._pending["body"], self._pending["hand"]
-            self.session.load_uploads(b, h, bn, hn)
-            if self.session.body_sha256 != b or self.session.hand_sha256 != h:
-                self._show_error(self.session.error or "the uploaded pair could not be opened")
-            else:
-                self.sample.value = None
+            await self._open_pair()
+
+    def _refuse(self, which: str, text: str):
+        self._pending.pop(which, None)
+        self._show_uploaded()
+        self._show_error(text)
+
+    def _show_uploaded(self, opened: bool = False):
+        parts = []
+        for which in ("body", "hand"):
+            kept = self._pending.get(which)
+            if kept is not None:
+                parts.append(f"{which}: <b>{safe_text.html(kept.name)}</b> "
+                             f"({safe_text.html(_describe(kept.summary))})")
+        if not parts:
+            self.uploaded.object = ""
+            return
+        tail = (" — open." if opened else "" if len(parts) == 2 else " — now the other take.")
+        self.uploaded.object = ("<span class='hs-uploaded'>Uploaded " + ", ".join(parts)
+                                + tail + "</span>")
+
+    async def _open_pair(self):
+        """Open the two checked uploads; the features are computed on a worker thread
+        (the session then finds them in the engine's cache). The open pair stays when
+        the new one cannot be aligned."""
+        s = self.session
+        body, hand = self._pending["body"], self._pending["hand"]
+        if (s.body_sha256, s.hand_sha256) == (body.digest, hand.digest) and not s.sample:
+            self._show_uploaded(opened=True)
+            return
+        loop = asyncio.get_running_loop()
+        self.uploaded.object += " <span class='hs-opening'>aligning…</span>"
+        try:
+            await loop.run_in_executor(_WORKERS, functools.partial(
+                backend.prepare, body.path, hand.path, s.side, dict(s.roles),
+                takes=(body.take, hand.take)))
+        except Exception as exc:  # the reason is shown; nothing changes
+            self._show_uploaded()
+            self._show_error(f"{body.name} + {hand.name}: {one_line(exc)}")
+            return
+        # the engine's cache holds the takes now: this view keeps only their names
+        self._pending = {k: dataclasses.replace(v, take=None) for k, v in self._pending.items()}
+        before = s.error
+        s.load_uploads(body.digest, hand.digest, body.name, hand.name)
+        if s.body_sha256 != body.digest or s.hand_sha256 != hand.digest:
+            self._show_uploaded()
+            self._show_error(s.error if s.error and s.error != before
+                             else "the uploaded pair could not be opened")
+        else:
+            self._show_uploaded(opened=True)
 
     def _show_roles(self):
         for take, widget in (("body", self.roles_body), ("hand", self.roles_hand)):
@@ -117,7 +239,7 @@ class InputsView:
         self._show_roles()
 
     def _show_error(self, text: str):
-        self.message.object = text
+        self.message.object = safe_text.markdown(text)
         self.message.visible = True
 
     def panel(self) -> pn.viewable.Viewable:
@@ -129,7 +251,7 @@ class InputsView:
             pn.Row(labelled("Sample pair", self.sample, 280), labelled("Side", self.side, 200),
                    labelled("or upload a body take", self.body_file, 300),
                    labelled("and a hand take", self.hand_file, 300)),
-            self.limit_note, self.uploaded, self.message,
+            self.limit_note, self.uploaded, self.message, self.note,
             pn.Card(pn.pane.Markdown(
                 "Joints are found by name (SMPL-X, Mixamo, Bandai, CMU, Leap and more). When a "
                 "take names them differently, map roles to joint names, one per line: "
@@ -139,3 +261,10 @@ class InputsView:
                 title="Joint-role overrides", collapsed=True, sizing_mode="stretch_width",
                 css_classes=["hs-roles"]),
             sizing_mode="stretch_width")
+
+
+def _describe(summary: dict) -> str:
+    """``BVH, 59 joints, 839 frames at 120 fps`` from an upload's check summary."""
+    what = (f"{summary.get('markers', 0)} markers" if summary.get("kind") == "markers"
+            else f"{summary.get('joints', 0)} joints")
+    return f"{what}, {summary.get('frames', 0)} frames at {summary.get('fps', 0):g} fps"

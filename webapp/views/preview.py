@@ -13,7 +13,7 @@ import time
 
 import panel as pn
 
-from webapp import backend
+from webapp import backend, safe_text
 from webapp.state import Session
 
 
@@ -109,7 +109,7 @@ class PreviewView:
                                          self.trails.value, self.size)
             png = backend.png_bytes(image)
         except Exception as exc:  # shown in the page, never a traceback
-            self.alert.object = f"preview: {backend.one_line(exc)}"
+            self.alert.object = safe_text.markdown(f"preview: {backend.one_line(exc)}")
             self.alert.visible = True
             return False
         finally:

@@ -19,7 +19,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import panel as pn
 
-from webapp import backend
+from webapp import backend, safe_text
 from webapp.state import Session
 
 #: exports of all sessions share these threads (renders take turns on the OpenGL lock)
@@ -95,7 +95,7 @@ class SharingView:
         try:
             data = make()
         except Exception as exc:  # shown in the page, never a traceback
-            self.message.object = f"{what}: {backend.one_line(exc)}"
+            self.message.object = safe_text.markdown(f"{what}: {backend.one_line(exc)}")
             self.message.visible = True
             return None  # nothing downloads
         self.message.visible = False
@@ -103,7 +103,9 @@ class SharingView:
 
     def _bvh(self):
         s = self.session
-        self.bvh.filename = f"{s.output_stem()}.bvh"
+        retimed = s.prepared is not None and backend.marker_body(s.prepared)
+        # a marker body gives the hand take retimed to it (see the page's note)
+        self.bvh.filename = f"{s.output_stem()}{'-hand-retimed' if retimed else ''}.bvh"
         return self._guard(lambda: backend.bvh_bytes(s.spliced()), "spliced BVH")
 
     def _glb(self):
@@ -165,7 +167,7 @@ class SharingView:
                 show()
             data = job.result()
         except Exception as exc:  # shown in the page, never a traceback
-            self.message.object = f"{what}: {backend.one_line(exc)}"
+            self.message.object = safe_text.markdown(f"{what}: {backend.one_line(exc)}")
             self.message.visible = True
             self.progress.visible = self.progress_text.visible = False
             return None
@@ -187,7 +189,7 @@ class SharingView:
         try:
             self.session.from_json(data, source=name)
         except Exception as exc:  # nothing was applied; never a traceback
-            self.message.object = f"session file: {backend.one_line(exc)}"
+            self.message.object = safe_text.markdown(f"session file: {backend.one_line(exc)}")
             self.message.visible = True
             return
         self.message.visible = False
@@ -216,9 +218,9 @@ class SharingView:
             flags_cmd = backend.cli_command(s.prepared, body, hand, s.side, s.band,
                                             s.refine_band, s.constraint_points(), s.roles)
             self.command.object = (
-                "$ " + _html(session_cmd) + "<br>"
+                "$ " + safe_text.html(session_cmd) + "<br>"
                 "<span style='color:#777'># or with explicit flags (--match takes hand-file "
-                "frames):</span><br>$ " + _html(flags_cmd))
+                "frames):</span><br>$ " + safe_text.html(flags_cmd))
 
     def panel(self) -> pn.viewable.Viewable:
         return pn.Column(pn.Row(self.bvh, self.glb, self.session_file, self.gif, self.mp4),
@@ -226,7 +228,3 @@ class SharingView:
                          pn.Row(pn.pane.Markdown("**Open a session file**",
                                                  margin=(12, 10, 0, 10)), self.open_session),
                          self.link, self.command, self.message, sizing_mode="stretch_width")
-
-
-def _html(text: str) -> str:
-    return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
