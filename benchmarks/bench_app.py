@@ -141,8 +141,7 @@ def screenshot(browser, url: str, path: Path) -> None:
     page = browser.new_page(viewport={"width": 1360, "height": 1000})
     page.goto(url)
     page.wait_for_function(READY, timeout=120_000)
-    page.locator(".hs-render button").click()
-    page.locator(".hs-preview-image img").wait_for(timeout=120_000)
+    page.locator(".hs-preview-image img").wait_for(timeout=120_000)  # rendered on load
     page.wait_for_timeout(800)
     bottom = page.locator(".hs-preview-image").evaluate(
         "e => e.getBoundingClientRect().bottom + window.scrollY")

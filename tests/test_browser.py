@@ -199,9 +199,12 @@ def test_add_and_drag_matching_point_changes_band_path_status(page):
     path2 = page.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
     assert band1 != band0
     assert path2 != path1
-    # tolerance 0: the path passes exactly through the dragged point
-    cells = set(zip(path2["x"], path2["y"]))
-    assert (round(pts["x"][0]), round(pts["y"][0])) in cells
+    # tolerance 0: the path passes through the dragged point (its hand frame is the hand
+    # file's; the path's cells sit on the alignment grid, hand_fps / fps apart)
+    scale = page.evaluate("hs.cols('hs-rates', ['fps', 'hand_fps'])")
+    scale = scale["hand_fps"][0] / scale["fps"][0]
+    at = [y for x, y in zip(path2["x"], path2["y"]) if x == round(pts["x"][0])]
+    assert at and min(abs(y - round(pts["y"][0])) for y in at) <= scale / 2 + 1e-3
     assert _status(page) != status0
 
 
@@ -234,8 +237,7 @@ def test_undo_and_redo_the_tolerance_edit(page):
 
 
 def test_render_preview(page):
-    page.locator(".hs-render button").click()
-    img = page.locator(".hs-preview-image img")
+    img = page.locator(".hs-preview-image img")  # rendered when the page opens
     img.wait_for(timeout=60_000)
     src = img.get_attribute("src")
     assert src and src.startswith("data:image/png")
@@ -455,6 +457,348 @@ def test_malformed_upload_is_rejected_with_a_message(page, tmp_path):
     text = _text(alert)
     assert "broken.bvh" in text and "line" in text
     assert "Traceback" not in page.content()
+
+
+def _table_points(page) -> list[tuple[int, int]]:
+    """(body, hand) of every row of the points table, as the page shows them."""
+    rows = page.locator(".hs-points .tabulator-row")
+    out = []
+    for k in range(rows.count()):
+        row = rows.nth(k)
+        out.append(tuple(int(float(row.locator(f"[tabulator-field='{f}']").inner_text()))
+                         for f in ("body frame", "hand frame")))
+    return out
+
+
+def _start_busy_session(page) -> None:
+    """Make ``page``'s session edit without pause (a point moved every 60 ms), so the server
+    solves for another session all the time."""
+    page.evaluate("""() => {
+      const src = hs.model('hs-points-source'); let k = 0;
+      window.hsBusy = setInterval(() => {
+        k = (k + 1) % 40;
+        src.data = {x: [30 + k], y: [30 + k], tol: [NaN]};
+      }, 60);
+    }""")
+
+
+@pytest.mark.parametrize("busy", [False, True], ids=["alone", "beside-a-busy-session"])
+def test_quick_clicks_and_a_drag_all_reach_the_session(browser, server, tmp_path, busy):
+    """Five clicks 50 ms apart and a drag while the previous edit is solved: every point
+    (the dragged one at its new place) is in the matrix, the table, the status line and the
+    downloaded session file; nothing drawn in the page is lost."""
+    page = _open(browser, server)
+    other = _open(browser, server) if busy else None
+    try:
+        if other is not None:
+            _start_busy_session(other)
+            rev = _revision(other)
+            _wait_revision(other, rev)  # the other session is solving
+        path = page.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
+        n = len(page.evaluate("hs.cols('hs-band-source', ['x'])")["x"])
+        xs = [n * k // 6 for k in range(1, 6)]
+        cells = [(x, round(path["y"][path["x"].index(x)])) for x in xs]
+        screen = [page.evaluate(f"hs.xy({x}, {y})") for x, y in cells]  # before any click
+        rev = _revision(page)
+        for xy in screen:
+            page.mouse.click(*xy)
+            page.wait_for_timeout(50)
+        # drag the third point up while the server is still busy with the clicks
+        x3, y3 = cells[2]
+        target = y3 + 4
+        _drag(page, x3, y3, x3, target)
+        assert _revision(page) < rev + 6, "the server answered all edits before the drag"
+        want = sorted([*cells[:2], (x3, target), *cells[3:]])
+        want = [tuple(c) for c in want]
+        deadline = time.monotonic() + 60
+        while True:  # every edit answered, and the page shows the session's five points
+            shown = page.evaluate("() => [hs.cols('hs-points-source', ['x', 'y']),"
+                                  " hs.model('hs-points-source')._hs?.pending.length ?? -1]")
+            got = sorted((round(x), round(y)) for x, y in zip(shown[0]["x"], shown[0]["y"]))
+            if got == want and shown[1] == 0:
+                break
+            assert time.monotonic() < deadline, (got, want, shown, _status(page),
+                                                 _text(page.locator(".hs-error")))
+            page.wait_for_timeout(100)
+        deadline = time.monotonic() + 30
+        while "5 matching points" not in _status(page) or _table_points(page) != want:
+            assert time.monotonic() < deadline, (_status(page), _table_points(page), want)
+            page.wait_for_timeout(100)
+        with page.expect_download(timeout=30_000) as info:
+            page.locator(".hs-download-session button").click()
+        spath = tmp_path / "quick.json"
+        info.value.save_as(spath)
+        data = json.loads(spath.read_text())
+        assert [(p["body"], p["hand"]) for p in data["points"]] == want
+        assert not page.errors, page.errors
+    finally:
+        if other is not None:
+            other.evaluate("() => clearInterval(window.hsBusy)")
+            other.context.close()
+        page.context.close()
+
+
+FIGURES = __import__("pathlib").Path(__file__).resolve().parents[1] / "benchmarks" / "figures"
+
+
+def _open_wide(browser, url: str):
+    """A page on a wide screen (1920 x 1080), where matrix and preview sit side by side."""
+    context = browser.new_context(viewport={"width": 1920, "height": 1080},
+                                  accept_downloads=True)
+    page = context.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda e: errors.append(f"pageerror: {e}"))
+    page.on("console", lambda m: errors.append(f"console: {m.text}") if m.type == "error" else None)
+    page.goto(url, timeout=120_000)
+    page.wait_for_function(
+        "() => window.Bokeh && Bokeh.documents.length && "
+        "Bokeh.documents[0].get_model_by_name('hs-path-source')?.data.x?.length > 0",
+        timeout=120_000)
+    page.evaluate(PAGE_HELPERS)
+    page.errors = errors
+    return page
+
+
+def _tooltip(page, needle: str) -> str:
+    """The text of the shown hover tooltip that contains ``needle`` (searched through the
+    shadow roots Bokeh draws into)."""
+    return page.evaluate("""(needle) => {
+      const walk = (root) => {
+        for (const el of root.querySelectorAll('*')) {
+          if (el.classList && [...el.classList].some(c => c.includes('tooltip'))
+              && el.offsetParent !== null && el.innerText.includes(needle)) return el.innerText;
+          if (el.shadowRoot) { const t = walk(el.shadowRoot); if (t) return t; }
+        }
+        return null;
+      };
+      return walk(document) ?? '';
+    }""", needle)
+
+
+def _hover_text(page, x: float, y: float, needle: str) -> str:
+    page.mouse.move(*page.evaluate(f"hs.xy({x}, {y})"))
+    deadline = time.monotonic() + 10
+    while not (text := _tooltip(page, needle)):
+        assert time.monotonic() < deadline, f"no tooltip with {needle!r} at ({x}, {y})"
+        page.mouse.move(*page.evaluate(f"hs.xy({x + 0.2}, {y})"))
+        page.wait_for_timeout(200)
+    return text
+
+
+def _png_coverage(src: str) -> float:
+    """Share of an image's pixels that differ from its top-left corner (the background)."""
+    import base64
+    import io
+
+    import numpy as np
+    from PIL import Image
+
+    img = np.asarray(Image.open(io.BytesIO(base64.b64decode(src.split(",", 1)[1])))
+                     .convert("RGB")).astype(int)
+    return float((np.abs(img - img[0, 0]).sum(axis=2) > 40).mean())
+
+
+def test_one_frame_numbering_from_hover_to_session_file(browser, server, tmp_path):
+    """A point placed on the matrix is named by the same hand frame (the hand file's own,
+    not the alignment grid's) in the hover, the table, the command line and the session
+    file; the preview caption names the frame the matrix marker shows. Saves the gallery's
+    first view (mid-wave: a link may name the frame) and its dragged-point picture."""
+    page = _open_wide(browser, server + "?frame=75")
+    try:
+        page.locator(".hs-preview-image img").wait_for(timeout=120_000)  # rendered on load
+        page.locator(".hs-closeup-image img").wait_for(timeout=120_000)
+        # matrix and preview side by side on a wide screen
+        matrix_box = page.locator(".hs-cost-matrix").first.bounding_box()
+        preview_box = page.locator(".hs-preview-image").first.bounding_box()
+        assert preview_box["x"] > matrix_box["x"] + matrix_box["width"]
+        assert preview_box["y"] < matrix_box["y"] + matrix_box["height"]
+        FIGURES.mkdir(parents=True, exist_ok=True)
+        page.locator(".hs-status").scroll_into_view_if_needed()
+        page.evaluate("window.scrollBy(0, -60)")
+        page.mouse.move(*page.evaluate("hs.xy(90, 120)"))
+        _hover_text(page, 90, 120, "hand frame")
+        page.screenshot(path=str(FIGURES / "gallery_first_view.png"))
+        rates = page.evaluate("hs.cols('hs-rates', ['fps', 'hand_fps'])")
+        assert rates["hand_fps"][0] != rates["fps"][0]  # the demo pair: 30 vs 40 fps
+        # a point at hand frame y of the hand file: beyond the grid's last column if the
+        # page counted hand frames on the alignment grid (m = 184 < 245 hand frames)
+        path = page.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
+        k = len(path["x"]) * 9 // 10
+        x, y = path["x"][k], round(path["y"][k])
+        rev = _revision(page)
+        page.mouse.click(*page.evaluate(f"hs.xy({x}, {y})"))
+        _wait_revision(page, rev)
+        deadline = time.monotonic() + 30
+        while len(_table_points(page)) != 1:
+            assert time.monotonic() < deadline
+            page.wait_for_timeout(100)
+        (tb, th), = _table_points(page)
+        assert tb == x and abs(th - y) <= 1 and th > 184
+        hover = _hover_text(page, tb, th, "matching point")
+        assert f"body frame {tb} · hand frame {th}" in hover, hover
+        assert "global (0 hand frames)" in hover and "?" not in hover, hover
+        row = page.locator(".hs-points .tabulator-row").first
+        assert row.locator("[tabulator-field='effective']").inner_text() == "0 (global)"
+        assert row.locator("[tabulator-field='tolerance']").inner_text().strip() == ""
+        cell = _hover_text(page, tb + 0.3, th, "hand frame:")
+        assert f"{th} · {th / rates['hand_fps'][0]:.2f} s" in cell, cell
+        assert "inside" in cell and "cost" in cell
+        times = page.locator(".hs-points .tabulator-row [tabulator-field='seconds']").inner_text()
+        assert f"{th / rates['hand_fps'][0]:.2f} s" in times
+        command = _text(page.locator(".hs-cli"))
+        assert f"--match {tb}:{th}" in command, command
+        with page.expect_download(timeout=30_000) as info:
+            page.locator(".hs-download-session button").click()
+        spath = tmp_path / "s.json"
+        info.value.save_as(spath)
+        data = json.loads(spath.read_text())
+        assert data["version"] == 2 and data["points"] == [
+            {"body": tb, "hand": th, "tolerance": None}]
+        # the caption names the hand frame the matrix's frame marker sits on
+        page.locator(".hs-click-mode button", has_text="Pick frames").click()
+        page.wait_for_function("() => hs.model('hs-point-tool').add === false")
+        page.mouse.click(*page.evaluate(f"hs.xy({tb}, {th})"))
+        page.locator(f".hs-preview-info span[data-frame='{tb}']").wait_for(timeout=60_000)
+        caption = page.locator(".hs-preview-info span")
+        shown = int(caption.get_attribute("data-hand-frame"))
+        marker = page.evaluate("hs.cols('hs-frame-source', ['x', 'y'])")
+        assert marker == {"x": [tb], "y": [shown]}
+        assert f"hand frame {shown} ({shown / rates['hand_fps'][0]:.2f} s)" in \
+            caption.inner_text()
+        assert abs(shown - th) <= 3  # the merged warp passes the point (T = 0) closely
+        page.locator(".hs-click-mode button", has_text="Edit points").click()
+        page.wait_for_function("() => hs.model('hs-point-tool').add === true")
+        # drag it: the gallery's "a point dragged"
+        rev = _revision(page)
+        _drag(page, tb, th, tb - 12, th - 14)
+        _wait_revision(page, rev)
+        page.wait_for_timeout(1500)
+        page.screenshot(path=str(FIGURES / "gallery_point_dragged.png"))
+        assert not page.errors, page.errors
+    finally:
+        page.context.close()
+
+
+def test_legends_and_hand_closeup(browser, server):
+    page = _open_wide(browser, server + "?frame=75")  # mid-wave: the hand is up
+    try:
+        legend = _text(page.locator(".hs-legends"))
+        for words in ("P preparation", "S stroke", "H hold", "R retraction", "wrist speed",
+                      "colour bar", "band", "optimal path", "matching points"):
+            assert words in legend, (words, legend)
+        assert page.evaluate("hs.model('hs-colorbar').title") == "cost"
+        keys = page.locator(".hs-legend .hs-phase-key")
+        assert keys.count() == 5
+        # the close-up: the spliced hands fill the frame, unlike the full-body panel
+        closeup = page.locator(".hs-closeup-image img")
+        closeup.wait_for(timeout=120_000)
+        full = page.locator(".hs-preview-image img").get_attribute("src")
+        near = closeup.get_attribute("src")
+        assert _png_coverage(near) > 1.5 * _png_coverage(full), (_png_coverage(near),
+                                                                 _png_coverage(full))
+        page.locator(".hs-preview").first.scroll_into_view_if_needed()
+        page.wait_for_timeout(500)
+        page.locator(".hs-preview").first.screenshot(path=str(FIGURES / "gallery_hand_closeup.png"))
+        # play runs at the take's rate with the one slider on the frame shown
+        sliders = page.locator(".hs-frame-slider")
+        assert sliders.count() == 1
+        page.locator(".hs-play button").click()
+        page.wait_for_timeout(3000)
+        page.locator(".hs-play button").click()
+        page.wait_for_timeout(1000)
+        caption = page.locator(".hs-preview-info span")
+        frame = int(caption.get_attribute("data-frame"))
+        assert frame > 5  # it played
+        assert not page.errors, page.errors
+    finally:
+        page.context.close()
+
+
+def test_lesson_steps_by_cell_and_by_row(browser, server):
+    from webapp.views.teaching import TeachingModel
+
+    mdl = TeachingModel()
+    rows = [sum(1 for i, _ in mdl.order if i == r) for r in range(mdl.n)]
+    page = _open_wide(browser, server)
+    try:
+        step = page.locator(".hs-teach-step button")
+        step.scroll_into_view_if_needed()
+        equation = page.locator(".hs-teach-equation")
+
+        def shown_step() -> int:
+            return int(re.search(r"Step (\d+) of", _text(equation)).group(1))
+
+        for want in (1, 2):
+            step.click()
+            deadline = time.monotonic() + 20
+            while shown_step() != want:
+                assert time.monotonic() < deadline
+                page.wait_for_timeout(100)
+        nxt = page.locator(".hs-teach-row button")
+        for want in (rows[0], rows[0] + rows[1]):  # the rest of row 0, then all of row 1
+            nxt.click()
+            deadline = time.monotonic() + 20
+            while shown_step() != want:
+                assert time.monotonic() < deadline, (shown_step(), want)
+                page.wait_for_timeout(100)
+        assert f"γ(1, {mdl.order[want - 1][1]})" in _text(equation)
+        # value mode: every number fits its cell (at most 4 characters)
+        page.locator(".hs-teaching .bk-btn", has_text="value").first.click()
+        page.locator(".hs-teaching button", has_text="Finish").click()
+        page.wait_for_function(
+            "() => hs.model('hs-teach-cells').data.gamma.filter(t => t).length > 20")
+        texts = page.evaluate("hs.model('hs-teach-cells').data.gamma.filter(t => t)")
+        assert max(len(t) for t in texts) <= 4, texts
+        page.locator(".hs-teaching .bk-btn", has_text="sign").first.click()
+        page.locator(".hs-teaching button", has_text="Reset").click()
+        for _ in range(rows[0] + 3):
+            step.click()
+        page.wait_for_timeout(1500)
+        page.locator(".hs-teaching").first.screenshot(path=str(FIGURES / "gallery_lesson_step.png"))
+        assert not page.errors, page.errors
+    finally:
+        page.context.close()
+
+
+def test_keyboard_undo_redo_and_one_step_per_slider_run(browser, server):
+    page = _open(browser, server)
+    try:
+        def count() -> int:
+            return len(page.evaluate("hs.cols('hs-points-source', ['x'])")["x"])
+
+        def wait(cond, what):
+            deadline = time.monotonic() + 30
+            while not cond():
+                assert time.monotonic() < deadline, what() if callable(what) else what
+                page.wait_for_timeout(100)
+
+        path = page.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
+        k = len(path["x"]) // 2
+        rev = _revision(page)
+        page.mouse.click(*page.evaluate(f"hs.xy({path['x'][k]}, {path['y'][k]})"))
+        _wait_revision(page, rev)
+        wait(lambda: count() == 1 and "1 matching point" in _status(page), "added")
+        page.keyboard.press("Control+z")
+        wait(lambda: count() == 0 and "0 matching points" in _status(page), "Ctrl+Z")
+        page.keyboard.press("Control+Shift+z")
+        wait(lambda: count() == 1, "Ctrl+Shift+Z")
+        page.keyboard.press("Control+z")
+        wait(lambda: count() == 0, "Ctrl+Z again")
+        page.keyboard.press("Control+y")
+        wait(lambda: count() == 1, "Ctrl+Y")
+        # four arrow-key steps of the tolerance slider: one undo step
+        _nudge_slider(page, 2, "ArrowRight", 4)
+        wait(lambda: page.evaluate("hs.cols('hs-rates', ['tol'])")["tol"] == [4], "T = 4")
+        _settle(page)
+        page.keyboard.press("Control+z")
+        def tol():
+            return page.evaluate("hs.cols('hs-rates', ['tol'])")["tol"]
+
+        wait(lambda: tol() == [0], lambda: f"T back: {tol()}, {_status(page)}")
+        assert count() == 1  # the point stays: only the slider run was undone
+        assert not page.errors, page.errors
+    finally:
+        page.context.close()
 
 
 def test_server_log_has_no_tracebacks(page):

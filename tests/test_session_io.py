@@ -42,8 +42,24 @@ def test_json_round_trip_file(tmp_path):
     assert back == spec
     assert back.constraint_points() == [(10, 12, 3.0), (40, 35, 0.0), (90, 99, 7.5)]
     data = json.loads(path.read_text())
-    assert data["format"] == "handsplice-session" and data["version"] == 1
+    assert data["format"] == "handsplice-session" and data["version"] == 2
     assert data["points"][0] == {"body": 10, "hand": 12, "tolerance": None}
+
+
+def test_version_1_files_stay_readable_with_grid_hand_frames(tmp_path):
+    """Files written before hand frames were the hand file's own (version 1) still open,
+    marked as alignment-grid frames; written back they keep saying so."""
+    data = json.loads(format_session(_spec()))
+    data["version"] = 1
+    old = from_dict(data, source="old.json")
+    assert old.hand_frames == "grid" and old.points == _spec().points
+    assert to_dict(old)["version"] == 1
+    assert _spec().hand_frames == "file" and to_dict(_spec())["version"] == 2
+    # links: made before, no frames=hand (grid); made now, frames=hand
+    q = to_query(_spec())
+    assert q["frames"] == "hand" and from_query(q).hand_frames == "file"
+    del q["frames"]
+    assert from_query(q).hand_frames == "grid"
 
 
 def test_uploaded_inputs_round_trip():
@@ -79,7 +95,7 @@ def test_defaults_from_empty_object():
     ({"inputs": {"body": {"sha256": "xyz"}}}, "inputs.body.sha256", "64"),
     ({"inputs": {"sample": "a", "body": {"path": "x"}}}, "inputs", "not both"),
     ({"colour": 1}, "colour", "unknown field"),
-    ({"version": 2}, "version", "expected 1"),
+    ({"version": 3}, "version", "expected 1 or 2"),
     ({"view": {"matrix": "pass3"}}, "view.matrix", "pass1"),
     ({"roles": {"body": {"right.wrist": 3}}}, "", "roles.body: right.wrist"),
     ({"roles": {"body": {"right.wirst": "R"}}}, "", "did you mean right.wrist"),

@@ -70,33 +70,39 @@ def test_band_width_changes_band_and_is_undoable(session):
 
 
 def test_matching_point_with_tolerance_reshapes_search_and_path(session):
-    n, m = session.n, session.m
-    x, y = n // 2, m // 4  # well off the diagonal
+    """Points are in the hand file's frames (40 fps here); the solver gets them on the
+    alignment grid (the body's 30 fps)."""
+    n = session.n
+    x, y = n // 2, session.m_hand // 4  # well off the diagonal, in hand-file frames
     before = session.solution.pass1.path
     session.add_point(x, y, 0)
+    (gx, gy, gt), = session.constraint_points()
+    assert gx == x and gy == round(y * session.fps / session.hand_fps) and gt == 0
     sol = session.solution
-    assert _path_hits(sol.pass1.path, x, y, 0)
-    assert _path_hits(sol.pass2.path, x, y, 0)  # carried over to pass 2
+    assert _path_hits(sol.pass1.path, x, gy, 0)
+    assert _path_hits(sol.pass2.path, x, gy, 0)  # carried over to pass 2
     assert not np.array_equal(before, sol.pass1.path)
-    # a tolerance loosens the constraint: the band at row x widens to y +- tol
+    assert abs(session.hand_frame_for(x) - y) <= 3  # in hand-file frames (merged warp)
+    # a tolerance loosens the constraint: 4 hand frames = 3 grid columns (rounded up)
     session.set_point_tolerance(0, 4)
+    assert session.constraint_points() == [(x, gy, 3.0)]
     band = session.solution.pass1.band
-    assert band.lo[x] >= y - 4 and band.hi[x] <= y + 4 and band.hi[x] - band.lo[x] > 0
-    assert _path_hits(session.solution.pass1.path, x, y, 4)
+    assert band.lo[x] >= gy - 3 and band.hi[x] <= gy + 3 and band.hi[x] - band.lo[x] > 0
+    assert _path_hits(session.solution.pass1.path, x, gy, 3)
     # the global tolerance applies to points without their own
     session.set_point_tolerance(0, None)
     session.tolerance = 2
-    assert session.constraint_points() == [(x, y, 2.0)]
-    assert _path_hits(session.solution.pass1.path, x, y, 2)
+    assert session.user_points() == [(x, y, 2.0)]
+    assert _path_hits(session.solution.pass1.path, x, gy, 2)
 
 
 def test_infeasible_points_are_rejected_and_leave_state_alone(session):
     session.add_point(40, 20, 0)
     rev, points, undo = session.revision, session.points, session.can_undo
     session.add_point(60, 10, 0)  # after (40, 20) in body frames but before it in hand frames
-    assert "points[1]" in session.error
+    assert "(body 60, hand 10) not kept" in session.error and "points[" not in session.error
     assert session.points == points and session.revision == rev and session.can_undo == undo
-    session.add_point(session.n + 5, session.m - 1, 0)
+    session.add_point(session.n + 5, session.m_hand - 1, 0)
     assert "outside" in session.error and session.points == points
 
 
@@ -106,7 +112,7 @@ def test_view_edits_round_clip_and_sort(session):
     # dragged past the matrix edge: clipped to the last row; crossing the other point: refused
     assert not session.set_points_from_view([(20, 5, 3.0), (1e9, 2, None)])
     assert session.points == (MatchPoint(20, 5, 3.0), MatchPoint(80, 31))
-    assert f"({session.n - 1}, 2)" in session.error
+    assert f"(body {session.n - 1}, hand 2) not kept" in session.error
 
 
 def test_undo_redo_across_points_and_parameters(session):
@@ -325,10 +331,10 @@ def test_bad_session_file_or_link_leaves_the_working_session_alone(session, cfg)
             session.from_query(query)
         assert _snapshot(session) == before, query
     # parameters without inputs apply to the takes already open
-    session.from_query({"band": "0.4", "pts": "30:10"})
+    session.from_query({"band": "0.4", "pts": "30:10", "frames": "hand"})
     assert session.sample == DEMO and session.band == 0.4
     assert session.points == (MatchPoint(30, 10),) and not session.can_undo
-    assert _path_hits(session.solution.pass1.path, 30, 10, 0)
+    assert _path_hits(session.solution.pass1.path, 30, session.constraint_points()[0][1], 0)
 
 
 def test_a_bad_link_opens_the_demo_and_says_why(cfg):
@@ -340,8 +346,13 @@ def test_a_bad_link_opens_the_demo_and_says_why(cfg):
     assert s.error.startswith("shared link:") and "nope" in s.error
     assert "nope" not in s.share_url() and "pts" not in s.to_query()  # the link shows the demo
     ok = Session(cfg)
-    app._initial_state(ok, {"sample": "wave-hello", "pts": "30:10:2"})
+    app._initial_state(ok, {"sample": "wave-hello", "pts": "30:10:2", "frames": "hand"})
     assert ok.sample == "wave-hello" and ok.points == (MatchPoint(30, 10, 2.0),) and not ok.error
+    # a link made before hand frames were the hand file's own: grid column 10 at 30 fps is
+    # hand frame 12 of the 37 fps hand file (tolerance likewise)
+    old = Session(cfg)
+    app._initial_state(old, {"sample": "wave-hello", "pts": "30:10:2"})
+    assert old.points == (MatchPoint(30, 12, 2.469),) and not old.error
 
 
 def test_opening_a_bad_session_file_in_the_page_keeps_the_session(session, cfg):
@@ -417,13 +428,15 @@ def test_matrix_view_refetches_the_visible_range_at_full_detail(session):
 
     view._on_range(Ranges())  # outside a server: fetched at once
     data = view.image_source.data
-    assert data["image"][0].shape == (data["dh"][0], data["dw"][0])  # one pixel per cell
+    rows = round(data["dh"][0] / session.hand_scale)  # dh in hand-file frames
+    assert data["image"][0].shape == (rows, data["dw"][0])  # one pixel per cell
     assert data["x"][0] == pytest.approx(99.5) and "1 pixel" not in view.title.object
     # band, path and points follow the session
     session.add_point(90, 40, 2)
     assert list(view.points_source.data["x"]) == [90]
     assert len(view.path_source.data["x"]) == len(session.solution.pass1.path)
-    assert list(view.band_source.data["lo"]) == list(session.solution.pass1.band.lo - 0.5)
+    r = session.hand_scale  # drawn in hand-file frames
+    assert np.allclose(view.band_source.data["lo"], (session.solution.pass1.band.lo - 0.5) * r)
     session.matrix = "pass2"
     assert len(view.path_source.data["x"]) == len(session.solution.pass2.path)
 
@@ -588,3 +601,73 @@ def test_command_line_uses_the_session_file_then_explicit_flags(session):
     assert "--match" not in first
     assert "explicit flags" in second and "$ handsplice splice " in second
     assert "--match 40:" in second and "--band" in second
+
+
+def test_a_run_of_one_slider_is_one_undo_step(session, monkeypatch):
+    """Arrow-key steps (each a release) of one slider within the run window undo at once;
+    another parameter, or a pause, starts a new step."""
+    from webapp import state
+
+    session.tolerance = 1
+    session.tolerance = 2
+    session.tolerance = 3
+    session.band = 0.25
+    session.undo()
+    assert session.band == 0.3 and session.tolerance == 3
+    session.undo()
+    assert session.tolerance == 0  # the three steps were one
+    monkeypatch.setattr(state, "SLIDER_RUN_S", 0.0)  # every step is a pause
+    session.tolerance = 1
+    session.tolerance = 2
+    session.undo()
+    assert session.tolerance == 1
+
+
+def test_lesson_next_row_finishes_the_current_row():
+    from webapp.views.teaching import TeachingModel, short_number
+
+    mdl = TeachingModel()
+    rows = [sum(1 for i, _ in mdl.order if i == r) for r in range(mdl.n)]
+    assert mdl.next_row_step() == rows[0]  # from the start: all of row 0
+    mdl.step = 2  # part of row 0 done: the rest of it, not row 1
+    assert mdl.next_row_step() == rows[0]
+    mdl.step = rows[0]
+    assert mdl.next_row_step() == rows[0] + rows[1]
+    mdl.metric = "value"
+    mdl.step = len(mdl.order)
+    texts = [short_number(g) for g in mdl.gamma[np.isfinite(mdl.gamma)].ravel()]
+    assert texts and max(map(len, texts)) <= 4
+    assert [short_number(x) for x in (0, 0.1234, 3.5, 12.34, 340.2, 2345, 23456, 0.004)] == \
+        ["0", "0.12", "3.5", "12.3", "340", "2345", "2e4", "4e-3"]
+
+
+def test_points_table_shows_whole_frames_times_and_the_global_tolerance(session):
+    from webapp.views.controls import _points_frame
+
+    session.add_point(60, 80)
+    session.add_point(120, 170, 3)
+    frame = _points_frame(session)
+    assert frame["body frame"].tolist() == [60, 120] and str(frame["hand frame"].dtype) == "int64"
+    assert frame["tolerance"].tolist() == ["", "3"]
+    assert frame["effective"].tolist() == ["0 (global)", "3"]
+    assert frame["seconds"][0] == f"{60 / session.fps:.2f} s · {80 / session.hand_fps:.2f} s"
+
+
+def test_page_errors_use_the_pages_words():
+    from engine.errors import RoleError
+
+    text = backend.one_line(RoleError("h.bvh has no left hand (hands found: right); "
+                                      "try --side right"))
+    assert "--side" not in text and "choose side right in the page" in text
+
+
+def test_sample_credits_and_the_no_share_warning(session):
+    from webapp.views.credits import NO_SHARE_TEXT, credits_html, no_share_alert
+
+    text = credits_html(session)
+    assert "wave-ok" in text and "CC BY-NC 4.0" in text and "MIT" in text
+    assert "jaanga/gestification" in text and NO_SHARE_TEXT not in text
+    alert = no_share_alert(session)
+    assert not alert.visible
+    session.load_sample("bye-hello")  # Bandai dataset-1: CC BY-NC-ND
+    assert alert.visible and NO_SHARE_TEXT in credits_html(session)

@@ -42,6 +42,12 @@ pass-1 path by comparing forearm/hand directions (the dashed line is the other p
 **Matching points** (yellow): *click* the matrix to add one, *drag* it to move it,
 select it and press *Backspace* to delete it. The path then passes within the point's
 tolerance (the yellow bar). Edit tolerances in the table; sliders set the band widths.
+*Ctrl+Z* undoes, *Ctrl+Shift+Z* or *Ctrl+Y* redoes.
+
+**Frame numbers** are each file's own everywhere in this page (matrix, table, preview,
+command line, session file): body frames of the body file, hand frames of the hand file
+at its own frame rate, with times in seconds next to them. (Internally the hand take is
+resampled to the body's frame rate for the alignment; you never need those numbers.)
 """
 
 
@@ -83,7 +89,7 @@ def _initial_state(session: Session, args: dict[str, str] | None = None) -> None
 
 def create_app() -> pn.viewable.Viewable:
     """Build the page for one browser session."""
-    from webapp.views import controls
+    from webapp.views import controls, credits
     from webapp.views.cost_matrix import CostMatrixView
     from webapp.views.inputs import InputsView
     from webapp.views.sharing import SharingView
@@ -108,23 +114,30 @@ def create_app() -> pn.viewable.Viewable:
         points.panel(),
         width=420, sizing_mode=None,
     )
-    alignment = _section(
-        "2 · Alignment", ALIGN_TEXT,
-        controls.status_line(session), controls.error_alert(session),
-        pn.Row(pn.Column(matrix.panel(), trust.panel(), margin=0), side_panel,
-               sizing_mode="stretch_width"),
-    )
-    sections = [
-        pn.pane.HTML(HEADER, sizing_mode="stretch_width", margin=(10, 10, 0, 10)),
-        _section("1 · Takes", "", inputs.panel()),
-        alignment,
-    ]
+    # matrix, its controls and the preview side by side on a wide screen (they wrap below
+    # one another on a narrow one); the trust layers sit under the matrix
+    work = [pn.Column(matrix.panel(), trust.panel(), margin=0), side_panel]
     try:
         from webapp.views.preview import PreviewView
 
-        sections.append(_section("3 · Preview", PreviewView.TEXT, PreviewView(session).panel()))
+        work.append(pn.Column(
+            pn.pane.Markdown("### 3 · Preview", margin=(0, 10)),
+            pn.pane.Markdown(PreviewView.TEXT, css_classes=["hs-section-text"],
+                             width=680, margin=(0, 10)),
+            PreviewView(session).panel(), sizing_mode=None, width=700))
     except ImportError:
         pass
+    alignment = _section(
+        "2 · Alignment", ALIGN_TEXT,
+        controls.status_line(session), controls.error_alert(session),
+        pn.FlexBox(*work, flex_wrap="wrap", align_items="flex-start",
+                   sizing_mode="stretch_width"),
+    )
+    sections = [
+        pn.pane.HTML(HEADER, sizing_mode="stretch_width", margin=(10, 10, 0, 10)),
+        _section("1 · Takes", "", inputs.panel(), credits.credits_pane(session)),
+        alignment,
+    ]
     sections.append(_section("4 · Share", SharingView.TEXT, SharingView(session).panel()))
     try:
         from webapp.views.teaching import TeachingView
@@ -133,7 +146,7 @@ def create_app() -> pn.viewable.Viewable:
     except ImportError:
         pass
     page = pn.Column(*sections, sizing_mode="stretch_width", css_classes=["hs-app"],
-                     styles={"max-width": "1280px", "margin": "0 auto"})
+                     styles={"max-width": "2000px", "margin": "0 auto"})
     page.session = session  # for tests and debugging
     from webapp.views import connection
 

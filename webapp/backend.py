@@ -16,6 +16,7 @@ caching, so the session object and the views stay free of engine details:
 
 from __future__ import annotations
 
+import re
 import threading
 import time
 from dataclasses import dataclass, field
@@ -25,13 +26,23 @@ import numpy as np
 
 from engine.errors import HandSpliceError
 
+#: command-line wording in engine messages -> what the page calls the same control
+_PAGE_WORDS = (
+    (re.compile(r"try --side (\w+)"), r"choose side \1 in the page"),
+    (re.compile(r"--roles\b"), "joint-role overrides"),
+)
+
 
 def one_line(exc: BaseException) -> str:
-    """An exception as the one line shown in the page."""
+    """An exception as the one line shown in the page (command-line flags named as the
+    page's controls)."""
     text = str(exc).strip()
     if isinstance(exc, KeyError) and len(exc.args) == 1 and isinstance(exc.args[0], str):
         text = exc.args[0]
-    return text.splitlines()[0] if text else type(exc).__name__
+    text = text.splitlines()[0] if text else type(exc).__name__
+    for pattern, words in _PAGE_WORDS:
+        text = pattern.sub(words, text)
+    return text
 
 
 @dataclass(frozen=True)
@@ -92,6 +103,34 @@ class Prepared:
     hand_phases: np.ndarray | None = None  # (m,)
     pass1_cost: np.ndarray | None = None  # (n, m) D1 of every cell, when small enough
     lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+
+    @property
+    def m_hand(self) -> int:
+        """Frames of the hand file (people count hand frames in these)."""
+        return int(self.features.m_hand)
+
+    @property
+    def fps(self) -> float:
+        """Body frame rate (also the alignment grid's)."""
+        return float(self.features.fps)
+
+    @property
+    def hand_fps(self) -> float:
+        return float(self.features.hand_fps)
+
+
+def points_to_grid(prepared: Prepared, points) -> list[tuple[int, int, float]]:
+    """``[(body, hand-file frame, tol in hand frames)]`` -> alignment-grid points."""
+    from engine.splice import pipeline
+
+    return pipeline.hand_points_to_grid(prepared.features, points)
+
+
+def grid_points_to_hand(prepared: Prepared, points) -> list[tuple[int, int, float | None]]:
+    """Alignment-grid points (old session files and links) -> hand-file frames."""
+    from engine.splice import pipeline
+
+    return pipeline.grid_points_to_hand(prepared.features, points)
 
 
 _PREPARED: dict[tuple, Prepared] = {}
@@ -326,7 +365,8 @@ def preview_for(prepared: Prepared, solution: Solution):
     if not all(hasattr(t, "skeleton") for t in takes):
         raise HandSpliceError("previews need a skeletal hand take (BVH); a marker hand take "
                               "has no fingers to show")
-    preview = Preview(takes, labels=labels, size=(960, 360))
+    sides = tuple(getattr(prepared.features, "sides", ()) or (prepared.side,))
+    preview = Preview(takes, labels=labels, size=(960, 360), close_up_sides=sides)
     solution.cache["preview"] = preview
     with _PREVIEW_LOCK:  # close the previous solutions' OpenGL contexts of this pair
         old = _PREVIEWS.pop(id(prepared), None)
@@ -391,6 +431,15 @@ def _marker_body_frame(prepared: Prepared, preview, frames, camera: str, trails:
     return np.concatenate([markers, hands[:, :, :3]], axis=1)
 
 
+def render_closeup(prepared: Prepared, solution: Solution, body_frame: int,
+                   size: tuple[int, int] = (360, 300)) -> np.ndarray:
+    """(H, W, 3) uint8: the spliced take's hands close up (the hands fill the frame)."""
+    preview = preview_for(prepared, solution)
+    i = frame_triplet(prepared, solution, body_frame)[2]
+    spliced = 1 if marker_body(prepared) else 2  # a marker body's preview: hand | spliced
+    return preview.frame(i, view="single", take=spliced, camera="hands", size=size)
+
+
 def png_bytes(image: np.ndarray) -> bytes:
     import io
 
@@ -453,18 +502,15 @@ def cli_command(prepared: Prepared, body: str, hand: str, side: str, band: float
                 refine_band: float, points, roles: dict | None = None) -> str:
     """The ``handsplice splice`` command line that reproduces this alignment.
 
-    Matching points are converted from alignment-grid columns to the hand file's own
-    frame numbers (what ``--match`` takes), rounded to whole frames.
+    ``points``: ``[(body, hand, tol)]`` in each file's own frames (the page's and
+    ``--match``'s numbering), tolerance in hand frames.
     """
     import shlex
 
-    feats = prepared.features
-    scale = float(feats.hand_fps) / float(feats.fps)
     parts = ["handsplice", "splice", shlex.quote(body), shlex.quote(hand), "-o", "spliced.bvh",
              "--side", side, "--band", f"{band:g}", "--refine-band", f"{refine_band:g}"]
     for x, y, tol in points:
-        h = int(round(float(np.asarray(feats.grid_to_hand(np.array([float(y)]))).ravel()[0])))
-        parts += ["--match", f"{x}:{h}" + (f":{tol * scale:.3g}" if tol else "")]
+        parts += ["--match", f"{int(x)}:{int(y)}" + (f":{tol:g}" if tol else "")]
     if roles:
         parts += ["--roles", "ROLES.json"]
     return " ".join(parts)

@@ -153,6 +153,19 @@ def load_samples(sample_dir: Path) -> list[SamplePair]:
     return pairs
 
 
+def file_credits(sample_dir: Path) -> dict[str, dict]:
+    """samples.json's per-file entries (description, source, licence) by relative path."""
+    data = _read_manifest(sample_dir)
+    files = data.get("samples", []) if isinstance(data, dict) else []
+    return {e["file"]: e for e in files if isinstance(e, dict) and isinstance(e.get("file"), str)}
+
+
+def no_share(pair: SamplePair) -> bool:
+    """True when a pair's licence forbids sharing spliced results (``"no_share": true`` in
+    samples.json, or its description says "do not share")."""
+    return bool(pair.extra.get("no_share")) or "do not share" in pair.description.lower()
+
+
 def demo_sample_name(sample_dir: Path) -> str | None:
     """The pair marked as demo in samples.json (``"demo": name``, ``"demo": {"name": name,
     ...}`` or a pair's ``"demo": true``), else the first."""

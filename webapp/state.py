@@ -36,6 +36,10 @@ MATRIX_LABELS = {
     "cumulative2": "Pass 2 cumulative cost γ in the band",
 }
 UNDO_LIMIT = 200
+#: changes of one slider that follow each other with less than this many idle seconds
+#: between them (a drag, a run of arrow-key steps) are one undo step
+SLIDER_PARAMS = ("band", "refine_band", "tolerance")
+SLIDER_RUN_S = 5.0
 
 
 @dataclass(frozen=True)
@@ -79,8 +83,9 @@ class Session(param.Parameterized):
     refine_band = param.Number(default=0.1, bounds=(0.01, 1.0), step=0.01,
                                doc="pass-2 band width W2 around the pass-1 path, fraction")
     tolerance = param.Number(default=0.0, bounds=(0.0, 500.0), step=1.0,
-                             doc="global matching-point tolerance T in frames")
-    points = param.Parameter(default=(), doc="matching points: tuple of MatchPoint")
+                             doc="global matching-point tolerance T in hand frames")
+    points = param.Parameter(default=(), doc="matching points: tuple of MatchPoint, body and "
+                                             "hand frames each in its own file's numbering")
 
     # display
     matrix = param.Selector(default="pass1", objects=list(MATRIX_LABELS),
@@ -89,7 +94,11 @@ class Session(param.Parameterized):
 
     # results (written by the session only)
     n = param.Integer(default=0, constant=True, doc="body frames (rows)")
-    m = param.Integer(default=0, constant=True, doc="hand frames at body rate (columns)")
+    m = param.Integer(default=0, constant=True, doc="alignment-grid columns: the hand take "
+                      "at the body's rate (internal; people see hand-file frames)")
+    m_hand = param.Integer(default=0, constant=True, doc="frames of the hand file")
+    fps = param.Number(default=30.0, constant=True, doc="body frame rate")
+    hand_fps = param.Number(default=30.0, constant=True, doc="hand file's frame rate")
     solution = param.Parameter(default=None, doc="backend.Solution of the current state")
     trust = param.Parameter(default=None, doc="engine.splice.uncertainty.Assessment of "
                             "``solution`` (None until computed: see ``update_trust``)")
@@ -105,6 +114,7 @@ class Session(param.Parameterized):
         self._undo: list[Snapshot] = []
         self._redo: list[Snapshot] = []
         self._applying = False
+        self._slider_run: tuple[str, float] | None = None
         self.prepared: backend.Prepared | None = None
         super().__init__(**params)
         self.param.watch(self._on_edit, list(EDIT_PARAMS))
@@ -176,11 +186,10 @@ class Session(param.Parameterized):
         self.prepared = prepared
         self._undo.clear()
         self._redo.clear()
-        with param.edit_constant(self):
-            self.n, self.m = prepared.n, prepared.m
+        self._set_sizes(prepared)
         self._applying = True
         try:
-            kept = tuple(p for p in self.points if p.body < self.n and p.hand < self.m)
+            kept = tuple(p for p in self.points if p.body < self.n and p.hand < self.m_hand)
             self.param.update(points=kept, frame=min(self.frame, max(self.n - 1, 0)))
         finally:
             self._applying = False
@@ -196,11 +205,22 @@ class Session(param.Parameterized):
         old = {e.name: e.old for e in events if not _same(e.old, e.new)}
         if not old:
             return  # nothing changed (e.g. the same points set again): no recompute, no undo
+        started = time.monotonic()
         if not self._solve():
             self._apply(old)  # rejected: back to the values that worked
             return
-        self._undo.append(Snapshot(old))
-        del self._undo[:-UNDO_LIMIT]
+        # the idle time since the last step of this slider was solved (not the time between
+        # steps: steps queued behind a slow solve still belong to one run)
+        run = self._slider_run
+        name = next(iter(old)) if len(old) == 1 and next(iter(old)) in SLIDER_PARAMS else None
+        if (name is not None and run is not None and run[0] == name
+                and started - run[1] < SLIDER_RUN_S and self._undo
+                and set(self._undo[-1].values) == {name}):
+            pass  # the same slider again: the run stays one undo step
+        else:
+            self._undo.append(Snapshot(old))
+            del self._undo[:-UNDO_LIMIT]
+        self._slider_run = None if name is None else (name, time.monotonic())
         self._redo.clear()
         self._update_history_flags()
 
@@ -226,6 +246,7 @@ class Session(param.Parameterized):
         if not source:
             return False
         snap = source.pop()
+        self._slider_run = None
         target.append(Snapshot(self._current(snap.values)))
         self._apply(snap.values)
         self._solve()
@@ -256,7 +277,8 @@ class Session(param.Parameterized):
 
     def set_point_tolerance(self, index: int, tolerance: float | None) -> None:
         if tolerance is not None and not (np.isfinite(tolerance) and tolerance >= 0):
-            self.error = f"points[{index}].tolerance: expected a number >= 0, got {tolerance}"
+            self.error = (f"tolerance of matching point {index + 1}: expected a number of hand "
+                          f"frames ≥ 0 (empty = the global tolerance), got {tolerance}")
             return
         pts = list(self.points)
         pts[index] = MatchPoint(pts[index].body, pts[index].hand,
@@ -270,12 +292,84 @@ class Session(param.Parameterized):
             if x is None or y is None or not (np.isfinite(x) and np.isfinite(y)):
                 continue
             body = int(np.clip(round(x), 0, max(self.n - 1, 0)))
-            hand = int(np.clip(round(y), 0, max(self.m - 1, 0)))
+            hand = int(np.clip(round(y), 0, max(self.m_hand - 1, 0)))
             tol = None if tol is None or (isinstance(tol, float) and np.isnan(tol)) else float(tol)
             pts.append(MatchPoint(body, hand, tol))
         before = self.points
         self.set_points(pts)
         return self.points != before or tuple(sorted(pts, key=lambda p: p.body)) == before
+
+    def apply_view_edits(self, edits) -> int:
+        """Browser edits of the matching points, in the order they were made.
+
+        ``edits``: iterable of ``(before, after)``, each a list of ``(x, y, tol)`` as the
+        page held its points before and after one click, drag or delete. The page may be
+        several edits ahead of the session (it does not wait for the server's answer), so
+        each edit is applied as what it did (one point added, moved or deleted) to the
+        points the session holds now, not as a whole list: an edit made in the page while
+        the server was changing the points (undo, a table edit) keeps both. Each edit is
+        solved and is one undo step; a refused edit sets ``error`` and the next ones go on.
+        Returns how many edits changed the points.
+        """
+        changed = 0
+        for before, after in edits:
+            before, after = self._view_cells(before), self._view_cells(after)
+            if before == after:
+                continue
+            pts = self._merged(list(self.points), before, after)
+            if pts is None or tuple(self._normalise(pts)) == self.points:
+                continue
+            old = self.points
+            self.set_points(pts)
+            changed += self.points != old
+        return changed
+
+    def _view_cells(self, edited) -> list[tuple[int, int, float | None]]:
+        """The page's ``(x, y, tol)`` floats as matrix cells (rounded, clipped; NaN tol = None)."""
+        cells = []
+        for x, y, *rest in edited:
+            if x is None or y is None or not (np.isfinite(x) and np.isfinite(y)):
+                continue
+            tol = rest[0] if rest else None
+            tol = None if tol is None or not np.isfinite(tol) else float(tol)
+            cells.append((int(np.clip(round(x), 0, max(self.n - 1, 0))),
+                          int(np.clip(round(y), 0, max(self.m_hand - 1, 0))), tol))
+        return cells
+
+    @staticmethod
+    def _merged(points: list[MatchPoint], before: list, after: list) -> list | None:
+        """``points`` with the one edit ``before -> after`` of the page applied (by index in
+        the page's list: a click appends, a drag changes entries in place, Backspace removes)."""
+        def find(cell):
+            for k, p in enumerate(points):
+                if (p.body, p.hand) == cell[:2]:
+                    return k
+            return None
+
+        if len(after) == len(before) + 1 and after[:len(before)] == before:
+            x, y, tol = after[-1]
+            return [*points, MatchPoint(x, y, tol)]
+        if len(after) == len(before):
+            for old, new in zip(before, after):
+                if old == new:
+                    continue
+                k = find(old)
+                if k is None:  # the session dropped that point meanwhile: the drag places it
+                    points.append(MatchPoint(new[0], new[1], new[2]))
+                else:
+                    points[k] = MatchPoint(new[0], new[1], points[k].tolerance)
+            return points
+        if len(after) < len(before):
+            remaining = list(after)
+            for cell in before:
+                if cell in remaining:
+                    remaining.remove(cell)
+                    continue
+                k = find(cell)
+                if k is not None:
+                    del points[k]
+            return points
+        return [MatchPoint(*c) for c in after]  # not one click, drag or delete: take it whole
 
     def _normalise(self, points) -> tuple[MatchPoint, ...]:
         out = []
@@ -290,12 +384,20 @@ class Session(param.Parameterized):
     # ------------------------------------------------------------ compute
 
     def _check_points(self) -> None:
-        spec = SessionSpec(points=self.points)
-        session_io.validate(spec)
-        for k, p in enumerate(self.points):
-            if not (0 <= p.body < self.n and 0 <= p.hand < self.m):
-                raise HandSpliceError(f"points[{k}]: ({p.body}, {p.hand}) is outside the "
-                                      f"{self.n} x {self.m} matrix")
+        """Refuse points the page cannot keep, saying why in the page's words."""
+        pts = self.points
+        for p in pts:
+            if not (0 <= p.body < self.n and 0 <= p.hand < self.m_hand):
+                raise HandSpliceError(
+                    f"matching point (body {p.body}, hand {p.hand}) not kept: it is outside "
+                    f"the takes (body frames 0–{self.n - 1}, hand frames 0–{self.m_hand - 1})")
+        for a, b in zip(pts, pts[1:]):
+            if not (b.body > a.body and b.hand > a.hand):
+                raise HandSpliceError(
+                    f"matching point (body {b.body}, hand {b.hand}) not kept: matching points "
+                    f"go forward in both takes, and point (body {a.body}, hand {a.hand}) "
+                    f"{'is at the same body frame' if b.body == a.body else 'comes later in the hand take'}")
+        session_io.validate(SessionSpec(points=pts))
 
     def _solve(self, t0: float | None = None) -> bool:
         """Recompute band and path for the current state; False (and ``error``) if rejected."""
@@ -329,9 +431,21 @@ class Session(param.Parameterized):
         self.trust = self.assess() if assessment is None else assessment
         return True
 
-    def constraint_points(self) -> list[tuple[int, int, float]]:
-        """``[(body, hand, tol), ...]`` with the global tolerance filled in."""
+    def user_points(self) -> list[tuple[int, int, float]]:
+        """``[(body, hand, tol), ...]`` in each file's frames, the global tolerance filled in
+        (what ``handsplice splice --match`` takes)."""
         return [p.resolved(self.tolerance) for p in self.points]
+
+    def constraint_points(self) -> list[tuple[int, int, float]]:
+        """The matching points on the alignment grid (what the solver takes)."""
+        if self.prepared is None:
+            return self.user_points()
+        return backend.points_to_grid(self.prepared, self.user_points())
+
+    @property
+    def hand_scale(self) -> float:
+        """Hand-file frames per alignment-grid column (hand fps / body fps)."""
+        return self.hand_fps / self.fps if self.fps else 1.0
 
     def recompute(self) -> bool:
         return self._solve()
@@ -359,10 +473,10 @@ class Session(param.Parameterized):
         return self.prepared.body_phases, self.prepared.hand_phases
 
     def hand_frame_for(self, body_frame: int) -> int:
-        """The hand frame the current (pass-2) path matches to ``body_frame`` (median)."""
-        if self.solution is None:
+        """The hand-file frame the current alignment matches to ``body_frame``."""
+        if self.solution is None or self.prepared is None:
             return 0
-        return int(round(self.solution.warp[int(np.clip(body_frame, 0, self.n - 1))]))
+        return backend.frame_triplet(self.prepared, self.solution, body_frame)[1]
 
     def frame_pair(self) -> tuple[int, int]:
         return self.frame, self.hand_frame_for(self.frame)
@@ -407,6 +521,7 @@ class Session(param.Parameterized):
         if not self.sample and self.hand_sha256:
             hand = TakeRef(sha256=self.hand_sha256, name=self.hand_name or None)
         return SessionSpec(sample=self.sample, body=body, hand=hand, side=self.side,
+                           hand_frames="file",
                            band=self.band, refine_band=self.refine_band,
                            tolerance=self.tolerance, points=self.points, roles=dict(self.roles),
                            view={"matrix": self.matrix, "frame": self.frame})
@@ -460,13 +575,17 @@ class Session(param.Parameterized):
         roles = dict(spec.roles)
         prepared = backend.prepare(paths[0], paths[1], spec.side, roles)
         points = self._normalise(spec.points)
+        if spec.hand_frames == "grid":  # an old file or link: hand frames on the grid
+            points = self._normalise(backend.grid_points_to_hand(
+                prepared, [(p.body, p.hand, p.tolerance) for p in points]))
         session_io.validate(SessionSpec(points=points))
         for k, p in enumerate(points):
-            if not (p.body < prepared.n and p.hand < prepared.m):
+            if not (p.body < prepared.n and p.hand < prepared.m_hand):
                 raise HandSpliceError(f"points[{k}]: ({p.body}, {p.hand}) is outside the "
-                                      f"{prepared.n} x {prepared.m} matrix of these takes")
+                                      f"{prepared.n} x {prepared.m_hand} matrix of these takes")
+        grid = backend.points_to_grid(prepared, [p.resolved(spec.tolerance) for p in points])
         solution = backend.solve(prepared, band=spec.band, refine_band=spec.refine_band,
-                                 points=[p.resolved(spec.tolerance) for p in points])
+                                 points=grid)
         values = dict(inputs, side=spec.side, roles=roles, band=spec.band,
                       refine_band=spec.refine_band, tolerance=spec.tolerance, points=points,
                       matrix=spec.view.get("matrix", self.matrix),
@@ -479,9 +598,14 @@ class Session(param.Parameterized):
         session (a frame of the new takes has a hand frame in the new solution)."""
         prepared = staged["prepared"]
         self.prepared = prepared
+<<<<<<< HEAD
         with param.edit_constant(self):
             self.n, self.m = prepared.n, prepared.m
         self.param.update(solution=staged["solution"], trust=None, compute_ms=staged["compute_ms"])
+=======
+        self._set_sizes(prepared)
+        self.param.update(solution=staged["solution"], compute_ms=staged["compute_ms"])
+>>>>>>> main
         self._apply(staged["values"])
         self._undo.clear()
         self._redo.clear()
@@ -489,6 +613,11 @@ class Session(param.Parameterized):
         self.error = ""
         self.revision += 1
         self._update_history_flags()
+
+    def _set_sizes(self, prepared) -> None:
+        with param.edit_constant(self):
+            self.param.update(n=prepared.n, m=prepared.m, m_hand=prepared.m_hand,
+                              fps=prepared.fps, hand_fps=prepared.hand_fps)
 
     def to_json(self) -> str:
         return session_io.format_session(self.to_spec())

@@ -163,8 +163,9 @@ def run(args: argparse.Namespace) -> int:
         if suffix not in (".gif", ".mp4", ".png"):
             raise ParameterError(f"--preview {args.preview}: expected a .gif, .mp4 or .png file")
     points = [parse_match(m) for m in args.match]
-    # --match points are hand-file frames; a session's are alignment-grid frames (the app's)
-    hand_points = bool(points) or spec is None
+    # --match points are hand-file frames; so are a session file's since version 2 (version
+    # 1 files hold alignment-grid frames)
+    hand_points = bool(points) or spec is None or spec.hand_frames == "file"
     if not points and spec is not None:
         points = spec.constraint_points()
 

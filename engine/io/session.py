@@ -7,11 +7,11 @@ accepts any text and either returns a valid :class:`SessionSpec` or raises
 
     demo.json: points[2].tolerance: expected a number >= 0, got -1
 
-Schema (version 1)::
+Schema (version 2)::
 
     {
       "format": "handsplice-session",
-      "version": 1,
+      "version": 2,
       "inputs": {"sample": "NAME"}                       # a bundled sample pair, or
               | {"body": TAKE, "hand": TAKE},            # TAKE = {"path": "walk.bvh"}
                                                          #      | {"sha256": HEX64, "name": "walk.bvh"}
@@ -21,14 +21,19 @@ Schema (version 1)::
       "tolerance": 0,         # global matching-point tolerance T, frames >= 0
       "points": [{"body": 120, "hand": 98, "tolerance": null}, ...],
                               # matching points (body frame, hand frame), 0-based, strictly
-                              # increasing in both; tolerance null = the global one
+                              # increasing in both, each in its own file's numbering (as
+                              # handsplice splice --match); tolerance in hand frames,
+                              # null = the global one
       "roles": {"body": {"right.wrist": "RHand"},        # optional joint-role overrides per
                 "hand": {"right.index1": "rIdx1"}},      # take (as handsplice splice --roles)
       "view": {"matrix": "pass1", "frame": 0}            # optional, app display only
     }
 
-Frames of matching points are DTW-matrix frames: body frames, and hand frames after
-resampling the hand take to the body's frame rate (what the cost matrix shows).
+Frames are each file's own: body frames of the body take, hand frames (and
+tolerances) of the hand take at its own frame rate. Version 1 files (the app before
+it showed one frame numbering) hold hand frames on the alignment grid (the hand take
+resampled to the body's rate); they are still read, with ``hand_frames == "grid"``
+telling the reader to convert (``engine.splice.pipeline.grid_points_to_hand``).
 """
 
 from __future__ import annotations
@@ -45,7 +50,9 @@ from engine.errors import ParameterError
 from engine.limits import MAX_SESSION_BYTES
 
 FORMAT = "handsplice-session"
-VERSION = 1
+VERSION = 2
+#: what the points' hand frames count, per file version
+HAND_FRAMES = {1: "grid", 2: "file"}
 SIDES = ("right", "left", "both")
 MATRIX_VIEWS = ("pass1", "pass2", "cumulative1", "cumulative2")
 MAX_POINTS = 10_000
@@ -109,6 +116,8 @@ class SessionSpec:
     points: tuple[MatchPoint, ...] = ()
     roles: dict = field(default_factory=dict)
     view: dict = field(default_factory=dict)
+    #: "file": hand frames of the hand file (version 2); "grid": alignment grid (version 1)
+    hand_frames: str = "file"
 
     def constraint_points(self) -> list[tuple[int, int, float]]:
         """Matching points as ``[(body_frame, hand_frame, tolerance), ...]`` for the DTW band."""
@@ -133,7 +142,7 @@ def to_dict(spec: SessionSpec) -> dict:
             inputs["hand"] = spec.hand.to_dict()
     out = {
         "format": FORMAT,
-        "version": VERSION,
+        "version": 1 if spec.hand_frames == "grid" else VERSION,
         "inputs": inputs,
         "side": spec.side,
         "band": spec.band,
@@ -235,8 +244,9 @@ def from_dict(data: Any, source: str | None = None) -> SessionSpec:
     if data.get("format", FORMAT) != FORMAT:
         raise r.fail("format", f'expected "{FORMAT}", got {_show(data.get("format"))}')
     version = data.get("version", VERSION)
-    if version != VERSION or isinstance(version, bool):
-        raise r.fail("version", f"expected {VERSION}, got {_show(version)}")
+    if version not in HAND_FRAMES or isinstance(version, bool):
+        raise r.fail("version", f"expected {' or '.join(map(str, HAND_FRAMES))}, "
+                                f"got {_show(version)}")
 
     sample = body = hand = None
     inputs = data.get("inputs", {})
@@ -309,7 +319,8 @@ def from_dict(data: Any, source: str | None = None) -> SessionSpec:
 
     spec = SessionSpec(sample=sample, body=body, hand=hand, side=side, band=band,
                        refine_band=refine, tolerance=tolerance, points=tuple(points),
-                       roles={k: v for k, v in clean_roles.items() if v}, view=view)
+                       roles={k: v for k, v in clean_roles.items() if v}, view=view,
+                       hand_frames=HAND_FRAMES[version])
     return validate(spec, source)
 
 
@@ -395,7 +406,9 @@ def to_query(spec: SessionSpec) -> dict[str, str]:
     """Short URL query parameters restoring ``spec`` (for sharing a link to the app).
 
     ``sample=NAME`` or ``body=SHA256&hand=SHA256``, ``side``, ``band``, ``refine``, ``tol``,
-    ``pts=B:H[:T],...``, ``roles`` (JSON), ``view``, ``frame``. Take paths (CLI sessions) are not put in URLs.
+    ``pts=B:H[:T],...``, ``roles`` (JSON), ``view``, ``frame``, and ``frames=hand`` when the
+    hand frames are the hand file's own (links made before have grid frames). Take paths
+    (CLI sessions) are not put in URLs.
     """
     q: dict[str, str] = {}
     if spec.sample is not None:
@@ -412,6 +425,8 @@ def to_query(spec: SessionSpec) -> dict[str, str]:
         q["pts"] = ",".join(f"{p.body}:{p.hand}" + ("" if p.tolerance is None
                                                      else f":{p.tolerance:g}")
                             for p in spec.points)
+        if spec.hand_frames == "file":
+            q["frames"] = "hand"
     if spec.roles:
         q["roles"] = json.dumps(spec.roles, separators=(",", ":"), sort_keys=True)
     if "matrix" in spec.view:
@@ -425,7 +440,7 @@ def from_query(query: dict[str, str]) -> SessionSpec:
     """Inverse of :func:`to_query`; unknown keys are ignored, bad values raise SessionError."""
     source = "URL"
     q = {k: (v[0] if isinstance(v, list | tuple) and v else v) for k, v in query.items()}
-    data: dict[str, Any] = {}
+    data: dict[str, Any] = {"version": 2 if q.get("frames") == "hand" else 1}
     if q.get("sample"):
         data["inputs"] = {"sample": q["sample"]}
     elif q.get("body") or q.get("hand"):

@@ -74,12 +74,13 @@ class Preview:
         ``{take index: phases}``; each is one array for both hands,
         ``{"left": array, "right": array}`` or a ``GesturePhases``
     roles : optional ``engine.roles.Roles`` per take (``None``: found from names)
+    close_up_sides : the hands the ``hands`` camera frames, e.g. ``("right",)`` (default all)
     """
 
     def __init__(self, takes: Motion | Sequence[Motion], labels: Sequence[str] | None = None,
                  meshes: Sequence[SkinnedMesh | None] | None = None,
                  size: tuple[int, int] | str = (640, 480), phases=None,
-                 roles: Sequence | None = None):
+                 roles: Sequence | None = None, close_up_sides: Sequence | None = None):
         takes = [takes] if isinstance(takes, Motion) else list(takes)
         if not takes:
             raise ValueError("Preview: needs at least one take")
@@ -97,7 +98,8 @@ class Preview:
         roles = list(roles) if roles is not None else [None] * len(takes)
         if len(roles) != len(takes):
             raise ValueError(f"Preview: {len(roles)} role sets for {len(takes)} takes")
-        self.views = [TakeView.from_motion(t, mesh=m, label=lab, roles=r)
+        self.views = [TakeView.from_motion(t, mesh=m, label=lab, roles=r,
+                                           close_up_sides=close_up_sides)
                       for t, m, lab, r in zip(takes, meshes, labels, roles, strict=True)]
         if phases is not None and not (isinstance(phases, Mapping)
                                        and all(isinstance(k, int) for k in phases)):

@@ -110,11 +110,13 @@ class TakeView:
     @classmethod
     def from_motion(cls, motion: Motion, mesh: SkinnedMesh | None = None,
                     anatomy: Anatomy | None = None, label: str = "",
-                    bind_frame: int = 0, roles=None) -> TakeView:
+                    bind_frame: int = 0, roles=None, close_up_sides=None) -> TakeView:
         """Prepare ``motion``; the mannequin is bound in captured frame ``bind_frame``.
 
         ``roles`` (``engine.roles.Roles``) fixes the arm and finger joints; default:
-        found from the names (a hand take's side from its file name)."""
+        found from the names (a hand take's side from its file name).
+        ``close_up_sides`` (e.g. ``("right",)``): the hands the ``hands`` camera frames
+        (default all)."""
         if motion.n_frames < 1:
             raise ValueError(f"{label or 'take'}: has no frames to render")
         if not 0 <= bind_frame < motion.n_frames:
@@ -188,7 +190,8 @@ class TakeView:
             lowest.append(vlo[1])
         view.targets = targets + np.median(offsets, axis=0)
         # the hands' close-up: centre and size of the hands' joints (wrists and fingers)
-        hand_joints = sorted({d for h in anatomy.hands.values()
+        hand_joints = sorted({d for side, h in anatomy.hands.items()
+                              if close_up_sides is None or side in close_up_sides
                               for d in motion.skeleton.descendants(h.wrist)})
         if anatomy.kind == "body" and hand_joints:
             hp = disp[:, hand_joints]

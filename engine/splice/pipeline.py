@@ -748,6 +748,29 @@ class SpliceResult:
     timings: dict
 
 
+def hand_points_to_grid(features: SpliceFeatures, points) -> list[tuple[int, int, float]]:
+    """Matching points ``(body, hand, tol)`` with ``hand`` and ``tol`` in frames of the hand
+    file -> alignment-grid columns (hand rounded to the nearest column, tolerance rounded
+    up so the grid band holds every hand frame the user allowed)."""
+    out = []
+    for x, y, t in points:
+        col = int(round(float(features.hand_to_grid(float(y)))))
+        tol = float(np.ceil(float(features.hand_to_grid(float(t))) - 1e-9)) if t else 0.0
+        out.append((int(x), min(col, features.m - 1), tol))
+    return out
+
+
+def grid_points_to_hand(features: SpliceFeatures, points) -> list[tuple[int, int, float | None]]:
+    """The inverse for reading old (version 1) session files: ``(body, grid column, tol or
+    None)`` -> ``(body, hand-file frame, tol in hand frames or None)``, rounded."""
+    scale = float(features.hand_fps) / float(features.fps)
+    out = []
+    for x, y, t in points:
+        frame = int(round(float(features.grid_to_hand(float(y)))))
+        out.append((int(x), frame, None if t is None else round(float(t) * scale, 3)))
+    return out
+
+
 def splice(body: Motion, hand: Motion, side: str = "auto", band: float = BAND,
            refine_band: float = REFINE_BAND, points: Sequence = (), hand_points: bool = False,
            theta: str = "window", body_roles=None, hand_roles=None,
@@ -774,10 +797,7 @@ def splice(body: Motion, hand: Motion, side: str = "auto", band: float = BAND,
         # check order and range in the user's own frame numbers first
         Band.from_constraints(feats.n, feats.m_hand, None, pts,
                               open_ends=check_ends_option(ends, None)[0] == "open")
-        pts = [(x, int(round(float(feats.hand_to_grid(y)))),
-                float(np.ceil(float(feats.hand_to_grid(t)) - 1e-9)) if t else 0.0)
-               for x, y, t in pts]
-        pts = [(x, min(y, feats.m - 1), t) for x, y, t in pts]
+        pts = hand_points_to_grid(feats, pts)
     result = align_passes(feats, band=band, refine_band=refine_band, points=pts, blend=blend,
                           incremental=False, progress=progress, ends=ends,
                           max_unmatched_s=max_unmatched_s)

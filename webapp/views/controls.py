@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pandas as pd
 import panel as pn
+from bokeh.models import CustomJS
 
 from webapp import safe_text
 from webapp.state import MATRIX_LABELS, Session
@@ -22,7 +23,7 @@ def parameter_widgets(session: Session) -> pn.viewable.Viewable:
             "refine_band": {"type": pn.widgets.FloatSlider, "throttled": True,
                             "label": "Pass-2 band width W2 around the pass-1 path", "step": 0.01},
             "tolerance": {"type": pn.widgets.FloatSlider, "throttled": True, "end": 60.0,
-                          "label": "Global tolerance T (frames)", "step": 1.0},
+                          "label": "Global tolerance T (hand frames)", "step": 1.0},
         },
         sizing_mode="stretch_width", css_classes=["hs-params"],
     )
@@ -36,13 +37,18 @@ def parameter_widgets(session: Session) -> pn.viewable.Viewable:
 
 
 def _points_frame(session: Session) -> pd.DataFrame:
+    """The table's rows: frames in each file's numbering (whole numbers), their times, the
+    point's own tolerance (empty = global) and the tolerance in use, as text."""
     pts = session.points
+    fps, hand_fps = session.fps or 1.0, session.hand_fps or 1.0
     return pd.DataFrame({
-        "body frame": [p.body for p in pts],
-        "hand frame": [p.hand for p in pts],
+        "body frame": pd.Series([p.body for p in pts], dtype="int64"),
+        "hand frame": pd.Series([p.hand for p in pts], dtype="int64"),
+        "seconds": [f"{p.body / fps:.2f} s · {p.hand / hand_fps:.2f} s" for p in pts],
         "tolerance": ["" if p.tolerance is None else f"{p.tolerance:g}" for p in pts],
-        "effective": [session.tolerance if p.tolerance is None else p.tolerance for p in pts],
-    }, columns=["body frame", "hand frame", "tolerance", "effective"])
+        "effective": [f"{session.tolerance:g} (global)" if p.tolerance is None
+                      else f"{p.tolerance:g}" for p in pts],
+    }, columns=["body frame", "hand frame", "seconds", "tolerance", "effective"])
 
 
 class PointsTable:
@@ -56,17 +62,28 @@ class PointsTable:
         self._syncing = False
         self.table = pn.widgets.Tabulator(
             _points_frame(session), show_index=False, sizing_mode="stretch_width", height=180,
-            titles={"body frame": "body", "hand frame": "hand", "tolerance": "tol.",
-                    "effective": "in use"},
-            widths={"body frame": 88, "hand frame": 88, "tolerance": 88, "effective": 88},
+            titles={"body frame": "body", "hand frame": "hand", "seconds": "times",
+                    "tolerance": "tol.", "effective": "tol. in use"},
+            widths={"body frame": 56, "hand frame": 56, "seconds": 124, "tolerance": 50,
+                    "effective": 96},
             header_align="center",
-            editors={"effective": None,
+            header_tooltips={"body frame": "body frame (body file's numbering)",
+                             "hand frame": "hand frame (hand file's numbering)",
+                             "seconds": "body time · hand time",
+                             "tolerance": "this point's tolerance in hand frames; "
+                                          "empty = the global tolerance",
+                             "effective": "the tolerance this point uses, hand frames"},
+            formatters={"body frame": {"type": "plaintext"}, "hand frame": {"type": "plaintext"},
+                        "seconds": {"type": "plaintext"}, "tolerance": {"type": "plaintext"},
+                        "effective": {"type": "plaintext"}},
+            editors={"effective": None, "seconds": None,
                      "tolerance": {"type": "input"},
                      "body frame": {"type": "number", "min": 0, "step": 1},
                      "hand frame": {"type": "number", "min": 0, "step": 1}},
             text_align={"tolerance": "right"},
             buttons={"delete": '<span title="delete this point" style="color:#c62828">✕</span>'},
             css_classes=["hs-points"], selectable=False, layout="fit_data_table",
+            configuration={"columnDefaults": {"headerSort": False}},
         )
         self.table.on_edit(self._on_edit)
         self.table.on_click(self._on_click)
@@ -99,8 +116,10 @@ class PointsTable:
                 frame = int(float(value))
                 s.move_point(k, frame if column == "body frame" else p.body,
                              frame if column == "hand frame" else p.hand)
-        except (TypeError, ValueError) as exc:
-            s.error = f"points[{k}].{column}: {exc}"
+        except (TypeError, ValueError):
+            what = "a number of hand frames ≥ 0, or empty for the global tolerance" \
+                if column == "tolerance" else "a whole frame number"
+            s.error = f"{column} of matching point {k + 1}: expected {what}, got {value!r}"
         self._refresh()
 
     def _on_click(self, event):
@@ -156,7 +175,58 @@ def undo_redo(session: Session) -> pn.viewable.Viewable:
         redo.disabled = not session.can_redo
 
     session.param.watch(flags, ["can_undo", "can_redo"])
+    doc = pn.state.curdoc
+    if doc is not None:
+        doc.js_on_event("document_ready", CustomJS(code=_JS_UNDO_KEYS))
     return pn.Row(undo, redo, clear)
+
+
+#: Ctrl+Z undoes, Ctrl+Shift+Z and Ctrl+Y redo (Cmd on a Mac), anywhere in the page except
+#: while typing in a text field (where the field's own undo applies): they press the
+#: page's Undo and Redo buttons, so keyboard and mouse do the same thing
+_JS_UNDO_KEYS = """
+if (window.__hsUndoKeys) return;
+window.__hsUndoKeys = true;
+const find = (sel, root = document) => {
+  const hit = root.querySelector(sel);
+  if (hit) return hit;
+  for (const el of root.querySelectorAll('*')) {
+    if (el.shadowRoot) { const f = find(sel, el.shadowRoot); if (f) return f; }
+  }
+  return null;
+};
+document.addEventListener('keydown', (ev) => {
+  if (!(ev.ctrlKey || ev.metaKey) || ev.altKey) return;
+  const key = ev.key.toLowerCase();
+  const redo = (key === 'z' && ev.shiftKey) || (key === 'y' && !ev.shiftKey);
+  const undo = key === 'z' && !ev.shiftKey;
+  if (!undo && !redo) return;
+  const target = ev.composedPath()[0];
+  if (target && (target.tagName === 'INPUT' && !['range', 'checkbox', 'radio', 'button']
+      .includes(target.type) || target.tagName === 'TEXTAREA' || target.isContentEditable)) return;
+  ev.preventDefault();
+  // presses are queued and done in order; a button still disabled may be waiting for the
+  // server's answer to the edit before (a redo re-enables Undo): each waits up to 10 s
+  queue.push(redo ? '.hs-redo' : '.hs-undo');
+  if (queue.length === 1) next(100);
+}, true);
+const queue = [];
+const next = (tries) => {
+  if (!queue.length) return;
+  const host = find(queue[0]);
+  const button = host && (host.shadowRoot ?? host).querySelector('button');
+  if (button && !button.disabled) {
+    button.click();
+    queue.shift();
+    setTimeout(() => next(100), 50);
+  } else if (tries > 0) {
+    setTimeout(() => next(tries - 1), 100);
+  } else {
+    queue.shift();
+    next(100);
+  }
+};
+"""
 
 
 def matrix_title(session: Session) -> str:

@@ -1,14 +1,23 @@
 """The DTW cost matrix: local or cumulative cost image, band, optimal path, matching points.
 
-x is the body frame (matrix row i), y the hand frame (column j), so a matching
-point (body frame, hand frame) sits at (x, y) and the band of row i is the vertical
-stretch [lo_i, hi_i] above x = i.
+x is the body frame (matrix row i), y the hand frame in the hand file's own numbering,
+so a matching point (body frame, hand frame) sits at (x, y), as the table, the preview
+caption, the session file and ``--match`` count it. The solver's columns are the
+alignment grid (the hand take at the body's rate); column j is drawn at hand frame
+j × hand_scale (hand fps / body fps), so band, path and image sit where the hand
+file's frames are. Axes and hover also give seconds.
 
 Editing: with the point tool active (the default) a click adds a matching point,
-a drag moves one, Backspace deletes the selected one. The browser only sends the
-edited point list when a drag ends; the session validates it, recomputes band and
-path, and pushes the new band and path back (only those sources change, so the
-page does not re-render the figure).
+a drag moves one, Backspace deletes the selected one. The page never waits for the
+server: each click, drag end or delete becomes a numbered edit (the point list
+before and after it) in a queue the page sends whole until the server has answered
+(``hs-edit-queue``). The server applies the new edits one by one, in order, as what
+they did (add, move, delete) to the session's points; then it sends the session's
+points back with the number of the last edit they include (``hs-server-points``),
+and the page adopts them only when no newer edit of its own is still unanswered.
+So quick clicks all arrive, an old answer never overwrites a newer click, and a
+refused edit disappears with the reason shown. Only the band, path and point
+sources change, so the page does not re-render the figure.
 
 Large matrices: the image is a view of at most ``max_pixels`` cells per axis of the
 visible range, fetched again (throttled) when the visible range changes, so a
@@ -18,12 +27,17 @@ full detail.
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import panel as pn
 from bokeh.events import DoubleTap, RangesUpdate, Tap
 from bokeh.models import (
     ColorBar,
     ColumnDataSource,
+    CustomJS,
+    CustomJSHover,
+    CustomJSTickFormatter,
     HoverTool,
     LinearColorMapper,
     PointDrawTool,
@@ -74,6 +88,133 @@ def _phase_colors() -> dict:
         return {}
 
 
+def _rows(cols) -> list[tuple[float, float, float]]:
+    """The page's ``{"x": [...], "y": [...], "tol": [...]}`` as ``(x, y, tol)`` rows."""
+    if not isinstance(cols, dict):
+        return []
+    xs, ys, tols = (list(cols.get(k) or []) for k in ("x", "y", "tol"))
+    tols += [None] * (len(xs) - len(tols))
+
+    def num(v):
+        return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else None
+
+    return [(num(x), num(y), num(t)) for x, y, t in zip(xs, ys, tols)]
+
+
+#: the page side of the edit queue (see ``CostMatrixView``): every change of the points the
+#: user makes (click, drag end, Backspace) becomes a numbered edit {seq, before, after}; all
+#: edits the server has not answered yet are sent together, so none is lost or reordered
+_JS_STATE = """
+const cols = (d) => ({x: Array.from(d.x ?? []), y: Array.from(d.y ?? []),
+                      tol: Array.from(d.tol ?? []).map(v => (v == null || Number.isNaN(v)) ? null : v)});
+const st = (src._hs ??= {seq: 0, pending: [], syncing: false, shown: cols(server.data)});
+const dragging = () => {
+  const view = Bokeh.index.find_one(fig);
+  const tool_view = view?.tool_views?.get(tool);
+  return tool_view != null && tool_view._basepoint != null;
+};
+const adopt = () => {  // show the session's points once every edit sent is answered
+  const acked = server.tags[0] ?? 0;
+  st.pending = st.pending.filter(e => e.seq > acked);
+  if (st.pending.length || dragging()) return;  // a drag in progress adopts when it ends
+  const d = server.data;
+  st.syncing = true;
+  try {
+    src.data = {x: Array.from(d.x ?? []), y: Array.from(d.y ?? []),
+                tol: Array.from(d.tol ?? []).map(v => v == null ? NaN : v)};
+  } finally {
+    st.syncing = false;
+  }
+  st.shown = cols(src.data);
+};
+"""
+
+_JS_SEND_EDIT = _JS_STATE + """
+if (st.syncing) return;
+const after = cols(src.data);
+const before = st.shown;
+if (JSON.stringify(before) !== JSON.stringify(after)) {
+  st.seq = Math.max(st.seq, server.tags[0] ?? 0) + 1;
+  st.pending.push({seq: st.seq, before: before, after: after});
+  st.shown = after;
+  queue.data = {edits: [JSON.stringify(st.pending)]};
+}
+adopt();
+"""
+
+#: Bokeh reports a second click within 300 ms as a double tap, which the point tool ignores:
+#: quick clicks were lost in the page itself. A double tap is handed to the tool as a tap.
+_JS_DOUBLE_TAP_IS_A_TAP = """
+const view = Bokeh.index.find_one(fig);
+const tool_view = view?.tool_views?.get(tool);
+if (tool_view == null || tool_view._doubletap != null || tool.active === false) return;
+tool_view._tap({type: "tap", sx: cb_obj.sx, sy: cb_obj.sy,
+                modifiers: cb_obj.modifiers ?? {shift: false, ctrl: false, alt: false}});
+"""
+
+#: Bokeh turns a pointer held still for 300 ms into a "press", after which moves are ignored:
+#: a point pressed a moment before it is dragged (or a drag started while the page is busy
+#: drawing the previous answer) stayed put. Nothing here uses presses, so they wait a minute.
+_JS_NO_PRESS = """
+const gestures = Bokeh.require("core/ui_gestures").UIGestures;
+gestures.press_threshold = 60000;
+"""
+
+#: the page adopts the session's points once the server has answered every edit it sent
+_JS_RECONCILE = _JS_STATE + """
+adopt();
+"""
+
+
+#: hover and axis texts: frames with their times (``rates`` holds both frame rates)
+_JS_BODY_FRAME = """
+const i = Math.round(value);
+return `${i} · ${(i / rates.data.fps[0]).toFixed(2)} s`;
+"""
+_JS_HAND_FRAME = """
+const h = Math.round(value);
+return `${h} · ${(h / rates.data.hand_fps[0]).toFixed(2)} s`;
+"""
+_JS_IN_BAND = """
+const x = Math.round(special_vars.x), y = special_vars.y;
+const k = band.data.x.indexOf(x);
+if (k < 0) return "outside (no band)";
+return (band.data.lo[k] <= y && y <= band.data.hi[k]) ? "inside (searched)" : "outside (never searched)";
+"""
+_JS_TOL = """
+value = src.data.tol[value];  // by row: Bokeh prints a NaN field without formatting it
+if (value == null || !Number.isFinite(Number(value)))
+  return `global (${rates.data.tol[0]} hand frames)`;
+return `${value} hand frames`;
+"""
+_JS_TICK = """
+const fps = rates.data[key][0];
+return `${tick}\n${(tick / fps).toFixed(1)} s`;
+"""
+
+
+def phase_legend_html(colors: dict) -> str:
+    """The legend of the strips along the axes: wrist speed curves and phase colour bars."""
+    names = [(1, "P", "preparation"), (2, "S", "stroke"), (3, "H", "hold"),
+             (4, "R", "retraction"), (0, "–", "rest")]
+    swatches = "".join(
+        f'<span class="hs-phase-key" data-phase="{letter}" '
+        f'style="margin-right:10px;white-space:nowrap">'
+        f'<span style="display:inline-block;width:12px;height:10px;background:'
+        f'{colors.get(code, "#cccccc")};margin-right:3px;vertical-align:-1px"></span>'
+        f"<b>{letter}</b> {name}</span>" for code, letter, name in names)
+    return (
+        '<div class="hs-legend" style="font-size:12px;color:#333;line-height:1.7">'
+        '<div><span style="display:inline-block;width:18px;border-top:2px solid #333;'
+        'vertical-align:3px;margin-right:4px"></span>wrist speed of each take along its '
+        'axis (scaled to its fastest moment) · colour bars: gesture phases '
+        f"{swatches}</div>"
+        '<div>Matrix colour: local cost (colour bar at the right; dark = the two frames '
+        'move alike) · <span style="color:#4fc3f7">■</span> band edges, outside dimmed · '
+        '<span style="color:#ff3b30">━</span> optimal path · '
+        '<span style="color:#ffd60a">●</span> matching points</div></div>')
+
+
 class CostMatrixView:
     """Bokeh figures of one session's cost matrix, kept in sync with the session."""
 
@@ -85,10 +226,14 @@ class CostMatrixView:
         self._range_timer = False
         self._image_key = None
         self._colors = _phase_colors()
-        n, m = max(session.n, 1), max(session.m, 1)
+        n = max(session.n, 1)
+        lo, hi = self._hand_extent()
+        # frame rates for the axes and hover (seconds next to frames)
+        self.rates = ColumnDataSource({"fps": [session.fps], "hand_fps": [session.hand_fps],
+                                       "tol": [session.tolerance]}, name="hs-rates")
 
         self.x_range = Range1d(-0.5, n - 0.5, bounds=(-0.5, n - 0.5), name="hs-x-range")
-        self.y_range = Range1d(-0.5, m - 0.5, bounds=(-0.5, m - 0.5), name="hs-y-range")
+        self.y_range = Range1d(lo, hi, bounds=(lo, hi), name="hs-y-range")
         fig = figure(
             frame_width=size, frame_height=size, x_range=self.x_range, y_range=self.y_range,
             tools="pan,wheel_zoom,box_zoom,reset,save", toolbar_location="right",
@@ -105,13 +250,13 @@ class CostMatrixView:
         self.image_source = ColumnDataSource(
             {"image": [np.zeros((1, 1), dtype=np.float32)], "x": [-0.5], "y": [-0.5],
              "dw": [1.0], "dh": [1.0]}, name="hs-image-source")
-        fig.image(image="image", x="x", y="y", dw="dw", dh="dh", source=self.image_source,
-                  color_mapper=self.mapper, level="image")
+        image = fig.image(image="image", x="x", y="y", dw="dw", dh="dh",
+                          source=self.image_source, color_mapper=self.mapper, level="image")
         # the band: cells outside it dimmed, its edges drawn
         self.band_source = ColumnDataSource({"x": [], "lo": [], "hi": []}, name="hs-band-source")
         fig.varea(x="x", y1=-0.5, y2="lo", source=self.band_source, fill_color="black",
                   fill_alpha=0.55, name="hs-band-below")
-        self._above = fig.varea(x="x", y1="hi", y2=m - 0.5, source=self.band_source,
+        self._above = fig.varea(x="x", y1="hi", y2=hi, source=self.band_source,
                                 fill_color="black",
                   fill_alpha=0.55, name="hs-band-above")
         fig.line(x="x", y="lo", source=self.band_source, color=BAND_COLOR, line_width=1.5,
@@ -149,10 +294,23 @@ class CostMatrixView:
         fig.add_tools(self.point_tool)
         fig.toolbar.active_drag = self.point_tool
         fig.toolbar.active_tap = self.point_tool
-        fig.add_tools(HoverTool(renderers=[points], tooltips=[
-            ("body frame", "@x{0}"), ("hand frame", "@y{0}"), ("tolerance", "@tol")]))
+        fig.add_tools(HoverTool(renderers=[points], name="hs-point-hover", tooltips=[
+            ("matching point", "body frame @x{0} · hand frame @y{0}"),
+            ("tolerance", "$index{custom}")], formatters={"$index": CustomJSHover(
+                args={"rates": self.rates, "src": self.points_source}, code=_JS_TOL)}))
+        # every cell: both frames with their times, the local cost, inside the band or not
+        fig.add_tools(HoverTool(
+            renderers=[image], name="hs-cell-hover", tooltips=[
+                ("body frame", "$x{body}"), ("hand frame", "$y{hand}"),
+                ("cost", "@image{0.000}"), ("band", "$sx{band}")],
+            formatters={"$x": CustomJSHover(args={"rates": self.rates}, code=_JS_BODY_FRAME),
+                        "$y": CustomJSHover(args={"rates": self.rates}, code=_JS_HAND_FRAME),
+                        "$sx": CustomJSHover(args={"band": self.band_source},
+                                             code=_JS_IN_BAND)}))
         fig.add_layout(ColorBar(color_mapper=self.mapper, width=8, padding=2,
-                                major_label_text_font_size="8pt"), "right")
+                                major_label_text_font_size="8pt", name="hs-colorbar",
+                                title="cost", title_text_font_size="8pt",
+                                title_standoff=4), "right")
         self.figure = fig
         self.title = pn.pane.HTML("", css_classes=["hs-matrix-title"], margin=(0, 10, 0, 100),
                                   styles={"font-size": "13px"})
@@ -164,7 +322,9 @@ class CostMatrixView:
         self.hand_phase_source = ColumnDataSource(_phase_quads(None, {}))
         body = figure(frame_width=size, frame_height=AXIS_SIGNAL_SIZE - 40, x_range=self.x_range,
                       y_range=Range1d(-0.35, 1.05), tools="", toolbar_location=None,
-                      x_axis_label="body frame", name="hs-body-signal")
+                      x_axis_label="body frame (and seconds)", name="hs-body-signal")
+        body.xaxis.formatter = CustomJSTickFormatter(args={"rates": self.rates, "key": "fps"},
+                                                     code=_JS_TICK)
         body.quad(left="start", right="stop", bottom=-0.32, top=-0.08,
                   color="color", source=self.body_phase_source)
         body.line(x="x", y="y", source=self.body_signal_source, color="#333333")
@@ -172,7 +332,11 @@ class CostMatrixView:
         body.ygrid.visible = False
         hand = figure(width=AXIS_SIGNAL_SIZE, frame_height=size, y_range=self.y_range,
                       x_range=Range1d(1.05, -0.35), tools="", toolbar_location=None,
-                      y_axis_label="hand frame", name="hs-hand-signal")
+                      y_axis_label="hand frame, hand file's numbering (and seconds)",
+                      name="hs-hand-signal")
+        hand.yaxis.formatter = CustomJSTickFormatter(
+            args={"rates": self.rates, "key": "hand_fps"}, code=_JS_TICK)
+        hand.yaxis.axis_label_text_font_size = "9pt"
         hand.quad(bottom="start", top="stop", left=-0.32, right=-0.08,
                   color="color", source=self.hand_phase_source)
         hand.line(x="x", y="y", source=self.hand_signal_source, color="#333333")
@@ -184,7 +348,27 @@ class CostMatrixView:
         hand.min_border_top, hand.min_border_bottom, hand.min_border_right = 6, 6, 2
         self.body_figure, self.hand_figure = body, hand
 
-        self.points_source.on_change("data", self._on_points_edited)
+        # the edit queue: the page numbers its edits and sends every unanswered one; the
+        # session's points come back in ``server_points`` with the last edit they include
+        self.edit_source = ColumnDataSource({"edits": ["[]"]}, name="hs-edit-queue")
+        self.server_points = ColumnDataSource({"x": [], "y": [], "tol": []}, tags=[0],
+                                              name="hs-server-points")
+        self._acked = 0
+        self._page_up = False
+        if pn.state.curdoc is not None and pn.state.curdoc.session_context is not None:
+            pn.state.onload(lambda: setattr(self, "_page_up", True))
+        args = {"src": self.points_source, "queue": self.edit_source,
+                "server": self.server_points, "fig": fig, "tool": self.point_tool}
+        self.points_source.js_on_change("data", CustomJS(args=args, code=_JS_SEND_EDIT))
+        reconcile = CustomJS(args=args, code=_JS_RECONCILE)
+        fig.js_on_event(DoubleTap, CustomJS(args=args, code=_JS_NO_PRESS
+                                            + _JS_DOUBLE_TAP_IS_A_TAP))
+        doc = pn.state.curdoc
+        if doc is not None:
+            doc.js_on_event("document_ready", CustomJS(code=_JS_NO_PRESS))
+        self.server_points.js_on_change("data", reconcile)
+        self.server_points.js_on_change("tags", reconcile)
+        self.edit_source.on_change("data", self._on_edits)
         fig.on_event(RangesUpdate, self._on_range)
         fig.on_event(Tap, self._on_tap)
         fig.on_event(DoubleTap, self._on_tap)
@@ -196,21 +380,32 @@ class CostMatrixView:
 
     # ------------------------------------------------------------ session -> page
 
+    def _hand_extent(self) -> tuple[float, float]:
+        """The hand axis's extent in hand-file frames (the grid's columns, scaled)."""
+        r, m = self.session.hand_scale, max(self.session.m, 1)
+        return -0.5 * r, (m - 0.5) * r
+
     @with_document_lock
     def _on_inputs(self, *_):
         s = self.session
-        n, m = max(s.n, 1), max(s.m, 1)
+        n = max(s.n, 1)
+        r = s.hand_scale
+        lo, hi = self._hand_extent()
+        self.rates.data = {"fps": [s.fps], "hand_fps": [s.hand_fps], "tol": [s.tolerance]}
         self.x_range.update(bounds=(-0.5, n - 0.5), start=-0.5, end=n - 0.5)
-        self.y_range.update(bounds=(-0.5, m - 0.5), start=-0.5, end=m - 0.5)
-        self._above.glyph.y2 = m - 0.5
+        self.y_range.update(bounds=(lo, hi), start=lo, end=hi)
+        self._above.glyph.y2 = hi
         body, hand = s.axis_signals()
         self.body_signal_source.data = {"x": np.arange(len(body)), "y": body}
-        self.hand_signal_source.data = {"x": hand, "y": np.arange(len(hand))}
+        self.hand_signal_source.data = {"x": hand, "y": np.arange(len(hand)) * r}
         body_phases, hand_phases = s.axis_phases()
         self.body_phase_source.data = _phase_quads(body_phases, self._colors)
-        self.hand_phase_source.data = _phase_quads(hand_phases, self._colors)
+        quads = _phase_quads(hand_phases, self._colors)
+        quads["start"] = list(np.asarray(quads["start"], dtype=float) * r)
+        quads["stop"] = list(np.asarray(quads["stop"], dtype=float) * r)
+        self.hand_phase_source.data = quads
         self._image_key = None
-        self._update_image((-0.5, n - 0.5, -0.5, m - 0.5))
+        self._update_image((-0.5, n - 0.5, lo, hi))
         self._on_result()
 
     @with_document_lock
@@ -226,16 +421,20 @@ class CostMatrixView:
             return
         shown, other = (sol.pass2, sol.pass1) if s.matrix in ("pass2", "cumulative2") \
             else (sol.pass1, sol.pass2)
+        r = s.hand_scale  # grid columns -> hand-file frames
         # the path first: it is what a drag is waiting for; compact dtypes keep messages small
         self.path_source.data = {"x": shown.path[:, 0].astype(np.int32),
-                                 "y": shown.path[:, 1].astype(np.int32)}
+                                 "y": (shown.path[:, 1] * r).astype(np.float32)}
         lo, hi = shown.band.lo, shown.band.hi
         self.band_source.data = {"x": np.arange(len(lo), dtype=np.int32),
-                                 "lo": (lo - 0.5).astype(np.float32),
-                                 "hi": (hi + 0.5).astype(np.float32)}
+                                 "lo": ((lo - 0.5) * r).astype(np.float32),
+                                 "hi": ((hi + 0.5) * r).astype(np.float32)}
         self.other_path_source.data = {"x": other.path[:, 0].astype(np.int32),
-                                       "y": other.path[:, 1].astype(np.int32)}
-        self.unmatched_source.data = _unmatched_quads(shown.path, len(lo), shown.band.m)
+                                       "y": (other.path[:, 1] * r).astype(np.float32)}
+        quads = _unmatched_quads(shown.path, len(lo), shown.band.m)
+        quads["bottom"] = [v * r for v in quads["bottom"]]
+        quads["top"] = [v * r for v in quads["top"]]
+        self.unmatched_source.data = quads
         self._on_frame()
         if s.matrix.startswith("cumulative"):  # the cumulative cost depends on band and points
             self._image_key = None
@@ -255,27 +454,34 @@ class CostMatrixView:
     @with_document_lock
     def _sync_points(self):
         pts = self.session.points
+        if self.rates.data["tol"] != [self.session.tolerance]:
+            self.rates.data = {**self.rates.data, "tol": [self.session.tolerance]}
         tol = [self.session.tolerance if p.tolerance is None else p.tolerance for p in pts]
-        self._syncing = True
-        try:
-            self.points_source.data = {"x": [p.body for p in pts], "y": [p.hand for p in pts],
-                                       "tol": [None if p.tolerance is None else p.tolerance
-                                               for p in pts]}
-            self.tol_source.data = {"x": [p.body for p in pts],
-                                    "y0": [p.hand - t - 0.5 for p, t in zip(pts, tol)],
-                                    "y1": [p.hand + t + 0.5 for p, t in zip(pts, tol)]}
-        finally:
-            self._syncing = False
+        data = {"x": [p.body for p in pts], "y": [p.hand for p in pts],
+                "tol": [None if p.tolerance is None else p.tolerance for p in pts]}
+        # data first, then the answered edit number: the page adopts the session's points
+        # once nothing it sent is still unanswered (a newer click is never overwritten)
+        self.server_points.data = data
+        self.server_points.tags = [self._acked]
+        if not self._page_up:  # the page is not up yet: its first points are the session's
+            self.points_source.data = dict(data)
+        self.tol_source.data = {"x": [p.body for p in pts],
+                                "y0": [p.hand - t - 0.5 for p, t in zip(pts, tol)],
+                                "y1": [p.hand + t + 0.5 for p, t in zip(pts, tol)]}
 
     def _visible(self) -> tuple[float, float, float, float]:
         return (self.x_range.start, self.x_range.end, self.y_range.start, self.y_range.end)
 
     @with_document_lock
     def _update_image(self, ranges):
+        """Show the part of the matrix in ``ranges`` (x0, x1 body frames, y0, y1 hand-file
+        frames)."""
         s = self.session
         if s.n == 0 or s.m == 0:
             return
-        view = s.cost_view(ranges, self.max_pixels)
+        r = s.hand_scale
+        x0, x1, y0, y1 = ranges
+        view = s.cost_view((x0, x1, y0 / r, y1 / r), self.max_pixels)
         if view is None:
             return
         key = (s.matrix, view.x0, view.x1, view.y0, view.y1, view.image.shape, s.revision
@@ -289,29 +495,37 @@ class CostMatrixView:
             lo, hi = np.percentile(finite, [1, 99]) if finite.size > 100 else \
                 (finite.min(), finite.max())
             self.mapper.update(low=float(lo), high=float(hi if hi > lo else lo + 1))
-        self.image_source.data = {"image": [img], "x": [view.x0 - 0.5], "y": [view.y0 - 0.5],
+        self.image_source.data = {"image": [img], "x": [view.x0 - 0.5],
+                                  "y": [(view.y0 - 0.5) * r],
                                   "dw": [float(view.x1 - view.x0)],
-                                  "dh": [float(view.y1 - view.y0)]}
+                                  "dh": [float(view.y1 - view.y0) * r]}
         self.title.object = "<b>" + MATRIX_LABELS[s.matrix] + "</b>" + (
             "" if view.stride == (1, 1) else f"  ·  1 pixel = {view.stride[0]}×{view.stride[1]} cells")
 
     # ------------------------------------------------------------ page -> session
 
-    def _on_points_edited(self, attr, old, new):
-        if self._syncing:
-            return
-        xs, ys = list(new.get("x", [])), list(new.get("y", []))
-        tols = list(new.get("tol", [])) + [None] * (len(xs) - len(new.get("tol", [])))
-        edited = [(x, y, t) for x, y, t in zip(xs, ys, tols)]
+    def _on_edits(self, attr, old, new):
+        """The page's queue of unanswered edits changed: apply the new ones in order (after
+        Bokeh has applied the browser's patch, so the answers go out at once)."""
         doc = pn.state.curdoc
         if doc is None or doc.session_context is None:
-            self._apply_edit(edited)
-        else:  # after Bokeh has finished applying the browser's patch: changes go out at once
-            doc.add_next_tick_callback(lambda: self._apply_edit(edited))
+            self._apply_edits()
+        else:
+            doc.add_next_tick_callback(self._apply_edits)
 
-    def _apply_edit(self, edited) -> None:
-        if not self.session.set_points_from_view(edited):
-            self._sync_points()  # rejected: put the points back where the session has them
+    def _apply_edits(self) -> None:
+        try:
+            queue = json.loads((self.edit_source.data.get("edits") or ["[]"])[0])
+        except (TypeError, ValueError):
+            return
+        fresh = sorted((e for e in queue if isinstance(e, dict)
+                        and int(e.get("seq", 0)) > self._acked), key=lambda e: int(e["seq"]))
+        if not fresh:
+            return
+        for edit in fresh:  # one at a time: each is solved before the next is merged
+            self.session.apply_view_edits([(_rows(edit.get("before")), _rows(edit.get("after")))])
+            self._acked = int(edit["seq"])
+        self._sync_points()
 
     def _on_range(self, event):
         self._pending_range = (event.x0, event.x1, event.y0, event.y1)
@@ -350,6 +564,8 @@ class CostMatrixView:
             pn.Row(pn.Spacer(width=AXIS_SIGNAL_SIZE, margin=0),
                    pn.pane.Bokeh(self.body_figure, sizing_mode="fixed", margin=0),
                    sizing_mode=None, width=size + AXIS_SIGNAL_SIZE, margin=0),
+            pn.pane.HTML(phase_legend_html(self._colors), css_classes=["hs-legends"],
+                         width=size + AXIS_SIGNAL_SIZE, margin=(4, 0)),
             sizing_mode=None, width=size + AXIS_SIGNAL_SIZE, margin=(0, 10))
 
 

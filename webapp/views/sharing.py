@@ -24,6 +24,15 @@ from webapp.state import Session
 
 #: exports of all sessions share these threads (renders take turns on the OpenGL lock)
 _EXPORTS = ThreadPoolExecutor(max_workers=2, thread_name_prefix="hs-export")
+#: exports running now (all sessions): previews wait rather than block the event loop on
+#: the renderer an export holds
+_RUNNING = [0]
+
+
+def exports_running() -> bool:
+    return _RUNNING[0] > 0
+
+
 #: how often the page's progress follows an export, seconds
 PROGRESS_INTERVAL = 0.25
 #: the name the page gives the downloaded session file (the command line refers to it)
@@ -151,6 +160,7 @@ class SharingView:
             self.progress_text.object = f"{what}: rendering… {step}"
 
         self._exporting = True
+        _RUNNING[0] += 1
         self.gif.disabled = self.mp4.disabled = True
         self.progress.value = 0
         self.progress.visible = self.progress_text.visible = True
@@ -173,6 +183,7 @@ class SharingView:
             return None
         finally:
             self._exporting = False
+            _RUNNING[0] -= 1
             self.gif.disabled = self.mp4.disabled = False
         self.message.visible = False
         self.progress.value = 100
@@ -216,14 +227,17 @@ class SharingView:
             hand = s.hand_name or paths[1].name
             session_cmd = backend.cli_session_command(body, hand, SESSION_FILENAME)
             flags_cmd = backend.cli_command(s.prepared, body, hand, s.side, s.band,
-                                            s.refine_band, s.constraint_points(), s.roles)
+                                            s.refine_band, s.user_points(), s.roles)
             self.command.object = (
                 "$ " + safe_text.html(session_cmd) + "<br>"
                 "<span style='color:#777'># or with explicit flags (--match takes hand-file "
                 "frames):</span><br>$ " + safe_text.html(flags_cmd))
 
     def panel(self) -> pn.viewable.Viewable:
-        return pn.Column(pn.Row(self.bvh, self.glb, self.session_file, self.gif, self.mp4),
+        from webapp.views.credits import no_share_alert
+
+        return pn.Column(no_share_alert(self.session),
+                         pn.Row(self.bvh, self.glb, self.session_file, self.gif, self.mp4),
                          pn.Row(self.progress, self.progress_text),
                          pn.Row(pn.pane.Markdown("**Open a session file**",
                                                  margin=(12, 10, 0, 10)), self.open_session),

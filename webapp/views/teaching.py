@@ -60,6 +60,20 @@ def local_costs(body: np.ndarray, hand: np.ndarray, metric: str) -> np.ndarray:
                             (n, m)).image
 
 
+def short_number(x: float, width: int = 4) -> str:
+    """``x`` in at most ``width`` characters (so it fits a lesson cell): 0, 0.12, 3.5, 12,
+    340, 2e3."""
+    x = float(x)
+    if x == 0:
+        return "0"
+    for digits in (2, 1, 0):
+        text = f"{x:.{digits}f}"
+        if len(text) <= width and float(text) != 0:
+            return text.rstrip("0").rstrip(".") if "." in text else text
+    text = f"{x:.0e}".replace("e+0", "e").replace("e-0", "e-").replace("e+", "e")
+    return text
+
+
 class TeachingModel(param.Parameterized):
     """The example's state: metric, band, optional matching point, current step."""
 
@@ -100,6 +114,20 @@ class TeachingModel(param.Parameterized):
         self.order = [(i, int(j)) for i, cols in enumerate(rows) for j in cols]
         self.step = min(self.step, len(self.order))
         self.revision += 1
+
+    def next_row_step(self) -> int:
+        """The step that completes the current row i of the matrix (one body frame, drawn as
+        a column of the grid): the rest of it when it is part done, else the whole next one."""
+        order = self.order
+        if not order:
+            return 0
+        k = self.step  # cells done; the next one is order[k]
+        if k >= len(order):
+            return len(order)
+        row = order[k][0]  # the row the next cell belongs to: finish it
+        while k < len(order) and order[k][0] == row:
+            k += 1
+        return k
 
     @property
     def finished(self) -> bool:
@@ -160,7 +188,7 @@ class TeachingView:
         self.model = model or TeachingModel()
         mdl = self.model
         n, m = mdl.n, mdl.m
-        self.cells = ColumnDataSource(self._cells())
+        self.cells = ColumnDataSource(self._cells(), name="hs-teach-cells")
         fig = figure(width=520, height=450, x_range=Range1d(-0.5, n - 0.5),
                      y_range=Range1d(-0.5, m - 0.5), tools="", toolbar_location=None,
                      x_axis_label="body frame i", y_axis_label="hand frame j",
@@ -170,7 +198,8 @@ class TeachingView:
                  line_color="line", line_width="lw", line_dash="dash", hatch_pattern="hatch",
                  hatch_color="#cccccc", hatch_scale=8)
         fig.text(x="i", y="j", text="gamma", source=self.cells, text_align="center",
-                 text_baseline="middle", text_font_size="11pt", text_font_style="bold")
+                 text_baseline="middle", text_font_size="9pt", text_font_style="bold",
+                 name="hs-teach-gamma")
         fig.text(x="dx", y="dy", text="d", source=self.cells, text_align="left",
                  text_baseline="top", text_font_size="7pt", text_color="#555555")
         self.path = ColumnDataSource({"x": [], "y": []})
@@ -192,7 +221,9 @@ class TeachingView:
             "back": pn.widgets.Button(label="Back", width=80),
             "step": pn.widgets.Button(label="Step", color="primary", width=80,
                                       css_classes=["hs-teach-step"]),
-            "row": pn.widgets.Button(label="Next row", width=90),
+            "row": pn.widgets.Button(label="Next row i", width=100, css_classes=["hs-teach-row"],
+                                     description="compute the rest of this body frame's row "
+                                                 "(drawn upright: one x) of the matrix"),
             "end": pn.widgets.Button(label="Finish", width=80),
         }
         self.buttons["reset"].on_click(lambda e: setattr(mdl, "step", 0))
@@ -206,15 +237,7 @@ class TeachingView:
         self._refresh()
 
     def _next_row(self, _):
-        mdl = self.model
-        cell = mdl.current()
-        row = -1 if cell is None else cell[0]
-        k = mdl.step
-        while k < len(mdl.order) and mdl.order[k][0] <= row:
-            k += 1
-        while k < len(mdl.order) and (k + 1 < len(mdl.order) and mdl.order[k + 1][0] == mdl.order[k][0]):
-            k += 1
-        mdl.step = min(k + 1, len(mdl.order))
+        self.model.step = self.model.next_row_step()
 
     def _cells(self) -> dict:
         mdl = self.model
@@ -248,9 +271,9 @@ class TeachingView:
         gamma = mdl.gamma.ravel()
         return {
             "i": ii, "j": jj, "fill": fill, "line": line, "lw": lw, "dash": dash,
-            "gamma": [f"{gamma[k]:.3g}" if revealed[k] and np.isfinite(gamma[k]) else ""
+            "gamma": [short_number(gamma[k]) if revealed[k] and np.isfinite(gamma[k]) else ""
                       for k in range(n * m)],
-            "d": [f"{cost[k]:.2g}" if inside[k] else "" for k in range(n * m)],
+            "d": [short_number(cost[k], 3) if inside[k] else "" for k in range(n * m)],
             "hatch": [" " if inside[k] else "/" for k in range(n * m)],
             "dx": ii - 0.44, "dy": jj + 0.46,
         }

@@ -146,8 +146,9 @@ class TrustView:
                 b.visible = False
             return
         unc = trust.uncertainty
-        warp = np.asarray(s.solution.warp, dtype=float)
-        frames = unc.ms * unc.fps / 1000.0  # hand frames on the alignment grid
+        r = s.hand_scale  # the matrix's hand axis counts hand-file frames
+        warp = np.asarray(s.solution.warp, dtype=float) * r
+        frames = unc.ms * unc.fps / 1000.0 * r  # ms -> grid columns -> hand-file frames
         x = np.arange(len(warp), dtype=np.int32)
         self.region_source.data = {"x": x, "lo": (warp - frames).astype(np.float32),
                                    "hi": (warp + frames).astype(np.float32)}
