@@ -598,14 +598,9 @@ class Session(param.Parameterized):
         session (a frame of the new takes has a hand frame in the new solution)."""
         prepared = staged["prepared"]
         self.prepared = prepared
-<<<<<<< HEAD
-        with param.edit_constant(self):
-            self.n, self.m = prepared.n, prepared.m
-        self.param.update(solution=staged["solution"], trust=None, compute_ms=staged["compute_ms"])
-=======
         self._set_sizes(prepared)
-        self.param.update(solution=staged["solution"], compute_ms=staged["compute_ms"])
->>>>>>> main
+        self.param.update(solution=staged["solution"], trust=None,
+                          compute_ms=staged["compute_ms"])
         self._apply(staged["values"])
         self._undo.clear()
         self._redo.clear()
