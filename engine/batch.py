@@ -360,7 +360,7 @@ def splice_pair(body, hand, job: PairJob):
     takes, as ``handsplice splice --match`` reads them. Returns ``(Motion, report dict)``
     with the report of :func:`engine.splice.report.build_report`.
     """
-    from engine.splice import pipeline
+    from engine.splice import pipeline, uncertainty
     from engine.splice.report import build_report
 
     pipeline.require_skeletal(body, hand)
@@ -371,7 +371,9 @@ def splice_pair(body, hand, job: PairJob):
         options["refine_band"] = job.refine_band
     points = [(b, h, 0.0 if t is None else t) for b, h, t in job.match]
     result = pipeline.splice(body, hand, points=points, hand_points=True, **options)
-    return result.motion, build_report(result, job.body, job.hand, points_given=points)
+    trust = uncertainty.assess(result.features, result.alignment)
+    return result.motion, build_report(result, job.body, job.hand, points_given=points,
+                                       assessment=trust)
 
 
 def one_line(exc: BaseException) -> str:

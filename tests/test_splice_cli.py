@@ -35,6 +35,13 @@ def test_splice_writes_bvh_report_and_progress(tmp_path, capsys):
     cols = [j for i, j in report["pass2"]["path"] if i == x]
     assert x == 60 and cols and all(abs(j - y) <= tol for j in cols)
     assert abs(report["map"][60] - 40) <= 3 + 2
+    # trust: one uncertainty per body frame, strokes with verdicts, the CLI's summary line
+    assert len(report["uncertainty_ms"]) == motion.n_frames
+    assert all(u >= 0 for u in report["uncertainty_ms"])
+    assert all(s["verdict"] in ("ok", "check", "desync") and s["start"] <= s["end"]
+               for s in report["strokes"])
+    assert report["desync"]["summary"] in err
+    assert 1 <= len(report["suggested_points"]) <= 3
 
 
 def test_quiet_prints_nothing(tmp_path, capsys):

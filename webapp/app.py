@@ -93,11 +93,13 @@ def create_app() -> pn.viewable.Viewable:
     from webapp.views.cost_matrix import CostMatrixView
     from webapp.views.inputs import InputsView
     from webapp.views.sharing import SharingView
+    from webapp.views.trust import TrustView
 
     session = Session(config.get())
     _initial_state(session)
     inputs = InputsView(session)
     matrix = CostMatrixView(session)
+    trust = TrustView(session, matrix)
     points = controls.PointsTable(session)
     pick = pn.widgets.RadioButtonGroup(options=["Edit points", "Pick frames"],
                                        value="Edit points", css_classes=["hs-click-mode"])
@@ -113,8 +115,8 @@ def create_app() -> pn.viewable.Viewable:
         width=420, sizing_mode=None,
     )
     # matrix, its controls and the preview side by side on a wide screen (they wrap below
-    # one another on a narrow one)
-    work = [matrix.panel(), side_panel]
+    # one another on a narrow one); the trust layers sit under the matrix
+    work = [pn.Column(matrix.panel(), trust.panel(), margin=0), side_panel]
     try:
         from webapp.views.preview import PreviewView
 

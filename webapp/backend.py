@@ -381,6 +381,21 @@ def preview_for(prepared: Prepared, solution: Solution):
     return preview
 
 
+def assess(prepared: Prepared, solution: Solution):
+    """Trust in ``solution`` (``engine.splice.uncertainty.Assessment``), cached per solution.
+
+    About four solves' time (forward and backward γ of both passes): the app runs it
+    off the event loop after an edit has been drawn."""
+    cached = solution.cache.get("trust")
+    if cached is None:
+        from engine.splice.uncertainty import assess as assess_alignment
+
+        cached = assess_alignment(prepared.features, solution.cache["engine"],
+                                  stroke_labels=prepared.body_phases)
+        solution.cache["trust"] = cached
+    return cached
+
+
 def frame_triplet(prepared: Prepared, solution: Solution, body_frame: int) -> tuple[int, int, int]:
     """(body frame, hand-take frame in its own frame rate, spliced frame) shown together."""
     i = int(np.clip(body_frame, 0, prepared.n - 1))

@@ -124,6 +124,8 @@ class Session(param.Parameterized):
     fps = param.Number(default=30.0, constant=True, doc="body frame rate")
     hand_fps = param.Number(default=30.0, constant=True, doc="hand file's frame rate")
     solution = param.Parameter(default=None, doc="backend.Solution of the current state")
+    trust = param.Parameter(default=None, doc="engine.splice.uncertainty.Assessment of "
+                            "``solution`` (None until computed: see ``update_trust``)")
     compute_ms = param.Number(default=0.0, doc="wall time of the last recompute, ms")
     error = param.String(default="", doc="why the last edit or input was rejected")
     revision = param.Integer(default=0, doc="bumped after every recompute")
@@ -469,9 +471,24 @@ class Session(param.Parameterized):
         except (HandSpliceError, ValueError) as exc:
             self.error = backend.one_line(exc)
             return False
-        self.param.update(solution=sol, compute_ms=(time.perf_counter() - t0) * 1000.0,
+        self.param.update(solution=sol, trust=None, compute_ms=(time.perf_counter() - t0) * 1000.0,
                           error="")
         self.revision += 1
+        return True
+
+    def assess(self):
+        """Trust in the current solution (uncertainty per body frame, strokes, suggestions),
+        or None without one. Pure: safe to call off the event loop (``update_trust``)."""
+        if self.prepared is None or self.solution is None:
+            return None
+        return backend.assess(self.prepared, self.solution)
+
+    def update_trust(self, assessment=None, revision: int | None = None) -> bool:
+        """Set ``trust`` for the current solution (computing it unless given); an assessment
+        of an older ``revision`` is dropped (a newer edit has been solved since)."""
+        if revision is not None and revision != self.revision:
+            return False
+        self.trust = self.assess() if assessment is None else assessment
         return True
 
     def user_points(self) -> list[tuple[int, int, float]]:
@@ -648,7 +665,8 @@ class Session(param.Parameterized):
         prepared = staged["prepared"]
         self.prepared = prepared
         self._set_sizes(prepared)
-        self.param.update(solution=staged["solution"], compute_ms=staged["compute_ms"])
+        self.param.update(solution=staged["solution"], trust=None,
+                          compute_ms=staged["compute_ms"])
         self._apply(staged["values"])
         self._undo.clear()
         self._redo.clear()

@@ -177,12 +177,18 @@ def run(args: argparse.Namespace) -> int:
                              theta=args.theta, body_roles=body_roles, hand_roles=hand_roles,
                              progress=progress, ends=args.ends,
                              max_unmatched_s=args.max_unmatched)
+    from engine.splice.uncertainty import assess
+
+    progress("trust", 0.0)
+    trust = assess(result.features, result.alignment)
+    progress("trust", 1.0)
     progress("write", 0.0)
     # the spliced take and its report are one result: both replaced, or neither
     outputs = [(out, format_bvh(result.motion))]
     if args.report:
         outputs.append((Path(args.report), dumps(build_report(result, args.body, args.hand, out,
-                                                              points_given=points))))
+                                                              points_given=points,
+                                                              assessment=trust))))
     write_texts(outputs)
     progress("write", 1.0)
     if args.preview:
@@ -192,6 +198,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"wrote {out} ({result.features.n} frames, {sides} hand"
               f"{'s' if len(result.features.sides) > 1 else ''}, "
               f"{result.timings['total']:.2f} s)", file=sys.stderr)
+        print(f"splice: {trust.summary}", file=sys.stderr)
     return 0
 
 

@@ -26,6 +26,13 @@ Keys (all frame numbers 0-based):
 ``timings_s``          seconds per stage (prepare, pass1, pass2, merge, transfer, total)
 ``transfer``           per side: wrist transferred or kept, finger joints driven, joints
                        grafted (names), graft scale; ``notes``
+``uncertainty_ms``     for every body frame, how far (ms of the hand take) the matched hand
+                       time could move at little extra cost (``engine.splice.uncertainty``)
+``strokes``            the body take's gesture strokes: ``{"start", "end", "uncertainty_ms",
+                       "verdict"}`` (verdict ``ok`` < 50 ms, ``check`` <= 100 ms, ``desync``)
+``suggested_points``   ``[[body frame, hand frame], ...]``: the least certain places, with the
+                       hand frame matched there now: where a matching point helps most
+``desync``             ``{"threshold_ms", "summary"}``: the one-line summary the CLI prints
 """
 
 from __future__ import annotations
@@ -57,8 +64,11 @@ def _headings(h: np.ndarray):
 
 
 def build_report(result, body_path=None, hand_path=None, output_path=None,
-                 points_given=None) -> dict:
-    """The REPORT.json dictionary of a :class:`engine.splice.pipeline.SpliceResult`."""
+                 points_given=None, assessment=None) -> dict:
+    """The REPORT.json dictionary of a :class:`engine.splice.pipeline.SpliceResult`.
+
+    assessment : engine.splice.uncertainty.Assessment, optional (adds the trust keys)
+    """
     f, a = result.features, result.alignment
     report = {
         "version": VERSION,
@@ -113,6 +123,8 @@ def build_report(result, body_path=None, hand_path=None, output_path=None,
             } for sp in plan.sides},
             "notes": list(plan.notes),
         }
+    if assessment is not None:
+        report.update(assessment.report_fields())
     return report
 
 

@@ -1,0 +1,220 @@
+"""How far the matched hand time could move: uncertainty per body frame (docs/method.md, "Trust").
+
+For each pass, every band cell gets the cost of the cheapest path forced through it
+(:mod:`engine.dtw.marginals`). A row where cells far from the chosen warp cost
+little more than the optimum is a row the alignment could move at little price:
+the fingers there may be mistimed. Per body frame ``i``::
+
+    spread_p(i) = sqrt( Σ_j w_ij (j - warp_i)² / Σ_j w_ij ),  w_ij = exp(-(T_p(i, j) - T_p*) / τ_p)
+
+for pass ``p`` in {1, 2}, with the temperature ``τ_p`` = ``KAPPA`` × the pass's mean
+local cost per path step (the cost of a few frames' typical mismatch: scale-free
+across metrics and takes). The two passes are combined in quadrature (pass 1 decides
+the gesture phase, pass 2 the timing within it) and converted to milliseconds of the
+hand take. Costs: about two extra solves per pass (forward and backward γ, 16 bytes
+per band cell).
+
+Strokes: the body take's stroke phases (:mod:`engine.gesture.phases`) each get the
+largest uncertainty inside them and a verdict against the 100 ms threshold at which
+viewers notice hand/body desync (Jörg, Hodgins & O'Sullivan 2010): ``ok`` below
+``AMBER_MS``, ``check`` up to ``DESYNC_MS``, ``desync`` above.
+
+Suggestions: the least certain body frames, one per region (at least
+``SUGGEST_GAP_S`` apart), as candidate matching points.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from engine.dtw.align import FIXED
+from engine.dtw.marginals import row_spread
+
+#: temperature = KAPPA x the pass's mean local cost per path step (chosen on the tuning seeds)
+KAPPA = 1.0
+#: relative floor of the temperature (a perfect match must not make every row certain)
+TEMPERATURE_FLOOR = 1e-3
+#: viewers notice hand/body desync above about 0.1 s (Jörg, Hodgins & O'Sullivan 2010)
+DESYNC_MS = 100.0
+AMBER_MS = 50.0
+#: suggested matching points are at least this far apart (seconds of the body take)
+SUGGEST_GAP_S = 1.0
+SUGGESTIONS = 3
+
+
+@dataclass(frozen=True)
+class Stroke:
+    """One stroke of the body take: frames ``start..end`` (inclusive), its worst uncertainty."""
+
+    start: int
+    end: int
+    uncertainty_ms: float
+    verdict: str  # "ok" | "check" | "desync"
+
+    def as_dict(self) -> dict:
+        return {"start": self.start, "end": self.end,
+                "uncertainty_ms": round(float(self.uncertainty_ms), 1), "verdict": self.verdict}
+
+
+@dataclass(frozen=True)
+class Uncertainty:
+    """Uncertainty of one splice alignment.
+
+    ms : (n,) float, milliseconds of the hand take per body frame
+    pass1_ms, pass2_ms : (n,) float, each pass's part
+    fps : float, body frames per second
+    visibility : (n,) float in [0, 1] or None: how well a person can tell the moment from
+        the pose (the body wrist's speed against its median: a held pose looks the same
+        for the whole hold, so a matching point cannot be placed there with confidence)
+    """
+
+    ms: np.ndarray
+    pass1_ms: np.ndarray
+    pass2_ms: np.ndarray
+    fps: float
+    visibility: np.ndarray | None = None
+
+    def suggestions(self, count: int = SUGGESTIONS, gap_s: float = SUGGEST_GAP_S) -> list[int]:
+        """Body frames of the ``count`` least certain places, at least ``gap_s`` apart.
+
+        A place is scored by the uncertainty summed over ``gap_s`` around it, so a long
+        uncertain stretch (many mistimed frames, where one matching point fixes most) comes
+        before a one-frame spike; the frame returned is the least certain one of the stretch.
+        """
+        gap = max(1, int(round(gap_s * self.fps)))
+        n = len(self.ms)
+        csum = np.concatenate([[0.0], np.cumsum(self.ms)])
+        half = gap // 2
+        lo = np.clip(np.arange(n) - half, 0, n)
+        hi = np.clip(np.arange(n) + half + 1, 0, n)
+        score = csum[hi] - csum[lo]
+        if self.visibility is not None:
+            score = score * self.visibility
+        order = np.argsort(-score, kind="stable")
+        chosen: list[int] = []
+        for i in order:
+            if score[i] <= 0.0 or len(chosen) >= count:
+                break
+            a, b = int(lo[i]), int(hi[i])
+            local = self.ms[a:b] * (1.0 if self.visibility is None else self.visibility[a:b])
+            peak = a + int(np.argmax(local))
+            if all(abs(peak - c) >= gap for c in chosen):
+                chosen.append(peak)
+        return chosen
+
+
+def verdict(ms: float) -> str:
+    """``ok`` / ``check`` / ``desync`` for an uncertainty in milliseconds."""
+    if ms > DESYNC_MS:
+        return "desync"
+    return "check" if ms > AMBER_MS else "ok"
+
+
+def pass_spread(result, warp: np.ndarray, kappa: float = KAPPA) -> np.ndarray:
+    """(n,) grid columns: the weighted spread of one pass's cheap cells around ``warp``.
+
+    result : pipeline.PassResult (rows, metric, band, path, cost)
+    warp : (n,) float, grid hand frame per body frame
+    """
+    a, b = result.rows
+    temperature = kappa * max(float(result.cost) / max(len(result.path), 1), TEMPERATURE_FLOOR)
+    ends = getattr(result, "ends", None) or FIXED
+    return row_spread(a, b, result.band, result.metric, warp, temperature, margin=0.0,
+                      ends=ends).spread
+
+
+def alignment_uncertainty(features, alignment) -> Uncertainty:
+    """Uncertainty per body frame of a :class:`~engine.splice.pipeline.SpliceAlignment`."""
+    warp = np.asarray(alignment.warp, np.float64)
+    p1, p2 = alignment.pass1, alignment.pass2
+    s1 = pass_spread(p1, warp)
+    s2 = pass_spread(p2, warp)
+    frame_ms = 1000.0 / float(features.fps)
+    ms1, ms2 = s1 * frame_ms, s2 * frame_ms
+    from engine.splice.pipeline import wrist_speeds
+
+    speed = wrist_speeds(features)[0]
+    typical = float(np.median(speed)) or 1.0
+    return Uncertainty(ms=np.hypot(ms1, ms2), pass1_ms=ms1, pass2_ms=ms2,
+                       fps=float(features.fps), visibility=speed / (speed + typical))
+
+
+def strokes(uncertainty: Uncertainty, labels: np.ndarray, stroke_label: int) -> list[Stroke]:
+    """Stroke runs of ``labels`` ((n,) ints, one phase per body frame) with their verdicts."""
+    labels = np.asarray(labels)
+    out: list[Stroke] = []
+    n = len(labels)
+    i = 0
+    while i < n:
+        if labels[i] != stroke_label:
+            i += 1
+            continue
+        j = i
+        while j + 1 < n and labels[j + 1] == stroke_label:
+            j += 1
+        worst = float(uncertainty.ms[i : j + 1].max())
+        out.append(Stroke(start=i, end=j, uncertainty_ms=worst, verdict=verdict(worst)))
+        i = j + 1
+    return out
+
+
+def summary_line(stroke_list: list[Stroke]) -> str:
+    """``"3 of 12 strokes may show desync: body frames 120-140, ..."`` (or that none may)."""
+    bad = [s for s in stroke_list if s.verdict == "desync"]
+    if not stroke_list:
+        return "no gesture strokes found in the body take"
+    if not bad:
+        return f"none of {len(stroke_list)} strokes is likely to show desync (all under " \
+               f"{DESYNC_MS:.0f} ms)"
+    where = ", ".join(f"{s.start}-{s.end}" for s in bad[:6]) + (", ..." if len(bad) > 6 else "")
+    return f"{len(bad)} of {len(stroke_list)} strokes may show desync: body frames {where}"
+
+
+@dataclass(frozen=True)
+class Assessment:
+    """Everything the report, the CLI and the app say about trust in one alignment.
+
+    uncertainty : Uncertainty
+    strokes : list of Stroke (the body take's strokes, first spliced arm)
+    suggestions : list of (body frame, hand-file frame) the least certain places, with the
+        hand frame the alignment matches there now (a user checks and corrects it)
+    """
+
+    uncertainty: Uncertainty
+    strokes: list
+    suggestions: list
+
+    @property
+    def summary(self) -> str:
+        return summary_line(self.strokes)
+
+    def report_fields(self) -> dict:
+        """``uncertainty_ms``, ``strokes``, ``suggested_points`` and ``desync`` for REPORT.json."""
+        return {
+            "uncertainty_ms": [round(float(v), 1) for v in self.uncertainty.ms],
+            "strokes": [s.as_dict() for s in self.strokes],
+            "suggested_points": [[int(b), round(float(h), 2)] for b, h in self.suggestions],
+            "desync": {"threshold_ms": DESYNC_MS, "summary": self.summary},
+        }
+
+
+def assess(features, alignment, stroke_labels: np.ndarray | None = None) -> Assessment:
+    """Uncertainty, strokes and suggested points of a splice alignment.
+
+    features : pipeline.SpliceFeatures; alignment : pipeline.SpliceAlignment
+    stroke_labels : (n,) phase codes of the body take (default: the first spliced arm's
+        wrist, :func:`engine.splice.pipeline.phase_labels`)
+    """
+    from engine.gesture.phases import Phase
+
+    unc = alignment_uncertainty(features, alignment)
+    if stroke_labels is None:
+        from engine.splice.pipeline import phase_labels
+
+        stroke_labels = phase_labels(features)[0]
+    hand_map = np.asarray(alignment.map, np.float64)
+    picks = [(i, float(hand_map[i])) for i in unc.suggestions()]
+    return Assessment(uncertainty=unc, strokes=strokes(unc, stroke_labels, int(Phase.STROKE)),
+                      suggestions=picks)

@@ -1,0 +1,86 @@
+"""Trust on the page (issue 17), in real Chromium: the confidence strip, the uncertain region
+around the path, the desync meter on the phase track, a suggestion clicked through to a point."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from webapp.launch import PAGE_HELPERS, launch_chromium, running_server
+
+pytestmark = pytest.mark.browser
+FIGURES = Path(__file__).resolve().parents[1] / "benchmarks" / "figures"
+
+
+@pytest.fixture(scope="module")
+def page(tmp_path_factory):
+    sync_api = pytest.importorskip("playwright.sync_api")
+    uploads = tmp_path_factory.mktemp("uploads")
+    log_path = tmp_path_factory.mktemp("log") / "serve.log"
+    with log_path.open("w+") as log, running_server("--upload-dir", str(uploads),
+                                                    log=log, timeout=400) as (url, _), \
+            sync_api.sync_playwright() as p:
+        browser = launch_chromium(p)
+        context = browser.new_context(viewport={"width": 1300, "height": 1000})
+        pg = context.new_page()
+        errors: list[str] = []
+        pg.on("pageerror", lambda e: errors.append(str(e)))
+        pg.goto(url)
+        pg.wait_for_function(
+            "() => window.Bokeh && Bokeh.documents.length && Bokeh.documents[0]"
+            ".get_model_by_name('hs-confidence-source')?.data.start?.length > 0",
+            timeout=90_000)
+        pg.evaluate(PAGE_HELPERS)
+        pg.errors = errors
+        yield pg
+        browser.close()
+    assert "Traceback" not in log_path.read_text()
+
+
+def test_strip_region_and_meter_follow_the_alignment(page):
+    strip = page.evaluate("hs.cols('hs-confidence-source', ['start', 'stop', 'color'])")
+    n = page.evaluate("hs.cols('hs-path-source', ['x']).x.reduce((a, b) => Math.max(a, b)) + 1")
+    # the strip's runs tile the body axis, each coloured by a verdict
+    assert strip["start"][0] == -0.5 and strip["stop"][-1] == n - 0.5
+    assert set(strip["color"]) <= {"#2e7d32", "#f9a825", "#c62828"}
+    region = page.evaluate("hs.cols('hs-uncertain-region-source', ['x', 'lo', 'hi'])")
+    assert len(region["x"]) == n
+    assert all(lo <= hi for lo, hi in zip(region["lo"], region["hi"]))
+    assert any(hi - lo > 0 for lo, hi in zip(region["lo"], region["hi"]))
+    meter = page.evaluate("hs.cols('hs-desync-meter-source', ['start', 'stop', 'color'])")
+    assert meter["start"], "the demo's wave has strokes on the phase track"
+    assert set(meter["color"]) <= {"#2e7d32", "#f9a825", "#c62828"}
+    summary = page.locator(".hs-desync-summary").first.evaluate(
+        "e => [...(e.shadowRoot ? e.shadowRoot.children : []), ...e.children]"
+        ".filter(c => c.tagName !== 'STYLE' && c.tagName !== 'LINK')"
+        ".map(c => c.innerText).join(' ')")
+    assert "Desync meter" in summary and "stroke" in summary
+    assert page.evaluate("!!hs.model('hs-confidence-strip') && !!hs.model('hs-desync-meter')")
+
+
+def test_a_suggestion_clicked_through_to_a_placed_point(page):
+    button = page.locator(".hs-suggestion button").first
+    button.wait_for(timeout=30_000)
+    text = button.inner_text()
+    body = int(re.search(r"body frame (\d+)", text).group(1))
+    button.click()
+    # first click: the preview's frame moves to that moment
+    page.wait_for_function("(b) => hs.cols('hs-frame-source', ['x']).x[0] === b", arg=body,
+                           timeout=30_000)
+    page.locator(".hs-suggestion button", has_text="Place a matching point").first.wait_for(
+        timeout=30_000)
+    FIGURES.mkdir(exist_ok=True)
+    page.locator(".hs-cost-matrix").first.scroll_into_view_if_needed()
+    page.screenshot(path=str(FIGURES / "gallery_trust.png"))
+    page.locator(".hs-suggestion button").first.click()
+    page.wait_for_function("(b) => hs.cols('hs-points-source', ['x']).x.includes(b)", arg=body,
+                           timeout=30_000)
+    status = page.locator(".hs-status span")
+    for _ in range(300):  # the status line follows the solve
+        if "1 matching point" in status.inner_text():
+            break
+        page.wait_for_timeout(100)
+    assert "1 matching point" in status.inner_text()
+    assert not page.errors, page.errors

@@ -1,0 +1,90 @@
+"""Trust in the alignment (engine.splice.uncertainty): uncertainty, strokes, suggestions."""
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from engine.gesture.phases import Phase
+from engine.splice import pipeline as P
+from engine.splice import uncertainty as U
+
+
+@pytest.fixture(scope="module")
+def case():
+    """A real Bandai take split into a body take and a finger take with known timing."""
+    from benchmarks.split import make_case
+
+    return make_case("bandai", 3)
+
+
+def _frames(motion, keep):
+    """``motion`` at frames ``keep`` (repeating a frame makes a hold)."""
+    return replace(motion, rotations=motion.rotations[keep],
+                   translations=motion.translations[keep])
+
+
+def test_a_self_splice_is_certain_and_every_field_is_reported(case):
+    res = P.splice(case.body, case.reference, transfer_fingers=False)
+    a = U.assess(res.features, res.alignment)
+    ms = a.uncertainty.ms
+    assert ms.shape == (res.features.n,)
+    assert np.all(np.isfinite(ms)) and np.all(ms >= 0)
+    # identical takes: the path is the diagonal and moving it costs at once
+    assert np.median(ms) < 1000.0 / res.features.fps
+    fields = json.loads(json.dumps(a.report_fields()))
+    assert len(fields["uncertainty_ms"]) == res.features.n
+    assert {"start", "end", "uncertainty_ms", "verdict"} <= set(fields["strokes"][0]) \
+        if fields["strokes"] else True
+    assert "strokes" in fields["desync"]["summary"] or "no gesture" in fields["desync"]["summary"]
+
+
+def test_uncertainty_is_high_where_the_hand_take_holds_still(case):
+    wave = case.reference
+    n = wave.n_frames
+    at, frames = n // 2, int(round(wave.fps))
+    keep = np.r_[np.arange(at), np.full(frames, at), np.arange(at, n)]
+    hand = _frames(wave, keep)
+    res = P.splice(case.body, hand, transfer_fingers=False)
+    unc = U.alignment_uncertainty(res.features, res.alignment)
+    near = unc.ms[at - 2 : at + 3].max()
+    far = np.median(unc.ms[: n // 4])
+    assert near > 3 * far
+    assert abs(unc.suggestions(1)[0] - at) <= wave.fps  # the top suggestion is at the hold
+
+
+def test_strokes_verdicts_and_summary():
+    unc = U.Uncertainty(ms=np.array([10, 10, 60, 60, 10, 150, 150, 10.0]), pass1_ms=np.zeros(8),
+                        pass2_ms=np.zeros(8), fps=30.0)
+    s = int(Phase.STROKE)
+    labels = np.array([0, s, s, 0, s, s, s, 0])
+    got = U.strokes(unc, labels, s)
+    assert [(x.start, x.end, x.verdict) for x in got] == [(1, 2, "check"), (4, 6, "desync")]
+    assert U.summary_line(got) == "1 of 2 strokes may show desync: body frames 4-6"
+    assert U.summary_line(got[:1]).startswith("none of 1 strokes")
+
+
+def test_suggestions_are_apart_and_worst_first():
+    ms = np.zeros(300)
+    ms[50], ms[55], ms[200], ms[120] = 300, 290, 200, 100
+    unc = U.Uncertainty(ms=ms, pass1_ms=ms, pass2_ms=ms * 0, fps=30.0)
+    assert unc.suggestions(3) == [50, 200, 120]
+
+
+def test_session_drops_an_assessment_of_an_older_edit(tmp_path):
+    from webapp import config
+    from webapp.state import Session
+
+    cfg = config.get()
+    s = Session(cfg)
+    s.load_sample(config.demo_sample_name(cfg.sample_dir))
+    assert s.solution is not None
+    old = s.revision
+    stale = s.assess()
+    s.band = 0.5  # an edit: a new solution, its trust not yet known
+    assert s.revision > old and s.trust is None
+    assert not s.update_trust(stale, revision=old)
+    assert s.trust is None
+    assert s.update_trust(revision=s.revision)
+    assert len(s.trust.uncertainty.ms) == s.n
