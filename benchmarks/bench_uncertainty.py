@@ -27,6 +27,7 @@ from benchmarks.bench_splice_accuracy import FAMILIES
 from engine.errors import ParameterError
 from engine.splice import pipeline as P
 from engine.splice import uncertainty as U
+from engine.trust import assess_splice
 
 SEEDS = 6
 FLAG_MS = U.DESYNC_MS
@@ -35,7 +36,7 @@ FLAG_MS = U.DESYNC_MS
 def run_case(case) -> dict:
     res = P.splice(case.body, case.hand, transfer_fingers=False)
     t0 = time.perf_counter()
-    a = U.assess(res.features, res.alignment)
+    a = assess_splice(res.features, res.alignment)
     seconds = time.perf_counter() - t0
     hand_ms = 1000.0 / case.hand.fps
     err = np.abs(res.alignment.map - case.truth) * hand_ms

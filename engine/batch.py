@@ -360,8 +360,9 @@ def splice_pair(body, hand, job: PairJob):
     takes, as ``handsplice splice --match`` reads them. Returns ``(Motion, report dict)``
     with the report of :func:`engine.splice.report.build_report`.
     """
-    from engine.splice import pipeline, uncertainty
+    from engine.splice import pipeline
     from engine.splice.report import build_report
+    from engine.trust import assess_splice
 
     pipeline.require_skeletal(body, hand)
     options = {"side": job.side}
@@ -371,7 +372,7 @@ def splice_pair(body, hand, job: PairJob):
         options["refine_band"] = job.refine_band
     points = [(b, h, 0.0 if t is None else t) for b, h, t in job.match]
     result = pipeline.splice(body, hand, points=points, hand_points=True, **options)
-    trust = uncertainty.assess(result.features, result.alignment)
+    trust = assess_splice(result.features, result.alignment)
     return result.motion, build_report(result, job.body, job.hand, points_given=points,
                                        assessment=trust)
 

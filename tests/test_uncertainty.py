@@ -9,6 +9,7 @@ import pytest
 from engine.gesture.phases import Phase
 from engine.splice import pipeline as P
 from engine.splice import uncertainty as U
+from engine.trust import assess_splice
 
 
 @pytest.fixture(scope="module")
@@ -27,7 +28,7 @@ def _frames(motion, keep):
 
 def test_a_self_splice_is_certain_and_every_field_is_reported(case):
     res = P.splice(case.body, case.reference, transfer_fingers=False)
-    a = U.assess(res.features, res.alignment)
+    a = assess_splice(res.features, res.alignment)
     ms = a.uncertainty.ms
     assert ms.shape == (res.features.n,)
     assert np.all(np.isfinite(ms)) and np.all(ms >= 0)

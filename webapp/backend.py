@@ -388,10 +388,10 @@ def assess(prepared: Prepared, solution: Solution):
     off the event loop after an edit has been drawn."""
     cached = solution.cache.get("trust")
     if cached is None:
-        from engine.splice.uncertainty import assess as assess_alignment
+        from engine.trust import assess_splice
 
-        cached = assess_alignment(prepared.features, solution.cache["engine"],
-                                  stroke_labels=prepared.body_phases)
+        cached = assess_splice(prepared.features, solution.cache["engine"],
+                               body_phases=prepared.body_phases)
         solution.cache["trust"] = cached
     return cached
 

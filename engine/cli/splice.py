@@ -177,10 +177,10 @@ def run(args: argparse.Namespace) -> int:
                              theta=args.theta, body_roles=body_roles, hand_roles=hand_roles,
                              progress=progress, ends=args.ends,
                              max_unmatched_s=args.max_unmatched)
-    from engine.splice.uncertainty import assess
+    from engine.trust import assess_splice
 
     progress("trust", 0.0)
-    trust = assess(result.features, result.alignment)
+    trust = assess_splice(result.features, result.alignment)
     progress("trust", 1.0)
     progress("write", 0.0)
     # the spliced take and its report are one result: both replaced, or neither

@@ -200,21 +200,16 @@ class Assessment:
         }
 
 
-def assess(features, alignment, stroke_labels: np.ndarray | None = None) -> Assessment:
+def assess(features, alignment, stroke_labels: np.ndarray, stroke_code: int) -> Assessment:
     """Uncertainty, strokes and suggested points of a splice alignment.
 
     features : pipeline.SpliceFeatures; alignment : pipeline.SpliceAlignment
-    stroke_labels : (n,) phase codes of the body take (default: the first spliced arm's
-        wrist, :func:`engine.splice.pipeline.phase_labels`)
+    stroke_labels : (n,) gesture phase codes of the body take, one per body frame
+        (``engine.gesture.phases.marker_phase_labels(features.body_markers, features.fps)``)
+    stroke_code : int, the code of a stroke in ``stroke_labels`` (``Phase.STROKE``)
     """
-    from engine.gesture.phases import Phase
-
     unc = alignment_uncertainty(features, alignment)
-    if stroke_labels is None:
-        from engine.splice.pipeline import phase_labels
-
-        stroke_labels = phase_labels(features)[0]
     hand_map = np.asarray(alignment.map, np.float64)
     picks = [(i, float(hand_map[i])) for i in unc.suggestions()]
-    return Assessment(uncertainty=unc, strokes=strokes(unc, stroke_labels, int(Phase.STROKE)),
+    return Assessment(uncertainty=unc, strokes=strokes(unc, stroke_labels, int(stroke_code)),
                       suggestions=picks)
