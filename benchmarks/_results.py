@@ -27,9 +27,13 @@ def write_section(name: str, markdown: str) -> None:
     """Replace (or append) section ``name`` of RESULTS.md with ``markdown``."""
     text = RESULTS.read_text(encoding="utf-8") if RESULTS.exists() else HEADER
     stamp = time.strftime("%Y-%m-%d %H:%M")
-    block = (f"<!-- BEGIN {name} -->\n{markdown.rstrip()}\n\n"
-             f"_Recorded {stamp} on {machine()}._\n<!-- END {name} -->")
-    pattern = re.compile(rf"<!-- BEGIN {re.escape(name)} -->.*?<!-- END {re.escape(name)} -->", re.S)
+    block = (
+        f"<!-- BEGIN {name} -->\n{markdown.rstrip()}\n\n"
+        f"_Recorded {stamp} on {machine()}._\n<!-- END {name} -->"
+    )
+    pattern = re.compile(
+        rf"<!-- BEGIN {re.escape(name)} -->.*?<!-- END {re.escape(name)} -->", re.S
+    )
     if pattern.search(text):
         text = pattern.sub(lambda _: block, text)
     else:

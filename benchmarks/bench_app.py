@@ -81,9 +81,21 @@ def big_pair(folder: Path) -> tuple[int, int]:
     write_bvh(resample(body, 60.0).frames(0, 2000), folder / "dance1_60fps_2000.bvh")
     hand = ROOT / "sample_data" / "manipnet" / "mug1_rightHand.bvh"
     (folder / hand.name).write_bytes(hand.read_bytes())
-    (folder / "samples.json").write_text(json.dumps({"pairs": [{
-        "name": "big", "body": "dance1_60fps_2000.bvh", "hand": hand.name, "side": "right",
-        "demo": True}]}))
+    (folder / "samples.json").write_text(
+        json.dumps(
+            {
+                "pairs": [
+                    {
+                        "name": "big",
+                        "body": "dance1_60fps_2000.bvh",
+                        "hand": hand.name,
+                        "side": "right",
+                        "demo": True,
+                    }
+                ]
+            }
+        )
+    )
     return 2000, 2001
 
 
@@ -97,8 +109,11 @@ def measure_drags(browser, url: str, drags: int) -> dict:
     page.wait_for_function(READY, timeout=120_000)
     page.evaluate(WATCH)
     page.evaluate(PAGE_HELPERS)
-    n = len(page.evaluate("() => Array.from(Bokeh.documents[0]"
-                          ".get_model_by_name('hs-band-source').data.x)"))
+    n = len(
+        page.evaluate(
+            "() => Array.from(Bokeh.documents[0].get_model_by_name('hs-band-source').data.x)"
+        )
+    )
     x, y0, y1 = n // 2, int(n * 0.45), int(n * 0.45) + 60
     page.mouse.click(*page.evaluate("([x, y]) => hs.xy(x, y)", [x, y0]))
     page.wait_for_function("() => window.hsChanged !== null", timeout=60_000)
@@ -112,8 +127,9 @@ def measure_drags(browser, url: str, drags: int) -> dict:
         page.mouse.down()
         page.mouse.move(*end, steps=4)
         page.mouse.up()
-        page.wait_for_function("() => window.hsChanged !== null && window.hsUp !== null",
-                               timeout=60_000)
+        page.wait_for_function(
+            "() => window.hsChanged !== null && window.hsUp !== null", timeout=60_000
+        )
         latencies.append(page.evaluate("() => window.hsChanged - window.hsUp"))
         status = page.locator(".hs-status span").inner_text()
         found = re.search(r"([\d.]+) ms", status)
@@ -144,9 +160,11 @@ def screenshot(browser, url: str, path: Path) -> None:
     page.locator(".hs-preview-image img").wait_for(timeout=120_000)  # rendered on load
     page.wait_for_timeout(800)
     bottom = page.locator(".hs-preview-image").evaluate(
-        "e => e.getBoundingClientRect().bottom + window.scrollY")
-    page.screenshot(path=str(path), full_page=True,
-                    clip={"x": 0, "y": 0, "width": 1360, "height": bottom + 12})
+        "e => e.getBoundingClientRect().bottom + window.scrollY"
+    )
+    page.screenshot(
+        path=str(path), full_page=True, clip={"x": 0, "y": 0, "width": 1360, "height": bottom + 12}
+    )
     page.close()
 
 
@@ -184,7 +202,9 @@ def main(argv=None) -> int:
             shot = FIGURES / "app_demo.png"
             screenshot(browser, url + demo_query(), shot)
         with serve("--sample-dir", str(tmp / "big"), "--upload-dir", str(tmp / "up")) as (
-                url, start_big):
+            url,
+            start_big,
+        ):
             big_loads = measure_loads(browser, url, 2)
             drags = measure_drags(browser, url, args.drags)
         browser.close()
@@ -194,26 +214,41 @@ def main(argv=None) -> int:
         ("drag -> new path in the page, p50", f"{_pct(lat, 50):.0f} ms", ""),
         ("drag -> new path in the page, p95", f"{_pct(lat, 95):.0f} ms", "< 150 ms"),
         ("drag -> new path in the page, max", f"{max(lat):.0f} ms", ""),
-        ("server compute per edit (both passes + merge), p50 / p95",
-         f"{_pct(srv, 50):.0f} / {_pct(srv, 95):.0f} ms" if srv else "n/a", ""),
-        ("first page load, demo pair, warm server: median / max",
-         f"{statistics.median(loads):.2f} / {max(loads):.2f} s", "< 5 s"),
-        (f"first page load, {n} x {m} pair, warm server: median",
-         f"{statistics.median(big_loads):.2f} s", ""),
-        ("server start incl. warm-up (demo pair / 2,000-frame pair)",
-         f"{start_demo:.1f} / {start_big:.1f} s", ""),
+        (
+            "server compute per edit (both passes + merge), p50 / p95",
+            f"{_pct(srv, 50):.0f} / {_pct(srv, 95):.0f} ms" if srv else "n/a",
+            "",
+        ),
+        (
+            "first page load, demo pair, warm server: median / max",
+            f"{statistics.median(loads):.2f} / {max(loads):.2f} s",
+            "< 5 s",
+        ),
+        (
+            f"first page load, {n} x {m} pair, warm server: median",
+            f"{statistics.median(big_loads):.2f} s",
+            "",
+        ),
+        (
+            "server start incl. warm-up (demo pair / 2,000-frame pair)",
+            f"{start_demo:.1f} / {start_big:.1f} s",
+            "",
+        ),
     ]
     table = "| measure | result | goal |\n|---|---|---|\n" + "\n".join(
-        f"| {a} | {b} | {c} |" for a, b, c in rows)
-    md = (f"### Browser app (`benchmarks/bench_app.py`, Chromium headless via Playwright)\n\n"
-          f"{table}\n\n"
-          f"Drag: {len(lat)} mouse drags of one matching point by 60 hand frames on the pass-1 "
-          f"matrix of a {n} x {m} pair (LAFAN1 dance1 at 60 fps vs ManipNet mug1, band 30 %); "
-          "latency = mouse release (pointerup) to the new path in the page's data source, "
-          "checked every animation frame. The pass-1 local costs are tabulated once per pair "
-          "(up to 6 M cells), so a drag re-solves pass 1 from the table, then pass 2 and the "
-          "merge. Page load: fresh browser context, navigation until cost image, band and path "
-          f"are in the page ({len(loads)} loads). Screenshot: `benchmarks/figures/app_demo.png`.")
+        f"| {a} | {b} | {c} |" for a, b, c in rows
+    )
+    md = (
+        f"### Browser app (`benchmarks/bench_app.py`, Chromium headless via Playwright)\n\n"
+        f"{table}\n\n"
+        f"Drag: {len(lat)} mouse drags of one matching point by 60 hand frames on the pass-1 "
+        f"matrix of a {n} x {m} pair (LAFAN1 dance1 at 60 fps vs ManipNet mug1, band 30 %); "
+        "latency = mouse release (pointerup) to the new path in the page's data source, "
+        "checked every animation frame. The pass-1 local costs are tabulated once per pair "
+        "(up to 6 M cells), so a drag re-solves pass 1 from the table, then pass 2 and the "
+        "merge. Page load: fresh browser context, navigation until cost image, band and path "
+        f"are in the page ({len(loads)} loads). Screenshot: `benchmarks/figures/app_demo.png`."
+    )
     print(md)
     if not args.no_write:
         write_section("app", md)

@@ -28,8 +28,14 @@ SIGMAS = (0.15, 0.3)
 FPS = 120.0
 
 
-def warp(rng: np.random.Generator, duration: float, scale: float, sigma: float,
-         corr_s: float = 1.0, dt: float = 0.01) -> tuple[np.ndarray, np.ndarray]:
+def warp(
+    rng: np.random.Generator,
+    duration: float,
+    scale: float,
+    sigma: float,
+    corr_s: float = 1.0,
+    dt: float = 0.01,
+) -> tuple[np.ndarray, np.ndarray]:
     """``benchmarks.split.smooth_warp``'s model sampled every ``dt`` seconds instead of 1 ms
     (the same random process; 1 ms makes 10-minute warps take minutes each)."""
     th = np.linspace(0.0, duration * scale, int(duration * scale / dt) + 2)
@@ -58,15 +64,20 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="5 warps each, print only")
     args = ap.parse_args(argv)
     seeds = 5 if args.quick else 20
-    lines = ["## Band widths in seconds (`benchmarks/bench_band_widths.py`)", "",
-             "Drift between two performances under the accuracy bench's warp model (local "
-             "rate exp(σ·noise), 1 s correlation): largest distance from the diagonal, "
-             f"seconds, over {seeds} warps per cell (median / max). Then the default pass-1 "
-             "width W1 of `engine.dtw.constraints` (the paper's 0.30 of the take, or "
-             "1.5 s·√T when narrower), its vertical reach Λ = W1·√2/2 (takes of equal length) "
-             "and its band cells beside a 30 % band at 120 fps.", "",
-             "| take | drift σ=0.15 | drift σ=0.3 | default W1 | Λ | Λ / worst drift | "
-             "cells (default) | cells (30 %) |", "|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "## Band widths in seconds (`benchmarks/bench_band_widths.py`)",
+        "",
+        "Drift between two performances under the accuracy bench's warp model (local "
+        "rate exp(σ·noise), 1 s correlation): largest distance from the diagonal, "
+        f"seconds, over {seeds} warps per cell (median / max). Then the default pass-1 "
+        "width W1 of `engine.dtw.constraints` (the paper's 0.30 of the take, or "
+        "1.5 s·√T when narrower), its vertical reach Λ = W1·√2/2 (takes of equal length) "
+        "and its band cells beside a 30 % band at 120 fps.",
+        "",
+        "| take | drift σ=0.15 | drift σ=0.3 | default W1 | Λ | Λ / worst drift | "
+        "cells (default) | cells (30 %) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     ratios = []
     for duration in DURATIONS:
         cells = []
@@ -80,14 +91,19 @@ def main(argv=None) -> int:
         area30 = Band.from_constraints(n, n, 0.30).area
         worst = max(c[1] for c in cells)
         ratios.append(lam / worst)
-        lines.append(f"| {duration:g} s | {cells[0][0]:.2f} / {cells[0][1]:.2f} s | "
-                     f"{cells[1][0]:.2f} / {cells[1][1]:.2f} s | {width.text()} | {lam:.1f} s | "
-                     f"{lam / worst:.1f} | {area / 1e6:.1f} M | {area30 / 1e6:.1f} M |")
-    lines += ["", "Drift grows as √T (a random walk of the local rate), so the long-take "
-              f"width grows as √T too and keeps Λ at least {min(ratios):.1f}× the worst drift "
-              "seen; pass 2 (W2 = 2 s on long takes) corrects the pass-1 path locally and does "
-              "not grow. Warps of 2 and 10 minutes are sampled every 10 ms (the same process "
-              "as the bench's 1 ms `smooth_warp`, which is used up to 20 s)."]
+        lines.append(
+            f"| {duration:g} s | {cells[0][0]:.2f} / {cells[0][1]:.2f} s | "
+            f"{cells[1][0]:.2f} / {cells[1][1]:.2f} s | {width.text()} | {lam:.1f} s | "
+            f"{lam / worst:.1f} | {area / 1e6:.1f} M | {area30 / 1e6:.1f} M |"
+        )
+    lines += [
+        "",
+        "Drift grows as √T (a random walk of the local rate), so the long-take "
+        f"width grows as √T too and keeps Λ at least {min(ratios):.1f}× the worst drift "
+        "seen; pass 2 (W2 = 2 s on long takes) corrects the pass-1 path locally and does "
+        "not grow. Warps of 2 and 10 minutes are sampled every 10 ms (the same process "
+        "as the bench's 1 ms `smooth_warp`, which is used up to 20 s).",
+    ]
     text = "\n".join(lines)
     print(text)
     if not args.quick:

@@ -47,8 +47,9 @@ SOURCES = ["lafan1/multipleActions1_subject1.bvh", "lafan1/dance1_subject1.bvh"]
 # ---------------------------------------------------------------- inputs
 
 
-def make_pair(folder: Path, frames: int, seed: int, source: str = SOURCE, start_s: float = 0.0
-              ) -> tuple[Path, Path]:
+def make_pair(
+    folder: Path, frames: int, seed: int, source: str = SOURCE, start_s: float = 0.0
+) -> tuple[Path, Path]:
     """Write ``body.bvh`` / ``hand.bvh`` of ``frames`` frames at 120 fps (module docstring)."""
     from benchmarks.split import MOCAP, add_fingers, make_hand_take
     from engine.io.bvh import read_bvh, write_bvh
@@ -58,12 +59,14 @@ def make_pair(folder: Path, frames: int, seed: int, source: str = SOURCE, start_
     take = resample(read_bvh(MOCAP / source), FPS)
     first = int(round(start_s * FPS))
     if first + frames > take.n_frames:
-        raise ValueError(f"{source} has {take.n_frames} frames at {FPS:g} fps, "
-                         f"{first + frames} needed")
+        raise ValueError(
+            f"{source} has {take.n_frames} frames at {FPS:g} fps, {first + frames} needed"
+        )
     body = take.frames(first, first + frames)
     full = add_fingers(body, rng)
-    hand, _, _ = make_hand_take(full, rng, fps=FPS, scale=1.0, warp_sigma=0.15, shrink=0.3,
-                                yaw_deg=15.0, noise_deg=0.5)
+    hand, _, _ = make_hand_take(
+        full, rng, fps=FPS, scale=1.0, warp_sigma=0.15, shrink=0.3, yaw_deg=15.0, noise_deg=0.5
+    )
     hand = hand.frames(0, min(frames, hand.n_frames))
     folder.mkdir(parents=True, exist_ok=True)
     body_path, hand_path = folder / "body.bvh", folder / "hand.bvh"
@@ -104,8 +107,9 @@ def _reset_peak() -> bool:
         return False
 
 
-def child_splice(body_path: str, hand_path: str, band: float, refine_band: float,
-                 frames: int | None) -> dict:
+def child_splice(
+    body_path: str, hand_path: str, band: float, refine_band: float, frames: int | None
+) -> dict:
     """Runs in the child: warm-up, then one timed splice, stage by stage.
 
     Memory per stage: the peak RSS is reset before each stage (``clear_refs``), so a
@@ -131,32 +135,59 @@ def child_splice(body_path: str, hand_path: str, band: float, refine_band: float
         _reset_peak()
         t = time.perf_counter()
         out = fn()
-        stages[name] = {"seconds": time.perf_counter() - t, "start_mb": start_rss,
-                        "peak_mb": _rss_mb("VmHWM")}
+        stages[name] = {
+            "seconds": time.perf_counter() - t,
+            "start_mb": start_rss,
+            "peak_mb": _rss_mb("VmHWM"),
+        }
         return out
 
     t0 = time.perf_counter()
     feats = stage("prepare", lambda: pipeline.prepare(body, hand))
-    al = stage("passes", lambda: pipeline.align_passes(feats, band=band, refine_band=refine_band,
-                                                       incremental=False))
+    al = stage(
+        "passes",
+        lambda: pipeline.align_passes(feats, band=band, refine_band=refine_band, incremental=False),
+    )
     motion = stage("transfer", lambda: pipeline.transfer(feats, al))
     seconds = time.perf_counter() - t0
-    return {"n": feats.n, "m": feats.m, "band": band, "refine_band": refine_band,
-            "cells1": int(al.pass1.band.area), "cells2": int(al.pass2.band.area),
-            "seconds": seconds, "stages": stages, "stage_memory": can_reset,
-            "timings": {"prepare": stages["prepare"]["seconds"],
-                        "pass1": al.timings["pass1"], "pass2": al.timings["pass2"],
-                        "merge": al.timings["merge"],
-                        "transfer": stages["transfer"]["seconds"]},
-            "peak_before_mb": before,
-            "peak_mb": max(before, *(s["peak_mb"] for s in stages.values())),
-            "out_frames": motion.n_frames}
+    return {
+        "n": feats.n,
+        "m": feats.m,
+        "band": band,
+        "refine_band": refine_band,
+        "cells1": int(al.pass1.band.area),
+        "cells2": int(al.pass2.band.area),
+        "seconds": seconds,
+        "stages": stages,
+        "stage_memory": can_reset,
+        "timings": {
+            "prepare": stages["prepare"]["seconds"],
+            "pass1": al.timings["pass1"],
+            "pass2": al.timings["pass2"],
+            "merge": al.timings["merge"],
+            "transfer": stages["transfer"]["seconds"],
+        },
+        "peak_before_mb": before,
+        "peak_mb": max(before, *(s["peak_mb"] for s in stages.values())),
+        "out_frames": motion.n_frames,
+    }
 
 
-def run_child(body: Path, hand: Path, band: float, refine_band: float,
-              frames: int | None = None) -> dict:
-    cmd = [sys.executable, "-m", "benchmarks.bench_batch", "--child", str(body), str(hand),
-           "--band", str(band), "--refine-band", str(refine_band)]
+def run_child(
+    body: Path, hand: Path, band: float, refine_band: float, frames: int | None = None
+) -> dict:
+    cmd = [
+        sys.executable,
+        "-m",
+        "benchmarks.bench_batch",
+        "--child",
+        str(body),
+        str(hand),
+        "--band",
+        str(band),
+        "--refine-band",
+        str(refine_band),
+    ]
     if frames:
         cmd += ["--frames", str(frames)]
     proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=1800)
@@ -175,8 +206,7 @@ def make_batch(folder: Path, pairs: int, frames: int) -> Path:
     for k in range(pairs):
         source = SOURCES[k % len(SOURCES)]
         start = 5.0 + 30.0 * (k // len(SOURCES))
-        b, h = make_pair(folder / f"pair{k}", frames, seed=100 + k, source=source,
-                         start_s=start)
+        b, h = make_pair(folder / f"pair{k}", frames, seed=100 + k, source=source, start_s=start)
         rows.append(f"{b.relative_to(folder)},{h.relative_to(folder)},both,pair{k}")
     manifest = folder / "manifest.csv"
     manifest.write_text("\n".join(rows) + "\n", encoding="utf-8")
@@ -206,12 +236,18 @@ def run_throughput(manifest: Path, workers: int, out: Path) -> dict:
     per_pair = [float(r["seconds"]) for r in result.records]
     wall = startup + pairs_s
     n = len(result.records)
-    return {"workers": workers, "pairs": n, "startup": startup, "pairs_s": pairs_s,
-            "wall": wall, "pairs_per_min": 60.0 * n / wall,
-            "pairs_per_min_running": 60.0 * n / pairs_s,
-            "median_pair_s": float(np.median(per_pair)),
-            "processes": len({r["worker"] for r in result.records}),
-            "thumbnails": sorted({r["thumbnail_kind"] for r in result.records})}
+    return {
+        "workers": workers,
+        "pairs": n,
+        "startup": startup,
+        "pairs_s": pairs_s,
+        "wall": wall,
+        "pairs_per_min": 60.0 * n / wall,
+        "pairs_per_min_running": 60.0 * n / pairs_s,
+        "median_pair_s": float(np.median(per_pair)),
+        "processes": len({r["worker"] for r in result.records}),
+        "thumbnails": sorted({r["thumbnail_kind"] for r in result.records}),
+    }
 
 
 # ---------------------------------------------------------------- report
@@ -231,28 +267,39 @@ def main() -> int:
     ap.add_argument("--skip-throughput", action="store_true")
     args = ap.parse_args()
     if args.child:
-        print(json.dumps(child_splice(args.child[0], args.child[1], args.band, args.refine_band,
-                                      args.frames)))
+        print(
+            json.dumps(
+                child_splice(args.child[0], args.child[1], args.band, args.refine_band, args.frames)
+            )
+        )
         return 0
 
     long_n = 2_400 if args.quick else LONG
-    series = ([(long_n, 0.3), (long_n, 0.1), (long_n // 2, 0.3)] if args.quick else
-              [(LONG, 0.3), (LONG, 0.2), (LONG, 0.1), (LONG // 2, 0.3), (LONG // 4, 0.3)])
+    series = (
+        [(long_n, 0.3), (long_n, 0.1), (long_n // 2, 0.3)]
+        if args.quick
+        else [(LONG, 0.3), (LONG, 0.2), (LONG, 0.1), (LONG // 2, 0.3), (LONG // 4, 0.3)]
+    )
     load = os.getloadavg()[0]
     with tempfile.TemporaryDirectory(prefix="bench-batch-") as tmp:
         tmp = Path(tmp)
         t0 = time.perf_counter()
         body, hand = make_pair(tmp / "long", long_n, seed=7)
-        print(f"long pair {long_n} x {long_n} written in {time.perf_counter() - t0:.1f} s; "
-              f"{body.stat().st_size / 2**20:.1f} + {hand.stat().st_size / 2**20:.1f} MiB BVH",
-              flush=True)
+        print(
+            f"long pair {long_n} x {long_n} written in {time.perf_counter() - t0:.1f} s; "
+            f"{body.stat().st_size / 2**20:.1f} + {hand.stat().st_size / 2**20:.1f} MiB BVH",
+            flush=True,
+        )
         runs = []
         for n, band in series:
             r = run_child(body, hand, band, 0.1, frames=None if n == long_n else n)
             runs.append(r)
-            print(f"n={r['n']} m={r['m']} band={band}: {r['seconds']:.2f} s, peak "
-                  f"{r['peak_mb']:.0f} MB (before splice {r['peak_before_mb']:.0f} MB), "
-                  f"cells {r['cells1'] + r['cells2']:,} {r['timings']}", flush=True)
+            print(
+                f"n={r['n']} m={r['m']} band={band}: {r['seconds']:.2f} s, peak "
+                f"{r['peak_mb']:.0f} MB (before splice {r['peak_before_mb']:.0f} MB), "
+                f"cells {r['cells1'] + r['cells2']:,} {r['timings']}",
+                flush=True,
+            )
         throughput = []
         if not args.skip_throughput:
             pairs, frames = (4, 600) if args.quick else (8, 3_600)
@@ -261,9 +308,12 @@ def main() -> int:
                 r = run_throughput(manifest, workers, tmp / f"out{workers}")
                 r["frames"] = frames
                 throughput.append(r)
-                print(f"batch {pairs} pairs of {frames} frames, {workers} worker(s): "
-                      f"{r['wall']:.1f} s, {r['pairs_per_min']:.1f} pairs/min, "
-                      f"median pair {r['median_pair_s']:.1f} s, start-up {r['startup']:.1f} s", flush=True)
+                print(
+                    f"batch {pairs} pairs of {frames} frames, {workers} worker(s): "
+                    f"{r['wall']:.1f} s, {r['pairs_per_min']:.1f} pairs/min, "
+                    f"median pair {r['median_pair_s']:.1f} s, start-up {r['startup']:.1f} s",
+                    flush=True,
+                )
     load_after = os.getloadavg()[0]
     if args.quick:
         return 0
@@ -288,7 +338,8 @@ def report(runs: list[dict], throughput: list[dict], load: float, load_after: fl
         "band 0.3, refine band 0.1; a fresh process after a 240-frame warm-up splice):",
         "",
         f"- wall time **{main_run['seconds']:.1f} s** ("
-        + ", ".join(f"{k} {v:.2f} s" for k, v in main_run["timings"].items()) + ")",
+        + ", ".join(f"{k} {v:.2f} s" for k, v in main_run["timings"].items())
+        + ")",
         f"- peak resident memory of the process **{fmt_mb(main_run['peak_mb'])}** "
         f"({fmt_mb(main_run['peak_before_mb'])} before the splice: interpreter, numpy/numba, "
         "both takes, warm-up)",
@@ -312,12 +363,17 @@ def report(runs: list[dict], throughput: list[dict], load: float, load_after: fl
             f"| {r['n']:,} x {r['m']:,} | {r['band']:g} | {r['cells1']:,} | {r['cells2']:,} | "
             f"{r['seconds']:.1f} s | {fmt_mb(r['peak_mb'])} | {fmt_mb(_extra(r, 'prepare'))} | "
             f"{fmt_mb(_extra(r, 'passes'))} | {_extra(r, 'passes') * 2**20 / big:.2f} | "
-            f"{fmt_mb(_extra(r, 'transfer'))} |")
-    per_cell = [_extra(r, "passes") * 2**20 / max(r["cells1"], r["cells2"]) for r in runs
-                if max(r["cells1"], r["cells2"]) > 10_000_000]
+            f"{fmt_mb(_extra(r, 'transfer'))} |"
+        )
+    per_cell = [
+        _extra(r, "passes") * 2**20 / max(r["cells1"], r["cells2"])
+        for r in runs
+        if max(r["cells1"], r["cells2"]) > 10_000_000
+    ]
     longs = [r for r in runs if r["n"] == n]
-    stage_max = {name: max(_extra(r, name) for r in longs) for name in ("prepare", "passes",
-                                                                       "transfer")}
+    stage_max = {
+        name: max(_extra(r, name) for r in longs) for name in ("prepare", "passes", "transfer")
+    }
     top = max(stage_max, key=stage_max.get)
     lines += [
         "",
@@ -327,7 +383,8 @@ def report(runs: list[dict], throughput: list[dict], load: float, load_after: fl
         f"{n:,} frames the largest stage is *{top}* ({stage_max[top]:,.0f} MB extra); "
         f"features (prepare, {stage_max['prepare']:,.0f} MB) and transfer "
         f"({stage_max['transfer']:,.0f} MB) grow with the take's length, not with the band, "
-        "so the process peak barely moves between band 0.1 and 0.3."]
+        "so the process peak barely moves between band 0.1 and 0.3.",
+    ]
     if throughput:
         t = throughput
         lines += [
@@ -342,21 +399,31 @@ def report(runs: list[dict], throughput: list[dict], load: float, load_after: fl
             "|---|---|---|---|---|---|---|",
         ]
         for r in t:
-            lines.append(f"| {r['workers']} | {r['startup']:.1f} s | {r['pairs_s']:.1f} s | "
-                         f"{r['wall']:.1f} s | {r['pairs_per_min']:.1f} | "
-                         f"{r['pairs_per_min_running']:.1f} | {r['median_pair_s']:.1f} s |")
+            lines.append(
+                f"| {r['workers']} | {r['startup']:.1f} s | {r['pairs_s']:.1f} s | "
+                f"{r['wall']:.1f} s | {r['pairs_per_min']:.1f} | "
+                f"{r['pairs_per_min_running']:.1f} | {r['median_pair_s']:.1f} s |"
+            )
         if len(t) == 2:
-            speedup = t[1]['pairs_per_min'] / t[0]['pairs_per_min']
-            lines += ["", f"2 workers / 1 worker: {speedup:.2f}x pairs per minute "
-                          f"({t[1]['pairs_per_min_running'] / t[0]['pairs_per_min_running']:.2f}x "
-                          f"once running) on {os.cpu_count()} cores. "
-                          + ("Two worker processes use both cores; the rest is the scheduler, "
-                             "file reading and thumbnails, which share the same cores."
-                             if speedup > 1.2 else
-                             "Under load a second worker process competes for the same busy "
-                             "cores, so the speed-up is small or absent.")]
-    lines += ["", f"Load average (1 min) {load:.1f} at the start, {load_after:.1f} at the end "
-                  f"({os.cpu_count()} cores, shared with other work): timings are noisy."]
+            speedup = t[1]["pairs_per_min"] / t[0]["pairs_per_min"]
+            lines += [
+                "",
+                f"2 workers / 1 worker: {speedup:.2f}x pairs per minute "
+                f"({t[1]['pairs_per_min_running'] / t[0]['pairs_per_min_running']:.2f}x "
+                f"once running) on {os.cpu_count()} cores. "
+                + (
+                    "Two worker processes use both cores; the rest is the scheduler, "
+                    "file reading and thumbnails, which share the same cores."
+                    if speedup > 1.2
+                    else "Under load a second worker process competes for the same busy "
+                    "cores, so the speed-up is small or absent."
+                ),
+            ]
+    lines += [
+        "",
+        f"Load average (1 min) {load:.1f} at the start, {load_after:.1f} at the end "
+        f"({os.cpu_count()} cores, shared with other work): timings are noisy.",
+    ]
     return "\n".join(lines)
 
 

@@ -470,8 +470,15 @@ def bench_long_edits(seconds_list=(120.0, 600.0), n_points: int = 9, n_edits: in
         n = truth.shape[0]
         label, band, refine = time_band(n, 120.0, LP.drift_seconds(truth, n, 120.0))
         for code, tree in (("today", baseline), ("now", None)):
-            r = LP.run_child(CHILD_EDITS, *map(str, files), str(band), str(refine),
-                             str(n_points), str(n_edits), tree=tree)
+            r = LP.run_child(
+                CHILD_EDITS,
+                *map(str, files),
+                str(band),
+                str(refine),
+                str(n_points),
+                str(n_edits),
+                tree=tree,
+            )
             r.update(code=code, band=label, seconds=seconds)
             print(json.dumps(r), flush=True)
             out.append(r)
@@ -500,7 +507,8 @@ def report_long_edits(rows) -> str:
             f"{r['init_cpu']:.2f} s | {np.median(w) * 1e3:.0f} / {np.percentile(w, 95) * 1e3:.0f} ms | "
             f"**{np.median(c) * 1e3:.0f} / {np.percentile(c, 95) * 1e3:.0f} ms** | "
             f"{np.median(r['edit_pass1']) * 1e3:.0f} ms | {r['rss_features_mb']:.0f} → "
-            f"{r['rss_after_solve_mb']:.0f} → {r['rss_after_edits_mb']:.0f} MB |")
+            f"{r['rss_after_solve_mb']:.0f} → {r['rss_after_edits_mb']:.0f} MB |"
+        )
     lines += [
         "",
         "Goals (issue 13, the app's whole drag → new path): ≤ 150 ms p95 at 2 minutes, "
@@ -514,10 +522,18 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="small sizes, print only")
     parser.add_argument("--no-memory", action="store_true", help="skip the 20,000 runs")
-    parser.add_argument("--long-edits", action="store_true",
-                        help="only the long-take edit runs (RESULTS.md section dtw_long_edits)")
-    parser.add_argument("--minutes", type=float, nargs="+", default=[2.0, 10.0],
-                        help="pair lengths for --long-edits")
+    parser.add_argument(
+        "--long-edits",
+        action="store_true",
+        help="only the long-take edit runs (RESULTS.md section dtw_long_edits)",
+    )
+    parser.add_argument(
+        "--minutes",
+        type=float,
+        nargs="+",
+        default=[2.0, 10.0],
+        help="pair lengths for --long-edits",
+    )
     args = parser.parse_args(argv)
     if args.long_edits:
         text = report_long_edits(bench_long_edits(tuple(60.0 * x for x in args.minutes)))

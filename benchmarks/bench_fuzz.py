@@ -87,19 +87,80 @@ BVH_WEIGHTS = {"hand": 4, "hand2": 3, "body": 4, "beat": 1}
 
 def pick_bvh(rng: random.Random) -> str:
     return rng.choices(list(BVH_WEIGHTS), weights=list(BVH_WEIGHTS.values()))[0]
+
+
 C3D_SEED = MOCAP / "pyomeca/markers_analogs.c3d"
 TRC_SEED = MOCAP / "pyomeca/markers.trc"
 
 GARBAGE = [
-    "nan", "NaN", "-inf", "Infinity", "1e309", "1e308", "-1e308", "1e300", "1e-300", "5e-324",
-    "0", "-0", "", "abc", "1.5.2", "0x1F", "1_000", "\u0663", "\u0661\u0662", "\uff11\uff12",
-    "+-1", "9" * 400, "1e99999", "2147483648", "18446744073709551616", "1e15", "-1", "3",
-    "6", "7", "{", "}", "ROOT", "JOINT", "End Site", "MOTION", "HIERARCHY", "CHANNELS",
-    "OFFSET", "Frames:", "\ufeff", "\u00e9", "<script>alert(1)</script>", "\t", "1e-5",
-    "0.0001", "100", "300", "1e6", "2000000", "99999999", "-999999999",
+    "nan",
+    "NaN",
+    "-inf",
+    "Infinity",
+    "1e309",
+    "1e308",
+    "-1e308",
+    "1e300",
+    "1e-300",
+    "5e-324",
+    "0",
+    "-0",
+    "",
+    "abc",
+    "1.5.2",
+    "0x1F",
+    "1_000",
+    "\u0663",
+    "\u0661\u0662",
+    "\uff11\uff12",
+    "+-1",
+    "9" * 400,
+    "1e99999",
+    "2147483648",
+    "18446744073709551616",
+    "1e15",
+    "-1",
+    "3",
+    "6",
+    "7",
+    "{",
+    "}",
+    "ROOT",
+    "JOINT",
+    "End Site",
+    "MOTION",
+    "HIERARCHY",
+    "CHANNELS",
+    "OFFSET",
+    "Frames:",
+    "\ufeff",
+    "\u00e9",
+    "<script>alert(1)</script>",
+    "\t",
+    "1e-5",
+    "0.0001",
+    "100",
+    "300",
+    "1e6",
+    "2000000",
+    "99999999",
+    "-999999999",
 ]
-NAMES = ["Chest{x}", "a}b", "<img src=x onerror=alert(1)>", "x" * 5000, "Hips", "rHand",
-         "right_wrist", "\u202e", "a b  c", "\u00e9\u00e8", "LeftHand", "{", "}"]
+NAMES = [
+    "Chest{x}",
+    "a}b",
+    "<img src=x onerror=alert(1)>",
+    "x" * 5000,
+    "Hips",
+    "rHand",
+    "right_wrist",
+    "\u202e",
+    "a b  c",
+    "\u00e9\u00e8",
+    "LeftHand",
+    "{",
+    "}",
+]
 
 
 # ---------------------------------------------------------------- mutators (this bench's own)
@@ -133,7 +194,7 @@ def t_replace_number(text: str, rng: random.Random) -> str:
         return text
     for _ in range(rng.randint(1, 3)):
         m = rng.choice(nums)
-        text = text[: m.start()] + rng.choice(GARBAGE) + text[m.end():]
+        text = text[: m.start()] + rng.choice(GARBAGE) + text[m.end() :]
         nums = list(re.finditer(r"-?\d+(\.\d+)?(e-?\d+)?", text))
         if not nums:
             break
@@ -170,31 +231,60 @@ def t_insert_token(text: str, rng: random.Random) -> str:
 
 
 def t_line_endings(text: str, rng: random.Random) -> str:
-    return rng.choice([lambda t: t.replace("\n", "\r\n"), lambda t: "\ufeff" + t,
-                       lambda t: t.replace("\n", "\r"), lambda t: t.replace(" ", "\t")])(text)
+    return rng.choice(
+        [
+            lambda t: t.replace("\n", "\r\n"),
+            lambda t: "\ufeff" + t,
+            lambda t: t.replace("\n", "\r"),
+            lambda t: t.replace(" ", "\t"),
+        ]
+    )(text)
 
 
 def b_header(text: str, rng: random.Random) -> str:
     """BVH header fields: Frames, Frame Time, CHANNELS counts, OFFSET values."""
     field = rng.choice(["frames", "time", "channels", "offset"])
     if field == "frames":
-        return re.sub(r"Frames:\s*\S+", f"Frames: {rng.choice(GARBAGE + ['2000000'] * 3)}", text,
-                      count=1)
+        return re.sub(
+            r"Frames:\s*\S+", f"Frames: {rng.choice(GARBAGE + ['2000000'] * 3)}", text, count=1
+        )
     if field == "time":
-        value = rng.choice(["300", "100", "1e6", "1e-300", "1e300", "0.9", "1", "0.0001",
-                            "0.00001", "1_0", "\u0660.\u0660\u0663", "-0.03"] + GARBAGE)
+        value = rng.choice(
+            [
+                "300",
+                "100",
+                "1e6",
+                "1e-300",
+                "1e300",
+                "0.9",
+                "1",
+                "0.0001",
+                "0.00001",
+                "1_0",
+                "\u0660.\u0660\u0663",
+                "-0.03",
+            ]
+            + GARBAGE
+        )
         return re.sub(r"Frame Time:\s*\S+", f"Frame Time: {value}", text, count=1)
     if field == "channels":
         ms = list(re.finditer(r"CHANNELS \d[^\n]*", text))
         m = rng.choice(ms)
-        new = rng.choice(["CHANNELS 0", "CHANNELS 7 Xrotation", "CHANNELS 3 Xrotation Xrotation "
-                          "Yrotation", "CHANNELS \u0663 Xrotation Yrotation Zrotation",
-                          "CHANNELS 1_0", "CHANNELS 2 Zrotation Qrotation"])
-        return text[: m.start()] + new + text[m.end():]
+        new = rng.choice(
+            [
+                "CHANNELS 0",
+                "CHANNELS 7 Xrotation",
+                "CHANNELS 3 Xrotation Xrotation Yrotation",
+                "CHANNELS \u0663 Xrotation Yrotation Zrotation",
+                "CHANNELS 1_0",
+                "CHANNELS 2 Zrotation Qrotation",
+            ]
+        )
+        return text[: m.start()] + new + text[m.end() :]
     ms = list(re.finditer(r"OFFSET[^\n]*", text))
     m = rng.choice(ms)
     vals = " ".join(rng.choice(GARBAGE + ["0", "1", "-2.5"]) for _ in range(3))
-    return text[: m.start()] + f"OFFSET {vals}" + text[m.end():]
+    return text[: m.start()] + f"OFFSET {vals}" + text[m.end() :]
 
 
 def b_zero_channels(text: str, rng: random.Random) -> str:
@@ -214,7 +304,7 @@ def b_deepen(text: str, rng: random.Random) -> str:
     chain += "}\n" * depth
     i = text.find("OFFSET")
     j = text.find("\n", text.find("CHANNELS", i))
-    return text[: j + 1] + chain + text[j + 1:]
+    return text[: j + 1] + chain + text[j + 1 :]
 
 
 def b_many_joints(text: str, rng: random.Random) -> str:
@@ -223,7 +313,7 @@ def b_many_joints(text: str, rng: random.Random) -> str:
     fan = "".join(f"JOINT extra{k}\n{{\nOFFSET 0 1 0\nCHANNELS 0\n}}\n" for k in range(n))
     i = text.find("OFFSET")
     j = text.find("\n", text.find("CHANNELS", i))
-    return text[: j + 1] + fan + text[j + 1:]
+    return text[: j + 1] + fan + text[j + 1 :]
 
 
 def b_rename(text: str, rng: random.Random) -> str:
@@ -232,7 +322,7 @@ def b_rename(text: str, rng: random.Random) -> str:
     name = rng.choice(NAMES)
     if rng.random() < 0.3:  # a duplicate of another joint
         name = rng.choice(ms).group(2)
-    return text[: m.start(2)] + name + text[m.end(2):]
+    return text[: m.start(2)] + name + text[m.end(2) :]
 
 
 def b_more_rows(text: str, rng: random.Random) -> str:
@@ -245,9 +335,21 @@ def b_more_rows(text: str, rng: random.Random) -> str:
     return head + "Frame Time:" + first + "\n" + "\n".join(rows_l * k) + "\n"
 
 
-BVH_MUTATORS = [t_replace_number, t_delete_line, t_duplicate_line, t_swap_lines, t_insert_token,
-                t_line_endings, b_header, b_header, b_zero_channels, b_deepen, b_many_joints,
-                b_rename, b_more_rows]
+BVH_MUTATORS = [
+    t_replace_number,
+    t_delete_line,
+    t_duplicate_line,
+    t_swap_lines,
+    t_insert_token,
+    t_line_endings,
+    b_header,
+    b_header,
+    b_zero_channels,
+    b_deepen,
+    b_many_joints,
+    b_rename,
+    b_more_rows,
+]
 
 
 def c3d_word(data: bytes, rng: random.Random) -> bytes:
@@ -257,8 +359,12 @@ def c3d_word(data: bytes, rng: random.Random) -> bytes:
     if rng.random() < 0.5:
         struct.pack_into("<h", b, where, rng.choice([0, 1, -1, 32767, -32768, 255, 2]))
     else:
-        struct.pack_into("<f", b, min(where, len(b) - 4),
-                         rng.choice([0.0, -1.0, 1e30, float("nan"), float("inf"), 1e-30, 1e6]))
+        struct.pack_into(
+            "<f",
+            b,
+            min(where, len(b) - 4),
+            rng.choice([0.0, -1.0, 1e30, float("nan"), float("inf"), 1e-30, 1e6]),
+        )
     return bytes(b)
 
 
@@ -276,38 +382,68 @@ def trc_field(text: str, rng: random.Random) -> str:
     return "\n".join(ls)
 
 
-TRC_MUTATORS = [trc_field, trc_field, t_delete_line, t_duplicate_line, t_replace_number,
-                t_line_endings]
+TRC_MUTATORS = [
+    trc_field,
+    trc_field,
+    t_delete_line,
+    t_duplicate_line,
+    t_replace_number,
+    t_line_endings,
+]
 
 
 def eaf_xml(text: str, rng: random.Random) -> str:
     """ELAN: property values, time slot values and references, annotation ids, nesting."""
     op = rng.randrange(6)
     if op == 0:
-        return re.sub(r'(<PROPERTY NAME="(fps|frames)">)[^<]*', lambda m: m.group(1) +
-                      rng.choice(GARBAGE), text, count=1)
+        return re.sub(
+            r'(<PROPERTY NAME="(fps|frames)">)[^<]*',
+            lambda m: m.group(1) + rng.choice(GARBAGE),
+            text,
+            count=1,
+        )
     if op == 1:
         ms = list(re.finditer(r'TIME_VALUE="[^"]*"', text)) or [None]
         m = rng.choice(ms)
         if m is None:
             return text
-        return text[: m.start()] + f'TIME_VALUE="{rng.choice(GARBAGE)}"' + text[m.end():]
+        return text[: m.start()] + f'TIME_VALUE="{rng.choice(GARBAGE)}"' + text[m.end() :]
     if op == 2:
         return re.sub(r'TIME_SLOT_REF[12]="\w+"', 'TIME_SLOT_REF1="ts999"', text, count=1)
     if op == 3:
-        return re.sub(r'<TIME_SLOT [^>]*/>', "", text, count=rng.randint(1, 3))
+        return re.sub(r"<TIME_SLOT [^>]*/>", "", text, count=rng.randint(1, 3))
     if op == 4:
         n = rng.choice([10, 1000, 100_000])
         return text.replace("<TIER", "<X>" * n + "</X>" * n + "<TIER", 1)
-    return re.sub(r"<ANNOTATION_VALUE>[^<]*", "<ANNOTATION_VALUE>" + rng.choice(
-        ["wiggle", "", "S", "rest", "<", "2H", "\x0b"]), text, count=1)
+    return re.sub(
+        r"<ANNOTATION_VALUE>[^<]*",
+        "<ANNOTATION_VALUE>" + rng.choice(["wiggle", "", "S", "rest", "<", "2H", "\x0b"]),
+        text,
+        count=1,
+    )
 
 
 EAF_MUTATORS = [eaf_xml, eaf_xml, eaf_xml, t_delete_line, t_swap_lines, t_replace_number]
 
-JSON_GARBAGE = ['"../../../../etc/passwd"', "[" * 5000, "{" * 5000, "1e999", "NaN", "Infinity",
-                "true", "null", "[]", "{}", '"\\u0000"', '"\\ud800"', "-1", "0.01", "1000",
-                '"<script>alert(1)</script>"', '{"a":' * 3000 + "1" + "}" * 3000]
+JSON_GARBAGE = [
+    '"../../../../etc/passwd"',
+    "[" * 5000,
+    "{" * 5000,
+    "1e999",
+    "NaN",
+    "Infinity",
+    "true",
+    "null",
+    "[]",
+    "{}",
+    '"\\u0000"',
+    '"\\ud800"',
+    "-1",
+    "0.01",
+    "1000",
+    '"<script>alert(1)</script>"',
+    '{"a":' * 3000 + "1" + "}" * 3000,
+]
 
 
 def j_value(text: str, rng: random.Random) -> str:
@@ -316,8 +452,8 @@ def j_value(text: str, rng: random.Random) -> str:
         return text
     m = rng.choice(ms)
     if m.group(0) in "{[":
-        return text[: m.start()] + rng.choice(JSON_GARBAGE) + ", " + text[m.start():]
-    return text[: m.start()] + rng.choice(JSON_GARBAGE) + text[m.end():]
+        return text[: m.start()] + rng.choice(JSON_GARBAGE) + ", " + text[m.start() :]
+    return text[: m.start()] + rng.choice(JSON_GARBAGE) + text[m.end() :]
 
 
 def j_nest(text: str, rng: random.Random) -> str:
@@ -328,8 +464,9 @@ def j_nest(text: str, rng: random.Random) -> str:
 JSON_MUTATORS = [j_value, j_value, j_value, j_nest, t_delete_line, t_swap_lines]
 
 
-def mutate(seed: bytes, mutators, rng: random.Random, binary: bool = False,
-           limit: int = MAX_CASE_BYTES) -> tuple[bytes, list]:
+def mutate(
+    seed: bytes, mutators, rng: random.Random, binary: bool = False, limit: int = MAX_CASE_BYTES
+) -> tuple[bytes, list]:
     """1-4 mutations of ``seed``; a step that would make the file ``limit`` bytes or more is
     skipped (the promise under test is about files under 1 MB)."""
     data, used = seed, []
@@ -353,21 +490,35 @@ def mutate(seed: bytes, mutators, rng: random.Random, binary: bool = False,
 
 def session_seeds() -> list[str]:
     return [
-        json.dumps({"format": "handsplice-session", "version": 1,
-                    "inputs": {"body": {"path": "body.bvh"}, "hand": {"path": "hand.bvh"}},
-                    "side": "right", "band": 0.3, "refine_band": 0.1, "tolerance": 2,
-                    "points": [{"body": 10, "hand": 12, "tolerance": None},
-                               {"body": 40, "hand": 35, "tolerance": 1.5}],
-                    "roles": {"body": {"right.wrist": "RightHand"}},
-                    "view": {"matrix": "pass1", "frame": 3}}, indent=2),
+        json.dumps(
+            {
+                "format": "handsplice-session",
+                "version": 1,
+                "inputs": {"body": {"path": "body.bvh"}, "hand": {"path": "hand.bvh"}},
+                "side": "right",
+                "band": 0.3,
+                "refine_band": 0.1,
+                "tolerance": 2,
+                "points": [
+                    {"body": 10, "hand": 12, "tolerance": None},
+                    {"body": 40, "hand": 35, "tolerance": 1.5},
+                ],
+                "roles": {"body": {"right.wrist": "RightHand"}},
+                "view": {"matrix": "pass1", "frame": 3},
+            },
+            indent=2,
+        ),
         json.dumps({"inputs": {"sample": "demo"}, "side": "both", "band": 1}, indent=1),
     ]
 
 
 def roles_seeds() -> list[str]:
-    return [json.dumps({"right.wrist": "rHand", "right.index1": "rIndex1"}, indent=1),
-            json.dumps({"body": {"right.wrist": "RightHand"}, "hand": {"right.wrist": "rHand"}},
-                       indent=1)]
+    return [
+        json.dumps({"right.wrist": "rHand", "right.index1": "rIndex1"}, indent=1),
+        json.dumps(
+            {"body": {"right.wrist": "RightHand"}, "hand": {"right.wrist": "rHand"}}, indent=1
+        ),
+    ]
 
 
 def eaf_seed() -> str:
@@ -491,8 +642,12 @@ def _run_cli(case: dict, folder: Path) -> tuple[str, str, list[str]]:
         return "ok", "", list(case.get("outputs", []))
     if "needs more memory" in text:
         return "over 1 GB", text[:200], []
-    if status == 2 and len(lines) == 1 and lines[0].startswith("handsplice: error: ") \
-            and "Traceback" not in text:
+    if (
+        status == 2
+        and len(lines) == 1
+        and lines[0].startswith("handsplice: error: ")
+        and "Traceback" not in text
+    ):
         return "refused", lines[0], []
     return "traceback", f"exit {status}: {text[-300:]!r}", []
 
@@ -509,8 +664,16 @@ def build_cases(n: int, rng: random.Random, work: Path) -> list[dict]:
     sessions = [s.encode() for s in session_seeds()]
     roles = [s.encode() for s in roles_seeds()]
     have_upload = _upload_available()
-    shares = {"bvh": 0.34, "c3d": 0.10, "trc": 0.11, "eaf": 0.10, "session": 0.09,
-              "roles": 0.07, "upload": 0.08 if have_upload else 0.0, "cli": 0.07}
+    shares = {
+        "bvh": 0.34,
+        "c3d": 0.10,
+        "trc": 0.11,
+        "eaf": 0.10,
+        "session": 0.09,
+        "roles": 0.07,
+        "upload": 0.08 if have_upload else 0.0,
+        "cli": 0.07,
+    }
     total = sum(shares.values())
     cases: list[dict] = []
     counts = {t: max(1, round(n * s / total)) for t, s in shares.items() if s}
@@ -564,30 +727,56 @@ def _cli_case(case, rng, seeds_bvh, c3d, trc, sessions, roles, folder) -> tuple[
     if cmd == "info":
         kind = rng.choice(["bvh", "bvh", "c3d", "trc"])
         seed = {"c3d": c3d, "trc": trc}.get(kind) or seeds_bvh[pick_bvh(rng)]
-        data, used = mutate(seed, {"bvh": BVH_MUTATORS, "c3d": C3D_MUTATORS,
-                                   "trc": TRC_MUTATORS}[kind], rng, binary=kind == "c3d")
+        data, used = mutate(
+            seed,
+            {"bvh": BVH_MUTATORS, "c3d": C3D_MUTATORS, "trc": TRC_MUTATORS}[kind],
+            rng,
+            binary=kind == "c3d",
+        )
         case.update(name=f"take.{kind}", argv=["info", f"{d}/take.{kind}"])
         if rng.random() < 0.3:
             case["argv"].append("--json")
         return data, used
     if cmd == "analyze":
         data, used = mutate(seeds_bvh[rng.choice(["body", "beat"])], BVH_MUTATORS, rng)
-        case.update(name="take.bvh", argv=["analyze", f"{d}/take.bvh", "--eaf",
-                                            f"{d}/phases.eaf", "--csv", f"{d}/phases.csv"],
-                    outputs=["phases.eaf", "phases.csv"])
+        case.update(
+            name="take.bvh",
+            argv=[
+                "analyze",
+                f"{d}/take.bvh",
+                "--eaf",
+                f"{d}/phases.eaf",
+                "--csv",
+                f"{d}/phases.csv",
+            ],
+            outputs=["phases.eaf", "phases.csv"],
+        )
         return data, used
     if cmd == "render":
         data, used = mutate(seeds_bvh[pick_bvh(rng)], BVH_MUTATORS, rng)
-        case.update(name="take.bvh", argv=["render", f"{d}/take.bvh", "-o", f"{d}/out.png",
-                                            "--size", "64x48", "--quiet"], outputs=["out.png"])
+        case.update(
+            name="take.bvh",
+            argv=["render", f"{d}/take.bvh", "-o", f"{d}/out.png", "--size", "64x48", "--quiet"],
+            outputs=["out.png"],
+        )
         return data, used
     # splice: mutate the hand, the body, the session or the roles
     what = rng.choice(["hand", "body", "session", "roles"])
     body = seeds_bvh["body"]
     hand = seeds_bvh[rng.choice(["hand", "hand2"])]
     outputs = ["out.bvh", "out.json"]
-    argv = ["splice", f"{d}/body.bvh", f"{d}/hand.bvh", "-o", f"{d}/out.bvh", "--report",
-            f"{d}/out.json", "--quiet", "--side", "right"]
+    argv = [
+        "splice",
+        f"{d}/body.bvh",
+        f"{d}/hand.bvh",
+        "-o",
+        f"{d}/out.bvh",
+        "--report",
+        f"{d}/out.json",
+        "--quiet",
+        "--side",
+        "right",
+    ]
     if what == "hand":
         data, used = mutate(hand, BVH_MUTATORS, rng)
         (folder / "body.bvh").write_bytes(body)
@@ -645,18 +834,37 @@ def run_in_lane(case: dict) -> dict:
 def subprocess_runs(k: int, rng: random.Random, work: Path) -> list[dict]:
     """The real command line in child processes, with the peak RSS of each."""
     issue = {
-        "frame-time-300 splice": ("hand", lambda t: re.sub(r"Frame Time:\s*\S+",
-                                                           "Frame Time: 300", t), "splice"),
-        "frame-time-1e6 splice": ("hand", lambda t: re.sub(r"Frame Time:\s*\S+",
-                                                           "Frame Time: 1e6", t), "splice"),
-        "frame-time-100 info": ("hand", lambda t: re.sub(r"Frame Time:\s*\S+",
-                                                         "Frame Time: 100", t), "info"),
-        "zero-channels-2M info": ("body", lambda t: re.sub(r"CHANNELS \d[^\n]*", "CHANNELS 0",
-                                                           t.split("MOTION")[0]) +
-                                  "MOTION\nFrames: 2000000\nFrame Time: 0.0333333\n", "info"),
-        "zero-channels-2M analyze": ("body", lambda t: re.sub(
-            r"CHANNELS \d[^\n]*", "CHANNELS 0", t.split("MOTION")[0]) +
-            "MOTION\nFrames: 2000000\nFrame Time: 0.0333333\n", "analyze"),
+        "frame-time-300 splice": (
+            "hand",
+            lambda t: re.sub(r"Frame Time:\s*\S+", "Frame Time: 300", t),
+            "splice",
+        ),
+        "frame-time-1e6 splice": (
+            "hand",
+            lambda t: re.sub(r"Frame Time:\s*\S+", "Frame Time: 1e6", t),
+            "splice",
+        ),
+        "frame-time-100 info": (
+            "hand",
+            lambda t: re.sub(r"Frame Time:\s*\S+", "Frame Time: 100", t),
+            "info",
+        ),
+        "zero-channels-2M info": (
+            "body",
+            lambda t: (
+                re.sub(r"CHANNELS \d[^\n]*", "CHANNELS 0", t.split("MOTION")[0])
+                + "MOTION\nFrames: 2000000\nFrame Time: 0.0333333\n"
+            ),
+            "info",
+        ),
+        "zero-channels-2M analyze": (
+            "body",
+            lambda t: (
+                re.sub(r"CHANNELS \d[^\n]*", "CHANNELS 0", t.split("MOTION")[0])
+                + "MOTION\nFrames: 2000000\nFrame Time: 0.0333333\n"
+            ),
+            "analyze",
+        ),
         "1000 zero-channel joints info": ("hand", lambda t: _fan_text(1000, 1_000_000), "info"),
     }
     runs = []
@@ -679,15 +887,28 @@ def subprocess_runs(k: int, rng: random.Random, work: Path) -> list[dict]:
         argv = [sys.executable, "-m", "engine.cli", cmd, str(take)]
         if cmd == "splice":
             (folder / "body.bvh").write_bytes(BVH_SEEDS["body"].read_bytes())
-            argv = [sys.executable, "-m", "engine.cli", "splice", str(folder / "body.bvh"),
-                    str(take), "-o", str(folder / "out.bvh"), "--quiet"]
+            argv = [
+                sys.executable,
+                "-m",
+                "engine.cli",
+                "splice",
+                str(folder / "body.bvh"),
+                str(take),
+                "-o",
+                str(folder / "out.bvh"),
+                "--quiet",
+            ]
         env = {**os.environ, "PYTHONPATH": str(ROOT)}
         t0 = time.monotonic()
         # a small intermediate interpreter starts the command and reads its peak RSS
         # (ru_maxrss of a child forked from this big process would count our pages)
-        probe = subprocess.run([sys.executable, "-c", _PROBE, json.dumps(argv),
-                                str(CLI_SECONDS)], capture_output=True, text=True, env=env,
-                               cwd=folder)
+        probe = subprocess.run(
+            [sys.executable, "-c", _PROBE, json.dumps(argv), str(CLI_SECONDS)],
+            capture_output=True,
+            text=True,
+            env=env,
+            cwd=folder,
+        )
         status, peak_kb, signalled, err = json.loads(probe.stdout)
         peak = peak_kb / 1024.0
         lines = [ln for ln in err.strip().splitlines() if ln.startswith("handsplice")]
@@ -701,13 +922,23 @@ def subprocess_runs(k: int, rng: random.Random, work: Path) -> list[dict]:
             outcome = "traceback"
         if "needs more memory" in err or (peak > ONE_GB_MB and take.stat().st_size < 2**20):
             outcome = "over 1 GB"
-        left = sorted(str(q.relative_to(folder)) for q in folder.rglob("*") if q.is_file()
-                      and q.name not in ("take.bvh", "body.bvh", "out.bvh"))
+        left = sorted(
+            str(q.relative_to(folder))
+            for q in folder.rglob("*")
+            if q.is_file() and q.name not in ("take.bvh", "body.bvh", "out.bvh")
+        )
         if left and outcome in ("ok", "refused"):
             outcome = "stray file"
-        runs.append({"label": label, "outcome": outcome, "peak_mb": peak,
-                     "size": take.stat().st_size, "detail": err.strip()[-200:],
-                     "seconds": time.monotonic() - t0})
+        runs.append(
+            {
+                "label": label,
+                "outcome": outcome,
+                "peak_mb": peak,
+                "size": take.stat().st_size,
+                "detail": err.strip()[-200:],
+                "seconds": time.monotonic() - t0,
+            }
+        )
     return runs
 
 
@@ -777,11 +1008,15 @@ def main(argv: list[str] | None = None) -> int:
                     results.append((case, res))
                     n = len(results)
                     if res["outcome"] not in ("ok", "refused"):
-                        print(f"  FAIL {case['id']} {res['outcome']}: {res['detail'][:240]} "
-                              f"(mutators {case['mutators']})", flush=True)
+                        print(
+                            f"  FAIL {case['id']} {res['outcome']}: {res['detail'][:240]} "
+                            f"(mutators {case['mutators']})",
+                            flush=True,
+                        )
                     if n % 100 == 0:
-                        print(f"  {n}/{len(cases)} cases, {time.monotonic() - t0:.0f} s",
-                              flush=True)
+                        print(
+                            f"  {n}/{len(cases)} cases, {time.monotonic() - t0:.0f} s", flush=True
+                        )
 
         threads = [threading.Thread(target=lane) for _ in range(max(1, args.jobs))]
         for t in threads:
@@ -799,8 +1034,9 @@ def main(argv: list[str] | None = None) -> int:
         from benchmarks._results import write_section
 
         write_section("fuzz", table)
-    failures = sum(1 for _, r in results if r["outcome"] in KINDS) + \
-        sum(1 for r in sub if r["outcome"] in KINDS)
+    failures = sum(1 for _, r in results if r["outcome"] in KINDS) + sum(
+        1 for r in sub if r["outcome"] in KINDS
+    )
     return 1 if failures else 0
 
 
@@ -814,34 +1050,53 @@ def report(results, sub, sizes, seconds, args) -> str:
         if res["peak_mb"] == res["peak_mb"]:
             peaks[case["target"]] = max(peaks[case["target"]], res["peak_mb"])
     cols = ["ok", "refused", *KINDS]
-    lines = [f"Fuzz bench (`benchmarks/bench_fuzz.py --cases {args.cases} --jobs {args.jobs} "
-             f"--seed {args.seed} --subprocess {args.subprocess}`): {len(results)} in-process "
-             f"cases + {len(sub)} command-line processes in {seconds / 60:.1f} min; inputs "
-             f"{min(sizes)}-{max(sizes)} bytes (median {sorted(sizes)[len(sizes) // 2]}).",
-             "", "| target | cases | " + " | ".join(cols) + " | peak RSS MB | mean s |",
-             "|---|---:|" + "---:|" * len(cols) + "---:|---:|"]
+    lines = [
+        f"Fuzz bench (`benchmarks/bench_fuzz.py --cases {args.cases} --jobs {args.jobs} "
+        f"--seed {args.seed} --subprocess {args.subprocess}`): {len(results)} in-process "
+        f"cases + {len(sub)} command-line processes in {seconds / 60:.1f} min; inputs "
+        f"{min(sizes)}-{max(sizes)} bytes (median {sorted(sizes)[len(sizes) // 2]}).",
+        "",
+        "| target | cases | " + " | ".join(cols) + " | peak RSS MB | mean s |",
+        "|---|---:|" + "---:|" * len(cols) + "---:|---:|",
+    ]
     total = collections.Counter()
     for target in sorted(by_target):
         c = by_target[target]
         total += c
         mean = sum(secs[target]) / len(secs[target])
-        lines.append(f"| {target} | {sum(c.values())} | " + " | ".join(str(c[k]) for k in cols)
-                     + f" | {peaks[target]:.0f} | {mean:.2f} |")
+        lines.append(
+            f"| {target} | {sum(c.values())} | "
+            + " | ".join(str(c[k]) for k in cols)
+            + f" | {peaks[target]:.0f} | {mean:.2f} |"
+        )
     sc = collections.Counter(r["outcome"] for r in sub)
     if sub:
         total += sc
-        lines.append(f"| CLI processes | {len(sub)} | " + " | ".join(str(sc[k]) for k in cols)
-                     + f" | {max(r['peak_mb'] for r in sub):.0f} | "
-                     f"{sum(r['seconds'] for r in sub) / len(sub):.2f} |")
-    lines.append(f"| **all** | **{sum(total.values())}** | " +
-                 " | ".join(f"**{total[k]}**" for k in cols) + " | | |")
+        lines.append(
+            f"| CLI processes | {len(sub)} | "
+            + " | ".join(str(sc[k]) for k in cols)
+            + f" | {max(r['peak_mb'] for r in sub):.0f} | "
+            f"{sum(r['seconds'] for r in sub) / len(sub):.2f} |"
+        )
+    lines.append(
+        f"| **all** | **{sum(total.values())}** | "
+        + " | ".join(f"**{total[k]}**" for k in cols)
+        + " | | |"
+    )
     if sub:
-        lines += ["", "The issue's cases as real command-line processes (peak RSS of the child):",
-                  "", "| case | outcome | peak RSS MB | message |", "|---|---|---:|---|"]
+        lines += [
+            "",
+            "The issue's cases as real command-line processes (peak RSS of the child):",
+            "",
+            "| case | outcome | peak RSS MB | message |",
+            "|---|---|---:|---|",
+        ]
         for r in sub[:6]:
             msg = r["detail"].splitlines()[-1] if r["detail"] else ""
-            lines.append(f"| {r['label']} | {r['outcome']} | {r['peak_mb']:.0f} | "
-                         f"{msg[:110].replace('|', '/')} |")
+            lines.append(
+                f"| {r['label']} | {r['outcome']} | {r['peak_mb']:.0f} | "
+                f"{msg[:110].replace('|', '/')} |"
+            )
     return "\n".join(lines)
 
 

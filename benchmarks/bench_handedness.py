@@ -67,17 +67,27 @@ LABELS = [
     ("beat/1_wayne_0_1_1.bvh", "RH", "visible: left arm stays down"),
 ]
 
-GESTURING_RIGHT = ["dataset-2_wave-right-hand", "dataset-2_raise-up-right-hand", "dataset-1_bye",
-                   "dataset-1_guide", "dataset-2_wave-both-hands"]
-RESTING_LEFT = ["dataset-2_wave-right-hand", "dataset-2_raise-up-right-hand", "dataset-1_bye",
-                "dataset-1_guide"]
+GESTURING_RIGHT = [
+    "dataset-2_wave-right-hand",
+    "dataset-2_raise-up-right-hand",
+    "dataset-1_bye",
+    "dataset-1_guide",
+    "dataset-2_wave-both-hands",
+]
+RESTING_LEFT = [
+    "dataset-2_wave-right-hand",
+    "dataset-2_raise-up-right-hand",
+    "dataset-1_bye",
+    "dataset-1_guide",
+]
 WAVING_RIGHT = ["dataset-2_wave-right-hand", "dataset-2_wave-both-hands", "dataset-1_byebye"]
 WAVING_LEFT = ["dataset-2_wave-both-hands", "dataset-1_byebye"]
 
 CONFIGS = {
     "ours (hand tip; whole phrase for hold-only phrases)": HandednessParameters(),
-    "paper literal (wrist; expressive frames only)": HandednessParameters(point="wrist",
-                                                                          hold_span="hold"),
+    "paper literal (wrist; expressive frames only)": HandednessParameters(
+        point="wrist", hold_span="hold"
+    ),
 }
 
 
@@ -92,7 +102,9 @@ class Case:
 def _swap_phases(ph: GesturePhases) -> GesturePhases:
     paths = ph.paths
     if paths is not None:
-        paths = replace(paths, points={"right": paths.points["left"], "left": paths.points["right"]})
+        paths = replace(
+            paths, points={"right": paths.points["left"], "left": paths.points["right"]}
+        )
     return replace(ph, hands={"right": ph.hands["left"], "left": ph.hands["right"]}, paths=paths)
 
 
@@ -138,15 +150,23 @@ def recombined_cases() -> list[Case]:
         for left in WAVING_LEFT:
             if r == left:
                 continue
-            out.append(Case(f"R:{r} + L:{left}", "recombined", "2H",
-                            _combine(points(r), points(left), 30.0, params)))
+            out.append(
+                Case(
+                    f"R:{r} + L:{left}",
+                    "recombined",
+                    "2H",
+                    _combine(points(r), points(left), 30.0, params),
+                )
+            )
     return out
 
 
 def _phases(right, left, fps):
-    return GesturePhases(hands={"right": segment_trajectory(right, fps),
-                                "left": segment_trajectory(left, fps)}, fps=fps,
-                         n_frames=len(right))
+    return GesturePhases(
+        hands={"right": segment_trajectory(right, fps), "left": segment_trajectory(left, fps)},
+        fps=fps,
+        n_frames=len(right),
+    )
 
 
 def constructed_cases(rng: np.random.Generator, per_kind: int = 10) -> list[Case]:
@@ -165,7 +185,7 @@ def constructed_cases(rng: np.random.Generator, per_kind: int = 10) -> list[Case
         return REST + (p - REST) * s
 
     def delayed(p, k):
-        return np.concatenate([np.repeat(p[:1], k, axis=0), p[:len(p) - k]]) if k else p
+        return np.concatenate([np.repeat(p[:1], k, axis=0), p[: len(p) - k]]) if k else p
 
     for i in range(per_kind):
         p = phrase()
@@ -173,27 +193,59 @@ def constructed_cases(rng: np.random.Generator, per_kind: int = 10) -> list[Case
         sway = 0.02 * rng.random() * np.sin(np.linspace(0, 6 * np.pi, len(p)))[:, None]
         rest_arm = still + sway * np.array([1.0, 0.2, 0.5])
         if i % 2 == 0:
-            out.append(Case(f"one hand #{i}", "constructed", "RH",
-                            _phases(noisy(p), noisy(rest_arm * mirror), fps)))
+            out.append(
+                Case(
+                    f"one hand #{i}",
+                    "constructed",
+                    "RH",
+                    _phases(noisy(p), noisy(rest_arm * mirror), fps),
+                )
+            )
         else:
-            out.append(Case(f"one hand #{i}", "constructed", "LH",
-                            _phases(noisy(rest_arm), noisy(p * mirror), fps)))
+            out.append(
+                Case(
+                    f"one hand #{i}",
+                    "constructed",
+                    "LH",
+                    _phases(noisy(rest_arm), noisy(p * mirror), fps),
+                )
+            )
         p = phrase()
         other = delayed(scaled(p, rng.uniform(0.85, 1.0)), int(rng.integers(0, 4))) * mirror
-        out.append(Case(f"both hands #{i}", "constructed", "2H", _phases(noisy(p), noisy(other), fps)))
+        out.append(
+            Case(f"both hands #{i}", "constructed", "2H", _phases(noisy(p), noisy(other), fps))
+        )
     for i in range(per_kind // 2):
         p = phrase()
         other = scaled(p, rng.uniform(0.5, 0.7)) * mirror
-        out.append(Case(f"asymmetric both hands #{i}", "constructed (hard)", "2H",
-                        _phases(noisy(p), noisy(other), fps)))
+        out.append(
+            Case(
+                f"asymmetric both hands #{i}",
+                "constructed (hard)",
+                "2H",
+                _phases(noisy(p), noisy(other), fps),
+            )
+        )
         p = phrase()
         follower = scaled(p, rng.uniform(0.2, 0.35)) * mirror
         if i % 2 == 0:
-            out.append(Case(f"sympathetic #{i}", "constructed (hard)", "RH",
-                            _phases(noisy(p), noisy(follower), fps)))
+            out.append(
+                Case(
+                    f"sympathetic #{i}",
+                    "constructed (hard)",
+                    "RH",
+                    _phases(noisy(p), noisy(follower), fps),
+                )
+            )
         else:
-            out.append(Case(f"sympathetic #{i}", "constructed (hard)", "LH",
-                            _phases(noisy(follower * mirror), noisy(p * mirror), fps)))
+            out.append(
+                Case(
+                    f"sympathetic #{i}",
+                    "constructed (hard)",
+                    "LH",
+                    _phases(noisy(follower * mirror), noisy(p * mirror), fps),
+                )
+            )
     return out
 
 
@@ -223,37 +275,61 @@ def main() -> None:
     results = {name: evaluate(cases, params) for name, params in CONFIGS.items()}
     groups = ["real", "mirrored", "recombined", "constructed", "constructed (hard)"]
     names = list(CONFIGS)
-    lines = ["## Handedness (Heloir et al. 2010, §3.1)", "",
-             "Accuracy per phrase (phrases from our phase segmenter; a case with no phrase "
-             "counts as one wrong phrase). Threshold 0.12 m/s.", "",
-             "| group | phrases | " + " | ".join(names) + " |",
-             "|---|---|" + "---|" * len(names)]
+    lines = [
+        "## Handedness (Heloir et al. 2010, §3.1)",
+        "",
+        "Accuracy per phrase (phrases from our phase segmenter; a case with no phrase "
+        "counts as one wrong phrase). Threshold 0.12 m/s.",
+        "",
+        "| group | phrases | " + " | ".join(names) + " |",
+        "|---|---|" + "---|" * len(names),
+    ]
     for g in groups:
         rows = {n: [r for r in results[n] if r[0].group == g] for n in names}
-        lines.append(f"| {g} | {len(rows[names[0]])} | "
-                     + " | ".join(_acc(rows[n]) for n in names) + " |")
-    for label, keep in (("**all**", lambda c: True),
-                        ("all without mirrored", lambda c: c.group != "mirrored")):
+        lines.append(
+            f"| {g} | {len(rows[names[0]])} | " + " | ".join(_acc(rows[n]) for n in names) + " |"
+        )
+    for label, keep in (
+        ("**all**", lambda c: True),
+        ("all without mirrored", lambda c: c.group != "mirrored"),
+    ):
         rows = {n: [r for r in results[n] if keep(r[0])] for n in names}
-        lines.append(f"| {label} | {len(rows[names[0]])} | "
-                     + " | ".join(_acc(rows[n]) for n in names) + " |")
-    lines.append("| Heloir et al. 2010 (paper) | 269 conversational phrases, manual phrases "
-                 "and labels | 83 % | |")
+        lines.append(
+            f"| {label} | {len(rows[names[0]])} | "
+            + " | ".join(_acc(rows[n]) for n in names)
+            + " |"
+        )
+    lines.append(
+        "| Heloir et al. 2010 (paper) | 269 conversational phrases, manual phrases "
+        "and labels | 83 % | |"
+    )
     ours = results[names[0]]
     conf = Counter((c.label, p) for c, p in ours)
-    lines += ["", f"Confusion of ours (rows: label, columns: predicted), all {len(ours)} phrases:",
-              "", "| | RH | LH | 2H | none |", "|---|---|---|---|---|"]
+    lines += [
+        "",
+        f"Confusion of ours (rows: label, columns: predicted), all {len(ours)} phrases:",
+        "",
+        "| | RH | LH | 2H | none |",
+        "|---|---|---|---|---|",
+    ]
     for t in ("RH", "LH", "2H"):
-        lines.append(f"| {t} | " + " | ".join(str(conf[(t, p)]) for p in ("RH", "LH", "2H", "none"))
-                     + " |")
+        lines.append(
+            f"| {t} | " + " | ".join(str(conf[(t, p)]) for p in ("RH", "LH", "2H", "none")) + " |"
+        )
     wrong = [(c, p) for c, p in ours if c.label != p and c.group in ("real", "recombined")]
     if wrong:
-        lines += ["", "Wrong real / recombined phrases (ours): "
-                  + "; ".join(f"{c.name} {c.label}->{p}" for c, p in wrong[:12])]
+        lines += [
+            "",
+            "Wrong real / recombined phrases (ours): "
+            + "; ".join(f"{c.name} {c.label}->{p}" for c, p in wrong[:12]),
+        ]
     sweep = []
     for thr in (0.06, 0.12, 0.24):
-        rows = [r for r in evaluate(cases, HandednessParameters(threshold=thr))
-                if r[0].group != "mirrored"]
+        rows = [
+            r
+            for r in evaluate(cases, HandednessParameters(threshold=thr))
+            if r[0].group != "mirrored"
+        ]
         sweep.append(f"{thr:.2f} m/s: {_acc(rows)}")
     lines += ["", "Threshold sweep (ours, without mirrored): " + "; ".join(sweep), ""]
     lines += [

@@ -45,15 +45,18 @@ def _reference_frame(preview, i: int, renderer) -> np.ndarray:
 
     v = preview.views[0]
     verts, _ = v.vertices(i)
-    tm = trimesh.Trimesh(verts, v.mesh.faces,
-                         vertex_colors=(v.mesh.colors * 255).astype(np.uint8), process=False)
+    tm = trimesh.Trimesh(
+        verts, v.mesh.faces, vertex_colors=(v.mesh.colors * 255).astype(np.uint8), process=False
+    )
     scene = pyrender.Scene(bg_color=(0.96, 0.96, 0.97, 1.0), ambient_light=(0.38, 0.38, 0.4))
     scene.add(pyrender.Mesh.from_trimesh(tm, smooth=True))
     pose = v.camera_pose(i, "three-quarter", SIZE[0] / SIZE[1], YFOV)
     scene.add(pyrender.PerspectiveCamera(yfov=YFOV, aspectRatio=SIZE[0] / SIZE[1]), pose=pose)
     for angles, power in (((-40.0, -30.0), 3.2), ((-10.0, 50.0), 1.3), ((60.0, 170.0), 1.0)):
-        scene.add(pyrender.DirectionalLight(color=np.ones(3), intensity=power),
-                  pose=pose @ _rotation(*angles))
+        scene.add(
+            pyrender.DirectionalLight(color=np.ones(3), intensity=power),
+            pose=pose @ _rotation(*angles),
+        )
     color, _ = renderer.render(scene)
     return color
 
@@ -99,9 +102,18 @@ def bench_frames(repeats: int, per: int) -> dict:
             v.vertices(int(frames[k % len(frames)]))
             k += 1
         skin.append((time.perf_counter() - t) / per * 1e3)
-    return dict(build_s=build_s, ours=ours, bare=bare, ref=ref, skin=skin,
-                vertices=v.mesh.n_vertices, triangles=len(v.mesh.faces),
-                joints=motion.skeleton.n_joints, preview=preview, motion=motion)
+    return dict(
+        build_s=build_s,
+        ours=ours,
+        bare=bare,
+        ref=ref,
+        skin=skin,
+        vertices=v.mesh.n_vertices,
+        triangles=len(v.mesh.faces),
+        joints=motion.skeleton.n_joints,
+        preview=preview,
+        motion=motion,
+    )
 
 
 def bench_mp4(preview, n_frames: int = 300) -> float:
@@ -137,26 +149,37 @@ def contact_sheets() -> list[str]:
         a = preview.views[0].anatomy
         labels.append(f"{path.parent.name}/{path.stem}"[:34])
         hands = ", ".join(
-            f"{s or 'hand'}: " + (f"{len(h.fingers)} captured fingers" + (
-                " + procedural" if len(h.fingers) < 5 else "") if h.fingers
-                else "procedural fingers") for s, h in a.hands.items())
+            f"{s or 'hand'}: "
+            + (
+                f"{len(h.fingers)} captured fingers"
+                + (" + procedural" if len(h.fingers) < 5 else "")
+                if h.fingers
+                else "procedural fingers"
+            )
+            for s, h in a.hands.items()
+        )
         notes.append(f"{path.name} ({a.kind}; {hands})")
     FIGURES.mkdir(parents=True, exist_ok=True)
-    write_image(contact_sheet(tiles, columns=6, labels=labels),
-                FIGURES / "skeletons_contact_sheet.png")
+    write_image(
+        contact_sheet(tiles, columns=6, labels=labels), FIGURES / "skeletons_contact_sheet.png"
+    )
     # BEAT's hands: full frame at 640x480 and crops around both wrists
     motion = read_bvh(BEAT)
     with Preview(motion, size=SIZE) as preview:
         crops = []
         for f in (60, 130, 200):
             img = preview.frame(f, camera="front")
-            pts = preview.project(preview.joint_positions(f)[
-                [motion.skeleton.index("right_wrist"), motion.skeleton.index("left_wrist")]],
-                f, camera="front")
+            pts = preview.project(
+                preview.joint_positions(f)[
+                    [motion.skeleton.index("right_wrist"), motion.skeleton.index("left_wrist")]
+                ],
+                f,
+                camera="front",
+            )
             for x, y in pts:
                 x0 = int(np.clip(x - 40, 0, SIZE[0] - 80))
                 y0 = int(np.clip(y - 40, 0, SIZE[1] - 80))
-                crop = img[y0:y0 + 80, x0:x0 + 80]
+                crop = img[y0 : y0 + 80, x0 : x0 + 80]
                 crops.append(np.kron(crop, np.ones((3, 3, 1), np.uint8)))
         write_image(contact_sheet(crops, columns=6), FIGURES / "beat_hands.png")
     return notes
@@ -208,9 +231,12 @@ def main() -> None:
         "and camera. Timings are noisy: the 2-core machine is shared by ~7 engineers.",
     ]
     if notes:
-        lines += ["", "Contact sheet of every BVH skeleton in ../shared/data/mocap "
-                  "(`benchmarks/figures/skeletons_contact_sheet.png`; BEAT finger close-ups "
-                  "in `benchmarks/figures/beat_hands.png`): " + "; ".join(notes) + "."]
+        lines += [
+            "",
+            "Contact sheet of every BVH skeleton in ../shared/data/mocap "
+            "(`benchmarks/figures/skeletons_contact_sheet.png`; BEAT finger close-ups "
+            "in `benchmarks/figures/beat_hands.png`): " + "; ".join(notes) + ".",
+        ]
     text = "\n".join(lines)
     print(text)
     if not args.quick:

@@ -95,21 +95,35 @@ def _lafan1(seed: int) -> Case:
 _DEV = tuple(range(200, 208))
 
 
-@family("untrimmed", 12, "hand take starts 1-2 s earlier and ends 1-2 s later than the body "
-        "(BEAT 8.3 s and LAFAN1 20 s takes: the Bandai takes, 3-7 s, are too short to lose 2-4 s)",
-        _DEV)
+@family(
+    "untrimmed",
+    12,
+    "hand take starts 1-2 s earlier and ends 1-2 s later than the body "
+    "(BEAT 8.3 s and LAFAN1 20 s takes: the Bandai takes, 3-7 s, are too short to lose 2-4 s)",
+    _DEV,
+)
 def _untrimmed(seed: int) -> Case:
     return make_case(("beat", "lafan1")[seed % 2], seed, realism=Realism(untrimmed_s=(1.0, 2.0)))
 
 
-@family("noisy", 12, "hand take (glove/optical noise): 2 deg rotation jitter on every joint + "
-        "single-frame spikes (1 % of frames, 10-30 deg on half the arm and hand joints)", _DEV)
+@family(
+    "noisy",
+    12,
+    "hand take (glove/optical noise): 2 deg rotation jitter on every joint + "
+    "single-frame spikes (1 % of frames, 10-30 deg on half the arm and hand joints)",
+    _DEV,
+)
 def _noisy(seed: int) -> Case:
     return _rotating(seed, Realism(jitter_deg=2.0, spike_rate=0.01))
 
 
-@family("holds", 12, "holds of 0.3-1 s at 2-3 places (another length in each take), hand "
-        "take rushed 1.15x elsewhere", _DEV)
+@family(
+    "holds",
+    12,
+    "holds of 0.3-1 s at 2-3 places (another length in each take), hand "
+    "take rushed 1.15x elsewhere",
+    _DEV,
+)
 def _holds(seed: int) -> Case:
     return _rotating(seed, Realism(holds=(2, 3, 0.3, 1.0), rush=1.15))
 
@@ -126,22 +140,37 @@ def _fps(seed: int) -> Case:
 _RIG_DEV = tuple(range(300, 304))
 
 
-@family("left", 12, "left-handed performer (take mirrored, sides swapped): the left hand "
-        "only; body 25-120 fps, hand 25-120 fps", _RIG_DEV)
+@family(
+    "left",
+    12,
+    "left-handed performer (take mirrored, sides swapped): the left hand "
+    "only; body 25-120 fps, hand 25-120 fps",
+    _RIG_DEV,
+)
 def _left(seed: int) -> Case:
     return make_rig_case("left", seed)
 
 
-@family("manipnet", 12, "ManipNet rig: real ManipNet finger capture (4-joint thumb with "
-        "THUMB_CMC_AA) on the body's wrist; hand take rooted at a 6-DoF WRIST, no side in "
-        "names or file name (side from geometry); odd seeds left; body 25-120 fps, hand "
-        "25-120 fps", _RIG_DEV)
+@family(
+    "manipnet",
+    12,
+    "ManipNet rig: real ManipNet finger capture (4-joint thumb with "
+    "THUMB_CMC_AA) on the body's wrist; hand take rooted at a 6-DoF WRIST, no side in "
+    "names or file name (side from geometry); odd seeds left; body 25-120 fps, hand "
+    "25-120 fps",
+    _RIG_DEV,
+)
 def _manipnet(seed: int) -> Case:
     return make_rig_case("manipnet", seed)
 
 
-@family("leap", 12, "Leap rig (gestification): rForeArm root at the wrist > rHand > "
-        "fingers, millimetres, hand 36-40 fps; odd seeds left; body 25-120 fps", _RIG_DEV)
+@family(
+    "leap",
+    12,
+    "Leap rig (gestification): rForeArm root at the wrist > rHand > "
+    "fingers, millimetres, hand 36-40 fps; odd seeds left; body 25-120 fps",
+    _RIG_DEV,
+)
 def _leap(seed: int) -> Case:
     return make_rig_case("leap", seed)
 
@@ -166,8 +195,10 @@ def method_maps(case: Case) -> tuple[dict[str, np.ndarray], P.SpliceResult, floa
     f = res.features
     n, m = f.n, f.m
     blend = res.alignment.blend
-    maps = {"handsplice": res.alignment.map,
-            "pass1": f.grid_to_hand(MG.merge_path(res.alignment.pass1.path, n, m, blend))}
+    maps = {
+        "handsplice": res.alignment.map,
+        "pass1": f.grid_to_hand(MG.merge_path(res.alignment.pass1.path, n, m, blend)),
+    }
     band = Band.sakoe_chiba(n, m, P.BAND)
     pos_b = f.body_markers.reshape(n, -1)
     pos_h = f.hand_markers.reshape(m, -1)
@@ -186,15 +217,22 @@ def method_maps(case: Case) -> tuple[dict[str, np.ndarray], P.SpliceResult, floa
 def evaluate(case: Case) -> dict:
     maps, res, seconds = method_maps(case)
     plan = P.plan_for(res.features)
-    out = {"name": case.name, "family": case.family, "seconds": seconds, "methods": {},
-           "frame_ms": 1000.0 / case.body.fps}
+    out = {
+        "name": case.name,
+        "family": case.family,
+        "seconds": seconds,
+        "methods": {},
+        "frame_ms": 1000.0 / case.body.fps,
+    }
     pairs = None
     for name, hmap in maps.items():
         motion = TR.apply_transfer(plan, case.body, case.hand, hmap, res.features.body_fk)
         pairs = pairs or finger_pairs(motion, case.reference)
         err_ms = (np.asarray(hmap) - case.truth) / case.hand.fps * 1000.0
-        out["methods"][name] = {"timing_ms": np.abs(err_ms),
-                                "finger_deg": finger_error(motion, case.reference, pairs)}
+        out["methods"][name] = {
+            "timing_ms": np.abs(err_ms),
+            "finger_deg": finger_error(motion, case.reference, pairs),
+        }
     return out
 
 
@@ -211,11 +249,13 @@ def summarise(results: list[dict]) -> dict:
             t = np.concatenate([r["methods"][meth]["timing_ms"] for r in rs])
             tf = np.concatenate([r["methods"][meth]["timing_ms"] / r["frame_ms"] for r in rs])
             fe = np.array([r["methods"][meth]["finger_deg"] for r in rs])
-            table[fam][meth] = {"median_ms": float(np.median(t)),
-                                "p95_ms": float(np.percentile(t, 95)),
-                                "median_frames": float(np.median(tf)),
-                                "finger_deg": float(fe.mean()),
-                                "cases": len(rs)}
+            table[fam][meth] = {
+                "median_ms": float(np.median(t)),
+                "p95_ms": float(np.percentile(t, 95)),
+                "median_frames": float(np.median(tf)),
+                "finger_deg": float(fe.mean()),
+                "cases": len(rs),
+            }
         orc, uni = table[fam]["oracle"]["finger_deg"], table[fam]["uniform"]["finger_deg"]
         for meth in METHODS:
             row = table[fam][meth]
@@ -228,20 +268,33 @@ def goals(table: dict, results: list[dict]) -> list[str]:
     for fam, rows in table.items():
         hs, orc = rows["handsplice"], rows["oracle"]
         checks = [
-            ("median timing error <= 1 body frame", hs["median_frames"] <= 1.0,
-             f"{hs['median_ms']:.1f} ms = {hs['median_frames']:.2f} body frames"),
+            (
+                "median timing error <= 1 body frame",
+                hs["median_frames"] <= 1.0,
+                f"{hs['median_ms']:.1f} ms = {hs['median_frames']:.2f} body frames",
+            ),
             ("95th percentile < 100 ms", hs["p95_ms"] < 100.0, f"{hs['p95_ms']:.1f} ms"),
             ("left_share <= 0.2", hs["left_share"] <= 0.2, f"{hs['left_share']:.3f}"),
-            ("finger error within 1 deg of the oracle", hs["finger_deg"] - orc["finger_deg"] <= 1.0,
-             f"{hs['finger_deg']:.2f} vs {orc['finger_deg']:.2f} deg"),
+            (
+                "finger error within 1 deg of the oracle",
+                hs["finger_deg"] - orc["finger_deg"] <= 1.0,
+                f"{hs['finger_deg']:.2f} vs {orc['finger_deg']:.2f} deg",
+            ),
         ]
         for meth in ("pass1", "dtw_positions", "dtw_derivatives", "uniform"):
             b = rows[meth]
-            better = (hs["median_ms"] < b["median_ms"] and hs["p95_ms"] < b["p95_ms"]
-                      and hs["finger_deg"] < b["finger_deg"])
-            checks.append((f"better than {LABELS[meth]} (median, p95 and finger error)", better,
-                           f"{b['median_ms']:.1f} / {b['p95_ms']:.1f} ms, "
-                           f"{b['finger_deg']:.2f} deg"))
+            better = (
+                hs["median_ms"] < b["median_ms"]
+                and hs["p95_ms"] < b["p95_ms"]
+                and hs["finger_deg"] < b["finger_deg"]
+            )
+            checks.append(
+                (
+                    f"better than {LABELS[meth]} (median, p95 and finger error)",
+                    better,
+                    f"{b['median_ms']:.1f} / {b['p95_ms']:.1f} ms, {b['finger_deg']:.2f} deg",
+                )
+            )
         for text, ok, value in checks:
             lines.append(f"| {fam} | {text} | {'met' if ok else '**missed**'} | {value} |")
     return lines
@@ -255,11 +308,15 @@ def per_case_wins(results: list[dict]) -> list[str]:
             continue
         parts = []
         for meth in ("pass1", "dtw_positions", "dtw_derivatives", "uniform"):
-            wins = sum(np.mean(r["methods"]["handsplice"]["timing_ms"])
-                       <= np.mean(r["methods"][meth]["timing_ms"]) for r in rs)
+            wins = sum(
+                np.mean(r["methods"]["handsplice"]["timing_ms"])
+                <= np.mean(r["methods"][meth]["timing_ms"])
+                for r in rs
+            )
             parts.append(f"{LABELS[meth]} {wins}/{len(rs)}")
-        lines.append(f"- {fam}: HandSplice's mean timing error is lower on " + ", ".join(parts)
-                     + " cases")
+        lines.append(
+            f"- {fam}: HandSplice's mean timing error is lower on " + ", ".join(parts) + " cases"
+        )
     return lines
 
 
@@ -267,46 +324,67 @@ def markdown(table: dict, results: list[dict], seeds: dict) -> str:
     title = "## Splice accuracy (issue 5)"
     if set(seeds) != set(FAMILIES):
         title += ": families " + ", ".join(seeds)
-    out = [title, "",
-           "Split real captures with known truth (`benchmarks/split.py`): **beat** = the "
-           "BEAT take (body + 30 captured finger joints) split into a body take without fingers "
-           "and a hand take; **bandai**, **lafan1** = real body-only takes (Bandai-Namco takes, "
-           "20 s LAFAN1 crops) carrying a synthetic finger-curl signal of known timing. Hand takes: "
-           "smooth random time warp (global 0.85-1.2x, local rate exp(N(0, 0.15-0.3)), ~1 s "
-           "correlation), resampled to 60/90/100/120 fps, trunk held still and turned +-60 deg, "
-           "shoulder/collar/elbow rotations pulled 30-60 % toward their mean (forearm roll kept), "
-           "0.5 deg rotation noise on every joint. Both hands aligned jointly; defaults (band 0.3, "
-           "refine band 0.1, θ by eq. 7). Timing error in ms of the hand take (pooled over every "
-           "body frame of the family); finger error = mean geodesic angle over finger joints and "
-           "frames vs the original fingers. Parameters (merge blend 3 frames, pass-2 step cost "
-           "0.05 rad) were chosen on seeds 100-107 (issue-12 families: developed on seeds "
-           "200-207); reported seeds: "
-           + ", ".join(f"{k} {_seed_text(v)}" for k, v in seeds.items()) + ". "
-           "left_share = (finger error - oracle) / (uniform - oracle).", ""]
+    out = [
+        title,
+        "",
+        "Split real captures with known truth (`benchmarks/split.py`): **beat** = the "
+        "BEAT take (body + 30 captured finger joints) split into a body take without fingers "
+        "and a hand take; **bandai**, **lafan1** = real body-only takes (Bandai-Namco takes, "
+        "20 s LAFAN1 crops) carrying a synthetic finger-curl signal of known timing. Hand takes: "
+        "smooth random time warp (global 0.85-1.2x, local rate exp(N(0, 0.15-0.3)), ~1 s "
+        "correlation), resampled to 60/90/100/120 fps, trunk held still and turned +-60 deg, "
+        "shoulder/collar/elbow rotations pulled 30-60 % toward their mean (forearm roll kept), "
+        "0.5 deg rotation noise on every joint. Both hands aligned jointly; defaults (band 0.3, "
+        "refine band 0.1, θ by eq. 7). Timing error in ms of the hand take (pooled over every "
+        "body frame of the family); finger error = mean geodesic angle over finger joints and "
+        "frames vs the original fingers. Parameters (merge blend 3 frames, pass-2 step cost "
+        "0.05 rad) were chosen on seeds 100-107 (issue-12 families: developed on seeds "
+        "200-207); reported seeds: "
+        + ", ".join(f"{k} {_seed_text(v)}" for k, v in seeds.items())
+        + ". "
+        "left_share = (finger error - oracle) / (uniform - oracle).",
+        "",
+    ]
     for fam, rows in table.items():
-        out += [f"### {fam} ({rows['handsplice']['cases']} cases)", "",
-                FAMILIES[fam].note + ".", "",
-                "| method | timing median (ms) | timing p95 (ms) | left_share | "
-                "finger error (deg) |", "|---|---|---|---|---|"]
+        out += [
+            f"### {fam} ({rows['handsplice']['cases']} cases)",
+            "",
+            FAMILIES[fam].note + ".",
+            "",
+            "| method | timing median (ms) | timing p95 (ms) | left_share | finger error (deg) |",
+            "|---|---|---|---|---|",
+        ]
         for meth in METHODS:
             r = rows[meth]
             name = f"**{LABELS[meth]}**" if meth == "handsplice" else LABELS[meth]
-            out.append(f"| {name} | {r['median_ms']:.1f} | {r['p95_ms']:.1f} | "
-                       f"{r['left_share']:.3f} | {r['finger_deg']:.2f} |")
+            out.append(
+                f"| {name} | {r['median_ms']:.1f} | {r['p95_ms']:.1f} | "
+                f"{r['left_share']:.3f} | {r['finger_deg']:.2f} |"
+            )
         out.append("")
     out += ["### Goals", "", "| family | goal | status | value |", "|---|---|---|---|"]
     out += goals(table, results)
     out += ["", "Per case:"] + per_case_wins(results)
-    worst = sorted(results, key=lambda r: -np.percentile(r["methods"]["handsplice"]["timing_ms"],
-                                                         95))[:3]
-    out += ["", "Hardest cases (HandSplice p95): " + "; ".join(
-        f"{r['name']} {np.percentile(r['methods']['handsplice']['timing_ms'], 95):.0f} ms"
-        for r in worst) + ". They are long arm holds during which the synthetic fingers keep "
+    worst = sorted(
+        results, key=lambda r: -np.percentile(r["methods"]["handsplice"]["timing_ms"], 95)
+    )[:3]
+    out += [
+        "",
+        "Hardest cases (HandSplice p95): "
+        + "; ".join(
+            f"{r['name']} {np.percentile(r['methods']['handsplice']['timing_ms'], 95):.0f} ms"
+            for r in worst
+        )
+        + ". They are long arm holds during which the synthetic fingers keep "
         "moving (no arm signal can time them) or body takes whose trunk turns and bends while the "
-        "hand take's trunk is still."]
+        "hand take's trunk is still.",
+    ]
     secs = np.array([r["seconds"] for r in results])
-    out += ["", f"HandSplice alignment time per case (prepare + 2 passes + merge): median "
-                f"{np.median(secs) * 1000:.0f} ms, max {secs.max() * 1000:.0f} ms."]
+    out += [
+        "",
+        f"HandSplice alignment time per case (prepare + 2 passes + merge): median "
+        f"{np.median(secs) * 1000:.0f} ms, max {secs.max() * 1000:.0f} ms.",
+    ]
     return "\n".join(out)
 
 
@@ -320,12 +398,20 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="a few seeds per family, no RESULTS.md")
     ap.add_argument("--tuning", action="store_true", help="run the tuning seeds instead")
-    ap.add_argument("--seeds", type=int, default=0,
-                    help="only the first N reported seeds of each family (no RESULTS.md)")
-    ap.add_argument("--section", default="",
-                    help="with --families: write the table to this RESULTS.md section")
-    ap.add_argument("--families", default="",
-                    help=f"comma-separated subset of {', '.join(FAMILIES)} (no RESULTS.md)")
+    ap.add_argument(
+        "--seeds",
+        type=int,
+        default=0,
+        help="only the first N reported seeds of each family (no RESULTS.md)",
+    )
+    ap.add_argument(
+        "--section", default="", help="with --families: write the table to this RESULTS.md section"
+    )
+    ap.add_argument(
+        "--families",
+        default="",
+        help=f"comma-separated subset of {', '.join(FAMILIES)} (no RESULTS.md)",
+    )
     args = ap.parse_args(argv)
     names = [f.strip() for f in args.families.split(",") if f.strip()] or list(FAMILIES)
     unknown = [f for f in names if f not in FAMILIES]
@@ -345,10 +431,12 @@ def main(argv=None) -> int:
             r["bench_family"] = fam
             results.append(r)
             hs = r["methods"]["handsplice"]
-            print(f"{case.name:45s} median {np.median(hs['timing_ms']):6.1f} ms  p95 "
-                  f"{np.percentile(hs['timing_ms'], 95):6.1f} ms  fingers "
-                  f"{hs['finger_deg']:.2f} deg (oracle {r['methods']['oracle']['finger_deg']:.2f})",
-                  flush=True)
+            print(
+                f"{case.name:45s} median {np.median(hs['timing_ms']):6.1f} ms  p95 "
+                f"{np.percentile(hs['timing_ms'], 95):6.1f} ms  fingers "
+                f"{hs['finger_deg']:.2f} deg (oracle {r['methods']['oracle']['finger_deg']:.2f})",
+                flush=True,
+            )
     table = summarise(results)
     md = markdown(table, results, seeds)
     print(md)

@@ -41,7 +41,7 @@ from benchmarks._results import write_section
 PAPER_569_S = 10.95
 TIME_BAND_S = 4.0
 
-CHILD = r'''
+CHILD = r"""
 import json, sys, time
 import numpy as np
 def hwm_kb():
@@ -76,7 +76,7 @@ print(json.dumps({"frames": [body.n_frames, hand.n_frames], "read_s": read_s, "w
                   "peak_mb": max(hwm_read, peak) / 1024,
                   "cells": [int(r.alignment.pass1.band.area), int(r.alignment.pass2.band.area)],
                   "err_median": float(np.median(err)), "err_p95": float(np.percentile(err, 95))}))
-'''
+"""
 
 
 def make_pair(n: int, fps: float, seed: int = 0):
@@ -94,8 +94,17 @@ def make_pair(n: int, fps: float, seed: int = 0):
     full = add_fingers(base, rng)
     roles = find_roles(full.skeleton)
     body = strip_fingers(full, roles)
-    hand, _, _ = make_hand_take(full, rng, fps=fps, scale=1.0, warp_sigma=0.2, shrink=0.6,
-                                yaw_deg=20.0, noise_deg=0.5, roles=roles)
+    hand, _, _ = make_hand_take(
+        full,
+        rng,
+        fps=fps,
+        scale=1.0,
+        warp_sigma=0.2,
+        shrink=0.6,
+        yaw_deg=20.0,
+        noise_deg=0.5,
+        roles=roles,
+    )
     return body, hand
 
 
@@ -112,15 +121,23 @@ def bench_short(reps: int) -> dict:
         r = P.splice(body, hand)
         runs.append(time.perf_counter() - t0)
         stages.append(r.timings)
-    return {"frames": [body.n_frames, hand.n_frames], "warm_s": float(np.median(runs)),
-            "cold_s": cold,
-            "stages": {k: float(np.median([s[k] for s in stages])) for k in stages[0]}}
+    return {
+        "frames": [body.n_frames, hand.n_frames],
+        "warm_s": float(np.median(runs)),
+        "cold_s": cold,
+        "stages": {k: float(np.median([s[k] for s in stages])) for k in stages[0]},
+    }
 
 
 def _old_metrics():
     """engine/metrics.py as at the baseline, imported as a separate module."""
-    src = subprocess.run(["git", "show", f"{LP.BASELINE}:engine/metrics.py"], cwd=LP.ROOT,
-                         capture_output=True, text=True, check=True).stdout
+    src = subprocess.run(
+        ["git", "show", f"{LP.BASELINE}:engine/metrics.py"],
+        cwd=LP.ROOT,
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
     path = LP.CACHE / f"old_metrics_{LP.BASELINE}.py"
     LP.CACHE.mkdir(parents=True, exist_ok=True)
     path.write_text(src)
@@ -141,9 +158,14 @@ def bench_pass1_kernel(body_p, hand_p, reps: int) -> dict:
     register_metric("splice_phase_baseline", old.splice_phase, replace=True)
     feats = P.prepare(read_bvh(body_p), read_bvh(hand_p))
     a, b = feats.pass1_rows
-    oa, ob = old.phase_rows(feats.body_phase, feats.hand_phase, theta=feats.theta,
-                            n_bins=feats.n_bins, yaw_offset=feats.yaw_offset,
-                            step=feats.params["step1"])
+    oa, ob = old.phase_rows(
+        feats.body_phase,
+        feats.hand_phase,
+        theta=feats.theta,
+        n_bins=feats.n_bins,
+        yaw_offset=feats.yaw_offset,
+        step=feats.params["step1"],
+    )
     band = Band.from_constraints(feats.n, feats.m, 0.3, [])
     rng = np.random.default_rng(0)
     x, y = rng.standard_normal((feats.n, 1)), rng.standard_normal((feats.m, 1))
@@ -162,14 +184,22 @@ def bench_pass1_kernel(body_p, hand_p, reps: int) -> dict:
             times[k].append(time.thread_time() - c0)
     ns = {k: statistics.median(v) / band.area * 1e9 for k, v in times.items()}
     ratio = statistics.median(n / o for n, o in zip(times["new"], times["old"]))
-    return {"cells": band.area, "ns": ns, "ratio": ratio, "same_path": same_path,
-            "cost_new": res["new"].cost, "cost_old": res["old"].cost, "reps": reps}
+    return {
+        "cells": band.area,
+        "ns": ns,
+        "ratio": ratio,
+        "same_path": same_path,
+        "cost_new": res["new"].cost,
+        "cost_old": res["old"].cost,
+        "reps": reps,
+    }
 
 
 def long_run(files, band: float, refine: float, tree=None) -> dict:
     body_p, hand_p, truth_p = files
-    return LP.run_child(CHILD, str(body_p), str(hand_p), str(truth_p), str(band), str(refine),
-                        tree=tree)
+    return LP.run_child(
+        CHILD, str(body_p), str(hand_p), str(truth_p), str(band), str(refine), tree=tree
+    )
 
 
 def bench_long(seconds: float, fps: float, bands: list[tuple[str, float, float]], baseline) -> dict:
@@ -188,8 +218,11 @@ def bench_long(seconds: float, fps: float, bands: list[tuple[str, float, float]]
 
 def time_band(n: int, fps: float, drift_s: float) -> tuple[str, float, float]:
     half = max(TIME_BAND_S, float(np.ceil(drift_s * 1.25)))
-    return (f"±{half:g} s", LP.band_fraction(n, n, fps, half),
-            LP.band_fraction(n, n, fps, half / 3.0))
+    return (
+        f"±{half:g} s",
+        LP.band_fraction(n, n, fps, half),
+        LP.band_fraction(n, n, fps, half / 3.0),
+    )
 
 
 def report(short, kernel, longs) -> str:
@@ -198,26 +231,34 @@ def report(short, kernel, longs) -> str:
 
     k = kernel
     lines = [
-        "## Splice speed (issues 5 and 13)", "",
+        "## Splice speed (issues 5 and 13)",
+        "",
         "Engine time = prepare (FK, virtual markers, dead zones, sign codes for 72 θ bins) + "
         "pass 1 (sign metric with θ per cell) + pass 2 (band around the pass-1 path, angle "
         "metric) + merge + transfer; both hands aligned jointly. *today* = the same script "
-        f"run on the engine as at `{LP.BASELINE}` (`git archive`), in the same run.", "",
+        f"run on the engine as at `{LP.BASELINE}` (`git archive`), in the same run.",
+        "",
         f"**569-frame pair** (LAFAN1 crop, 30 fps), warm median of {short['reps']}: "
         f"{short['warm_s'] * 1000:.1f} ms (goal < 50 ms: {ok(short['warm_s'] < 0.05)}; the "
-        f"paper's Matlab 10.95 s); first call in the process {short['cold_s']:.2f} s.", "",
+        f"paper's Matlab 10.95 s); first call in the process {short['cold_s']:.2f} s.",
+        "",
         f"**Pass-1 kernel**, 2-minute pair, 30 % band ({k['cells']:,} cells), CPU time per band "
-        f"cell, median of {k['reps']} interleaved runs:", "",
-        "| kernel | ns per band cell |", "|---|---:|",
+        f"cell, median of {k['reps']} interleaved runs:",
+        "",
+        "| kernel | ns per band cell |",
+        "|---|---:|",
         f"| today: per-cell `splice_phase` (θ dot product + atan2 per cell) | {k['ns']['old']:.1f} |",
         f"| now: row kernel (`engine/phase_kernel.py`) | **{k['ns']['new']:.1f}** |",
-        f"| the DTW recurrence alone (1-D squared distance) | {k['ns']['dtw']:.1f} |", "",
+        f"| the DTW recurrence alone (1-D squared distance) | {k['ns']['dtw']:.1f} |",
+        "",
         f"Now / today: **{k['ratio']:.3f}** (median of paired ratios); same path: "
         f"{k['same_path']}; cost {k['cost_new']:.0f} vs {k['cost_old']:.0f}. Target ≤ 5 ns per "
         "cell on the machine where today's kernel took about 42 ns: the ratio says "
-        f"{42 * k['ratio']:.1f} ns there.", "",
+        f"{42 * k['ratio']:.1f} ns there.",
+        "",
         "**Long pairs** (120 fps, BVH read back; one fresh process per run; wall and CPU "
-        "time of the engine stages; peak = VmHWM of the process):", "",
+        "time of the engine stages; peak = VmHWM of the process):",
+        "",
         "| pair | band (pass 1 / pass 2 cells) | code | wall | CPU | prepare / pass 1 / pass 2 / "
         "transfer (wall, s) | peak | timing error median / p95 (frames) |",
         "|---|---|---|---:|---:|---|---:|---|",
@@ -231,11 +272,14 @@ def report(short, kernel, longs) -> str:
                 f"{r['code']} | {r['wall_s']:.2f} s | {r['cpu_s']:.2f} s | "
                 f"{st['prepare']:.2f} / {st['pass1']:.2f} / {st['pass2']:.2f} / "
                 f"{st['transfer']:.2f} | {r['peak_mb']:.0f} MB | "
-                f"{r['err_median']:.2f} / {r['err_p95']:.2f} |")
+                f"{r['err_median']:.2f} / {r['err_p95']:.2f} |"
+            )
     lines += [""]
     for lg in longs:
-        lines.append(f"- {lg['seconds'] / 60:g}-minute pair: the true path strays up to "
-                     f"{lg['drift_s']:.1f} s from the band's centre line.")
+        lines.append(
+            f"- {lg['seconds'] / 60:g}-minute pair: the true path strays up to "
+            f"{lg['drift_s']:.1f} s from the band's centre line."
+        )
     lines += [
         "",
         "Goals (issue 13): 2-minute pair ≤ 1.0 s warm, peak ≤ 600 MB, median timing error "
@@ -268,9 +312,14 @@ def main(argv=None) -> int:
     if not (args.quick or args.no_10min):
         files10 = LP.pair_files(600.0, fps)
         t10 = np.load(files10[2])
-        longs.append(bench_long(600.0, fps, [time_band(t10.shape[0], fps,
-                                                       LP.drift_seconds(t10, t10.shape[0], fps))],
-                                baseline))
+        longs.append(
+            bench_long(
+                600.0,
+                fps,
+                [time_band(t10.shape[0], fps, LP.drift_seconds(t10, t10.shape[0], fps))],
+                baseline,
+            )
+        )
     text = report(short, kernel, longs)
     print(text)
     if not args.quick:

@@ -40,14 +40,23 @@ def run_case(case) -> dict:
     seconds = time.perf_counter() - t0
     hand_ms = 1000.0 / case.hand.fps
     err = np.abs(res.alignment.map - case.truth) * hand_ms
-    out = {"err": err, "unc": a.uncertainty.ms, "seconds": seconds,
-           "align_seconds": res.timings.get("total", np.nan)}
+    out = {
+        "err": err,
+        "unc": a.uncertainty.ms,
+        "seconds": seconds,
+        "align_seconds": res.timings.get("total", np.nan),
+    }
     out["err_fixed"], out["refused"] = err, 0
     if a.suggestions:
         body = int(a.suggestions[0][0])
         try:
-            fixed = P.splice(case.body, case.hand, transfer_fingers=False, hand_points=True,
-                             points=[(body, float(case.truth[body]), 0.0)])
+            fixed = P.splice(
+                case.body,
+                case.hand,
+                transfer_fingers=False,
+                hand_points=True,
+                points=[(body, float(case.truth[body]), 0.0)],
+            )
             out["err_fixed"] = np.abs(fixed.alignment.map - case.truth) * hand_ms
         except ParameterError:  # the point cannot be met under these ends/band: counted
             out["refused"] = 1
@@ -62,14 +71,24 @@ def stats(rows: list[dict]) -> dict:
     off = err > FLAG_MS
     p_flag = float(off[flagged].mean()) if flagged.any() else float("nan")
     p_unfl = float(off[~flagged].mean()) if (~flagged).any() else float("nan")
-    rho = float(spearmanr(unc, err).statistic) if np.ptp(unc) > 0 and np.ptp(err) > 0 \
+    rho = (
+        float(spearmanr(unc, err).statistic)
+        if np.ptp(unc) > 0 and np.ptp(err) > 0
         else float("nan")
-    return {"cases": len(rows), "frames": int(err.size), "rho": rho,
-            "flagged": float(flagged.mean()), "p_flag": p_flag, "p_unfl": p_unfl,
-            "p95": float(np.percentile(err, 95)), "p95_fixed": float(np.percentile(fixed, 95)),
-            "seconds": float(np.median([r["seconds"] for r in rows])),
-            "refused": int(sum(r["refused"] for r in rows)),
-            "align_seconds": float(np.median([r["align_seconds"] for r in rows]))}
+    )
+    return {
+        "cases": len(rows),
+        "frames": int(err.size),
+        "rho": rho,
+        "flagged": float(flagged.mean()),
+        "p_flag": p_flag,
+        "p_unfl": p_unfl,
+        "p95": float(np.percentile(err, 95)),
+        "p95_fixed": float(np.percentile(fixed, 95)),
+        "seconds": float(np.median([r["seconds"] for r in rows])),
+        "refused": int(sum(r["refused"] for r in rows)),
+        "align_seconds": float(np.median([r["align_seconds"] for r in rows])),
+    }
 
 
 def _ratio(s: dict) -> str:
@@ -81,22 +100,28 @@ def _ratio(s: dict) -> str:
 
 
 def markdown(table: dict, pooled: dict, seeds: int) -> str:
-    out = ["## Trust: uncertainty against the true timing error (issue 17)", "",
-           f"`benchmarks/bench_uncertainty.py`: seeds 0-{seeds - 1} of every family of the "
-           "accuracy bench, default parameters. ρ: Spearman rank correlation between "
-           "`uncertainty_ms` and the true timing error over every body frame. Flagged: "
-           f"uncertainty > {FLAG_MS:.0f} ms; 'off': true error > {FLAG_MS:.0f} ms. "
-           "Suggested point: the top suggestion placed at its true hand frame (a point the "
-           "band cannot take is counted in 'refused' and leaves the case unchanged).", "",
-           "| family | cases | ρ | flagged | P(off \\| flagged) | P(off \\| not) | ratio | "
-           "p95 before | p95 with the top suggestion | change | refused | assess time |",
-           "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    out = [
+        "## Trust: uncertainty against the true timing error (issue 17)",
+        "",
+        f"`benchmarks/bench_uncertainty.py`: seeds 0-{seeds - 1} of every family of the "
+        "accuracy bench, default parameters. ρ: Spearman rank correlation between "
+        "`uncertainty_ms` and the true timing error over every body frame. Flagged: "
+        f"uncertainty > {FLAG_MS:.0f} ms; 'off': true error > {FLAG_MS:.0f} ms. "
+        "Suggested point: the top suggestion placed at its true hand frame (a point the "
+        "band cannot take is counted in 'refused' and leaves the case unchanged).",
+        "",
+        "| family | cases | ρ | flagged | P(off \\| flagged) | P(off \\| not) | ratio | "
+        "p95 before | p95 with the top suggestion | change | refused | assess time |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for name, s in list(table.items()) + [("**pooled**", pooled)]:
         change = (s["p95_fixed"] - s["p95"]) / s["p95"] * 100 if s["p95"] > 0 else 0.0
-        out.append(f"| {name} | {s['cases']} | {s['rho']:.2f} | {s['flagged'] * 100:.1f} % | "
-                   f"{s['p_flag']:.3f} | {s['p_unfl']:.4f} | {_ratio(s)} | {s['p95']:.0f} ms | "
-                   f"{s['p95_fixed']:.0f} ms | {change:+.0f} % | {s['refused']} | "
-                   f"{s['seconds'] * 1000:.0f} ms |")
+        out.append(
+            f"| {name} | {s['cases']} | {s['rho']:.2f} | {s['flagged'] * 100:.1f} % | "
+            f"{s['p_flag']:.3f} | {s['p_unfl']:.4f} | {_ratio(s)} | {s['p95']:.0f} ms | "
+            f"{s['p95_fixed']:.0f} ms | {change:+.0f} % | {s['refused']} | "
+            f"{s['seconds'] * 1000:.0f} ms |"
+        )
     return "\n".join(out)
 
 
@@ -114,9 +139,12 @@ def main(argv=None) -> int:
         for seed in range(seeds):
             r = run_case(FAMILIES[name].make(seed))
             rows.append(r)
-            print(f"{name:12s} seed {seed}: p95 {np.percentile(r['err'], 95):6.0f} ms -> "
-                  f"{np.percentile(r['err_fixed'], 95):6.0f} ms, max unc "
-                  f"{r['unc'].max():6.0f} ms", flush=True)
+            print(
+                f"{name:12s} seed {seed}: p95 {np.percentile(r['err'], 95):6.0f} ms -> "
+                f"{np.percentile(r['err_fixed'], 95):6.0f} ms, max unc "
+                f"{r['unc'].max():6.0f} ms",
+                flush=True,
+            )
         table[name] = stats(rows)
         every += rows
     md = markdown(table, stats(every), seeds)

@@ -62,6 +62,7 @@ def make_long_pair(seconds: float, fps: float = 120.0, seed: int = 0):
     from engine.io.bvh import read_bvh
     from engine.kinematics import resample
     from engine.roles import find_roles
+
     try:
         from benchmarks.split import MOCAP, add_fingers, make_hand_take, strip_fingers
     except ImportError:  # the baseline tree (git archive BASELINE) had it in the package
@@ -85,8 +86,17 @@ def make_long_pair(seconds: float, fps: float = 120.0, seed: int = 0):
     full = add_fingers(base, rng)
     roles = find_roles(full.skeleton)
     body = strip_fingers(full, roles)
-    hand, hand_t, orig_t = make_hand_take(full, rng, fps=fps, scale=1.0, warp_sigma=0.2,
-                                          shrink=0.6, yaw_deg=20.0, noise_deg=0.5, roles=roles)
+    hand, hand_t, orig_t = make_hand_take(
+        full,
+        rng,
+        fps=fps,
+        scale=1.0,
+        warp_sigma=0.2,
+        shrink=0.6,
+        yaw_deg=20.0,
+        noise_deg=0.5,
+        roles=roles,
+    )
     body_t = np.arange(body.n_frames) / body.fps
     truth = np.interp(body_t, orig_t, hand_t) * hand.fps
     body, hand = _exact_offsets(body), _exact_offsets(hand)
@@ -136,13 +146,18 @@ def drift_seconds(truth: np.ndarray, m: int, fps: float) -> float:
 
 def baseline_tree(ref: str = BASELINE) -> Path:
     """A folder holding ``engine/`` and ``benchmarks/`` as at ``ref`` (made once)."""
-    sha = subprocess.run(["git", "rev-parse", "--short", ref], cwd=ROOT, capture_output=True,
-                         text=True, check=True).stdout.strip()
+    sha = subprocess.run(
+        ["git", "rev-parse", "--short", ref], cwd=ROOT, capture_output=True, text=True, check=True
+    ).stdout.strip()
     folder = CACHE / f"baseline-{sha}"
     if not (folder / "engine" / "__init__.py").exists():
         folder.mkdir(parents=True, exist_ok=True)
-        tar = subprocess.run(["git", "archive", "--format=tar", sha, "engine", "benchmarks"],
-                             cwd=ROOT, capture_output=True, check=True).stdout
+        tar = subprocess.run(
+            ["git", "archive", "--format=tar", sha, "engine", "benchmarks"],
+            cwd=ROOT,
+            capture_output=True,
+            check=True,
+        ).stdout
         with tempfile.TemporaryFile() as fh:
             fh.write(tar)
             fh.seek(0)
@@ -161,8 +176,15 @@ def run_child(code: str, *args: str, tree: Path | None = None, timeout: float = 
     env["PYTHONPATH"] = os.pathsep.join([str(tree or ROOT), str(ROOT)])
     if tree is not None:  # its own numba cache (other code, same function names)
         env["NUMBA_CACHE_DIR"] = str(Path(tree) / ".numba_cache")
-    out = subprocess.run([sys.executable, "-c", code, *args], cwd=tree or ROOT, env=env,
-                         capture_output=True, text=True, timeout=timeout, check=False)
+    out = subprocess.run(
+        [sys.executable, "-c", code, *args],
+        cwd=tree or ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        check=False,
+    )
     if out.returncode != 0:
         raise RuntimeError(f"child failed ({out.returncode}): {out.stderr[-3000:]}")
     return json.loads(out.stdout.strip().splitlines()[-1])

@@ -27,8 +27,9 @@ def benchmarks() -> list[str]:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true",
-                    help="quick mode where a benchmark has one (prints only)")
+    ap.add_argument(
+        "--quick", action="store_true", help="quick mode where a benchmark has one (prints only)"
+    )
     ap.add_argument("--only", nargs="+", metavar="NAME", help="run only these (bench_dtw ...)")
     args = ap.parse_args(argv)
     names = benchmarks()

@@ -40,15 +40,20 @@ from engine.roles import FINGERS, find_roles
 
 #: the shared real captures beside the checkout (``HANDSPLICE_MOCAP`` overrides), as
 #: tests/conftest.py finds them; this bench lives in the repository, not the package
-MOCAP = Path(os.environ.get("HANDSPLICE_MOCAP",
-                            Path(__file__).resolve().parents[1].parent / "shared" / "data" / "mocap"))
+MOCAP = Path(
+    os.environ.get(
+        "HANDSPLICE_MOCAP", Path(__file__).resolve().parents[1].parent / "shared" / "data" / "mocap"
+    )
+)
 BEAT = "beat/1_wayne_0_1_1.bvh"
-BANDAI = ["bandai-namco/dataset-2_wave-both-hands_normal_001.bvh",
-          "bandai-namco/dataset-1_call_normal_001.bvh",
-          "bandai-namco/dataset-1_guide_normal_001.bvh",
-          "bandai-namco/dataset-2_wave-right-hand_normal_001.bvh",
-          "bandai-namco/dataset-1_byebye_normal_001.bvh",
-          "bandai-namco/dataset-1_respond_normal_001.bvh"]
+BANDAI = [
+    "bandai-namco/dataset-2_wave-both-hands_normal_001.bvh",
+    "bandai-namco/dataset-1_call_normal_001.bvh",
+    "bandai-namco/dataset-1_guide_normal_001.bvh",
+    "bandai-namco/dataset-2_wave-right-hand_normal_001.bvh",
+    "bandai-namco/dataset-1_byebye_normal_001.bvh",
+    "bandai-namco/dataset-1_respond_normal_001.bvh",
+]
 LAFAN = ["lafan1/multipleActions1_subject1.bvh", "lafan1/dance1_subject1.bvh"]
 
 
@@ -71,8 +76,9 @@ class Case:
 # --------------------------------------------------------------------------------------------
 
 
-def subset(motion: Motion, keep: np.ndarray, end_sites: dict[int, np.ndarray] | None = None
-           ) -> Motion:
+def subset(
+    motion: Motion, keep: np.ndarray, end_sites: dict[int, np.ndarray] | None = None
+) -> Motion:
     """The take restricted to joints ``keep`` (bool mask).
 
     A kept joint whose parent is dropped becomes a root carrying its world rotation and
@@ -93,8 +99,11 @@ def subset(motion: Motion, keep: np.ndarray, end_sites: dict[int, np.ndarray] | 
         if not all(sk.has_position_channels(j) for j in new_roots):
             channels = list(sk.channels)
             for j in new_roots:
-                rot_ch = tuple(c for c in channels[j] if c.endswith("rotation")) or \
-                    ("Zrotation", "Xrotation", "Yrotation")
+                rot_ch = tuple(c for c in channels[j] if c.endswith("rotation")) or (
+                    "Zrotation",
+                    "Xrotation",
+                    "Yrotation",
+                )
                 channels[j] = ("Xposition", "Yposition", "Zposition") + rot_ch
             sk = Skeleton(sk.names, sk.parents, sk.offsets, tuple(channels), sk.end_sites)
             motion = replace(motion, skeleton=sk)
@@ -104,11 +113,16 @@ def subset(motion: Motion, keep: np.ndarray, end_sites: dict[int, np.ndarray] | 
     ends = {int(new[j]): v for j, v in sk.end_sites.items() if keep[j]}
     for j, v in (end_sites or {}).items():
         ends[int(new[j])] = np.asarray(v, dtype=float)
-    skel = Skeleton(names=tuple(sk.names[j] for j in idx), parents=parents,
-                    offsets=sk.offsets[idx], channels=tuple(sk.channels[j] for j in idx),
-                    end_sites=ends)
-    return Motion(skel, motion.rotations[:, idx], motion.translations[:, idx], motion.fps,
-                  motion.meta)
+    skel = Skeleton(
+        names=tuple(sk.names[j] for j in idx),
+        parents=parents,
+        offsets=sk.offsets[idx],
+        channels=tuple(sk.channels[j] for j in idx),
+        end_sites=ends,
+    )
+    return Motion(
+        skel, motion.rotations[:, idx], motion.translations[:, idx], motion.fps, motion.meta
+    )
 
 
 def strip_fingers(motion: Motion, roles=None) -> Motion:
@@ -136,8 +150,12 @@ def add_fingers(motion: Motion, rng: np.random.Generator, roles=None) -> Motion:
     """
     roles = roles or find_roles(motion.skeleton)
     sk = motion.skeleton
-    names, parents, offsets, channels = list(sk.names), list(sk.parents), list(sk.offsets), \
-        list(sk.channels)
+    names, parents, offsets, channels = (
+        list(sk.names),
+        list(sk.parents),
+        list(sk.offsets),
+        list(sk.channels),
+    )
     f = motion.n_frames
     extra_rot = []
     for side in roles.sides_found():
@@ -158,27 +176,36 @@ def add_fingers(motion: Motion, rng: np.random.Generator, roles=None) -> Motion:
                 axis = fr.radial
                 bone = fr.along
             parent = wrist
-            for k, (blen, gain) in enumerate(zip((0.0, 0.16, 0.11), (1.0, 1.1, 0.8),
-                                                 strict=True)):
+            for k, (blen, gain) in enumerate(zip((0.0, 0.16, 0.11), (1.0, 1.1, 0.8), strict=True)):
                 names.append(f"{sk.names[wrist]}_{finger}{k + 1}")
                 parents.append(parent)
                 offsets.append(base if k == 0 else blen * length * bone)
                 channels.append(("Zrotation", "Xrotation", "Yrotation"))
                 sgn = 1.0 if side == "right" else -1.0
-                extra_rot.append(rot.from_axis_angle(np.broadcast_to(axis, (f, 3)),
-                                                     sgn * gain * curl))
+                extra_rot.append(
+                    rot.from_axis_angle(np.broadcast_to(axis, (f, 3)), sgn * gain * curl)
+                )
                 parent = len(names) - 1
     ends = dict(sk.end_sites)
     n_old = sk.n_joints
     for j in range(n_old, len(names)):
         if j + 1 >= len(names) or parents[j + 1] != j:  # finger tip
             ends[j] = 0.8 * np.asarray(offsets[j], dtype=float)
-    skel = Skeleton(names=tuple(names), parents=np.array(parents), offsets=np.array(offsets),
-                    channels=tuple(channels), end_sites=ends)
+    skel = Skeleton(
+        names=tuple(names),
+        parents=np.array(parents),
+        offsets=np.array(offsets),
+        channels=tuple(channels),
+        end_sites=ends,
+    )
     rots = np.concatenate([motion.rotations, np.stack(extra_rot, axis=1)], axis=1)
-    trans = np.concatenate([motion.translations,
-                            np.broadcast_to(np.array(offsets[n_old:]),
-                                            (f, len(names) - n_old, 3))], axis=1)
+    trans = np.concatenate(
+        [
+            motion.translations,
+            np.broadcast_to(np.array(offsets[n_old:]), (f, len(names) - n_old, 3)),
+        ],
+        axis=1,
+    )
     return Motion(skel, rots, trans, motion.fps, motion.meta)
 
 
@@ -214,8 +241,9 @@ def arm_joints(motion: Motion, roles) -> tuple[set[int], set[int]]:
     return shrink, free
 
 
-def _keep_forearm_roll(full: Motion, roles, before: np.ndarray, after: np.ndarray,
-                      trans: np.ndarray) -> None:
+def _keep_forearm_roll(
+    full: Motion, roles, before: np.ndarray, after: np.ndarray, trans: np.ndarray
+) -> None:
     """Give each shrunk forearm the roll (pronation) it had before shrinking.
 
     Shrinking shoulder and elbow rotations toward their mean changes where the forearm
@@ -252,8 +280,9 @@ def _between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return rot.normalize(q)
 
 
-def smooth_warp(rng: np.random.Generator, duration: float, scale: float, sigma: float,
-                corr_s: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+def smooth_warp(
+    rng: np.random.Generator, duration: float, scale: float, sigma: float, corr_s: float = 1.0
+) -> tuple[np.ndarray, np.ndarray]:
     """A smooth random monotone map from hand time (s) to original time (s).
 
     The hand take lasts ``duration * scale`` seconds; its local rate (original
@@ -270,10 +299,19 @@ def smooth_warp(rng: np.random.Generator, duration: float, scale: float, sigma: 
     return th, t
 
 
-def make_hand_take(full: Motion, rng: np.random.Generator, fps: float, scale: float,
-                   warp_sigma: float, shrink: float, yaw_deg: float, noise_deg: float,
-                   roles=None, warp=None, perf_to_orig=None
-                   ) -> tuple[Motion, np.ndarray, np.ndarray]:
+def make_hand_take(
+    full: Motion,
+    rng: np.random.Generator,
+    fps: float,
+    scale: float,
+    warp_sigma: float,
+    shrink: float,
+    yaw_deg: float,
+    noise_deg: float,
+    roles=None,
+    warp=None,
+    perf_to_orig=None,
+) -> tuple[Motion, np.ndarray, np.ndarray]:
     """The hand take from a full take; returns (hand, hand times s, original times s).
 
     ``warp``: (hand times, performance times) to use instead of a new random
@@ -295,8 +333,9 @@ def make_hand_take(full: Motion, rng: np.random.Generator, fps: float, scale: fl
     unshrunk = rots.copy()
     for j in shrink_set:
         mean = _mean_rotation(rots[:, j])
-        rots[:, j] = rot.slerp(np.broadcast_to(mean, rots[:, j].shape), rots[:, j],
-                               np.full(full.n_frames, shrink))
+        rots[:, j] = rot.slerp(
+            np.broadcast_to(mean, rots[:, j].shape), rots[:, j], np.full(full.n_frames, shrink)
+        )
     _keep_forearm_roll(full, roles, unshrunk, rots, trans)
     up = np.array([0.0, 0.0, 1.0]) if full.meta.up_axis == "z" else np.array([0.0, 1.0, 0.0])
     turn = rot.from_axis_angle(up, np.radians(yaw_deg))
@@ -354,8 +393,13 @@ class Realism:
     noisy_body: bool = False
 
 
-def base_take(family: str, seed: int, rng: np.random.Generator, crop_s: float = 20.0,
-              mocap: str | Path | None = None) -> tuple[Motion, str]:
+def base_take(
+    family: str,
+    seed: int,
+    rng: np.random.Generator,
+    crop_s: float = 20.0,
+    mocap: str | Path | None = None,
+) -> tuple[Motion, str]:
     """The full take (with fingers) of a ``family`` case and its name."""
     root = Path(mocap) if mocap is not None else MOCAP
     if family == "beat":
@@ -379,8 +423,13 @@ def base_take(family: str, seed: int, rng: np.random.Generator, crop_s: float = 
     return full, name
 
 
-def make_case(family: str, seed: int, crop_s: float = 20.0, mocap: str | Path | None = None,
-              realism: Realism | None = None) -> Case:
+def make_case(
+    family: str,
+    seed: int,
+    crop_s: float = 20.0,
+    mocap: str | Path | None = None,
+    realism: Realism | None = None,
+) -> Case:
     """One seeded case of ``family`` (``"beat"``, ``"bandai"`` or ``"lafan1"``).
 
     ``mocap`` is the folder of real captures (default :data:`MOCAP`). ``realism``
@@ -404,8 +453,16 @@ def make_case(family: str, seed: int, crop_s: float = 20.0, mocap: str | Path | 
     hand, hand_t, orig_t = make_hand_take(full, rng, roles=roles, **params)
     body_t = np.arange(body.n_frames) / body.fps
     truth = np.interp(body_t, orig_t, hand_t) * hand.fps
-    return Case(name=name, family=family, seed=seed, body=body, hand=hand, truth=truth,
-                reference=full, params=params)
+    return Case(
+        name=name,
+        family=family,
+        seed=seed,
+        body=body,
+        hand=hand,
+        truth=truth,
+        reference=full,
+        params=params,
+    )
 
 
 def _hold_maps(rng: np.random.Generator, duration: float, real: Realism):
@@ -456,8 +513,7 @@ def _hold_maps(rng: np.random.Generator, duration: float, real: Realism):
     return a, b, orig, holds
 
 
-def _spiky(motion: Motion, rng: np.random.Generator, joints: np.ndarray, real: Realism
-           ) -> Motion:
+def _spiky(motion: Motion, rng: np.random.Generator, joints: np.ndarray, real: Realism) -> Motion:
     """``motion`` with rotation jitter on every joint and single-frame spikes on ``joints``."""
     local = motion.rotations.copy()
     if real.jitter_deg > 0:
@@ -479,8 +535,9 @@ def _spiky(motion: Motion, rng: np.random.Generator, joints: np.ndarray, real: R
     return replace(motion, rotations=local)
 
 
-def _realistic_case(full: Motion, body_full: Motion, roles, rng, params, name, family, seed,
-                    real: Realism) -> Case:
+def _realistic_case(
+    full: Motion, body_full: Motion, roles, rng, params, name, family, seed, real: Realism
+) -> Case:
     """A case whose takes differ as two capture sessions do (see :class:`Realism`)."""
     rr = np.random.default_rng([seed, 1])
     duration = (full.n_frames - 1) / full.fps
@@ -510,9 +567,18 @@ def _realistic_case(full: Motion, body_full: Motion, roles, rng, params, name, f
         return np.interp(t, b_t, o_t)
 
     hand, hand_t, _ = make_hand_take(
-        full, rng, roles=roles, fps=hand_fps, scale=scale, warp_sigma=params["warp_sigma"],
-        shrink=params["shrink"], yaw_deg=params["yaw_deg"], noise_deg=params["noise_deg"],
-        warp=(th, tb), perf_to_orig=perf_to_orig)
+        full,
+        rng,
+        roles=roles,
+        fps=hand_fps,
+        scale=scale,
+        warp_sigma=params["warp_sigma"],
+        shrink=params["shrink"],
+        yaw_deg=params["yaw_deg"],
+        noise_deg=params["noise_deg"],
+        warp=(th, tb),
+        perf_to_orig=perf_to_orig,
+    )
     # truth: body frame -> body performance time -> hand performance time -> hand time
     tb_of_s = np.interp(s, a_t, b_t)
     truth = np.interp(tb_of_s, tb, th) * hand_fps
@@ -521,16 +587,31 @@ def _realistic_case(full: Motion, body_full: Motion, roles, rng, params, name, f
         _, free = arm_joints(full, roles)
         free_h = np.array(sorted(free), dtype=np.int64)
         free_names = {sk.names[j] for j in free}
-        free_b = np.array([j for j, nm in enumerate(body.skeleton.names) if nm in free_names],
-                          dtype=np.int64)
+        free_b = np.array(
+            [j for j, nm in enumerate(body.skeleton.names) if nm in free_names], dtype=np.int64
+        )
         hand = _spiky(hand, rr, free_h, real)
         if real.noisy_body:
             body = _spiky(body, rr, free_b, real)
-    params = {**params, "body_fps": body_fps, "untrimmed_s": [cut0, cut1],
-              "holds": holds, "rush": real.rush, "jitter_deg": real.jitter_deg,
-              "spike_rate": real.spike_rate}
-    return Case(name=name, family=family, seed=seed, body=body, hand=hand, truth=truth,
-                reference=reference, params=params)
+    params = {
+        **params,
+        "body_fps": body_fps,
+        "untrimmed_s": [cut0, cut1],
+        "holds": holds,
+        "rush": real.rush,
+        "jitter_deg": real.jitter_deg,
+        "spike_rate": real.spike_rate,
+    }
+    return Case(
+        name=name,
+        family=family,
+        seed=seed,
+        body=body,
+        hand=hand,
+        truth=truth,
+        reference=reference,
+        params=params,
+    )
 
 
 # --------------------------------------------------------------------------------------------

@@ -50,10 +50,21 @@ BODY_FPS = (25.0, 30.0, 60.0, 120.0)
 HAND_FPS = (25.0, 30.0, 60.0, 90.0, 120.0)
 LEAP_FPS = (36.0, 38.0, 40.0)
 
-_SWAP = [(re.compile(p), r) for p, r in (
-    (r"Right", "Left"), (r"Left", "Right"), (r"right", "left"), (r"left", "right"),
-    (r"(?<=_)R(?=_|\d|$)", "L"), (r"(?<=_)L(?=_|\d|$)", "R"), (r"^R(?=[A-Z_])", "L"), (r"^L(?=[A-Z_])", "R"),
-    (r"^r(?=[A-Z])", "l"), (r"^l(?=[A-Z])", "r"))]
+_SWAP = [
+    (re.compile(p), r)
+    for p, r in (
+        (r"Right", "Left"),
+        (r"Left", "Right"),
+        (r"right", "left"),
+        (r"left", "right"),
+        (r"(?<=_)R(?=_|\d|$)", "L"),
+        (r"(?<=_)L(?=_|\d|$)", "R"),
+        (r"^R(?=[A-Z_])", "L"),
+        (r"^L(?=[A-Z_])", "R"),
+        (r"^r(?=[A-Z])", "l"),
+        (r"^l(?=[A-Z])", "r"),
+    )
+]
 
 
 def swap_side_name(name: str) -> str:
@@ -88,9 +99,14 @@ def _at_body_rate(full: Motion, seed: int) -> Motion:
 
 
 def _params(rng: np.random.Generator, fps_choices=HAND_FPS) -> dict:
-    return {"fps": float(rng.choice(fps_choices)), "scale": float(rng.uniform(0.85, 1.2)),
-            "warp_sigma": float(rng.uniform(0.15, 0.3)), "shrink": float(rng.uniform(0.4, 0.7)),
-            "yaw_deg": float(rng.uniform(-60.0, 60.0)), "noise_deg": 0.5}
+    return {
+        "fps": float(rng.choice(fps_choices)),
+        "scale": float(rng.uniform(0.85, 1.2)),
+        "warp_sigma": float(rng.uniform(0.15, 0.3)),
+        "shrink": float(rng.uniform(0.4, 0.7)),
+        "yaw_deg": float(rng.uniform(-60.0, 60.0)),
+        "noise_deg": 0.5,
+    }
 
 
 def _split(full: Motion, rng, params: dict) -> tuple[Motion, Motion, np.ndarray]:
@@ -109,12 +125,14 @@ def _only_wrist_subtree(hand: Motion, wrist: int) -> Motion:
     return subset(hand, keep)
 
 
-def _renamed(motion: Motion, names: dict[str, str], source: str, units: str | None = None
-             ) -> Motion:
+def _renamed(
+    motion: Motion, names: dict[str, str], source: str, units: str | None = None
+) -> Motion:
     sk = motion.skeleton
     meta = replace(motion.meta, source=source, units=units or motion.meta.units)
-    return replace(motion, skeleton=replace(sk, names=tuple(names.get(n, n) for n in sk.names)),
-                   meta=meta)
+    return replace(
+        motion, skeleton=replace(sk, names=tuple(names.get(n, n) for n in sk.names)), meta=meta
+    )
 
 
 def left_case(seed: int, mocap: str | Path | None = None) -> Case:
@@ -129,8 +147,16 @@ def left_case(seed: int, mocap: str | Path | None = None) -> Case:
         keep = np.ones(hand.skeleton.n_joints, dtype=bool)
         keep[hand.skeleton.descendants(right)[1:]] = False
         hand = subset(hand, keep)
-    return Case(name=f"left:{name}", family="left", seed=seed, body=body, hand=hand,
-                truth=truth, reference=full, params={**params, "side": "left"})
+    return Case(
+        name=f"left:{name}",
+        family="left",
+        seed=seed,
+        body=body,
+        hand=hand,
+        truth=truth,
+        reference=full,
+        params={**params, "side": "left"},
+    )
 
 
 def _manipnet_fingers(body: Motion, side: str, rng, mocap) -> tuple[Motion, dict[str, str]]:
@@ -141,16 +167,23 @@ def _manipnet_fingers(body: Motion, side: str, rng, mocap) -> tuple[Motion, dict
     manip = mirror_take(read_bvh(root / MANIPNET[side]))  # Unity's axes -> right-handed
     span = (body.n_frames - 1) / body.fps * manip.fps
     start = float(rng.uniform(0.0, max(manip.n_frames - 1 - span, 0.0)))
-    times = np.minimum(start + np.arange(body.n_frames) * manip.fps / body.fps,
-                       manip.n_frames - 1)
+    times = np.minimum(start + np.arange(body.n_frames) * manip.fps / body.fps, manip.n_frames - 1)
     rb = find_roles(body.skeleton)
     rm = find_roles(manip.skeleton, side_hint=side)
-    plan = TR.plan_transfer(body, manip, rb, rm, {side: hand_frame(body, rb, side)},
-                            {side: hand_frame(manip, rm, side)}, (side,))
+    plan = TR.plan_transfer(
+        body,
+        manip,
+        rb,
+        rm,
+        {side: hand_frame(body, rb, side)},
+        {side: hand_frame(manip, rm, side)},
+        (side,),
+    )
     full = TR.apply_transfer(plan, body, manip, times)
     full = replace(full, meta=replace(full.meta, source=body.meta.source, format="bvh"))
-    names = {plan.skeleton.names[new]: manip.skeleton.names[src]
-             for new, src in plan.sides[0].grafted}
+    names = {
+        plan.skeleton.names[new]: manip.skeleton.names[src] for new, src in plan.sides[0].grafted
+    }
     names[body.skeleton.names[plan.sides[0].body_frame.wrist]] = "WRIST"
     return full, names
 
@@ -167,8 +200,16 @@ def manipnet_case(seed: int, mocap: str | Path | None = None) -> Case:
     body, hand, truth = _split(full, rng, params)
     wrist = find_roles(hand.skeleton).side(side).wrist
     hand = _renamed(_only_wrist_subtree(hand, wrist), names, "manipnet/hand.bvh")
-    return Case(name=f"manipnet-{side}:{name}", family="manipnet", seed=seed, body=body,
-                hand=hand, truth=truth, reference=full, params={**params, "side": side})
+    return Case(
+        name=f"manipnet-{side}:{name}",
+        family="manipnet",
+        seed=seed,
+        body=body,
+        hand=hand,
+        truth=truth,
+        reference=full,
+        params={**params, "side": side},
+    )
 
 
 def leap_case(seed: int, mocap: str | Path | None = None) -> Case:
@@ -184,8 +225,16 @@ def leap_case(seed: int, mocap: str | Path | None = None) -> Case:
     arm = roles.side(side)
     cut = _only_wrist_subtree(hand, arm.wrist)
     hand = _leap_rig(cut, side, roles, hand.skeleton)
-    return Case(name=f"leap-{side}:{name}", family="leap", seed=seed, body=body, hand=hand,
-                truth=truth, reference=full, params={**params, "side": side})
+    return Case(
+        name=f"leap-{side}:{name}",
+        family="leap",
+        seed=seed,
+        body=body,
+        hand=hand,
+        truth=truth,
+        reference=full,
+        params={**params, "side": side},
+    )
 
 
 def _leap_rig(cut: Motion, side: str, roles, full_sk: Skeleton) -> Motion:
@@ -203,16 +252,28 @@ def _leap_rig(cut: Motion, side: str, roles, full_sk: Skeleton) -> Motion:
     parents = [-1, 0] + [int(q) + 1 for q in sk.parents[1:]]
     k = cut.meters_per_unit / 0.001
     offsets = np.vstack([sk.offsets[:1], np.zeros((1, 3)), sk.offsets[1:]]) * k
-    channels = (("Xposition", "Yposition", "Zposition", "Zrotation", "Yrotation", "Xrotation"),
-                ("Zrotation", "Yrotation", "Xrotation")) + tuple(sk.channels[1:])
+    channels = (
+        ("Xposition", "Yposition", "Zposition", "Zrotation", "Yrotation", "Xrotation"),
+        ("Zrotation", "Yrotation", "Xrotation"),
+    ) + tuple(sk.channels[1:])
     ends = {j + 1: np.asarray(v, dtype=float) * k for j, v in sk.end_sites.items() if j > 0}
-    skel = Skeleton(names=tuple(new_names), parents=np.array(parents), offsets=offsets,
-                    channels=channels, end_sites=ends)
+    skel = Skeleton(
+        names=tuple(new_names),
+        parents=np.array(parents),
+        offsets=offsets,
+        channels=channels,
+        end_sites=ends,
+    )
     f = cut.n_frames
-    rots = np.concatenate([cut.rotations[:, :1], np.tile([1.0, 0, 0, 0], (f, 1, 1)),
-                           cut.rotations[:, 1:]], axis=1)
-    trans = np.concatenate([cut.translations[:, :1], np.zeros((f, 1, 3)),
-                            cut.translations[:, 1:]], axis=1) * k
+    rots = np.concatenate(
+        [cut.rotations[:, :1], np.tile([1.0, 0, 0, 0], (f, 1, 1)), cut.rotations[:, 1:]], axis=1
+    )
+    trans = (
+        np.concatenate(
+            [cut.translations[:, :1], np.zeros((f, 1, 3)), cut.translations[:, 1:]], axis=1
+        )
+        * k
+    )
     meta = replace(cut.meta, units="mm", source=f"gestification/{p}-hand-take.bvh")
     return Motion(skel, rots, trans, cut.fps, meta)
 
@@ -226,4 +287,3 @@ def make_rig_case(kind: str, seed: int, mocap: str | Path | None = None) -> Case
     if kind == "leap":
         return leap_case(seed, mocap)
     raise ValueError(f"unknown rig family {kind!r}; known: {', '.join(RIG_KINDS)}")
-

@@ -38,8 +38,10 @@ _FILE_MODE = 0o666 & ~_UMASK
 STALE_AFTER_S = 24 * 3600.0
 _TAG = "hstmp"
 _HOST = hashlib.sha1(socket.gethostname().encode("utf-8", "replace")).hexdigest()[:8]
-_TEMP_RE = re.compile(rf"\.(?P<stem>.*)\.{_TAG}-(?P<host>[0-9a-f]{{8}})-(?P<pid>[0-9]+)-[^.]+"
-                      r"(?P<suffix>(\.[^.]*)?)")
+_TEMP_RE = re.compile(
+    rf"\.(?P<stem>.*)\.{_TAG}-(?P<host>[0-9a-f]{{8}})-(?P<pid>[0-9]+)-[^.]+"
+    r"(?P<suffix>(\.[^.]*)?)"
+)
 _LIVE: set[Path] = set()  # temporary files of this process not yet renamed or removed
 _LIVE_LOCK = threading.Lock()
 

@@ -73,9 +73,27 @@ REQUIRED_COLUMNS = ("body", "hand", "side")
 OPTIONAL_COLUMNS = ("band", "refine_band", "match", "name")
 SIDES = ("right", "left", "both", "auto")
 MARKER_DIR = ".handsplice-batch"
-SUMMARY_COLUMNS = ("name", "line", "status", "body", "hand", "side", "band", "refine_band",
-                   "match", "body_frames", "spliced_frames", "fps", "seconds", "output",
-                   "report", "thumbnail", "thumbnail_kind", "worker", "error")
+SUMMARY_COLUMNS = (
+    "name",
+    "line",
+    "status",
+    "body",
+    "hand",
+    "side",
+    "band",
+    "refine_band",
+    "match",
+    "body_frames",
+    "spliced_frames",
+    "fps",
+    "seconds",
+    "output",
+    "report",
+    "thumbnail",
+    "thumbnail_kind",
+    "worker",
+    "error",
+)
 THUMB_SIZE = (192, 144)
 _NAME_OK = re.compile(r"[^A-Za-z0-9_.+-]+")
 
@@ -111,8 +129,12 @@ class PairJob:
 
     def options(self) -> dict:
         """The splice options of this pair (what the done marker compares)."""
-        return {"side": self.side, "band": self.band, "refine_band": self.refine_band,
-                "match": [list(p) for p in self.match]}
+        return {
+            "side": self.side,
+            "band": self.band,
+            "refine_band": self.refine_band,
+            "match": [list(p) for p in self.match],
+        }
 
     def match_text(self) -> str:
         return ";".join(f"{b}:{h}" + ("" if t is None else f":{t:g}") for b, h, t in self.match)
@@ -131,8 +153,11 @@ def read_manifest(path: str | Path) -> list[PairJob]:
         line = raw.count(b"\n", 0, exc.start) + 1
         raise ManifestError(path, line, "not UTF-8 text") from None
     if "\x00" in text:
-        raise ManifestError(path, text.count("\n", 0, text.index("\x00")) + 1,
-                            "binary data (NUL byte), expected CSV text")
+        raise ManifestError(
+            path,
+            text.count("\n", 0, text.index("\x00")) + 1,
+            "binary data (NUL byte), expected CSV text",
+        )
     return parse_manifest(text, path)
 
 
@@ -153,24 +178,30 @@ def parse_manifest(text: str, path: str | Path) -> list[PairJob]:
                 header = _check_header([c.strip().lower() for c in row], path, line)
                 continue
             if len(jobs) >= MAX_MANIFEST_ROWS:
-                raise ManifestError(path, line, f"more than {MAX_MANIFEST_ROWS:,} pairs; split "
-                                                "the manifest")
-            if len(row) > len(header) and any(c.strip() for c in row[len(header):]):
+                raise ManifestError(
+                    path, line, f"more than {MAX_MANIFEST_ROWS:,} pairs; split the manifest"
+                )
+            if len(row) > len(header) and any(c.strip() for c in row[len(header) :]):
                 raise ManifestError(path, line, f"{len(row)} values for {len(header)} columns")
             cells = {k: (row[i].strip() if i < len(row) else "") for i, k in enumerate(header)}
             job = _parse_row(cells, path, line, base)
             if job.name in names:
                 if cells.get("name"):
-                    raise ManifestError(path, line, f"name: {job.name!r} is already used on "
-                                                    f"line {names[job.name]}")
+                    raise ManifestError(
+                        path, line, f"name: {job.name!r} is already used on line {names[job.name]}"
+                    )
                 job = PairJob(**{**asdict(job), "name": f"{job.name}-line{line}"})
             names[job.name] = line
             jobs.append(job)
     except csv.Error as exc:
         raise ManifestError(path, reader.line_num, f"not valid CSV ({exc})") from None
     if header is None:
-        raise ManifestError(path, None, "empty manifest: expected a header row "
-                                        f"({', '.join(REQUIRED_COLUMNS + OPTIONAL_COLUMNS)})")
+        raise ManifestError(
+            path,
+            None,
+            "empty manifest: expected a header row "
+            f"({', '.join(REQUIRED_COLUMNS + OPTIONAL_COLUMNS)})",
+        )
     if not jobs:
         raise ManifestError(path, None, "no pairs below the header row")
     return jobs
@@ -180,8 +211,9 @@ def _check_header(cols: list[str], path: Path, line: int) -> list[str]:
     known = REQUIRED_COLUMNS + OPTIONAL_COLUMNS
     for c in cols:
         if c and c not in known:
-            raise ManifestError(path, line, f"unknown column {c[:40]!r} (known: "
-                                            f"{', '.join(known)})")
+            raise ManifestError(
+                path, line, f"unknown column {c[:40]!r} (known: {', '.join(known)})"
+            )
     seen = set()
     for c in cols:
         if c in seen:
@@ -189,9 +221,13 @@ def _check_header(cols: list[str], path: Path, line: int) -> list[str]:
         seen.add(c)
     missing = [c for c in REQUIRED_COLUMNS if c not in cols]
     if missing:
-        raise ManifestError(path, line, f"missing column{'s' if len(missing) > 1 else ''} "
-                                        f"{', '.join(missing)} (the header row needs body, "
-                                        "hand, side)")
+        raise ManifestError(
+            path,
+            line,
+            f"missing column{'s' if len(missing) > 1 else ''} "
+            f"{', '.join(missing)} (the header row needs body, "
+            "hand, side)",
+        )
     return cols
 
 
@@ -209,13 +245,13 @@ def _parse_row(cells: dict[str, str], path: Path, line: int, base: Path) -> Pair
         takes[key] = str((base / Path(value).expanduser()).resolve())
     side = cells.get("side", "").lower()
     if side not in SIDES:
-        raise fail("side", f"expected right, left, both or auto, got "
-                           f"{cells.get('side', '')[:40]!r}")
+        raise fail(
+            "side", f"expected right, left, both or auto, got {cells.get('side', '')[:40]!r}"
+        )
     try:
         band = C.BAND.parse(cells.get("band", ""))
         refine = C.REFINE_BAND.parse(cells.get("refine_band", ""))
-        match = tuple((p.body, p.hand, p.tolerance)
-                      for p in C.parse_points(cells.get("match", "")))
+        match = tuple((p.body, p.hand, p.tolerance) for p in C.parse_points(cells.get("match", "")))
     except C.ConstraintError as exc:  # the manifest's column is "match" for the points
         raise fail(re.sub(r"^points", "match", exc.field), exc.detail) from None
     band = None if band is None else band.to_json()
@@ -223,12 +259,22 @@ def _parse_row(cells: dict[str, str], path: Path, line: int, base: Path) -> Pair
     name = cells.get("name", "")
     if name:
         if _NAME_OK.search(name) or name.startswith(".") or len(name) > 120:
-            raise fail("name", f"{name[:40]!r}: use letters, digits and _ . + - only "
-                               "(it becomes a file name)")
+            raise fail(
+                "name",
+                f"{name[:40]!r}: use letters, digits and _ . + - only (it becomes a file name)",
+            )
     else:
         name = _auto_name(takes["body"], takes["hand"], side)
-    return PairJob(line=line, name=name, body=takes["body"], hand=takes["hand"], side=side,
-                   band=band, refine_band=refine, match=match)
+    return PairJob(
+        line=line,
+        name=name,
+        body=takes["body"],
+        hand=takes["hand"],
+        side=side,
+        band=band,
+        refine_band=refine,
+        match=match,
+    )
 
 
 def _auto_name(body: str, hand: str, side: str) -> str:
@@ -249,13 +295,20 @@ def file_sha256(path: str | Path) -> str:
 
 def input_key(job: PairJob) -> dict:
     """What a done marker must match: both inputs' SHA-256, the options, the engine version."""
-    return {"body_sha256": file_sha256(job.body), "hand_sha256": file_sha256(job.hand),
-            "options": job.options(), "engine": __version__}
+    return {
+        "body_sha256": file_sha256(job.body),
+        "hand_sha256": file_sha256(job.hand),
+        "options": job.options(),
+        "engine": __version__,
+    }
 
 
 def outputs_of(job: PairJob, outdir: Path) -> dict[str, Path]:
-    return {"output": outdir / f"{job.name}.bvh", "report": outdir / f"{job.name}.report.json",
-            "thumbnail": outdir / f"{job.name}.png"}
+    return {
+        "output": outdir / f"{job.name}.bvh",
+        "report": outdir / f"{job.name}.report.json",
+        "thumbnail": outdir / f"{job.name}.png",
+    }
 
 
 def marker_path(job: PairJob, outdir: Path) -> Path:
@@ -278,9 +331,14 @@ def is_done(job: PairJob, outdir: Path) -> dict | None:
     return marker
 
 
-def run_pair(job: PairJob, outdir: str | Path, thumbnails: str = "render",
-             splice: Callable | None = None, seconds: float | None = PAIR_SECONDS,
-             memory_mb: float | None = PAIR_MEMORY_MB) -> dict:
+def run_pair(
+    job: PairJob,
+    outdir: str | Path,
+    thumbnails: str = "render",
+    splice: Callable | None = None,
+    seconds: float | None = PAIR_SECONDS,
+    memory_mb: float | None = PAIR_MEMORY_MB,
+) -> dict:
     """Splice one pair and write its outputs; never raises (errors go into the record).
 
     The pair runs in a forked child process (``engine.sandbox``) stopped after
@@ -295,25 +353,33 @@ def run_pair(job: PairJob, outdir: str | Path, thumbnails: str = "render",
     t0 = time.perf_counter()
     try:
         if seconds or memory_mb:
-            record = run_limited(_run_pair_here, (job, outdir, thumbnails, splice),
-                                 seconds=seconds, memory_mb=memory_mb)
+            record = run_limited(
+                _run_pair_here,
+                (job, outdir, thumbnails, splice),
+                seconds=seconds,
+                memory_mb=memory_mb,
+            )
         else:
             record = _run_pair_here(job, outdir, thumbnails, splice)
     except (LimitExceeded, ChildFailed) as exc:
         record = _base_record(job)
         why = f"the pair {exc}" if isinstance(exc, LimitExceeded) else f"the pair's {exc}"
-        record.update(status="failed", error=why[:500],
-                      seconds=f"{time.perf_counter() - t0:.2f}")
-    if memory_mb and record.get("status") == "failed" and \
-            str(record.get("error", "")).startswith("MemoryError"):  # RLIMIT_DATA in the child
-        record["error"] = (f"the pair used more than the memory limit of {memory_mb:g} MB "
-                           f"({record['error']})")[:500]
+        record.update(status="failed", error=why[:500], seconds=f"{time.perf_counter() - t0:.2f}")
+    if (
+        memory_mb
+        and record.get("status") == "failed"
+        and str(record.get("error", "")).startswith("MemoryError")
+    ):  # RLIMIT_DATA in the child
+        record["error"] = (
+            f"the pair used more than the memory limit of {memory_mb:g} MB ({record['error']})"
+        )[:500]
     record["worker"] = f"{platform.node()}:{os.getpid()}"
     return record
 
 
-def _run_pair_here(job: PairJob, outdir: str | Path, thumbnails: str = "render",
-                   splice: Callable | None = None) -> dict:
+def _run_pair_here(
+    job: PairJob, outdir: str | Path, thumbnails: str = "render", splice: Callable | None = None
+) -> dict:
     """``run_pair`` in this process, without limits."""
     outdir = Path(outdir)
     t0 = time.perf_counter()
@@ -330,24 +396,47 @@ def _run_pair_here(job: PairJob, outdir: str | Path, thumbnails: str = "render",
 
         report = dict(report)
         report["output"] = outs["output"].name
-        report.setdefault("batch", {"name": job.name, "line": job.line, "body": job.body,
-                                    "hand": job.hand, **job.options()})
+        report.setdefault(
+            "batch",
+            {
+                "name": job.name,
+                "line": job.line,
+                "body": job.body,
+                "hand": job.hand,
+                **job.options(),
+            },
+        )
         # the spliced take and its report: both replaced, or neither
-        write_texts([(outs["output"], format_bvh(motion)),
-                     (outs["report"], json.dumps(_jsonable(report)) + "\n")])
+        write_texts(
+            [
+                (outs["output"], format_bvh(motion)),
+                (outs["report"], json.dumps(_jsonable(report)) + "\n"),
+            ]
+        )
         kind = "none"
         if thumbnails != "none":
             kind = write_thumbnail(motion, outs["thumbnail"], prefer=thumbnails)
         written = {k: p.name for k, p in outs.items() if k != "thumbnail" or kind != "none"}
-        record.update(status="done", body_frames=body.n_frames, spliced_frames=motion.n_frames,
-                      fps=f"{motion.fps:g}", thumbnail_kind=kind, **written)
+        record.update(
+            status="done",
+            body_frames=body.n_frames,
+            spliced_frames=motion.n_frames,
+            fps=f"{motion.fps:g}",
+            thumbnail_kind=kind,
+            **written,
+        )
         record["seconds"] = f"{time.perf_counter() - t0:.2f}"
-        marker = {"key": key, "outputs": written, "record": record,
-                  "finished": time.strftime("%Y-%m-%dT%H:%M:%S")}
+        marker = {
+            "key": key,
+            "outputs": written,
+            "record": record,
+            "finished": time.strftime("%Y-%m-%dT%H:%M:%S"),
+        }
         write_text(marker_path(job, outdir), json.dumps(marker, indent=1) + "\n")
     except Exception as exc:  # one failing pair never stops the batch
-        record.update(status="failed", error=one_line(exc),
-                      seconds=f"{time.perf_counter() - t0:.2f}")
+        record.update(
+            status="failed", error=one_line(exc), seconds=f"{time.perf_counter() - t0:.2f}"
+        )
         if not isinstance(exc, HandSpliceError | ValueError | OSError | KeyError):
             record["error"] += " [" + _where(exc) + "]"
     return record
@@ -373,8 +462,9 @@ def splice_pair(body, hand, job: PairJob):
     points = [(b, h, 0.0 if t is None else t) for b, h, t in job.match]
     result = pipeline.splice(body, hand, points=points, hand_points=True, **options)
     trust = assess_splice(result.features, result.alignment)
-    return result.motion, build_report(result, job.body, job.hand, points_given=points,
-                                       assessment=trust)
+    return result.motion, build_report(
+        result, job.body, job.hand, points_given=points, assessment=trust
+    )
 
 
 def one_line(exc: BaseException) -> str:
@@ -398,11 +488,16 @@ def _where(exc: BaseException) -> str:
 
 def _base_record(job: PairJob) -> dict:
     rec = dict.fromkeys(SUMMARY_COLUMNS, "")
-    rec.update(name=job.name, line=job.line, body=job.body, hand=job.hand, side=job.side,
-               band="" if job.band is None else C.BAND.parse(job.band).text(),
-               refine_band="" if job.refine_band is None
-               else C.REFINE_BAND.parse(job.refine_band).text(),
-               match=job.match_text())
+    rec.update(
+        name=job.name,
+        line=job.line,
+        body=job.body,
+        hand=job.hand,
+        side=job.side,
+        band="" if job.band is None else C.BAND.parse(job.band).text(),
+        refine_band="" if job.refine_band is None else C.REFINE_BAND.parse(job.refine_band).text(),
+        match=job.match_text(),
+    )
     return rec
 
 
@@ -452,8 +547,7 @@ def write_thumbnail(motion, path: Path, prefer: str = "render", frame: int | Non
     return "stick"
 
 
-def stick_figure_png(motion, path: Path, frame: int, size: tuple[int, int] = THUMB_SIZE
-                     ) -> None:
+def stick_figure_png(motion, path: Path, frame: int, size: tuple[int, int] = THUMB_SIZE) -> None:
     """A front-view stick figure of one frame (no OpenGL): bones as lines, PIL PNG."""
     import numpy as np
     from PIL import Image, ImageDraw
@@ -495,11 +589,18 @@ class BatchResult:
         return sum(1 for r in self.records if r["status"] == status)
 
 
-def run_batch(manifest: str | Path, outdir: str | Path, scheduler: str | None = None,
-              workers: int = 2, thumbnails: str = "render", progress=None,
-              client=None, splice: Callable | None = None,
-              pair_seconds: float | None = PAIR_SECONDS,
-              pair_memory_mb: float | None = PAIR_MEMORY_MB) -> BatchResult:
+def run_batch(
+    manifest: str | Path,
+    outdir: str | Path,
+    scheduler: str | None = None,
+    workers: int = 2,
+    thumbnails: str = "render",
+    progress=None,
+    client=None,
+    splice: Callable | None = None,
+    pair_seconds: float | None = PAIR_SECONDS,
+    pair_memory_mb: float | None = PAIR_MEMORY_MB,
+) -> BatchResult:
     """Run every pair of ``manifest`` into ``outdir`` (module docstring).
 
     Parameters
@@ -524,8 +625,9 @@ def run_batch(manifest: str | Path, outdir: str | Path, scheduler: str | None = 
     if client is None and scheduler is None and not (isinstance(workers, int) and workers >= 1):
         raise HandSpliceError(f"--workers: expected a whole number >= 1, got {workers!r}")
     for label, value in (("pair_seconds", pair_seconds), ("pair_memory_mb", pair_memory_mb)):
-        if value is not None and not (isinstance(value, int | float) and math.isfinite(value)
-                                      and value >= 0):
+        if value is not None and not (
+            isinstance(value, int | float) and math.isfinite(value) and value >= 0
+        ):
             raise HandSpliceError(f"{label}: expected a number >= 0 (0: no limit), got {value!r}")
     jobs = read_manifest(manifest)
     outdir = Path(outdir).resolve()
@@ -539,8 +641,12 @@ def run_batch(manifest: str | Path, outdir: str | Path, scheduler: str | None = 
     for job in jobs:
         marker = is_done(job, outdir)
         if marker is not None:
-            rec = {**_base_record(job), **marker.get("record", {}), "status": "skipped",
-                   "line": job.line}
+            rec = {
+                **_base_record(job),
+                **marker.get("record", {}),
+                "status": "skipped",
+                "line": job.line,
+            }
             records[job.name] = rec
             show.update(rec)
         else:
@@ -549,14 +655,25 @@ def run_batch(manifest: str | Path, outdir: str | Path, scheduler: str | None = 
     summary = _SummaryWriter(jobs, records, outdir / "summary.csv")
     if todo:
         limits = (pair_seconds, pair_memory_mb)
-        for rec in _run_on_dask(todo, outdir, thumbnails, scheduler, workers, client, show,
-                                splice, limits, on_record=summary.add):
+        for rec in _run_on_dask(
+            todo,
+            outdir,
+            thumbnails,
+            scheduler,
+            workers,
+            client,
+            show,
+            splice,
+            limits,
+            on_record=summary.add,
+        ):
             records[rec["name"]] = rec
     ordered = [records[j.name] for j in jobs]
     result = BatchResult(records=ordered, seconds=time.perf_counter() - t0)
     result.summary_csv = write_summary_csv(ordered, outdir / "summary.csv")
-    result.index_html = write_index_html(ordered, outdir / "index.html", Path(manifest).name,
-                                         result.seconds)
+    result.index_html = write_index_html(
+        ordered, outdir / "index.html", Path(manifest).name, result.seconds
+    )
     show.finish(result)
     return result
 
@@ -564,8 +681,9 @@ def run_batch(manifest: str | Path, outdir: str | Path, scheduler: str | None = 
 class _SummaryWriter:
     """``summary.csv`` rewritten (atomically) as pairs finish: at most once per ``every_s``."""
 
-    def __init__(self, jobs: list[PairJob], records: dict[str, dict], path: Path,
-                 every_s: float = 1.0):
+    def __init__(
+        self, jobs: list[PairJob], records: dict[str, dict], path: Path, every_s: float = 1.0
+    ):
         self.jobs, self.records, self.path, self.every_s = jobs, records, path, every_s
         self.last = -math.inf
 
@@ -574,14 +692,23 @@ class _SummaryWriter:
         now = time.monotonic()
         if now - self.last >= self.every_s:
             self.last = now
-            write_summary_csv([self.records[j.name] for j in self.jobs
-                               if j.name in self.records], self.path)
+            write_summary_csv(
+                [self.records[j.name] for j in self.jobs if j.name in self.records], self.path
+            )
 
 
-def _run_on_dask(todo: list[PairJob], outdir: Path, thumbnails: str, scheduler: str | None,
-                 workers: int, client, show: Progress, splice: Callable | None,
-                 limits: tuple = (PAIR_SECONDS, PAIR_MEMORY_MB),
-                 on_record: Callable | None = None) -> list[dict]:
+def _run_on_dask(
+    todo: list[PairJob],
+    outdir: Path,
+    thumbnails: str,
+    scheduler: str | None,
+    workers: int,
+    client,
+    show: Progress,
+    splice: Callable | None,
+    limits: tuple = (PAIR_SECONDS, PAIR_MEMORY_MB),
+    on_record: Callable | None = None,
+) -> list[dict]:
     from distributed import Client, as_completed
 
     own_cluster = own_client = None
@@ -590,8 +717,10 @@ def _run_on_dask(todo: list[PairJob], outdir: Path, thumbnails: str, scheduler: 
             if scheduler:
                 client = own_client = Client(scheduler, timeout="30s")
             else:
-                show.note(f"starting a local Dask cluster: {workers} worker process"
-                          f"{'es' if workers > 1 else ''}")
+                show.note(
+                    f"starting a local Dask cluster: {workers} worker process"
+                    f"{'es' if workers > 1 else ''}"
+                )
                 own_cluster = local_cluster(workers)
                 client = own_client = Client(own_cluster)
         # at most one pair per worker thread is handed to the cluster at a time: a pair
@@ -605,9 +734,16 @@ def _run_on_dask(todo: list[PairJob], outdir: Path, thumbnails: str, scheduler: 
         def fill() -> None:
             while pending and len(running) < _capacity(client):
                 job = pending.pop()
-                fut = client.submit(run_pair, job, str(outdir), thumbnails, splice, *limits,
-                                    pure=False,
-                                    key=f"handsplice_pair-{batch_id}-{len(todo) - len(pending)}")
+                fut = client.submit(
+                    run_pair,
+                    job,
+                    str(outdir),
+                    thumbnails,
+                    splice,
+                    *limits,
+                    pure=False,
+                    key=f"handsplice_pair-{batch_id}-{len(todo) - len(pending)}",
+                )
                 running[fut] = job
                 done_iter.add(fut)
 
@@ -620,10 +756,15 @@ def _run_on_dask(todo: list[PairJob], outdir: Path, thumbnails: str, scheduler: 
             except Exception as exc:  # a worker died (KilledWorker), a cancelled task...
                 why = one_line(exc)
                 if type(exc).__name__ == "KilledWorker":
-                    why = ("its worker process died while splicing it (a crash or out of "
-                           "memory), also when retried")
-                rec = {**_base_record(job), "status": "failed",
-                       "error": f"the task did not finish: {why}"}
+                    why = (
+                        "its worker process died while splicing it (a crash or out of "
+                        "memory), also when retried"
+                    )
+                rec = {
+                    **_base_record(job),
+                    "status": "failed",
+                    "error": f"the task did not finish: {why}",
+                }
             out.append(rec)
             show.update(rec)
             if on_record is not None:
@@ -671,10 +812,15 @@ def local_cluster(workers: int, config: dict | None = None, **kwargs):
     from distributed import LocalCluster
 
     with dask.config.set({**LOCAL_SCHEDULER_CONFIG, **(config or {})}):
-        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                            dashboard_address=None,
-                            scheduler_kwargs={"dashboard_address": ":0"},
-                            silence_logs=logging.ERROR, **kwargs)
+        return LocalCluster(
+            n_workers=workers,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            scheduler_kwargs={"dashboard_address": ":0"},
+            silence_logs=logging.ERROR,
+            **kwargs,
+        )
 
 
 class Progress:
@@ -707,18 +853,25 @@ class Progress:
             what += f": {rec['error']}"
         elif rec.get("seconds"):
             what += f" ({rec['seconds']} s)"
-        print(f"[{self.done}/{self.total}] {rec['name']}: {what}  "
-              f"({_clock(elapsed)} elapsed{eta})", file=self.stream, flush=True)
+        print(
+            f"[{self.done}/{self.total}] {rec['name']}: {what}  ({_clock(elapsed)} elapsed{eta})",
+            file=self.stream,
+            flush=True,
+        )
 
     def finish(self, result: BatchResult) -> None:
-        self.note(f"{result.count('done')} done, {result.count('skipped')} skipped, "
-                  f"{result.count('failed')} failed in {_clock(result.seconds)}; "
-                  f"summary: {result.summary_csv}")
+        self.note(
+            f"{result.count('done')} done, {result.count('skipped')} skipped, "
+            f"{result.count('failed')} failed in {_clock(result.seconds)}; "
+            f"summary: {result.summary_csv}"
+        )
 
 
 def _clock(seconds: float) -> str:
     s = int(round(seconds))
-    return f"{s // 3600}:{s // 60 % 60:02d}:{s % 60:02d}" if s >= 3600 else f"{s // 60}:{s % 60:02d}"
+    return (
+        f"{s // 3600}:{s // 60 % 60:02d}:{s % 60:02d}" if s >= 3600 else f"{s // 60}:{s % 60:02d}"
+    )
 
 
 # ---------------------------------------------------------------- summary
@@ -726,8 +879,9 @@ def _clock(seconds: float) -> str:
 
 def write_summary_csv(records: list[dict], path: Path) -> Path:
     buf = io.StringIO(newline="")
-    writer = csv.DictWriter(buf, fieldnames=SUMMARY_COLUMNS, extrasaction="ignore",
-                            lineterminator="\n")
+    writer = csv.DictWriter(
+        buf, fieldnames=SUMMARY_COLUMNS, extrasaction="ignore", lineterminator="\n"
+    )
     writer.writeheader()
     for rec in records:
         writer.writerow(rec)
@@ -744,11 +898,17 @@ def write_index_html(records: list[dict], path: Path, manifest_name: str, second
     rows = []
     for rec in records:
         thumb = rec.get("thumbnail") or ""
-        img = (f'<img src="{esc(thumb)}" width="{THUMB_SIZE[0]}" height="{THUMB_SIZE[1]}" '
-               f'alt="{esc(rec["name"])}">' if thumb else "")
-        links = " ".join(f'<a href="{esc(rec[k])}">{label}</a>'
-                         for k, label in (("output", "BVH"), ("report", "report"))
-                         if rec.get(k))
+        img = (
+            f'<img src="{esc(thumb)}" width="{THUMB_SIZE[0]}" height="{THUMB_SIZE[1]}" '
+            f'alt="{esc(rec["name"])}">'
+            if thumb
+            else ""
+        )
+        links = " ".join(
+            f'<a href="{esc(rec[k])}">{label}</a>'
+            for k, label in (("output", "BVH"), ("report", "report"))
+            if rec.get(k)
+        )
         colour = _STATUS_COLOUR.get(rec["status"], "#333")
         detail = esc(rec.get("error") or "")
         if not detail and rec.get("spliced_frames"):
@@ -760,9 +920,9 @@ def write_index_html(records: list[dict], path: Path, manifest_name: str, second
             f"{esc(Path(rec['body']).name)} + {esc(Path(rec['hand']).name)}, "
             f"{esc(rec['side'])}</small></td>"
             f'<td style="color:{colour}"><b>{esc(rec["status"])}</b></td>'
-            f"<td>{detail}</td><td>{links}</td></tr>")
-    counts = {s: sum(1 for r in records if r["status"] == s) for s in ("done", "skipped",
-                                                                          "failed")}
+            f"<td>{detail}</td><td>{links}</td></tr>"
+        )
+    counts = {s: sum(1 for r in records if r["status"] == s) for s in ("done", "skipped", "failed")}
     page = f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>HandSplice batch: {esc(manifest_name)}</title>
 <style>
@@ -771,8 +931,8 @@ table {{ border-collapse: collapse; }}
 td {{ border-bottom: 1px solid #ddd; padding: 6px 10px; vertical-align: middle; }}
 </style></head><body>
 <h1>HandSplice batch: {esc(manifest_name)}</h1>
-<p>{len(records)} pairs: {counts['done']} done, {counts['skipped']} skipped (done before),
-{counts['failed']} failed; {seconds:.1f} s. Table as CSV: <a href="summary.csv">summary.csv</a>.</p>
+<p>{len(records)} pairs: {counts["done"]} done, {counts["skipped"]} skipped (done before),
+{counts["failed"]} failed; {seconds:.1f} s. Table as CSV: <a href="summary.csv">summary.csv</a>.</p>
 <table>
 <tr><th>thumbnail</th><th>pair</th><th>status</th><th>result</th><th>files</th></tr>
 {chr(10).join(rows)}

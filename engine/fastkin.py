@@ -24,10 +24,12 @@ _FASTMATH = set(FASTMATH)  # engine.jit: the one place for numba options
 
 @numba.njit(cache=True, fastmath=_FASTMATH, inline="always")
 def _mul(aw, ax, ay, az, bw, bx, by, bz):
-    return (aw * bw - ax * bx - ay * by - az * bz,
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw)
+    return (
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    )
 
 
 @numba.njit(cache=True, fastmath=_FASTMATH)
@@ -43,8 +45,9 @@ def _fk_kernel(rot, trans, parents, wpos, wrot):
                     wpos[f, j, c] = trans[f, j, c]
                 continue
             qw, qx, qy, qz = wrot[f, p, 0], wrot[f, p, 1], wrot[f, p, 2], wrot[f, p, 3]
-            w, x, y, z = _mul(qw, qx, qy, qz, rot[f, j, 0], rot[f, j, 1], rot[f, j, 2],
-                              rot[f, j, 3])
+            w, x, y, z = _mul(
+                qw, qx, qy, qz, rot[f, j, 0], rot[f, j, 1], rot[f, j, 2], rot[f, j, 3]
+            )
             wrot[f, j, 0] = w
             wrot[f, j, 1] = x
             wrot[f, j, 2] = y
@@ -74,8 +77,9 @@ def forward_kinematics(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
 def _qmul_kernel(a, b, out, conj_a):
     s = -1.0 if conj_a else 1.0
     for i in range(a.shape[0]):
-        w, x, y, z = _mul(a[i, 0], s * a[i, 1], s * a[i, 2], s * a[i, 3],
-                          b[i, 0], b[i, 1], b[i, 2], b[i, 3])
+        w, x, y, z = _mul(
+            a[i, 0], s * a[i, 1], s * a[i, 2], s * a[i, 3], b[i, 0], b[i, 1], b[i, 2], b[i, 3]
+        )
         out[i, 0] = w
         out[i, 1] = x
         out[i, 2] = y
@@ -120,8 +124,12 @@ def _continuous_kernel(q):
     frames, joints = q.shape[0], q.shape[1]
     for j in range(joints):
         for f in range(1, frames):
-            d = (q[f, j, 0] * q[f - 1, j, 0] + q[f, j, 1] * q[f - 1, j, 1]
-                 + q[f, j, 2] * q[f - 1, j, 2] + q[f, j, 3] * q[f - 1, j, 3])
+            d = (
+                q[f, j, 0] * q[f - 1, j, 0]
+                + q[f, j, 1] * q[f - 1, j, 1]
+                + q[f, j, 2] * q[f - 1, j, 2]
+                + q[f, j, 3] * q[f - 1, j, 3]
+            )
             if d < 0.0:
                 for c in range(4):
                     q[f, j, c] = -q[f, j, c]
@@ -132,8 +140,10 @@ def continuous_inplace(q: np.ndarray) -> None:
     frame ``f`` is flipped when its dot product with the already corrected ``f - 1`` is
     negative, which is the same sign as :func:`continuous`'s cumulative product)."""
     if q.ndim != 3 or q.shape[-1] != 4 or q.dtype != np.float64 or not q.flags.c_contiguous:
-        raise ValueError(f"continuous_inplace: need a C-contiguous float64 (F, J, 4) array, "
-                         f"got {q.dtype} {q.shape}")
+        raise ValueError(
+            f"continuous_inplace: need a C-contiguous float64 (F, J, 4) array, "
+            f"got {q.dtype} {q.shape}"
+        )
     _continuous_kernel(q)
 
 
@@ -165,8 +175,9 @@ def _sample_kernel(rot, trans, t, out_r, out_t):
                 w0, w1 = 1.0 - w, w
             else:
                 w0, w1 = np.sin((1.0 - w) * theta) / s, np.sin(w * theta) / s
-            qw, qx, qy, qz = _unit4(w0 * aw + w1 * bw, w0 * ax + w1 * bx, w0 * ay + w1 * by,
-                                    w0 * az + w1 * bz)
+            qw, qx, qy, qz = _unit4(
+                w0 * aw + w1 * bw, w0 * ax + w1 * bx, w0 * ay + w1 * by, w0 * az + w1 * bz
+            )
             out_r[k, j, 0] = qw
             out_r[k, j, 1] = qx
             out_r[k, j, 2] = qy
@@ -183,8 +194,9 @@ def sample(motion: Motion, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         raise ValueError("sample: the motion has no frames")
     t = np.ascontiguousarray(times, dtype=np.float64)
     if t.ndim != 1 or not np.isfinite(t).all():
-        raise ValueError(f"sample: times must be a 1-D array of finite frame indices, got "
-                         f"shape {t.shape}")
+        raise ValueError(
+            f"sample: times must be a 1-D array of finite frame indices, got shape {t.shape}"
+        )
     rot = np.ascontiguousarray(motion.rotations, dtype=np.float64)
     trans = np.ascontiguousarray(motion.translations, dtype=np.float64)
     out_r = np.empty((t.shape[0],) + rot.shape[1:])
@@ -207,6 +219,8 @@ def _normalize_kernel(q):
 def normalize_inplace(q: np.ndarray) -> None:
     """Unit quaternions in place (C-contiguous float64 ``(F, J, 4)``); zero -> identity."""
     if q.ndim != 3 or q.shape[-1] != 4 or q.dtype != np.float64 or not q.flags.c_contiguous:
-        raise ValueError(f"normalize_inplace: need a C-contiguous float64 (F, J, 4) array, "
-                         f"got {q.dtype} {q.shape}")
+        raise ValueError(
+            f"normalize_inplace: need a C-contiguous float64 (F, J, 4) array, "
+            f"got {q.dtype} {q.shape}"
+        )
     _normalize_kernel(q)

@@ -171,15 +171,15 @@ def despike(points: np.ndarray) -> np.ndarray:
     if p.shape[0] < 3:
         return p.copy()
     flat = p.reshape(p.shape[0], -1, p.shape[-1]) if p.ndim >= 3 else p[:, :, None]
-    stack = np.stack([np.concatenate([flat[:1], flat[:-1]]), flat,
-                      np.concatenate([flat[1:], flat[-1:]])])
+    stack = np.stack(
+        [np.concatenate([flat[:1], flat[:-1]]), flat, np.concatenate([flat[1:], flat[-1:]])]
+    )
     med = np.median(stack, axis=0)
     r = np.linalg.norm(flat - med, axis=-1)  # (F, K), >= 0
     with np.errstate(invalid="ignore"):
         # scale of r (half-normal-like): 1.4826 x median, or q90 / 1.645 where most r are 0
         # (a monotone stretch is its own median)
-        scale = np.maximum(1.4826 * np.nanmedian(r, axis=0),
-                           np.nanquantile(r, 0.9, axis=0) / 1.645)
+        scale = np.maximum(1.4826 * np.nanmedian(r, axis=0), np.nanquantile(r, 0.9, axis=0) / 1.645)
         bad = r > SPIKE_SIGMAS * np.maximum(scale, 1e-9)
     out = np.where(bad[..., None], med, flat)
     return out.reshape(p.shape)
@@ -265,8 +265,9 @@ def hand_frame(motion: Motion, roles, side: str) -> HandFrame:
     hand_joint = arm.hand if arm.hand is not None else wrist
     rest = rest_positions(sk)
     chain = sk.chain_to_root(wrist)
-    scale = max(float(np.linalg.norm(sk.offsets[1:], axis=1).max()) if sk.n_joints > 1 else 1.0,
-                1e-12)
+    scale = max(
+        float(np.linalg.norm(sk.offsets[1:], axis=1).max()) if sk.n_joints > 1 else 1.0, 1e-12
+    )
 
     elbow = arm.elbow if (arm.elbow is not None and arm.elbow in chain) else None
     forearm_vec = _rest_vec(rest, elbow, wrist) if elbow is not None else None
@@ -288,8 +289,10 @@ def hand_frame(motion: Motion, roles, side: str) -> HandFrame:
     elif sk.end_sites.get(hand_joint) is not None and np.linalg.norm(sk.end_sites[hand_joint]) > 0:
         along = _unit(np.asarray(sk.end_sites[hand_joint], dtype=float))
     else:
-        raise RoleError(f"{side} hand of {_name(motion)}: no forearm and no finger joints to "
-                        f"tell which way the hand points")
+        raise RoleError(
+            f"{side} hand of {_name(motion)}: no forearm and no finger joints to "
+            f"tell which way the hand points"
+        )
 
     hand_length = _hand_length(sk, arm, wrist, rest)
     if elbow_apart:
@@ -306,10 +309,21 @@ def hand_frame(motion: Motion, roles, side: str) -> HandFrame:
     radial = np.cross(dorsal, along) if side == "right" else np.cross(along, dorsal)
     shoulder = arm.shoulder if (arm.shoulder is not None and arm.shoulder in chain) else None
     forearm_joint = elbow if elbow is not None else wrist
-    return HandFrame(side=side, wrist=wrist, forearm_joint=forearm_joint, hand_joint=hand_joint,
-                     shoulder=shoulder, elbow_apart=bool(elbow_apart), along=along,
-                     dorsal=dorsal, radial=_unit(radial), forearm_length=length,
-                     palm_length=palm_length, hand_length=hand_length, dorsal_source=source)
+    return HandFrame(
+        side=side,
+        wrist=wrist,
+        forearm_joint=forearm_joint,
+        hand_joint=hand_joint,
+        shoulder=shoulder,
+        elbow_apart=bool(elbow_apart),
+        along=along,
+        dorsal=dorsal,
+        radial=_unit(radial),
+        forearm_length=length,
+        palm_length=palm_length,
+        hand_length=hand_length,
+        dorsal_source=source,
+    )
 
 
 def _hand_length(sk, arm, wrist: int, rest: np.ndarray) -> float | None:
@@ -327,7 +341,7 @@ def _hand_length(sk, arm, wrist: int, rest: np.ndarray) -> float | None:
             last = kids[0]
         length = float(np.linalg.norm(rest[js[0]] - rest[wrist]))
         chain = sk.chain_to_root(last)
-        for j in chain[:chain.index(js[0])]:
+        for j in chain[: chain.index(js[0])]:
             length += float(np.linalg.norm(sk.offsets[j]))
         if last in sk.end_sites:
             length += float(np.linalg.norm(sk.end_sites[last]))
@@ -346,8 +360,12 @@ def _dorsal_estimate(motion, arm, side, wrist, elbow, along, rest, chain):
     sign = 1.0 if side == "right" else -1.0
     index = arm.fingers.get("index", [])
     outer = arm.fingers.get("pinky", []) or arm.fingers.get("ring", [])
-    if index and outer and wrist in sk.chain_to_root(index[0]) \
-            and wrist in sk.chain_to_root(outer[0]):
+    if (
+        index
+        and outer
+        and wrist in sk.chain_to_root(index[0])
+        and wrist in sk.chain_to_root(outer[0])
+    ):
         radial = _rest_vec(rest, outer[0], index[0])
         n = np.cross(along, radial) if side == "right" else np.cross(radial, along)
         if np.linalg.norm(n) > 1e-9:
@@ -379,17 +397,18 @@ def marker_offsets(frame: HandFrame) -> tuple[np.ndarray, np.ndarray]:
     """Rest-world offsets (file units) of ``p1..p4`` from the wrist and, per marker,
     0 if it rides the forearm joint or 1 if it rides the hand joint."""
     length = frame.forearm_length
-    offs = np.stack([
-        WRIST_HALF_WIDTH * length * frame.radial,
-        -WRIST_HALF_WIDTH * length * frame.radial,
-        -FOREARM_POINT * length * frame.along,
-        length * (HAND_POINT * frame.along + HAND_DORSAL * frame.dorsal),
-    ])
+    offs = np.stack(
+        [
+            WRIST_HALF_WIDTH * length * frame.radial,
+            -WRIST_HALF_WIDTH * length * frame.radial,
+            -FOREARM_POINT * length * frame.along,
+            length * (HAND_POINT * frame.along + HAND_DORSAL * frame.dorsal),
+        ]
+    )
     return offs, np.array([0, 0, 0, 1])
 
 
-def skeleton_markers(positions: np.ndarray, rotations: np.ndarray, frame: HandFrame
-                     ) -> np.ndarray:
+def skeleton_markers(positions: np.ndarray, rotations: np.ndarray, frame: HandFrame) -> np.ndarray:
     """Virtual markers ``(F, 4, 3)`` (file units and axes) from FK results.
 
     positions, rotations : (F, J, 3), (F, J, 4) world joint positions and rotations
@@ -405,8 +424,14 @@ def skeleton_markers(positions: np.ndarray, rotations: np.ndarray, frame: HandFr
     return out
 
 
-def motion_markers(motion: Motion, side: str, roles=None, fps: float | None = None,
-                   frame: HandFrame | None = None, fk=None) -> ArmMarkers:
+def motion_markers(
+    motion: Motion,
+    side: str,
+    roles=None,
+    fps: float | None = None,
+    frame: HandFrame | None = None,
+    fk=None,
+) -> ArmMarkers:
     """Alignment markers of one arm of a skeletal take, metres, y up.
 
     Parameters
@@ -432,12 +457,12 @@ def motion_markers(motion: Motion, side: str, roles=None, fps: float | None = No
     subtracted = frame.shoulder is not None
     if fps is not None:
         mk = resample_points(mk, motion.fps, fps)
-    return ArmMarkers(markers=mk, fps=float(fps or motion.fps), side=side,
-                      shoulder_subtracted=subtracted)
+    return ArmMarkers(
+        markers=mk, fps=float(fps or motion.fps), side=side, shoulder_subtracted=subtracted
+    )
 
 
-def _arm_markers(motion: Motion, frame: HandFrame, pos: np.ndarray, wrot: np.ndarray
-                 ) -> np.ndarray:
+def _arm_markers(motion: Motion, frame: HandFrame, pos: np.ndarray, wrot: np.ndarray) -> np.ndarray:
     """``(F, 4, 3)`` markers in metres, y up, shoulder subtracted, from FK results."""
     mk = skeleton_markers(pos, wrot, frame)
     if frame.shoulder is not None:
@@ -449,8 +474,14 @@ def _arm_markers(motion: Motion, frame: HandFrame, pos: np.ndarray, wrot: np.nda
 FK_CHUNK = 4096
 
 
-def take_markers(motion: Motion, roles, frames: dict[str, HandFrame], fps: float | None = None,
-                 keep_rotations: bool = False, chunk: int = FK_CHUNK):
+def take_markers(
+    motion: Motion,
+    roles,
+    frames: dict[str, HandFrame],
+    fps: float | None = None,
+    keep_rotations: bool = False,
+    chunk: int = FK_CHUNK,
+):
     """Markers of several arms and the trunk yaw of a skeletal take, by blocks of frames.
 
     The same values as :func:`motion_markers` and :func:`skeleton_yaw`, but forward
@@ -510,6 +541,7 @@ def skeleton_yaw(motion: Motion, roles, fk=None) -> np.ndarray | None:
 # marker sets
 # --------------------------------------------------------------------------------------------
 
+
 def marker_set_markers(markers: MarkerSet, side: str, fps: float | None = None) -> ArmMarkers:
     """Alignment markers of one arm of a marker take (C3D/TRC), metres, y up.
 
@@ -529,8 +561,10 @@ def marker_set_markers(markers: MarkerSet, side: str, fps: float | None = None) 
     if arm.get("forearm") is None and arm.get("elbow") is None:
         missing.append("forearm (or elbow)")
     if missing:
-        raise RoleError(f"{side} arm of {Path(markers.meta.source).name or 'the marker set'}: "
-                        f"no marker for {', '.join(missing)} among {len(markers.labels)} labels")
+        raise RoleError(
+            f"{side} arm of {Path(markers.meta.source).name or 'the marker set'}: "
+            f"no marker for {', '.join(missing)} among {len(markers.labels)} labels"
+        )
     radial = pts[:, arm["wrist_radial"]]
     ulnar = pts[:, arm["wrist_ulnar"]]
     if arm.get("forearm") is not None:
@@ -544,8 +578,9 @@ def marker_set_markers(markers: MarkerSet, side: str, fps: float | None = None) 
     out = despike(to_y_up(out * markers.meters_per_unit, markers.meta.up_axis))
     if fps is not None:
         out = resample_points(out, markers.fps, fps)
-    return ArmMarkers(markers=out, fps=float(fps or markers.fps), side=side,
-                      shoulder_subtracted=subtracted)
+    return ArmMarkers(
+        markers=out, fps=float(fps or markers.fps), side=side, shoulder_subtracted=subtracted
+    )
 
 
 def marker_set_yaw(markers: MarkerSet) -> np.ndarray | None:

@@ -75,15 +75,19 @@ def geometric_side(motion: Motion, arm, fk=None) -> SideVote:
     index = arm.fingers.get("index", [])
     outer = arm.fingers.get("pinky", []) or arm.fingers.get("ring", [])
     if wrist is None or not index or not outer:
-        return SideVote(None, None, None, 0.0, 0.0,
-                        "no wrist with index and little (or ring) finger joints")
+        return SideVote(
+            None, None, None, 0.0, 0.0, "no wrist with index and little (or ring) finger joints"
+        )
     if fk is None:
         step = max(1, motion.n_frames // MAX_FRAMES)
-        pos = forward_kinematics(replace(motion, rotations=motion.rotations[::step],
-                                         translations=motion.translations[::step]))[0]
+        pos = forward_kinematics(
+            replace(
+                motion, rotations=motion.rotations[::step], translations=motion.translations[::step]
+            )
+        )[0]
     else:
         pos = fk[0]
-        pos = pos[::max(1, pos.shape[0] // MAX_FRAMES)]
+        pos = pos[:: max(1, pos.shape[0] // MAX_FRAMES)]
     w = pos[:, wrist]
     a = pos[:, index[0]] - w
     b = pos[:, outer[0]] - w
@@ -122,8 +126,14 @@ def geometric_side(motion: Motion, arm, fk=None) -> SideVote:
     weak = {v.rstrip("?") for v in votes}
     if len(strong) == 1 and weak <= strong:
         side = strong.pop()
-        return SideVote(side, thumb, curl, thumb_agree, curl_agree,
-                        f"thumb and finger flexion lie on the palm side of a {side} hand")
+        return SideVote(
+            side,
+            thumb,
+            curl,
+            thumb_agree,
+            curl_agree,
+            f"thumb and finger flexion lie on the palm side of a {side} hand",
+        )
     if len(strong) > 1 or len(weak) > 1:
         reason = "the thumb and the finger flexion point to different sides"
     else:
@@ -133,18 +143,23 @@ def geometric_side(motion: Motion, arm, fk=None) -> SideVote:
 
 def _both_cues(vote: SideVote) -> bool:
     """Thumb and finger flexion both clearly on the same side."""
-    return all(v is not None and abs(v) >= MIN_CUE and a >= MIN_AGREE
-               for v, a in ((vote.thumb, vote.thumb_agree), (vote.curl, vote.curl_agree)))
+    return all(
+        v is not None and abs(v) >= MIN_CUE and a >= MIN_AGREE
+        for v, a in ((vote.thumb, vote.thumb_agree), (vote.curl, vote.curl_agree))
+    )
 
 
 def mirror_skeleton(sk: Skeleton, axis: int = 0) -> Skeleton:
     """``sk`` reflected across the plane ``axis = 0`` (offsets and End Sites)."""
     flip = np.ones(3)
     flip[axis] = -1.0
-    return Skeleton(names=sk.names, parents=sk.parents, offsets=sk.offsets * flip,
-                    channels=sk.channels,
-                    end_sites={j: np.asarray(v, dtype=float) * flip
-                               for j, v in sk.end_sites.items()})
+    return Skeleton(
+        names=sk.names,
+        parents=sk.parents,
+        offsets=sk.offsets * flip,
+        channels=sk.channels,
+        end_sites={j: np.asarray(v, dtype=float) * flip for j, v in sk.end_sites.items()},
+    )
 
 
 def mirror_take(motion: Motion, axis: int = 0) -> Motion:
@@ -160,9 +175,12 @@ def mirror_take(motion: Motion, axis: int = 0) -> Motion:
     flip = np.ones(3)
     flip[axis] = -1.0
     qflip = np.concatenate([[1.0], -flip])  # keep w and the mirror axis, flip the others
-    return replace(motion, skeleton=mirror_skeleton(motion.skeleton, axis),
-                   rotations=motion.rotations * qflip,
-                   translations=motion.translations * flip)
+    return replace(
+        motion,
+        skeleton=mirror_skeleton(motion.skeleton, axis),
+        rotations=motion.rotations * qflip,
+        translations=motion.translations * flip,
+    )
 
 
 # --------------------------------------------------------------------------------------------
@@ -202,13 +220,16 @@ def undecided_message(take_name: str, take: Motion, roles) -> str | None:
     if arm is None or not arm.has_fingers:
         return None
     vote = geometric_side(take, arm)
-    return (f"{take_name}: cannot tell which hand this is: its joint names and file name carry "
-            f"no side and its geometry is ambiguous ({vote.reason}); give it with --side right "
-            f"or --side left")
+    return (
+        f"{take_name}: cannot tell which hand this is: its joint names and file name carry "
+        f"no side and its geometry is ambiguous ({vote.reason}); give it with --side right "
+        f"or --side left"
+    )
 
 
-def match_chirality(body, hand: Motion, body_roles, hand_roles, sides, body_fk=None,
-                    hand_fk=None) -> tuple[Motion, list[str]]:
+def match_chirality(
+    body, hand: Motion, body_roles, hand_roles, sides, body_fk=None, hand_fk=None
+) -> tuple[Motion, list[str]]:
     """The hand take, mirrored when its fingers form the other hand than the body expects.
 
     For each spliced side the body expects a hand of that side (or, when the body has
@@ -229,9 +250,12 @@ def match_chirality(body, hand: Motion, body_roles, hand_roles, sides, body_fk=N
             expected = own or s
         flips.append(vote.side != expected)
     if flips and all(flips):
-        what = " and ".join(f"its {s} hand forms a {'left' if s == 'right' else 'right'} hand"
-                            for s in sides)
-        notes.append(f"the hand take was mirrored: {what} (a capture exported in left-handed "
-                     "axes, e.g. from Unity)")
+        what = " and ".join(
+            f"its {s} hand forms a {'left' if s == 'right' else 'right'} hand" for s in sides
+        )
+        notes.append(
+            f"the hand take was mirrored: {what} (a capture exported in left-handed "
+            "axes, e.g. from Unity)"
+        )
         return mirror_take(hand), notes
     return hand, notes

@@ -14,8 +14,9 @@ from engine import rotations as rot
 from engine.motion import Motion, Skeleton
 
 
-def forward_kinematics(motion: Motion, start: int = 0, stop: int | None = None
-                       ) -> tuple[np.ndarray, np.ndarray]:
+def forward_kinematics(
+    motion: Motion, start: int = 0, stop: int | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """World positions and rotations of every joint for frames ``[start, stop)``.
 
     Returns
@@ -38,8 +39,9 @@ def forward_kinematics(motion: Motion, start: int = 0, stop: int | None = None
     return world_p, world_r
 
 
-def end_site_positions(motion: Motion, world_pos: np.ndarray, world_rot: np.ndarray
-                       ) -> dict[int, np.ndarray]:
+def end_site_positions(
+    motion: Motion, world_pos: np.ndarray, world_rot: np.ndarray
+) -> dict[int, np.ndarray]:
     """World positions ``(F, 3)`` of each joint's End Site, keyed by joint index."""
     return {
         j: world_pos[:, j] + rot.rotate(world_rot[:, j], off)
@@ -68,13 +70,18 @@ def sample(motion: Motion, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         raise ValueError("sample: the motion has no frames")
     t = np.asarray(times, dtype=float)
     if t.ndim != 1 or not np.isfinite(t).all():
-        raise ValueError(f"sample: times must be a 1-D array of finite frame indices, got "
-                         f"shape {t.shape}")
+        raise ValueError(
+            f"sample: times must be a 1-D array of finite frame indices, got shape {t.shape}"
+        )
     t = np.clip(t, 0.0, f - 1)
     i0 = np.floor(t).astype(np.int64)
     i1 = np.minimum(i0 + 1, f - 1)
     w = (t - i0)[:, None]
-    rots = rot.slerp(motion.rotations[i0], motion.rotations[i1], np.broadcast_to(w, (len(t), motion.skeleton.n_joints)))
+    rots = rot.slerp(
+        motion.rotations[i0],
+        motion.rotations[i1],
+        np.broadcast_to(w, (len(t), motion.skeleton.n_joints)),
+    )
     trans = motion.translations[i0] * (1.0 - w[..., None]) + motion.translations[i1] * w[..., None]
     return rots, trans
 

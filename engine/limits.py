@@ -71,14 +71,17 @@ PAIR_SECONDS = 900.0
 PAIR_MEMORY_MB = 2048.0
 
 
-def check_rate(fps: float, source: str | None, line: int | None = None,
-               field: str = "frame rate") -> float:
+def check_rate(
+    fps: float, source: str | None, line: int | None = None, field: str = "frame rate"
+) -> float:
     """``fps`` if it lies in ``MIN_FPS..MAX_FPS``, else ``MotionFormatError`` naming ``field``."""
     fps = float(fps)
     if not (MIN_FPS <= fps <= MAX_FPS):  # also NaN
         raise MotionFormatError(
-            source, f"{field} gives {fps:.6g} frames per second; expected {MIN_FPS:g} to "
-                    f"{MAX_FPS:g}", line=line)
+            source,
+            f"{field} gives {fps:.6g} frames per second; expected {MIN_FPS:g} to {MAX_FPS:g}",
+            line=line,
+        )
     return fps
 
 
@@ -87,8 +90,16 @@ def pose_budget(source_bytes: int = 0) -> int:
     return max(MAX_POSE_CELLS, int(source_bytes) // 2)
 
 
-def check_take(source: str | None, frames: int, fps: float, joints: int, values: int = 0,
-               source_bytes: int = 0, line: int | None = None, what: str = "joints") -> None:
+def check_take(
+    source: str | None,
+    frames: int,
+    fps: float,
+    joints: int,
+    values: int = 0,
+    source_bytes: int = 0,
+    line: int | None = None,
+    what: str = "joints",
+) -> None:
     """Refuse a take whose header asks for more than the limits, before reading its data.
 
     Parameters
@@ -104,21 +115,33 @@ def check_take(source: str | None, frames: int, fps: float, joints: int, values:
     """
     check_rate(fps, source, line)
     if frames > MAX_FRAMES:
-        raise MotionFormatError(source, f"{frames:,} frames is more than {MAX_FRAMES:,}; "
-                                        "refusing an absurd take", line=line)
+        raise MotionFormatError(
+            source,
+            f"{frames:,} frames is more than {MAX_FRAMES:,}; refusing an absurd take",
+            line=line,
+        )
     if frames / fps > MAX_DURATION_S:
         raise MotionFormatError(
-            source, f"{frames:,} frames at {fps:.6g} fps last {frames / fps / 3600:.3g} hours, "
-                    f"more than {MAX_DURATION_S / 3600:g}; refusing an absurd take", line=line)
+            source,
+            f"{frames:,} frames at {fps:.6g} fps last {frames / fps / 3600:.3g} hours, "
+            f"more than {MAX_DURATION_S / 3600:g}; refusing an absurd take",
+            line=line,
+        )
     if frames * values > MAX_VALUES:
         raise MotionFormatError(
-            source, f"{frames:,} frames x {values:,} values is more than {MAX_VALUES:,} values; "
-                    "refusing an absurd take", line=line)
+            source,
+            f"{frames:,} frames x {values:,} values is more than {MAX_VALUES:,} values; "
+            "refusing an absurd take",
+            line=line,
+        )
     budget = pose_budget(source_bytes)
     if frames * joints > budget:
         raise MotionFormatError(
-            source, f"{frames:,} frames x {joints:,} {what} is more than {budget:,} poses for a "
-                    f"file of {source_bytes:,} bytes; refusing an absurd take", line=line)
+            source,
+            f"{frames:,} frames x {joints:,} {what} is more than {budget:,} poses for a "
+            f"file of {source_bytes:,} bytes; refusing an absurd take",
+            line=line,
+        )
 
 
 def resampled_length(frames: int, fps: float, target_fps: float) -> int:
@@ -135,7 +158,8 @@ def check_grid(name: str, frames: int, fps: float, target_fps: float) -> int:
         raise ParameterError(
             f"{name}: {frames:,} frames at {fps:.6g} fps resampled to {target_fps:.6g} fps make "
             f"{n:,} frames, more than {MAX_GRID_FRAMES:,}; refusing (check the files' frame "
-            "times)")
+            "times)"
+        )
     return n
 
 
@@ -144,4 +168,5 @@ def check_band(what: str, cells: int) -> None:
     if cells > MAX_BAND_CELLS:
         raise ParameterError(
             f"{what}: the band has {cells:,} cells, more than {MAX_BAND_CELLS:,}; narrow the "
-            "band or splice shorter takes")
+            "band or splice shorter takes"
+        )

@@ -68,8 +68,9 @@ def savgol_window(fps: float, window_s: float = 0.2, polyorder: int = 3) -> int:
     return w + 1 if w % 2 == 0 else w
 
 
-def derivatives(points: np.ndarray, fps: float, window_s: float = 0.2,
-                polyorder: int = 3) -> tuple[np.ndarray, np.ndarray]:
+def derivatives(
+    points: np.ndarray, fps: float, window_s: float = 0.2, polyorder: int = 3
+) -> tuple[np.ndarray, np.ndarray]:
     """Velocity and acceleration of trajectories by Savitzky-Golay filtering.
 
     Parameters
@@ -108,13 +109,14 @@ def derivatives(points: np.ndarray, fps: float, window_s: float = 0.2,
     # (2 x[0] - x[k]), which continues a steady motion instead of stopping it
     half = w // 2
     flat = p.reshape(f, -1)
-    padded = np.concatenate([2 * flat[:1] - flat[half:0:-1], flat,
-                             2 * flat[-1:] - flat[-2:-half - 2:-1]], axis=0)
-    v = _sg_apply(padded, w, order, 1, dt)[half:half + f].reshape(p.shape)
+    padded = np.concatenate(
+        [2 * flat[:1] - flat[half:0:-1], flat, 2 * flat[-1:] - flat[-2 : -half - 2 : -1]], axis=0
+    )
+    v = _sg_apply(padded, w, order, 1, dt)[half : half + f].reshape(p.shape)
     if order < 2:
         a = np.gradient(v, dt, axis=0)
     else:
-        a = _sg_apply(padded, w, order, 2, dt)[half:half + f].reshape(p.shape)
+        a = _sg_apply(padded, w, order, 2, dt)[half : half + f].reshape(p.shape)
     return v, a
 
 
@@ -130,7 +132,7 @@ def _sg_apply(x: np.ndarray, window: int, order: int, deriv: int, dt: float) -> 
     if c is None:
         c = savgol_coeffs(window, order, deriv=deriv, use="dot")
         _SG_CACHE[key] = c
-    return correlate1d(x, c, axis=0, mode="nearest") / dt ** deriv
+    return correlate1d(x, c, axis=0, mode="nearest") / dt**deriv
 
 
 def _fill_gaps(p: np.ndarray) -> np.ndarray:
@@ -166,8 +168,9 @@ class DeadZone:
 NOISE_SIGMAS = 2.0
 
 
-def noise_floor(points: np.ndarray, fps: float, window_s: float = 0.2, polyorder: int = 3
-                ) -> tuple[float, float]:
+def noise_floor(
+    points: np.ndarray, fps: float, window_s: float = 0.2, polyorder: int = 3
+) -> tuple[float, float]:
     """Standard deviation of the noise in one velocity and one acceleration component.
 
     The high-passed signal ``r = x - SG(x)`` (what the Savitzky-Golay smoother of
@@ -187,7 +190,7 @@ def noise_floor(points: np.ndarray, fps: float, window_s: float = 0.2, polyorder
     c0 = savgol_coeffs(w, polyorder, deriv=0, use="dot")
     flat = p.reshape(f, -1)
     r = flat - _sg_apply(flat, w, polyorder, 0, 1.0)
-    r = r[w // 2: f - w // 2]
+    r = r[w // 2 : f - w // 2]
     if r.size == 0:
         return 0.0, 0.0
     mad = float(np.median(np.abs(r - np.median(r, axis=0))))
@@ -195,11 +198,16 @@ def noise_floor(points: np.ndarray, fps: float, window_s: float = 0.2, polyorder
     dt = 1.0 / fps
     c1 = savgol_coeffs(w, polyorder, deriv=1, use="dot")
     c2 = savgol_coeffs(w, polyorder, deriv=2, use="dot")
-    return sigma * float(np.linalg.norm(c1)) / dt, sigma * float(np.linalg.norm(c2)) / dt ** 2
+    return sigma * float(np.linalg.norm(c1)) / dt, sigma * float(np.linalg.norm(c2)) / dt**2
 
 
-def dead_zone(velocity: np.ndarray, acceleration: np.ndarray, relative: float = 0.1,
-              quantile: float = 0.9, noise: tuple[float, float] = (0.0, 0.0)) -> DeadZone:
+def dead_zone(
+    velocity: np.ndarray,
+    acceleration: np.ndarray,
+    relative: float = 0.1,
+    quantile: float = 0.9,
+    noise: tuple[float, float] = (0.0, 0.0),
+) -> DeadZone:
     """Dead zone sized from the take's own speed and acceleration distribution.
 
     ``ε_v = relative · q(|v|)`` where ``q`` is the ``quantile`` of the per-frame
@@ -279,8 +287,13 @@ class PhaseFeatures:
         return int(self.markers.shape[0])
 
 
-def phase_features(markers: np.ndarray, fps: float, yaw: np.ndarray | None = None,
-                   window_s: float = 0.2, relative: float = 0.1) -> PhaseFeatures:
+def phase_features(
+    markers: np.ndarray,
+    fps: float,
+    yaw: np.ndarray | None = None,
+    window_s: float = 0.2,
+    relative: float = 0.1,
+) -> PhaseFeatures:
     """Pass-1 features of one take.
 
     Parameters
@@ -309,11 +322,19 @@ def phase_features(markers: np.ndarray, fps: float, yaw: np.ndarray | None = Non
     if yaw is not None:
         yaw = np.asarray(yaw, dtype=float).reshape(-1)
         if yaw.shape[0] != m.shape[0]:
-            raise ParameterError(f"phase features: yaw has {yaw.shape[0]} frames, markers {m.shape[0]}")
+            raise ParameterError(
+                f"phase features: yaw has {yaw.shape[0]} frames, markers {m.shape[0]}"
+            )
     return PhaseFeatures(
-        markers=m, velocity=v, acceleration=a, zone=zone,
+        markers=m,
+        velocity=v,
+        acceleration=a,
+        zone=zone,
         codes=np.ascontiguousarray(codes.reshape(m.shape[0], -1)),
-        window=_theta_windows(m), yaw=yaw, fps=float(fps), arms=m.shape[1] // 4,
+        window=_theta_windows(m),
+        yaw=yaw,
+        fps=float(fps),
+        arms=m.shape[1] // 4,
     )
 
 
@@ -366,8 +387,8 @@ def _raw_windows(markers: np.ndarray, out: np.ndarray) -> None:
     cz = float(np.mean(markers[:, :, 2]))
     for w in range(THETA_WINDOW):
         idx = np.clip(np.arange(f) + (w - half), 0, f - 1)
-        out[:, w * k:(w + 1) * k] = markers[idx, :, 0] - cx
-        out[:, wk + w * k:wk + (w + 1) * k] = markers[idx, :, 2] - cz
+        out[:, w * k : (w + 1) * k] = markers[idx, :, 0] - cx
+        out[:, wk + w * k : wk + (w + 1) * k] = markers[idx, :, 2] - cz
 
 
 def window_theta(body: PhaseFeatures, hand: PhaseFeatures, i: int, j: int) -> float:
@@ -387,8 +408,9 @@ def window_theta(body: PhaseFeatures, hand: PhaseFeatures, i: int, j: int) -> fl
     return float(np.arctan2(num, den))
 
 
-def cell_theta_window(body: PhaseFeatures, hand: PhaseFeatures, i: np.ndarray, j: np.ndarray
-                      ) -> np.ndarray:
+def cell_theta_window(
+    body: PhaseFeatures, hand: PhaseFeatures, i: np.ndarray, j: np.ndarray
+) -> np.ndarray:
     """Exact eq.-7 θ (radians) at cells ``(i, j)`` (vectorised :func:`window_theta`)."""
     b = body.window[np.asarray(i, dtype=np.int64)].astype(float)
     h = hand.window[np.asarray(j, dtype=np.int64)].astype(float)
@@ -422,7 +444,9 @@ def rotated_codes(hand: PhaseFeatures, n_bins: int = THETA_BINS) -> np.ndarray:
     for b in range(n_bins):
         theta = 2.0 * np.pi * b / n_bins
         out[:, b, :, :3] = sign_dead_zone(rotate_y(hand.velocity, theta), hand.zone.velocity)
-        out[:, b, :, 3:] = sign_dead_zone(rotate_y(hand.acceleration, theta), hand.zone.acceleration)
+        out[:, b, :, 3:] = sign_dead_zone(
+            rotate_y(hand.acceleration, theta), hand.zone.acceleration
+        )
     return out.reshape(f, n_bins, k * 6)
 
 
@@ -454,7 +478,7 @@ def pack_codes(codes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     c = np.asarray(codes)
     if c.shape[-1] > MAX_COMPONENTS:
         raise ParameterError(f"pack codes: at most {MAX_COMPONENTS} components, got {c.shape[-1]}")
-    weights = (np.uint64(1) << np.arange(c.shape[-1], dtype=np.uint64))
+    weights = np.uint64(1) << np.arange(c.shape[-1], dtype=np.uint64)
     pos = np.sum(np.where(c > 0, weights, np.uint64(0)), axis=-1, dtype=np.uint64)
     neg = np.sum(np.where(c < 0, weights, np.uint64(0)), axis=-1, dtype=np.uint64)
     return pos.astype(np.float64), neg.astype(np.float64)
@@ -464,9 +488,14 @@ def _yaw_bins(yaw: np.ndarray, n_bins: int) -> np.ndarray:
     return np.round(np.asarray(yaw, dtype=float) / (2 * np.pi) * n_bins) % n_bins
 
 
-def phase_rows(body: PhaseFeatures, hand: PhaseFeatures, theta: str = "window",
-               n_bins: int = THETA_BINS, yaw_offset: float = 0.0, step: float = 0.0
-               ) -> tuple[np.ndarray, np.ndarray]:
+def phase_rows(
+    body: PhaseFeatures,
+    hand: PhaseFeatures,
+    theta: str = "window",
+    n_bins: int = THETA_BINS,
+    yaw_offset: float = 0.0,
+    step: float = 0.0,
+) -> tuple[np.ndarray, np.ndarray]:
     """Rows for the ``"splice_phase"`` metric: body ``(n, 5 + 2h + 2B)`` and hand
     ``(m, 5 + 2h + 2B)`` float64, with ``B = n_bins`` and ``h`` the θ-window half-width
     (``THETA_WINDOW`` × markers for ``theta="window"``, else 0).
@@ -513,18 +542,19 @@ def phase_rows(body: PhaseFeatures, hand: PhaseFeatures, theta: str = "window",
         rows[:, 3] = yaw
         rows[:, 4] = st
     if half:
-        _raw_windows(body.markers, a[:, _HEADER:_HEADER + 2 * half])
-        _raw_windows(hand.markers, b[:, _HEADER:_HEADER + 2 * half])
+        _raw_windows(body.markers, a[:, _HEADER : _HEADER + 2 * half])
+        _raw_windows(hand.markers, b[:, _HEADER : _HEADER + 2 * half])
     off = _HEADER + 2 * half
     a[:, off], a[:, off + 1] = pack_codes(body.codes)
     hp, hq = rotated_packed_codes(hand, n_bins)  # (m, B) each
-    b[:, off:off + 2 * n_bins:2] = hp
-    b[:, off + 1:off + 2 * n_bins:2] = hq
+    b[:, off : off + 2 * n_bins : 2] = hp
+    b[:, off + 1 : off + 2 * n_bins : 2] = hq
     return a, b
 
 
-def rotated_packed_codes(hand: PhaseFeatures, n_bins: int = THETA_BINS
-                         ) -> tuple[np.ndarray, np.ndarray]:
+def rotated_packed_codes(
+    hand: PhaseFeatures, n_bins: int = THETA_BINS
+) -> tuple[np.ndarray, np.ndarray]:
     """``pack_codes(rotated_codes(hand, n_bins))`` without the ``(F, B, C)`` array:
     ``(F, n_bins)`` float64 masks P and Q (numba)."""
     f, k, _ = hand.velocity.shape
@@ -533,10 +563,16 @@ def rotated_packed_codes(hand: PhaseFeatures, n_bins: int = THETA_BINS
     theta = 2.0 * np.pi * np.arange(n_bins) / n_bins
     p = np.zeros((f, n_bins), dtype=np.float64)
     q = np.zeros((f, n_bins), dtype=np.float64)
-    _rotated_packed_kernel(np.ascontiguousarray(hand.velocity, dtype=np.float64),
-                           np.ascontiguousarray(hand.acceleration, dtype=np.float64),
-                           float(hand.zone.velocity), float(hand.zone.acceleration),
-                           np.cos(theta), np.sin(theta), p, q)
+    _rotated_packed_kernel(
+        np.ascontiguousarray(hand.velocity, dtype=np.float64),
+        np.ascontiguousarray(hand.acceleration, dtype=np.float64),
+        float(hand.zone.velocity),
+        float(hand.zone.acceleration),
+        np.cos(theta),
+        np.sin(theta),
+        p,
+        q,
+    )
     return p, q
 
 
@@ -629,8 +665,9 @@ class AngleFeatures:
         (put it in the body rows only; see :func:`phase_rows`)."""
         f, a = self.forearm.shape[:2]
         body = np.concatenate([self.forearm, self.hand], axis=2).reshape(f, 6 * a)
-        return np.ascontiguousarray(np.column_stack([np.full(f, a), np.full(f, float(step)),
-                                                     body]), dtype=np.float64)
+        return np.ascontiguousarray(
+            np.column_stack([np.full(f, a), np.full(f, float(step)), body]), dtype=np.float64
+        )
 
 
 def angle_features(markers: np.ndarray, theta: np.ndarray | float | None = None) -> AngleFeatures:
@@ -673,10 +710,20 @@ def splice_angle(body_row, hand_row):
     total = body_row[1]
     for a in range(arms):
         o = 2 + 6 * a
-        total += _angle_after_align(body_row[o], body_row[o + 1], body_row[o + 2],
-                                    body_row[o + 3], body_row[o + 4], body_row[o + 5],
-                                    hand_row[o], hand_row[o + 1], hand_row[o + 2],
-                                    hand_row[o + 3], hand_row[o + 4], hand_row[o + 5])
+        total += _angle_after_align(
+            body_row[o],
+            body_row[o + 1],
+            body_row[o + 2],
+            body_row[o + 3],
+            body_row[o + 4],
+            body_row[o + 5],
+            hand_row[o],
+            hand_row[o + 1],
+            hand_row[o + 2],
+            hand_row[o + 3],
+            hand_row[o + 4],
+            hand_row[o + 5],
+        )
     return total
 
 
@@ -730,8 +777,9 @@ def _grid_kernel(metric, a, b, rows, cols, out):
             out[r, c] = metric(ar, b[cols[c]])
 
 
-def cost_grid(metric, a: np.ndarray, b: np.ndarray, rows: np.ndarray, cols: np.ndarray
-              ) -> np.ndarray:
+def cost_grid(
+    metric, a: np.ndarray, b: np.ndarray, rows: np.ndarray, cols: np.ndarray
+) -> np.ndarray:
     """Local costs ``metric(a[rows[r]], b[cols[c]])`` as a ``(len(rows), len(cols))`` array.
 
     ``metric`` is one of this module's numba metrics (:func:`splice_phase`,
@@ -753,8 +801,9 @@ def cost_grid(metric, a: np.ndarray, b: np.ndarray, rows: np.ndarray, cols: np.n
 # --------------------------------------------------------------------------------------------
 
 
-def phase_cost_reference(body: PhaseFeatures, hand: PhaseFeatures, theta: str = "window",
-                         yaw_offset: float = 0.0) -> np.ndarray:
+def phase_cost_reference(
+    body: PhaseFeatures, hand: PhaseFeatures, theta: str = "window", yaw_offset: float = 0.0
+) -> np.ndarray:
     """Dense ``(n, m)`` D1 with θ exact (no quantisation), numpy; small takes only."""
     n, m = body.n_frames, hand.n_frames
     out = np.zeros((n, m))
@@ -769,8 +818,10 @@ def phase_cost_reference(body: PhaseFeatures, hand: PhaseFeatures, theta: str = 
             th = np.zeros(m)
         v = rotate_y(hand.velocity, th[:, None])
         a = rotate_y(hand.acceleration, th[:, None])
-        hc = np.concatenate([sign_dead_zone(v, hand.zone.velocity),
-                             sign_dead_zone(a, hand.zone.acceleration)], axis=2).astype(np.int64)
+        hc = np.concatenate(
+            [sign_dead_zone(v, hand.zone.velocity), sign_dead_zone(a, hand.zone.acceleration)],
+            axis=2,
+        ).astype(np.int64)
         out[i] = np.sum((zb[i][None] - hc) ** 2, axis=(1, 2))
     return out
 
@@ -813,8 +864,9 @@ def register_metrics() -> None:
     """Register ``"splice_phase"`` and ``"splice_angle"`` with ``engine.dtw`` (idempotent)."""
     from engine.dtw import register_metric
 
-    register_metric("splice_phase", splice_phase, replace=True, prepare=PK.prepare,
-                    forward=PK.forward)
+    register_metric(
+        "splice_phase", splice_phase, replace=True, prepare=PK.prepare, forward=PK.forward
+    )
     register_metric("splice_angle", splice_angle, replace=True)
 
 

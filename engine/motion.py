@@ -180,8 +180,13 @@ class Motion:
         )
 
     @classmethod
-    def rest(cls, skeleton: Skeleton, n_frames: int = 1, fps: float = 30.0,
-             meta: MotionMeta | None = None) -> Motion:
+    def rest(
+        cls,
+        skeleton: Skeleton,
+        n_frames: int = 1,
+        fps: float = 30.0,
+        meta: MotionMeta | None = None,
+    ) -> Motion:
         """A take that holds the rest pose for ``n_frames`` frames."""
         rots = rot.identity((n_frames, skeleton.n_joints))
         trans = np.broadcast_to(skeleton.offsets, (n_frames, skeleton.n_joints, 3)).copy()
@@ -210,7 +215,9 @@ class MarkerSet:
         object.__setattr__(self, "points", p)
         object.__setattr__(self, "labels", tuple(self.labels))
         if p.ndim != 3 or p.shape[1:] != (len(self.labels), 3):
-            raise ValueError(f"markers: points must be (frames, {len(self.labels)}, 3), got {p.shape}")
+            raise ValueError(
+                f"markers: points must be (frames, {len(self.labels)}, 3), got {p.shape}"
+            )
         if not (np.isfinite(self.fps) and self.fps > 0):
             raise ValueError(f"markers: fps must be positive, got {self.fps}")
 

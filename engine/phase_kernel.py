@@ -109,7 +109,6 @@ def cell_cost(p, q, p2, q2):
     return popcount(p ^ p2) + popcount(q ^ q2) + np.uint64(2) * popcount((p & q2) | (q & p2))
 
 
-
 @numba.njit(cache=True, nogil=True, inline="always")
 def window_means(row, half):
     """Centroid ``(x, z)`` of the eq.-7 window stored in a ``splice_phase`` row."""
@@ -203,21 +202,25 @@ def _padded_coords(rows: np.ndarray, half: int):
     """
     f = rows.shape[0]
     k = half // WINDOW
-    win = rows[:, HEADER: HEADER + 2 * half].reshape(f, 2, WINDOW, k)  # (F, x|z, slot, K)
+    win = rows[:, HEADER : HEADER + 2 * half].reshape(f, 2, WINDOW, k)  # (F, x|z, slot, K)
     first, last = win[0], win[f - 1]
     for step in (1, -1):  # window slot d holds row r + step (d - 2)
         pad = np.empty((f + 4, 2, k))
-        pad[2: f + 2] = win[:, :, 2]
+        pad[2 : f + 2] = win[:, :, 2]
         for d in range(WINDOW):  # the frames beyond the ends, from the end rows
             off = step * (d - 2)
             if off < 0:
                 pad[2 + off] = first[:, d]
             elif off > 0:
                 pad[f + 1 + off] = last[:, d]
-        if all(np.array_equal(win[:, :, d], pad[2 + step * (d - 2): 2 + step * (d - 2) + f])
-               for d in range(WINDOW)):
-            return (np.ascontiguousarray(pad[:, 0], np.float32),
-                    np.ascontiguousarray(pad[:, 1], np.float32))
+        if all(
+            np.array_equal(win[:, :, d], pad[2 + step * (d - 2) : 2 + step * (d - 2) + f])
+            for d in range(WINDOW)
+        ):
+            return (
+                np.ascontiguousarray(pad[:, 0], np.float32),
+                np.ascontiguousarray(pad[:, 1], np.float32),
+            )
     return None
 
 
@@ -261,18 +264,34 @@ def prepare(a: np.ndarray, b: np.ndarray) -> PhaseProblem:
     return PhaseProblem(a, b)
 
 
-def forward(state: PhaseProblem, lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col,
-            last_row):
+def forward(
+    state: PhaseProblem, lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col, last_row
+):
     """Rows ``i0..i1-1`` of the DTW forward pass (as ``engine.dtw.kernels.forward_*``,
     open ends included: ``ends``, ``last_col``, ``last_row``)."""
     if state.fallback:  # the per-cell metric from the registry (engine.metrics registers
         # it; importing engine.metrics here would make an import cycle)
         splice_phase = K.get_metric("splice_phase").cell
 
-        return K.forward_metric(splice_phase, state.a, state.b, lo, hi, start, i0, i1, bp,
-                                gamma, keep_gamma, ends, last_col, last_row)
-    return _forward(*state.args(), lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col,
-                    last_row)
+        return K.forward_metric(
+            splice_phase,
+            state.a,
+            state.b,
+            lo,
+            hi,
+            start,
+            i0,
+            i1,
+            bp,
+            gamma,
+            keep_gamma,
+            ends,
+            last_col,
+            last_row,
+        )
+    return _forward(
+        *state.args(), lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col, last_row
+    )
 
 
 def cost_rows(state: PhaseProblem, lo, hi, rows) -> list[np.ndarray]:
@@ -282,7 +301,7 @@ def cost_rows(state: PhaseProblem, lo, hi, rows) -> list[np.ndarray]:
     out = []
     for i in rows:
         crow = _one_row(*state.args(), lo, hi, int(i))
-        out.append(crow[lo[i]: hi[i] + 1].copy())
+        out.append(crow[lo[i] : hi[i] + 1].copy())
     return out
 
 
@@ -296,8 +315,8 @@ def _c_row(p, clo, chi, bx, bz, hx, hz, cre, cim):
     """
     s = p & (_RING - 1)
     w = chi - clo + 1
-    re = cre[s, clo: chi + 1]
-    im = cim[s, clo: chi + 1]
+    re = cre[s, clo : chi + 1]
+    im = cim[s, clo : chi + 1]
     for q in range(w):
         re[q] = _F0
         im[q] = _F0
@@ -308,10 +327,10 @@ def _c_row(p, clo, chi, bx, bz, hx, hz, cre, cim):
         za = bz[p, c]
         xb = bx[p, c + 1]
         zb = bz[p, c + 1]
-        hxa = hx[c, clo: chi + 1]
-        hza = hz[c, clo: chi + 1]
-        hxb = hx[c + 1, clo: chi + 1]
-        hzb = hz[c + 1, clo: chi + 1]
+        hxa = hx[c, clo : chi + 1]
+        hza = hz[c, clo : chi + 1]
+        hxb = hx[c + 1, clo : chi + 1]
+        hzb = hz[c + 1, clo : chi + 1]
         for q in range(w):
             re[q] = (re[q] + (xa * hxa[q] + za * hza[q])) + (xb * hxb[q] + zb * hzb[q])
             im[q] = (im[q] + (xa * hza[q] - hxa[q] * za)) + (xb * hzb[q] - hxb[q] * zb)
@@ -319,8 +338,8 @@ def _c_row(p, clo, chi, bx, bz, hx, hz, cre, cim):
     if c < k:
         xa = bx[p, c]
         za = bz[p, c]
-        hxa = hx[c, clo: chi + 1]
-        hza = hz[c, clo: chi + 1]
+        hxa = hx[c, clo : chi + 1]
+        hza = hz[c, clo : chi + 1]
         for q in range(w):
             re[q] += xa * hxa[q] + za * hza[q]
             im[q] += xa * hza[q] - hxa[q] * za
@@ -343,23 +362,43 @@ def _ensure_c(i, next_p, i0, i1, lo, hi, bx, bz, hx, hz, cre, cim):
 
 
 @numba.njit(cache=True, nogil=True)
-def _fill(i, lo_i, hi_i, bmx, bmz, bpp, bqq, byaw, bstep, hmx, hmz, hpq, hyaw, mode, nb,
-          half, cre, cim, bins, crow):
+def _fill(
+    i,
+    lo_i,
+    hi_i,
+    bmx,
+    bmz,
+    bpp,
+    bqq,
+    byaw,
+    bstep,
+    hmx,
+    hmz,
+    hpq,
+    hyaw,
+    mode,
+    nb,
+    half,
+    cre,
+    cim,
+    bins,
+    crow,
+):
     """``crow[lo_i..hi_i]`` = local costs of band row ``i`` (ring rows ``i..i+4`` ready)."""
     w = hi_i - lo_i + 1
-    out = bins[lo_i: hi_i + 1]
+    out = bins[lo_i : hi_i + 1]
     if mode == MODE_WINDOW:
         # ring rows i..i+4 at columns j..j+4, as slices from lo_i (no wraparound code)
         r0 = cre[i & (_RING - 1), lo_i:]
-        r1 = cre[(i + 1) & (_RING - 1), lo_i + 1:]
-        r2 = cre[(i + 2) & (_RING - 1), lo_i + 2:]
-        r3 = cre[(i + 3) & (_RING - 1), lo_i + 3:]
-        r4 = cre[(i + 4) & (_RING - 1), lo_i + 4:]
+        r1 = cre[(i + 1) & (_RING - 1), lo_i + 1 :]
+        r2 = cre[(i + 2) & (_RING - 1), lo_i + 2 :]
+        r3 = cre[(i + 3) & (_RING - 1), lo_i + 3 :]
+        r4 = cre[(i + 4) & (_RING - 1), lo_i + 4 :]
         s0 = cim[i & (_RING - 1), lo_i:]
-        s1 = cim[(i + 1) & (_RING - 1), lo_i + 1:]
-        s2 = cim[(i + 2) & (_RING - 1), lo_i + 2:]
-        s3 = cim[(i + 3) & (_RING - 1), lo_i + 3:]
-        s4 = cim[(i + 4) & (_RING - 1), lo_i + 4:]
+        s1 = cim[(i + 1) & (_RING - 1), lo_i + 1 :]
+        s2 = cim[(i + 2) & (_RING - 1), lo_i + 2 :]
+        s3 = cim[(i + 3) & (_RING - 1), lo_i + 3 :]
+        s4 = cim[(i + 4) & (_RING - 1), lo_i + 4 :]
         mx = hmx[lo_i:]
         mz = hmz[lo_i:]
         mbx = bmx[i]
@@ -379,7 +418,7 @@ def _fill(i, lo_i, hi_i, bmx, bmz, bpp, bqq, byaw, bstep, hmx, hmz, hpq, hyaw, m
     p = bpp[i]
     q = bqq[i]
     st = bstep[i]
-    cost = crow[lo_i: hi_i + 1]
+    cost = crow[lo_i : hi_i + 1]
     for k in range(w):
         b = out[k]
         c = cell_cost(p, q, hpq[b, lo_i + k, 0], hpq[b, lo_i + k, 1])
@@ -387,8 +426,9 @@ def _fill(i, lo_i, hi_i, bmx, bmz, bpp, bqq, byaw, bstep, hmx, hmz, hpq, hyaw, m
 
 
 @numba.njit(cache=True, nogil=True)
-def _one_row(bx, bz, bmx, bmz, bpp, bqq, byaw, bstep, hx, hz, hmx, hmz, hpq, hyaw, mode,
-             nb, half, lo, hi, i):
+def _one_row(
+    bx, bz, bmx, bmz, bpp, bqq, byaw, bstep, hx, hz, hmx, hmz, hpq, hyaw, mode, nb, half, lo, hi, i
+):
     m = hmx.shape[0]
     cre = np.zeros((_RING, m + 4), np.float32)
     cim = np.zeros((_RING, m + 4), np.float32)
@@ -396,14 +436,62 @@ def _one_row(bx, bz, bmx, bmz, bpp, bqq, byaw, bstep, hx, hz, hmx, hmz, hpq, hya
     crow = np.zeros(m)
     if mode == MODE_WINDOW:
         _ensure_c(i, i, i, i + 1, lo, hi, bx, bz, hx, hz, cre, cim)
-    _fill(i, lo[i], hi[i], bmx, bmz, bpp, bqq, byaw, bstep, hmx, hmz, hpq, hyaw, mode, nb,
-          half, cre, cim, bins, crow)
+    _fill(
+        i,
+        lo[i],
+        hi[i],
+        bmx,
+        bmz,
+        bpp,
+        bqq,
+        byaw,
+        bstep,
+        hmx,
+        hmz,
+        hpq,
+        hyaw,
+        mode,
+        nb,
+        half,
+        cre,
+        cim,
+        bins,
+        crow,
+    )
     return crow
 
 
 @numba.njit(cache=True, nogil=True)
-def _forward(bx, bz, bmx, bmz, bpp, bqq, byaw, bstep, hx, hz, hmx, hmz, hpq, hyaw, mode,
-             nb, half, lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col, last_row):
+def _forward(
+    bx,
+    bz,
+    bmx,
+    bmz,
+    bpp,
+    bqq,
+    byaw,
+    bstep,
+    hx,
+    hz,
+    hmx,
+    hmz,
+    hpq,
+    hyaw,
+    mode,
+    nb,
+    half,
+    lo,
+    hi,
+    start,
+    i0,
+    i1,
+    bp,
+    gamma,
+    keep_gamma,
+    ends,
+    last_col,
+    last_row,
+):
     """As ``engine.dtw.kernels.forward_builtin`` (open ends included), local costs from
     :func:`_fill`."""
     m = hmx.shape[0]
@@ -424,13 +512,65 @@ def _forward(bx, bz, bmx, bmz, bpp, bqq, byaw, bstep, hx, hz, hmx, hmz, hpq, hya
         if K._use_pair(lo, hi, i, i1):
             if window:
                 next_p = _ensure_c(i + 1, next_p, i0, i1, lo, hi, bx, bz, hx, hz, cre, cim)
-            _fill(i, lo[i], hi[i], bmx, bmz, bpp, bqq, byaw, bstep, hmx, hmz, hpq, hyaw,
-                  mode, nb, half, cre, cim, bins, crow_a)
-            _fill(i + 1, lo[i + 1], hi[i + 1], bmx, bmz, bpp, bqq, byaw, bstep, hmx, hmz, hpq,
-                  hyaw, mode, nb, half, cre, cim, bins, crow_b)
-            bad = K._dp_pair(prev, mid, cur, crow_a, crow_b, lo[i], hi[i], lo[i + 1], hi[i + 1],
-                             bp[start[i]: start[i + 1]], bp[start[i + 1]: start[i + 2]],
-                             K._left0(lo, i, ends), K._left0(lo, i + 1, ends))
+            _fill(
+                i,
+                lo[i],
+                hi[i],
+                bmx,
+                bmz,
+                bpp,
+                bqq,
+                byaw,
+                bstep,
+                hmx,
+                hmz,
+                hpq,
+                hyaw,
+                mode,
+                nb,
+                half,
+                cre,
+                cim,
+                bins,
+                crow_a,
+            )
+            _fill(
+                i + 1,
+                lo[i + 1],
+                hi[i + 1],
+                bmx,
+                bmz,
+                bpp,
+                bqq,
+                byaw,
+                bstep,
+                hmx,
+                hmz,
+                hpq,
+                hyaw,
+                mode,
+                nb,
+                half,
+                cre,
+                cim,
+                bins,
+                crow_b,
+            )
+            bad = K._dp_pair(
+                prev,
+                mid,
+                cur,
+                crow_a,
+                crow_b,
+                lo[i],
+                hi[i],
+                lo[i + 1],
+                hi[i + 1],
+                bp[start[i] : start[i + 1]],
+                bp[start[i + 1] : start[i + 2]],
+                K._left0(lo, i, ends),
+                K._left0(lo, i + 1, ends),
+            )
             if bad:
                 return (i if bad & 1 else i + 1), np.nan
             last_col[i] = mid[m] if hi[i] == m - 1 else K.INF
@@ -444,10 +584,31 @@ def _forward(bx, bz, bmx, bmz, bpp, bqq, byaw, bstep, hx, hz, hmx, hmz, hpq, hya
         else:
             if window:
                 next_p = _ensure_c(i, next_p, i0, i1, lo, hi, bx, bz, hx, hz, cre, cim)
-            _fill(i, lo[i], hi[i], bmx, bmz, bpp, bqq, byaw, bstep, hmx, hmz, hpq, hyaw,
-                  mode, nb, half, cre, cim, bins, crow_a)
-            if K._dp_row(prev, cur, crow_a, lo[i], hi[i], bp[start[i]: start[i + 1]],
-                         K._left0(lo, i, ends)):
+            _fill(
+                i,
+                lo[i],
+                hi[i],
+                bmx,
+                bmz,
+                bpp,
+                bqq,
+                byaw,
+                bstep,
+                hmx,
+                hmz,
+                hpq,
+                hyaw,
+                mode,
+                nb,
+                half,
+                cre,
+                cim,
+                bins,
+                crow_a,
+            )
+            if K._dp_row(
+                prev, cur, crow_a, lo[i], hi[i], bp[start[i] : start[i + 1]], K._left0(lo, i, ends)
+            ):
                 return i, np.nan
             K._row_done(cur, lo, hi, i, ends, last_col, m)
             if K._keep(keep_gamma, i, i1):

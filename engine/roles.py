@@ -78,22 +78,79 @@ ROLE_NAMES = ARM_ROLES + FINGER_ROLES + TIP_ROLES + METACARPAL_ROLES
 
 # --------------------------------------------------------------------------- name tokens
 
-_FINGER_WORDS = {"thumb": "thumb", "index": "index", "middle": "middle", "mid": "middle",
-                 "ring": "ring", "pinky": "pinky", "pinkie": "pinky", "little": "pinky"}
-_SIDE_WORDS = {"right": "right", "r": "right", "rt": "right", "left": "left", "l": "left",
-               "lf": "left", "lt": "left"}
-_HELPER_WORDS = {"twist", "roll", "ik", "fk", "pole", "target", "share", "helper", "ctrl",
-                 "control", "aux", "prop", "weapon", "corrective"}
+_FINGER_WORDS = {
+    "thumb": "thumb",
+    "index": "index",
+    "middle": "middle",
+    "mid": "middle",
+    "ring": "ring",
+    "pinky": "pinky",
+    "pinkie": "pinky",
+    "little": "pinky",
+}
+_SIDE_WORDS = {
+    "right": "right",
+    "r": "right",
+    "rt": "right",
+    "left": "left",
+    "l": "left",
+    "lf": "left",
+    "lt": "left",
+}
+_HELPER_WORDS = {
+    "twist",
+    "roll",
+    "ik",
+    "fk",
+    "pole",
+    "target",
+    "share",
+    "helper",
+    "ctrl",
+    "control",
+    "aux",
+    "prop",
+    "weapon",
+    "corrective",
+}
 _TIP_WORDS = {"end", "tip", "nub", "site", "top"}
 _METACARPAL_WORDS = {"metacarpal", "meta", "carpal", "in", "palm"}
 # finger joint numbers from anatomical joint names (ManipNet ``INDEX_PIP_FE``)
 _THUMB_CODES = {"cmc": 1, "mcp": 2, "ip": 3}
 _FINGER_CODES = {"cmc": 0, "mcp": 1, "pip": 2, "dip": 3}
 # words a glued lower-case token may be made of ("rhand", "lshldr", "righthandindex")
-_VOCAB = (set(_FINGER_WORDS) | set(_HELPER_WORDS) | _TIP_WORDS | _METACARPAL_WORDS
-          | {"right", "left", "hand", "wrist", "fore", "arm", "upper", "lower", "shoulder",
-             "shldr", "collar", "clavicle", "elbow", "finger", "fingers", "base", "forearm",
-             "upperarm", "lowerarm", "humerus", "cmc", "mcp", "pip", "dip"})
+_VOCAB = (
+    set(_FINGER_WORDS)
+    | set(_HELPER_WORDS)
+    | _TIP_WORDS
+    | _METACARPAL_WORDS
+    | {
+        "right",
+        "left",
+        "hand",
+        "wrist",
+        "fore",
+        "arm",
+        "upper",
+        "lower",
+        "shoulder",
+        "shldr",
+        "collar",
+        "clavicle",
+        "elbow",
+        "finger",
+        "fingers",
+        "base",
+        "forearm",
+        "upperarm",
+        "lowerarm",
+        "humerus",
+        "cmc",
+        "mcp",
+        "pip",
+        "dip",
+    }
+)
 
 _CAMEL = re.compile(r"[A-Z]+(?=[A-Z][a-z])|[A-Z]?[a-z]+|[A-Z]+|\d+")
 
@@ -120,7 +177,7 @@ def _segment(token: str) -> list[str] | None:
     for lead in ("", "r", "l"):
         if lead and not token.startswith(lead):
             continue
-        words = _segment_vocab(token[len(lead):])
+        words = _segment_vocab(token[len(lead) :])
         if words:
             return ([lead] if lead else []) + words
     return None
@@ -176,8 +233,12 @@ def _label(name: str) -> _Label:
     if "wrist" in words or "hand" in words:
         return _Label(side, "wrist")
     has_arm = "arm" in words
-    if "forearm" in words or "lowerarm" in words or "elbow" in words or (
-            has_arm and ("fore" in words or "lower" in words)):
+    if (
+        "forearm" in words
+        or "lowerarm" in words
+        or "elbow" in words
+        or (has_arm and ("fore" in words or "lower" in words))
+    ):
         return _Label(side, "elbow")
     if "upperarm" in words or "humerus" in words or (has_arm and "upper" in words) or has_arm:
         return _Label(side, "arm")
@@ -250,8 +311,7 @@ class ArmRoles:
     hand_end: int | None = None
     fingers: dict[str, list[int]] = field(default_factory=lambda: {f: [] for f in FINGERS})
     tips: dict[str, int | None] = field(default_factory=lambda: {f: None for f in FINGERS})
-    metacarpals: dict[str, int | None] = field(
-        default_factory=lambda: {f: None for f in FINGERS})
+    metacarpals: dict[str, int | None] = field(default_factory=lambda: {f: None for f in FINGERS})
     # finger joint number of each entry of fingers[f] (1..3), for get("index2")
     numbers: dict[str, list[int]] = field(default_factory=lambda: {f: [] for f in FINGERS})
 
@@ -342,12 +402,14 @@ class Roles:
             raise RoleError(
                 f"{side} {label}: this skeleton's hand joints carry no side "
                 f"({self.skeleton.names[self.unsided.get(role)]}); give the side "
-                f"(side_hint / --side {side}) or a roles file {{\"{side}.{role}\": \"NAME\"}}")
+                f'(side_hint / --side {side}) or a roles file {{"{side}.{role}": "NAME"}}'
+            )
         near = nearest_names(self.skeleton.names, side, role)
         hint = f"nearest names: {', '.join(near)}" if near else "no similar names"
         raise RoleError(
             f"{side} {label}: no joint found among {self.skeleton.n_joints} joints ({hint}); "
-            f"map it with a roles file {{\"{side}.{role}\": \"NAME\"}}")
+            f'map it with a roles file {{"{side}.{role}": "NAME"}}'
+        )
 
     def chain(self, side: str, start: str = "shoulder", fingers: bool = True) -> list[int]:
         """Joint indices from ``start`` (a role: clavicle, shoulder, elbow or wrist) down
@@ -362,12 +424,12 @@ class Roles:
         order = ("clavicle", "shoulder", "elbow", "wrist")
         if start not in order:
             raise ParameterError(f"chain start must be one of {', '.join(order)}, got {start!r}")
-        top = next(j for r in order[order.index(start):] if (j := getattr(arm, r)) is not None)
+        top = next(j for r in order[order.index(start) :] if (j := getattr(arm, r)) is not None)
         path = self.skeleton.chain_to_root(wrist)
         if top not in path:
             path = [wrist]
         else:
-            path = path[:path.index(top) + 1]
+            path = path[: path.index(top) + 1]
         joints = path[::-1]
         if fingers:
             joints += self.skeleton.descendants(wrist)[1:]
@@ -410,16 +472,22 @@ class Roles:
             knuckle = _rest_vector(sk, wrist, hand_point.joint) + hand_point.offset
             base = arm.elbow if arm.elbow in sk.chain_to_root(wrist) else wrist
             offset = -1.25 * knuckle + (_rest_vector(sk, base, wrist) if base != wrist else 0.0)
-            out["forearm"] = Landmark(base, np.asarray(offset, dtype=float),
-                                      "estimated: 1.25 hand lengths back from the wrist")
+            out["forearm"] = Landmark(
+                base,
+                np.asarray(offset, dtype=float),
+                "estimated: 1.25 hand lengths back from the wrist",
+            )
         return out
 
     def _hand_point(self, arm: ArmRoles, hand: int, forearm_vec, scale: float):
         sk = self.skeleton
         if arm.hand_end is not None:
             return Landmark(arm.hand_end, np.zeros(3), "hand_end joint")
-        firsts = [arm.fingers[f][0] for f in ("middle", "index", "ring", "pinky")
-                  if arm.fingers[f] and arm.numbers[f][0] == 1]
+        firsts = [
+            arm.fingers[f][0]
+            for f in ("middle", "index", "ring", "pinky")
+            if arm.fingers[f] and arm.numbers[f][0] == 1
+        ]
         if arm.fingers["middle"] and arm.numbers["middle"][0] == 1:
             firsts = [arm.fingers["middle"][0]]
         firsts = [j for j in firsts if hand in sk.chain_to_root(j)]
@@ -431,13 +499,15 @@ class Roles:
         if end is not None and np.linalg.norm(end) > 1e-6 * scale:
             return Landmark(hand, np.asarray(end, dtype=float), "end site")
         if forearm_vec is not None:
-            return Landmark(hand, 0.4 * forearm_vec,
-                            "estimated: 0.4 forearm lengths beyond the wrist")
+            return Landmark(
+                hand, 0.4 * forearm_vec, "estimated: 0.4 forearm lengths beyond the wrist"
+            )
         return None
 
     def to_dict(self, indices: bool = False) -> dict:
         """JSON-ready roles: joint names (or indices with ``indices=True``), None where
         absent, per side, plus ``"unsided"`` and ``"side_source"``."""
+
         def arm_dict(arm: ArmRoles) -> dict:
             conv = (lambda j: j) if indices else self.name
             out: dict = {r: conv(getattr(arm, r)) for r in ARM_ROLES}
@@ -457,8 +527,9 @@ class Roles:
 # --------------------------------------------------------------------------- matching
 
 
-def find_roles(skeleton: Skeleton, overrides: dict | None = None,
-               side_hint: str | None = None) -> Roles:
+def find_roles(
+    skeleton: Skeleton, overrides: dict | None = None, side_hint: str | None = None
+) -> Roles:
     """Find the arm and finger roles of ``skeleton`` from its joint names.
 
     Parameters
@@ -538,8 +609,11 @@ def _match_arm(sk: Skeleton, labels: list[_Label], depth: np.ndarray, idx: list[
     if wrist is not None:  # zero-length wrist/hand joints below the wrist carry the palm
         scale = _skeleton_scale(sk)
         for w in sorted(wrists, key=lambda j: depth[j]):
-            if w != wrist and wrist in _ancestors(sk, w) and \
-                    np.linalg.norm(_rest_vector(sk, wrist, w)) <= 1e-6 * scale:
+            if (
+                w != wrist
+                and wrist in _ancestors(sk, w)
+                and np.linalg.norm(_rest_vector(sk, wrist, w)) <= 1e-6 * scale
+            ):
                 hand = w
 
     def below_wrist(js):
@@ -567,15 +641,24 @@ def _match_arm(sk: Skeleton, labels: list[_Label], depth: np.ndarray, idx: list[
     clavicle = None
     if shoulder is not None:
         above_shoulder = _ancestors(sk, shoulder)
-        collars = [j for j in by_part.get("clavicle", []) + shoulder_kind
-                   if j in above_shoulder]
+        collars = [j for j in by_part.get("clavicle", []) + shoulder_kind if j in above_shoulder]
         clavicle = deepest(collars)
 
-    fingers, numbers, tips, metacarpals = _match_fingers(sk, labels, depth,
-                                                         below_wrist(finger_joints))
-    return ArmRoles(clavicle=clavicle, shoulder=shoulder, elbow=elbow, wrist=wrist, hand=hand,
-                    hand_end=hand_end, fingers=fingers, tips=tips, metacarpals=metacarpals,
-                    numbers=numbers)
+    fingers, numbers, tips, metacarpals = _match_fingers(
+        sk, labels, depth, below_wrist(finger_joints)
+    )
+    return ArmRoles(
+        clavicle=clavicle,
+        shoulder=shoulder,
+        elbow=elbow,
+        wrist=wrist,
+        hand=hand,
+        hand_end=hand_end,
+        fingers=fingers,
+        tips=tips,
+        metacarpals=metacarpals,
+        numbers=numbers,
+    )
 
 
 def _match_fingers(sk, labels, depth, joints):
@@ -622,8 +705,10 @@ def normalize_overrides(overrides: dict, source: str = "roles") -> dict[str, str
     ``ParameterError`` names the bad key or value.
     """
     if not isinstance(overrides, dict):
-        raise ParameterError(f"{source}: expected an object {{\"right.wrist\": \"NAME\"}}, "
-                             f"got {type(overrides).__name__}")
+        raise ParameterError(
+            f'{source}: expected an object {{"right.wrist": "NAME"}}, '
+            f"got {type(overrides).__name__}"
+        )
     flat: dict[str, str | None] = {}
     for key, value in overrides.items():
         if key in SIDES and isinstance(value, dict):
@@ -635,11 +720,16 @@ def normalize_overrides(overrides: dict, source: str = "roles") -> dict[str, str
         side, _, role = key.partition(".")
         if side not in SIDES or role not in ROLE_NAMES:
             close = difflib.get_close_matches(role or side, ROLE_NAMES, n=3)
-            hint = f" (did you mean {', '.join(f'{side}.{c}' for c in close)}?)" if close and \
-                side in SIDES else ""
-            raise ParameterError(f"{source}: key {key!r} is not '<right|left>.<role>' with a role "
-                                 f"from: {', '.join(ARM_ROLES)}, thumb1..pinky3, <finger>_tip, "
-                                 f"<finger>_metacarpal{hint}")
+            hint = (
+                f" (did you mean {', '.join(f'{side}.{c}' for c in close)}?)"
+                if close and side in SIDES
+                else ""
+            )
+            raise ParameterError(
+                f"{source}: key {key!r} is not '<right|left>.<role>' with a role "
+                f"from: {', '.join(ARM_ROLES)}, thumb1..pinky3, <finger>_tip, "
+                f"<finger>_metacarpal{hint}"
+            )
         if value is not None and not isinstance(value, str):
             raise ParameterError(f"{source}: {key}: expected a joint name or null, got {value!r}")
     return flat
@@ -668,24 +758,27 @@ def read_roles_json(path: str | Path):
     with open(path, "rb") as f:
         raw = f.read(MAX_ROLES_BYTES + 1)
     if len(raw) > MAX_ROLES_BYTES:
-        raise ParameterError(f"{path.name}: more than {MAX_ROLES_BYTES:,} bytes; a roles map is "
-                             "a small JSON object")
+        raise ParameterError(
+            f"{path.name}: more than {MAX_ROLES_BYTES:,} bytes; a roles map is a small JSON object"
+        )
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
-        raise ParameterError(f"{path.name}: not UTF-8 text (byte at offset {exc.start})") \
-            from None
+        raise ParameterError(f"{path.name}: not UTF-8 text (byte at offset {exc.start})") from None
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:
         raise ParameterError(f"{path.name} line {exc.lineno}: invalid JSON ({exc.msg})") from None
     except RecursionError:
-        raise ParameterError(f"{path.name}: JSON nested too deeply; a roles map is "
-                             '{"right.wrist": "JointName", ...}') from None
+        raise ParameterError(
+            f"{path.name}: JSON nested too deeply; a roles map is "
+            '{"right.wrist": "JointName", ...}'
+        ) from None
 
 
-def _apply_overrides(sk: Skeleton, arms: dict[str, ArmRoles], source: dict[str, str],
-                     flat: dict[str, str | None]) -> None:
+def _apply_overrides(
+    sk: Skeleton, arms: dict[str, ArmRoles], source: dict[str, str], flat: dict[str, str | None]
+) -> None:
     for side in SIDES:
         mine = {k.partition(".")[2]: v for k, v in flat.items() if k.startswith(side + ".")}
         if not mine:
@@ -714,7 +807,9 @@ def _apply_overrides(sk: Skeleton, arms: dict[str, ArmRoles], source: dict[str, 
             **values,
             fingers={f: [fingers[f][k] for k in sorted(fingers[f])] for f in FINGERS},
             numbers={f: sorted(fingers[f]) for f in FINGERS},
-            tips=tips, metacarpals=metacarpals)
+            tips=tips,
+            metacarpals=metacarpals,
+        )
         source[side] = "override"
 
 
@@ -741,19 +836,23 @@ _ROLE_SPELLINGS = {
 }
 
 
-def nearest_names(names: tuple[str, ...] | list[str], side: str, role: str, n: int = 5
-                  ) -> list[str]:
+def nearest_names(
+    names: tuple[str, ...] | list[str], side: str, role: str, n: int = 5
+) -> list[str]:
     """The joint names most like ``role`` on ``side`` (for error messages)."""
     _check_role(role)
     if role in _ROLE_SPELLINGS:
         words = _ROLE_SPELLINGS[role]
     else:
         finger = next(f for f in FINGERS if role.startswith(f))
-        suffix = role[len(finger):].lstrip("_")
+        suffix = role[len(finger) :].lstrip("_")
         words = [f"Hand{finger.title()}{suffix}", f"{finger.title()}{suffix}"]
     s, s1 = side.title(), side[0].upper()
-    spellings = {w2.lower() for w in words
-                 for w2 in (f"{s}{w}", f"{w}_{s1}", f"{s1}_{w}", f"{side[0]}{w}", f"{side}_{w}")}
+    spellings = {
+        w2.lower()
+        for w in words
+        for w2 in (f"{s}{w}", f"{w}_{s1}", f"{s1}_{w}", f"{side[0]}{w}", f"{side}_{w}")
+    }
     scored = []
     for name in names:
         flat = re.sub(r"[^a-z0-9]", "", re.split(r"[:|]", name)[-1].lower())
@@ -767,8 +866,10 @@ def _check_role(role: str) -> None:
     if role not in ROLE_NAMES:
         close = difflib.get_close_matches(role, ROLE_NAMES, n=3)
         hint = f" (did you mean {', '.join(close)}?)" if close else ""
-        raise ParameterError(f"unknown role {role!r}{hint}; roles: {', '.join(ARM_ROLES)}, "
-                             "thumb1..pinky3, <finger>_tip, <finger>_metacarpal")
+        raise ParameterError(
+            f"unknown role {role!r}{hint}; roles: {', '.join(ARM_ROLES)}, "
+            "thumb1..pinky3, <finger>_tip, <finger>_metacarpal"
+        )
 
 
 def _rest_vector(sk: Skeleton, a: int, b: int) -> np.ndarray:
@@ -840,22 +941,33 @@ class MarkerRoles:
         if index is not None:
             return index
         if self.unsided is not None and self.unsided.get(role) is not None:
-            raise RoleError(f"{side} {role.replace('_', ' ')}: the marker labels carry no side "
-                            f"({self.labels[self.unsided[role]]}); give the side (--side {side})")
-        near = difflib.get_close_matches(role.upper(), [lab.upper() for lab in self.labels],
-                                         n=5, cutoff=0.3)
+            raise RoleError(
+                f"{side} {role.replace('_', ' ')}: the marker labels carry no side "
+                f"({self.labels[self.unsided[role]]}); give the side (--side {side})"
+            )
+        near = difflib.get_close_matches(
+            role.upper(), [lab.upper() for lab in self.labels], n=5, cutoff=0.3
+        )
         hint = f"nearest labels: {', '.join(near)}" if near else "no similar labels"
-        raise RoleError(f"{side} {role.replace('_', ' ')}: no marker found among "
-                        f"{len(self.labels)} labels ({hint})")
+        raise RoleError(
+            f"{side} {role.replace('_', ' ')}: no marker found among "
+            f"{len(self.labels)} labels ({hint})"
+        )
 
     def to_dict(self) -> dict:
         def names(d):
-            return None if d is None else {r: (None if d[r] is None else self.labels[d[r]])
-                                           for r in MARKER_ROLES}
+            return (
+                None
+                if d is None
+                else {r: (None if d[r] is None else self.labels[d[r]]) for r in MARKER_ROLES}
+            )
 
-        return {"right": names(self.right), "left": names(self.left),
-                "unsided": names(self.unsided),
-                "side_source": {s: self.side_source.get(s, "") for s in SIDES}}
+        return {
+            "right": names(self.right),
+            "left": names(self.left),
+            "unsided": names(self.unsided),
+            "side_source": {s: self.side_source.get(s, "") for s in SIDES},
+        }
 
 
 def find_marker_roles(labels, side_hint: str | None = None) -> MarkerRoles:

@@ -189,8 +189,9 @@ class _Died(Exception):
 _RUNNERS = threading.local()
 
 
-def run_limited(fn: Callable, args: tuple = (), seconds: float | None = None,
-                memory_mb: float | None = None) -> Any:
+def run_limited(
+    fn: Callable, args: tuple = (), seconds: float | None = None, memory_mb: float | None = None
+) -> Any:
     """``fn(*args)`` in a forked child, stopped beyond ``seconds`` or ``memory_mb``.
 
     ``None`` or 0 means no limit. Raises ``LimitExceeded`` or ``ChildFailed``. The child
@@ -228,17 +229,20 @@ def run_limited(fn: Callable, args: tuple = (), seconds: float | None = None,
         if os.WIFSIGNALED(status):
             sig = os.WTERMSIG(status)
             if sig == signal.SIGKILL and memory_mb:
-                raise LimitExceeded(f"was killed (signal {sig}), likely out of memory "
-                                    f"(limit {memory_mb:g} MB)") from None
+                raise LimitExceeded(
+                    f"was killed (signal {sig}), likely out of memory (limit {memory_mb:g} MB)"
+                ) from None
             raise ChildFailed(f"process died (signal {sig}: a crash)") from None
         code = os.WEXITSTATUS(status) if os.WIFEXITED(status) else status
-        raise ChildFailed(f"process died (exit status {code}) before giving a result") \
-            from None
+        raise ChildFailed(f"process died (exit status {code}) before giving a result") from None
     if kind == "memory":
         _RUNNERS.runner = None  # a MemoryError may leave the child in a poor state
         runner.close(stop=True)
-        raise LimitExceeded(f"used more than the memory limit of {memory_mb:g} MB"
-                            if memory_mb else "ran out of memory")
+        raise LimitExceeded(
+            f"used more than the memory limit of {memory_mb:g} MB"
+            if memory_mb
+            else "ran out of memory"
+        )
     if kind == "error":
         raise ChildFailed(value)
     return value

@@ -28,10 +28,17 @@ def turned_and_scaled(motion, yaw_deg: float = 90.0, shift=(3.0, 0.0, -2.0), uni
     rots[:, 0] = rot.multiply(q, rots[:, 0])
     trans = motion.translations * factor
     trans[:, 0] = rot.rotate(q, trans[:, 0]) + np.asarray(shift) / UNIT_TO_METERS[unit]
-    sk = replace(motion.skeleton, offsets=motion.skeleton.offsets * factor,
-                 end_sites={j: v * factor for j, v in motion.skeleton.end_sites.items()})
-    meta = MotionMeta(units=unit, up_axis=motion.meta.up_axis, source=motion.meta.source,
-                      format=motion.meta.format)
+    sk = replace(
+        motion.skeleton,
+        offsets=motion.skeleton.offsets * factor,
+        end_sites={j: v * factor for j, v in motion.skeleton.end_sites.items()},
+    )
+    meta = MotionMeta(
+        units=unit,
+        up_axis=motion.meta.up_axis,
+        source=motion.meta.source,
+        format=motion.meta.format,
+    )
     return replace(motion, skeleton=sk, rotations=rots, translations=trans, meta=meta)
 
 
@@ -39,5 +46,10 @@ def swapped_sides(arms):
     """``BodyArms`` with right and left exchanged (a mirrored labelling)."""
     from dataclasses import replace
 
-    return replace(arms, arms={"right": replace(arms.arms["left"], side="right"),
-                               "left": replace(arms.arms["right"], side="left")})
+    return replace(
+        arms,
+        arms={
+            "right": replace(arms.arms["left"], side="right"),
+            "left": replace(arms.arms["right"], side="left"),
+        },
+    )

@@ -226,5 +226,6 @@ def is_open_path(path, n, m, max_body, max_hand):
         return False
     if not ((i1 == n - 1 and m - 1 - j1 <= max_hand) or (j1 == m - 1 and n - 1 - i1 <= max_body)):
         return False
-    return all((b[0] - a[0], b[1] - a[1]) in ((1, 0), (0, 1), (1, 1))
-               for a, b in zip(path, path[1:]))
+    return all(
+        (b[0] - a[0], b[1] - a[1]) in ((1, 0), (0, 1), (1, 1)) for a, b in zip(path, path[1:])
+    )

@@ -25,8 +25,10 @@ from engine.roles import find_roles
 from engine.splice import pipeline as P
 from engine.splice import transfer as TR
 
-MANIPNET = {"right": MOCAP / "manipnet" / "mug1_rightHand.bvh",
-            "left": MOCAP / "manipnet" / "mug1_leftHand.bvh"}
+MANIPNET = {
+    "right": MOCAP / "manipnet" / "mug1_rightHand.bvh",
+    "left": MOCAP / "manipnet" / "mug1_leftHand.bvh",
+}
 
 
 @pytest.fixture(scope="module")
@@ -57,8 +59,12 @@ def _thumb_errors(body, hand, side):
     po, go = forward_kinematics(out)
     sp = plan.sides[0]
     fb, fh = sp.body_frame, sp.hand_frame
-    thumb = [fm for fm in sp.mapped if fm.hand in feats.hand.skeleton.descendants(
-        feats.hand_roles.side(side).fingers["thumb"][0])]
+    thumb = [
+        fm
+        for fm in sp.mapped
+        if fm.hand
+        in feats.hand.skeleton.descendants(feats.hand_roles.side(side).fingers["thumb"][0])
+    ]
     errors = []
     # every driven thumb joint to the next: the hand's own bones (CMC_FE -> CMC_AA ...)
     for f0, f1 in zip(thumb, thumb[1:]):
@@ -145,11 +151,17 @@ def _flat_hand(tmp_path):
     """A ManipNet skeleton squashed into one plane, at rest: no geometry tells its side."""
     hand = read_bvh(MANIPNET["right"])
     sk = hand.skeleton
-    flat = replace(sk, offsets=sk.offsets * [1.0, 1.0, 0.0],
-                   end_sites={j: v * [1.0, 1.0, 0.0] for j, v in sk.end_sites.items()})
-    take = replace(hand.frames(0, 90), skeleton=flat,
-                   rotations=rot.identity((90, sk.n_joints)),
-                   translations=np.broadcast_to(flat.offsets, (90, sk.n_joints, 3)).copy())
+    flat = replace(
+        sk,
+        offsets=sk.offsets * [1.0, 1.0, 0.0],
+        end_sites={j: v * [1.0, 1.0, 0.0] for j, v in sk.end_sites.items()},
+    )
+    take = replace(
+        hand.frames(0, 90),
+        skeleton=flat,
+        rotations=rot.identity((90, sk.n_joints)),
+        translations=np.broadcast_to(flat.offsets, (90, sk.n_joints, 3)).copy(),
+    )
     path = tmp_path / "hand.bvh"
     path.write_text(format_bvh(take))
     return path
@@ -162,8 +174,20 @@ def test_undecided_side_is_a_clear_error_naming_side(tmp_path, beat):
         P.splice(beat, hand)
     body = tmp_path / "body.bvh"
     write_bvh(beat.frames(0, 90), body)
-    proc = subprocess.run([sys.executable, "-m", "engine.cli", "splice", str(body), str(path),
-                           "-o", str(tmp_path / "out.bvh")], capture_output=True, text=True)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "engine.cli",
+            "splice",
+            str(body),
+            str(path),
+            "-o",
+            str(tmp_path / "out.bvh"),
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert proc.returncode == 2, proc.stderr
     assert "--side" in proc.stderr and "Traceback" not in proc.stderr
     errors = [line for line in proc.stderr.splitlines() if "error" in line]
@@ -183,7 +207,7 @@ def test_wrist_keeps_no_end_site_stub_once_fingers_are_grafted(tmp_path):
     text = path.read_text().splitlines()
     start = next(i for i, line in enumerate(text) if line.strip() == "JOINT RightHand")
     depth, block = 0, []
-    for line in text[start + 1:]:  # RightHand's own lines, children's blocks skipped
+    for line in text[start + 1 :]:  # RightHand's own lines, children's blocks skipped
         s = line.strip()
         if s == "{":
             depth += 1
@@ -229,15 +253,23 @@ def test_geometric_side_ignores_units_and_orientation():
     hand = mirror_take(_manipnet("right", 300))  # back to right-handed axes: a right hand
     arm = find_roles(hand.skeleton, side_hint="right").right
     assert geometric_side(hand, arm).side == "right"
-    turn = rot.from_axis_angle(np.array([0.3, 0.5, 0.8]) / np.linalg.norm([0.3, 0.5, 0.8]),
-                               np.radians(120.0))
+    turn = rot.from_axis_angle(
+        np.array([0.3, 0.5, 0.8]) / np.linalg.norm([0.3, 0.5, 0.8]), np.radians(120.0)
+    )
     rots, trans = hand.rotations.copy(), hand.translations * 100.0
     root = 0
     rots[:, root] = rot.multiply(turn, rots[:, root])
     trans[:, root] = rot.rotate(turn, trans[:, root])
     sk = hand.skeleton
-    moved = replace(hand, rotations=rots, translations=trans,
-                    skeleton=replace(sk, offsets=sk.offsets * 100.0,
-                                     end_sites={j: v * 100.0 for j, v in sk.end_sites.items()}))
+    moved = replace(
+        hand,
+        rotations=rots,
+        translations=trans,
+        skeleton=replace(
+            sk,
+            offsets=sk.offsets * 100.0,
+            end_sites={j: v * 100.0 for j, v in sk.end_sites.items()},
+        ),
+    )
     assert geometric_side(moved, arm).side == "right"
     assert geometric_side(mirror_take(moved, axis=2), arm).side == "left"

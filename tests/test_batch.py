@@ -28,11 +28,16 @@ from engine.io.bvh import read_bvh, write_bvh
 pytestmark = pytest.mark.timeout(300, method="thread")
 
 # body takes (no fingers) x hand takes (Leap Motion right hands), as in sample_data
-BODIES = ["bandai-namco/dataset-2_wave-right-hand_normal_001.bvh",
-          "bandai-namco/dataset-2_raise-up-right-hand_normal_001.bvh",
-          "bandai-namco/dataset-1_bye_normal_001.bvh"]
-HANDS = ["gestification/hello-world.bvh", "gestification/gesture-pointing.bvh",
-         "gestification/fingers-ok.bvh"]
+BODIES = [
+    "bandai-namco/dataset-2_wave-right-hand_normal_001.bvh",
+    "bandai-namco/dataset-2_raise-up-right-hand_normal_001.bvh",
+    "bandai-namco/dataset-1_bye_normal_001.bvh",
+]
+HANDS = [
+    "gestification/hello-world.bvh",
+    "gestification/gesture-pointing.bvh",
+    "gestification/fingers-ok.bvh",
+]
 CROP_BODY, CROP_HAND = 50, 60  # frames: the whole batch stays well under a minute
 
 
@@ -53,12 +58,13 @@ def takes(tmp_path_factory) -> Path:
         _crop(MOCAP / name, folder / "hands" / Path(name).name, CROP_HAND)
     # the deliberately broken pair's body: a take cut off in the middle of a data row
     text = (folder / "bodies" / Path(BODIES[0]).name).read_text(encoding="utf-8")
-    (folder / "bodies" / "broken.bvh").write_text(text[:len(text) * 2 // 3], encoding="utf-8")
+    (folder / "bodies" / "broken.bvh").write_text(text[: len(text) * 2 // 3], encoding="utf-8")
     return folder
 
 
-def _write_manifest(folder: Path, rows: list[str], header: str = "body,hand,side,band,match,name"
-                    ) -> Path:
+def _write_manifest(
+    folder: Path, rows: list[str], header: str = "body,hand,side,band,match,name"
+) -> Path:
     path = folder / "manifest.csv"
     path.write_text(header + "\n" + "\n".join(rows) + "\n", encoding="utf-8")
     return path
@@ -146,8 +152,13 @@ def test_batch_on_two_worker_cluster_then_resume(takes, tmp_path, capsys):
 
 
 def test_run_pair_records_errors_without_raising(takes, tmp_path):
-    job = PairJob(line=2, name="nohand", body=str(takes / "bodies" / Path(BODIES[0]).name),
-                  hand=str(takes / "bodies" / Path(BODIES[1]).name), side="right")
+    job = PairJob(
+        line=2,
+        name="nohand",
+        body=str(takes / "bodies" / Path(BODIES[0]).name),
+        hand=str(takes / "bodies" / Path(BODIES[1]).name),
+        side="right",
+    )
     rec = run_pair(job, tmp_path, thumbnails="none")  # a body as the hand: no fingers
     assert rec["status"] == "failed" and rec["error"] and "\n" not in rec["error"]
     assert not (tmp_path / MARKER_DIR / "nohand.json").exists()
@@ -155,35 +166,53 @@ def test_run_pair_records_errors_without_raising(takes, tmp_path):
     def explode(body, hand, job):
         raise ZeroDivisionError("a bug")
 
-    rec = run_pair(PairJob(**{**job.__dict__, "hand": str(takes / "hands" /
-                                                           Path(HANDS[0]).name)}),
-                   tmp_path, thumbnails="none", splice=explode)
+    rec = run_pair(
+        PairJob(**{**job.__dict__, "hand": str(takes / "hands" / Path(HANDS[0]).name)}),
+        tmp_path,
+        thumbnails="none",
+        splice=explode,
+    )
     assert rec["status"] == "failed" and rec["error"].startswith("ZeroDivisionError: a bug [")
 
 
 # ---------------------------------------------------------------- manifest errors
 
 
-@pytest.mark.parametrize("text, line, words", [
-    ("body,hand\na.bvh,b.bvh\n", 1, "missing column side"),
-    ("body,hand,sde\na.bvh,b.bvh,right\n", 1, "unknown column 'sde'"),
-    ("body,hand,side,side\n", 1, "appears twice"),
-    ("body,hand,side\na.bvh,b.bvh,right\n\na.bvh,b.bvh,up\n", 4, "side: expected right, left, both or auto"),
-    ("body,hand,side,band\na.bvh,b.bvh,right,1.5\n", 2, "band: expected a fraction of the body take"),
-    ("body,hand,side,band\na.bvh,b.bvh,right,nan\n", 2, "band"),
-    ("body,hand,side,refine_band\na.bvh,b.bvh,right,x\n", 2, "refine_band"),
-    ("body,hand,side,match\na.bvh,b.bvh,right,12\n", 2, "match[0]: expected BODY:HAND"),
-    ("body,hand,side,match\na.bvh,b.bvh,right,10:5;8:9\n", 2, "match[1]: 8:9 is out of order"),
-    ("body,hand,side,match\na.bvh,b.bvh,right,1:x\n", 2, "match[0].hand: expected a whole frame number"),
-    ("body,hand,side,match\na.bvh,b.bvh,right,1:2:-3\n", 2, "from 0 to 500"),
-    ("body,hand,side\n,b.bvh,right\n", 2, "body: empty"),
-    ("body,hand,side,name\na.bvh,b.bvh,right,x\nc.bvh,d.bvh,left,x\n", 3, "already used"),
-    ("body,hand,side,name\na.bvh,b.bvh,right,../../etc/x\n", 2, "name"),
-    ("body,hand,side\na.bvh,b.bvh,right,extra\n", 2, "4 values for 3 columns"),
-    ("body,hand,side\n", None, "no pairs"),
-    ("", None, "empty manifest"),
-    ('body,hand,side\n"a.bvh,b.bvh,right\n', None, "not valid CSV"),
-])
+@pytest.mark.parametrize(
+    "text, line, words",
+    [
+        ("body,hand\na.bvh,b.bvh\n", 1, "missing column side"),
+        ("body,hand,sde\na.bvh,b.bvh,right\n", 1, "unknown column 'sde'"),
+        ("body,hand,side,side\n", 1, "appears twice"),
+        (
+            "body,hand,side\na.bvh,b.bvh,right\n\na.bvh,b.bvh,up\n",
+            4,
+            "side: expected right, left, both or auto",
+        ),
+        (
+            "body,hand,side,band\na.bvh,b.bvh,right,1.5\n",
+            2,
+            "band: expected a fraction of the body take",
+        ),
+        ("body,hand,side,band\na.bvh,b.bvh,right,nan\n", 2, "band"),
+        ("body,hand,side,refine_band\na.bvh,b.bvh,right,x\n", 2, "refine_band"),
+        ("body,hand,side,match\na.bvh,b.bvh,right,12\n", 2, "match[0]: expected BODY:HAND"),
+        ("body,hand,side,match\na.bvh,b.bvh,right,10:5;8:9\n", 2, "match[1]: 8:9 is out of order"),
+        (
+            "body,hand,side,match\na.bvh,b.bvh,right,1:x\n",
+            2,
+            "match[0].hand: expected a whole frame number",
+        ),
+        ("body,hand,side,match\na.bvh,b.bvh,right,1:2:-3\n", 2, "from 0 to 500"),
+        ("body,hand,side\n,b.bvh,right\n", 2, "body: empty"),
+        ("body,hand,side,name\na.bvh,b.bvh,right,x\nc.bvh,d.bvh,left,x\n", 3, "already used"),
+        ("body,hand,side,name\na.bvh,b.bvh,right,../../etc/x\n", 2, "name"),
+        ("body,hand,side\na.bvh,b.bvh,right,extra\n", 2, "4 values for 3 columns"),
+        ("body,hand,side\n", None, "no pairs"),
+        ("", None, "empty manifest"),
+        ('body,hand,side\n"a.bvh,b.bvh,right\n', None, "not valid CSV"),
+    ],
+)
 def test_manifest_errors_name_the_line(tmp_path, text, line, words):
     with pytest.raises(ManifestError) as info:
         parse_manifest(text, tmp_path / "m.csv")
@@ -195,9 +224,11 @@ def test_manifest_errors_name_the_line(tmp_path, text, line, words):
 
 def test_manifest_paths_defaults_and_names(tmp_path):
     (tmp_path / "sub").mkdir()
-    text = ("# a comment line\nBody , Hand,Side,band,match\n"
-            "takes/a.bvh,/abs/h.bvh,RIGHT,,\n"
-            "takes/a.bvh,/abs/h.bvh,right,0.25,3:4:1 9:10\n")
+    text = (
+        "# a comment line\nBody , Hand,Side,band,match\n"
+        "takes/a.bvh,/abs/h.bvh,RIGHT,,\n"
+        "takes/a.bvh,/abs/h.bvh,right,0.25,3:4:1 9:10\n"
+    )
     jobs = parse_manifest(text, tmp_path / "sub" / "m.csv")
     assert jobs[0].body == str((tmp_path / "sub" / "takes" / "a.bvh").resolve())
     assert jobs[0].hand == "/abs/h.bvh" and jobs[0].side == "right"
@@ -209,12 +240,15 @@ def test_manifest_paths_defaults_and_names(tmp_path):
 
 def test_cli_manifest_error_is_one_line_exit_2(tmp_path, capsys):
     manifest = tmp_path / "pairs.csv"
-    manifest.write_text("body,hand,side\na.bvh,b.bvh,right\na.bvh,b.bvh,sideways\n",
-                        encoding="utf-8")
+    manifest.write_text(
+        "body,hand,side\na.bvh,b.bvh,right\na.bvh,b.bvh,sideways\n", encoding="utf-8"
+    )
     assert main(["batch", str(manifest), "-o", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip()
-    assert err == ("handsplice: error: pairs.csv line 3: side: expected right, left, both or "
-                   "auto, got 'sideways'")
+    assert err == (
+        "handsplice: error: pairs.csv line 3: side: expected right, left, both or "
+        "auto, got 'sideways'"
+    )
     assert not (tmp_path / "o").exists()  # nothing ran
     assert main(["batch", str(tmp_path / "none.csv"), "-o", str(tmp_path / "o")]) == 2
     assert "none.csv" in capsys.readouterr().err
@@ -246,16 +280,48 @@ def test_scheduler_address_and_a_dying_worker(takes, tmp_path, capsys, one_worke
     cluster, client = one_worker_cluster
     b = [f"bodies/{Path(n).name}" for n in BODIES]
     h = [f"hands/{Path(n).name}" for n in HANDS]
-    manifest = _write_manifest(takes, [f"{b[0]},{h[0]},right,,,first",
-                                       f"{b[1]},{h[1]},right,,,dies",
-                                       f"{b[2]},{h[2]},right,,,last"])
+    manifest = _write_manifest(
+        takes,
+        [
+            f"{b[0]},{h[0]},right,,,first",
+            f"{b[1]},{h[1]},right,,,dies",
+            f"{b[2]},{h[2]},right,,,last",
+        ],
+    )
     out = tmp_path / "out"
     # the CLI with --scheduler: the cluster's own worker runs the pairs
-    assert main(["batch", str(manifest), "-o", str(out), "--scheduler",
-                 cluster.scheduler_address, "--thumbnails", "stick", "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "batch",
+                str(manifest),
+                "-o",
+                str(out),
+                "--scheduler",
+                cluster.scheduler_address,
+                "--thumbnails",
+                "stick",
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     assert {r["status"] for r in _summary(out).values()} == {"done"}
-    assert main(["batch", str(manifest), "-o", str(out), "--scheduler",
-                 cluster.scheduler_address, "--workers", "2"]) == 2
+    assert (
+        main(
+            [
+                "batch",
+                str(manifest),
+                "-o",
+                str(out),
+                "--scheduler",
+                cluster.scheduler_address,
+                "--workers",
+                "2",
+            ]
+        )
+        == 2
+    )
     assert "--workers applies to the local cluster" in capsys.readouterr().err
 
     def splice_or_die(body, hand, job):

@@ -31,8 +31,10 @@ def server(tmp_path_factory):
         return
     uploads = tmp_path_factory.mktemp("uploads")
     log_path = tmp_path_factory.mktemp("log") / "serve.log"
-    with log_path.open("w+") as log, running_server("--upload-dir", str(uploads),
-                                                    log=log) as (url, _):
+    with (
+        log_path.open("w+") as log,
+        running_server("--upload-dir", str(uploads), log=log) as (url, _),
+    ):
         SERVER_LOG["path"] = log_path
         yield url
 
@@ -57,7 +59,8 @@ def _open(browser, url: str):
     page.wait_for_function(
         "() => window.Bokeh && Bokeh.documents.length && "
         "Bokeh.documents[0].get_model_by_name('hs-path-source')?.data.x?.length > 0",
-        timeout=60_000)
+        timeout=60_000,
+    )
     page.evaluate(PAGE_HELPERS)
     page.errors = errors
     return page
@@ -68,7 +71,8 @@ def _text(locator) -> str:
     return locator.evaluate(
         "e => [...(e.shadowRoot ? e.shadowRoot.children : []), ...e.children]"
         ".filter(c => c.tagName !== 'STYLE' && c.tagName !== 'LINK')"
-        ".map(c => c.innerText).join(' ')")
+        ".map(c => c.innerText).join(' ')"
+    )
 
 
 def _status(page) -> str:
@@ -95,19 +99,25 @@ def _wait_tolerances(page, expected: list) -> None:
     """Poll the matching points' tolerance column in the page until it equals ``expected``."""
     page.wait_for_function(
         "(want) => JSON.stringify(hs.cols('hs-points-source', ['tol']).tol) === want",
-        arg=json.dumps(expected), timeout=30_000)
+        arg=json.dumps(expected),
+        timeout=30_000,
+    )
 
 
 def _wait_changed(page, source: str, keys: list[str], old: dict) -> None:
     """Poll a Bokeh data source in the page until its columns differ from ``old``."""
     page.wait_for_function(
         "([name, keys, old]) => JSON.stringify(hs.cols(name, keys)) !== old",
-        arg=[source, keys, json.dumps(old, separators=(",", ":"))], timeout=30_000)
+        arg=[source, keys, json.dumps(old, separators=(",", ":"))],
+        timeout=30_000,
+    )
 
 
 def _edit_cell(page, field: str, row: int = 0):
     """Open the editor of a points-table cell; returns the editor's input."""
-    cell = page.locator(".hs-points .tabulator-row").nth(row).locator(f"[tabulator-field='{field}']")
+    cell = (
+        page.locator(".hs-points .tabulator-row").nth(row).locator(f"[tabulator-field='{field}']")
+    )
     editors = page.locator(".hs-points .tabulator-row input")
     for _ in range(5):  # the table may be re-rendered by a recompute: retry on a fresh cell
         try:
@@ -126,8 +136,7 @@ def _edit_cell(page, field: str, row: int = 0):
 
 def _close_editors(page) -> None:
     """Wait until no table editor is open (an open one would commit when focus moves)."""
-    page.locator(".hs-points .tabulator-row input").first.wait_for(state="detached",
-                                                                   timeout=10_000)
+    page.locator(".hs-points .tabulator-row input").first.wait_for(state="detached", timeout=10_000)
 
 
 def _drag(page, x0, y0, x1, y1) -> None:
@@ -281,8 +290,9 @@ def test_download_bvh_and_session(page, tmp_path):
     info.value.save_as(spath)
     data = json.loads(spath.read_text())
     pts = page.evaluate("hs.cols('hs-points-source', ['x', 'y'])")
-    assert [(p["body"], p["hand"]) for p in data["points"]] == \
-        [(round(x), round(y)) for x, y in zip(pts["x"], pts["y"])]
+    assert [(p["body"], p["hand"]) for p in data["points"]] == [
+        (round(x), round(y)) for x, y in zip(pts["x"], pts["y"])
+    ]
     from engine.io.session import read_session
 
     assert read_session(spath).sample == data["inputs"]["sample"]
@@ -346,8 +356,10 @@ def test_download_preview_gif(page, browser, server, tmp_path):
 
 def test_shared_url_restores_the_session(page, browser):
     pts = page.evaluate("hs.cols('hs-points-source', ['x', 'y', 'tol'])")
-    want = "pts=" + ",".join(f"{x:g}:{y:g}" + ("" if t is None else f":{t:g}")
-                             for x, y, t in zip(pts["x"], pts["y"], pts["tol"]))
+    want = "pts=" + ",".join(
+        f"{x:g}:{y:g}" + ("" if t is None else f":{t:g}")
+        for x, y, t in zip(pts["x"], pts["y"], pts["tol"])
+    )
     link = page.locator(".hs-share-url input")
     deadline = time.monotonic() + 30
     while want not in (url := link.input_value()):  # the link follows every edit
@@ -432,7 +444,9 @@ def test_band_and_global_tolerance_sliders_change_the_band(browser, server):
         _wait_revision(other, rev)
         status = _settle(other)
         assert _band_cells(status) > cells2, (
-            status, other.evaluate("hs.cols('hs-tol-source', ['x', 'y0', 'y1'])"))
+            status,
+            other.evaluate("hs.cols('hs-tol-source', ['x', 'y0', 'y1'])"),
+        )
         assert not other.errors, other.errors
     finally:
         other.context.close()
@@ -465,8 +479,12 @@ def _table_points(page) -> list[tuple[int, int]]:
     out = []
     for k in range(rows.count()):
         row = rows.nth(k)
-        out.append(tuple(int(float(row.locator(f"[tabulator-field='{f}']").inner_text()))
-                         for f in ("body frame", "hand frame")))
+        out.append(
+            tuple(
+                int(float(row.locator(f"[tabulator-field='{f}']").inner_text()))
+                for f in ("body frame", "hand frame")
+            )
+        )
     return out
 
 
@@ -512,13 +530,20 @@ def test_quick_clicks_and_a_drag_all_reach_the_session(browser, server, tmp_path
         want = [tuple(c) for c in want]
         deadline = time.monotonic() + 60
         while True:  # every edit answered, and the page shows the session's five points
-            shown = page.evaluate("() => [hs.cols('hs-points-source', ['x', 'y']),"
-                                  " hs.model('hs-points-source')._hs?.pending.length ?? -1]")
+            shown = page.evaluate(
+                "() => [hs.cols('hs-points-source', ['x', 'y']),"
+                " hs.model('hs-points-source')._hs?.pending.length ?? -1]"
+            )
             got = sorted((round(x), round(y)) for x, y in zip(shown[0]["x"], shown[0]["y"]))
             if got == want and shown[1] == 0:
                 break
-            assert time.monotonic() < deadline, (got, want, shown, _status(page),
-                                                 _text(page.locator(".hs-error")))
+            assert time.monotonic() < deadline, (
+                got,
+                want,
+                shown,
+                _status(page),
+                _text(page.locator(".hs-error")),
+            )
             page.wait_for_timeout(100)
         deadline = time.monotonic() + 30
         while "5 matching points" not in _status(page) or _table_points(page) != want:
@@ -543,8 +568,7 @@ FIGURES = __import__("pathlib").Path(__file__).resolve().parents[1] / "benchmark
 
 def _open_wide(browser, url: str):
     """A page on a wide screen (1920 x 1080), where matrix and preview sit side by side."""
-    context = browser.new_context(viewport={"width": 1920, "height": 1080},
-                                  accept_downloads=True)
+    context = browser.new_context(viewport={"width": 1920, "height": 1080}, accept_downloads=True)
     page = context.new_page()
     errors: list[str] = []
     page.on("pageerror", lambda e: errors.append(f"pageerror: {e}"))
@@ -553,7 +577,8 @@ def _open_wide(browser, url: str):
     page.wait_for_function(
         "() => window.Bokeh && Bokeh.documents.length && "
         "Bokeh.documents[0].get_model_by_name('hs-path-source')?.data.x?.length > 0",
-        timeout=120_000)
+        timeout=120_000,
+    )
     page.evaluate(PAGE_HELPERS)
     page.errors = errors
     return page
@@ -562,7 +587,8 @@ def _open_wide(browser, url: str):
 def _tooltip(page, needle: str) -> str:
     """The text of the shown hover tooltip that contains ``needle`` (searched through the
     shadow roots Bokeh draws into)."""
-    return page.evaluate("""(needle) => {
+    return page.evaluate(
+        """(needle) => {
       const walk = (root) => {
         for (const el of root.querySelectorAll('*')) {
           if (el.classList && [...el.classList].some(c => c.includes('tooltip'))
@@ -572,7 +598,9 @@ def _tooltip(page, needle: str) -> str:
         return null;
       };
       return walk(document) ?? '';
-    }""", needle)
+    }""",
+        needle,
+    )
 
 
 def _hover_text(page, x: float, y: float, needle: str) -> str:
@@ -593,8 +621,9 @@ def _png_coverage(src: str) -> float:
     import numpy as np
     from PIL import Image
 
-    img = np.asarray(Image.open(io.BytesIO(base64.b64decode(src.split(",", 1)[1])))
-                     .convert("RGB")).astype(int)
+    img = np.asarray(
+        Image.open(io.BytesIO(base64.b64decode(src.split(",", 1)[1]))).convert("RGB")
+    ).astype(int)
     return float((np.abs(img - img[0, 0]).sum(axis=2) > 40).mean())
 
 
@@ -632,7 +661,7 @@ def test_one_frame_numbering_from_hover_to_session_file(browser, server, tmp_pat
         while len(_table_points(page)) != 1:
             assert time.monotonic() < deadline
             page.wait_for_timeout(100)
-        (tb, th), = _table_points(page)
+        ((tb, th),) = _table_points(page)
         assert tb == x and abs(th - y) <= 1 and th > 184
         hover = _hover_text(page, tb, th, "matching point")
         assert f"body frame {tb} · hand frame {th}" in hover, hover
@@ -653,7 +682,8 @@ def test_one_frame_numbering_from_hover_to_session_file(browser, server, tmp_pat
         info.value.save_as(spath)
         data = json.loads(spath.read_text())
         assert data["version"] == 2 and data["points"] == [
-            {"body": tb, "hand": th, "tolerance": None}]
+            {"body": tb, "hand": th, "tolerance": None}
+        ]
         # the caption names the hand frame the matrix's frame marker sits on
         page.locator(".hs-click-mode button", has_text="Pick frames").click()
         page.wait_for_function("() => hs.model('hs-point-tool').add === false")
@@ -663,8 +693,7 @@ def test_one_frame_numbering_from_hover_to_session_file(browser, server, tmp_pat
         shown = int(caption.get_attribute("data-hand-frame"))
         marker = page.evaluate("hs.cols('hs-frame-source', ['x', 'y'])")
         assert marker == {"x": [tb], "y": [shown]}
-        assert f"hand frame {shown} ({shown / rates['hand_fps'][0]:.2f} s)" in \
-            caption.inner_text()
+        assert f"hand frame {shown} ({shown / rates['hand_fps'][0]:.2f} s)" in caption.inner_text()
         assert abs(shown - th) <= 3  # the merged warp passes the point (T = 0) closely
         page.locator(".hs-click-mode button", has_text="Edit points").click()
         page.wait_for_function("() => hs.model('hs-point-tool').add === true")
@@ -683,8 +712,17 @@ def test_legends_and_hand_closeup(browser, server):
     page = _open_wide(browser, server + "?frame=75")  # mid-wave: the hand is up
     try:
         legend = _text(page.locator(".hs-legends"))
-        for words in ("P preparation", "S stroke", "H hold", "R retraction", "wrist speed",
-                      "colour bar", "band", "optimal path", "matching points"):
+        for words in (
+            "P preparation",
+            "S stroke",
+            "H hold",
+            "R retraction",
+            "wrist speed",
+            "colour bar",
+            "band",
+            "optimal path",
+            "matching points",
+        ):
             assert words in legend, (words, legend)
         assert page.evaluate("hs.model('hs-colorbar').title") == "cost"
         keys = page.locator(".hs-legend .hs-phase-key")
@@ -694,8 +732,10 @@ def test_legends_and_hand_closeup(browser, server):
         closeup.wait_for(timeout=120_000)
         full = page.locator(".hs-preview-image img").get_attribute("src")
         near = closeup.get_attribute("src")
-        assert _png_coverage(near) > 1.5 * _png_coverage(full), (_png_coverage(near),
-                                                                 _png_coverage(full))
+        assert _png_coverage(near) > 1.5 * _png_coverage(full), (
+            _png_coverage(near),
+            _png_coverage(full),
+        )
         page.locator(".hs-preview").first.scroll_into_view_if_needed()
         page.wait_for_timeout(500)
         page.locator(".hs-preview").first.screenshot(path=str(FIGURES / "gallery_hand_closeup.png"))
@@ -746,7 +786,8 @@ def test_lesson_steps_by_cell_and_by_row(browser, server):
         page.locator(".hs-teaching .bk-btn", has_text="value").first.click()
         page.locator(".hs-teaching button", has_text="Finish").click()
         page.wait_for_function(
-            "() => hs.model('hs-teach-cells').data.gamma.filter(t => t).length > 20")
+            "() => hs.model('hs-teach-cells').data.gamma.filter(t => t).length > 20"
+        )
         texts = page.evaluate("hs.model('hs-teach-cells').data.gamma.filter(t => t)")
         assert max(len(t) for t in texts) <= 4, texts
         page.locator(".hs-teaching .bk-btn", has_text="sign").first.click()
@@ -763,6 +804,7 @@ def test_lesson_steps_by_cell_and_by_row(browser, server):
 def test_keyboard_undo_redo_and_one_step_per_slider_run(browser, server):
     page = _open(browser, server)
     try:
+
         def count() -> int:
             return len(page.evaluate("hs.cols('hs-points-source', ['x'])")["x"])
 
@@ -791,6 +833,7 @@ def test_keyboard_undo_redo_and_one_step_per_slider_run(browser, server):
         wait(lambda: page.evaluate("hs.cols('hs-rates', ['tol'])")["tol"] == [4], "T = 4")
         _settle(page)
         page.keyboard.press("Control+z")
+
         def tol():
             return page.evaluate("hs.cols('hs-rates', ['tol'])")["tol"]
 
@@ -807,4 +850,4 @@ def test_server_log_has_no_tracebacks(page):
     if path is None:
         pytest.skip("server not started by this test module")
     text = path.read_text(errors="replace")
-    assert "Traceback" not in text, text[text.find("Traceback"):][:3000]
+    assert "Traceback" not in text, text[text.find("Traceback") :][:3000]

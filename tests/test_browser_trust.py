@@ -19,9 +19,11 @@ def page(tmp_path_factory):
     sync_api = pytest.importorskip("playwright.sync_api")
     uploads = tmp_path_factory.mktemp("uploads")
     log_path = tmp_path_factory.mktemp("log") / "serve.log"
-    with log_path.open("w+") as log, running_server("--upload-dir", str(uploads),
-                                                    log=log, timeout=400) as (url, _), \
-            sync_api.sync_playwright() as p:
+    with (
+        log_path.open("w+") as log,
+        running_server("--upload-dir", str(uploads), log=log, timeout=400) as (url, _),
+        sync_api.sync_playwright() as p,
+    ):
         browser = launch_chromium(p)
         context = browser.new_context(viewport={"width": 1300, "height": 1000})
         pg = context.new_page()
@@ -31,7 +33,8 @@ def page(tmp_path_factory):
         pg.wait_for_function(
             "() => window.Bokeh && Bokeh.documents.length && Bokeh.documents[0]"
             ".get_model_by_name('hs-confidence-source')?.data.start?.length > 0",
-            timeout=90_000)
+            timeout=90_000,
+        )
         pg.evaluate(PAGE_HELPERS)
         pg.errors = errors
         yield pg
@@ -55,7 +58,8 @@ def test_strip_region_and_meter_follow_the_alignment(page):
     summary = page.locator(".hs-desync-summary").first.evaluate(
         "e => [...(e.shadowRoot ? e.shadowRoot.children : []), ...e.children]"
         ".filter(c => c.tagName !== 'STYLE' && c.tagName !== 'LINK')"
-        ".map(c => c.innerText).join(' ')")
+        ".map(c => c.innerText).join(' ')"
+    )
     assert "Desync meter" in summary and "stroke" in summary
     assert page.evaluate("!!hs.model('hs-confidence-strip') && !!hs.model('hs-desync-meter')")
 
@@ -67,16 +71,19 @@ def test_a_suggestion_clicked_through_to_a_placed_point(page):
     body = int(re.search(r"body frame (\d+)", text).group(1))
     button.click()
     # first click: the preview's frame moves to that moment
-    page.wait_for_function("(b) => hs.cols('hs-frame-source', ['x']).x[0] === b", arg=body,
-                           timeout=30_000)
+    page.wait_for_function(
+        "(b) => hs.cols('hs-frame-source', ['x']).x[0] === b", arg=body, timeout=30_000
+    )
     page.locator(".hs-suggestion button", has_text="Place a matching point").first.wait_for(
-        timeout=30_000)
+        timeout=30_000
+    )
     FIGURES.mkdir(exist_ok=True)
     page.locator(".hs-cost-matrix").first.scroll_into_view_if_needed()
     page.screenshot(path=str(FIGURES / "gallery_trust.png"))
     page.locator(".hs-suggestion button").first.click()
-    page.wait_for_function("(b) => hs.cols('hs-points-source', ['x']).x.includes(b)", arg=body,
-                           timeout=30_000)
+    page.wait_for_function(
+        "(b) => hs.cols('hs-points-source', ['x']).x.includes(b)", arg=body, timeout=30_000
+    )
     status = page.locator(".hs-status span")
     for _ in range(300):  # the status line follows the solve
         if "1 matching point" in status.inner_text():

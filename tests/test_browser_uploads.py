@@ -48,9 +48,17 @@ def served(tmp_path_factory):
     """(URL, upload folder, log path) of a server with a 3 MiB upload limit."""
     uploads = tmp_path_factory.mktemp("uploads")
     log_path = tmp_path_factory.mktemp("log") / "serve.log"
-    with log_path.open("w+") as log, running_server(
-            "--upload-dir", str(uploads), "--max-upload-mb", str(MAX_UPLOAD_MB),
-            log=log, timeout=SERVER_START_S) as (url, _):
+    with (
+        log_path.open("w+") as log,
+        running_server(
+            "--upload-dir",
+            str(uploads),
+            "--max-upload-mb",
+            str(MAX_UPLOAD_MB),
+            log=log,
+            timeout=SERVER_START_S,
+        ) as (url, _),
+    ):
         yield url, uploads, log_path
 
 
@@ -64,8 +72,7 @@ def browser():
 
 
 def _open(browser, url: str):
-    context = browser.new_context(viewport={"width": 1300, "height": 1000},
-                                  accept_downloads=True)
+    context = browser.new_context(viewport={"width": 1300, "height": 1000}, accept_downloads=True)
     page = context.new_page()
     errors: list[str] = []
     page.on("pageerror", lambda e: errors.append(f"pageerror: {e}"))
@@ -73,7 +80,8 @@ def _open(browser, url: str):
     page.wait_for_function(
         "() => window.Bokeh && Bokeh.documents.length && "
         "Bokeh.documents[0].get_model_by_name('hs-path-source')?.data.x?.length > 0",
-        timeout=SERVER_START_S * 1000)
+        timeout=SERVER_START_S * 1000,
+    )
     page.evaluate(PAGE_HELPERS)
     page.errors = errors
     return page
@@ -91,7 +99,8 @@ def _text(locator) -> str:
     return locator.evaluate(
         "e => [...(e.shadowRoot ? e.shadowRoot.children : []), ...e.children]"
         ".filter(c => c.tagName !== 'STYLE' && c.tagName !== 'LINK')"
-        ".map(c => c.innerText).join(' ')")
+        ".map(c => c.innerText).join(' ')"
+    )
 
 
 def _matrix_size(page) -> tuple[int, int]:
@@ -143,13 +152,16 @@ def _add_point(page, body: int, hand: int | None = None) -> None:
     rev = _revision(page)
     x, y = page.evaluate("([a, b]) => hs.xy(a, b)", [body, hand])
     page.mouse.click(x, y)
-    page.wait_for_function("n => hs.cols('hs-points-source', ['x']).x.length > n",
-                           arg=before, timeout=BUSY_S * 1000)
+    page.wait_for_function(
+        "n => hs.cols('hs-points-source', ['x']).x.length > n", arg=before, timeout=BUSY_S * 1000
+    )
     deadline = time.monotonic() + BUSY_S
     while _revision(page) <= rev:
-        assert time.monotonic() < deadline, ("no recompute after the click",
-                                             _text(page.locator(".hs-status")),
-                                             _text(page.locator(".hs-error")))
+        assert time.monotonic() < deadline, (
+            "no recompute after the click",
+            _text(page.locator(".hs-status")),
+            _text(page.locator(".hs-error")),
+        )
         page.wait_for_timeout(50)
 
 
@@ -175,8 +187,9 @@ def test_upload_a_bvh_pair_then_edit_splice_and_preview(page, tmp_path):
     body_frames = read_bvh(BODY_BVH).n_frames
     text = _upload_pair(page, BODY_BVH, HAND_BVH)
     assert BODY_BVH.name in text and HAND_BVH.name in text
-    page.wait_for_function("(n) => hs.model('hs-x-range').end === n - 0.5", arg=body_frames,
-                           timeout=BUSY_S * 1000)
+    page.wait_for_function(
+        "(n) => hs.model('hs-x-range').end === n - 0.5", arg=body_frames, timeout=BUSY_S * 1000
+    )
     assert _matrix_size(page)[0] == body_frames != n_before
     # the sample selector says an upload is open (it never loads a sample over it)
     page.wait_for_timeout(1000)
@@ -192,8 +205,7 @@ def test_upload_a_bvh_pair_then_edit_splice_and_preview(page, tmp_path):
     spliced = read_bvh(_download(page, ".hs-download-bvh", tmp_path / "spliced.bvh"))
     assert spliced.n_frames == body_frames
     hand_joints = set(read_bvh(HAND_BVH).skeleton.names)
-    assert any("Index" in j or "index" in j for j in spliced.skeleton.names), \
-        spliced.skeleton.names
+    assert any("Index" in j or "index" in j for j in spliced.skeleton.names), spliced.skeleton.names
     assert len(set(spliced.skeleton.names)) > len(read_bvh(BODY_BVH).skeleton.names)
     assert hand_joints  # the hand take had joints to give
 
@@ -211,8 +223,9 @@ def test_upload_a_marker_body_with_a_bvh_hand(page, tmp_path):
     markers = load_take(BODY_C3D)
     text = _upload_pair(page, BODY_C3D, HAND_BVH)
     assert "markers" in text and "580 frames at 100 fps" in text
-    page.wait_for_function("(n) => hs.model('hs-x-range').end === n - 0.5",
-                           arg=markers.n_frames, timeout=BUSY_S * 1000)
+    page.wait_for_function(
+        "(n) => hs.model('hs-x-range').end === n - 0.5", arg=markers.n_frames, timeout=BUSY_S * 1000
+    )
     note = page.locator(".hs-marker-note")
     note.wait_for(state="visible", timeout=BUSY_S * 1000)
     assert "no skeleton to receive fingers" in _text(note)
@@ -238,8 +251,9 @@ def test_upload_a_trc_body_opens_it(page):
     text = _upload_pair(page, BODY_TRC, HAND_BVH)
     assert BODY_TRC.name in text and "markers" in text
     frames = load_take(BODY_TRC).n_frames
-    page.wait_for_function("(n) => hs.model('hs-x-range').end === n - 0.5", arg=frames,
-                           timeout=BUSY_S * 1000)
+    page.wait_for_function(
+        "(n) => hs.model('hs-x-range').end === n - 0.5", arg=frames, timeout=BUSY_S * 1000
+    )
 
 
 def test_a_bad_file_says_why_and_the_pair_stays(page, tmp_path):
@@ -260,8 +274,11 @@ def test_a_bad_file_says_why_and_the_pair_stays(page, tmp_path):
 
 def test_a_file_over_the_limit_is_refused_by_the_browser(page, served):
     _, uploads, _ = served
-    big = {"name": "huge.bvh", "mimeType": "application/octet-stream",
-           "buffer": b"HIERARCHY\n" + b" " * int((MAX_UPLOAD_MB + 0.5) * 2**20)}
+    big = {
+        "name": "huge.bvh",
+        "mimeType": "application/octet-stream",
+        "buffer": b"HIERARCHY\n" + b" " * int((MAX_UPLOAD_MB + 0.5) * 2**20),
+    }
     before = sorted(p.name for p in uploads.iterdir())
     _upload(page, "body", big)
     page.get_by_text("File is too large").first.wait_for(timeout=BUSY_S * 1000)
@@ -271,9 +288,12 @@ def test_a_file_over_the_limit_is_refused_by_the_browser(page, served):
 
 
 def test_connection_lost_shows_a_notice_with_reload(browser, tmp_path):
-    with (tmp_path / "serve.log").open("w+") as log, running_server(
-            "--upload-dir", str(tmp_path / "up"), "--no-warm", log=log,
-            timeout=SERVER_START_S) as (url, _):
+    with (
+        (tmp_path / "serve.log").open("w+") as log,
+        running_server(
+            "--upload-dir", str(tmp_path / "up"), "--no-warm", log=log, timeout=SERVER_START_S
+        ) as (url, _),
+    ):
         page = _open(browser, url)
     # the server is stopped now
     notice = page.locator("#hs-connection-lost")
@@ -294,15 +314,19 @@ def _xss_ran(page) -> bool:
 def test_the_payload_runs_when_a_page_injects_it(page):
     """Control: the payload does set the flag when inserted as HTML (the tests below can
     fail)."""
-    page.evaluate("p => { const d = document.createElement('div'); d.innerHTML = p; "
-                  "document.body.append(d); }", PAYLOAD)
+    page.evaluate(
+        "p => { const d = document.createElement('div'); d.innerHTML = p; "
+        "document.body.append(d); }",
+        PAYLOAD,
+    )
     assert _xss_ran(page)
 
 
 def test_a_session_file_with_html_in_sample_runs_no_script(page, tmp_path):
     session = tmp_path / "session.json"
-    session.write_text(json.dumps({"format": "handsplice-session", "version": 1,
-                                   "inputs": {"sample": PAYLOAD}}))
+    session.write_text(
+        json.dumps({"format": "handsplice-session", "version": 1, "inputs": {"sample": PAYLOAD}})
+    )
     page.locator(".hs-open-session input[type=file]").set_input_files(str(session))
     alert = page.locator(".hs-share-error")
     alert.wait_for(state="visible", timeout=BUSY_S * 1000)
@@ -328,8 +352,11 @@ def test_a_duplicate_joint_name_in_html_runs_no_script(page):
     joints = re.findall(r"^\s*JOINT (\S+)", text, flags=re.M)
     hostile = text.replace(f"JOINT {joints[0]}", f"JOINT {PAYLOAD}", 1)
     hostile = hostile.replace(f"JOINT {joints[1]}", f"JOINT {PAYLOAD}", 1)
-    _upload(page, "hand", {"name": "dup.bvh", "mimeType": "application/octet-stream",
-                           "buffer": hostile.encode()})
+    _upload(
+        page,
+        "hand",
+        {"name": "dup.bvh", "mimeType": "application/octet-stream", "buffer": hostile.encode()},
+    )
     alert = page.locator(".hs-upload-error")
     alert.wait_for(state="visible", timeout=BUSY_S * 1000)
     message = _text(alert)
@@ -339,14 +366,20 @@ def test_a_duplicate_joint_name_in_html_runs_no_script(page):
 
 def test_a_file_named_like_html_runs_no_script(page):
     name = f"{PAYLOAD}.bvh"
-    _upload(page, "body", {"name": name, "mimeType": "application/octet-stream",
-                           "buffer": BODY_BVH.read_bytes()})
+    _upload(
+        page,
+        "body",
+        {"name": name, "mimeType": "application/octet-stream", "buffer": BODY_BVH.read_bytes()},
+    )
     text = _wait_uploaded(page, r"Uploaded body:.*now the other take")
     assert name in text  # the name is shown literally
     assert not _xss_ran(page)
     # the same name on a file the reader refuses: the error shows it literally too
-    _upload(page, "hand", {"name": name, "mimeType": "application/octet-stream",
-                           "buffer": b"HIERARCHY\nROOT\n"})
+    _upload(
+        page,
+        "hand",
+        {"name": name, "mimeType": "application/octet-stream", "buffer": b"HIERARCHY\nROOT\n"},
+    )
     alert = page.locator(".hs-upload-error")
     alert.wait_for(state="visible", timeout=BUSY_S * 1000)
     assert name in _text(alert)
@@ -355,4 +388,4 @@ def test_a_file_named_like_html_runs_no_script(page):
 
 def test_server_log_has_no_tracebacks(served):
     text = served[2].read_text(errors="replace")
-    assert "Traceback" not in text, text[text.find("Traceback"):][:3000]
+    assert "Traceback" not in text, text[text.find("Traceback") :][:3000]

@@ -208,7 +208,8 @@ def _variants(text: str) -> dict[str, str]:
         "blank-lines": blank,
         "bom": "\ufeff" + text,
         "lowercase-keywords": text.replace("Frame Time:", "frame time:").replace(
-            "HIERARCHY", "hierarchy"),
+            "HIERARCHY", "hierarchy"
+        ),
     }
 
 
@@ -284,8 +285,10 @@ def test_zero_and_partial_channels():
 
 def test_several_roots_and_joint_names_with_spaces():
     text = SMALL_BVH.replace("JOINT slider", "JOINT left slider")
-    text = text.replace("MOTION", "ROOT prop\n{\n OFFSET 0 0 0\n CHANNELS 3 Xposition "
-                                  "Yposition Zposition\n}\nMOTION")
+    text = text.replace(
+        "MOTION",
+        "ROOT prop\n{\n OFFSET 0 0 0\n CHANNELS 3 Xposition Yposition Zposition\n}\nMOTION",
+    )
     text = re.sub(r"(-?90)\n", r"\1 1 2 3\n", text)
     m = parse_bvh(text)
     assert m.skeleton.names[-2:] == ("left slider", "prop")
@@ -317,8 +320,9 @@ def random_bvh(draw):
     parents = [-1] + [draw(st.integers(0, j - 1)) for j in range(1, n)]
     frames = draw(st.integers(1, 4))
     rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
-    kinds = [draw(st.sampled_from(["rot3", "rot3", "six", "six", "none", "partial"]))
-             for _ in range(n)]
+    kinds = [
+        draw(st.sampled_from(["rot3", "rot3", "six", "six", "none", "partial"])) for _ in range(n)
+    ]
     chans, data_cols = [], []
     for k in kinds:
         order = draw(st.sampled_from(ORDERS))
@@ -402,8 +406,10 @@ def test_random_motion_round_trips_through_text(n, seed, orders, near_lock):
     """Motion -> text -> Motion with random quaternions (any tree order, gimbal lock too)."""
     rng = np.random.default_rng(seed)
     parents = [-1] + [int(rng.integers(0, j)) for j in range(1, n)]
-    chans = [("Xposition", "Yposition", "Zposition") + tuple(f"{a}rotation" for a in orders[j])
-             for j in range(n)]
+    chans = [
+        ("Xposition", "Yposition", "Zposition") + tuple(f"{a}rotation" for a in orders[j])
+        for j in range(n)
+    ]
     sk = Skeleton([f"b{j}" for j in range(n)], parents, rng.normal(size=(n, 3)) * 10, chans)
     f = 5
     q = rot.normalize(rng.normal(size=(f, n, 4)))
@@ -419,14 +425,21 @@ def test_random_motion_round_trips_through_text(n, seed, orders, near_lock):
     assert rot.angle_between(q, back.rotations[:, idx]).max() < ANGLE_TOL_DEG
     assert np.abs(t - back.translations[:, idx]).max() < UNIT_TOL
     np.testing.assert_array_equal(back.skeleton.offsets[idx], sk.offsets)
-    assert [back.skeleton.names[p] if p >= 0 else None for p in back.skeleton.parents[idx]] == \
-        [sk.names[p] if p >= 0 else None for p in parents]
+    assert [back.skeleton.names[p] if p >= 0 else None for p in back.skeleton.parents[idx]] == [
+        sk.names[p] if p >= 0 else None for p in parents
+    ]
 
 
 def test_writer_refuses_what_bvh_cannot_hold():
-    sk = Skeleton(["a", "b"], [-1, 0], [[0, 0, 0], [1, 0, 0]],
-                  [("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation"),
-                   ("Zrotation",)])
+    sk = Skeleton(
+        ["a", "b"],
+        [-1, 0],
+        [[0, 0, 0], [1, 0, 0]],
+        [
+            ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation"),
+            ("Zrotation",),
+        ],
+    )
     q = rot.identity((1, 2))
     q[0, 1] = rot.from_euler([0, 30, 0], "XYZ")  # about X, but b only has Zrotation
     m = Motion(sk, q, np.zeros((1, 2, 3)) + [[0, 0, 0], [1, 0, 0]], 30.0)
@@ -496,20 +509,28 @@ def _malformed() -> dict[str, tuple[str, int, str]]:
         "non-numeric": (_replace_value(d + 9, 2, "abc"), d + 10, "'abc'"),
         "missing-motion": ("\n".join(lines[:motion]), motion, "no 'MOTION'"),
         "missing-hierarchy": (text.replace("HIERARCHY", ""), 2, "expected 'HIERARCHY'"),
-        "extra-brace": (text.replace("\t}\n}\nMOTION", "\t}\n}\n}\nMOTION"), motion + 1,
-                        "unbalanced"),
+        "extra-brace": (
+            text.replace("\t}\n}\nMOTION", "\t}\n}\n}\nMOTION"),
+            motion + 1,
+            "unbalanced",
+        ),
         "missing-brace": (text.replace("\t}\n}\nMOTION", "\t}\nMOTION"), motion, "unbalanced"),
         "duplicate-joint": (text.replace("JOINT rThumb2", "JOINT rThumb1"), 14, "duplicate"),
         "bad-offset": (text.replace("OFFSET -48 0 -10", "OFFSET -48 0 x"), 12, "'x'"),
         "short-offset": (text.replace("OFFSET -48 0 -10", "OFFSET -48 0"), 12, "3 numbers"),
-        "channel-count": (text.replace("CHANNELS 3 Zrotation", "CHANNELS 4 Zrotation", 1), 9,
-                          "CHANNELS 4"),
+        "channel-count": (
+            text.replace("CHANNELS 3 Zrotation", "CHANNELS 4 Zrotation", 1),
+            9,
+            "CHANNELS 4",
+        ),
         "unknown-channel": (text.replace("Zrotation", "Wrotation", 2), 5, "Wrotation"),
         "missing-frames": (text.replace("Frames: 82\n", ""), motion + 2, "'Frames: N'"),
-        "bad-frame-time": (text.replace("Frame Time: 0.027", "Frame Time: 0"), motion + 3,
-                           "positive"),
-        "absurd-frames": (text.replace("Frames: 82", "Frames: 2000001"), motion + 2,
-                          "2,000,000"),
+        "bad-frame-time": (
+            text.replace("Frame Time: 0.027", "Frame Time: 0"),
+            motion + 3,
+            "positive",
+        ),
+        "absurd-frames": (text.replace("Frames: 82", "Frames: 2000001"), motion + 2, "2,000,000"),
         "stray-word": (text.replace("\tJOINT rHand", "\tBONE rHand"), 6, "'BONE'"),
     }
 

@@ -31,8 +31,13 @@ def test_analyze_summary_json_eaf_and_csv(tmp_path, capsys):
     assert main(["analyze", str(WAVE), "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
     assert data["n_frames"] == 187 and data["fps"] == 30.0 and data["units"] == "cm"
-    assert data["phase_codes"] == {"rest": 0, "preparation": 1, "stroke": 2, "hold": 3,
-                                   "retraction": 4}
+    assert data["phase_codes"] == {
+        "rest": 0,
+        "preparation": 1,
+        "stroke": 2,
+        "hold": 3,
+        "retraction": 4,
+    }
     right = np.array(data["hands"]["right"]["labels"])
     assert len(right) == 187 and set(right) <= {0, 1, 2, 3, 4}
     assert [h["label"] for h in data["handedness"]] == ["RH"]
@@ -50,17 +55,22 @@ def test_analyze_thresholds_change_the_result(capsys):
     assert set(data["hands"]["right"]["labels"]) <= {0, 3}
 
 
-@pytest.mark.parametrize("argv, match", [
-    (["analyze", "missing.bvh"], "missing.bvh"),
-    (["analyze", str(MOCAP / "pyomeca" / "markers.trc")], "skeletal take"),
-    (["analyze", str(MOCAP / "gestification" / "clenching.bvh")], "right shoulder"),
-    (["analyze", str(WAVE), "--hold-speed", "-1"], "hold_speed"),
-    (["synthesize", str(WAVE), "-o", "{tmp}/x.bvh", "--no-graft"], "no finger joints"),
-    (["synthesize", str(BEAT), "-o", "{tmp}/x.bvh", "--poses", "claw@3"], "unknown hand pose"),
-    (["synthesize", str(BEAT), "-o", "{tmp}/x.bvh", "--poses", "fist@999"], "outside"),
-    (["synthesize", str(BEAT), "-o", "{tmp}/x.bvh", "--clip", str(CLIP), "--side", "both"],
-     "one hand"),
-])
+@pytest.mark.parametrize(
+    "argv, match",
+    [
+        (["analyze", "missing.bvh"], "missing.bvh"),
+        (["analyze", str(MOCAP / "pyomeca" / "markers.trc")], "skeletal take"),
+        (["analyze", str(MOCAP / "gestification" / "clenching.bvh")], "right shoulder"),
+        (["analyze", str(WAVE), "--hold-speed", "-1"], "hold_speed"),
+        (["synthesize", str(WAVE), "-o", "{tmp}/x.bvh", "--no-graft"], "no finger joints"),
+        (["synthesize", str(BEAT), "-o", "{tmp}/x.bvh", "--poses", "claw@3"], "unknown hand pose"),
+        (["synthesize", str(BEAT), "-o", "{tmp}/x.bvh", "--poses", "fist@999"], "outside"),
+        (
+            ["synthesize", str(BEAT), "-o", "{tmp}/x.bvh", "--clip", str(CLIP), "--side", "both"],
+            "one hand",
+        ),
+    ],
+)
 def test_bad_input_is_one_line_and_exit_2(argv, match, tmp_path, capsys):
     argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
     assert main(argv) == 2
@@ -73,16 +83,35 @@ def test_synthesize_poses_and_clip(tmp_path, capsys):
     from engine.io.bvh import read_bvh
 
     out = tmp_path / "hands.bvh"
-    assert main(["synthesize", str(BEAT), "-o", str(out), "--poses", "open@0", "fist@60",
-                 "point@-1", "--easing", "gaussian", "--side", "left"]) == 0
+    assert (
+        main(
+            [
+                "synthesize",
+                str(BEAT),
+                "-o",
+                str(out),
+                "--poses",
+                "open@0",
+                "fist@60",
+                "point@-1",
+                "--easing",
+                "gaussian",
+                "--side",
+                "left",
+            ]
+        )
+        == 0
+    )
     assert "3 key poses (gaussian) on left" in capsys.readouterr().out
     back = read_bvh(out)
     angles = extract_flexion(back, hand_rig(back.skeleton, "left"))
     np.testing.assert_allclose(angles[60], get_pose("fist").angles, atol=1e-4)
     np.testing.assert_allclose(angles[249], get_pose("point").angles, atol=1e-4)
     clip_out = tmp_path / "clip.bvh"
-    assert main(["synthesize", str(BEAT), "-o", str(clip_out), "--clip", str(CLIP),
-                 "--warp", "0.8"]) == 0
+    assert (
+        main(["synthesize", str(BEAT), "-o", str(clip_out), "--clip", str(CLIP), "--warp", "0.8"])
+        == 0
+    )
     assert "on the right hand" in capsys.readouterr().out
     assert read_bvh(clip_out).n_frames == 250
 
@@ -96,4 +125,3 @@ def test_synthesize_grafts_fingers_onto_a_body_without_them(tmp_path, capsys):
     assert "grafted" in capsys.readouterr().out
     roles = find_roles(read_bvh(out).skeleton)
     assert all(len(roles.side(s).fingers["index"]) == 3 for s in ("right", "left"))
-

@@ -45,8 +45,9 @@ def test_info_json_on_every_capture(path, capsys):
             got = report["roles"][side]
             assert {k: got[k] for k in arm} == arm, (path.name, side)
         assert report["sides"] == [s for s in ("right", "left") if expected[s]["wrist"]]
-        assert report["hand_sides"] == [s for s in ("right", "left")
-                                        if any(expected[s]["fingers"].values())]
+        assert report["hand_sides"] == [
+            s for s in ("right", "left") if any(expected[s]["fingers"].values())
+        ]
     else:
         markers = report["markers"]
         assert markers["count"] == len(markers["labels"]) == 51
@@ -78,7 +79,7 @@ def test_info_text_is_aligned(capsys):
     assert lines[0].split() == ["file", "1_wayne_0_1_1.bvh"]
     column = len(lines[0]) - len("1_wayne_0_1_1.bvh")
     for line in lines:
-        assert line[:column].strip() == "" or line[column - 2:column] == "  ", line
+        assert line[:column].strip() == "" or line[column - 2 : column] == "  ", line
         assert line[column] != " ", line
     text = {re.split(r"\s{2,}", line, maxsplit=1)[0]: line for line in lines if line[0] != " "}
     assert text["frames"].split()[-1] == "250" and text["fps"].split()[-1] == "30"
@@ -138,7 +139,7 @@ def _make_bad_inputs(folder: Path) -> dict[str, tuple[Path, str]]:
     first = _data_line(lines)
     out = {}
     path = folder / "truncated.bvh"
-    path.write_text("\n".join(lines[:first + 20]) + "\n" + lines[first + 20][:40])
+    path.write_text("\n".join(lines[: first + 20]) + "\n" + lines[first + 20][:40])
     out["truncated BVH"] = (path, f"truncated.bvh line {first + 21}: ")
     bad = list(lines)
     bad[first + 5] = " ".join(bad[first + 5].split()[:-3])
@@ -171,9 +172,17 @@ def _make_bad_inputs(folder: Path) -> dict[str, tuple[Path, str]]:
     return out
 
 
-BAD_CASES = ["truncated BVH", "wrong value count", "NaN text", "binary garbage",
-             "binary garbage c3d", "bad TRC value", "unknown extension", "missing file",
-             "empty BVH"]
+BAD_CASES = [
+    "truncated BVH",
+    "wrong value count",
+    "NaN text",
+    "binary garbage",
+    "binary garbage c3d",
+    "bad TRC value",
+    "unknown extension",
+    "missing file",
+    "empty BVH",
+]
 
 
 @pytest.mark.parametrize("case", BAD_CASES)
@@ -188,8 +197,9 @@ def test_bad_input_via_main(case, tmp_path, capsys):
 @pytest.mark.parametrize("case", BAD_CASES)
 def test_bad_input_via_console_script(case, tmp_path):
     path, fragment = _make_bad_inputs(tmp_path)[case]
-    proc = subprocess.run([str(HANDSPLICE), "info", "--json", str(path)], capture_output=True,
-                          text=True, timeout=120)
+    proc = subprocess.run(
+        [str(HANDSPLICE), "info", "--json", str(path)], capture_output=True, text=True, timeout=120
+    )
     assert proc.returncode == 2 and proc.stdout == ""
     assert proc.stderr.count("\n") == 1 and proc.stderr.startswith("handsplice: error: ")
     assert fragment in proc.stderr and "Traceback" not in proc.stderr
@@ -213,11 +223,13 @@ def test_bad_roles_file(tmp_path, capsys):
 
 def test_console_script_text_and_json():
     path = MOCAP / "gestification/hello-world.bvh"
-    proc = subprocess.run([str(HANDSPLICE), "info", str(path)], capture_output=True, text=True,
-                          timeout=120)
+    proc = subprocess.run(
+        [str(HANDSPLICE), "info", str(path)], capture_output=True, text=True, timeout=120
+    )
     assert proc.returncode == 0 and proc.stderr == ""
     assert "right fingers" in proc.stdout and "rMid1 rMid2 rMid3" in proc.stdout
-    proc = subprocess.run([str(HANDSPLICE), "info", "--json", str(path)], capture_output=True,
-                          text=True, timeout=120)
+    proc = subprocess.run(
+        [str(HANDSPLICE), "info", "--json", str(path)], capture_output=True, text=True, timeout=120
+    )
     report = json.loads(proc.stdout)
     assert report["frames"] == 82 and report["roles"]["right"]["elbow"] == "rForeArm"

@@ -85,7 +85,8 @@ def _manifest(tmp, band, refine, points, capsys):
     from engine.io import load_take
 
     text = "body,hand,side,band,refine_band,match\n" + ",".join(
-        [str(BODY), str(HAND), "right", band or "", refine or "", ";".join(_point_text(points))])
+        [str(BODY), str(HAND), "right", band or "", refine or "", ";".join(_point_text(points))]
+    )
     try:
         (job,) = batch.parse_manifest(text + "\n", tmp / "m.csv")
         motion, _ = batch.splice_pair(load_take(job.body), load_take(job.hand), job)
@@ -95,8 +96,12 @@ def _manifest(tmp, band, refine, points, capsys):
 
 
 def _session_file(tmp, band, refine, points, capsys):
-    data = {"format": "handsplice-session", "version": 1, "side": "right",
-            "points": [{"body": b, "hand": h, "tolerance": t} for b, h, t in points]}
+    data = {
+        "format": "handsplice-session",
+        "version": 1,
+        "side": "right",
+        "points": [{"body": b, "hand": h, "tolerance": t} for b, h, t in points],
+    }
     for key, value in (("band", band), ("refine_band", refine)):
         if value is not None:  # JSON: a fraction is a number, seconds a text ("3s")
             data[key] = value if value.endswith("s") else float(value)
@@ -104,8 +109,7 @@ def _session_file(tmp, band, refine, points, capsys):
     path.write_text(json.dumps(data))
     out = tmp / "session.bvh"
     capsys.readouterr()
-    code = main(["splice", str(BODY), str(HAND), "-o", str(out), "--session", str(path),
-                 "--quiet"])
+    code = main(["splice", str(BODY), str(HAND), "-o", str(out), "--session", str(path), "--quiet"])
     err = capsys.readouterr().err.strip().splitlines()
     if code != 0:
         assert code == 2 and len(err) == 1
@@ -134,8 +138,9 @@ def _link(tmp, band, refine, points, capsys, app):
 
 def _session(tmp, band, refine, points, capsys, app):
     before = app.to_spec()
-    ok = app.set_constraints(band=band, refine_band=refine, tolerance=0,
-                             points=[list(p) for p in points])
+    ok = app.set_constraints(
+        band=band, refine_band=refine, tolerance=0, points=[list(p) for p in points]
+    )
     if not ok:
         assert app.to_spec() == before
         return "refused", app.error
@@ -150,9 +155,15 @@ def app(tmp_path_factory):
     samples = tmp_path_factory.mktemp("samples")
     shutil.copy(BODY, samples / BODY.name)
     shutil.copy(HAND, samples / HAND.name)
-    (samples / "samples.json").write_text(json.dumps({
-        "format": "handsplice-samples", "version": 1,
-        "pairs": [{"name": "pair", "body": BODY.name, "hand": HAND.name, "side": "right"}]}))
+    (samples / "samples.json").write_text(
+        json.dumps(
+            {
+                "format": "handsplice-samples",
+                "version": 1,
+                "pairs": [{"name": "pair", "body": BODY.name, "hand": HAND.name, "side": "right"}],
+            }
+        )
+    )
     cfg = config.AppConfig(sample_dir=samples, upload_dir=samples / "up")
     return Session(cfg)
 
@@ -160,8 +171,7 @@ def app(tmp_path_factory):
 def _fresh(app):
     """The app on the pair with default constraints (each case starts from here)."""
     app.load_sample("pair")
-    app.from_query({"sample": "pair", "side": "right", "band": "0.3", "refine": "0.1",
-                    "tol": "0"})
+    app.from_query({"sample": "pair", "side": "right", "band": "0.3", "refine": "0.1", "tol": "0"})
     return app
 
 
@@ -192,8 +202,10 @@ def test_every_front_accepts_or_refuses_alike(case, tmp_path, capsys, app):
             fields = {expected.field}
             if front == "manifest":  # checked when the manifest is read: its column name
                 fields.add(expected.field.replace("points", "match"))
-            assert any(f"{f}: " in message or f"{f} = " in message for f in fields), \
-                (front, message)
+            assert any(f"{f}: " in message or f"{f} = " in message for f in fields), (
+                front,
+                message,
+            )
 
 
 def test_defaults_are_the_papers_fractions_on_short_takes_and_seconds_on_long():
@@ -210,23 +222,32 @@ def test_defaults_are_the_papers_fractions_on_short_takes_and_seconds_on_long():
         assert width.frames(n, 30.0) == pytest.approx(0.3 * 25 * 30, rel=0.05)
 
 
-@pytest.mark.parametrize(("text", "width"), [
-    ("0.3", C.Width(0.3)), ("10s", C.Width(10.0, "s")), (" 2.5 s ", C.Width(2.5, "s")),
-    ("4 seconds", C.Width(4.0, "s")), (0.25, C.Width(0.25)), (C.Width(5, "s"), C.Width(5, "s")),
-])
+@pytest.mark.parametrize(
+    ("text", "width"),
+    [
+        ("0.3", C.Width(0.3)),
+        ("10s", C.Width(10.0, "s")),
+        (" 2.5 s ", C.Width(2.5, "s")),
+        ("4 seconds", C.Width(4.0, "s")),
+        (0.25, C.Width(0.25)),
+        (C.Width(5, "s"), C.Width(5, "s")),
+    ],
+)
 def test_width_text_forms(text, width):
     assert C.BAND.parse(text) == width
     assert C.BAND.parse(width.text()) == width  # the text a front writes reads back
 
 
-@pytest.mark.parametrize("text", ["0", "1.5", "-1", "nan", "inf", "wide", "3 m", "0.05s",
-                                  "1e400", True])
+@pytest.mark.parametrize(
+    "text", ["0", "1.5", "-1", "nan", "inf", "wide", "3 m", "0.05s", "1e400", True]
+)
 def test_width_refusals_name_the_field_and_range(text):
     with pytest.raises(C.ConstraintError) as info:
         C.BAND.parse(text)
     assert info.value.field == "band"
-    assert str(info.value).startswith("band: expected a fraction of the body take from 0.02 "
-                                      "to 1 or seconds like 10s")
+    assert str(info.value).startswith(
+        "band: expected a fraction of the body take from 0.02 to 1 or seconds like 10s"
+    )
 
 
 def test_ends_and_open_end_limit():
@@ -236,8 +257,9 @@ def test_ends_and_open_end_limit():
         C.parse_ends("loose")
     assert C.parse_max_unmatched(None) is None
     assert C.parse_max_unmatched("2.5s") == 2.5
-    with pytest.raises(C.ConstraintError, match="max_unmatched_s: expected a number of "
-                                                "seconds from 0 to 3600"):
+    with pytest.raises(
+        C.ConstraintError, match="max_unmatched_s: expected a number of seconds from 0 to 3600"
+    ):
         C.parse_max_unmatched(-1)
     # default: half of the shorter take (alignment-grid frames)
     assert C.max_unmatched_frames(None, 300, 200, 30.0) == 100
@@ -249,10 +271,11 @@ def test_shared_command_line_replays_the_apps_tolerance_exactly():
     the same whole number of grid frames (a tolerance of 200 at 30 vs 40 fps gave 201)."""
     for body_fps, hand_fps in ((30.0, 40.0), (30.0, 37.037037), (120.0, 30.0), (30.0, 120.0)):
         for tol in (0, 1, 2, 7, 200, 499):
-            (_, _, t_hand), = C.points_to_hand([(10, 5, tol)], body_fps, hand_fps, 10_000)
+            ((_, _, t_hand),) = C.points_to_hand([(10, 5, tol)], body_fps, hand_fps, 10_000)
             if t_hand > C.TOLERANCE.hi:  # past the range in the hand file's frames
                 continue
             text = C.MatchPoint(10, 5, t_hand or None).text()
-            (_, _, back), = C.points_to_grid([C.parse_point(text).resolved()], body_fps,
-                                             hand_fps, 10_000)
+            ((_, _, back),) = C.points_to_grid(
+                [C.parse_point(text).resolved()], body_fps, hand_fps, 10_000
+            )
             assert back == tol, (body_fps, hand_fps, tol, text)

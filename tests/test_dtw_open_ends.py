@@ -25,8 +25,9 @@ def _points(rng, n, m, k):
 
 
 def _naive(cost, band, ends):
-    return naive.dtw_banded_open(cost.tolist(), band.lo.tolist(), band.hi.tolist(), ends.skip,
-                                 ends.body, ends.hand)
+    return naive.dtw_banded_open(
+        cost.tolist(), band.lo.tolist(), band.hi.tolist(), ends.skip, ends.body, ends.hand
+    )
 
 
 @pytest.mark.parametrize("seed", range(6))
@@ -36,8 +37,9 @@ def test_open_ends_exact_on_random_bands_with_points(seed):
     for trial in range(60):
         n, m = int(rng.integers(2, 45)), int(rng.integers(2, 45))
         cost = _random_case(rng, n, m, ties=trial % 2 == 0)
-        ends = Ends(int(rng.integers(0, n)), int(rng.integers(0, m)),
-                    float(rng.choice([0.0, 0.2, 0.5])))
+        ends = Ends(
+            int(rng.integers(0, n)), int(rng.integers(0, m)), float(rng.choice([0.0, 0.2, 0.5]))
+        )
         pts = _points(rng, n, m, int(rng.integers(0, min(n, m, 3) + 1)))
         try:
             band = Band.from_constraints(n, m, float(rng.uniform(0.0, 1.0)), pts, open_ends=True)
@@ -67,18 +69,24 @@ def test_open_ends_adversarial_bands():
     cost[10:14, :] = np.inf
     cost[10:14, 20:25] = 1.0  # a gate every path must pass
     cases.append((cost, Band.full(30, 40)))
-    cases.append((rng.random((30, 40)), Band.from_constraints(30, 40, 0.0, [(0, 7, 0)],
-                                                              open_ends=True)))
-    cases.append((rng.random((30, 40)), Band.from_constraints(30, 40, None,
-                                                              [(0, 5, 1), (29, 30, 2)],
-                                                              open_ends=True)))
-    cases.append((rng.random((30, 40)), Band.from_constraints(30, 40, 0.05,
-                                                              [(12, 20, 0), (13, 21, 0)],
-                                                              open_ends=True)))
+    cases.append(
+        (rng.random((30, 40)), Band.from_constraints(30, 40, 0.0, [(0, 7, 0)], open_ends=True))
+    )
+    cases.append(
+        (
+            rng.random((30, 40)),
+            Band.from_constraints(30, 40, None, [(0, 5, 1), (29, 30, 2)], open_ends=True),
+        )
+    )
+    cases.append(
+        (
+            rng.random((30, 40)),
+            Band.from_constraints(30, 40, 0.05, [(12, 20, 0), (13, 21, 0)], open_ends=True),
+        )
+    )
     for cost, band in cases:
         n, m = cost.shape
-        for ends in (Ends(), Ends(n - 1, m - 1, 0.0), Ends(n // 2, m // 2, 0.3),
-                     Ends(3, 9, 1.0)):
+        for ends in (Ends(), Ends(n - 1, m - 1, 0.0), Ends(n // 2, m // 2, 0.3), Ends(3, 9, 1.0)):
             try:
                 check_ends(band, ends)
             except ParameterError:
@@ -148,19 +156,24 @@ def test_incremental_open_ends_exact_across_edits():
         if trial % 2:
             a, b = np.round(a * 2), np.round(b * 2)
         cost = naive.local_cost_matrix(a.tolist(), b.tolist())
-        ends = Ends(int(rng.integers(0, n // 2)), int(rng.integers(0, m // 2)),
-                    float(rng.choice([0.0, 0.1, 0.3])))
+        ends = Ends(
+            int(rng.integers(0, n // 2)),
+            int(rng.integers(0, m // 2)),
+            float(rng.choice([0.0, 0.1, 0.3])),
+        )
         solver = Aligner(a, b)
         for _ in range(5):
             pts = _points(rng, n, m, int(rng.integers(0, 3)))
             try:
-                band = Band.from_constraints(n, m, float(rng.uniform(0.3, 1.0)), pts,
-                                             open_ends=True)
+                band = Band.from_constraints(
+                    n, m, float(rng.uniform(0.3, 1.0)), pts, open_ends=True
+                )
                 check_ends(band, ends)
             except ParameterError:
                 continue
-            total, _ = naive.dtw_banded_open(cost, band.lo.tolist(), band.hi.tolist(),
-                                             ends.skip, ends.body, ends.hand)
+            total, _ = naive.dtw_banded_open(
+                cost, band.lo.tolist(), band.hi.tolist(), ends.skip, ends.body, ends.hand
+            )
             if not np.isfinite(total):
                 continue
             got = solver.solve(band, ends)
@@ -168,8 +181,9 @@ def test_incremental_open_ends_exact_across_edits():
             assert naive.is_open_path(p.tolist(), n, m, ends.body, ends.hand)
             unmatched = int(p[0].sum()) + (n - 1 - int(p[-1, 0])) + (m - 1 - int(p[-1, 1]))
             assert got.cost == pytest.approx(total, abs=1e-8)
-            assert naive.path_cost(cost, p.tolist()) + ends.skip * unmatched == \
-                pytest.approx(total, abs=1e-8)
+            assert naive.path_cost(cost, p.tolist()) + ends.skip * unmatched == pytest.approx(
+                total, abs=1e-8
+            )
         # switching back to fixed ends recomputes: the fixed result again
         band = Band.sakoe_chiba(n, m, 0.5)
         assert solver.solve(band).cost == pytest.approx(align_features(a, b, band).cost)

@@ -25,10 +25,12 @@ def analysed(request):
     fps = request.param
     right, _ = build(phrase_psh_r() + phrase_psh_r()[1:], fps)
     left = np.repeat(REST[None], len(right), axis=0)
-    left[len(right) // 2:] = right[len(right) // 2:] * np.array([-1.0, 1.0, 1.0])
-    phases = GesturePhases(hands={"right": segment_trajectory(right, fps),
-                                  "left": segment_trajectory(left, fps)},
-                           fps=fps, n_frames=len(right))
+    left[len(right) // 2 :] = right[len(right) // 2 :] * np.array([-1.0, 1.0, 1.0])
+    phases = GesturePhases(
+        hands={"right": segment_trajectory(right, fps), "left": segment_trajectory(left, fps)},
+        fps=fps,
+        n_frames=len(right),
+    )
     return phases, detect_handedness(phases)
 
 
@@ -87,8 +89,10 @@ def test_human_corrections_are_read(tmp_path):
     with pytest.raises(ParameterError, match="fps"):
         read_eaf(tmp_path / "human.eaf")
     ann = read_eaf(tmp_path / "human.eaf", fps=30.0)
-    assert list(ann.phases["right"]) == [PhaseSegment(Phase.PREPARATION, 30, 45),
-                                         PhaseSegment(Phase.STROKE, 45, 60)]
+    assert list(ann.phases["right"]) == [
+        PhaseSegment(Phase.PREPARATION, 30, 45),
+        PhaseSegment(Phase.STROKE, 45, 60),
+    ]
     assert ann.handedness == ((30, 60, "RH"),)
     labels = ann.labels("right", 80)
     assert labels[29] == Phase.REST and labels[30] == Phase.PREPARATION and labels[60] == Phase.REST
@@ -103,8 +107,9 @@ def test_bad_annotations_name_the_place(tmp_path):
     to_eaf(str(tmp_path / "bad.eaf"), eaf)
     with pytest.raises(MotionFormatError, match=r"bad.eaf tier 'Phase LH' at 100 ms.*wiggle"):
         read_eaf(tmp_path / "bad.eaf", fps=30.0)
-    (tmp_path / "bad.csv").write_text("tier,start_frame,stop_frame,start_s,stop_s,value\n"
-                                      "Phase RH,1,x,0.1,0.2,stroke\n")
+    (tmp_path / "bad.csv").write_text(
+        "tier,start_frame,stop_frame,start_s,stop_s,value\nPhase RH,1,x,0.1,0.2,stroke\n"
+    )
     with pytest.raises(MotionFormatError, match="bad.csv line 2"):
         read_csv(tmp_path / "bad.csv")
     (tmp_path / "garbage.eaf").write_text("<not xml")
@@ -126,10 +131,19 @@ def test_write_is_atomic(analysed, tmp_path):
 
 def test_phase_boundaries_become_splicing_constraints():
     P, S, H, R = Phase.PREPARATION, Phase.STROKE, Phase.HOLD, Phase.RETRACTION
-    body = [PhaseSegment(P, 10, 20), PhaseSegment(S, 20, 30), PhaseSegment(H, 30, 40),
-            PhaseSegment(R, 40, 50)]
-    assert phase_boundaries(body) == [(10, Phase.REST, P), (20, P, S), (30, S, H), (40, H, R),
-                                      (50, R, Phase.REST)]
+    body = [
+        PhaseSegment(P, 10, 20),
+        PhaseSegment(S, 20, 30),
+        PhaseSegment(H, 30, 40),
+        PhaseSegment(R, 40, 50),
+    ]
+    assert phase_boundaries(body) == [
+        (10, Phase.REST, P),
+        (20, P, S),
+        (30, S, H),
+        (40, H, R),
+        (50, R, Phase.REST),
+    ]
     # the hand take lacks the hold: its other boundaries still pair up
     hand = [PhaseSegment(P, 5, 12), PhaseSegment(S, 12, 25), PhaseSegment(R, 25, 33)]
     pts = phase_constraints(body, hand, tolerance=2, n_body=60, n_hand=40)

@@ -49,13 +49,19 @@ def test_markers_are_metres_y_up_and_shoulder_relative(beat):
     # forearm marker half a forearm (~13 cm) from the wrist, wrist markers ~6 cm apart
     centre = 0.5 * (ref.markers[:, 0] + ref.markers[:, 1])
     assert np.allclose(np.linalg.norm(ref.markers[:, 2] - centre, axis=1), 0.13, atol=0.01)
-    assert np.allclose(np.linalg.norm(ref.markers[:, 0] - ref.markers[:, 1], axis=1), 0.062,
-                       atol=0.005)
+    assert np.allclose(
+        np.linalg.norm(ref.markers[:, 0] - ref.markers[:, 1], axis=1), 0.062, atol=0.005
+    )
     # the same take in centimetres, z up, walking 1 m sideways: identical markers
     to_z = rot.from_axis_angle(np.array([1.0, 0.0, 0.0]), np.pi / 2)  # y-up -> z-up
     sk = beat.skeleton
-    zsk = Skeleton(sk.names, sk.parents, 100 * rot.rotate(to_z, sk.offsets), sk.channels,
-                   {j: 100 * rot.rotate(to_z, v) for j, v in sk.end_sites.items()})
+    zsk = Skeleton(
+        sk.names,
+        sk.parents,
+        100 * rot.rotate(to_z, sk.offsets),
+        sk.channels,
+        {j: 100 * rot.rotate(to_z, v) for j, v in sk.end_sites.items()},
+    )
     rots = rot.multiply(rot.multiply(to_z, beat.rotations), rot.conjugate(to_z))
     trans = 100 * rot.rotate(to_z, beat.translations)
     roots = np.flatnonzero(sk.parents < 0)
@@ -119,12 +125,15 @@ def test_resample_points_keeps_the_duration():
     assert y.shape == (21, 1) and np.allclose(y[:, 0], np.arange(21) / 2)
 
 
-@pytest.mark.parametrize("path,source", [
-    ("manipnet/mug1_rightHand.bvh", "fingers"),
-    ("gestification/hello-world.bvh", "fingers"),
-    ("lafan1/dance1_subject1.bvh", "elbow flexion"),
-    ("animated-drawings/fair1_wave_hello.bvh", "elbow flexion"),
-])
+@pytest.mark.parametrize(
+    "path,source",
+    [
+        ("manipnet/mug1_rightHand.bvh", "fingers"),
+        ("gestification/hello-world.bvh", "fingers"),
+        ("lafan1/dance1_subject1.bvh", "elbow flexion"),
+        ("animated-drawings/fair1_wave_hello.bvh", "elbow flexion"),
+    ],
+)
 def test_hand_frames_of_real_rigs(path, source):
     from engine.roles import side_from_name
 

@@ -58,18 +58,80 @@ def n_examples(n: int) -> int:
     return n * SCALE
 
 
-FUZZ = settings(max_examples=n_examples(400), deadline=timedelta(seconds=5), derandomize=False,
-                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
-                                       HealthCheck.function_scoped_fixture],
-                print_blob=True)
+FUZZ = settings(
+    max_examples=n_examples(400),
+    deadline=timedelta(seconds=5),
+    derandomize=False,
+    suppress_health_check=[
+        HealthCheck.too_slow,
+        HealthCheck.data_too_large,
+        HealthCheck.function_scoped_fixture,
+    ],
+    print_blob=True,
+)
 GARBAGE = [
-    "nan", "NaN", "-nan", "inf", "-inf", "Infinity", "1e309", "-1e309", "1e308", "-1e308",
-    "1e300", "1e-320", "5e-324", "1e-300", "0", "-0", "0.0", "", "abc", "1.5.2", "0x1F",
-    "1_000", "\u0663", "\uff11\uff12", "+-1", "9" * 400, "1e99999", "2147483648",
-    "-2147483649", "18446744073709551616", "1e15", "-1e15", "\u2014", "1,5", "\u221e",
-    "e", ".", "-", "+", "{", "}", "ROOT", "JOINT", "End Site", "MOTION", "HIERARCHY",
-    "CHANNELS", "OFFSET", "Frames:", "\x00", "\ufeff", "\u00e9", "\r", "\t", "1e-5", "0.0001",
-    "1000000000000", "-1", "3", "6", "7", "99999999999999999999",
+    "nan",
+    "NaN",
+    "-nan",
+    "inf",
+    "-inf",
+    "Infinity",
+    "1e309",
+    "-1e309",
+    "1e308",
+    "-1e308",
+    "1e300",
+    "1e-320",
+    "5e-324",
+    "1e-300",
+    "0",
+    "-0",
+    "0.0",
+    "",
+    "abc",
+    "1.5.2",
+    "0x1F",
+    "1_000",
+    "\u0663",
+    "\uff11\uff12",
+    "+-1",
+    "9" * 400,
+    "1e99999",
+    "2147483648",
+    "-2147483649",
+    "18446744073709551616",
+    "1e15",
+    "-1e15",
+    "\u2014",
+    "1,5",
+    "\u221e",
+    "e",
+    ".",
+    "-",
+    "+",
+    "{",
+    "}",
+    "ROOT",
+    "JOINT",
+    "End Site",
+    "MOTION",
+    "HIERARCHY",
+    "CHANNELS",
+    "OFFSET",
+    "Frames:",
+    "\x00",
+    "\ufeff",
+    "\u00e9",
+    "\r",
+    "\t",
+    "1e-5",
+    "0.0001",
+    "1000000000000",
+    "-1",
+    "3",
+    "6",
+    "7",
+    "99999999999999999999",
 ]
 
 
@@ -108,7 +170,7 @@ def _crop_bvh(text: str, rows: int) -> str:
 
 def _crop_trc(text: str, rows: int) -> str:
     lines = text.splitlines()
-    return "\n".join(lines[:6 + rows]) + "\n"
+    return "\n".join(lines[: 6 + rows]) + "\n"
 
 
 BVH_SEEDS = [
@@ -132,17 +194,36 @@ def _trc_seed() -> str:
 
 
 SESSION_SEEDS = [
-    json.dumps({"format": "handsplice-session", "version": 1,
-                "inputs": {"body": {"path": "walk.bvh"}, "hand": {"path": "hand.bvh"}},
-                "side": "right", "band": 0.3, "refine_band": 0.1, "tolerance": 2,
-                "points": [{"body": 10, "hand": 12, "tolerance": None},
-                           {"body": 40, "hand": 35, "tolerance": 1.5}],
-                "roles": {"body": {"right.wrist": "RHand"}, "hand": {"right.index1": "rIdx1"}},
-                "view": {"matrix": "pass1", "frame": 3}}, indent=2),
-    json.dumps({"format": "handsplice-session", "version": 1,
-                "inputs": {"body": {"sha256": "ab" * 32, "name": "walk.bvh"},
-                           "hand": {"sha256": "cd" * 32, "name": "h.bvh"}},
-                "side": "left", "points": [[1, 2], [5, 9, 0]]}),
+    json.dumps(
+        {
+            "format": "handsplice-session",
+            "version": 1,
+            "inputs": {"body": {"path": "walk.bvh"}, "hand": {"path": "hand.bvh"}},
+            "side": "right",
+            "band": 0.3,
+            "refine_band": 0.1,
+            "tolerance": 2,
+            "points": [
+                {"body": 10, "hand": 12, "tolerance": None},
+                {"body": 40, "hand": 35, "tolerance": 1.5},
+            ],
+            "roles": {"body": {"right.wrist": "RHand"}, "hand": {"right.index1": "rIdx1"}},
+            "view": {"matrix": "pass1", "frame": 3},
+        },
+        indent=2,
+    ),
+    json.dumps(
+        {
+            "format": "handsplice-session",
+            "version": 1,
+            "inputs": {
+                "body": {"sha256": "ab" * 32, "name": "walk.bvh"},
+                "hand": {"sha256": "cd" * 32, "name": "h.bvh"},
+            },
+            "side": "left",
+            "points": [[1, 2], [5, 9, 0]],
+        }
+    ),
     json.dumps({"inputs": {"sample": "demo"}, "side": "both", "band": 1}),
 ]
 
@@ -208,12 +289,12 @@ def apply_text_op(text: str, op: tuple) -> str:
         a, b = _line_index(lines, u), _line_index(lines, v)
         lines[a], lines[b] = lines[b], lines[a]
     elif kind == "truncate":
-        return text[:int(u * len(text))]
+        return text[: int(u * len(text))]
     elif kind == "number":
         matches = list(_NUMBER.finditer(text))
         if matches:
             m = matches[min(int(u * len(matches)), len(matches) - 1)]
-            return text[:m.start()] + garbage + text[m.end():]
+            return text[: m.start()] + garbage + text[m.end() :]
     elif kind == "insert_token":
         k = _line_index(lines, u)
         words = lines[k].split(" ")
@@ -221,25 +302,39 @@ def apply_text_op(text: str, op: tuple) -> str:
         lines[k] = " ".join(words)
     elif kind == "char":
         at = int(u * len(text))
-        return text[:at] + garbage + text[at + 1:]
+        return text[:at] + garbage + text[at + 1 :]
     elif kind == "frames":  # absurd frame counts in the header (BVH) / NumFrames (TRC)
         return re.sub(r"(?m)^Frames:.*$", f"Frames: {garbage}", text, count=1)
     elif kind == "nest":  # deep nesting: a chain of joints spliced in after the first '{'
         depth = 1 + int(u * 1100)
-        chain = "".join(f"JOINT n{d}\n{{\nOFFSET 0 1 0\nCHANNELS 3 Zrotation Xrotation "
-                        f"Yrotation\n" for d in range(depth))
+        chain = "".join(
+            f"JOINT n{d}\n{{\nOFFSET 0 1 0\nCHANNELS 3 Zrotation Xrotation Yrotation\n"
+            for d in range(depth)
+        )
         chain += "End Site\n{\nOFFSET 0 1 0\n}\n" + "}\n" * depth
         at = text.find("{")
         if at >= 0:
-            return text[:at + 1] + "\n" + chain + text[at + 1:]
+            return text[: at + 1] + "\n" + chain + text[at + 1 :]
     elif kind == "braces":
         k = _line_index(lines, u)
         lines.insert(k, "{" * (1 + int(v * 20)) if garbage != "}" else "}" * (1 + int(v * 20)))
     return "\n".join(lines)
 
 
-TEXT_OPS = ["delete_line", "duplicate_line", "swap_lines", "truncate", "number", "number",
-            "number", "insert_token", "char", "frames", "nest", "braces"]
+TEXT_OPS = [
+    "delete_line",
+    "duplicate_line",
+    "swap_lines",
+    "truncate",
+    "number",
+    "number",
+    "number",
+    "insert_token",
+    "char",
+    "frames",
+    "nest",
+    "braces",
+]
 _unit = st.floats(0, 1, exclude_max=True)
 text_op = st.tuples(st.sampled_from(TEXT_OPS), _unit, _unit, st.sampled_from(GARBAGE))
 
@@ -249,20 +344,20 @@ def apply_byte_op(data: bytes, op: tuple) -> bytes:
     at = int(u * len(data))
     if kind == "flip" and data:
         at = min(at, len(data) - 1)
-        return data[:at] + bytes([data[at] ^ (b or 1)]) + data[at + 1:]
+        return data[:at] + bytes([data[at] ^ (b or 1)]) + data[at + 1 :]
     if kind == "set" and data:
         at = min(at, len(data) - 1)
-        return data[:at] + bytes([b]) + data[at + 1:]
+        return data[:at] + bytes([b]) + data[at + 1 :]
     if kind == "truncate":
         return data[:at]
     if kind == "insert":
         return data[:at] + bytes([b]) * (1 + int(v * 8)) + data[at:]
     if kind == "delete":
-        return data[:at] + data[at + 1 + int(v * 8):]
+        return data[:at] + data[at + 1 + int(v * 8) :]
     if kind == "word":  # a 16-bit word somewhere set to an extreme value
         at = min(at, max(len(data) - 2, 0))
         word = struct.pack("<H", [0, 1, 0x7FFF, 0x8000, 0xFFFF, b][int(v * 6)])
-        return data[:at] + word + data[at + 2:]
+        return data[:at] + word + data[at + 2 :]
     return data
 
 
@@ -308,16 +403,20 @@ def test_bvh_byte_mutations(scratch, seed, ops):
 
 
 @settings(FUZZ, max_examples=n_examples(100))
-@given(st.binary(max_size=2000) | st.text(max_size=2000).map(lambda s: s.encode("utf-8")),
-       st.sampled_from([".bvh", ".trc", ".c3d", ".BVH", ".txt", ""]))
+@given(
+    st.binary(max_size=2000) | st.text(max_size=2000).map(lambda s: s.encode("utf-8")),
+    st.sampled_from([".bvh", ".trc", ".c3d", ".BVH", ".txt", ""]),
+)
 def test_load_take_random_bytes(scratch, data, ext):
     """Random bytes under each extension: load_take refuses them with one line (C3D in-process
     is safe here: the C3D reader's own header check rejects random bytes before ezc3d)."""
     path = scratch / f"random{ext}"
     path.write_bytes(data)
-    expect_valid_or(MotionFormatError, lambda: load_take(path),
-                    lambda out: check_motion(out) if isinstance(out, Motion) else
-                    check_markers(out))
+    expect_valid_or(
+        MotionFormatError,
+        lambda: load_take(path),
+        lambda out: check_motion(out) if isinstance(out, Motion) else check_markers(out),
+    )
 
 
 # ---------------------------------------------------------------- TRC
@@ -380,8 +479,13 @@ class ReaderChild:
         env = dict(os.environ, PYTHONWARNINGS="error")
         root = Path(__file__).resolve().parents[1]
         self.proc = subprocess.Popen(
-            [sys.executable, "-c", _CHILD, str(self.scratch / "fuzz.c3d")], cwd=root, env=env,
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+            [sys.executable, "-c", _CHILD, str(self.scratch / "fuzz.c3d")],
+            cwd=root,
+            env=env,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.DEVNULL,
+        )
 
     def read(self, data: bytes, timeout: float = EXAMPLE_SECONDS) -> dict:
         if self.proc is None or self.proc.poll() is not None:
@@ -437,11 +541,11 @@ def c3d_entries(data: bytes) -> list[tuple[int, int]]:
     end = start + data[start + 2] * 512
     pos, out = start + 4, []
     while pos + 2 <= min(end, len(data)):
-        nchar, gid = struct.unpack("bb", data[pos:pos + 2])
+        nchar, gid = struct.unpack("bb", data[pos : pos + 2])
         if nchar == 0 or gid == 0:
             break
         name_end = pos + 2 + abs(nchar)
-        (offset,) = struct.unpack("<h", data[name_end:name_end + 2])
+        (offset,) = struct.unpack("<h", data[name_end : name_end + 2])
         out.append((pos, name_end + 2))
         if offset <= 0:
             break
@@ -457,15 +561,25 @@ def apply_param_op(data: bytes, op: tuple) -> bytes:
     if not entries:
         return data
     pos, body = entries[min(int(u * len(entries)), len(entries) - 1)]
-    at = {"name": pos + 2, "gid": pos + 1, "type": body, "ndims": body + 1, "dim": body + 2,
-          "value": body + 3}[field]
-    new = {"type": [-1, 1, 2, 4][value % 4], "ndims": value % 4, "gid": -data[pos + 1]
-           if value % 2 else value % 12 - 6}.get(field, value)
-    return data[:at] + struct.pack("B", new % 256) + data[at + 1:]
+    at = {
+        "name": pos + 2,
+        "gid": pos + 1,
+        "type": body,
+        "ndims": body + 1,
+        "dim": body + 2,
+        "value": body + 3,
+    }[field]
+    new = {
+        "type": [-1, 1, 2, 4][value % 4],
+        "ndims": value % 4,
+        "gid": -data[pos + 1] if value % 2 else value % 12 - 6,
+    }.get(field, value)
+    return data[:at] + struct.pack("B", new % 256) + data[at + 1 :]
 
 
-param_op = st.tuples(st.sampled_from(["name", "gid", "type", "ndims", "dim", "value"]),
-                     _unit, st.integers(0, 255))
+param_op = st.tuples(
+    st.sampled_from(["name", "gid", "type", "ndims", "dim", "value"]), _unit, st.integers(0, 255)
+)
 
 
 def test_c3d_seed_reads_in_child(c3d_child):
@@ -494,17 +608,37 @@ def _check_session(spec) -> None:
 
 
 SESSION_GARBAGE = GARBAGE + [
-    '"../../../../etc/passwd"', '"/etc/passwd"', '{"path": "/etc/shadow"}', "[" * 5000,
-    "{" * 5000, '"' + "A" * 100000 + '"', "1" * 5000, "-1", "1e999", "NaN", "Infinity",
-    "true", "null", "[]", "{}", '"\\u0000"', '"\\ud800"', "0.30000000000000004",
+    '"../../../../etc/passwd"',
+    '"/etc/passwd"',
+    '{"path": "/etc/shadow"}',
+    "[" * 5000,
+    "{" * 5000,
+    '"' + "A" * 100000 + '"',
+    "1" * 5000,
+    "-1",
+    "1e999",
+    "NaN",
+    "Infinity",
+    "true",
+    "null",
+    "[]",
+    "{}",
+    '"\\u0000"',
+    '"\\ud800"',
+    "0.30000000000000004",
 ]
 
 
 @settings(FUZZ, max_examples=n_examples(500))
-@given(seed=st.integers(0, len(SESSION_SEEDS) - 1),
-       ops=st.lists(st.tuples(st.sampled_from(TEXT_OPS[:9]), _unit, _unit,
-                              st.sampled_from(SESSION_GARBAGE)) | byte_op,
-                    min_size=1, max_size=4))
+@given(
+    seed=st.integers(0, len(SESSION_SEEDS) - 1),
+    ops=st.lists(
+        st.tuples(st.sampled_from(TEXT_OPS[:9]), _unit, _unit, st.sampled_from(SESSION_GARBAGE))
+        | byte_op,
+        min_size=1,
+        max_size=4,
+    ),
+)
 def test_session_mutations(seed, ops):
     data = SESSION_SEEDS[seed].encode("utf-8")
     for op in ops:
@@ -515,17 +649,31 @@ def test_session_mutations(seed, ops):
     expect_valid_or(SessionError, lambda: parse_session(data, "fuzz.json"), _check_session)
 
 
-_QUERY_KEYS = ["sample", "body", "hand", "side", "band", "refine", "tol", "pts", "view", "frame",
-               "x"]
-_query_value = st.sampled_from(SESSION_GARBAGE + ["demo", "right", "0.3", "1:2,5:9:1", "ab" * 32,
-                                                  "1:2:3:4", "5:5,3:9", "pass2", "-1:2"]) | \
-    st.text(max_size=30)
+_QUERY_KEYS = [
+    "sample",
+    "body",
+    "hand",
+    "side",
+    "band",
+    "refine",
+    "tol",
+    "pts",
+    "view",
+    "frame",
+    "x",
+]
+_query_value = st.sampled_from(
+    SESSION_GARBAGE
+    + ["demo", "right", "0.3", "1:2,5:9:1", "ab" * 32, "1:2:3:4", "5:5,3:9", "pass2", "-1:2"]
+) | st.text(max_size=30)
 
 
 @settings(FUZZ, max_examples=n_examples(300))
-@given(st.dictionaries(st.sampled_from(_QUERY_KEYS), _query_value | st.lists(_query_value,
-                                                                              max_size=2),
-                       max_size=6))
+@given(
+    st.dictionaries(
+        st.sampled_from(_QUERY_KEYS), _query_value | st.lists(_query_value, max_size=2), max_size=6
+    )
+)
 def test_url_query_is_valid_or_session_error(query):
     """The shared-link query of the app (``?sample=demo&pts=...``) is browser input too."""
     expect_valid_or(SessionError, lambda: from_query(query), _check_session)
@@ -564,26 +712,67 @@ def app_session(tmp_path_factory):
     write_bvh(body.frames(0, 40), root / "takes" / "body.bvh")
     hand = read_bvh(MOCAP / "gestification/hello-world.bvh")
     write_bvh(hand.frames(0, 50), root / "takes" / "hand.bvh")
-    (root / "samples.json").write_text(json.dumps({"pairs": [
-        {"name": "ok", "body": "takes/body.bvh", "hand": "takes/hand.bvh"}]}), encoding="utf-8")
-    cfg = config.AppConfig(sample_dir=root.resolve(), upload_dir=(root / "up").resolve(),
-                           default_sample="ok")
+    (root / "samples.json").write_text(
+        json.dumps({"pairs": [{"name": "ok", "body": "takes/body.bvh", "hand": "takes/hand.bvh"}]}),
+        encoding="utf-8",
+    )
+    cfg = config.AppConfig(
+        sample_dir=root.resolve(), upload_dir=(root / "up").resolve(), default_sample="ok"
+    )
     session = Session(cfg)
     session.load_sample("ok")
     assert session.prepared is not None
     return session
 
 
-_APP_VALUES = ["ok", "right", "left", "both", "0", "-1", "0.01", "0.5", "1", "2", "1e999", "nan",
-               "inf", "", "x", "1:2", "0:0", "39:49", "40:50", "5:5,3:9", "1:2,3:4:5", "1:2:-1",
-               "99999:1", "0:0:1e9", "pass1", "cumulative2", "bogus", "ab" * 32, "1:2,1:2",
-               "0:49", "39:0", "20:25:1000", "10:10,20:20,30:30", "../../etc/passwd"]
+_APP_VALUES = [
+    "ok",
+    "right",
+    "left",
+    "both",
+    "0",
+    "-1",
+    "0.01",
+    "0.5",
+    "1",
+    "2",
+    "1e999",
+    "nan",
+    "inf",
+    "",
+    "x",
+    "1:2",
+    "0:0",
+    "39:49",
+    "40:50",
+    "5:5,3:9",
+    "1:2,3:4:5",
+    "1:2:-1",
+    "99999:1",
+    "0:0:1e9",
+    "pass1",
+    "cumulative2",
+    "bogus",
+    "ab" * 32,
+    "1:2,1:2",
+    "0:49",
+    "39:0",
+    "20:25:1000",
+    "10:10,20:20,30:30",
+    "../../etc/passwd",
+]
 
 
 @settings(FUZZ, max_examples=n_examples(150))
-@given(st.dictionaries(st.sampled_from(["sample", "side", "band", "refine", "tol", "pts", "view",
-                                        "frame", "body", "hand"]),
-                       st.sampled_from(_APP_VALUES) | st.text(max_size=12), max_size=5))
+@given(
+    st.dictionaries(
+        st.sampled_from(
+            ["sample", "side", "band", "refine", "tol", "pts", "view", "frame", "body", "hand"]
+        ),
+        st.sampled_from(_APP_VALUES) | st.text(max_size=12),
+        max_size=5,
+    )
+)
 def test_app_session_restores_any_link_or_refuses(app_session, query):
     """A shared link opens a session or is refused (HandSpliceError, KeyError, ValueError);
     the session stays usable either way."""

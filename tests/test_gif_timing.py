@@ -53,8 +53,9 @@ def test_cli_gif_plays_at_the_takes_rate(tmp_path):
 
 
 def test_app_gif_plays_at_the_takes_rate(tmp_path):
-    cfg = config.AppConfig(sample_dir=SAMPLE_DATA.resolve(), upload_dir=tmp_path / "uploads",
-                           default_sample="wave-ok")
+    cfg = config.AppConfig(
+        sample_dir=SAMPLE_DATA.resolve(), upload_dir=tmp_path / "uploads", default_sample="wave-ok"
+    )
     session = Session(cfg)
     session.load_sample("wave-ok")
     assert session.error == ""

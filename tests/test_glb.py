@@ -30,8 +30,10 @@ TOL_M = 1e-4  # 0.1 mm: float32 storage of metre-scale values
 
 def _js_ready() -> None:
     if not (JS / "node_modules" / ".installed").exists():
-        raise AssertionError("tests/js/node_modules is missing: run `make js` (npm ci in "
-                             "tests/js; `make test` does it)")
+        raise AssertionError(
+            "tests/js/node_modules is missing: run `make js` (npm ci in "
+            "tests/js; `make test` does it)"
+        )
 
 
 @pytest.fixture(scope="module")
@@ -47,6 +49,7 @@ def spliced(tmp_path_factory):
 @pytest.fixture(scope="module")
 def gltf(spliced):
     import pygltflib  # a test dependency (pyproject [test])
+
     doc = pygltflib.GLTF2().load_binary(str(spliced[1]))
     return doc, doc.binary_blob()
 
@@ -140,8 +143,9 @@ def test_glb_structure_read_by_pygltflib(spliced, gltf):
     for ch in anim.channels:
         paths[ch.target.path].add(ch.target.node)
     assert paths["rotation"] == set(skin.joints)
-    moving = {j for j in range(skel.n_joints)
-              if np.ptp(motion.translations[:, j], axis=0).max() > 1e-6}
+    moving = {
+        j for j in range(skel.n_joints) if np.ptp(motion.translations[:, j], axis=0).max() > 1e-6
+    }
     assert moving and {skin.joints[j] for j in moving} <= paths["translation"]  # hips' path
     times = accessor(doc, blob, anim.samplers[0].input)[:, 0]
     assert np.allclose(times, np.arange(motion.n_frames) / motion.fps, atol=1e-5)
@@ -174,8 +178,7 @@ def test_glb_skinning_reproduces_the_renderers_mannequin(spliced, gltf):
     verts = accessor(doc, blob, prim.attributes.POSITION)
     joints = accessor(doc, blob, prim.attributes.JOINTS_0).astype(int)
     weights = accessor(doc, blob, prim.attributes.WEIGHTS_0)
-    ibm = np.swapaxes(accessor(doc, blob, doc.skins[0].inverseBindMatrices).reshape(-1, 4, 4),
-                      1, 2)
+    ibm = np.swapaxes(accessor(doc, blob, doc.skins[0].inverseBindMatrices).reshape(-1, 4, 4), 1, 2)
     skin_joints = np.array(doc.skins[0].joints)
     view = TakeView.from_motion(motion)
     for frame in (0, motion.n_frames // 2, motion.n_frames - 1):
@@ -192,8 +195,13 @@ def test_glb_passes_the_khronos_validator(spliced):
 
     _js_ready()
     node = compute_driver_executable()[0]
-    proc = subprocess.run([str(node), "validate-gltf.mjs", str(spliced[1])], cwd=JS,
-                          capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        [str(node), "validate-gltf.mjs", str(spliced[1])],
+        cwd=JS,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert proc.returncode == 0, proc.stderr
     report = json.loads(proc.stdout)
     issues = report["issues"]
@@ -229,15 +237,19 @@ def test_glb_of_each_capture_family_validates_and_follows_fk(path, tmp_path):
     motion = read_bvh(path).frames(0, 90)
     out = tmp_path / "take.glb"
     assert main(["render", str(path), "-o", str(out), "--frames", "0:90", "--quiet"]) == 0
-    proc = subprocess.run([str(compute_driver_executable()[0]), "validate-gltf.mjs", str(out)],
-                          cwd=JS, capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        [str(compute_driver_executable()[0]), "validate-gltf.mjs", str(out)],
+        cwd=JS,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     issues = json.loads(proc.stdout)["issues"]
     assert issues["numErrors"] == 0 and issues["numWarnings"] == 0, issues["messages"][:10]
     doc = pygltflib.GLTF2().load_binary(str(out))
     world, _ = animated_world(doc, doc.binary_blob(), motion.n_frames)
     pos, rots = forward_kinematics(motion)
-    anatomy = find_anatomy(motion.skeleton, pos[0], rots[0],
-                           side_hint=side_from_name(path.name))
+    anatomy = find_anatomy(motion.skeleton, pos[0], rots[0], side_hint=side_from_name(path.name))
     scale, axes = display_transform(motion, anatomy)
     want = scale * pos @ axes.T
     size = np.linalg.norm(np.ptp(want[0], axis=0))
@@ -254,8 +266,11 @@ def _serve_js(page, glb: Path) -> str:
         path = glb if rel == "take.glb" else (JS / rel).resolve()
         if not path.is_file() or not (path == glb or path.is_relative_to(JS)):
             return route.fulfill(status=404, body="")
-        route.fulfill(status=200, body=path.read_bytes(),
-                      content_type=types.get(path.suffix, "application/octet-stream"))
+        route.fulfill(
+            status=200,
+            body=path.read_bytes(),
+            content_type=types.get(path.suffix, "application/octet-stream"),
+        )
 
     page.route("http://glb.test/**", handle)
     return "http://glb.test/gltf-page.html"
@@ -279,8 +294,9 @@ def test_glb_loads_in_threejs_and_animates_as_the_bvh(spliced, tmp_path):
             page.on("pageerror", lambda exc: errors.append(str(exc)))
             page.goto(_serve_js(page, glb))
             page.wait_for_function("window.pageReady === true", timeout=60_000)
-            result = page.evaluate("([url, times]) => window.loadGlb(url, times)",
-                                   ["http://glb.test/take.glb", times])
+            result = page.evaluate(
+                "([url, times]) => window.loadGlb(url, times)", ["http://glb.test/take.glb", times]
+            )
         finally:
             browser.close()
     assert not errors, errors
@@ -296,6 +312,7 @@ def test_glb_loads_in_threejs_and_animates_as_the_bvh(spliced, tmp_path):
 
 def test_glb_frame_range_and_refused_options(tmp_path, capsys):
     import pygltflib
+
     out = tmp_path / "cut.glb"
     assert main(["render", str(BODY), "-o", str(out), "--frames", "10:40", "--quiet"]) == 0
     doc = pygltflib.GLTF2().load_binary(str(out))
@@ -320,8 +337,9 @@ def test_app_glb_download_callback(tmp_path):
     from webapp.state import Session
     from webapp.views import sharing
 
-    cfg = config.AppConfig(sample_dir=SAMPLE_DATA.resolve(), upload_dir=tmp_path / "uploads",
-                           default_sample="wave-ok")
+    cfg = config.AppConfig(
+        sample_dir=SAMPLE_DATA.resolve(), upload_dir=tmp_path / "uploads", default_sample="wave-ok"
+    )
     session = Session(cfg)
     session.load_sample("wave-ok")
     assert session.error == ""

@@ -19,9 +19,11 @@ FPS = 60.0
 
 
 def _phases(right: np.ndarray, left: np.ndarray, fps: float = FPS) -> GesturePhases:
-    return GesturePhases(hands={"right": segment_trajectory(right, fps),
-                                "left": segment_trajectory(left, fps)},
-                         fps=fps, n_frames=len(right))
+    return GesturePhases(
+        hands={"right": segment_trajectory(right, fps), "left": segment_trajectory(left, fps)},
+        fps=fps,
+        n_frames=len(right),
+    )
 
 
 def _still(n: int) -> np.ndarray:
@@ -93,10 +95,10 @@ def test_threshold_parameter_is_validated():
         classify(np.zeros((5, 3)), np.zeros((5, 3)), np.zeros(5, bool), 30.0)
 
 
-
-
-@pytest.mark.parametrize("take, want", [("2_wave-right-hand", "RH"), ("2_wave-both-hands", "2H"),
-                                        ("2_raise-up-right-hand", "RH")])
+@pytest.mark.parametrize(
+    "take, want",
+    [("2_wave-right-hand", "RH"), ("2_wave-both-hands", "2H"), ("2_raise-up-right-hand", "RH")],
+)
 def test_real_takes_with_unambiguous_names(bandai, take, want):
     from gesture_traj import swapped_sides
 

@@ -87,16 +87,23 @@ def one_line_exit_2(status: int, err: str, *words: str) -> None:
 # ------------------------------------------------------------------ 1. limits before allocating
 
 
-@pytest.mark.parametrize("value, words", [
-    ("300", ["0.00333333 frames per second", "expected 1 to 10000"]),
-    ("100", ["0.01 frames per second"]),
-    ("1e300", ["1e-300 frames per second"]),
-    ("1e-300", ["1e+300 frames per second"]),
-    ("0.00001", ["100000 frames per second"]),
-])
+@pytest.mark.parametrize(
+    "value, words",
+    [
+        ("300", ["0.00333333 frames per second", "expected 1 to 10000"]),
+        ("100", ["0.01 frames per second"]),
+        ("1e300", ["1e-300 frames per second"]),
+        ("1e-300", ["1e+300 frames per second"]),
+        ("0.00001", ["100000 frames per second"]),
+    ],
+)
 def test_frame_rate_range(value, words):
-    refused(lambda: parse_bvh(with_frame_time(HAND, value), "hand.bvh"),
-            "hand.bvh line", f"Frame Time: {value}", *words)
+    refused(
+        lambda: parse_bvh(with_frame_time(HAND, value), "hand.bvh"),
+        "hand.bvh line",
+        f"Frame Time: {value}",
+        *words,
+    )
 
 
 def test_frame_rate_range_edges_are_read():
@@ -107,14 +114,19 @@ def test_frame_rate_range_edges_are_read():
 def test_zero_channel_skeleton_with_two_million_frames_is_refused():
     text = zero_channel(BODY, 2_000_000)
     assert len(text) < 5_000
-    refused(lambda: parse_bvh(text, "empty.bvh"), "empty.bvh line", "hours",
-            "refusing an absurd take")
+    refused(
+        lambda: parse_bvh(text, "empty.bvh"), "empty.bvh line", "hours", "refusing an absurd take"
+    )
 
 
 def test_poses_are_bounded_by_frames_times_joints():
     # 1,000 joints, 1 channel in all: 5,000 frames fit in 10 kB of rows but are 5 M poses
-    msg = refused(lambda: parse_bvh(fan(1000, 5000), "wide.bvh"),
-                  "wide.bvh line", "5,000 frames x 1,000 joints", "poses")
+    msg = refused(
+        lambda: parse_bvh(fan(1000, 5000), "wide.bvh"),
+        "wide.bvh line",
+        "5,000 frames x 1,000 joints",
+        "poses",
+    )
     assert f"{limits.MAX_POSE_CELLS:,}" in msg
     assert parse_bvh(fan(1000, 2000), "ok.bvh").n_frames == 2000  # 2 M poses: read
 
@@ -140,8 +152,12 @@ def test_trc_rate_is_checked():
     values = lines[2].split(",")
     values[keys.index("DataRate")] = "0.001"
     lines[2] = ",".join(values)
-    refused(lambda: parse_trc("\n".join(lines) + "\n", "slow.trc"), "slow.trc", "DataRate",
-            "frames per second")
+    refused(
+        lambda: parse_trc("\n".join(lines) + "\n", "slow.trc"),
+        "slow.trc",
+        "DataRate",
+        "frames per second",
+    )
 
 
 def test_splice_grid_is_bounded_before_resampling(tmp_path, capsys):
@@ -168,8 +184,10 @@ ISSUE_FILES = {
     # the issue's cases: (file text, CLI arguments after the file)
     "frame-time-300": (lambda: with_frame_time(HAND, "300"), ["info"]),
     "zero-channels-2M": (lambda: zero_channel(BODY, 2_000_000), ["analyze"]),
-    "1000-zero-channel-joints": (lambda: fan(1000, 200_000, "CHANNELS 0")[:60_000]
-                                 .rsplit("\n", 1)[0] + "\n", ["info"]),
+    "1000-zero-channel-joints": (
+        lambda: fan(1000, 200_000, "CHANNELS 0")[:60_000].rsplit("\n", 1)[0] + "\n",
+        ["info"],
+    ),
     "frame-time-100": (lambda: with_frame_time(HAND, "100"), ["info"]),
 }
 
@@ -235,8 +253,9 @@ def test_zero_motion_render_names_the_file(tmp_path, capsys):
 def test_deeply_nested_roles_json_exits_2(tmp_path, capsys):
     roles = tmp_path / "roles.json"
     roles.write_text('{"a":' * 100_000 + "1" + "}" * 100_000)
-    status, err = cli(["splice", BODY, HAND, "-o", tmp_path / "o.bvh", "--roles", roles,
-                       "--quiet"], capsys)
+    status, err = cli(
+        ["splice", BODY, HAND, "-o", tmp_path / "o.bvh", "--roles", roles, "--quiet"], capsys
+    )
     one_line_exit_2(status, err, "roles.json", "nested too deeply")
     roles.write_bytes(b'{"right.wrist": "\xff"}')
     status, err = cli(["render", BODY, "-o", tmp_path / "o.png", "--roles", roles], capsys)
@@ -316,8 +335,9 @@ _WRITER = textwrap.dedent("""
 def test_temporary_files_removed_on_signals(tmp_path, sig):
     (tmp_path / "out.bvh").write_text("old")
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    p = subprocess.Popen([PY, "-c", _WRITER, str(tmp_path)], stdout=subprocess.PIPE, text=True,
-                         env=env)
+    p = subprocess.Popen(
+        [PY, "-c", _WRITER, str(tmp_path)], stdout=subprocess.PIPE, text=True, env=env
+    )
     assert p.stdout.readline().strip() == "writing"
     assert len(list(tmp_path.glob(".out.hstmp-*"))) == 2  # the partial files exist
     p.send_signal(sig)
@@ -329,8 +349,9 @@ def test_temporary_files_removed_on_signals(tmp_path, sig):
 
 def test_stale_temporary_files_of_a_killed_run_are_cleaned_by_the_next(tmp_path):
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    p = subprocess.Popen([PY, "-c", _WRITER, str(tmp_path)], stdout=subprocess.PIPE, text=True,
-                         env=env)
+    p = subprocess.Popen(
+        [PY, "-c", _WRITER, str(tmp_path)], stdout=subprocess.PIPE, text=True, env=env
+    )
     assert p.stdout.readline().strip() == "writing"
     p.kill()  # SIGKILL: nothing can clean up
     p.wait(timeout=60)
@@ -385,20 +406,25 @@ def _replace_first_value(text: str, new: str) -> str:
     return head + "MOTION" + "\n".join(lines)
 
 
-@pytest.mark.parametrize("value", ["1_000", "\u0663", "\u0661\u0662.\u0665", "\uff11",
-                                   "1e1_0", "nan", "Infinity", "0x10"])
+@pytest.mark.parametrize(
+    "value",
+    ["1_000", "\u0663", "\u0661\u0662.\u0665", "\uff11", "1e1_0", "nan", "Infinity", "0x10"],
+)
 def test_numbers_python_accepts_but_no_exporter_writes(value):
     text = _replace_first_value(HAND.read_text(), value)
     msg = refused(lambda: parse_bvh(text, "odd.bvh"), "odd.bvh line", "value 2")
     assert "expected a finite number" in msg
 
 
-@pytest.mark.parametrize("field, before, after", [
-    ("OFFSET", r"OFFSET\s+(\S+)", "OFFSET 1_0"),
-    ("Frames", r"Frames:\s*\d+", "Frames: 3_44"),
-    ("Frame Time", r"Frame Time:\s*\S+", "Frame Time: 0.0\u0662"),
-    ("CHANNELS", r"CHANNELS\s+6", "CHANNELS \u0666"),
-])
+@pytest.mark.parametrize(
+    "field, before, after",
+    [
+        ("OFFSET", r"OFFSET\s+(\S+)", "OFFSET 1_0"),
+        ("Frames", r"Frames:\s*\d+", "Frames: 3_44"),
+        ("Frame Time", r"Frame Time:\s*\S+", "Frame Time: 0.0\u0662"),
+        ("CHANNELS", r"CHANNELS\s+6", "CHANNELS \u0666"),
+    ],
+)
 def test_header_numbers_are_ascii(field, before, after):
     text = re.sub(before, after, HAND.read_text(), count=1)
     refused(lambda: parse_bvh(text, "odd.bvh"), "odd.bvh line", field)
@@ -426,8 +452,11 @@ def test_trc_numbers_are_ascii():
     fields = lines[6].split(",")
     fields[3] = "1_000"
     lines[6] = ",".join(fields)
-    refused(lambda: parse_trc("\n".join(lines) + "\n", "odd.trc"), "odd.trc line 7",
-            "'1_000' is not a number")
+    refused(
+        lambda: parse_trc("\n".join(lines) + "\n", "odd.trc"),
+        "odd.trc line 7",
+        "'1_000' is not a number",
+    )
 
 
 # ------------------------------------------------------------------ 8. damaged ELAN files
@@ -488,8 +517,19 @@ def test_damaged_elan_files_raise_one_error_type(tmp_path):
             kinds[name] = type(exc).__name__
     wrong = {n: k for n, k in kinds.items() if k not in ("MotionFormatError", "read")}
     assert not wrong, wrong
-    for name in ("fps-text", "fps-overflow", "fps-nan", "frames-huge", "slot-missing",
-                 "slot-text", "slot-huge", "truncated", "not-xml", "empty", "nested"):
+    for name in (
+        "fps-text",
+        "fps-overflow",
+        "fps-nan",
+        "frames-huge",
+        "slot-missing",
+        "slot-text",
+        "slot-huge",
+        "truncated",
+        "not-xml",
+        "empty",
+        "nested",
+    ):
         assert kinds[name] == "MotionFormatError", (name, kinds[name])
 
 
@@ -541,8 +581,10 @@ def test_batch_summary_grows_as_pairs_finish(tmp_path, monkeypatch):
     from engine import batch
 
     manifest = tmp_path / "m.csv"
-    manifest.write_text("body,hand,side,band,refine_band,match,name\n"
-                        f"{BODY},{HAND},right,,,,first\n{BODY},{HAND},right,,,,second\n")
+    manifest.write_text(
+        "body,hand,side,band,refine_band,match,name\n"
+        f"{BODY},{HAND},right,,,,first\n{BODY},{HAND},right,,,,second\n"
+    )
     seen = []
     real = batch.write_summary_csv
 
@@ -552,8 +594,18 @@ def test_batch_summary_grows_as_pairs_finish(tmp_path, monkeypatch):
 
     monkeypatch.setattr(batch, "write_summary_csv", spy)
 
-    def fake_dask(todo, outdir, thumbnails, scheduler, workers, client, show, splice,
-                  limits=(), on_record=None):
+    def fake_dask(
+        todo,
+        outdir,
+        thumbnails,
+        scheduler,
+        workers,
+        client,
+        show,
+        splice,
+        limits=(),
+        on_record=None,
+    ):
         out = []
         for job in todo:
             rec = batch.run_pair(job, outdir, thumbnails, splice, *limits)
@@ -563,8 +615,14 @@ def test_batch_summary_grows_as_pairs_finish(tmp_path, monkeypatch):
         return out
 
     monkeypatch.setattr(batch, "_run_on_dask", fake_dask)
-    result = batch.run_batch(manifest, tmp_path / "out", thumbnails="none",
-                             splice=_pass_through, pair_seconds=60, pair_memory_mb=0)
+    result = batch.run_batch(
+        manifest,
+        tmp_path / "out",
+        thumbnails="none",
+        splice=_pass_through,
+        pair_seconds=60,
+        pair_memory_mb=0,
+    )
     assert [r["status"] for r in result.records] == ["done", "done"]
     assert seen[0] == ["first"] and seen[-1] == ["first", "second"], seen
     rows = list(csv.DictReader((tmp_path / "out" / "summary.csv").open()))

@@ -47,8 +47,11 @@ def test_contrast_is_raised_only_where_the_local_mean_is_low():
     raw, enh, _ = pose_distance_map(_arm(tip), FPS, params)
     half = int(round(0.5 * params.contrast_window_s * FPS))
     mean = uniform_filter(raw.astype(float), 2 * half + 1, mode="nearest")
-    gain = np.where(mean < params.contrast_threshold,
-                    np.minimum(params.contrast_threshold / mean, params.max_gain), 1.0)
+    gain = np.where(
+        mean < params.contrast_threshold,
+        np.minimum(params.contrast_threshold / mean, params.max_gain),
+        1.0,
+    )
     np.testing.assert_allclose(enh, raw * gain, rtol=1e-4, atol=1e-7)
     assert np.all(enh >= raw - 1e-6)
     assert enh[100, 110] > 2 * raw[100, 110]  # the small late motion is amplified
@@ -72,8 +75,9 @@ def test_small_finger_driven_motion_needs_the_contrast_enhancement():
     pts = _arm(tip, elbow_scale=0.0)
     plain = find_key_poses(pts, FPS, KeyPoseParameters(contrast_threshold=0.0), with_map=False)
     assert len(plain.frames) == 0
-    enhanced = find_key_poses(pts, FPS, KeyPoseParameters(joint_weights=(1, 1, 1, 4)),
-                              with_map=False)
+    enhanced = find_key_poses(
+        pts, FPS, KeyPoseParameters(joint_weights=(1, 1, 1, 4)), with_map=False
+    )
     assert len(enhanced.frames) >= 5
     # a truly static arm has no key poses, enhanced or not
     still = find_key_poses(_arm(np.zeros(100)), FPS, with_map=False)
@@ -91,8 +95,15 @@ def test_long_takes_get_a_strided_map_and_the_same_keys():
     np.testing.assert_array_equal(full.frames, strided.frames)
 
 
-@pytest.mark.parametrize("kwargs", [dict(joint_weights=(1, -1, 1)), dict(max_gain=0.5),
-                                    dict(contrast_window_s=0), dict(min_prominence=-1)])
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        dict(joint_weights=(1, -1, 1)),
+        dict(max_gain=0.5),
+        dict(contrast_window_s=0),
+        dict(min_prominence=-1),
+    ],
+)
 def test_bad_parameters_name_the_field(kwargs):
     with pytest.raises(ParameterError, match=next(iter(kwargs))):
         KeyPoseParameters(**kwargs)
@@ -106,10 +117,15 @@ def test_bad_points_shape_is_an_error():
     assert five.frames.tolist() == []
 
 
-@pytest.mark.parametrize("take, side", [("2_wave-right-hand", "right"),
-                                        ("2_wave-both-hands", "right"),
-                                        ("2_wave-both-hands", "left"),
-                                        ("1_byebye", "right")])
+@pytest.mark.parametrize(
+    "take, side",
+    [
+        ("2_wave-right-hand", "right"),
+        ("2_wave-both-hands", "right"),
+        ("2_wave-both-hands", "left"),
+        ("1_byebye", "right"),
+    ],
+)
 def test_key_poses_of_real_waves_land_on_the_swing_extremes(take, side):
     """Within the wave (the stroke), key frames sit on the extremes of the hand tip's
     swing (projected on its main direction) within one frame, and after the first

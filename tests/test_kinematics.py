@@ -71,12 +71,15 @@ Frame Time: 0.1
 #          turns the forearm x -> y -> z: wrist (4,2,5), and the hand likewise: tip (4,2,6).
 # frame 3: R = Rz(90) Rx(90): x -> x -> y: elbow (1,5,3), wrist (1,7,3); hand
 #          Rz Rx Ry(90): x -> -z -> +y -> -x: tip (0,7,3).
-ARM_POSITIONS = np.array([
-    [[1, 2, 3], [4, 2, 3], [6, 2, 3]],
-    [[1, 2, 3], [1, 5, 3], [3, 5, 3]],
-    [[1, 2, 3], [4, 2, 3], [4, 2, 5]],
-    [[1, 2, 3], [1, 5, 3], [1, 7, 3]],
-], dtype=float)
+ARM_POSITIONS = np.array(
+    [
+        [[1, 2, 3], [4, 2, 3], [6, 2, 3]],
+        [[1, 2, 3], [1, 5, 3], [3, 5, 3]],
+        [[1, 2, 3], [4, 2, 3], [4, 2, 5]],
+        [[1, 2, 3], [1, 5, 3], [1, 7, 3]],
+    ],
+    dtype=float,
+)
 ARM_TIPS = np.array([[7, 2, 3], [3, 5, 2], [4, 2, 6], [0, 7, 3]], dtype=float)
 
 
@@ -104,8 +107,13 @@ def test_arm_world_rotations_are_matrix_products():
 
 
 def test_arm_built_without_the_reader():
-    sk = Skeleton(["shoulder", "elbow", "wrist"], [-1, 0, 1],
-                  [[0, 0, 0], [3, 0, 0], [2, 0, 0]], [(), (), ()], {2: np.array([1.0, 0, 0])})
+    sk = Skeleton(
+        ["shoulder", "elbow", "wrist"],
+        [-1, 0, 1],
+        [[0, 0, 0], [3, 0, 0], [2, 0, 0]],
+        [(), (), ()],
+        {2: np.array([1.0, 0, 0])},
+    )
     q = rot.identity((1, 3))
     q[0, 0] = rot.from_axis_angle(np.array([0, 0, 1.0]), np.pi / 2)
     q[0, 1] = rot.from_axis_angle(np.array([0, 0, 1.0]), -np.pi / 2)
@@ -127,10 +135,15 @@ def _chain_text(order: str, angles: np.ndarray, offsets: np.ndarray, root: np.nd
     lines = ["HIERARCHY"]
     for j in range(n):
         kw = "ROOT" if j == 0 else "JOINT"
-        chans = f"CHANNELS 6 Xposition Yposition Zposition {rots}" if j == 0 else \
-            f"CHANNELS 3 {rots}"
-        lines += [f"{kw} j{j}", "{", "OFFSET " + " ".join(repr(float(v)) for v in offsets[j]),
-                  chans]
+        chans = (
+            f"CHANNELS 6 Xposition Yposition Zposition {rots}" if j == 0 else f"CHANNELS 3 {rots}"
+        )
+        lines += [
+            f"{kw} j{j}",
+            "{",
+            "OFFSET " + " ".join(repr(float(v)) for v in offsets[j]),
+            chans,
+        ]
     lines += ["End Site", "{", "OFFSET 0 0 1", "}"] + ["}"] * n
     lines += ["MOTION", f"Frames: {len(angles)}", "Frame Time: 0.1"]
     for f in range(len(angles)):
@@ -206,7 +219,7 @@ def _text_fk(path, frame_rows: list[int]) -> np.ndarray:
         elif tok and tok[0] == "CHANNELS":
             chans.append(tok[2:])
         i += 1
-    rows = [ln.split() for ln in lines[i + 3:] if ln.strip()]
+    rows = [ln.split() for ln in lines[i + 3 :] if ln.strip()]
     out = []
     for r in frame_rows:
         vals = [float(v) for v in rows[r]]
@@ -284,12 +297,13 @@ def test_resample_midpoints_are_slerp_midpoints(beat):
     mid = q0 + sign * q1
     mid /= np.linalg.norm(mid, axis=-1, keepdims=True)
     assert rot.angle_between(up.rotations[1::2], mid).max() < 1e-9
-    np.testing.assert_allclose(up.translations[1::2],
-                               0.5 * (beat.translations[:-1] + beat.translations[1:]),
-                               atol=1e-12)
+    np.testing.assert_allclose(
+        up.translations[1::2], 0.5 * (beat.translations[:-1] + beat.translations[1:]), atol=1e-12
+    )
     # the midpoint is halfway in angle between its neighbours
-    np.testing.assert_allclose(rot.angle_between(up.rotations[1::2], q0),
-                               0.5 * rot.angle_between(q0, q1), atol=1e-7)
+    np.testing.assert_allclose(
+        rot.angle_between(up.rotations[1::2], q0), 0.5 * rot.angle_between(q0, q1), atol=1e-7
+    )
 
 
 def test_resample_keeps_duration_and_endpoints():
@@ -330,8 +344,12 @@ def test_slerp_endpoints_and_hemisphere():
     assert rot.angle_between(rot.slerp(a, b, np.zeros(50)), a).max() < 1e-12
     assert rot.angle_between(rot.slerp(a, b, np.ones(50)), b).max() < 1e-9
     # -b is the same rotation: the path must not change
-    assert rot.angle_between(rot.slerp(a, -b, np.full(50, 0.3)),
-                             rot.slerp(a, b, np.full(50, 0.3))).max() < 1e-9
+    assert (
+        rot.angle_between(
+            rot.slerp(a, -b, np.full(50, 0.3)), rot.slerp(a, b, np.full(50, 0.3))
+        ).max()
+        < 1e-9
+    )
 
 
 def test_to_euler_inverts_from_euler_at_gimbal_lock():

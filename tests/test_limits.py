@@ -33,13 +33,28 @@ C3D = MOCAP / "pyomeca/markers_analogs.c3d"
 TRC = MOCAP / "pyomeca/markers.trc"
 
 
-def chain_bvh(joints: int, frames: int = 1, frame_time: str = "0.0333333",
-              offset: str = "0 1 0", value: str = "0") -> str:
+def chain_bvh(
+    joints: int,
+    frames: int = 1,
+    frame_time: str = "0.0333333",
+    offset: str = "0 1 0",
+    value: str = "0",
+) -> str:
     """A chain of ``joints`` joints (each nested in the previous), 3 rotation channels each."""
-    lines = ["HIERARCHY", "ROOT j0", "{", "OFFSET 0 0 0",
-             "CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation"]
+    lines = [
+        "HIERARCHY",
+        "ROOT j0",
+        "{",
+        "OFFSET 0 0 0",
+        "CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation",
+    ]
     for j in range(1, joints):
-        lines += [f"JOINT j{j}", "{", f"OFFSET {offset}", "CHANNELS 3 Zrotation Xrotation Yrotation"]
+        lines += [
+            f"JOINT j{j}",
+            "{",
+            f"OFFSET {offset}",
+            "CHANNELS 3 Zrotation Xrotation Yrotation",
+        ]
     lines += ["End Site", "{", "OFFSET 0 1 0", "}"] + ["}"] * joints
     n_values = 6 + 3 * (joints - 1)
     row = " ".join([value] * n_values)
@@ -49,10 +64,21 @@ def chain_bvh(joints: int, frames: int = 1, frame_time: str = "0.0333333",
 
 def fan_bvh(joints: int, frames: int = 1) -> str:
     """A root with ``joints - 1`` children (one level deep), 3 rotation channels each."""
-    lines = ["HIERARCHY", "ROOT j0", "{", "OFFSET 0 0 0", "CHANNELS 3 Zrotation Xrotation Yrotation"]
+    lines = [
+        "HIERARCHY",
+        "ROOT j0",
+        "{",
+        "OFFSET 0 0 0",
+        "CHANNELS 3 Zrotation Xrotation Yrotation",
+    ]
     for j in range(1, joints):
-        lines += [f"JOINT j{j}", "{", "OFFSET 0 1 0", "CHANNELS 3 Zrotation Xrotation Yrotation",
-                  "}"]
+        lines += [
+            f"JOINT j{j}",
+            "{",
+            "OFFSET 0 1 0",
+            "CHANNELS 3 Zrotation Xrotation Yrotation",
+            "}",
+        ]
     lines += ["}", "MOTION", f"Frames: {frames}", "Frame Time: 0.0333333"]
     lines += [" ".join(["0"] * (3 * joints))] * frames
     return "\n".join(lines) + "\n"
@@ -100,22 +126,34 @@ def test_bvh_absurd_depth():
     depth = limits.MAX_DEPTH
     m = parse_bvh(chain_bvh(depth), "deep.bvh")  # nested MAX_DEPTH levels: fine, no recursion
     assert m.skeleton.n_joints == depth and m.skeleton.parents[-1] == depth - 2
-    msg = refused(lambda: parse_bvh(chain_bvh(depth + 1), "deeper.bvh"), "deeper.bvh line",
-                  f"nested more than {depth} deep")
+    msg = refused(
+        lambda: parse_bvh(chain_bvh(depth + 1), "deeper.bvh"),
+        "deeper.bvh line",
+        f"nested more than {depth} deep",
+    )
     assert f"'j{depth}'" in msg
 
 
-@pytest.mark.parametrize("frame_time, words", [
-    ("1e-320", "frames per second"), ("0.00001", "frames per second"), ("0", "not a positive"),
-    ("-0.03", "not a positive"), ("nan", "not a positive"), ("inf", "not a positive"),
-])
+@pytest.mark.parametrize(
+    "frame_time, words",
+    [
+        ("1e-320", "frames per second"),
+        ("0.00001", "frames per second"),
+        ("0", "not a positive"),
+        ("-0.03", "not a positive"),
+        ("nan", "not a positive"),
+        ("inf", "not a positive"),
+    ],
+)
 def test_bvh_absurd_frame_time(frame_time, words):
     refused(lambda: parse_bvh(chain_bvh(2, frame_time=frame_time), "rate.bvh"), words)
     parse_bvh(chain_bvh(2, frame_time="0.0001"), "fast.bvh")  # 10 kHz is still accepted
 
 
-@pytest.mark.parametrize("kw", [dict(offset="0 1e300 0"), dict(offset="0 -2e9 0"),
-                                dict(value="1e12"), dict(value="-1e308")])
+@pytest.mark.parametrize(
+    "kw",
+    [dict(offset="0 1e300 0"), dict(offset="0 -2e9 0"), dict(value="1e12"), dict(value="-1e308")],
+)
 def test_bvh_absurd_values(kw):
     refused(lambda: parse_bvh(chain_bvh(3, **kw), "far.bvh"), "refusing an absurd value")
 
@@ -125,9 +163,15 @@ def test_bvh_values_at_the_limit_are_read():
     assert np.isfinite(m.translations).all()
 
 
-@pytest.mark.parametrize("channels", ["CHANNELS 7 Zrotation Xrotation Yrotation",
-                                      "CHANNELS -1", "CHANNELS 99999999999999999999",
-                                      "CHANNELS 3 Zrotation Zrotation Yrotation"])
+@pytest.mark.parametrize(
+    "channels",
+    [
+        "CHANNELS 7 Zrotation Xrotation Yrotation",
+        "CHANNELS -1",
+        "CHANNELS 99999999999999999999",
+        "CHANNELS 3 Zrotation Zrotation Yrotation",
+    ],
+)
 def test_bvh_bad_channel_counts(channels):
     text = chain_bvh(2).replace("CHANNELS 3 Zrotation Xrotation Yrotation", channels)
     refused(lambda: parse_bvh(text, "ch.bvh"), "ch.bvh line")
@@ -183,8 +227,7 @@ def test_trc_limits(monkeypatch, tmp_path):
 
 def test_session_size_depth_and_points_limits():
     refused(lambda: parse_session(b" " * (MAX_TEXT + 1), "big.json"), "at most")
-    refused(lambda: parse_session("[" * 200_000 + "]" * 200_000, "deep.json"),
-            "nested too deeply")
+    refused(lambda: parse_session("[" * 200_000 + "]" * 200_000, "deep.json"), "nested too deeply")
     points = [{"body": i, "hand": i} for i in range(MAX_POINTS + 1)]
     refused(lambda: parse_session(json.dumps({"points": points}), "many.json"), "at most")
     refused(lambda: parse_session('{"band": 1e999}', "inf.json"), "band")
@@ -220,8 +263,12 @@ def app_dirs(tmp_path):
         {"name": "not-a-string", "body": ["takes/body.bvh"], "hand": {"x": 1}},
     ]
     (samples / "samples.json").write_text(json.dumps({"pairs": entries}), encoding="utf-8")
-    cfg = config.AppConfig(sample_dir=samples.resolve(), upload_dir=uploads.resolve(),
-                           default_sample="ok", max_upload_bytes=200_000)
+    cfg = config.AppConfig(
+        sample_dir=samples.resolve(),
+        upload_dir=uploads.resolve(),
+        default_sample="ok",
+        max_upload_bytes=200_000,
+    )
     return cfg, secret
 
 
@@ -238,14 +285,18 @@ def test_upload_size_limit_and_refusals(app_dirs):
 
     cfg, _ = app_dirs
     good = (cfg.sample_dir / "takes" / "hand.bvh").read_bytes()
-    refused(lambda: uploads.store(cfg, "big.bvh", good + b"\n" * cfg.max_upload_bytes),
-            "big.bvh", "upload limit")
+    refused(
+        lambda: uploads.store(cfg, "big.bvh", good + b"\n" * cfg.max_upload_bytes),
+        "big.bvh",
+        "upload limit",
+    )
     refused(lambda: uploads.store(cfg, "empty.bvh", b""), "empty")
     refused(lambda: uploads.store(cfg, "take.exe", good), "expected a .bvh, .c3d or .trc")
     refused(lambda: uploads.store(cfg, "noext", good), "expected a .bvh")
     absurd = chain_bvh(2).replace("Frames: 1", "Frames: 999999999").encode()
-    msg = refused(lambda: uploads.store(cfg, "absurd.bvh", absurd), "absurd.bvh",
-                  "refusing an absurd take")
+    msg = refused(
+        lambda: uploads.store(cfg, "absurd.bvh", absurd), "absurd.bvh", "refusing an absurd take"
+    )
     assert ".check-" not in msg  # the staging name is not shown to the user
     refused(lambda: uploads.store(cfg, "bones.bvh", fan_bvh(1001).encode()), "joints")
     assert sorted(p.name for p in cfg.upload_dir.iterdir()) == []  # nothing kept
@@ -256,16 +307,30 @@ def test_upload_names_cannot_escape_the_upload_folder(app_dirs, tmp_path):
 
     cfg, secret = app_dirs
     good = (cfg.sample_dir / "takes" / "hand.bvh").read_bytes()
-    for name in ("../../evil.bvh", "/etc/cron.d/evil.bvh", "..\\..\\evil.bvh",
-                 "a/../../../evil.bvh"):
+    for name in (
+        "../../evil.bvh",
+        "/etc/cron.d/evil.bvh",
+        "..\\..\\evil.bvh",
+        "a/../../../evil.bvh",
+    ):
         digest, take = uploads.store(cfg, name, good)
         assert take.n_frames == 50
     kept = list(cfg.upload_dir.iterdir())
     assert [p.name for p in kept] == [f"{digest}.bvh"]
     assert not list(tmp_path.rglob("evil*"))
     assert uploads.path_for(cfg, digest) == cfg.upload_dir / f"{digest}.bvh"
-    for bad in ("../../secret", str(secret), "../" * 10 + "etc/passwd", digest.upper(),
-                digest[:-1], digest + "0", digest[:60] + "/../", "", None, 12):
+    for bad in (
+        "../../secret",
+        str(secret),
+        "../" * 10 + "etc/passwd",
+        digest.upper(),
+        digest[:-1],
+        digest + "0",
+        digest[:60] + "/../",
+        "",
+        None,
+        12,
+    ):
         refused(lambda b=bad: uploads.path_for(cfg, b), "upload")
 
 
@@ -298,8 +363,12 @@ def recorded_opens():
 
 
 def _outside(paths: list[str], allowed: list[Path]) -> list[str]:
-    code = [Path(sys.prefix).resolve(), Path(sys.base_prefix).resolve(), ROOT / "engine",
-            ROOT / "webapp"]
+    code = [
+        Path(sys.prefix).resolve(),
+        Path(sys.base_prefix).resolve(),
+        ROOT / "engine",
+        ROOT / "webapp",
+    ]
     if os.environ.get("NUMBA_CACHE_DIR"):  # numba's compiled-kernel cache (cold on a fresh clone)
         code.append(Path(os.environ["NUMBA_CACHE_DIR"]).resolve())
     out = []
@@ -342,19 +411,25 @@ def test_webapp_reads_only_its_sample_and_upload_folders(app_dirs):
         {"inputs": {"sample": "symlink"}},
         {"inputs": {"body": {"sha256": "0" * 64}, "hand": {"sha256": "1" * 64}}},
     ]
-    hostile_queries = [{"sample": "../../secret"}, {"sample": "dotdot"},
-                       {"body": "../../etc/passwd", "hand": "x"},
-                       {"body": "ab" * 32, "hand": "cd" * 32}]
+    hostile_queries = [
+        {"sample": "../../secret"},
+        {"sample": "dotdot"},
+        {"body": "../../etc/passwd", "hand": "x"},
+        {"body": "ab" * 32, "hand": "cd" * 32},
+    ]
     with recorded_opens() as opened:
         s = Session(cfg)
         s.load_sample("ok")  # an ordinary request: reads both sample takes
         assert s.prepared is not None and s.n == 40 and not s.error
-        for request in ([lambda d=d: s.from_json(json.dumps(d), "hostile.json")
-                         for d in hostile_json]
-                        + [lambda q=q: s.from_query(q) for q in hostile_queries]
-                        + [lambda n=n: s.load_sample(n) for n in ("dotdot", "sneaky", "absolute",
-                                                                   "symlink", "etc")]
-                        + [lambda: s.load_uploads("../../secret", "../../secret")]):
+        for request in (
+            [lambda d=d: s.from_json(json.dumps(d), "hostile.json") for d in hostile_json]
+            + [lambda q=q: s.from_query(q) for q in hostile_queries]
+            + [
+                lambda n=n: s.load_sample(n)
+                for n in ("dotdot", "sneaky", "absolute", "symlink", "etc")
+            ]
+            + [lambda: s.load_uploads("../../secret", "../../secret")]
+        ):
             refused_or_reported(s, request)
         b, _ = uploads.store(cfg, "../../body.bvh", body_bytes)
         h, _ = uploads.store(cfg, "/etc/hand.bvh", hand_bytes)

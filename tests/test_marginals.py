@@ -93,7 +93,9 @@ def _brute_open(cost, ends):
     f = forward(cost)
     b = forward(cost[::-1, ::-1])[::-1, ::-1]
     ends_total = [f[n - 1, j] + ends.skip * (m - 1 - j) for j in range(m) if m - 1 - j <= ends.hand]
-    ends_total += [f[i, m - 1] + ends.skip * (n - 1 - i) for i in range(n) if n - 1 - i <= ends.body]
+    ends_total += [
+        f[i, m - 1] + ends.skip * (n - 1 - i) for i in range(n) if n - 1 - i <= ends.body
+    ]
     return f + b - cost, min(ends_total)
 
 
@@ -104,8 +106,11 @@ def test_open_ends_through_costs_match_brute_force(seed):
     a = rng.normal(size=(n, 1))
     b = rng.normal(size=(m, 1))
     cost = (a - b.T) ** 2
-    ends = Ends(body=int(rng.integers(0, n // 2)), hand=int(rng.integers(0, m // 2)),
-                skip=float(rng.uniform(0.1, 1.0)))
+    ends = Ends(
+        body=int(rng.integers(0, n // 2)),
+        hand=int(rng.integers(0, m // 2)),
+        skip=float(rng.uniform(0.1, 1.0)),
+    )
     through, total = _brute_open(cost, ends)
     band = Band.full(n, m)
     col = np.full(n, m / 2.0)

@@ -79,9 +79,17 @@ def _encode_float(values: np.ndarray, processor: str) -> bytes:
     return v.astype("<f4").tobytes()
 
 
-def build_c3d(points: np.ndarray, labels: list[str], rate: float = 50.0, scale: float = -0.1,
-              processor: str = "intel", units: str = "mm", y_screen: str = "+Y",
-              n_analog: int = 0, long_take: bool = False) -> bytes:
+def build_c3d(
+    points: np.ndarray,
+    labels: list[str],
+    rate: float = 50.0,
+    scale: float = -0.1,
+    processor: str = "intel",
+    units: str = "mm",
+    y_screen: str = "+Y",
+    n_analog: int = 0,
+    long_take: bool = False,
+) -> bytes:
     """A minimal C3D file: POINT group (+ TRIAL for long takes), NaN points as residual -1."""
     F, M, _ = points.shape
     end = ">" if processor == "mips" else "<"
@@ -107,19 +115,21 @@ def build_c3d(points: np.ndarray, labels: list[str], rate: float = 50.0, scale: 
         ("POINT", "LABELS", -1, (8, M), b"".join(chars(lab, 8) for lab in labels)),
     ]
     if long_take:
-        params += [("TRIAL", "ACTUAL_START_FIELD", 2, (2,), i16(1) + i16(0)),
-                   ("TRIAL", "ACTUAL_END_FIELD", 2, (2,), struct.pack(end + "HH", F & 0xFFFF,
-                                                                      F >> 16))]
+        params += [
+            ("TRIAL", "ACTUAL_START_FIELD", 2, (2,), i16(1) + i16(0)),
+            ("TRIAL", "ACTUAL_END_FIELD", 2, (2,), struct.pack(end + "HH", F & 0xFFFF, F >> 16)),
+        ]
     entries = []
     for name, gid in groups.items():
         entries.append(struct.pack("bb", len(name), -gid) + name.encode() + i16(3) + b"\x00")
     for group, name, ptype, dims, data in params:
         body = struct.pack("bB", ptype, len(dims)) + bytes(dims) + data + b"\x00"
-        entries.append(struct.pack("bb", len(name), groups[group]) + name.encode()
-                       + i16(2 + len(body)) + body)
+        entries.append(
+            struct.pack("bb", len(name), groups[group]) + name.encode() + i16(2 + len(body)) + body
+        )
     last = entries[-1]
     n = last[0]
-    entries[-1] = last[:2 + n] + i16(0) + last[4 + n:]
+    entries[-1] = last[: 2 + n] + i16(0) + last[4 + n :]
     section = b"".join(entries)
     n_blocks = (4 + len(section)) // 512 + 1
     section = (bytes([1, 0x50, n_blocks, code]) + section).ljust(n_blocks * 512, b"\x00")
@@ -161,8 +171,16 @@ def test_c3d_layouts(processor, scale, tmp_path):
     rng = np.random.default_rng(7)
     pts = _sample_points(rng)
     labels = ["WRIST", "STYLr", "LARMl"]
-    raw = build_c3d(pts, labels, rate=120.0, scale=scale, processor=processor, units="mm",
-                    y_screen="+Z", n_analog=4)
+    raw = build_c3d(
+        pts,
+        labels,
+        rate=120.0,
+        scale=scale,
+        processor=processor,
+        units="mm",
+        y_screen="+Z",
+        n_analog=4,
+    )
     markers = parse_c3d(raw, source="built.c3d")
     assert markers.labels == tuple(labels) and markers.fps == 120.0
     assert markers.meta.units == "mm" and markers.meta.up_axis == "z"
@@ -187,23 +205,26 @@ def test_c3d_long_take_uses_trial_fields():
 
 
 def _flip(raw: bytes, at: int, value: int) -> bytes:
-    return raw[:at] + bytes([value]) + raw[at + 1:]
+    return raw[:at] + bytes([value]) + raw[at + 1 :]
 
 
 def _real() -> bytes:
     return C3D_FILE.read_bytes()
 
 
-@pytest.mark.parametrize("make,fragment", [
-    (lambda: b"\x02\x50" + bytes(100), "shorter than the 512-byte header"),
-    (lambda: bytes(range(256)) * 8, "header byte 2 is 0x01, expected 0x50"),
-    (lambda: _real()[:100_000], "truncated C3D file (or damaged header): 580 frames need"),
-    (lambda: _real()[:3000], "truncated C3D file: 3000 bytes, the parameter section needs"),
-    (lambda: _flip(_real(), 512 + 3, 0), "processor type 0, expected 84"),
-    (lambda: _flip(_real(), 898, 228), "damaged C3D parameter section at byte 897"),  # ezc3d
-    (lambda: _flip(_real(), 16, 3), "data starts at block 3, inside the parameter section"),
-    (lambda: _flip(_real(), 2, 50), "header says 50 points but POINT:USED is 51"),
-])
+@pytest.mark.parametrize(
+    "make,fragment",
+    [
+        (lambda: b"\x02\x50" + bytes(100), "shorter than the 512-byte header"),
+        (lambda: bytes(range(256)) * 8, "header byte 2 is 0x01, expected 0x50"),
+        (lambda: _real()[:100_000], "truncated C3D file (or damaged header): 580 frames need"),
+        (lambda: _real()[:3000], "truncated C3D file: 3000 bytes, the parameter section needs"),
+        (lambda: _flip(_real(), 512 + 3, 0), "processor type 0, expected 84"),
+        (lambda: _flip(_real(), 898, 228), "damaged C3D parameter section at byte 897"),  # ezc3d
+        (lambda: _flip(_real(), 16, 3), "data starts at block 3, inside the parameter section"),
+        (lambda: _flip(_real(), 2, 50), "header says 50 points but POINT:USED is 51"),
+    ],
+)
 def test_c3d_malformed(make, fragment):
     with pytest.raises(MotionFormatError) as err:
         parse_c3d(make(), source="/data/take.c3d")
@@ -224,9 +245,11 @@ def test_c3d_file_errors(tmp_path):
 
 
 def _trc(rows: list[str], names=("WRIST", "ELB"), sep="\t", header=None, blank=True) -> str:
-    head = header or ["PathFileType\t4\t(X/Y/Z)\tt.trc",
-                      "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate",
-                      f"60\t60\t{len(rows)}\t{len(names)}\tm\t60"]
+    head = header or [
+        "PathFileType\t4\t(X/Y/Z)\tt.trc",
+        "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate",
+        f"60\t60\t{len(rows)}\t{len(names)}\tm\t60",
+    ]
     name_row = "Frame#\tTime\t" + "\t\t\t".join(names) + "\t\t"
     xyz = "\t\t" + "\t".join(f"X{i}\tY{i}\tZ{i}" for i in range(1, len(names) + 1))
     lines = head + [name_row, xyz] + ([""] if blank else []) + rows
@@ -234,11 +257,17 @@ def _trc(rows: list[str], names=("WRIST", "ELB"), sep="\t", header=None, blank=T
 
 
 def test_trc_gaps_nan_text_crlf_and_commas():
-    rows = ["1\t0.0\t1\t2\t3\t4\t5\t6",
-            "2\t0.0167\t\t\t\t4.5\t5.5\t6.5",  # WRIST not seen
-            "3\t0.0333\tNaN\tNaN\tNaN\t7\t8\t9\t\t"]  # NaN text and trailing tabs
-    for text in (_trc(rows), _trc(rows).replace("\n", "\r\n"), _trc(rows, sep=","),
-                 _trc(rows, blank=False)):
+    rows = [
+        "1\t0.0\t1\t2\t3\t4\t5\t6",
+        "2\t0.0167\t\t\t\t4.5\t5.5\t6.5",  # WRIST not seen
+        "3\t0.0333\tNaN\tNaN\tNaN\t7\t8\t9\t\t",
+    ]  # NaN text and trailing tabs
+    for text in (
+        _trc(rows),
+        _trc(rows).replace("\n", "\r\n"),
+        _trc(rows, sep=","),
+        _trc(rows, blank=False),
+    ):
         markers = parse_trc(text, source="t.trc")
         assert markers.labels == ("WRIST", "ELB") and markers.fps == 60.0
         assert markers.meta.units == "m" and markers.n_frames == 3
@@ -246,22 +275,46 @@ def test_trc_gaps_nan_text_crlf_and_commas():
         np.testing.assert_array_equal(markers.points[2, 1], [7, 8, 9])
 
 
-@pytest.mark.parametrize("text,line,fragment", [
-    (_trc(["1\t0\t1\t2\t3\t4\t5"]), 7, "expected 8 values (Frame#, Time, 3 x 2 markers), found 7"),
-    (_trc(["1\t0\t1\t2\t3\t4\t5\t6", "2\t0.1\t1\t2"]), 8, "found 4 (file cut short?)"),
-    (_trc(["1\t0\t1\t2\tabc\t4\t5\t6"]), 7, "WRIST Z: 'abc' is not a number"),
-    (_trc(["1\t0\t1\t2\t3\t4\tinf\t6"]), 7, "ELB Y: 'inf' is not finite"),
-    (_trc(["\t0\t1\t2\t3\t4\t5\t6"]), 7, "Frame# is empty"),
-    (_trc([]), 6, "no data rows after the header"),
-    ("hello\nworld\n", 2, "not a TRC file: 2 lines"),
-    ("x\n" * 6, 1, "expected 'PathFileType'"),
-    (_trc(["1\t0\t1\t2\t3\t4\t5\t6"], header=["PathFileType\t4", "DataRate\tNumMarkers",
-                                               "abc\t2"]), 3, "DataRate is 'abc'"),
-    (_trc(["1\t0\t1\t2\t3\t4\t5\t6"], header=["PathFileType\t4", "DataRate\tNumMarkers",
-                                               "60\t3"]), 4, "header says 3 markers"),
-    (_trc(["1\t0\t1\t2\t3\t4\t5\t6"], header=["PathFileType\t4", "Units\tNumMarkers",
-                                               "mm\t2"]), 2, "header has no DataRate or CameraRate"),
-])
+@pytest.mark.parametrize(
+    "text,line,fragment",
+    [
+        (
+            _trc(["1\t0\t1\t2\t3\t4\t5"]),
+            7,
+            "expected 8 values (Frame#, Time, 3 x 2 markers), found 7",
+        ),
+        (_trc(["1\t0\t1\t2\t3\t4\t5\t6", "2\t0.1\t1\t2"]), 8, "found 4 (file cut short?)"),
+        (_trc(["1\t0\t1\t2\tabc\t4\t5\t6"]), 7, "WRIST Z: 'abc' is not a number"),
+        (_trc(["1\t0\t1\t2\t3\t4\tinf\t6"]), 7, "ELB Y: 'inf' is not finite"),
+        (_trc(["\t0\t1\t2\t3\t4\t5\t6"]), 7, "Frame# is empty"),
+        (_trc([]), 6, "no data rows after the header"),
+        ("hello\nworld\n", 2, "not a TRC file: 2 lines"),
+        ("x\n" * 6, 1, "expected 'PathFileType'"),
+        (
+            _trc(
+                ["1\t0\t1\t2\t3\t4\t5\t6"],
+                header=["PathFileType\t4", "DataRate\tNumMarkers", "abc\t2"],
+            ),
+            3,
+            "DataRate is 'abc'",
+        ),
+        (
+            _trc(
+                ["1\t0\t1\t2\t3\t4\t5\t6"],
+                header=["PathFileType\t4", "DataRate\tNumMarkers", "60\t3"],
+            ),
+            4,
+            "header says 3 markers",
+        ),
+        (
+            _trc(
+                ["1\t0\t1\t2\t3\t4\t5\t6"], header=["PathFileType\t4", "Units\tNumMarkers", "mm\t2"]
+            ),
+            2,
+            "header has no DataRate or CameraRate",
+        ),
+    ],
+)
 def test_trc_malformed(text, line, fragment):
     with pytest.raises(MotionFormatError) as err:
         parse_trc(text, source="/x/walk.trc")
@@ -294,8 +347,11 @@ def test_load_take_dispatch(tmp_path):
 
 
 def test_load_take_errors(tmp_path):
-    with pytest.raises(MotionFormatError, match=r"walk.fbx: unknown file type \(.fbx\): "
-                                                r"expected .bvh, .c3d or .trc"):
+    with pytest.raises(
+        MotionFormatError,
+        match=r"walk.fbx: unknown file type \(.fbx\): "
+        r"expected .bvh, .c3d or .trc",
+    ):
         load_take(tmp_path / "walk.fbx")
     with pytest.raises(MotionFormatError, match="no extension"):
         load_take(tmp_path / "walk")

@@ -47,8 +47,12 @@ def humanoid(fingers: bool = True) -> Skeleton:
         add(f"{side}Leg", f"{side}UpLeg", [0, -42, 0])
         add(f"{side}Foot", f"{side}Leg", [0, -42, 0])
         add(f"{side}ToeBase", f"{side}Foot", [0, -6, 12])
-    return Skeleton(names, np.array(parents), np.array(offsets, float),
-                    [("Zrotation", "Xrotation", "Yrotation")] * len(names))
+    return Skeleton(
+        names,
+        np.array(parents),
+        np.array(offsets, float),
+        [("Zrotation", "Xrotation", "Yrotation")] * len(names),
+    )
 
 
 def test_hand_built_humanoid_has_all_parts():

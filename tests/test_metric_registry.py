@@ -56,6 +56,9 @@ def test_a_registered_toy_metric_drives_pass_2(pair):
 
 def test_an_unknown_metric_is_refused_naming_the_known_ones(pair):
     body, hand = pair
-    with pytest.raises(ParameterError, match=r"metrics\[1\]: unknown metric 'nope'; known: .*"
-                                             r"splice_angle"):
+    with pytest.raises(
+        ParameterError,
+        match=r"metrics\[1\]: unknown metric 'nope'; known: .*"
+        r"splice_angle",
+    ):
         P.splice(body, hand, side="right", metrics=("splice_phase", "nope"))

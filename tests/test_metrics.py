@@ -31,7 +31,7 @@ def test_derivatives_of_a_sine_match_the_analytic_ones():
     v, a = M.derivatives(x, fps, window_s=0.1)
     inner = slice(20, -20)
     assert np.allclose(v[inner, 0], 2 * np.pi * np.cos(2 * np.pi * t[inner]), atol=0.02)
-    assert np.allclose(a[inner, 0], -(2 * np.pi) ** 2 * np.sin(2 * np.pi * t[inner]), atol=0.5)
+    assert np.allclose(a[inner, 0], -((2 * np.pi) ** 2) * np.sin(2 * np.pi * t[inner]), atol=0.5)
 
 
 def test_derivatives_of_tiny_takes_and_gaps():
@@ -161,15 +161,20 @@ def test_angle_metric_is_zero_for_a_turned_copy_and_sees_forearm_roll():
     swung = M.angle_features(rot.rotate(q[:, None, :], mk))
     d = M.cost_grid(M.splice_angle, body.rows(), swung.rows(), np.arange(20), np.arange(20))
     assert np.allclose(np.diag(d), 0.0, atol=1e-7)
-    assert np.allclose(np.diag(M.cost_grid(M.splice_angle, body.rows(), body.rows(),
-                                           np.arange(20), np.arange(20))), 0.0, atol=1e-7)
+    assert np.allclose(
+        np.diag(
+            M.cost_grid(M.splice_angle, body.rows(), body.rows(), np.arange(20), np.arange(20))
+        ),
+        0.0,
+        atol=1e-7,
+    )
     # roll the hand vector about the forearm by 30 deg: the cost is the roll's effect
     f, h = body.forearm[:, 0], body.hand[:, 0]
     roll = rot.from_axis_angle(f, np.full(20, np.radians(30.0)))
     rolled = M.AngleFeatures(forearm=body.forearm, hand=rot.rotate(roll, h)[:, None])
     d = M.cost_grid(M.splice_angle, body.rows(), rolled.rows(), np.arange(20), np.arange(20))
     perp = np.linalg.norm(h - f * np.sum(h * f, 1, keepdims=True), axis=1)
-    expect = np.arccos(np.clip(1 - perp ** 2 * (1 - np.cos(np.radians(30.0))), -1, 1))
+    expect = np.arccos(np.clip(1 - perp**2 * (1 - np.cos(np.radians(30.0))), -1, 1))
     assert np.allclose(np.diag(d), expect, atol=1e-6)
 
 
@@ -177,11 +182,23 @@ def test_two_arms_sum():
     rng = np.random.default_rng(8)
     mk = _arm_markers(30, rng, arms=2)
     other = _arm_markers(30, np.random.default_rng(9), arms=2)
-    both = M.cost_grid(M.splice_angle, M.angle_features(mk).rows(),
-                       M.angle_features(other).rows(), np.arange(30), np.arange(30))
-    parts = sum(M.cost_grid(M.splice_angle, M.angle_features(mk[:, s]).rows(),
-                            M.angle_features(other[:, s]).rows(), np.arange(30), np.arange(30))
-                for s in (slice(0, 4), slice(4, 8)))
+    both = M.cost_grid(
+        M.splice_angle,
+        M.angle_features(mk).rows(),
+        M.angle_features(other).rows(),
+        np.arange(30),
+        np.arange(30),
+    )
+    parts = sum(
+        M.cost_grid(
+            M.splice_angle,
+            M.angle_features(mk[:, s]).rows(),
+            M.angle_features(other[:, s]).rows(),
+            np.arange(30),
+            np.arange(30),
+        )
+        for s in (slice(0, 4), slice(4, 8))
+    )
     assert np.allclose(both, parts)
     b2 = M.phase_features(mk, 30.0)
     h2 = M.phase_features(other, 30.0)
@@ -189,12 +206,19 @@ def test_two_arms_sum():
     full = M.cost_grid(M.splice_phase, a, b, np.arange(30), np.arange(30))
     total = 0
     for s in (slice(0, 4), slice(4, 8)):
-        bs = M.PhaseFeatures(**{**b2.__dict__, "codes": b2.codes.reshape(30, 8, 6)[:, s]
-                                .reshape(30, -1), "arms": 1})
+        bs = M.PhaseFeatures(
+            **{**b2.__dict__, "codes": b2.codes.reshape(30, 8, 6)[:, s].reshape(30, -1), "arms": 1}
+        )
         hs = M.phase_features(other[:, s], 30.0)
-        hs = M.PhaseFeatures(**{**hs.__dict__, "zone": h2.zone,
-                                "codes": h2.codes.reshape(30, 8, 6)[:, s].reshape(30, -1),
-                                "velocity": h2.velocity[:, s], "acceleration": h2.acceleration[:, s]})
+        hs = M.PhaseFeatures(
+            **{
+                **hs.__dict__,
+                "zone": h2.zone,
+                "codes": h2.codes.reshape(30, 8, 6)[:, s].reshape(30, -1),
+                "velocity": h2.velocity[:, s],
+                "acceleration": h2.acceleration[:, s],
+            }
+        )
         total = total + M.phase_cost_reference(bs, hs, theta="none")
     assert np.array_equal(full, total)
 

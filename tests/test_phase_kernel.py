@@ -115,7 +115,9 @@ def test_popcount_and_theta_bins():
     r = rng.uniform(0.01, 10.0, th.size)  # any length
     got = _bins(r * np.sin(th), r * np.cos(th), nb)
     assert np.array_equal(got[far], exact[far])
-    odd = _bins(np.array([np.nan, 1.0, np.nan, 0.0, 0.0]), np.array([1.0, np.nan, np.nan, 0.0, -1.0]), nb)
+    odd = _bins(
+        np.array([np.nan, 1.0, np.nan, 0.0, 0.0]), np.array([1.0, np.nan, np.nan, 0.0, -1.0]), nb
+    )
     assert ((odd >= 0) & (odd < nb)).all()  # never indexes outside the code table
     assert list(odd[3:]) == [0, 36]
 

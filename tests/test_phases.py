@@ -18,11 +18,22 @@ from engine.gesture.phases import (
 
 SCRIPTS = {
     "PSHR": phrase_psh_r(),
-    "PHR": [("rest", 0.5), ("prep", 0.5, (0.1, 0.0, 0.3)), ("hold", 0.8), ("retract", 0.5, None),
-            ("rest", 0.5)],
-    "PSR": [("rest", 0.5), ("prep", 0.5, (0.1, 0.0, 0.3)), ("stroke", 0.15, (0.3, 0.0, 0.3)),
-            ("stroke", 0.15, (0.1, 0.0, 0.3)), ("stroke", 0.15, (0.3, 0.0, 0.3)),
-            ("retract", 0.5, None), ("rest", 0.5)],
+    "PHR": [
+        ("rest", 0.5),
+        ("prep", 0.5, (0.1, 0.0, 0.3)),
+        ("hold", 0.8),
+        ("retract", 0.5, None),
+        ("rest", 0.5),
+    ],
+    "PSR": [
+        ("rest", 0.5),
+        ("prep", 0.5, (0.1, 0.0, 0.3)),
+        ("stroke", 0.15, (0.3, 0.0, 0.3)),
+        ("stroke", 0.15, (0.1, 0.0, 0.3)),
+        ("stroke", 0.15, (0.3, 0.0, 0.3)),
+        ("retract", 0.5, None),
+        ("rest", 0.5),
+    ],
 }
 
 
@@ -59,7 +70,7 @@ def test_two_phrases_separated_by_rest_and_noise_tolerated():
     for a, b in zip(hand.segments, hand.segments[1:]):
         assert a.stop == b.start and a.phase != b.phase
     for s in hand.segments:
-        assert np.all(hand.labels[s.start:s.stop] == s.phase)
+        assert np.all(hand.labels[s.start : s.stop] == s.phase)
 
 
 def test_expressive_phase_is_strokes_or_independent_hold():
@@ -108,8 +119,10 @@ def test_nan_gaps_are_filled_and_derivatives_are_correct():
     np.testing.assert_allclose(acc[:, 0], 2.0, atol=1e-6)
 
 
-@pytest.mark.parametrize("kwargs", [dict(hold_speed=0), dict(valley_depth=1.5),
-                                    dict(reference="head"), dict(min_hold_s=-1)])
+@pytest.mark.parametrize(
+    "kwargs",
+    [dict(hold_speed=0), dict(valley_depth=1.5), dict(reference="head"), dict(min_hold_s=-1)],
+)
 def test_bad_parameters_name_the_field(kwargs):
     with pytest.raises(ParameterError, match=next(iter(kwargs))):
         PhaseParameters(**kwargs)
@@ -121,8 +134,6 @@ def test_bad_trajectory_shape_is_an_error():
     # a one-frame take is valid and at rest
     one = segment_trajectory(np.zeros((1, 3)), 30.0)
     assert one.labels.tolist() == [0]
-
-
 
 
 def test_wave_right_hand_phases(bandai):
@@ -170,8 +181,11 @@ def test_phases_ignore_units_heading_and_travel(bandai):
 GRAMMAR = r"P?[SH]+R?"
 
 
-@pytest.mark.parametrize("path", sorted(p.name for p in (MOCAP / "lafan1").glob("*.bvh"))
-                         + ["../beat/1_wayne_0_1_1.bvh", "../animated-drawings/fair1_dab.bvh"])
+@pytest.mark.parametrize(
+    "path",
+    sorted(p.name for p in (MOCAP / "lafan1").glob("*.bvh"))
+    + ["../beat/1_wayne_0_1_1.bvh", "../animated-drawings/fair1_dab.bvh"],
+)
 def test_every_phrase_of_real_takes_follows_the_grammar(path):
     import re
 
@@ -185,7 +199,8 @@ def test_every_phrase_of_real_takes_follows_the_grammar(path):
             assert re.fullmatch(GRAMMAR, phrase.pattern), phrase.pattern
             assert phrase.expressive_segments()
             np.testing.assert_array_equal(
-                hand.labels[phrase.start:phrase.stop] != Phase.REST, True)
+                hand.labels[phrase.start : phrase.stop] != Phase.REST, True
+            )
 
 
 def test_random_paths_follow_the_grammar():

@@ -73,8 +73,13 @@ def test_hand_region_changes_when_only_fingers_move(beat):
     motion = beat.frames(0, 1)
     sk = motion.skeleton
     roles = find_roles(sk)
-    fingers = [j for side in ("right", "left") for f, js in roles.side(side).fingers.items()
-               if f != "thumb" for j in js]
+    fingers = [
+        j
+        for side in ("right", "left")
+        for f, js in roles.side(side).fingers.items()
+        if f != "thumb"
+        for j in js
+    ]
     rots = np.concatenate([motion.rotations, motion.rotations])
     curl = rot.from_axis_angle(np.array([0.0, 0.0, 1.0]), np.radians(70))
     rots[1, fingers] = rot.multiply(rots[1, fingers], curl)
@@ -83,9 +88,11 @@ def test_hand_region_changes_when_only_fingers_move(beat):
     with Preview(both, size=size) as preview:
         a = preview.frame(0, camera="front", floor=False)
         b = preview.frame(1, camera="front", floor=False)
-        wrists = preview.project(preview.joint_positions(0)[[roles.side("right").wrist,
-                                                             roles.side("left").wrist]],
-                                 0, camera="front")
+        wrists = preview.project(
+            preview.joint_positions(0)[[roles.side("right").wrist, roles.side("left").wrist]],
+            0,
+            camera="front",
+        )
     changed = np.abs(a.astype(int) - b.astype(int)).max(axis=2) > 30
     assert changed.sum() > 20, "curling the fingers changed nothing visible"
     ys, xs = np.nonzero(changed)
@@ -119,6 +126,7 @@ def test_views_side_by_side_and_overlay(beat):
         assert silhouette(left).sum() > 100 and silhouette(right).sum() > 100
         single = preview.frame(3, size=(200, 100), floor=False)
         over = preview.frame(3, view="overlay", size=(200, 100), floor=False)
+
     def green(img):
         img = img.astype(int)
         return (img[..., 1] > img[..., 0] + 40) & (img[..., 1] > img[..., 2] + 40)
@@ -133,6 +141,7 @@ def test_trails_are_coloured_by_phase():
         plain = preview.frame(100, floor=False)
         red = preview.frame(100, trails=True, phases=phases, floor=False)
         own = preview.frame(100, trails=True, floor=False, trail_style="spheres")
+
     def reddish(img):
         return (img[..., 0] > 150) & (img[..., 1] < 90) & (img[..., 2] < 90)
 
@@ -163,8 +172,13 @@ def test_gif_and_mp4_are_written_and_readable(tmp_path, beat_preview):
     gif = render_to_file(beat_preview, tmp_path / "clip.gif", frames=frames, size=(64, 48))
     mp4 = render_to_file(beat_preview, tmp_path / "clip.mp4", frames=frames, size=(66, 50))
     seen = []
-    png = render_to_file(beat_preview, tmp_path / "sheet.png", frames=frames,
-                         size=(64, 48), progress=lambda d, t: seen.append((d, t)))
+    png = render_to_file(
+        beat_preview,
+        tmp_path / "sheet.png",
+        frames=frames,
+        size=(64, 48),
+        progress=lambda d, t: seen.append((d, t)),
+    )
     g = iio.imread(gif, index=None)
     assert g.shape[0] == 8 and g.shape[1:3] == (48, 64)
     import imageio
@@ -197,8 +211,10 @@ def test_cli_render_png_and_bad_input(tmp_path, capsys):
     from engine.cli import main
 
     out = tmp_path / "frame.png"
-    assert main(["render", str(BEAT), "-o", str(out), "--frame", "5", "--size", "96x72",
-                 "--quiet"]) == 0
+    assert (
+        main(["render", str(BEAT), "-o", str(out), "--frame", "5", "--size", "96x72", "--quiet"])
+        == 0
+    )
     import imageio.v3 as iio
 
     assert iio.imread(out).shape == (72, 96, 3)
@@ -222,23 +238,43 @@ def test_cli_render_compare_gif(tmp_path):
     from engine.cli import main
 
     out = tmp_path / "cmp.gif"
-    assert main(["render", str(BEAT), "--compare", str(BEAT), "-o", str(out), "--frames",
-                 "0:4", "--size", "120x60", "--trails", "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "render",
+                str(BEAT),
+                "--compare",
+                str(BEAT),
+                "-o",
+                str(out),
+                "--frames",
+                "0:4",
+                "--size",
+                "120x60",
+                "--trails",
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     import imageio.v3 as iio
 
     assert iio.imread(out, index=None).shape == (4, 60, 120, 3)
 
 
 def test_osmesa_fallback_renders():
-    code = ("import numpy as np\n"
-            "from engine.io.bvh import read_bvh\n"
-            "from engine.render import Preview\n"
-            f"m = read_bvh({str(BEAT)!r}).frames(0, 2)\n"
-            "img = Preview(m, size=(48, 48)).frame(0, floor=False)\n"
-            "print((np.abs(img.astype(int) - 245).max(axis=2) > 20).mean())\n")
+    code = (
+        "import numpy as np\n"
+        "from engine.io.bvh import read_bvh\n"
+        "from engine.render import Preview\n"
+        f"m = read_bvh({str(BEAT)!r}).frames(0, 2)\n"
+        "img = Preview(m, size=(48, 48)).frame(0, floor=False)\n"
+        "print((np.abs(img.astype(int) - 245).max(axis=2) > 20).mean())\n"
+    )
     env = dict(os.environ, PYOPENGL_PLATFORM="osmesa")
-    done = subprocess.run([sys.executable, "-c", code], env=env, cwd=ROOT, capture_output=True,
-                          text=True, timeout=120)
+    done = subprocess.run(
+        [sys.executable, "-c", code], env=env, cwd=ROOT, capture_output=True, text=True, timeout=120
+    )
     assert done.returncode == 0, done.stderr[-2000:]
     assert float(done.stdout.strip().splitlines()[-1]) > 0.03
 

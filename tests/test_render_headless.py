@@ -39,12 +39,21 @@ print("SPY" + json.dumps({"rc": rc, "seen": seen, "x11": x11}))
 
 
 def test_render_without_display_uses_headless_pyglet(tmp_path):
-    env = {k: v for k, v in os.environ.items()
-           if k not in ("DISPLAY", "WAYLAND_DISPLAY", "PYGLET_HEADLESS")}
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if k not in ("DISPLAY", "WAYLAND_DISPLAY", "PYGLET_HEADLESS")
+    }
     env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
     out = tmp_path / "frame.png"
-    proc = subprocess.run([sys.executable, "-c", SPY, str(BVH), str(out)], env=env, cwd=tmp_path,
-                          capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        [sys.executable, "-c", SPY, str(BVH), str(out)],
+        env=env,
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("SPY")]
     assert proc.returncode == 0 and lines, proc.stdout + proc.stderr
     report = json.loads(lines[-1][3:])

@@ -36,8 +36,10 @@ def _motion(path):
 
 def _arm_names(roles, side):
     d = roles.to_dict()[side]
-    return {**{k: d[k] for k in ("clavicle", "shoulder", "elbow", "wrist", "hand", "hand_end")},
-            "fingers": d["fingers"]}
+    return {
+        **{k: d[k] for k in ("clavicle", "shoulder", "elbow", "wrist", "hand", "hand_end")},
+        "fingers": d["fingers"],
+    }
 
 
 def test_every_capture_is_covered():
@@ -100,35 +102,73 @@ def test_side_hint_does_not_move_sided_joints():
 # --------------------------------------------------------------------------- other rigs
 
 
-@pytest.mark.parametrize("style,prefix", [("mixamo", "mixamorig:"), ("mixamo", ""),
-                                          ("humanik", ""), ("biped", ""), ("unreal", ""),
-                                          ("rigify", "")])
+@pytest.mark.parametrize(
+    "style,prefix",
+    [
+        ("mixamo", "mixamorig:"),
+        ("mixamo", ""),
+        ("humanik", ""),
+        ("biped", ""),
+        ("unreal", ""),
+        ("rigify", ""),
+    ],
+)
 def test_other_conventions(style, prefix):
     sk = body_rig(style, prefix)
     roles = find_roles(sk)
     n = sk.names
     expect = {
-        "mixamo": ("{p}RightShoulder", "{p}RightArm", "{p}RightForeArm", "{p}RightHand",
-                   "{p}RightHandIndex2", "{p}RightHandPinky4"),
-        "humanik": ("RightShoulder", "RightArm", "RightForeArm", "RightHand",
-                    "RightHandIndex2", "RightHandPinky4"),
-        "biped": ("Bip01 R Clavicle", "Bip01 R UpperArm", "Bip01 R Forearm", "Bip01 R Hand",
-                  "Bip01 R Finger11", "Bip01 R Finger4Nub"),
+        "mixamo": (
+            "{p}RightShoulder",
+            "{p}RightArm",
+            "{p}RightForeArm",
+            "{p}RightHand",
+            "{p}RightHandIndex2",
+            "{p}RightHandPinky4",
+        ),
+        "humanik": (
+            "RightShoulder",
+            "RightArm",
+            "RightForeArm",
+            "RightHand",
+            "RightHandIndex2",
+            "RightHandPinky4",
+        ),
+        "biped": (
+            "Bip01 R Clavicle",
+            "Bip01 R UpperArm",
+            "Bip01 R Forearm",
+            "Bip01 R Hand",
+            "Bip01 R Finger11",
+            "Bip01 R Finger4Nub",
+        ),
         "unreal": ("clavicle_r", "upperarm_r", "lowerarm_r", "hand_r", "index_02_r", None),
-        "rigify": ("DEF-shoulder.R", "DEF-upper_arm.R", "DEF-forearm.R", "DEF-hand.R",
-                   "DEF-f_index.02.R", None),
+        "rigify": (
+            "DEF-shoulder.R",
+            "DEF-upper_arm.R",
+            "DEF-forearm.R",
+            "DEF-hand.R",
+            "DEF-f_index.02.R",
+            None,
+        ),
     }[style]
     clavicle, shoulder, elbow, wrist, index2, pinky_tip = (
-        e.format(p=prefix) if e else None for e in expect)
+        e.format(p=prefix) if e else None for e in expect
+    )
     arm = roles.right
     assert (n[arm.clavicle], n[arm.shoulder], n[arm.elbow], n[arm.wrist]) == (
-        clavicle, shoulder, elbow, wrist)
+        clavicle,
+        shoulder,
+        elbow,
+        wrist,
+    )
     assert n[roles.require("right", "index2")] == index2
     assert roles.name(arm.tips["pinky"]) == pinky_tip
     assert all(len(arm.fingers[f]) == 3 for f in FINGERS)
     left = roles.left
     assert n[left.wrist] == wrist.replace("Right", "Left").replace(" R ", " L ").replace(
-        "_r", "_l").replace(".R", ".L")
+        "_r", "_l"
+    ).replace(".R", ".L")
     assert all(len(left.fingers[f]) == 3 for f in FINGERS)
 
 
@@ -149,19 +189,22 @@ def test_unreal_metacarpal_and_twist():
     assert sk.names[arm.shoulder] == "upperarm_l"  # not upperarm_twist_01_l
 
 
-@pytest.mark.parametrize("name,tokens", [
-    ("mixamorig:RightHandIndex1", ["right", "hand", "index", "1"]),
-    ("Hand_R", ["hand", "r"]),
-    ("lhand", ["l", "hand"]),
-    ("rShldr", ["r", "shldr"]),
-    ("RFingers", ["r", "fingers"]),
-    ("LeftInHandIndex", ["left", "in", "hand", "index"]),
-    ("INDEX_PIP_FE", ["index", "pip", "fe"]),
-    ("right_index1", ["right", "index", "1"]),
-    ("lowerback", ["lowerback"]),
-    ("RING_MCP", ["ring", "mcp"]),
-    ("DEF-f_index.01.R", ["def", "f", "index", "01", "r"]),
-])
+@pytest.mark.parametrize(
+    "name,tokens",
+    [
+        ("mixamorig:RightHandIndex1", ["right", "hand", "index", "1"]),
+        ("Hand_R", ["hand", "r"]),
+        ("lhand", ["l", "hand"]),
+        ("rShldr", ["r", "shldr"]),
+        ("RFingers", ["r", "fingers"]),
+        ("LeftInHandIndex", ["left", "in", "hand", "index"]),
+        ("INDEX_PIP_FE", ["index", "pip", "fe"]),
+        ("right_index1", ["right", "index", "1"]),
+        ("lowerback", ["lowerback"]),
+        ("RING_MCP", ["ring", "mcp"]),
+        ("DEF-f_index.01.R", ["def", "f", "index", "01", "r"]),
+    ],
+)
 def test_name_tokens(name, tokens):
     assert name_tokens(name) == tokens
 
@@ -182,15 +225,22 @@ def test_chain_shoulder_to_fingertips():
     chain = [beat.names[j] for j in roles.chain("right")]
     assert chain[:3] == ["right_shoulder", "right_elbow", "right_wrist"]
     assert len(chain) == 3 + 15 and set(chain[3:]) == {
-        f"right_{f}{k}" for f in FINGERS for k in (1, 2, 3)}
+        f"right_{f}{k}" for f in FINGERS for k in (1, 2, 3)
+    }
     assert [beat.names[j] for j in roles.chain("right", start="clavicle", fingers=False)] == [
-        "right_collar", "right_shoulder", "right_elbow", "right_wrist"]
+        "right_collar",
+        "right_shoulder",
+        "right_elbow",
+        "right_wrist",
+    ]
     hik = body_rig("humanik")
     chain = [hik.names[j] for j in find_roles(hik).chain("left", fingers=False)]
     assert chain == ["LeftArm", "LeftForeArm", "LeftHand"]  # roll bones are side branches
     leap = _motion(next(p for p in BVH_FILES if p.name == "hello-world.bvh")).skeleton
     assert [leap.names[j] for j in find_roles(leap).chain("right", fingers=False)] == [
-        "rForeArm", "rHand"]
+        "rForeArm",
+        "rHand",
+    ]
     with pytest.raises(RoleError, match="left wrist"):
         find_roles(leap).chain("left")
 
@@ -246,8 +296,9 @@ def test_cmu_hand_is_the_zero_length_palm_joint():
 def test_overrides_flat_nested_and_null():
     bandai = _motion(next(p for p in BVH_FILES if p.name.startswith("dataset-2_wave-right")))
     sk = bandai.skeleton
-    roles = find_roles(sk, overrides={"right.wrist": "LowerArm_R", "left.clavicle": None,
-                                      "right.index1": "Hand_R"})
+    roles = find_roles(
+        sk, overrides={"right.wrist": "LowerArm_R", "left.clavicle": None, "right.index1": "Hand_R"}
+    )
     assert sk.names[roles.right.wrist] == "LowerArm_R" and roles.right.hand == roles.right.wrist
     assert roles.left.clavicle is None and sk.names[roles.left.shoulder] == "UpperArm_L"
     assert roles.get("right", "index1") == sk.index("Hand_R")
@@ -257,8 +308,9 @@ def test_overrides_flat_nested_and_null():
     # Biped-style override onto a rig whose names the matcher cannot read
     odd = rig([("root", None), ("a", "root"), ("b", "a"), ("c", "b")])
     assert find_roles(odd).right.wrist is None
-    mapped = find_roles(odd, overrides={"right.shoulder": "a", "right.elbow": "b",
-                                        "right.wrist": "c"})
+    mapped = find_roles(
+        odd, overrides={"right.shoulder": "a", "right.elbow": "b", "right.wrist": "c"}
+    )
     assert mapped.chain("right") == [1, 2, 3]
 
 
@@ -298,8 +350,7 @@ def test_missing_role_lists_nearest_names():
     msg = str(err.value)
     assert msg.startswith("right index1: no joint found among 22 joints (nearest names: ")
     assert "Hand_R" in msg and '"right.index1": "NAME"' in msg and "\n" not in msg
-    odd = rig([("root", None), ("Bras_D", "root"), ("Coude_D", "Bras_D"),
-               ("Poignet_D", "Coude_D")])
+    odd = rig([("root", None), ("Bras_D", "root"), ("Coude_D", "Bras_D"), ("Poignet_D", "Coude_D")])
     with pytest.raises(RoleError, match="right wrist: no joint found"):
         find_roles(odd).require("right", "wrist")
     assert nearest_names(["RightHand", "Hips", "LeftHand"], "right", "wrist")[0] == "RightHand"
@@ -331,27 +382,58 @@ def test_to_dict_is_json_ready():
 
 
 def test_marker_roles_plug_in_gait_and_pyomeca():
-    pig = ["C7", "RSHO", "RUPA", "RELB", "RFRA", "RWRA", "RWRB", "RFIN", "LSHO", "LELB",
-           "LWRA", "LWRB", "LFIN", "Sub:RKNE"]
+    pig = [
+        "C7",
+        "RSHO",
+        "RUPA",
+        "RELB",
+        "RFRA",
+        "RWRA",
+        "RWRB",
+        "RFIN",
+        "LSHO",
+        "LELB",
+        "LWRA",
+        "LWRB",
+        "LFIN",
+        "Sub:RKNE",
+    ]
     roles = find_marker_roles(pig)
     assert {r: pig[i] for r, i in roles.right.items()} == {
-        "shoulder": "RSHO", "elbow": "RELB", "forearm": "RFRA", "wrist_radial": "RWRA",
-        "wrist_ulnar": "RWRB", "hand": "RFIN"}
+        "shoulder": "RSHO",
+        "elbow": "RELB",
+        "forearm": "RFRA",
+        "wrist_radial": "RWRA",
+        "wrist_ulnar": "RWRB",
+        "hand": "RFIN",
+    }
     assert roles.left["forearm"] is None and pig[roles.require("left", "wrist_ulnar")] == "LWRB"
     with pytest.raises(RoleError, match="left forearm: no marker found"):
         roles.require("left", "forearm")
-    pyomeca = ["Daphnee:EPICm", "Daphnee:EPICl", "Daphnee:STYLr", "Daphnee:STYLu",
-               "Daphnee:MEDH", "Daphnee:LATH", "Daphnee:LARMm", "Daphnee:LARMl",
-               "Daphnee:ACRO_tip"]
+    pyomeca = [
+        "Daphnee:EPICm",
+        "Daphnee:EPICl",
+        "Daphnee:STYLr",
+        "Daphnee:STYLu",
+        "Daphnee:MEDH",
+        "Daphnee:LATH",
+        "Daphnee:LARMm",
+        "Daphnee:LARMl",
+        "Daphnee:ACRO_tip",
+    ]
     plain = find_marker_roles(pyomeca)
     assert plain.right == dict.fromkeys(MARKER_ROLES) and plain.unsided is not None
     with pytest.raises(RoleError, match="carry no side.*--side right"):
         plain.require("right", "hand")
     hinted = find_marker_roles(pyomeca, side_hint="right")
     assert {r: pyomeca[i] for r, i in hinted.right.items()} == {
-        "shoulder": "Daphnee:ACRO_tip", "elbow": "Daphnee:EPICl", "forearm": "Daphnee:LARMl",
-        "wrist_radial": "Daphnee:STYLr", "wrist_ulnar": "Daphnee:STYLu",
-        "hand": "Daphnee:LATH"}  # lateral epicondyle and 2nd metacarpal win
+        "shoulder": "Daphnee:ACRO_tip",
+        "elbow": "Daphnee:EPICl",
+        "forearm": "Daphnee:LARMl",
+        "wrist_radial": "Daphnee:STYLr",
+        "wrist_ulnar": "Daphnee:STYLu",
+        "hand": "Daphnee:LATH",
+    }  # lateral epicondyle and 2nd metacarpal win
     assert json.loads(json.dumps(hinted.to_dict()))["side_source"]["right"] == "hint"
     suffixed = find_marker_roles(["RS_R", "US_R", "LE_L"])
     assert suffixed.right["wrist_radial"] == 0 and suffixed.left["elbow"] == 2

@@ -27,9 +27,15 @@ HASH = "ab" * 32
 
 
 def _spec(**kw) -> SessionSpec:
-    base = dict(sample="demo", side="left", band=0.25, refine_band=0.08, tolerance=3,
-                points=(MatchPoint(10, 12), MatchPoint(40, 35, 0.0), MatchPoint(90, 99, 7.5)),
-                view={"matrix": "pass2", "frame": 17})
+    base = dict(
+        sample="demo",
+        side="left",
+        band=0.25,
+        refine_band=0.08,
+        tolerance=3,
+        points=(MatchPoint(10, 12), MatchPoint(40, 35, 0.0), MatchPoint(90, 99, 7.5)),
+        view={"matrix": "pass2", "frame": 17},
+    )
     base.update(kw)
     return SessionSpec(**base)
 
@@ -63,14 +69,20 @@ def test_version_1_files_stay_readable_with_grid_hand_frames(tmp_path):
 
 
 def test_uploaded_inputs_round_trip():
-    spec = _spec(sample=None, body=TakeRef(sha256=HASH, name="walk.bvh"),
-                 hand=TakeRef(sha256="cd" * 32, name="h.bvh"))
+    spec = _spec(
+        sample=None,
+        body=TakeRef(sha256=HASH, name="walk.bvh"),
+        hand=TakeRef(sha256="cd" * 32, name="h.bvh"),
+    )
     assert parse_session(format_session(spec)) == spec
 
 
 def test_cli_paths_and_roles_round_trip():
-    spec = SessionSpec(body=TakeRef(path="body.bvh"), hand=TakeRef(path="sub/hand.bvh"),
-                       roles={"body": {"right.wrist": "RHand"}, "hand": {"left.index1": None}})
+    spec = SessionSpec(
+        body=TakeRef(path="body.bvh"),
+        hand=TakeRef(path="sub/hand.bvh"),
+        roles={"body": {"right.wrist": "RHand"}, "hand": {"left.index1": None}},
+    )
     assert from_dict(to_dict(spec)) == spec
     nested = from_dict({"roles": {"body": {"right": {"wrist": "RHand"}}}})
     assert nested.roles == {"body": {"right.wrist": "RHand"}}
@@ -78,33 +90,44 @@ def test_cli_paths_and_roles_round_trip():
 
 def test_defaults_from_empty_object():
     spec = parse_session("{}")
-    assert (spec.side, spec.band, spec.refine_band, spec.tolerance, spec.points) == \
-        ("right", None, None, 0.0, ())  # no width: the default for the take (constraints)
+    assert (spec.side, spec.band, spec.refine_band, spec.tolerance, spec.points) == (
+        "right",
+        None,
+        None,
+        0.0,
+        (),
+    )  # no width: the default for the take (constraints)
 
 
-@pytest.mark.parametrize(("data", "field", "words"), [
-    ({"points": [{"body": 1, "hand": 2}, {"body": 5, "hand": 9, "tolerance": -1}]},
-     "points[1].tolerance", "expected a number of frames from 0 to 500, got -1"),
-    ({"points": [{"body": 10, "hand": 2}, {"body": 5, "hand": 9}]}, "points[1]", "after"),
-    ({"points": [{"body": 1.5, "hand": 2}]}, "points[0].body", "whole frame"),
-    ({"points": [{"hand": 2}]}, "points[0].body", "missing"),
-    ({"band": 0}, "band", "from 0.02 to 1"),
-    ({"band": 0.01}, "band", "from 0.02 to 1"),
-    ({"band": "wide"}, "band", "expected a fraction of the body take"),
-    ({"band": "0.3"}, "band", "expected a fraction of the body take"),
-    ({"tolerance": 1000}, "tolerance", "from 0 to 500"),
-    ({"refine_band": 1.5}, "refine_band", "from 0.01 to 1"),
-    ({"refine_band": 0.001}, "refine_band", "from 0.01 to 1"),
-    ({"side": "middle"}, "side", "right, left, both"),
-    ({"inputs": {"body": {"sha256": "xyz"}}}, "inputs.body.sha256", "64"),
-    ({"inputs": {"sample": "a", "body": {"path": "x"}}}, "inputs", "not both"),
-    ({"colour": 1}, "colour", "unknown field"),
-    ({"version": 3}, "version", "expected 1 or 2"),
-    ({"view": {"matrix": "pass3"}}, "view.matrix", "pass1"),
-    ({"roles": {"body": {"right.wrist": 3}}}, "", "roles.body: right.wrist"),
-    ({"roles": {"body": {"right.wirst": "R"}}}, "", "did you mean right.wrist"),
-    ({"roles": {"right": {"wrist": "R"}}}, "roles.right", "body, hand"),
-])
+@pytest.mark.parametrize(
+    ("data", "field", "words"),
+    [
+        (
+            {"points": [{"body": 1, "hand": 2}, {"body": 5, "hand": 9, "tolerance": -1}]},
+            "points[1].tolerance",
+            "expected a number of frames from 0 to 500, got -1",
+        ),
+        ({"points": [{"body": 10, "hand": 2}, {"body": 5, "hand": 9}]}, "points[1]", "after"),
+        ({"points": [{"body": 1.5, "hand": 2}]}, "points[0].body", "whole frame"),
+        ({"points": [{"hand": 2}]}, "points[0].body", "missing"),
+        ({"band": 0}, "band", "from 0.02 to 1"),
+        ({"band": 0.01}, "band", "from 0.02 to 1"),
+        ({"band": "wide"}, "band", "expected a fraction of the body take"),
+        ({"band": "0.3"}, "band", "expected a fraction of the body take"),
+        ({"tolerance": 1000}, "tolerance", "from 0 to 500"),
+        ({"refine_band": 1.5}, "refine_band", "from 0.01 to 1"),
+        ({"refine_band": 0.001}, "refine_band", "from 0.01 to 1"),
+        ({"side": "middle"}, "side", "right, left, both"),
+        ({"inputs": {"body": {"sha256": "xyz"}}}, "inputs.body.sha256", "64"),
+        ({"inputs": {"sample": "a", "body": {"path": "x"}}}, "inputs", "not both"),
+        ({"colour": 1}, "colour", "unknown field"),
+        ({"version": 3}, "version", "expected 1 or 2"),
+        ({"view": {"matrix": "pass3"}}, "view.matrix", "pass1"),
+        ({"roles": {"body": {"right.wrist": 3}}}, "", "roles.body: right.wrist"),
+        ({"roles": {"body": {"right.wirst": "R"}}}, "", "did you mean right.wrist"),
+        ({"roles": {"right": {"wrist": "R"}}}, "roles.right", "body, hand"),
+    ],
+)
 def test_errors_name_the_field(data, field, words):
     with pytest.raises(SessionError) as info:
         from_dict(data, source="s.json")
@@ -113,8 +136,9 @@ def test_errors_name_the_field(data, field, words):
     assert words in str(info.value)
 
 
-@pytest.mark.parametrize("text", ["", "[1, 2]", "{", '{"band": NaN}', '{"band": Infinity}',
-                                  b"\xff\xfe", "[" * 100000])
+@pytest.mark.parametrize(
+    "text", ["", "[1, 2]", "{", '{"band": NaN}', '{"band": Infinity}', b"\xff\xfe", "[" * 100000]
+)
 def test_malformed_text_is_one_clear_error(text):
     with pytest.raises(SessionError):
         parse_session(text, source="bad.json")
@@ -125,8 +149,13 @@ def test_query_round_trip():
     q = to_query(spec)
     assert q["pts"] == "10:12,40:35:0,90:99:7.5"
     assert from_query(q) == spec
-    up = _spec(sample=None, body=TakeRef(sha256=HASH), hand=TakeRef(sha256="cd" * 32), view={},
-               roles={"hand": {"right.wrist": "rHand"}})
+    up = _spec(
+        sample=None,
+        body=TakeRef(sha256=HASH),
+        hand=TakeRef(sha256="cd" * 32),
+        view={},
+        roles={"hand": {"right.wrist": "rHand"}},
+    )
     assert from_query(to_query(up)) == up
 
 
@@ -143,10 +172,31 @@ def test_query_errors():
 
 _json = st.recursive(
     st.none() | st.booleans() | st.integers() | st.floats(allow_nan=False) | st.text(max_size=8),
-    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(
-        st.sampled_from(["inputs", "points", "band", "side", "body", "hand", "tolerance",
-                         "sample", "sha256", "view", "roles", "x"]), inner, max_size=4),
-    max_leaves=20)
+    lambda inner: (
+        st.lists(inner, max_size=4)
+        | st.dictionaries(
+            st.sampled_from(
+                [
+                    "inputs",
+                    "points",
+                    "band",
+                    "side",
+                    "body",
+                    "hand",
+                    "tolerance",
+                    "sample",
+                    "sha256",
+                    "view",
+                    "roles",
+                    "x",
+                ]
+            ),
+            inner,
+            max_size=4,
+        )
+    ),
+    max_leaves=20,
+)
 
 
 @settings(max_examples=300, deadline=None)

@@ -25,9 +25,11 @@ def chain_skeleton(bend_deg: float = 0.0) -> Skeleton:
     """root -> a -> b -> c along +x, unit bones; b's bone bent by ``bend_deg`` about z."""
     a = np.radians(bend_deg)
     return Skeleton(
-        names=("root", "a", "b", "c"), parents=np.array([-1, 0, 1, 2]),
+        names=("root", "a", "b", "c"),
+        parents=np.array([-1, 0, 1, 2]),
         offsets=np.array([[0, 0, 0], [1, 0, 0], [1, 0, 0], [np.cos(a), np.sin(a), 0]]),
-        channels=(("Xrotation", "Yrotation", "Zrotation"),) * 4)
+        channels=(("Xrotation", "Yrotation", "Zrotation"),) * 4,
+    )
 
 
 def chain_bones(sk: Skeleton) -> Bones:
@@ -87,9 +89,13 @@ def test_weights_are_exact_jin_hahn_formula():
 
 def test_second_bone_must_be_adjacent():
     """Two parallel fingers 1 cm apart: a vertex on finger A never takes weight from B."""
-    bones = Bones(start=[[0, 0, 0], [1, 0, 0], [0, 0.02, 0], [1, 0.02, 0]],
-                  end=[[1, 0, 0], [2, 0, 0], [1, 0.02, 0], [2, 0.02, 0]],
-                  joint=[0, 1, 2, 3], head=[0, 1, 2, 3], tail=[1, -1, 3, -1])
+    bones = Bones(
+        start=[[0, 0, 0], [1, 0, 0], [0, 0.02, 0], [1, 0.02, 0]],
+        end=[[1, 0, 0], [2, 0, 0], [1, 0.02, 0], [2, 0.02, 0]],
+        joint=[0, 1, 2, 3],
+        head=[0, 1, 2, 3],
+        tail=[1, -1, 3, -1],
+    )
     verts = np.array([[0.5, 0.009, 0.0], [1.5, 0.009, 0.0], [0.99, 0.009, 0.0]])
     joints, weights = two_bone_weights(verts, bones)
     used = {int(j) for j, w in zip(joints.ravel(), weights.ravel(), strict=True) if w > 0}
@@ -98,12 +104,17 @@ def test_second_bone_must_be_adjacent():
 
 def test_owner_and_rigid_override_nearest():
     """The owner bone wins over the nearest one (a hand hanging by the thigh)."""
-    bones = Bones(start=[[0, 0, 0], [1, 0, 0], [0, 0.02, 0], [1, 0.02, 0]],
-                  end=[[1, 0, 0], [2, 0, 0], [1, 0.02, 0], [2, 0.02, 0]],
-                  joint=[0, 1, 2, 3], head=[0, 1, 2, 3], tail=[1, -1, 3, -1])
+    bones = Bones(
+        start=[[0, 0, 0], [1, 0, 0], [0, 0.02, 0], [1, 0.02, 0]],
+        end=[[1, 0, 0], [2, 0, 0], [1, 0.02, 0], [2, 0.02, 0]],
+        joint=[0, 1, 2, 3],
+        head=[0, 1, 2, 3],
+        tail=[1, -1, 3, -1],
+    )
     v = np.array([[0.5, 0.018, 0.0], [0.5, 0.018, 0.0], [0.5, 0.018, 0.0]])
-    joints, weights = two_bone_weights(v, bones, owner=np.array([0, -1, -1]),
-                                       rigid_joint=np.array([-1, -1, 3]))
+    joints, weights = two_bone_weights(
+        v, bones, owner=np.array([0, -1, -1]), rigid_joint=np.array([-1, -1, 3])
+    )
     assert joints[0, 0] == 0 and weights[0, 0] == 1.0  # owner: finger A, though B is nearer
     assert joints[1, 0] == 2 and weights[1, 0] == 1.0  # nearest: finger B
     assert np.all(joints[2] == 3) and np.allclose(weights[2], [1.0, 0.0])  # rigid
@@ -202,14 +213,38 @@ def test_rigid_vertices_move_with_their_joint():
 def test_skinned_mesh_validates_shapes():
     v = np.zeros((3, 3))
     with pytest.raises(ValueError, match="normals"):
-        SkinnedMesh(v, [[0, 1, 2]], np.zeros((2, 3)), np.ones((3, 4)), np.zeros((3, 2)),
-                    np.ones((3, 2)) / 2, np.zeros((1, 3)), rot.identity((1,)))
+        SkinnedMesh(
+            v,
+            [[0, 1, 2]],
+            np.zeros((2, 3)),
+            np.ones((3, 4)),
+            np.zeros((3, 2)),
+            np.ones((3, 2)) / 2,
+            np.zeros((1, 3)),
+            rot.identity((1,)),
+        )
     with pytest.raises(ValueError, match="joint that does not exist"):
-        SkinnedMesh(v, [[0, 1, 2]], np.zeros((3, 3)), np.ones((3, 4)), np.full((3, 2), 4),
-                    np.ones((3, 2)) / 2, np.zeros((1, 3)), rot.identity((1,)))
+        SkinnedMesh(
+            v,
+            [[0, 1, 2]],
+            np.zeros((3, 3)),
+            np.ones((3, 4)),
+            np.full((3, 2), 4),
+            np.ones((3, 2)) / 2,
+            np.zeros((1, 3)),
+            rot.identity((1,)),
+        )
     with pytest.raises(ValueError, match="face"):
-        SkinnedMesh(v, [[0, 1, 7]], np.zeros((3, 3)), np.ones((3, 4)), np.zeros((3, 2)),
-                    np.ones((3, 2)) / 2, np.zeros((1, 3)), rot.identity((1,)))
+        SkinnedMesh(
+            v,
+            [[0, 1, 7]],
+            np.zeros((3, 3)),
+            np.ones((3, 4)),
+            np.zeros((3, 2)),
+            np.ones((3, 2)) / 2,
+            np.zeros((1, 3)),
+            rot.identity((1,)),
+        )
 
 
 def test_vertex_normals_of_a_box_point_outwards():

@@ -66,8 +66,13 @@ def test_beat_split_pair_is_timed_within_a_body_frame(beat_case, beat_result):
     got = finger_error(beat_result.motion, beat_case.reference, pairs)
     from engine.splice import transfer as TR
 
-    oracle = TR.apply_transfer(P.plan_for(beat_result.features), beat_case.body, beat_case.hand,
-                               beat_case.truth, beat_result.features.body_fk)
+    oracle = TR.apply_transfer(
+        P.plan_for(beat_result.features),
+        beat_case.body,
+        beat_case.hand,
+        beat_case.truth,
+        beat_result.features.body_fk,
+    )
     assert got - finger_error(oracle, beat_case.reference, pairs) < 1.0
 
 
@@ -163,15 +168,22 @@ def test_a_matching_point_with_zero_tolerance_is_on_the_path(beat_case):
         cols = p[p[:, 0] == 100, 1]
         assert 60 in cols and cols.min() >= 60 - 1e-9
     # the paper's guarantee: the path crosses row 100 only at column 60
-    assert set(res.pass2.path[res.pass2.path[:, 0] == 100, 1]) == {60} or \
-        res.pass2.path[res.pass2.path[:, 0] == 100, 1].min() == 60
+    assert (
+        set(res.pass2.path[res.pass2.path[:, 0] == 100, 1]) == {60}
+        or res.pass2.path[res.pass2.path[:, 0] == 100, 1].min() == 60
+    )
     with pytest.raises(ParameterError, match="points"):
         P.align_passes(feats, points=[(100, 60, 0), (90, 70, 0)])
 
 
 def test_hand_points_are_converted_from_hand_frames(beat_case):
-    res = P.splice(beat_case.body, beat_case.hand, points=[(100, 240, 4)], hand_points=True,
-                   transfer_fingers=False)
+    res = P.splice(
+        beat_case.body,
+        beat_case.hand,
+        points=[(100, 240, 4)],
+        hand_points=True,
+        transfer_fingers=False,
+    )
     x, y, t = res.alignment.points[0]
     grid = 240 * 30.0 / beat_case.hand.fps
     assert x == 100 and y == round(grid) and t >= 4 * 30.0 / beat_case.hand.fps
@@ -231,8 +243,9 @@ def test_report_has_the_map_both_passes_and_timings(beat_case, beat_result):
     assert 0 <= rep["overlap"]["hand"][0] <= rep["overlap"]["hand"][1] < beat_case.hand.n_frames
     assert rep["parameters"]["ends"] == "open"
     first, last = rep["overlap"]["body"]
-    assert rep["unmatched_body"] == ([[0, first - 1]] if first > 0 else []) + \
-        ([[last + 1, beat_case.body.n_frames - 1]] if last < beat_case.body.n_frames - 1 else [])
+    assert rep["unmatched_body"] == ([[0, first - 1]] if first > 0 else []) + (
+        [[last + 1, beat_case.body.n_frames - 1]] if last < beat_case.body.n_frames - 1 else []
+    )
     assert rep["parameters"]["band"] == 0.3 and rep["parameters"]["refine_band"] == 0.1
     assert {"prepare", "pass1", "pass2", "merge", "transfer", "total"} <= set(rep["timings_s"])
     assert rep["sides"] == ["right", "left"]

@@ -17,8 +17,23 @@ HAND = MOCAP / "gestification/hello-world.bvh"
 
 def test_splice_writes_bvh_report_and_progress(tmp_path, capsys):
     out, rep = tmp_path / "out.bvh", tmp_path / "r.json"
-    code = main(["splice", str(BODY), str(HAND), "-o", str(out), "--report", str(rep),
-                 "--match", "60:40:3", "--band", "0.4", "--refine-band", "0.15"])
+    code = main(
+        [
+            "splice",
+            str(BODY),
+            str(HAND),
+            "-o",
+            str(out),
+            "--report",
+            str(rep),
+            "--match",
+            "60:40:3",
+            "--band",
+            "0.4",
+            "--refine-band",
+            "0.15",
+        ]
+    )
     assert code == 0
     err = capsys.readouterr().err
     assert "pass 1" in err and "pass 2" in err and f"wrote {out}" in err
@@ -38,8 +53,10 @@ def test_splice_writes_bvh_report_and_progress(tmp_path, capsys):
     # trust: one uncertainty per body frame, strokes with verdicts, the CLI's summary line
     assert len(report["uncertainty_ms"]) == motion.n_frames
     assert all(u >= 0 for u in report["uncertainty_ms"])
-    assert all(s["verdict"] in ("ok", "check", "desync") and s["start"] <= s["end"]
-               for s in report["strokes"])
+    assert all(
+        s["verdict"] in ("ok", "check", "desync") and s["start"] <= s["end"]
+        for s in report["strokes"]
+    )
     assert report["desync"]["summary"] in err
     assert 1 <= len(report["suggested_points"]) <= 3
 
@@ -52,28 +69,47 @@ def test_quiet_prints_nothing(tmp_path, capsys):
 def test_roles_file_maps_an_unusual_name(tmp_path):
     roles = tmp_path / "roles.json"
     roles.write_text(json.dumps({"body": {"right.wrist": "Hand_R"}}))
-    assert main(["splice", str(BODY), str(HAND), "-o", str(tmp_path / "o.bvh"), "--quiet",
-                 "--roles", str(roles)]) == 0
+    assert (
+        main(
+            [
+                "splice",
+                str(BODY),
+                str(HAND),
+                "-o",
+                str(tmp_path / "o.bvh"),
+                "--quiet",
+                "--roles",
+                str(roles),
+            ]
+        )
+        == 0
+    )
 
 
-@pytest.mark.parametrize("args,message", [
-    (["{body}", str(MOCAP / "lafan1/dance1_subject1.bvh")], "no finger joints"),
-    (["{body}", str(MOCAP / "pyomeca/markers.trc")], "holds markers"),
-    ([str(MOCAP / "pyomeca/markers_analogs.c3d"), str(HAND)], "holds markers"),
-    (["{body}", "{hand}", "--side", "left"], "no left hand"),
-    (["{body}", "{hand}", "--match", "12"], "points[0]: expected BODY:HAND or BODY:HAND:TOL"),
-    (["{body}", "{hand}", "--match", "a:b"], "points[0].body: expected a whole frame number"),
-    (["{body}", "{hand}", "--match", "5000:3"], "is outside the"),
-    (["{body}", "{hand}", "--match", "50:40", "--match", "40:60"], "out of order"),
-    (["{body}", "{hand}", "--band", "-1"], "band: expected a fraction"),
-    (["{body}", "{hand}", "--band", "0.01"], "band: expected a fraction"),
-    (["{body}", "{hand}", "--match", "40:30:1000"], "points[0].tolerance: expected"),
-    (["{body}", "{hand}", "--preview", "x.txt"], "--preview"),
-    (["{body}", "/nonexistent/take.bvh"], "take.bvh"),
-])
+@pytest.mark.parametrize(
+    "args,message",
+    [
+        (["{body}", str(MOCAP / "lafan1/dance1_subject1.bvh")], "no finger joints"),
+        (["{body}", str(MOCAP / "pyomeca/markers.trc")], "holds markers"),
+        ([str(MOCAP / "pyomeca/markers_analogs.c3d"), str(HAND)], "holds markers"),
+        (["{body}", "{hand}", "--side", "left"], "no left hand"),
+        (["{body}", "{hand}", "--match", "12"], "points[0]: expected BODY:HAND or BODY:HAND:TOL"),
+        (["{body}", "{hand}", "--match", "a:b"], "points[0].body: expected a whole frame number"),
+        (["{body}", "{hand}", "--match", "5000:3"], "is outside the"),
+        (["{body}", "{hand}", "--match", "50:40", "--match", "40:60"], "out of order"),
+        (["{body}", "{hand}", "--band", "-1"], "band: expected a fraction"),
+        (["{body}", "{hand}", "--band", "0.01"], "band: expected a fraction"),
+        (["{body}", "{hand}", "--match", "40:30:1000"], "points[0].tolerance: expected"),
+        (["{body}", "{hand}", "--preview", "x.txt"], "--preview"),
+        (["{body}", "/nonexistent/take.bvh"], "take.bvh"),
+    ],
+)
 def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, args, message):
-    argv = ["splice"] + [a.format(body=BODY, hand=HAND) for a in args] + \
-        ["-o", str(tmp_path / "o.bvh"), "--quiet"]
+    argv = (
+        ["splice"]
+        + [a.format(body=BODY, hand=HAND) for a in args]
+        + ["-o", str(tmp_path / "o.bvh"), "--quiet"]
+    )
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("handsplice: error:") and message in err[0]
@@ -87,8 +123,18 @@ def test_output_must_be_bvh(tmp_path, capsys):
 
 def test_preview_renders_the_spliced_take(tmp_path):
     png = tmp_path / "preview.png"
-    code = main(["splice", str(BODY), str(HAND), "-o", str(tmp_path / "o.bvh"), "--quiet",
-                 "--preview", str(png)])
+    code = main(
+        [
+            "splice",
+            str(BODY),
+            str(HAND),
+            "-o",
+            str(tmp_path / "o.bvh"),
+            "--quiet",
+            "--preview",
+            str(png),
+        ]
+    )
     assert code == 0 and png.stat().st_size > 1000
 
 
@@ -115,8 +161,23 @@ def test_session_file_from_the_app_gives_the_apps_map(tmp_path, sample_dir):
     assert read_session(session).roles == {"body": {"right.wrist": "Hand_R"}}
     pair = cfg.sample("bye-hello")
     rep = tmp_path / "r.json"
-    assert main(["splice", str(pair.body), str(pair.hand), "-o", str(tmp_path / "o.bvh"),
-                 "--session", str(session), "--report", str(rep), "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "splice",
+                str(pair.body),
+                str(pair.hand),
+                "-o",
+                str(tmp_path / "o.bvh"),
+                "--session",
+                str(session),
+                "--report",
+                str(rep),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     report = json.loads(rep.read_text())
     app_map = np.asarray(app.solution.cache["engine"].map)
     assert np.allclose(report["map"], app_map, atol=1e-4)  # the report keeps 4 decimals
@@ -125,9 +186,27 @@ def test_session_file_from_the_app_gives_the_apps_map(tmp_path, sample_dir):
     assert params["points_given"] == [[40, 30, 2.0], [80, 50, 1.0]]
     # flags win over the file: --band, and --match replaces the file's points
     rep2 = tmp_path / "r2.json"
-    assert main(["splice", str(pair.body), str(pair.hand), "-o", str(tmp_path / "o2.bvh"),
-                 "--session", str(session), "--report", str(rep2), "--quiet",
-                 "--band", "0.4", "--match", "60:40"]) == 0
+    assert (
+        main(
+            [
+                "splice",
+                str(pair.body),
+                str(pair.hand),
+                "-o",
+                str(tmp_path / "o2.bvh"),
+                "--session",
+                str(session),
+                "--report",
+                str(rep2),
+                "--quiet",
+                "--band",
+                "0.4",
+                "--match",
+                "60:40",
+            ]
+        )
+        == 0
+    )
     params = json.loads(rep2.read_text())["parameters"]
     assert params["band"] == 0.4 and params["refine_band"] == 0.08
     assert params["points_given"] == [[60, 40, 0.0]]
@@ -136,7 +215,20 @@ def test_session_file_from_the_app_gives_the_apps_map(tmp_path, sample_dir):
 def test_bad_session_file_is_one_line(tmp_path, capsys):
     bad = tmp_path / "s.json"
     bad.write_text('{"points": [{"body": 5}]}')
-    assert main(["splice", str(BODY), str(HAND), "-o", str(tmp_path / "o.bvh"), "--quiet",
-                 "--session", str(bad)]) == 2
+    assert (
+        main(
+            [
+                "splice",
+                str(BODY),
+                str(HAND),
+                "-o",
+                str(tmp_path / "o.bvh"),
+                "--quiet",
+                "--session",
+                str(bad),
+            ]
+        )
+        == 2
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "s.json: points[0].hand: missing" in err[0]

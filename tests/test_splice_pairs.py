@@ -28,8 +28,10 @@ def _hands():
         roles = find_roles(m.skeleton, side_hint=side_from_name(p.name))
         # a hand take carries a hand: at least three fingers (AnimatedDrawings' lone
         # thumb makes it a body take here)
-        if any(sum(bool(roles.side(s).fingers[f]) for f in roles.side(s).fingers) >= 3
-               for s in ("right", "left")):
+        if any(
+            sum(bool(roles.side(s).fingers[f]) for f in roles.side(s).fingers) >= 3
+            for s in ("right", "left")
+        ):
             out.append(p)
     return out
 

@@ -72,15 +72,17 @@ def test_body_frames_outside_the_overlap_hold_the_matched_pose():
 def test_holds_are_straightened_boundary_to_boundary():
     """A body hold of 30 frames matched to a hand hold of 10: inside, the DTW path is
     arbitrary (here diagonal then flat); the warp runs straight from entry to exit."""
-    warp = np.concatenate([np.arange(50.0), 50 + np.minimum(np.arange(30.0), 10),
-                           61 + np.arange(20.0)])
+    warp = np.concatenate(
+        [np.arange(50.0), 50 + np.minimum(np.arange(30.0), 10), 61 + np.arange(20.0)]
+    )
     out = MG.straighten_holds(warp, [(50, 79)], [(50, 60)], slack=3)
     np.testing.assert_allclose(out[50:80], 50 + np.arange(30) * 10 / 29)
     np.testing.assert_array_equal(out[:50], warp[:50])
     # holds that the warp does not match to each other stay as they are
     np.testing.assert_array_equal(MG.straighten_holds(warp, [(50, 79)], [(90, 99)], 3), warp)
-    assert MG.still_runs(np.r_[np.ones(5), np.zeros(12), 1.0, np.zeros(3), np.ones(4)], 0.5, 10) \
-        == [(5, 20)]
+    assert MG.still_runs(
+        np.r_[np.ones(5), np.zeros(12), 1.0, np.zeros(3), np.ones(4)], 0.5, 10
+    ) == [(5, 20)]
 
 
 def test_app_shades_the_unmatched_ends():
@@ -90,7 +92,10 @@ def test_app_shades_the_unmatched_ends():
     q = _unmatched_quads(path, 6, 9)
     # body rows 4..5 after the overlap; hand columns 0..4 before and 8 after it
     assert list(zip(q["left"], q["right"], q["bottom"], q["top"], strict=True)) == [
-        (3.5, 5.5, -0.5, 8.5), (-0.5, 5.5, -0.5, 4.5), (-0.5, 5.5, 7.5, 8.5)]
+        (3.5, 5.5, -0.5, 8.5),
+        (-0.5, 5.5, -0.5, 4.5),
+        (-0.5, 5.5, 7.5, 8.5),
+    ]
     assert _unmatched_quads(np.array([[0, 0], [5, 8]]), 6, 9)["left"] == []
 
 

@@ -53,7 +53,7 @@ def test_interpolation_hits_the_keys_and_holds_outside(easing):
     np.testing.assert_allclose(out[:, 1:, 2], DIP_PER_PIP * out[:, 1:, 1], atol=1e-9)
     # within each interval the angle moves monotonically between the two keys
     for (a, b), (va, vb) in zip(zip(keys, keys[1:]), zip(vals, vals[1:])):
-        seg = out[a:b + 1, 2, 1]
+        seg = out[a : b + 1, 2, 1]
         d = np.diff(seg) * np.sign(vb[2, 1] - va[2, 1])
         assert np.all(d >= -1e-9)
 
@@ -78,8 +78,12 @@ def test_smooth_easings_have_no_velocity_jumps(easing):
 def test_hermite_solves_the_time_cubic():
     x0, x1, m0, m1 = 2.0, 7.0, 9.0, 2.0
     t = np.linspace(0, 1, 2001)
-    x = (2 * t**3 - 3 * t**2 + 1) * x0 + (t**3 - 2 * t**2 + t) * m0 + (-2 * t**3 + 3 * t**2) * x1 \
+    x = (
+        (2 * t**3 - 3 * t**2 + 1) * x0
+        + (t**3 - 2 * t**2 + t) * m0
+        + (-2 * t**3 + 3 * t**2) * x1
         + (t**3 - t**2) * m1
+    )
     np.testing.assert_allclose(solve_hermite_time(x0, x1, m0, m1, x), t, atol=1e-10)
     # equal key spacing gives a linear x(t): the Hermite easing is the smoothstep
     y = interpolate_keys(21, [0, 10, 20], [0.0, 1.0, 0.0], "hermite")
@@ -184,7 +188,9 @@ def test_flexion_axes_curl_fingers_into_the_palm(beat):
         cap = extract_flexion(beat, rig)
         assert np.nanmean(cap[:, 1:, 1]) > 10
         # apply then extract is exact
-        np.testing.assert_allclose(extract_flexion(fist, rig)[0], get_pose("fist").angles, atol=1e-9)
+        np.testing.assert_allclose(
+            extract_flexion(fist, rig)[0], get_pose("fist").angles, atol=1e-9
+        )
 
 
 @pytest.mark.parametrize("easing", ["hermite", "gaussian"])
@@ -198,6 +204,7 @@ def test_pose_synthesis_is_smooth_and_coupled(beat, easing):
     for frame, name in [(0, "relaxed"), (40, "fist"), (100, "point"), (160, "ok"), (249, "five")]:
         np.testing.assert_allclose(got[frame], get_pose(name).angles, atol=1e-9)
     np.testing.assert_allclose(got[:, 1:, 2], DIP_PER_PIP * got[:, 1:, 1], atol=1e-9)
+
     # fingertip velocity (wrist frame) has no jumps: frame-to-frame change of velocity
     # stays a small fraction of the peak speed (the linear easing jumps by far more)
     def jerkiness(motion):
@@ -226,7 +233,9 @@ def test_finger_less_bodies_get_grafted_fingers():
     from engine.kinematics import forward_kinematics
     from engine.roles import find_roles
 
-    body = read_bvh(MOCAP / "bandai-namco" / "dataset-2_wave-right-hand_normal_001.bvh").frames(0, 40)
+    body = read_bvh(MOCAP / "bandai-namco" / "dataset-2_wave-right-hand_normal_001.bvh").frames(
+        0, 40
+    )
     with pytest.raises(RoleError, match="no finger joints"):
         synthesize_from_poses(body, ["fist@0"], graft=False)
     with pytest.raises(ParameterError, match="POSE@FRAME"):
@@ -248,8 +257,9 @@ def test_finger_less_bodies_get_grafted_fingers():
         assert 0.45 < reach / forearm < 0.9
     out = synthesize_from_poses(body, ["open@0", "fist@39"])
     rig = hand_rig(out.motion.skeleton, "right")
-    np.testing.assert_allclose(extract_flexion(out.motion, rig)[39], get_pose("fist").angles,
-                               atol=1e-9)
+    np.testing.assert_allclose(
+        extract_flexion(out.motion, rig)[39], get_pose("fist").angles, atol=1e-9
+    )
     t_open = _tips_in_wrist_frame(out.motion.frames(0, 1), rig)[0]
     t_fist = _tips_in_wrist_frame(out.motion.frames(39, 40), rig)[0]
     assert np.all(np.linalg.norm(t_fist[1:], axis=1) < 0.8 * np.linalg.norm(t_open[1:], axis=1))
@@ -283,8 +293,9 @@ def test_clip_synthesis_matches_speed_and_end_poses(beat):
     np.testing.assert_allclose(np.diff(t[50:120]), np.diff(t[50:120]).mean(), rtol=1e-9)
     # the left hand keeps its captured motion; warping scales the flexion
     left = hand_rig(beat.skeleton, "left").joints
-    np.testing.assert_array_equal(out.motion.rotations[:, left[left >= 0]],
-                                  beat.rotations[:, left[left >= 0]])
+    np.testing.assert_array_equal(
+        out.motion.rotations[:, left[left >= 0]], beat.rotations[:, left[left >= 0]]
+    )
     half = synthesize_from_clip(beat, clip, "right", factor=0.5, body_keys=bkeys, clip_keys=ckeys)
     np.testing.assert_allclose(extract_flexion(half.motion, rig), 0.5 * got, atol=1e-6)
 

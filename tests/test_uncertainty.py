@@ -22,8 +22,7 @@ def case():
 
 def _frames(motion, keep):
     """``motion`` at frames ``keep`` (repeating a frame makes a hold)."""
-    return replace(motion, rotations=motion.rotations[keep],
-                   translations=motion.translations[keep])
+    return replace(motion, rotations=motion.rotations[keep], translations=motion.translations[keep])
 
 
 def test_a_self_splice_is_certain_and_every_field_is_reported(case):
@@ -36,8 +35,11 @@ def test_a_self_splice_is_certain_and_every_field_is_reported(case):
     assert np.median(ms) < 1000.0 / res.features.fps
     fields = json.loads(json.dumps(a.report_fields()))
     assert len(fields["uncertainty_ms"]) == res.features.n
-    assert {"start", "end", "uncertainty_ms", "verdict"} <= set(fields["strokes"][0]) \
-        if fields["strokes"] else True
+    assert (
+        {"start", "end", "uncertainty_ms", "verdict"} <= set(fields["strokes"][0])
+        if fields["strokes"]
+        else True
+    )
     assert "strokes" in fields["desync"]["summary"] or "no gesture" in fields["desync"]["summary"]
 
 
@@ -56,8 +58,12 @@ def test_uncertainty_is_high_where_the_hand_take_holds_still(case):
 
 
 def test_strokes_verdicts_and_summary():
-    unc = U.Uncertainty(ms=np.array([10, 10, 60, 60, 10, 150, 150, 10.0]), pass1_ms=np.zeros(8),
-                        pass2_ms=np.zeros(8), fps=30.0)
+    unc = U.Uncertainty(
+        ms=np.array([10, 10, 60, 60, 10, 150, 150, 10.0]),
+        pass1_ms=np.zeros(8),
+        pass2_ms=np.zeros(8),
+        fps=30.0,
+    )
     s = int(Phase.STROKE)
     labels = np.array([0, s, s, 0, s, s, s, 0])
     got = U.strokes(unc, labels, s)

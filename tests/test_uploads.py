@@ -37,10 +37,13 @@ def takes(tmp_path_factory) -> list[bytes]:
 
 @pytest.fixture()
 def cfg(tmp_path, sample_dir) -> config.AppConfig:
-    return config.AppConfig(sample_dir=sample_dir.resolve(),
-                            upload_dir=(tmp_path / "uploads").resolve(),
-                            max_upload_bytes=4 * 2**20, max_upload_files=3,
-                            max_upload_total_bytes=10 * 2**20)
+    return config.AppConfig(
+        sample_dir=sample_dir.resolve(),
+        upload_dir=(tmp_path / "uploads").resolve(),
+        max_upload_bytes=4 * 2**20,
+        max_upload_files=3,
+        max_upload_total_bytes=10 * 2**20,
+    )
 
 
 def _kept(cfg) -> list[str]:
@@ -66,8 +69,7 @@ def test_quota_keeps_at_most_n_files_oldest_removed_first(cfg, takes):
 
 def test_quota_counts_bytes(cfg, takes):
     size = max(len(d) for d in takes)
-    small = dataclasses.replace(cfg, max_upload_files=100,
-                                max_upload_total_bytes=int(2.5 * size))
+    small = dataclasses.replace(cfg, max_upload_files=100, max_upload_total_bytes=int(2.5 * size))
     digests = []
     for k, data in enumerate(takes[:4]):
         digest, _ = uploads.store(small, f"take{k}.bvh", data)
@@ -131,14 +133,17 @@ def test_a_planted_link_at_the_kept_name_is_replaced_not_written_through(cfg, ta
 def _spec(body: str, hand: str):
     from engine.io.session import SessionSpec, TakeRef
 
-    return SessionSpec(body=TakeRef(sha256=body, name="b.bvh"),
-                       hand=TakeRef(sha256=hand, name="h.bvh"))
+    return SessionSpec(
+        body=TakeRef(sha256=body, name="b.bvh"), hand=TakeRef(sha256=hand, name="h.bvh")
+    )
 
 
 def test_errors_never_echo_file_contents_at_length(cfg):
     line = "SECRET-" + "x" * 300
-    bad = (f"HIERARCHY\nROOT Hips\n{{\n OFFSET 0 0 0\n CHANNELS 3 Xrotation Yrotation "
-           f"Zrotation\n {line}\n}}\n").encode()
+    bad = (
+        f"HIERARCHY\nROOT Hips\n{{\n OFFSET 0 0 0\n CHANNELS 3 Xrotation Yrotation "
+        f"Zrotation\n {line}\n}}\n"
+    ).encode()
     with pytest.raises(uploads.UploadError) as info:
         uploads.store(cfg, "leak.bvh", bad)
     message = str(info.value)
@@ -181,8 +186,9 @@ def test_the_check_runs_within_a_time_budget_off_the_event_loop(cfg):
         return gaps, time.perf_counter() - t0, str(info.value)
 
     gaps, seconds, message = asyncio.run(run())
-    assert message == ("endless.bvh: reading it took longer than the server's 1.5 s budget "
-                       "for one file")
+    assert message == (
+        "endless.bvh: reading it took longer than the server's 1.5 s budget for one file"
+    )
     assert seconds >= budget and len(gaps) > 50 and max(gaps) < budget / 2, max(gaps)
     assert not [p for p in multiprocessing.active_children() if p.name == "hs-upload-check"]
     assert not fifo.exists()  # the staging entry is gone
@@ -203,7 +209,7 @@ def test_chunks_go_to_disk_and_the_limit_stops_them(cfg):
     incoming = uploads.Incoming(cfg, "C:\\Users\\me\\body.bvh")
     assert incoming.name == "body.bvh"
     for k in range(0, len(data), 40_000):
-        incoming.write(data[k:k + 40_000])
+        incoming.write(data[k : k + 40_000])
     kept = uploads.check(cfg, incoming.finish())
     assert kept.path.read_bytes() == data and kept.summary["kind"] == "skeleton"
     assert kept.summary["frames"] == read_bvh(BODY).n_frames
@@ -242,12 +248,15 @@ def test_serve_body_hand_opens_the_pair_first(tmp_path, sample_dir):
         config.configure(sample_dir=sample_dir)
 
 
-@pytest.mark.parametrize("argv, needle", [
-    (["serve", str(BODY)], "both BODY and HAND"),
-    (["serve", str(BODY), "missing.bvh"], "HAND missing.bvh: no such file"),
-    (["serve", str(BODY), __file__], "expected a .bvh, .c3d or .trc"),
-    (["serve", str(BODY), str(HAND), "--sample", "wave-ok"], "give one"),
-])
+@pytest.mark.parametrize(
+    "argv, needle",
+    [
+        (["serve", str(BODY)], "both BODY and HAND"),
+        (["serve", str(BODY), "missing.bvh"], "HAND missing.bvh: no such file"),
+        (["serve", str(BODY), __file__], "expected a .bvh, .c3d or .trc"),
+        (["serve", str(BODY), str(HAND), "--sample", "wave-ok"], "give one"),
+    ],
+)
 def test_serve_body_hand_bad_arguments_exit_2(argv, needle, capsys):
     from engine.cli import main
 

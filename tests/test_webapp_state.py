@@ -18,9 +18,12 @@ DEMO = "wave-ok"
 
 @pytest.fixture(scope="module")
 def cfg(sample_dir, tmp_path_factory) -> config.AppConfig:
-    return config.AppConfig(sample_dir=sample_dir.resolve(),
-                            upload_dir=tmp_path_factory.mktemp("uploads"),
-                            default_sample=DEMO, max_upload_bytes=2 * 1024 * 1024)
+    return config.AppConfig(
+        sample_dir=sample_dir.resolve(),
+        upload_dir=tmp_path_factory.mktemp("uploads"),
+        default_sample=DEMO,
+        max_upload_bytes=2 * 1024 * 1024,
+    )
 
 
 @pytest.fixture
@@ -76,7 +79,7 @@ def test_matching_point_with_tolerance_reshapes_search_and_path(session):
     x, y = n // 2, session.m_hand // 4  # well off the diagonal, in hand-file frames
     before = session.solution.pass1.path
     session.add_point(x, y, 0)
-    (gx, gy, gt), = session.constraint_points()
+    ((gx, gy, gt),) = session.constraint_points()
     assert gx == x and gy == round(y * session.fps / session.hand_fps) and gt == 0
     sol = session.solution
     assert _path_hits(sol.pass1.path, x, gy, 0)
@@ -165,8 +168,9 @@ def test_two_sessions_are_independent(cfg):
     a.band = 0.2
     assert b.points == () and b.band == 0.3
     assert b.solution is not a.solution
-    assert not _path_hits(b.solution.pass1.path, 60, 20, 0) or \
-        _path_hits(a.solution.pass1.path, 60, 20, 0)
+    assert not _path_hits(b.solution.pass1.path, 60, 20, 0) or _path_hits(
+        a.solution.pass1.path, 60, 20, 0
+    )
     b.undo()  # nothing to undo in b
     assert a.points == (MatchPoint(60, 20, 0),)
 
@@ -179,13 +183,16 @@ def test_cost_views_at_screen_resolution_and_full_detail(session):
     coarse = session.cost_view((-0.5, n - 0.5, -0.5, m - 0.5), 40)
     assert coarse.stride[0] > 1 and coarse.image.shape[0] <= 40 and coarse.image.shape[1] <= 40
     zoom = session.cost_view((50, 70, 10, 20), 40)  # zoomed in: every cell again
-    assert zoom.stride == (1, 1) and zoom.x0 == 50 and zoom.image.shape == (zoom.x1 - 50,
-                                                                           zoom.y1 - zoom.y0)
-    assert np.allclose(zoom.image, full.image[50:zoom.x1, zoom.y0:zoom.y1])
+    assert (
+        zoom.stride == (1, 1)
+        and zoom.x0 == 50
+        and zoom.image.shape == (zoom.x1 - 50, zoom.y1 - zoom.y0)
+    )
+    assert np.allclose(zoom.image, full.image[50 : zoom.x1, zoom.y0 : zoom.y1])
     session.matrix = "cumulative1"
     cum = session.cost_view((-0.5, n - 0.5, -0.5, m - 0.5), 600).image
     band = session.solution.pass1.band
-    assert np.isnan(cum[0, band.hi[0] + 1:]).all() and np.isfinite(cum[n - 1, m - 1])
+    assert np.isnan(cum[0, band.hi[0] + 1 :]).all() and np.isfinite(cum[n - 1, m - 1])
     # open ends: the pass cost is γ at the path's end (its start's skip cost included) plus
     # the skip cost of the frames after the end
     p1 = session.solution.pass1
@@ -262,8 +269,11 @@ def test_upload_folder_problems_are_one_line_upload_errors(cfg, tmp_path, monkey
 
     other = dataclasses.replace(cfg, upload_dir=tmp_path / "up")
     monkeypatch.setattr(uploads, "_open_staging", denied)
-    with pytest.raises(uploads.UploadError, match=r"^body\.bvh: the server cannot store "
-                                                   r"uploads \(permission denied\)$"):
+    with pytest.raises(
+        uploads.UploadError,
+        match=r"^body\.bvh: the server cannot store "
+        r"uploads \(permission denied\)$",
+    ):
         uploads.store(other, "body.bvh", good)
     assert not list((tmp_path / "up").iterdir())
 
@@ -300,8 +310,16 @@ def test_session_on_uploaded_files(cfg):
 
 
 def _snapshot(s: Session) -> tuple:
-    return (s.to_spec(), s.solution, s.prepared, s.n, s.m, s.revision, s.inputs_revision,
-            s.can_undo)
+    return (
+        s.to_spec(),
+        s.solution,
+        s.prepared,
+        s.n,
+        s.m,
+        s.revision,
+        s.inputs_revision,
+        s.can_undo,
+    )
 
 
 def test_bad_session_file_or_link_leaves_the_working_session_alone(session, cfg):
@@ -313,21 +331,24 @@ def test_bad_session_file_or_link_leaves_the_working_session_alone(session, cfg)
     good_hand, _ = uploads.store(cfg, "hand.bvh", cfg.sample(DEMO).hand.read_bytes())
     files = [
         ({"inputs": {"sample": "nope"}, "band": 0.5}, "nope"),
-        ({"inputs": {"body": {"sha256": "0" * 64}, "hand": {"sha256": good_hand}}},
-         "no such file"),
+        ({"inputs": {"body": {"sha256": "0" * 64}, "hand": {"sha256": good_hand}}}, "no such file"),
         ({"inputs": {"body": {"sha256": good_hand}}}, "inputs.hand"),
         ({"inputs": {"sample": "wave-hello"}, "points": [{"body": 5000, "hand": 3}]}, "outside"),
-        ({"inputs": {"sample": "wave-hello"},
-          "roles": {"body": {"right.wrist": "NoSuchJoint"}}}, "NoSuchJoint"),
+        (
+            {"inputs": {"sample": "wave-hello"}, "roles": {"body": {"right.wrist": "NoSuchJoint"}}},
+            "NoSuchJoint",
+        ),
         ({"inputs": {"sample": DEMO}, "side": "both"}, "right or left"),
     ]
     for data, message in files:
         with pytest.raises((HandSpliceError, KeyError, ValueError), match=message):
             session.from_json(json.dumps(data), source="bad.json")
         assert _snapshot(session) == before, data
-    for query, message in [({"sample": "nope", "band": "0.5"}, "nope"),
-                           ({"body": "0" * 64, "hand": "1" * 64, "pts": "1:2"}, "no such file"),
-                           ({"pts": "5000:3"}, "outside")]:
+    for query, message in [
+        ({"sample": "nope", "band": "0.5"}, "nope"),
+        ({"body": "0" * 64, "hand": "1" * 64, "pts": "1:2"}, "no such file"),
+        ({"pts": "5000:3"}, "outside"),
+    ]:
         with pytest.raises((HandSpliceError, KeyError, ValueError), match=message):
             session.from_query(query)
         assert _snapshot(session) == before, query
@@ -483,8 +504,11 @@ def test_teaching_example_steps_through_the_recurrence():
     model.step = len(model.order)  # the last cell
     g, d = model.gamma, model.cost
     for i, j in model.order[1:]:  # eq. 2 holds in every band cell the solver filled
-        preds = [g[a, b] for a, b in ((i - 1, j - 1), (i - 1, j), (i, j - 1))
-                 if a >= 0 and b >= 0 and np.isfinite(g[a, b])]
+        preds = [
+            g[a, b]
+            for a, b in ((i - 1, j - 1), (i - 1, j), (i, j - 1))
+            if a >= 0 and b >= 0 and np.isfinite(g[a, b])
+        ]
         assert g[i, j] == pytest.approx(d[i, j] + min(preds))
     assert g[11, 9] == pytest.approx(model.alignment.cost) and model.finished
     model.step = 5
@@ -596,9 +620,11 @@ def test_command_line_uses_the_session_file_then_explicit_flags(session):
     session.add_point(40, 20, 0)
     view = sharing.SharingView(session)
     first, second = view.command.object.split("<br>", 1)
-    assert first == (f"$ handsplice splice {session.take_paths()[0].name} "
-                     f"{session.take_paths()[1].name} -o spliced.bvh "
-                     f"--session {sharing.SESSION_FILENAME}")
+    assert first == (
+        f"$ handsplice splice {session.take_paths()[0].name} "
+        f"{session.take_paths()[1].name} -o spliced.bvh "
+        f"--session {sharing.SESSION_FILENAME}"
+    )
     assert "--match" not in first
     assert "explicit flags" in second and "$ handsplice splice " in second
     assert "--match 40:" in second and "--band" in second
@@ -638,8 +664,16 @@ def test_lesson_next_row_finishes_the_current_row():
     mdl.step = len(mdl.order)
     texts = [short_number(g) for g in mdl.gamma[np.isfinite(mdl.gamma)].ravel()]
     assert texts and max(map(len, texts)) <= 4
-    assert [short_number(x) for x in (0, 0.1234, 3.5, 12.34, 340.2, 2345, 23456, 0.004)] == \
-        ["0", "0.12", "3.5", "12.3", "340", "2345", "2e4", "4e-3"]
+    assert [short_number(x) for x in (0, 0.1234, 3.5, 12.34, 340.2, 2345, 23456, 0.004)] == [
+        "0",
+        "0.12",
+        "3.5",
+        "12.3",
+        "340",
+        "2345",
+        "2e4",
+        "4e-3",
+    ]
 
 
 def test_points_table_shows_whole_frames_times_and_the_global_tolerance(session):
@@ -657,8 +691,9 @@ def test_points_table_shows_whole_frames_times_and_the_global_tolerance(session)
 def test_page_errors_use_the_pages_words():
     from engine.errors import RoleError
 
-    text = backend.one_line(RoleError("h.bvh has no left hand (hands found: right); "
-                                      "try --side right"))
+    text = backend.one_line(
+        RoleError("h.bvh has no left hand (hands found: right); try --side right")
+    )
     assert "--side" not in text and "choose side right in the page" in text
 
 

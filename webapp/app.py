@@ -58,8 +58,19 @@ def _section(title: str, text: str, *objects) -> pn.Column:
     return pn.Column(*head, *objects, sizing_mode="stretch_width")
 
 
-SHARE_KEYS = ("sample", "body", "hand", "side", "band", "refine", "tol", "pts", "roles", "view",
-              "frame")
+SHARE_KEYS = (
+    "sample",
+    "body",
+    "hand",
+    "side",
+    "band",
+    "refine",
+    "tol",
+    "pts",
+    "roles",
+    "view",
+    "frame",
+)
 
 
 def _initial_state(session: Session, args: dict[str, str] | None = None) -> None:
@@ -72,8 +83,9 @@ def _initial_state(session: Session, args: dict[str, str] | None = None) -> None
     if args is None:
         args = {}
         if pn.state.session_args:
-            args = {k: v[0].decode("utf-8", "replace")
-                    for k, v in pn.state.session_args.items() if v}
+            args = {
+                k: v[0].decode("utf-8", "replace") for k, v in pn.state.session_args.items() if v
+            }
     cfg = session.config
     if cfg.default_sample:
         try:
@@ -101,18 +113,20 @@ def create_app() -> pn.viewable.Viewable:
     matrix = CostMatrixView(session)
     trust = TrustView(session, matrix)
     points = controls.PointsTable(session)
-    pick = pn.widgets.RadioButtonGroup(options=["Edit points", "Pick frames"],
-                                       value="Edit points", css_classes=["hs-click-mode"])
+    pick = pn.widgets.RadioButtonGroup(
+        options=["Edit points", "Pick frames"], value="Edit points", css_classes=["hs-click-mode"]
+    )
     pick.param.watch(lambda e: matrix.set_pick_mode(e.new == "Pick frames"), "value")
 
     side_panel = pn.Column(
         controls.parameter_widgets(session),
-        pn.pane.Markdown("**A click on the matrix**", margin=(10, 10, 0, 10)), pick,
+        pn.pane.Markdown("**A click on the matrix**", margin=(10, 10, 0, 10)),
+        pick,
         controls.undo_redo(session),
-        pn.pane.Markdown("**Matching points** (empty tolerance = global)",
-                         margin=(10, 10, 0, 10)),
+        pn.pane.Markdown("**Matching points** (empty tolerance = global)", margin=(10, 10, 0, 10)),
         points.panel(),
-        width=420, sizing_mode=None,
+        width=420,
+        sizing_mode=None,
     )
     # matrix, its controls and the preview side by side on a wide screen (they wrap below
     # one another on a narrow one); the trust layers sit under the matrix
@@ -120,18 +134,25 @@ def create_app() -> pn.viewable.Viewable:
     try:
         from webapp.views.preview import PreviewView
 
-        work.append(pn.Column(
-            pn.pane.Markdown("### 3 · Preview", margin=(0, 10)),
-            pn.pane.Markdown(PreviewView.TEXT, css_classes=["hs-section-text"],
-                             width=680, margin=(0, 10)),
-            PreviewView(session).panel(), sizing_mode=None, width=700))
+        work.append(
+            pn.Column(
+                pn.pane.Markdown("### 3 · Preview", margin=(0, 10)),
+                pn.pane.Markdown(
+                    PreviewView.TEXT, css_classes=["hs-section-text"], width=680, margin=(0, 10)
+                ),
+                PreviewView(session).panel(),
+                sizing_mode=None,
+                width=700,
+            )
+        )
     except ImportError:
         pass
     alignment = _section(
-        "2 · Alignment", ALIGN_TEXT,
-        controls.status_line(session), controls.error_alert(session),
-        pn.FlexBox(*work, flex_wrap="wrap", align_items="flex-start",
-                   sizing_mode="stretch_width"),
+        "2 · Alignment",
+        ALIGN_TEXT,
+        controls.status_line(session),
+        controls.error_alert(session),
+        pn.FlexBox(*work, flex_wrap="wrap", align_items="flex-start", sizing_mode="stretch_width"),
     )
     sections = [
         pn.pane.HTML(HEADER, sizing_mode="stretch_width", margin=(10, 10, 0, 10)),
@@ -145,13 +166,18 @@ def create_app() -> pn.viewable.Viewable:
         sections.append(_section("5 · How DTW works", TeachingView.TEXT, TeachingView().panel()))
     except ImportError:
         pass
-    page = pn.Column(*sections, sizing_mode="stretch_width", css_classes=["hs-app"],
-                     styles={"max-width": "2000px", "margin": "0 auto"})
+    page = pn.Column(
+        *sections,
+        sizing_mode="stretch_width",
+        css_classes=["hs-app"],
+        styles={"max-width": "2000px", "margin": "0 auto"},
+    )
     page.session = session  # for tests and debugging
     from webapp.views import connection
 
-    connection.install(pn.state.curdoc if pn.state.curdoc and pn.state.curdoc.session_context
-                       else None)
+    connection.install(
+        pn.state.curdoc if pn.state.curdoc and pn.state.curdoc.session_context else None
+    )
     return page
 
 

@@ -149,8 +149,13 @@ def _file_key(path: Path) -> tuple:
     return (str(path), st.st_size, st.st_mtime_ns)
 
 
-def prepare(body_path: Path, hand_path: Path, side: str, roles: dict | None = None,
-            takes: tuple | None = None) -> Prepared:
+def prepare(
+    body_path: Path,
+    hand_path: Path,
+    side: str,
+    roles: dict | None = None,
+    takes: tuple | None = None,
+) -> Prepared:
     """Load both takes and compute the per-pair features (cached per server).
 
     ``roles``: ``{"body": {"right.wrist": NAME}, "hand": {...}}`` joint-role overrides.
@@ -160,8 +165,14 @@ def prepare(body_path: Path, hand_path: Path, side: str, roles: dict | None = No
     import json
 
     roles = roles or {}
-    key = (str(body_path), str(hand_path), side, _file_key(body_path), _file_key(hand_path),
-           json.dumps(roles, sort_keys=True))
+    key = (
+        str(body_path),
+        str(hand_path),
+        side,
+        _file_key(body_path),
+        _file_key(hand_path),
+        json.dumps(roles, sort_keys=True),
+    )
     with _PREPARE_LOCK:
         hit = _PREPARED.get(key)
         if hit is not None:
@@ -181,26 +192,44 @@ def _normalised(x: np.ndarray) -> np.ndarray:
     return (x - x.min()) / span if span > 0 else np.zeros_like(x)
 
 
-def _prepare(body_path: Path, hand_path: Path, side: str, key: tuple, roles: dict,
-             takes: tuple | None = None) -> Prepared:
+def _prepare(
+    body_path: Path, hand_path: Path, side: str, key: tuple, roles: dict, takes: tuple | None = None
+) -> Prepared:
     from engine.io import load_take
     from engine.splice import pipeline
 
     body, hand = takes or (None, None)
     body = body if body is not None else load_take(body_path)
     hand = hand if hand is not None else load_take(hand_path)
-    features = pipeline.prepare(body, hand, side=side, body_roles=roles.get("body") or None,
-                                hand_roles=roles.get("hand") or None)
+    features = pipeline.prepare(
+        body,
+        hand,
+        side=side,
+        body_roles=roles.get("body") or None,
+        hand_roles=roles.get("hand") or None,
+    )
     body_speed, hand_speed = pipeline.wrist_speeds(features)
     body_phases, hand_phases = _phases(features)
     n, m = features.n, features.m
     pass1_cost = None
     if n * m <= DENSE_PASS1_MAX_CELLS:
-        pass1_cost = _local_costs(features.pass1_rows, pipeline.DEFAULT_METRICS[0], np.arange(n),
-                                  np.arange(m))
-    return Prepared(key=key, body=body, hand=hand, side=side, n=n, m=m, features=features,
-                    body_signal=_normalised(body_speed), hand_signal=_normalised(hand_speed),
-                    body_phases=body_phases, hand_phases=hand_phases, pass1_cost=pass1_cost)
+        pass1_cost = _local_costs(
+            features.pass1_rows, pipeline.DEFAULT_METRICS[0], np.arange(n), np.arange(m)
+        )
+    return Prepared(
+        key=key,
+        body=body,
+        hand=hand,
+        side=side,
+        n=n,
+        m=m,
+        features=features,
+        body_signal=_normalised(body_speed),
+        hand_signal=_normalised(hand_speed),
+        body_phases=body_phases,
+        hand_phases=hand_phases,
+        pass1_cost=pass1_cost,
+    )
 
 
 def _phases(features) -> tuple[np.ndarray | None, np.ndarray | None]:
@@ -208,8 +237,10 @@ def _phases(features) -> tuple[np.ndarray | None, np.ndarray | None]:
     try:
         from engine.gesture.phases import marker_phase_labels
 
-        return (marker_phase_labels(features.body_markers, features.fps),
-                marker_phase_labels(features.hand_markers, features.fps))
+        return (
+            marker_phase_labels(features.body_markers, features.fps),
+            marker_phase_labels(features.hand_markers, features.fps),
+        )
     except (ImportError, AttributeError, HandSpliceError, ValueError):
         return None, None
 
@@ -226,14 +257,23 @@ def solve(prepared: Prepared, band, refine_band, points, previous=None) -> Solut
         earlier = None if previous is None else previous.cache.get("engine")
         if earlier is None and prepared.pass1_cost is not None:
             earlier = _seed(prepared)
-        result = pipeline.align_passes(prepared.features, band=band, refine_band=refine_band,
-                                       points=list(points), previous=earlier)
+        result = pipeline.align_passes(
+            prepared.features,
+            band=band,
+            refine_band=refine_band,
+            points=list(points),
+            previous=earlier,
+        )
     p1, p2 = result.pass1, result.pass2
     sol = Solution(
         pass1=PassResult(np.asarray(p1.path), float(p1.cost), p1.band, p1),
         pass2=PassResult(np.asarray(p2.path), float(p2.cost), p2.band, p2),
-        warp=np.asarray(result.warp, dtype=float), points=points, band=band,
-        refine_band=refine_band, seconds=time.perf_counter() - t0)
+        warp=np.asarray(result.warp, dtype=float),
+        points=points,
+        band=band,
+        refine_band=refine_band,
+        seconds=time.perf_counter() - t0,
+    )
     sol.cache["engine"] = result
     return sol
 
@@ -257,9 +297,11 @@ class _Seed:
 def _seed(prepared: Prepared) -> _Seed:
     from engine.dtw import Aligner
 
-    return _Seed(features_id=id(prepared.features),
-                 pass1=_SeedPass(solver=Aligner.from_cost(prepared.pass1_cost)),
-                 pass2=_SeedPass())
+    return _Seed(
+        features_id=id(prepared.features),
+        pass1=_SeedPass(solver=Aligner.from_cost(prepared.pass1_cost)),
+        pass2=_SeedPass(),
+    )
 
 
 def _local_costs(rows_ab, metric: str, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
@@ -288,8 +330,9 @@ def _view_window(ranges, n: int, m: int, max_pixels: int):
     return x0, x1, y0, y1, sx, sy
 
 
-def cost_view(prepared: Prepared, solution: Solution | None, kind: str, ranges,
-              max_pixels: int) -> CostView:
+def cost_view(
+    prepared: Prepared, solution: Solution | None, kind: str, ranges, max_pixels: int
+) -> CostView:
     """The visible part of matrix ``kind`` (pass1, pass2, cumulative1, cumulative2),
     at most ``max_pixels`` samples per axis (every ``stride``-th cell)."""
     from engine.splice import pipeline
@@ -301,16 +344,20 @@ def cost_view(prepared: Prepared, solution: Solution | None, kind: str, ranges,
     if kind == "pass1" and prepared.pass1_cost is not None:
         image = prepared.pass1_cost[np.ix_(rows, cols)]
     elif kind == "pass1":
-        image = _local_costs(prepared.features.pass1_rows, pipeline.DEFAULT_METRICS[0], rows,
-                             cols)
+        image = _local_costs(prepared.features.pass1_rows, pipeline.DEFAULT_METRICS[0], rows, cols)
     elif kind == "pass2" and engine_result is not None:
         image = _local_costs(engine_result.pass2.rows, engine_result.pass2.metric, rows, cols)
     else:
         with prepared.lock:
             image = pipeline.cost_image(prepared.features, kind, rows, cols, engine_result)
-    return CostView(image=np.asarray(image, dtype=np.float32), x0=int(rows[0]),
-                    x1=int(rows[-1] + sx), y0=int(cols[0]), y1=int(cols[-1] + sy),
-                    stride=(sx, sy))
+    return CostView(
+        image=np.asarray(image, dtype=np.float32),
+        x0=int(rows[0]),
+        x1=int(rows[-1] + sx),
+        y0=int(cols[0]),
+        y1=int(cols[-1] + sy),
+        stride=(sx, sy),
+    )
 
 
 def marker_body(prepared: Prepared) -> bool:
@@ -333,8 +380,9 @@ def splice(prepared: Prepared, solution: Solution):
         if marker_body(prepared):
             from engine.splice.retime import retimed_hand
 
-            motion = retimed_hand(prepared.hand, solution.cache["engine"].map,
-                                  prepared.features.fps)
+            motion = retimed_hand(
+                prepared.hand, solution.cache["engine"].map, prepared.features.fps
+            )
         else:
             motion = pipeline.transfer(prepared.features, solution.cache["engine"])
     solution.cache["spliced"] = motion
@@ -365,11 +413,14 @@ def preview_for(prepared: Prepared, solution: Solution):
     if marker_body(prepared):  # the markers are drawn apart (no mesh): hand | retimed hand
         takes, labels = [prepared.hand, spliced], ["hand take", "hand retimed to the body"]
     else:
-        takes, labels = [prepared.body, prepared.hand, spliced], ["body take", "hand take",
-                                                                   "spliced"]
+        takes, labels = (
+            [prepared.body, prepared.hand, spliced],
+            ["body take", "hand take", "spliced"],
+        )
     if not all(hasattr(t, "skeleton") for t in takes):
-        raise HandSpliceError("previews need a skeletal hand take (BVH); a marker hand take "
-                              "has no fingers to show")
+        raise HandSpliceError(
+            "previews need a skeletal hand take (BVH); a marker hand take has no fingers to show"
+        )
     sides = tuple(getattr(prepared.features, "sides", ()) or (prepared.side,))
     preview = Preview(takes, labels=labels, size=(960, 360), close_up_sides=sides)
     solution.cache["preview"] = preview
@@ -390,8 +441,9 @@ def assess(prepared: Prepared, solution: Solution):
     if cached is None:
         from engine.trust import assess_splice
 
-        cached = assess_splice(prepared.features, solution.cache["engine"],
-                               body_phases=prepared.body_phases)
+        cached = assess_splice(
+            prepared.features, solution.cache["engine"], body_phases=prepared.body_phases
+        )
         solution.cache["trust"] = cached
     return cached
 
@@ -404,19 +456,27 @@ def frame_triplet(prepared: Prepared, solution: Solution, body_frame: int) -> tu
     return i, int(np.clip(round(float(hand_map[i])), 0, last)), i
 
 
-def render_frame(prepared: Prepared, solution: Solution, body_frame: int, camera: str,
-                 trails: bool, size: tuple[int, int] = (960, 360)) -> np.ndarray:
+def render_frame(
+    prepared: Prepared,
+    solution: Solution,
+    body_frame: int,
+    camera: str,
+    trails: bool,
+    size: tuple[int, int] = (960, 360),
+) -> np.ndarray:
     """(H, W, 3) uint8: body take, hand take and spliced result side by side."""
     preview = preview_for(prepared, solution)
     frames = frame_triplet(prepared, solution, body_frame)
     if marker_body(prepared):
         return _marker_body_frame(prepared, preview, frames, camera, trails, size)
-    return preview.frame(frames[0], view="side_by_side", camera=camera, size=size,
-                         frames=list(frames), trails=trails)
+    return preview.frame(
+        frames[0], view="side_by_side", camera=camera, size=size, frames=list(frames), trails=trails
+    )
 
 
-def _marker_body_frame(prepared: Prepared, preview, frames, camera: str, trails: bool,
-                       size: tuple[int, int]) -> np.ndarray:
+def _marker_body_frame(
+    prepared: Prepared, preview, frames, camera: str, trails: bool, size: tuple[int, int]
+) -> np.ndarray:
     """Body markers (a third of the width, the aligned arm highlighted) | hand take |
     hand retimed to the body."""
     from engine.render.markers import marker_image
@@ -425,19 +485,25 @@ def _marker_body_frame(prepared: Prepared, preview, frames, camera: str, trails:
     w, h = size
     left = w // 3
     try:
-        arm = find_marker_roles(prepared.body.labels, side_hint=prepared.side).side(
-            prepared.side)
+        arm = find_marker_roles(prepared.body.labels, side_hint=prepared.side).side(prepared.side)
         highlight = [k for k in arm.values() if k is not None]
     except (HandSpliceError, KeyError, ValueError):
         highlight = []
     markers = marker_image(prepared.body, frames[0], (left, h), highlight, "body take")
-    hands = preview.frame(frames[1], view="side_by_side", camera=camera, size=(w - left, h),
-                          frames=[frames[1], frames[2]], trails=trails)
+    hands = preview.frame(
+        frames[1],
+        view="side_by_side",
+        camera=camera,
+        size=(w - left, h),
+        frames=[frames[1], frames[2]],
+        trails=trails,
+    )
     return np.concatenate([markers, hands[:, :, :3]], axis=1)
 
 
-def render_closeup(prepared: Prepared, solution: Solution, body_frame: int,
-                   size: tuple[int, int] = (360, 300)) -> np.ndarray:
+def render_closeup(
+    prepared: Prepared, solution: Solution, body_frame: int, size: tuple[int, int] = (360, 300)
+) -> np.ndarray:
     """(H, W, 3) uint8: the spliced take's hands close up (the hands fill the frame)."""
     preview = preview_for(prepared, solution)
     i = frame_triplet(prepared, solution, body_frame)[2]
@@ -452,9 +518,15 @@ def png_bytes(image: np.ndarray) -> bytes:
     return to_png_bytes(np.asarray(image, dtype=np.uint8))
 
 
-def preview_video(prepared: Prepared, solution: Solution, fmt: str, camera: str = "three-quarter",
-                  max_frames: int = 90, size: tuple[int, int] = (720, 272),
-                  progress=None) -> bytes:
+def preview_video(
+    prepared: Prepared,
+    solution: Solution,
+    fmt: str,
+    camera: str = "three-quarter",
+    max_frames: int = 90,
+    size: tuple[int, int] = (720, 272),
+    progress=None,
+) -> bytes:
     """An animated preview (GIF or MP4 bytes) of the whole take, at most ``max_frames``
     frames (evenly spaced), played at the take's speed.
 
@@ -492,8 +564,16 @@ def preview_video(prepared: Prepared, solution: Solution, fmt: str, camera: str 
     return data
 
 
-def cli_command(prepared: Prepared, body: str, hand: str, side: str, band,
-                refine_band, points, roles: dict | None = None) -> str:
+def cli_command(
+    prepared: Prepared,
+    body: str,
+    hand: str,
+    side: str,
+    band,
+    refine_band,
+    points,
+    roles: dict | None = None,
+) -> str:
     """The ``handsplice splice`` command line that reproduces this alignment.
 
     ``points``: ``[(body, hand, tol)]`` in each file's own frames (the page's and
@@ -504,9 +584,20 @@ def cli_command(prepared: Prepared, body: str, hand: str, side: str, band,
     from engine.dtw import constraints as C
 
     feats = prepared.features
-    parts = ["handsplice", "splice", shlex.quote(body), shlex.quote(hand), "-o", "spliced.bvh",
-             "--side", side, "--band", C.BAND.parse(band).text(),
-             "--refine-band", C.REFINE_BAND.parse(refine_band).text()]
+    parts = [
+        "handsplice",
+        "splice",
+        shlex.quote(body),
+        shlex.quote(hand),
+        "-o",
+        "spliced.bvh",
+        "--side",
+        side,
+        "--band",
+        C.BAND.parse(band).text(),
+        "--refine-band",
+        C.REFINE_BAND.parse(refine_band).text(),
+    ]
     for x, h, tol in C.points_to_hand(points, feats.fps, feats.hand_fps, feats.m_hand):
         parts += ["--match", C.MatchPoint(x, h, tol or None).text()]
     if roles:
@@ -514,11 +605,22 @@ def cli_command(prepared: Prepared, body: str, hand: str, side: str, band,
     return " ".join(parts)
 
 
-def cli_session_command(body: str, hand: str, session_file: str,
-                        output: str = "spliced.bvh") -> str:
+def cli_session_command(
+    body: str, hand: str, session_file: str, output: str = "spliced.bvh"
+) -> str:
     """The ``handsplice splice`` command line that redoes this splice from the session file
     the page downloads (side, bands, tolerance, matching points and roles all come from it)."""
     import shlex
 
-    return " ".join(["handsplice", "splice", shlex.quote(body), shlex.quote(hand), "-o",
-                     shlex.quote(output), "--session", shlex.quote(session_file)])
+    return " ".join(
+        [
+            "handsplice",
+            "splice",
+            shlex.quote(body),
+            shlex.quote(hand),
+            "-o",
+            shlex.quote(output),
+            "--session",
+            shlex.quote(session_file),
+        ]
+    )

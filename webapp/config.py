@@ -67,9 +67,13 @@ def get() -> AppConfig:
     return _CONFIG
 
 
-def configure(default_sample: str | None = None, upload_dir: Path | None = None,
-              max_upload_bytes: int = DEFAULT_MAX_UPLOAD,
-              sample_dir: Path | None = None, **limits) -> AppConfig:
+def configure(
+    default_sample: str | None = None,
+    upload_dir: Path | None = None,
+    max_upload_bytes: int = DEFAULT_MAX_UPLOAD,
+    sample_dir: Path | None = None,
+    **limits,
+) -> AppConfig:
     """Set the server-wide configuration; ``default_sample`` None = the samples.json demo pair.
 
     ``limits``: ``local`` (the pair of ``serve BODY HAND``, opened first),
@@ -78,18 +82,28 @@ def configure(default_sample: str | None = None, upload_dir: Path | None = None,
     global _CONFIG
     sample_dir = Path(sample_dir or SAMPLE_DIR).resolve()
     upload_dir = Path(upload_dir or Path.cwd() / "uploads").resolve()
-    cfg = AppConfig(sample_dir=sample_dir, upload_dir=upload_dir,
-                    max_upload_bytes=int(max_upload_bytes), **limits)
+    cfg = AppConfig(
+        sample_dir=sample_dir,
+        upload_dir=upload_dir,
+        max_upload_bytes=int(max_upload_bytes),
+        **limits,
+    )
     names = [p.name for p in cfg.samples()]
     if default_sample is not None and default_sample not in names:
-        raise ValueError(f"--sample: no sample pair named {default_sample!r} in "
-                         f"{sample_dir / 'samples.json'} (known: {', '.join(names) or 'none'})")
+        raise ValueError(
+            f"--sample: no sample pair named {default_sample!r} in "
+            f"{sample_dir / 'samples.json'} (known: {', '.join(names) or 'none'})"
+        )
     if default_sample is None:
         local = limits.get("local")
         default_sample = local.name if local is not None else demo_sample_name(sample_dir)
-    _CONFIG = AppConfig(sample_dir=sample_dir, upload_dir=upload_dir,
-                        default_sample=default_sample, max_upload_bytes=int(max_upload_bytes),
-                        **limits)
+    _CONFIG = AppConfig(
+        sample_dir=sample_dir,
+        upload_dir=upload_dir,
+        default_sample=default_sample,
+        max_upload_bytes=int(max_upload_bytes),
+        **limits,
+    )
     return _CONFIG
 
 
@@ -98,9 +112,14 @@ def local_pair(body: Path, hand: Path, side: str = "right") -> SamplePair:
     (the server runs on their machine). Listed first among the sample pairs, under the
     name ``BODY.name + HAND.name``."""
     body, hand = Path(body).resolve(), Path(hand).resolve()
-    return SamplePair(name=f"{body.name} + {hand.name}", body=body, hand=hand, side=side,
-                      description="your takes, opened from disk",
-                      extra={"local": True})
+    return SamplePair(
+        name=f"{body.name} + {hand.name}",
+        body=body,
+        hand=hand,
+        side=side,
+        description="your takes, opened from disk",
+        extra={"local": True},
+    )
 
 
 def _read_manifest(sample_dir: Path) -> dict | list | None:
@@ -147,9 +166,16 @@ def load_samples(sample_dir: Path) -> list[SamplePair]:
         if not (isinstance(name, str) and body and hand):
             continue
         side = entry.get("side", "right")
-        pairs.append(SamplePair(name=name, body=body, hand=hand,
-                                side=side if side in ("left", "right") else "right",
-                                description=str(entry.get("description", "")), extra=entry))
+        pairs.append(
+            SamplePair(
+                name=name,
+                body=body,
+                hand=hand,
+                side=side if side in ("left", "right") else "right",
+                description=str(entry.get("description", "")),
+                extra=entry,
+            )
+        )
     return pairs
 
 

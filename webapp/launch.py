@@ -20,8 +20,14 @@ from typing import IO
 
 ROOT = Path(__file__).resolve().parents[1]
 CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking",
-                 "--disable-component-update", "--disable-sync", "--no-first-run"]
+CHROMIUM_ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+]
 
 #: page-side helpers (``page.evaluate(PAGE_HELPERS)`` once the document is up):
 #: ``hs.model(name)``, ``hs.xy(body_frame, hand_frame)`` -> screen pixels of a matrix
@@ -54,8 +60,9 @@ def free_port(address: str = "127.0.0.1") -> int:
 
 
 @contextmanager
-def running_server(*serve_args: str, log: IO, timeout: float = 120.0
-                   ) -> Iterator[tuple[str, float]]:
+def running_server(
+    *serve_args: str, log: IO, timeout: float = 120.0
+) -> Iterator[tuple[str, float]]:
     """``handsplice serve --port FREE *serve_args`` in a child process, output to ``log``.
 
     Yields ``(url, seconds until it answered)``; the server is stopped on exit.
@@ -65,14 +72,17 @@ def running_server(*serve_args: str, log: IO, timeout: float = 120.0
     port = free_port()
     exe = Path(sys.executable).with_name("handsplice")
     t0 = time.monotonic()
-    proc = subprocess.Popen([str(exe), "serve", "--port", str(port), *serve_args], cwd=ROOT,
-                            stdout=log, stderr=subprocess.STDOUT)
+    proc = subprocess.Popen(
+        [str(exe), "serve", "--port", str(port), *serve_args],
+        cwd=ROOT,
+        stdout=log,
+        stderr=subprocess.STDOUT,
+    )
     url = f"http://127.0.0.1:{port}/"
     try:
         while True:
             if proc.poll() is not None:
-                raise RuntimeError(f"handsplice serve exited ({proc.returncode}):\n"
-                                   f"{_tail(log)}")
+                raise RuntimeError(f"handsplice serve exited ({proc.returncode}):\n{_tail(log)}")
             try:
                 # building the first page can take long on a busy machine: a short
                 # timeout would abandon every attempt (and queue another page build)
@@ -82,8 +92,9 @@ def running_server(*serve_args: str, log: IO, timeout: float = 120.0
             except OSError:
                 pass
             if time.monotonic() - t0 > timeout:
-                raise RuntimeError(f"handsplice serve did not answer within {timeout:g} s:\n"
-                                   f"{_tail(log)}")
+                raise RuntimeError(
+                    f"handsplice serve did not answer within {timeout:g} s:\n{_tail(log)}"
+                )
             time.sleep(0.2)
         yield url, time.monotonic() - t0
     finally:
@@ -99,8 +110,9 @@ def launch_chromium(playwright, headless: bool = True):
     """Debian's Chromium through Playwright (``playwright install`` cannot download here)."""
     if not Path(CHROMIUM).exists():
         raise RuntimeError(f"{CHROMIUM} is missing (apt-get install chromium)")
-    return playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS,
-                                      headless=headless)
+    return playwright.chromium.launch(
+        executable_path=CHROMIUM, args=CHROMIUM_ARGS, headless=headless
+    )
 
 
 def _tail(log: IO, chars: int = 3000) -> str:

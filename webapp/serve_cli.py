@@ -30,29 +30,69 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         description="Serve the HandSplice browser app. Listens on localhost unless --address "
         "says otherwise; never opens a browser.",
     )
-    p.add_argument("body", nargs="?", type=Path, default=None,
-                   help="your body take (.bvh, .c3d or .trc), opened from disk; with HAND")
-    p.add_argument("hand", nargs="?", type=Path, default=None,
-                   help="your hand take (.bvh), opened from disk; with BODY")
-    p.add_argument("--side", choices=("right", "left"), default="right",
-                   help="which hand of BODY HAND to align and splice (default right)")
+    p.add_argument(
+        "body",
+        nargs="?",
+        type=Path,
+        default=None,
+        help="your body take (.bvh, .c3d or .trc), opened from disk; with HAND",
+    )
+    p.add_argument(
+        "hand",
+        nargs="?",
+        type=Path,
+        default=None,
+        help="your hand take (.bvh), opened from disk; with BODY",
+    )
+    p.add_argument(
+        "--side",
+        choices=("right", "left"),
+        default="right",
+        help="which hand of BODY HAND to align and splice (default right)",
+    )
     p.add_argument("--port", type=int, default=5006, help="TCP port (default 5006; 0 = any free)")
-    p.add_argument("--address", default="127.0.0.1",
-                   help="interface to listen on (default 127.0.0.1; 0.0.0.0 = all interfaces)")
-    p.add_argument("--show-url", action="store_true",
-                   help="print the app URL (and the demo pair's URL) once the server listens")
-    p.add_argument("--sample", default=None, metavar="NAME",
-                   help="sample pair opened by default (a name from sample_data/samples.json)")
-    p.add_argument("--sample-dir", type=Path, default=None, metavar="DIR",
-                   help="folder of sample pairs with its samples.json (default: the bundled "
-                        "sample_data)")
-    p.add_argument("--upload-dir", type=Path, default=None, metavar="DIR",
-                   help="where uploaded takes are stored by content hash (default ./uploads)")
-    p.add_argument("--max-upload-mb", type=float, default=MAX_UPLOAD_BYTES / 2**20,
-                   help="largest accepted upload in MiB (default "
-                        f"{MAX_UPLOAD_BYTES / 2**20:g}, engine.limits.MAX_UPLOAD_BYTES)")
-    p.add_argument("--no-warm", action="store_true",
-                   help="do not precompute the demo pair before accepting connections")
+    p.add_argument(
+        "--address",
+        default="127.0.0.1",
+        help="interface to listen on (default 127.0.0.1; 0.0.0.0 = all interfaces)",
+    )
+    p.add_argument(
+        "--show-url",
+        action="store_true",
+        help="print the app URL (and the demo pair's URL) once the server listens",
+    )
+    p.add_argument(
+        "--sample",
+        default=None,
+        metavar="NAME",
+        help="sample pair opened by default (a name from sample_data/samples.json)",
+    )
+    p.add_argument(
+        "--sample-dir",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="folder of sample pairs with its samples.json (default: the bundled sample_data)",
+    )
+    p.add_argument(
+        "--upload-dir",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="where uploaded takes are stored by content hash (default ./uploads)",
+    )
+    p.add_argument(
+        "--max-upload-mb",
+        type=float,
+        default=MAX_UPLOAD_BYTES / 2**20,
+        help="largest accepted upload in MiB (default "
+        f"{MAX_UPLOAD_BYTES / 2**20:g}, engine.limits.MAX_UPLOAD_BYTES)",
+    )
+    p.add_argument(
+        "--no-warm",
+        action="store_true",
+        help="do not precompute the demo pair before accepting connections",
+    )
     p.set_defaults(func=run)
 
 
@@ -64,8 +104,9 @@ def _check_args(args: argparse.Namespace) -> None:
     if (args.body is None) != (args.hand is None):
         raise ValueError("serve: expected both BODY and HAND takes (or neither)")
     if args.body is not None and args.sample is not None:
-        raise ValueError("serve: --sample and BODY HAND both choose the pair opened first; "
-                         "give one")
+        raise ValueError(
+            "serve: --sample and BODY HAND both choose the pair opened first; give one"
+        )
     for what, path in (("BODY", args.body), ("HAND", args.hand)):
         if path is None:
             continue
@@ -126,8 +167,9 @@ def run(args: argparse.Namespace) -> int:
         port=args.port,
         address=args.address,
         # 0.0.0.0 is an explicit opt-in to remote access: accept any Host header then
-        websocket_origin="*" if args.address in ("0.0.0.0", "::") else
-        [f"{host}:{args.port}", f"localhost:{args.port}", f"127.0.0.1:{args.port}"],
+        websocket_origin="*"
+        if args.address in ("0.0.0.0", "::")
+        else [f"{host}:{args.port}", f"localhost:{args.port}", f"127.0.0.1:{args.port}"],
         show=False,
         start=False,
         title="HandSplice",

@@ -72,10 +72,16 @@ def page_words(message: str) -> str:
     import re
 
     point = r"(\d+):(\d+)(?::[\d.]+)?"
-    text = re.sub(rf"^points\[\d+\](?:\.\w+)?: {point} ",
-                  r"matching point (body \1, hand \2) not kept: it ", message)
-    text = re.sub(r"^points\[\d+\] = \(x=(\d+), y=(\d+), tol=[\d.]+\) ",
-                  r"matching point (body \1, hand \2) not kept: it ", text)
+    text = re.sub(
+        rf"^points\[\d+\](?:\.\w+)?: {point} ",
+        r"matching point (body \1, hand \2) not kept: it ",
+        message,
+    )
+    text = re.sub(
+        r"^points\[\d+\] = \(x=(\d+), y=(\d+), tol=[\d.]+\) ",
+        r"matching point (body \1, hand \2) not kept: it ",
+        text,
+    )
     return re.sub(rf"\b{point}\b", r"(body \1, hand \2)", text)
 
 
@@ -89,43 +95,76 @@ class Session(param.Parameterized):
     body_name = param.String(default="", doc="uploaded body file's original name")
     hand_name = param.String(default="", doc="uploaded hand file's original name")
     side = param.Selector(default="right", objects=["right", "left"], doc="which arm to align")
-    roles = param.Dict(default={}, doc='joint-role overrides {"body": {"right.wrist": NAME}, '
-                                       '"hand": {...}} for unusual joint names')
+    roles = param.Dict(
+        default={},
+        doc='joint-role overrides {"body": {"right.wrist": NAME}, '
+        '"hand": {...}} for unusual joint names',
+    )
 
     # parameters and constraints (undoable edits)
     # defaults and ranges: engine.dtw.constraints (the same for links, files and widgets)
-    band = param.Number(default=C.BAND.default, bounds=(C.BAND.lo, C.BAND.hi), step=0.01,
-                        doc="pass-1 band width W1, fraction of the body take's length")
-    band_s = param.Number(default=None, allow_None=True, bounds=(C.BAND.lo_s, C.BAND.hi_s),
-                          step=0.5, doc="pass-1 band width W1 in seconds; wins over the "
-                                        "fraction when set (long takes get one by default)")
-    refine_band = param.Number(default=C.REFINE_BAND.default,
-                               bounds=(C.REFINE_BAND.lo, C.REFINE_BAND.hi), step=0.01,
-                               doc="pass-2 band width W2 around the pass-1 path, fraction")
-    refine_band_s = param.Number(default=None, allow_None=True,
-                                 bounds=(C.REFINE_BAND.lo_s, C.REFINE_BAND.hi_s), step=0.1,
-                                 doc="pass-2 band width W2 in seconds; wins when set")
-    tolerance = param.Number(default=C.TOLERANCE.default, bounds=(C.TOLERANCE.lo,
-                             C.TOLERANCE.hi), step=1.0,
-                             doc="global matching-point tolerance T in hand frames")
-    points = param.Parameter(default=(), doc="matching points: tuple of MatchPoint, body and "
-                                             "hand frames each in its own file's numbering")
+    band = param.Number(
+        default=C.BAND.default,
+        bounds=(C.BAND.lo, C.BAND.hi),
+        step=0.01,
+        doc="pass-1 band width W1, fraction of the body take's length",
+    )
+    band_s = param.Number(
+        default=None,
+        allow_None=True,
+        bounds=(C.BAND.lo_s, C.BAND.hi_s),
+        step=0.5,
+        doc="pass-1 band width W1 in seconds; wins over the "
+        "fraction when set (long takes get one by default)",
+    )
+    refine_band = param.Number(
+        default=C.REFINE_BAND.default,
+        bounds=(C.REFINE_BAND.lo, C.REFINE_BAND.hi),
+        step=0.01,
+        doc="pass-2 band width W2 around the pass-1 path, fraction",
+    )
+    refine_band_s = param.Number(
+        default=None,
+        allow_None=True,
+        bounds=(C.REFINE_BAND.lo_s, C.REFINE_BAND.hi_s),
+        step=0.1,
+        doc="pass-2 band width W2 in seconds; wins when set",
+    )
+    tolerance = param.Number(
+        default=C.TOLERANCE.default,
+        bounds=(C.TOLERANCE.lo, C.TOLERANCE.hi),
+        step=1.0,
+        doc="global matching-point tolerance T in hand frames",
+    )
+    points = param.Parameter(
+        default=(),
+        doc="matching points: tuple of MatchPoint, body and "
+        "hand frames each in its own file's numbering",
+    )
 
     # display
-    matrix = param.Selector(default="pass1", objects=list(MATRIX_LABELS),
-                            doc="which cost matrix the figure shows")
+    matrix = param.Selector(
+        default="pass1", objects=list(MATRIX_LABELS), doc="which cost matrix the figure shows"
+    )
     frame = param.Integer(default=0, bounds=(0, None), doc="body frame shown in the preview")
 
     # results (written by the session only)
     n = param.Integer(default=0, constant=True, doc="body frames (rows)")
-    m = param.Integer(default=0, constant=True, doc="alignment-grid columns: the hand take "
-                      "at the body's rate (internal; people see hand-file frames)")
+    m = param.Integer(
+        default=0,
+        constant=True,
+        doc="alignment-grid columns: the hand take "
+        "at the body's rate (internal; people see hand-file frames)",
+    )
     m_hand = param.Integer(default=0, constant=True, doc="frames of the hand file")
     fps = param.Number(default=30.0, constant=True, doc="body frame rate")
     hand_fps = param.Number(default=30.0, constant=True, doc="hand file's frame rate")
     solution = param.Parameter(default=None, doc="backend.Solution of the current state")
-    trust = param.Parameter(default=None, doc="engine.splice.uncertainty.Assessment of "
-                            "``solution`` (None until computed: see ``update_trust``)")
+    trust = param.Parameter(
+        default=None,
+        doc="engine.splice.uncertainty.Assessment of "
+        "``solution`` (None until computed: see ``update_trust``)",
+    )
     compute_ms = param.Number(default=0.0, doc="wall time of the last recompute, ms")
     error = param.String(default="", doc="why the last edit or input was rejected")
     revision = param.Integer(default=0, doc="bumped after every recompute")
@@ -161,21 +200,35 @@ class Session(param.Parameterized):
         if self.body_sha256 and self.hand_sha256:
             from webapp import uploads
 
-            return (uploads.path_for(self._cfg, self.body_sha256),
-                    uploads.path_for(self._cfg, self.hand_sha256))
+            return (
+                uploads.path_for(self._cfg, self.body_sha256),
+                uploads.path_for(self._cfg, self.hand_sha256),
+            )
         return None
 
     def load_sample(self, name: str) -> None:
         """Open a bundled pair (KeyError naming the known pairs when unknown)."""
         pair = self._cfg.sample(name)
-        self._set_inputs(sample=name, body_sha256=None, hand_sha256=None, body_name="",
-                         hand_name="", side=pair.side)
+        self._set_inputs(
+            sample=name,
+            body_sha256=None,
+            hand_sha256=None,
+            body_name="",
+            hand_name="",
+            side=pair.side,
+        )
 
-    def load_uploads(self, body_sha256: str, hand_sha256: str, body_name: str = "",
-                     hand_name: str = "") -> None:
+    def load_uploads(
+        self, body_sha256: str, hand_sha256: str, body_name: str = "", hand_name: str = ""
+    ) -> None:
         """Open two uploaded takes by content hash."""
-        self._set_inputs(sample=None, body_sha256=body_sha256, hand_sha256=hand_sha256,
-                         body_name=body_name, hand_name=hand_name)
+        self._set_inputs(
+            sample=None,
+            body_sha256=body_sha256,
+            hand_sha256=hand_sha256,
+            body_name=body_name,
+            hand_name=hand_name,
+        )
 
     def set_roles(self, roles: dict) -> bool:
         """Joint-role overrides per take (validated like the session file); False if rejected."""
@@ -214,8 +267,11 @@ class Session(param.Parameterized):
         self._applying = True
         try:
             kept = tuple(p for p in self.points if p.body < self.n and p.hand < self.m_hand)
-            self.param.update(points=kept, frame=min(self.frame, max(self.n - 1, 0)),
-                              **self._long_take_widths(prepared))
+            self.param.update(
+                points=kept,
+                frame=min(self.frame, max(self.n - 1, 0)),
+                **self._long_take_widths(prepared),
+            )
         finally:
             self._applying = False
         self.inputs_revision += 1
@@ -235,10 +291,12 @@ class Session(param.Parameterized):
 
     def widths(self) -> tuple[C.Width, C.Width]:
         """The pass-1 and pass-2 band widths in force (seconds when set, else fractions)."""
-        band = C.Width(self.band_s, C.SECONDS) if self.band_s is not None \
-            else C.Width(self.band)
-        refine = C.Width(self.refine_band_s, C.SECONDS) if self.refine_band_s is not None \
+        band = C.Width(self.band_s, C.SECONDS) if self.band_s is not None else C.Width(self.band)
+        refine = (
+            C.Width(self.refine_band_s, C.SECONDS)
+            if self.refine_band_s is not None
             else C.Width(self.refine_band)
+        )
         return band, refine
 
     # ------------------------------------------------------------ edits
@@ -257,9 +315,14 @@ class Session(param.Parameterized):
         # steps: steps queued behind a slow solve still belong to one run)
         run = self._slider_run
         name = next(iter(old)) if len(old) == 1 and next(iter(old)) in SLIDER_PARAMS else None
-        if (name is not None and run is not None and run[0] == name
-                and started - run[1] < SLIDER_RUN_S and self._undo
-                and set(self._undo[-1].values) == {name}):
+        if (
+            name is not None
+            and run is not None
+            and run[0] == name
+            and started - run[1] < SLIDER_RUN_S
+            and self._undo
+            and set(self._undo[-1].values) == {name}
+        ):
             pass  # the same slider again: the run stays one undo step
         else:
             self._undo.append(Snapshot(old))
@@ -306,8 +369,10 @@ class Session(param.Parameterized):
         front is; one undoable edit. False (and ``error``, nothing changed) if refused."""
         values: dict = {}
         try:
-            for name, rule, value in (("band", C.BAND, band),
-                                      ("refine_band", C.REFINE_BAND, refine_band)):
+            for name, rule, value in (
+                ("band", C.BAND, band),
+                ("refine_band", C.REFINE_BAND, refine_band),
+            ):
                 width = rule.parse(value)
                 if width is not None and width.unit == C.SECONDS:
                     values[f"{name}_s"] = width.value
@@ -351,8 +416,9 @@ class Session(param.Parameterized):
                 self.error = str(exc)
                 return
         pts = list(self.points)
-        pts[index] = MatchPoint(pts[index].body, pts[index].hand,
-                                None if tolerance is None else float(tolerance))
+        pts[index] = MatchPoint(
+            pts[index].body, pts[index].hand, None if tolerance is None else float(tolerance)
+        )
         self.set_points(pts)
 
     def set_points_from_view(self, edited) -> bool:
@@ -402,21 +468,27 @@ class Session(param.Parameterized):
                 continue
             tol = rest[0] if rest else None
             tol = None if tol is None or not np.isfinite(tol) else float(tol)
-            cells.append((int(np.clip(round(x), 0, max(self.n - 1, 0))),
-                          int(np.clip(round(y), 0, max(self.m_hand - 1, 0))), tol))
+            cells.append(
+                (
+                    int(np.clip(round(x), 0, max(self.n - 1, 0))),
+                    int(np.clip(round(y), 0, max(self.m_hand - 1, 0))),
+                    tol,
+                )
+            )
         return cells
 
     @staticmethod
     def _merged(points: list[MatchPoint], before: list, after: list) -> list | None:
         """``points`` with the one edit ``before -> after`` of the page applied (by index in
         the page's list: a click appends, a drag changes entries in place, Backspace removes)."""
+
         def find(cell):
             for k, p in enumerate(points):
                 if (p.body, p.hand) == cell[:2]:
                     return k
             return None
 
-        if len(after) == len(before) + 1 and after[:len(before)] == before:
+        if len(after) == len(before) + 1 and after[: len(before)] == before:
             x, y, tol = after[-1]
             return [*points, MatchPoint(x, y, tol)]
         if len(after) == len(before):
@@ -455,8 +527,7 @@ class Session(param.Parameterized):
     def _check_points(self) -> None:
         """Refuse points outside the takes or out of order: the rule and its text are
         ``engine.dtw.constraints``' (the page shows it in its own words: ``page_words``)."""
-        C.check_points(self.user_points(), self.n, self.m_hand,
-                       open_ends=C.DEFAULT_ENDS == "open")
+        C.check_points(self.user_points(), self.n, self.m_hand, open_ends=C.DEFAULT_ENDS == "open")
 
     def _solve(self, t0: float | None = None) -> bool:
         """Recompute band and path for the current state; False (and ``error``) if rejected."""
@@ -466,13 +537,19 @@ class Session(param.Parameterized):
         try:
             self._check_points()
             band, refine = self.widths()
-            sol = backend.solve(self.prepared, band=band, refine_band=refine,
-                                points=self.constraint_points(), previous=self.solution)
+            sol = backend.solve(
+                self.prepared,
+                band=band,
+                refine_band=refine,
+                points=self.constraint_points(),
+                previous=self.solution,
+            )
         except (HandSpliceError, ValueError) as exc:
             self.error = backend.one_line(exc)
             return False
-        self.param.update(solution=sol, trust=None, compute_ms=(time.perf_counter() - t0) * 1000.0,
-                          error="")
+        self.param.update(
+            solution=sol, trust=None, compute_ms=(time.perf_counter() - t0) * 1000.0, error=""
+        )
         self.revision += 1
         return True
 
@@ -518,9 +595,11 @@ class Session(param.Parameterized):
             return self.error or "no takes loaded"
         cells = sol.pass1.band_cells
         share = 100.0 * cells / max(self.n * self.m, 1)
-        return (f"pass 1 cost {sol.pass1.cost:.4g} · pass 2 cost {sol.pass2.cost:.4g} · "
-                f"{self.compute_ms:.1f} ms · band {cells:,} cells ({share:.0f} %) · "
-                f"{len(self.points)} matching point{'s' if len(self.points) != 1 else ''}")
+        return (
+            f"pass 1 cost {sol.pass1.cost:.4g} · pass 2 cost {sol.pass2.cost:.4g} · "
+            f"{self.compute_ms:.1f} ms · band {cells:,} cells ({share:.0f} %) · "
+            f"{len(self.points)} matching point{'s' if len(self.points) != 1 else ''}"
+        )
 
     def axis_signals(self) -> tuple[np.ndarray, np.ndarray]:
         if self.prepared is None:
@@ -552,8 +631,7 @@ class Session(param.Parameterized):
         if self.prepared is None:
             return None
         try:
-            return backend.cost_view(self.prepared, self.solution, self.matrix, ranges,
-                                     max_pixels)
+            return backend.cost_view(self.prepared, self.solution, self.matrix, ranges, max_pixels)
         except HandSpliceError as exc:
             self.error = backend.one_line(exc)
             return None
@@ -581,11 +659,19 @@ class Session(param.Parameterized):
         if not self.sample and self.hand_sha256:
             hand = TakeRef(sha256=self.hand_sha256, name=self.hand_name or None)
         band, refine = self.widths()
-        return SessionSpec(sample=self.sample, body=body, hand=hand, side=self.side,
-                           hand_frames="file",
-                           band=band, refine_band=refine,
-                           tolerance=self.tolerance, points=self.points, roles=dict(self.roles),
-                           view={"matrix": self.matrix, "frame": self.frame})
+        return SessionSpec(
+            sample=self.sample,
+            body=body,
+            hand=hand,
+            side=self.side,
+            hand_frames="file",
+            band=band,
+            refine_band=refine,
+            tolerance=self.tolerance,
+            points=self.points,
+            roles=dict(self.roles),
+            view={"matrix": self.matrix, "frame": self.frame},
+        )
 
     def apply_spec(self, spec: SessionSpec) -> None:
         """Restore inputs, parameters and points (one recompute; clears undo history).
@@ -607,40 +693,62 @@ class Session(param.Parameterized):
             raise session_io.SessionError(None, "side", "the app aligns one side: right or left")
         for k, take in (("body", spec.body), ("hand", spec.hand)):
             if take is not None and not take.sha256:
-                raise session_io.SessionError(None, f"inputs.{k}", "the app opens bundled "
-                                              "samples or uploaded files (sha256), not paths")
+                raise session_io.SessionError(
+                    None,
+                    f"inputs.{k}",
+                    "the app opens bundled samples or uploaded files (sha256), not paths",
+                )
         if (spec.body is None) != (spec.hand is None):
             missing = "hand" if spec.hand is None else "body"
-            raise session_io.SessionError(None, f"inputs.{missing}", "missing (an uploaded "
-                                          "pair needs both takes)")
+            raise session_io.SessionError(
+                None, f"inputs.{missing}", "missing (an uploaded pair needs both takes)"
+            )
         if spec.sample is not None:
             pair = self._cfg.sample(spec.sample)  # KeyError naming the known pairs
-            inputs = dict(sample=spec.sample, body_sha256=None, hand_sha256=None,
-                          body_name="", hand_name="")
+            inputs = dict(
+                sample=spec.sample, body_sha256=None, hand_sha256=None, body_name="", hand_name=""
+            )
             paths = (pair.body, pair.hand)
         elif spec.body is not None:
             from webapp import uploads
 
-            inputs = dict(sample=None, body_sha256=spec.body.sha256,
-                          hand_sha256=spec.hand.sha256, body_name=spec.body.name or "",
-                          hand_name=spec.hand.name or "")
-            paths = (uploads.path_for(self._cfg, spec.body.sha256),
-                     uploads.path_for(self._cfg, spec.hand.sha256))
+            inputs = dict(
+                sample=None,
+                body_sha256=spec.body.sha256,
+                hand_sha256=spec.hand.sha256,
+                body_name=spec.body.name or "",
+                hand_name=spec.hand.name or "",
+            )
+            paths = (
+                uploads.path_for(self._cfg, spec.body.sha256),
+                uploads.path_for(self._cfg, spec.hand.sha256),
+            )
         else:  # parameters only: applied to the takes already open
-            inputs = self._current(("sample", "body_sha256", "hand_sha256", "body_name",
-                                    "hand_name"))
+            inputs = self._current(
+                ("sample", "body_sha256", "hand_sha256", "body_name", "hand_name")
+            )
             paths = self.take_paths()
             if paths is None:
-                raise session_io.SessionError(None, "inputs", "expected a sample or uploaded "
-                                              "body and hand takes (none are open)")
+                raise session_io.SessionError(
+                    None,
+                    "inputs",
+                    "expected a sample or uploaded body and hand takes (none are open)",
+                )
         roles = dict(spec.roles)
         prepared = backend.prepare(paths[0], paths[1], spec.side, roles)
         points = tuple(spec.points)  # checked by engine.dtw.constraints when the spec was made
         if spec.hand_frames == "grid":  # an old file or link: hand frames on the grid
-            points = self._normalise(backend.grid_points_to_hand(
-                prepared, [(p.body, p.hand, p.tolerance) for p in points]))
-        C.check_points([p.resolved(spec.tolerance) for p in points], prepared.n,
-                       prepared.m_hand, open_ends=C.DEFAULT_ENDS == "open")
+            points = self._normalise(
+                backend.grid_points_to_hand(
+                    prepared, [(p.body, p.hand, p.tolerance) for p in points]
+                )
+            )
+        C.check_points(
+            [p.resolved(spec.tolerance) for p in points],
+            prepared.n,
+            prepared.m_hand,
+            open_ends=C.DEFAULT_ENDS == "open",
+        )
         fps = prepared.features.fps
         band = spec.band or C.BAND.default_for(prepared.n, fps)
         refine = spec.refine_band or C.REFINE_BAND.default_for(prepared.n, fps)
@@ -652,12 +760,22 @@ class Session(param.Parameterized):
                 widths[f"{name}_s"] = width.value
             else:
                 widths.update({name: width.value, f"{name}_s": None})
-        values = dict(inputs, side=spec.side, roles=roles, **widths,
-                      tolerance=spec.tolerance, points=points,
-                      matrix=spec.view.get("matrix", self.matrix),
-                      frame=int(min(spec.view.get("frame", 0), max(prepared.n - 1, 0))))
-        return {"values": values, "prepared": prepared, "solution": solution,
-                "compute_ms": (time.perf_counter() - t0) * 1000.0}
+        values = dict(
+            inputs,
+            side=spec.side,
+            roles=roles,
+            **widths,
+            tolerance=spec.tolerance,
+            points=points,
+            matrix=spec.view.get("matrix", self.matrix),
+            frame=int(min(spec.view.get("frame", 0), max(prepared.n - 1, 0))),
+        )
+        return {
+            "values": values,
+            "prepared": prepared,
+            "solution": solution,
+            "compute_ms": (time.perf_counter() - t0) * 1000.0,
+        }
 
     def _commit(self, staged: dict) -> None:
         """Install a staged state: results first, so watchers of the inputs see a consistent
@@ -665,8 +783,7 @@ class Session(param.Parameterized):
         prepared = staged["prepared"]
         self.prepared = prepared
         self._set_sizes(prepared)
-        self.param.update(solution=staged["solution"], trust=None,
-                          compute_ms=staged["compute_ms"])
+        self.param.update(solution=staged["solution"], trust=None, compute_ms=staged["compute_ms"])
         self._apply(staged["values"])
         self._undo.clear()
         self._redo.clear()
@@ -677,8 +794,13 @@ class Session(param.Parameterized):
 
     def _set_sizes(self, prepared) -> None:
         with param.edit_constant(self):
-            self.param.update(n=prepared.n, m=prepared.m, m_hand=prepared.m_hand,
-                              fps=prepared.fps, hand_fps=prepared.hand_fps)
+            self.param.update(
+                n=prepared.n,
+                m=prepared.m,
+                m_hand=prepared.m_hand,
+                fps=prepared.fps,
+                hand_fps=prepared.hand_fps,
+            )
 
     def to_json(self) -> str:
         return session_io.format_session(self.to_spec())

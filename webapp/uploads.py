@@ -103,15 +103,19 @@ def path_for(cfg: AppConfig, digest: str) -> Path:
         path = cfg.upload_dir / f"{digest}{ext}"
         if os.path.lexists(path):
             if not _is_regular(path):
-                raise UploadError(f"upload {digest[:12]}...: not a regular file on this server "
-                                  "(links are not followed)")
+                raise UploadError(
+                    f"upload {digest[:12]}...: not a regular file on this server "
+                    "(links are not followed)"
+                )
             try:
                 os.utime(path, follow_symlinks=False)
             except OSError:
                 pass  # a read-only folder: the quota order is only a preference
             return path
-    raise UploadError(f"upload {digest[:12]}...: no such file on this server "
-                      "(uploads are kept per server; upload the take again)")
+    raise UploadError(
+        f"upload {digest[:12]}...: no such file on this server "
+        "(uploads are kept per server; upload the take again)"
+    )
 
 
 # ---------------------------------------------------------------- receiving
@@ -136,8 +140,9 @@ class Incoming:
             cfg.upload_dir.mkdir(parents=True, exist_ok=True)
             self._fd = _open_staging(self.path)
         except OSError as exc:
-            raise UploadError(f"{self.name}: the server cannot store uploads "
-                              f"({_os_reason(exc)})") from None
+            raise UploadError(
+                f"{self.name}: the server cannot store uploads ({_os_reason(exc)})"
+            ) from None
 
     def write(self, data) -> None:
         if self._fd is None:
@@ -145,16 +150,18 @@ class Incoming:
         self.size += len(data)
         if self.size > self.cfg.max_upload_bytes:
             self.discard()
-            raise UploadError(f"{self.name}: over the {self.cfg.max_upload_bytes / 2**20:.0f} "
-                              "MiB upload limit")
+            raise UploadError(
+                f"{self.name}: over the {self.cfg.max_upload_bytes / 2**20:.0f} MiB upload limit"
+            )
         try:
             view = memoryview(data)
             while view:
-                view = view[os.write(self._fd, view):]
+                view = view[os.write(self._fd, view) :]
         except OSError as exc:
             self.discard()
-            raise UploadError(f"{self.name}: the server cannot store uploads "
-                              f"({_os_reason(exc)})") from None
+            raise UploadError(
+                f"{self.name}: the server cannot store uploads ({_os_reason(exc)})"
+            ) from None
 
     def finish(self) -> Staged:
         self._close()
@@ -175,8 +182,11 @@ class Incoming:
 
 def _open_staging(path: Path) -> int:
     """A new file for writing, created exclusively and never through a symlink."""
-    return os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW
-                   | getattr(os, "O_CLOEXEC", 0), 0o600)
+    return os.open(
+        path,
+        os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | getattr(os, "O_CLOEXEC", 0),
+        0o600,
+    )
 
 
 def stage_bytes(cfg: AppConfig, filename: str | None, data: bytes | None) -> Staged:
@@ -186,8 +196,10 @@ def stage_bytes(cfg: AppConfig, filename: str | None, data: bytes | None) -> Sta
     if not data:
         raise UploadError(f"{name}: the file is empty")
     if len(data) > cfg.max_upload_bytes:
-        raise UploadError(f"{name}: {len(data) / 2**20:.1f} MiB is over the "
-                          f"{cfg.max_upload_bytes / 2**20:.0f} MiB upload limit")
+        raise UploadError(
+            f"{name}: {len(data) / 2**20:.1f} MiB is over the "
+            f"{cfg.max_upload_bytes / 2**20:.0f} MiB upload limit"
+        )
     incoming = Incoming(cfg, name)
     incoming.write(data)
     return incoming.finish()
@@ -204,16 +216,16 @@ def check(cfg: AppConfig, staged: Staged) -> Kept:
     either way.
     """
     try:
-        summary, take = _read_in_child(staged, cfg.upload_check_seconds,
-                                       cfg.upload_check_bytes)
+        summary, take = _read_in_child(staged, cfg.upload_check_seconds, cfg.upload_check_bytes)
         digest = _file_sha256(staged.path)
         target = cfg.upload_dir / f"{digest}{staged.path.suffix}"
         try:
             os.replace(staged.path, target)  # a symlink planted there is replaced, not followed
             os.utime(target, follow_symlinks=False)
         except OSError as exc:
-            raise UploadError(f"{staged.name}: the server cannot store uploads "
-                              f"({_os_reason(exc)})") from None
+            raise UploadError(
+                f"{staged.name}: the server cannot store uploads ({_os_reason(exc)})"
+            ) from None
     finally:
         _discard(staged.path)
     enforce_quota(cfg, keep={target.name})
@@ -248,8 +260,7 @@ def _context():
     global _CONTEXT
     if _CONTEXT is None:
         ctx = multiprocessing.get_context("forkserver")
-        ctx.set_forkserver_preload(["engine.io", "engine.io.bvh", "engine.io.c3d",
-                                    "engine.io.trc"])
+        ctx.set_forkserver_preload(["engine.io", "engine.io.bvh", "engine.io.c3d", "engine.io.trc"])
         _CONTEXT = ctx
     return _CONTEXT
 
@@ -257,23 +268,32 @@ def _context():
 def _read_in_child(staged: Staged, seconds: float, memory: int) -> dict:
     ctx = _context()
     receive, send = ctx.Pipe(duplex=False)
-    child = ctx.Process(target=_child_read, args=(str(staged.path), memory, send),
-                        daemon=True, name="hs-upload-check")
+    child = ctx.Process(
+        target=_child_read,
+        args=(str(staged.path), memory, send),
+        daemon=True,
+        name="hs-upload-check",
+    )
     try:
         child.start()
     except OSError as exc:
-        raise UploadError(f"{staged.name}: the server cannot check uploads now "
-                          f"({_os_reason(exc)})") from None
+        raise UploadError(
+            f"{staged.name}: the server cannot check uploads now ({_os_reason(exc)})"
+        ) from None
     send.close()
     try:
         if not receive.poll(seconds):
-            raise UploadError(f"{staged.name}: reading it took longer than the server's "
-                              f"{seconds:g} s budget for one file")
+            raise UploadError(
+                f"{staged.name}: reading it took longer than the server's "
+                f"{seconds:g} s budget for one file"
+            )
         try:
             verdict, detail, take = receive.recv()
         except (EOFError, OSError):  # the child died: out of memory or worse
-            raise UploadError(f"{staged.name}: cannot be read within the server's "
-                              f"{memory / 2**30:.1f} GiB memory budget") from None
+            raise UploadError(
+                f"{staged.name}: cannot be read within the server's "
+                f"{memory / 2**30:.1f} GiB memory budget"
+            ) from None
     finally:
         receive.close()
         if child.is_alive():
@@ -303,13 +323,18 @@ def _child_read(path: str, memory: int, conn) -> None:  # runs in the child proc
         summary.update(frames=int(take.n_frames), fps=float(take.fps))
         conn.send(("ok", summary, take))
     except MemoryError:
-        conn.send(("refused", f"{Path(path).name}: reading it needs more than the server's "
-                              f"{memory / 2**30:.1f} GiB memory budget", None))
+        conn.send(
+            (
+                "refused",
+                f"{Path(path).name}: reading it needs more than the server's "
+                f"{memory / 2**30:.1f} GiB memory budget",
+                None,
+            )
+        )
     except HandSpliceError as exc:
         conn.send(("refused", str(exc), None))
     except Exception as exc:  # noqa: BLE001 - any reader failure is a refusal, never a crash
-        conn.send(("refused", f"{Path(path).name}: cannot be read ({type(exc).__name__})",
-                   None))
+        conn.send(("refused", f"{Path(path).name}: cannot be read ({type(exc).__name__})", None))
     finally:
         conn.close()
 
@@ -381,8 +406,9 @@ _QUOTED = re.compile(r"('[^'\n]*'|\"[^\"\n]*\")")
 def _bounded(message: str) -> str:
     """``message`` with any quoted file text over QUOTE_CHARS characters cut short, so an
     error never echoes a file's contents at length."""
+
     def cut(match: re.Match) -> str:
         text = match.group(0)
-        return text if len(text) <= QUOTE_CHARS else text[:QUOTE_CHARS - 12] + "…" + text[0]
+        return text if len(text) <= QUOTE_CHARS else text[: QUOTE_CHARS - 12] + "…" + text[0]
 
     return _QUOTED.sub(cut, message)[:400]

@@ -80,14 +80,19 @@ def main(argv: list[str] | None = None) -> int:
             raise
         what = "memory" if isinstance(exc, MemoryError) else "nesting depth"
         detail = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        print(f"handsplice: error: the input needs more {what} than this machine allows "
-              f"({detail}); refusing it", file=sys.stderr)
+        print(
+            f"handsplice: error: the input needs more {what} than this machine allows "
+            f"({detail}); refusing it",
+            file=sys.stderr,
+        )
         return 2
     except Exception as exc:  # a bug: still one line unless --debug
         if args.debug:
             raise
-        print(f"handsplice: internal error: {type(exc).__name__}: {exc} (rerun with --debug)",
-              file=sys.stderr)
+        print(
+            f"handsplice: internal error: {type(exc).__name__}: {exc} (rerun with --debug)",
+            file=sys.stderr,
+        )
         return 1
 
 

@@ -20,16 +20,33 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--eaf", metavar="OUT.eaf", help="write ELAN tiers (phases, handedness)")
     p.add_argument("--csv", metavar="OUT.csv", help="write the annotations as CSV")
     p.add_argument("--json", action="store_true", help="print the full result as JSON")
-    p.add_argument("--threshold", type=float, default=0.12,
-                   help="handedness threshold in m/s (default 0.12)")
-    p.add_argument("--hold-speed", type=float, default=None,
-                   help="m/s below which a hand is still (default 0.12)")
-    p.add_argument("--stroke-accel", type=float, default=None,
-                   help="m/s^2, smallest peak acceleration of a stroke (default 1.0)")
-    p.add_argument("--rest-radius", type=float, default=None,
-                   help="m, distance from the rest position that still counts as rest (0.15)")
-    p.add_argument("--reference", choices=("shoulder", "pelvis"), default=None,
-                   help="origin of the body frame for the wrist (default shoulder)")
+    p.add_argument(
+        "--threshold", type=float, default=0.12, help="handedness threshold in m/s (default 0.12)"
+    )
+    p.add_argument(
+        "--hold-speed",
+        type=float,
+        default=None,
+        help="m/s below which a hand is still (default 0.12)",
+    )
+    p.add_argument(
+        "--stroke-accel",
+        type=float,
+        default=None,
+        help="m/s^2, smallest peak acceleration of a stroke (default 1.0)",
+    )
+    p.add_argument(
+        "--rest-radius",
+        type=float,
+        default=None,
+        help="m, distance from the rest position that still counts as rest (0.15)",
+    )
+    p.add_argument(
+        "--reference",
+        choices=("shoulder", "pelvis"),
+        default=None,
+        help="origin of the body frame for the wrist (default shoulder)",
+    )
     p.add_argument("--roles", metavar="ROLES.json", help="joint role overrides (JSON)")
     p.set_defaults(func=run)
 
@@ -50,10 +67,16 @@ def run(args: argparse.Namespace) -> int:
     if not isinstance(take, Motion):
         raise MotionFormatError(args.file, "analyze needs a skeletal take (.bvh), not markers")
     params = PhaseParameters()
-    changes = {k: v for k, v in (("hold_speed", args.hold_speed),
-                                 ("stroke_accel", args.stroke_accel),
-                                 ("rest_radius", args.rest_radius),
-                                 ("reference", args.reference)) if v is not None}
+    changes = {
+        k: v
+        for k, v in (
+            ("hold_speed", args.hold_speed),
+            ("stroke_accel", args.stroke_accel),
+            ("rest_radius", args.rest_radius),
+            ("reference", args.reference),
+        )
+        if v is not None
+    }
     params = replace(params, **changes)
     overrides = None
     if args.roles:

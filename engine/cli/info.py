@@ -23,16 +23,24 @@ import sys
 
 def add_parser(subparsers) -> None:
     p = subparsers.add_parser(
-        "info", help="describe a capture file (.bvh, .c3d, .trc)",
+        "info",
+        help="describe a capture file (.bvh, .c3d, .trc)",
         description="Describe a capture file: format, frames, fps, duration, joints, "
-                    "units, up axis, and the arm/hand joint roles per side.")
+        "units, up axis, and the arm/hand joint roles per side.",
+    )
     p.add_argument("file", help="a .bvh, .c3d or .trc file")
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--roles", metavar="MAP.json",
-                   help='joint-role overrides, e.g. {"right.wrist": "Bip01_R_Hand"}')
-    p.add_argument("--side", choices=["right", "left"],
-                   help="side of a take whose joint or marker names carry none "
-                        "(default: from the file name, e.g. mug1_rightHand.bvh)")
+    p.add_argument(
+        "--roles",
+        metavar="MAP.json",
+        help='joint-role overrides, e.g. {"right.wrist": "Bip01_R_Hand"}',
+    )
+    p.add_argument(
+        "--side",
+        choices=["right", "left"],
+        help="side of a take whose joint or marker names carry none "
+        "(default: from the file name, e.g. mug1_rightHand.bvh)",
+    )
     p.set_defaults(func=run)
 
 
@@ -50,8 +58,9 @@ def run(args: argparse.Namespace) -> int:
         if overrides:
             from engine.errors import ParameterError
 
-            raise ParameterError(f"--roles applies to skeletal takes (.bvh); {args.file} "
-                                 "holds markers")
+            raise ParameterError(
+                f"--roles applies to skeletal takes (.bvh); {args.file} holds markers"
+            )
         report = describe_markers(take, args.file, side=args.side)
     else:
         report = describe_motion(take, args.file, overrides=overrides, side=args.side)
@@ -94,8 +103,9 @@ def describe_markers(markers, path, side=None) -> dict:
 
     missing = np.isnan(markers.points).any(axis=2)  # (F, M)
     n = max(markers.n_frames, 1)
-    gaps = {label: _number(100.0 * missing[:, i].sum() / n, 2)
-            for i, label in enumerate(markers.labels)}
+    gaps = {
+        label: _number(100.0 * missing[:, i].sum() / n, 2) for i, label in enumerate(markers.labels)
+    }
     total = 100.0 * missing.sum() / max(missing.size, 1)
     return {
         "file": str(path),
@@ -105,11 +115,18 @@ def describe_markers(markers, path, side=None) -> dict:
         "duration_s": _number(markers.duration),
         "units": markers.meta.units,
         "up_axis": markers.meta.up_axis,
-        "markers": {"count": len(markers.labels), "labels": list(markers.labels),
-                    "gap_percent": _number(total, 2), "gaps": gaps},
+        "markers": {
+            "count": len(markers.labels),
+            "labels": list(markers.labels),
+            "gap_percent": _number(total, 2),
+            "gaps": gaps,
+        },
         "roles": roles.to_dict(),
-        "sides": [s for s in SIDES if roles.side(s)["wrist_radial"] is not None
-                  or roles.side(s)["wrist_ulnar"] is not None],
+        "sides": [
+            s
+            for s in SIDES
+            if roles.side(s)["wrist_radial"] is not None or roles.side(s)["wrist_ulnar"] is not None
+        ],
     }
 
 
@@ -142,8 +159,12 @@ def format_text(report: dict) -> str:
         rows += _role_rows(report)
     else:
         m = report["markers"]
-        rows += [("markers", str(m["count"])), ("units", units), ("up axis", up),
-                 ("gaps", f"{m['gap_percent']:g}% of samples")]
+        rows += [
+            ("markers", str(m["count"])),
+            ("units", units),
+            ("up axis", up),
+            ("gaps", f"{m['gap_percent']:g}% of samples"),
+        ]
         worst = sorted(m["gaps"].items(), key=lambda kv: -kv[1])[:5]
         worst = [f"{k} {v:g}%" for k, v in worst if v > 0]
         if worst:

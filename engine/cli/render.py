@@ -32,30 +32,48 @@ VIEW_CHOICES = ("single", "side-by-side", "overlay")
 
 def add_parser(subparsers) -> None:
     p = subparsers.add_parser(
-        "render", help="render a take as a skinned preview (.png, .gif, .mp4) or 3D file (.glb)",
+        "render",
+        help="render a take as a skinned preview (.png, .gif, .mp4) or 3D file (.glb)",
         description="Render a take (or two, compared) with a procedural skinned mannequin: "
-                    "a PNG frame or contact sheet, a GIF or an MP4; or export it in 3D as "
-                    "a GLB (glTF 2.0, skinned and animated).")
+        "a PNG frame or contact sheet, a GIF or an MP4; or export it in 3D as "
+        "a GLB (glTF 2.0, skinned and animated).",
+    )
     p.add_argument("file", help="a .bvh take")
-    p.add_argument("-o", "--output", required=True, metavar="OUT",
-                   help="output file: .png (frame or contact sheet), .gif, .mp4 or .glb (3D)")
+    p.add_argument(
+        "-o",
+        "--output",
+        required=True,
+        metavar="OUT",
+        help="output file: .png (frame or contact sheet), .gif, .mp4 or .glb (3D)",
+    )
     p.add_argument("--frames", metavar="A:B", help="frame range, Python slice (B exclusive)")
     p.add_argument("--frame", type=int, metavar="N", help="the frame of a .png (default 0)")
     p.add_argument("--compare", metavar="OTHER", help="a second take to compare with FILE")
-    p.add_argument("--view", choices=VIEW_CHOICES,
-                   help="single, side-by-side (default with --compare) or overlay "
-                        "(OTHER's stick figure over FILE)")
-    p.add_argument("--trails", action="store_true",
-                   help="draw both hands' trails, coloured by gesture phase")
+    p.add_argument(
+        "--view",
+        choices=VIEW_CHOICES,
+        help="single, side-by-side (default with --compare) or overlay "
+        "(OTHER's stick figure over FILE)",
+    )
+    p.add_argument(
+        "--trails", action="store_true", help="draw both hands' trails, coloured by gesture phase"
+    )
     p.add_argument("--size", default="640x480", metavar="WxH", help="pixels (default 640x480)")
-    p.add_argument("--camera", default="three-quarter",
-                   choices=("front", "side", "three-quarter", "hands"),
-                   help="view direction; hands: a close-up of both hands")
-    p.add_argument("--fps", type=float, help="frame rate of a .gif/.mp4 (default the take's, "
-                                            "at most 30)")
+    p.add_argument(
+        "--camera",
+        default="three-quarter",
+        choices=("front", "side", "three-quarter", "hands"),
+        help="view direction; hands: a close-up of both hands",
+    )
+    p.add_argument(
+        "--fps", type=float, help="frame rate of a .gif/.mp4 (default the take's, at most 30)"
+    )
     p.add_argument("--roles", metavar="MAP.json", help="joint-role overrides for FILE")
-    p.add_argument("--side", choices=["right", "left"],
-                   help="side of a hand-only take whose joint names carry none")
+    p.add_argument(
+        "--side",
+        choices=["right", "left"],
+        help="side of a hand-only take whose joint names carry none",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -73,8 +91,9 @@ def run(args: argparse.Namespace) -> int:
     if out.suffix.lower() not in FORMATS:
         raise ParameterError(f"{out.name}: output must end in {', '.join(FORMATS)} or .glb")
     if args.frame is not None and out.suffix.lower() != ".png":
-        raise ParameterError("--frame picks the frame of a .png; use --frames A:B for a "
-                             f"{out.suffix} clip")
+        raise ParameterError(
+            f"--frame picks the frame of a .png; use --frames A:B for a {out.suffix} clip"
+        )
     size = parse_size(args.size)
     if args.fps is not None and not args.fps > 0:
         raise ParameterError(f"--fps {args.fps}: must be positive")
@@ -94,13 +113,19 @@ def run(args: argparse.Namespace) -> int:
     try:
         frames = frame_range(preview.n_frames, args.frames) if args.frames else None
         phases = _phases(takes[0]) if args.trails else None
-        kwargs = dict(view=view.replace("-", "_"), camera=args.camera, size=size,
-                      trails=args.trails, phases=phases)
+        kwargs = dict(
+            view=view.replace("-", "_"),
+            camera=args.camera,
+            size=size,
+            trails=args.trails,
+            phases=phases,
+        )
         if args.trails and frames is not None:
             kwargs["trail_range"] = (frames.start, frames.stop) if frames.step == 1 else None
         progress = None if args.quiet else progress_printer(f"render {out.name}")
-        render_to_file(preview, out, frames=frames, frame=args.frame, fps=args.fps,
-                       progress=progress, **kwargs)
+        render_to_file(
+            preview, out, frames=frames, frame=args.frame, fps=args.fps, progress=progress, **kwargs
+        )
     finally:
         preview.close()
     if not args.quiet:
@@ -114,12 +139,18 @@ def _export_glb(args: argparse.Namespace, out) -> int:
     from engine.export.glb import write_glb
     from engine.render.video import frame_range
 
-    for flag, given in (("--frame", args.frame is not None), ("--compare", args.compare),
-                        ("--view", args.view), ("--trails", args.trails),
-                        ("--fps", args.fps is not None)):
+    for flag, given in (
+        ("--frame", args.frame is not None),
+        ("--compare", args.compare),
+        ("--view", args.view),
+        ("--trails", args.trails),
+        ("--fps", args.fps is not None),
+    ):
         if given:
-            raise ParameterError(f"{flag} does not apply to a .glb (a 3D file of one take at "
-                                 "its own rate); use --frames A:B to cut it")
+            raise ParameterError(
+                f"{flag} does not apply to a .glb (a 3D file of one take at "
+                "its own rate); use --frames A:B to cut it"
+            )
     take = _load(args.file)
     frames = frame_range(take.n_frames, args.frames) if args.frames else None
     if frames is not None and frames.step != 1:

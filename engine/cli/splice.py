@@ -41,37 +41,71 @@ import time
 
 def add_parser(subparsers) -> None:
     p = subparsers.add_parser(
-        "splice", help="splice a hand take's wrists and fingers onto a body take",
+        "splice",
+        help="splice a hand take's wrists and fingers onto a body take",
         description="Align a hand take to a body take with two-pass DTW (Majkowska et al. "
-                    "2006) and write the body take with the hand take's wrists and fingers.")
+        "2006) and write the body take with the hand take's wrists and fingers.",
+    )
     p.add_argument("body", help="body take (.bvh)")
     p.add_argument("hand", help="hand take with finger joints (.bvh)")
     p.add_argument("-o", "--output", required=True, metavar="OUT.bvh", help="spliced take")
-    p.add_argument("--side", default=None, choices=["auto", "both", "right", "left"],
-                   help="hands to splice (default auto: both when both takes have both)")
-    p.add_argument("--band", default=None, metavar="W1",
-                   help="pass-1 band width: fraction of the body take (0.3) or seconds (10s); "
-                        "default 0.3, at most 10s on long takes")
-    p.add_argument("--refine-band", default=None, metavar="W2",
-                   help="pass-2 band width around the pass-1 path, the same forms; "
-                        "default 0.1, at most 2s")
-    p.add_argument("--match", action="append", default=[], metavar="BODY:HAND[:TOL]",
-                   help="matching point: body frame, hand frame, tolerance in hand frames")
+    p.add_argument(
+        "--side",
+        default=None,
+        choices=["auto", "both", "right", "left"],
+        help="hands to splice (default auto: both when both takes have both)",
+    )
+    p.add_argument(
+        "--band",
+        default=None,
+        metavar="W1",
+        help="pass-1 band width: fraction of the body take (0.3) or seconds (10s); "
+        "default 0.3, at most 10s on long takes",
+    )
+    p.add_argument(
+        "--refine-band",
+        default=None,
+        metavar="W2",
+        help="pass-2 band width around the pass-1 path, the same forms; default 0.1, at most 2s",
+    )
+    p.add_argument(
+        "--match",
+        action="append",
+        default=[],
+        metavar="BODY:HAND[:TOL]",
+        help="matching point: body frame, hand frame, tolerance in hand frames",
+    )
     p.add_argument("--report", metavar="REPORT.json", help="write the alignment report")
     p.add_argument("--preview", metavar="OUT.gif", help="render a preview (.gif, .mp4, .png)")
     p.add_argument("--roles", metavar="MAP.json", help="joint-role overrides")
-    p.add_argument("--session", metavar="SESSION.json",
-                   help="the browser app's session file (side, bands, tolerance, matching "
-                        "points, roles); flags given here override it")
-    p.add_argument("--theta", default="window", choices=["window", "trunk", "none"],
-                   help="vertical-axis rotation of pass 1: eq. 7 window (default), trunk "
-                        "heading difference, or none")
-    p.add_argument("--ends", default="open", choices=["open", "fixed"],
-                   help="open (default): either take may begin earlier or end later than the "
-                        "other; fixed: first frames match and last frames match (the paper)")
-    p.add_argument("--max-unmatched", type=float, default=None, metavar="SECONDS",
-                   help="open ends: seconds of each take that may stay unmatched at each end "
-                        "(default: half of the shorter take)")
+    p.add_argument(
+        "--session",
+        metavar="SESSION.json",
+        help="the browser app's session file (side, bands, tolerance, matching "
+        "points, roles); flags given here override it",
+    )
+    p.add_argument(
+        "--theta",
+        default="window",
+        choices=["window", "trunk", "none"],
+        help="vertical-axis rotation of pass 1: eq. 7 window (default), trunk "
+        "heading difference, or none",
+    )
+    p.add_argument(
+        "--ends",
+        default="open",
+        choices=["open", "fixed"],
+        help="open (default): either take may begin earlier or end later than the "
+        "other; fixed: first frames match and last frames match (the paper)",
+    )
+    p.add_argument(
+        "--max-unmatched",
+        type=float,
+        default=None,
+        metavar="SECONDS",
+        help="open ends: seconds of each take that may stay unmatched at each end "
+        "(default: half of the shorter take)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     p.set_defaults(func=run)
 
@@ -95,8 +129,10 @@ def split_roles(mapping: dict, body, hand) -> tuple[dict | None, dict | None]:
         joints = set(getattr(getattr(take, "skeleton", None), "names", ()))
         out.append(flat if names and names <= joints else None)
     if names and out == [None, None]:
-        raise ParameterError("--roles: no take has all the joints named in the map; "
-                             'use {"body": {...}, "hand": {...}}')
+        raise ParameterError(
+            "--roles: no take has all the joints named in the map; "
+            'use {"body": {...}, "hand": {...}}'
+        )
     return out[0], out[1]
 
 
@@ -171,12 +207,21 @@ def run(args: argparse.Namespace) -> int:
     from engine.splice.report import build_report, dumps
 
     progress = _Progress(args.quiet)
-    result = pipeline.splice(body, hand, side=args.side, band=band,
-                             refine_band=refine_band, points=points,
-                             hand_points=hand_points,
-                             theta=args.theta, body_roles=body_roles, hand_roles=hand_roles,
-                             progress=progress, ends=args.ends,
-                             max_unmatched_s=args.max_unmatched)
+    result = pipeline.splice(
+        body,
+        hand,
+        side=args.side,
+        band=band,
+        refine_band=refine_band,
+        points=points,
+        hand_points=hand_points,
+        theta=args.theta,
+        body_roles=body_roles,
+        hand_roles=hand_roles,
+        progress=progress,
+        ends=args.ends,
+        max_unmatched_s=args.max_unmatched,
+    )
     from engine.trust import assess_splice
 
     progress("trust", 0.0)
@@ -186,18 +231,28 @@ def run(args: argparse.Namespace) -> int:
     # the spliced take and its report are one result: both replaced, or neither
     outputs = [(out, format_bvh(result.motion))]
     if args.report:
-        outputs.append((Path(args.report), dumps(build_report(result, args.body, args.hand, out,
-                                                              points_given=points,
-                                                              assessment=trust))))
+        outputs.append(
+            (
+                Path(args.report),
+                dumps(
+                    build_report(
+                        result, args.body, args.hand, out, points_given=points, assessment=trust
+                    )
+                ),
+            )
+        )
     write_texts(outputs)
     progress("write", 1.0)
     if args.preview:
         _preview(result.motion, args.preview, args.quiet)
     if not args.quiet:
         sides = " and ".join(result.features.sides)
-        print(f"wrote {out} ({result.features.n} frames, {sides} hand"
-              f"{'s' if len(result.features.sides) > 1 else ''}, "
-              f"{result.timings['total']:.2f} s)", file=sys.stderr)
+        print(
+            f"wrote {out} ({result.features.n} frames, {sides} hand"
+            f"{'s' if len(result.features.sides) > 1 else ''}, "
+            f"{result.timings['total']:.2f} s)",
+            file=sys.stderr,
+        )
         print(f"splice: {trust.summary}", file=sys.stderr)
     return 0
 
@@ -209,9 +264,10 @@ def _preview(motion, path: str, quiet: bool) -> None:
         from engine.render.offscreen import Preview
         from engine.render.video import progress_printer, render_to_file
     except ImportError as err:
-        raise HandSpliceError(f"--preview: the renderer is not available ({err}); the spliced "
-                              "take was written, render it later with handsplice render") \
-            from None
+        raise HandSpliceError(
+            f"--preview: the renderer is not available ({err}); the spliced "
+            "take was written, render it later with handsplice render"
+        ) from None
     preview = Preview([motion], labels=["spliced"])
     try:
         progress = None if quiet else progress_printer(f"preview {path}")

@@ -25,16 +25,35 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--output", required=True, metavar="OUT.bvh", help="output BVH")
     src = p.add_mutually_exclusive_group()
     src.add_argument("--clip", metavar="HAND.bvh", help="hand clip to align to the body")
-    src.add_argument("--poses", nargs="+", metavar="POSE@FRAME",
-                     help="library poses at body frames, e.g. relaxed@0 fist@30 open@-1")
-    p.add_argument("--easing", choices=("hermite", "gaussian", "linear"), default="hermite",
-                   help="interpolation between poses (default hermite)")
-    p.add_argument("--side", choices=("right", "left", "both"), default=None,
-                   help="hand(s) to animate (default: both for --poses, right for --clip)")
-    p.add_argument("--warp", type=float, default=1.0,
-                   help="scale the clip's finger flexion by this factor (default 1)")
-    p.add_argument("--no-graft", action="store_true",
-                   help="fail on a body without finger joints instead of grafting a hand")
+    src.add_argument(
+        "--poses",
+        nargs="+",
+        metavar="POSE@FRAME",
+        help="library poses at body frames, e.g. relaxed@0 fist@30 open@-1",
+    )
+    p.add_argument(
+        "--easing",
+        choices=("hermite", "gaussian", "linear"),
+        default="hermite",
+        help="interpolation between poses (default hermite)",
+    )
+    p.add_argument(
+        "--side",
+        choices=("right", "left", "both"),
+        default=None,
+        help="hand(s) to animate (default: both for --poses, right for --clip)",
+    )
+    p.add_argument(
+        "--warp",
+        type=float,
+        default=1.0,
+        help="scale the clip's finger flexion by this factor (default 1)",
+    )
+    p.add_argument(
+        "--no-graft",
+        action="store_true",
+        help="fail on a body without finger joints instead of grafting a hand",
+    )
     p.set_defaults(func=run)
 
 
@@ -55,8 +74,7 @@ def run(args: argparse.Namespace) -> int:
         if not isinstance(clip, Motion):
             raise MotionFormatError(args.clip, "the hand clip must be a skeletal take (.bvh)")
         side = args.side or "right"
-        result = synthesize_from_clip(body, clip, side, factor=args.warp,
-                                      graft=not args.no_graft)
+        result = synthesize_from_clip(body, clip, side, factor=args.warp, graft=not args.no_graft)
         keys = result.key_frames[side]
         how = f"clip {args.clip} on the {side} hand, {len(keys)} body key frames"
     else:
@@ -64,8 +82,9 @@ def run(args: argparse.Namespace) -> int:
             raise ParameterError("--warp applies to --clip only")
         sides = ("right", "left") if args.side in (None, "both") else (args.side,)
         poses = args.poses or ["relaxed@0"]
-        result = synthesize_from_poses(body, poses, sides=sides, easing=args.easing,
-                                       graft=not args.no_graft)
+        result = synthesize_from_poses(
+            body, poses, sides=sides, easing=args.easing, graft=not args.no_graft
+        )
         how = f"{len(poses)} key poses ({args.easing}) on {' and '.join(sides)}"
     added = result.motion.skeleton.n_joints - body.skeleton.n_joints
     if added:

@@ -56,8 +56,9 @@ class Ends:
         for name in ("body", "hand"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < 0:
-                raise ParameterError(f"open ends: {name} must be a whole number of frames >= 0, "
-                                     f"got {v!r}")
+                raise ParameterError(
+                    f"open ends: {name} must be a whole number of frames >= 0, got {v!r}"
+                )
         if not (np.isfinite(self.skip) and self.skip >= 0):
             raise ParameterError(f"open ends: skip must be a finite cost >= 0, got {self.skip!r}")
 
@@ -144,8 +145,9 @@ def align(cost, band: Band, ends: Ends | None = None) -> Alignment:
     return problem.solve(check_band(band, problem), as_ends(ends))
 
 
-def align_features(a, b, band: Band, metric: str | Dispatcher = "sqeuclidean",
-                   ends: Ends | None = None) -> Alignment:
+def align_features(
+    a, b, band: Band, metric: str | Dispatcher = "sqeuclidean", ends: Ends | None = None
+) -> Alignment:
     """Optimal banded DTW path between two feature sequences.
 
     The local cost ``metric(a[i], b[j])`` is computed inside the kernel for
@@ -259,8 +261,7 @@ class Problem:
         return Problem(self.kind, self.n, self.m, self.what, a=a, b=b, metric=self.metric, **extra)
 
     # -- kernels ---------------------------------------------------------
-    def forward(self, lo, hi, start, i0, i1, bp, gamma, keep_gamma: int, ends, last_col,
-                last_row):
+    def forward(self, lo, hi, start, i0, i1, bp, gamma, keep_gamma: int, ends, last_col, last_row):
         """Rows ``i0..i1-1`` of γ; returns (bad_row, total) as the kernels do.
 
         ``keep_gamma``: which rows' γ go to ``gamma`` (0 none, 1 all, k every
@@ -268,23 +269,58 @@ class Problem:
         ``last_col`` (n,) and ``last_row`` (m,) receive γ of the last column and
         of row ``i1 - 1`` (``kernels.best_end``)."""
         if self.kind == "matrix":
-            return K.forward_matrix(self.cost, lo, hi, start, i0, i1, bp, gamma, keep_gamma,
-                                    ends, last_col, last_row)
+            return K.forward_matrix(
+                self.cost, lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col, last_row
+            )
         if self.kind == "builtin":
             return K.forward_builtin(
-                self.a, self.bT, self.metric.kind, lo, hi, start, i0, i1, bp, gamma, keep_gamma,
-                ends, last_col, last_row
+                self.a,
+                self.bT,
+                self.metric.kind,
+                lo,
+                hi,
+                start,
+                i0,
+                i1,
+                bp,
+                gamma,
+                keep_gamma,
+                ends,
+                last_col,
+                last_row,
             )
         if self.metric.forward is not None:  # a metric with its own row kernel
             if self._rows_state is None:
                 self._rows_state = self.metric.prepare(self.a, self.b)
             return self.metric.forward(
-                self._rows_state, lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col,
-                last_row
+                self._rows_state,
+                lo,
+                hi,
+                start,
+                i0,
+                i1,
+                bp,
+                gamma,
+                keep_gamma,
+                ends,
+                last_col,
+                last_row,
             )
         return K.forward_metric(
-            self.metric.cell, self.a, self.b, lo, hi, start, i0, i1, bp, gamma, keep_gamma,
-            ends, last_col, last_row
+            self.metric.cell,
+            self.a,
+            self.b,
+            lo,
+            hi,
+            start,
+            i0,
+            i1,
+            bp,
+            gamma,
+            keep_gamma,
+            ends,
+            last_col,
+            last_row,
         )
 
     def cost_row(self, i: int, lo: int, hi: int) -> np.ndarray:
@@ -328,8 +364,9 @@ class Problem:
         last_col = np.empty(band.n)
         last_row = np.empty(band.m)
         e = ends.array()
-        bad_row, _ = self.forward(band.lo, band.hi, band.start, 0, band.n, bp, _NO_GAMMA, 0, e,
-                                  last_col, last_row)
+        bad_row, _ = self.forward(
+            band.lo, band.hi, band.start, 0, band.n, bp, _NO_GAMMA, 0, e, last_col, last_row
+        )
         if bad_row >= 0:
             raise self.bad_cost_error(int(bad_row), band)
         total, i, j = K.best_end(last_row, last_col, band.lo, band.hi, e, band.n - 1)
@@ -344,11 +381,13 @@ def check_ends(band: Band, ends: Ends) -> None:
     if band.lo[0] > ends.hand:
         raise ParameterError(
             f"the band's first body frame starts at hand frame {band.lo[0]}, but at most "
-            f"{ends.hand} hand frames may be left unmatched at the start")
+            f"{ends.hand} hand frames may be left unmatched at the start"
+        )
     if band.hi[-1] < band.m - 1 - ends.hand:
         raise ParameterError(
             f"the band's last body frame ends at hand frame {band.hi[-1]}, but at most "
-            f"{ends.hand} of the {band.m} hand frames may be left unmatched at the end")
+            f"{ends.hand} of the {band.m} hand frames may be left unmatched at the end"
+        )
 
 
 def check_total(total: float) -> None:

@@ -344,8 +344,8 @@ class Band:
         i0, i1 = int(path[0, 0]), int(path[-1, 0])
         first[:i0] = path[0, 1]
         last[:i0] = path[0, 1]
-        first[i1 + 1:] = path[-1, 1]
-        last[i1 + 1:] = path[-1, 1]
+        first[i1 + 1 :] = path[-1, 1]
+        last[i1 + 1 :] = path[-1, 1]
         rows = np.arange(n)
         r = int(radius)
         lo = np.maximum(first[np.maximum(rows - r, 0)] - r, 0)
@@ -377,12 +377,18 @@ def check_path(path, n: int, m: int, open_ends: bool = False) -> np.ndarray:
             raise ParameterError("path cells must be whole frame numbers")
     arr = arr.astype(np.int64)
     if open_ends:
-        if (min(arr[0]) != 0 or (arr[-1, 0] != n - 1 and arr[-1, 1] != m - 1)
-                or arr[:, 0].max() > n - 1 or arr[:, 1].max() > m - 1 or arr.min() < 0):
+        if (
+            min(arr[0]) != 0
+            or (arr[-1, 0] != n - 1 and arr[-1, 1] != m - 1)
+            or arr[:, 0].max() > n - 1
+            or arr[:, 1].max() > m - 1
+            or arr.min() < 0
+        ):
             raise ParameterError(
                 f"an open-end path must start on body frame 0 or hand frame 0 and end on body "
                 f"frame {n - 1} or hand frame {m - 1}, got {tuple(int(v) for v in arr[0])} to "
-                f"{tuple(int(v) for v in arr[-1])}")
+                f"{tuple(int(v) for v in arr[-1])}"
+            )
     elif tuple(arr[0]) != (0, 0) or tuple(arr[-1]) != (n - 1, m - 1):
         raise ParameterError(
             f"path must run from (0, 0) to ({n - 1}, {m - 1}), "

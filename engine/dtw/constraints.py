@@ -168,8 +168,10 @@ class WidthRule:
 
     @property
     def expected(self) -> str:
-        return (f"a fraction of the body take from {self.lo:g} to {self.hi:g} or seconds "
-                f"like 10s (from {self.lo_s:g} to {self.hi_s:g} s)")
+        return (
+            f"a fraction of the body take from {self.lo:g} to {self.hi:g} or seconds "
+            f"like 10s (from {self.lo_s:g} to {self.hi_s:g} s)"
+        )
 
     def parse(self, value) -> Width | None:
         """A :class:`Width` from a number (fraction), text (``"0.3"``, ``"10s"``) or a Width;
@@ -179,10 +181,13 @@ class WidthRule:
             return None
         if isinstance(value, Width):
             value, unit = value.value, value.unit
-        elif isinstance(value, str) and re.fullmatch(r"\s*[^\s]+?\s*s(ec(onds?)?)?\s*", value,
-                                                      flags=re.IGNORECASE):
-            value, unit = re.sub(r"\s*s(ec(onds?)?)?\s*$", "", value.strip(),
-                                 flags=re.IGNORECASE), SECONDS
+        elif isinstance(value, str) and re.fullmatch(
+            r"\s*[^\s]+?\s*s(ec(onds?)?)?\s*", value, flags=re.IGNORECASE
+        ):
+            value, unit = (
+                re.sub(r"\s*s(ec(onds?)?)?\s*$", "", value.strip(), flags=re.IGNORECASE),
+                SECONDS,
+            )
         else:
             unit = FRACTION
         x = _number(value, self.name, self.expected)
@@ -221,10 +226,27 @@ class WidthRule:
         return width.fraction(n, fps)
 
 
-BAND = WidthRule("band", "pass-1 band width W1", default=0.30, lo=0.02, hi=1.0,
-                 default_s=1.5, lo_s=0.1, hi_s=3600.0, grows=True)
-REFINE_BAND = WidthRule("refine_band", "pass-2 band width W2 around the pass-1 path",
-                        default=0.10, lo=0.01, hi=1.0, default_s=2.0, lo_s=0.05, hi_s=3600.0)
+BAND = WidthRule(
+    "band",
+    "pass-1 band width W1",
+    default=0.30,
+    lo=0.02,
+    hi=1.0,
+    default_s=1.5,
+    lo_s=0.1,
+    hi_s=3600.0,
+    grows=True,
+)
+REFINE_BAND = WidthRule(
+    "refine_band",
+    "pass-2 band width W2 around the pass-1 path",
+    default=0.10,
+    lo=0.01,
+    hi=1.0,
+    default_s=2.0,
+    lo_s=0.05,
+    hi_s=3600.0,
+)
 
 
 def half_width(w_frames: float, dx: float, dy: float) -> float:
@@ -240,8 +262,9 @@ def refine_radius(n: int, m: int, refine_band: float) -> int:
     columns either side, so ``r = Λ / (1 + m/n)`` with ``Λ`` of the whole take.
     """
     if not (np.isfinite(refine_band) and refine_band >= 0):
-        raise ConstraintError(REFINE_BAND.name, f"expected {REFINE_BAND.expected}, "
-                                                f"got {_show(refine_band)}")
+        raise ConstraintError(
+            REFINE_BAND.name, f"expected {REFINE_BAND.expected}, got {_show(refine_band)}"
+        )
     lam = half_width(refine_band * n, n, m)
     return max(1, int(round(lam / (1.0 + m / n))))
 
@@ -346,8 +369,9 @@ class MatchPoint:
 
     def text(self) -> str:
         """``B:H`` or ``B:H:T`` (the form every front reads back)."""
-        return f"{self.body}:{self.hand}" + ("" if self.tolerance is None
-                                             else f":{self.tolerance:g}")
+        return f"{self.body}:{self.hand}" + (
+            "" if self.tolerance is None else f":{self.tolerance:g}"
+        )
 
 
 _POINT_EXPECTED = "BODY:HAND or BODY:HAND:TOL (frames >= 0, tolerance in frames)"
@@ -373,8 +397,9 @@ def parse_point(value, field: str = "points[0]") -> MatchPoint:
     if isinstance(value, dict):
         unknown = set(value) - {"body", "hand", "tolerance"}
         if unknown:
-            raise ConstraintError(f"{field}.{sorted(unknown)[0]}",
-                                  "unknown field (known: body, hand, tolerance)")
+            raise ConstraintError(
+                f"{field}.{sorted(unknown)[0]}", "unknown field (known: body, hand, tolerance)"
+            )
         for key in ("body", "hand"):
             if key not in value:
                 raise ConstraintError(f"{field}.{key}", "missing")
@@ -410,13 +435,16 @@ def parse_points(items, field: str = "points") -> tuple[MatchPoint, ...]:
         a, b = points[k - 1], points[k]
         if b.body <= a.body:
             raise ConstraintError(
-                f"{field}[{k}]", f"{b.text()} is out of order: body frames must increase "
-                f"(after {a.text()})")
+                f"{field}[{k}]",
+                f"{b.text()} is out of order: body frames must increase (after {a.text()})",
+            )
         if b.hand < a.hand:
             raise ConstraintError(
-                f"{field}[{k}]", f"{b.text()} crosses {a.text()}: the hand frame goes back "
+                f"{field}[{k}]",
+                f"{b.text()} crosses {a.text()}: the hand frame goes back "
                 f"from {a.hand} to {b.hand} while the body frame advances, and a path cannot "
-                "go back in time")
+                "go back in time",
+            )
     return points
 
 
@@ -433,8 +461,10 @@ def point_triples(points) -> list[tuple[int, int, float]]:
     MatchPoints, for the engine's own calls; the band checks them (:func:`check_points`)."""
     xs, ys, tols = check_points(points, _FRAME_LIMIT, _FRAME_LIMIT, order=False)
     raw = [p.resolved() if isinstance(p, MatchPoint) else tuple(p) for p in points or ()]
-    return [(int(x), int(y), float(r[2]) if len(r) == 3 else 0.0)
-            for x, y, r in zip(xs.tolist(), ys.tolist(), raw)]
+    return [
+        (int(x), int(y), float(r[2]) if len(r) == 3 else 0.0)
+        for x, y, r in zip(xs.tolist(), ys.tolist(), raw)
+    ]
 
 
 def _point_text(k: int, x, y, tol) -> str:
@@ -443,12 +473,14 @@ def _point_text(k: int, x, y, tol) -> str:
 
 def _bad_point(k: int, where: str, detail: str) -> ConstraintError:
     """``points[k] = (x=.., y=.., tol=..) DETAIL`` (field ``points[k]``)."""
-    return ConstraintError(f"points[{k}]", f"{where[len(f'points[{k}] = '):]} {detail}",
-                           text=f"{where} {detail}")
+    return ConstraintError(
+        f"points[{k}]", f"{where[len(f'points[{k}] = ') :]} {detail}", text=f"{where} {detail}"
+    )
 
 
-def check_points(points, n: int, m: int, order: bool = True, open_ends: bool = False
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def check_points(
+    points, n: int, m: int, order: bool = True, open_ends: bool = False
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Validated ``(xs, ys, tols)`` int64 arrays of matching points in an ``n x m`` matrix.
 
     ``points``: ``(x, y)`` or ``(x, y, tol)`` per point (a MatchPoint gives
@@ -464,12 +496,17 @@ def check_points(points, n: int, m: int, order: bool = True, open_ends: bool = F
         try:
             vals = [float(v) for v in p]
         except (TypeError, ValueError):
-            raise ConstraintError(f"points[{k}]", f"expected (x, y) or (x, y, tol), got {p!r}",
-                                  text=f"points[{k}] = {p!r}: expected (x, y) or (x, y, tol)"
-                                  ) from None
+            raise ConstraintError(
+                f"points[{k}]",
+                f"expected (x, y) or (x, y, tol), got {p!r}",
+                text=f"points[{k}] = {p!r}: expected (x, y) or (x, y, tol)",
+            ) from None
         if len(vals) not in (2, 3):
-            raise ConstraintError(f"points[{k}]", f"expected (x, y) or (x, y, tol), got {p!r}",
-                                  text=f"points[{k}] = {p!r}: expected (x, y) or (x, y, tol)")
+            raise ConstraintError(
+                f"points[{k}]",
+                f"expected (x, y) or (x, y, tol), got {p!r}",
+                text=f"points[{k}] = {p!r}: expected (x, y) or (x, y, tol)",
+            )
         x, y = vals[0], vals[1]
         tol = vals[2] if len(vals) == 3 else 0.0
         where = _point_text(k, x, y, tol)
@@ -480,8 +517,9 @@ def check_points(points, n: int, m: int, order: bool = True, open_ends: bool = F
         if tol < 0:
             raise _bad_point(k, where + ":", "tolerance must be >= 0 frames")
         if not (0 <= x <= n - 1 and 0 <= y <= m - 1):
-            raise _bad_point(k, where, f"is outside the {n} x {m} matrix "
-                                       f"(x in 0..{n - 1}, y in 0..{m - 1})")
+            raise _bad_point(
+                k, where, f"is outside the {n} x {m} matrix (x in 0..{n - 1}, y in 0..{m - 1})"
+            )
         t = math.floor(tol + EPS)
         if xs and order:
             px, py, pt = xs[-1], ys[-1], tols[-1]
@@ -489,38 +527,60 @@ def check_points(points, n: int, m: int, order: bool = True, open_ends: bool = F
             if x == px and y == py:
                 raise _bad_point(k, where, f"duplicates {before}")
             if x == px:
-                raise _bad_point(k, where, f"is on the same body frame as {before}; give one "
-                                           "point per body frame (a larger tolerance covers "
-                                           "a range of hand frames)")
+                raise _bad_point(
+                    k,
+                    where,
+                    f"is on the same body frame as {before}; give one "
+                    "point per body frame (a larger tolerance covers "
+                    "a range of hand frames)",
+                )
             if x < px:
-                raise _bad_point(k, where, f"is out of order: body frames must increase "
-                                           f"(after {before})")
+                raise _bad_point(
+                    k, where, f"is out of order: body frames must increase (after {before})"
+                )
             if y < py:
-                raise _bad_point(k, where, f"crosses {before}: the hand frame goes back from "
-                                           f"{py:g} to {y:g} while the body frame advances, "
-                                           "and a path cannot go back in time")
+                raise _bad_point(
+                    k,
+                    where,
+                    f"crosses {before}: the hand frame goes back from "
+                    f"{py:g} to {y:g} while the body frame advances, "
+                    "and a path cannot go back in time",
+                )
             if x == px + 1 and y - t > py + pt + 1:
-                raise _bad_point(k, where, f"and {before} are on consecutive body frames, but "
-                                           f"their hand frames {py:g} and {y:g} are more than "
-                                           "one step apart after tolerances; increase a "
-                                           "tolerance or move a point")
+                raise _bad_point(
+                    k,
+                    where,
+                    f"and {before} are on consecutive body frames, but "
+                    f"their hand frames {py:g} and {y:g} are more than "
+                    "one step apart after tolerances; increase a "
+                    "tolerance or move a point",
+                )
         if order and not open_ends and x == 0 and y - t > 0:
-            raise _bad_point(k, where + ":", f"every path starts at (0, 0), so on body frame 0 "
-                                             f"it covers hand frame 0; the tolerance must be "
-                                             f"at least {y:g}")
+            raise _bad_point(
+                k,
+                where + ":",
+                f"every path starts at (0, 0), so on body frame 0 "
+                f"it covers hand frame 0; the tolerance must be "
+                f"at least {y:g}",
+            )
         if order and not open_ends and x == n - 1 and y + t < m - 1:
-            raise _bad_point(k, where + ":", f"every path ends at ({n - 1}, {m - 1}), so on "
-                                             f"body frame {n - 1} it covers hand frame "
-                                             f"{m - 1}; the tolerance must be at least "
-                                             f"{m - 1 - y:g}")
+            raise _bad_point(
+                k,
+                where + ":",
+                f"every path ends at ({n - 1}, {m - 1}), so on "
+                f"body frame {n - 1} it covers hand frame "
+                f"{m - 1}; the tolerance must be at least "
+                f"{m - 1 - y:g}",
+            )
         xs.append(int(x))
         ys.append(int(y))
         tols.append(int(t))
     return (np.array(xs, np.int64), np.array(ys, np.int64), np.array(tols, np.int64))
 
 
-def points_to_grid(points, body_fps: float, hand_fps: float, m: int
-                   ) -> list[tuple[int, int, float]]:
+def points_to_grid(
+    points, body_fps: float, hand_fps: float, m: int
+) -> list[tuple[int, int, float]]:
     """Points in frames of the hand file -> alignment-grid columns (the hand take
     resampled to the body's rate, ``m`` columns). Hand frames round to the nearest
     column; tolerances round up so a point never gets stricter."""
@@ -533,8 +593,9 @@ def points_to_grid(points, body_fps: float, hand_fps: float, m: int
     return out
 
 
-def points_to_hand(points, body_fps: float, hand_fps: float, m_hand: int
-                   ) -> list[tuple[int, int, float]]:
+def points_to_hand(
+    points, body_fps: float, hand_fps: float, m_hand: int
+) -> list[tuple[int, int, float]]:
     """Inverse of :func:`points_to_grid`: grid columns -> frames of the hand file (rounded).
 
     A tolerance becomes the band's whole grid frames times the rate ratio, rounded down

@@ -302,8 +302,9 @@ class Aligner:
         forward = (f0, max(f0, junction + 1))
         backward = (junction + 1, junction + 1)
         if junction == n - 1:
-            total, i_end, j_end = K.best_end(self._fwd_last_row(band), fwd.last_col, band.lo,
-                                             band.hi, self._ends.array(), n - 1)
+            total, i_end, j_end = K.best_end(
+                self._fwd_last_row(band), fwd.last_col, band.lo, band.hi, self._ends.array(), n - 1
+            )
             path = K.backtrack(fwd.bp, band.lo, band.start, i_end, j_end)
         else:
             cells += self._backward(rband, junction + 1)
@@ -351,8 +352,19 @@ class Aligner:
             return 0
         side.ensure(band.area, band.start)
         every = self._every
-        bad, _ = problem.forward(band.lo, band.hi, band.start, i0, i1, side.bp, side.gamma, every,
-                                 self._ends.array(), side.last_col, side.last_row)
+        bad, _ = problem.forward(
+            band.lo,
+            band.hi,
+            band.start,
+            i0,
+            i1,
+            side.bp,
+            side.gamma,
+            every,
+            self._ends.array(),
+            side.last_col,
+            side.last_row,
+        )
         if bad >= 0:
             side.valid = min(side.valid, i0)
             raise problem.bad_cost_error(int(bad), band, reversed_=problem is not self._problem)

@@ -118,8 +118,7 @@ def _dp_row(prev, cur, crow, lo, hi, bp_row, left0):
 
 
 @njit_cached()
-def _dp_pair(prev, mid, cur, crow_a, crow_b, lo_a, hi_a, lo_b, hi_b, bp_a, bp_b, left_a0,
-             left_b0):
+def _dp_pair(prev, mid, cur, crow_a, crow_b, lo_a, hi_a, lo_b, hi_b, bp_a, bp_b, left_a0, left_b0):
     """Rows ``i`` (``prev`` -> ``mid``) and ``i + 1`` (``mid`` -> ``cur``) interleaved.
 
     Needs ``lo_a <= lo_b <= hi_a + 1`` (a trimmed, feasible band). ``left_a0``,
@@ -333,8 +332,7 @@ def _finish(prev, last_row, m):
 
 
 @njit_cached()
-def forward_matrix(cost, lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col,
-                   last_row):
+def forward_matrix(cost, lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col, last_row):
     m = cost.shape[1]
     prev = np.empty(m + 1)
     mid = np.full(m + 1, INF)
@@ -369,8 +367,9 @@ def forward_matrix(cost, lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, las
             prev, mid, cur = cur, prev, mid
             i += 2
         else:
-            if _dp_row(prev, cur, cost[i], lo[i], hi[i], bp[start[i] : start[i + 1]],
-                       _left0(lo, i, ends)):
+            if _dp_row(
+                prev, cur, cost[i], lo[i], hi[i], bp[start[i] : start[i + 1]], _left0(lo, i, ends)
+            ):
                 return i, np.nan
             _row_done(cur, lo, hi, i, ends, last_col, m)
             if _keep(keep_gamma, i, i1):
@@ -381,8 +380,9 @@ def forward_matrix(cost, lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, las
 
 
 @njit_cached()
-def forward_builtin(a, bT, kind, lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col,
-                    last_row):
+def forward_builtin(
+    a, bT, kind, lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col, last_row
+):
     m = bT.shape[1]
     prev = np.empty(m + 1)
     mid = np.full(m + 1, INF)
@@ -422,8 +422,9 @@ def forward_builtin(a, bT, kind, lo, hi, start, i0, i1, bp, gamma, keep_gamma, e
             i += 2
         else:
             fill_builtin(a, bT, kind, i, lo[i], hi[i], crow_a)
-            if _dp_row(prev, cur, crow_a, lo[i], hi[i], bp[start[i] : start[i + 1]],
-                       _left0(lo, i, ends)):
+            if _dp_row(
+                prev, cur, crow_a, lo[i], hi[i], bp[start[i] : start[i + 1]], _left0(lo, i, ends)
+            ):
                 return i, np.nan
             _row_done(cur, lo, hi, i, ends, last_col, m)
             if _keep(keep_gamma, i, i1):
@@ -434,8 +435,9 @@ def forward_builtin(a, bT, kind, lo, hi, start, i0, i1, bp, gamma, keep_gamma, e
 
 
 @njit()
-def forward_metric(metric, a, b, lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col,
-                   last_row):
+def forward_metric(
+    metric, a, b, lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col, last_row
+):
     m = b.shape[0]
     prev = np.empty(m + 1)
     cur = np.full(m + 1, INF)
@@ -443,8 +445,7 @@ def forward_metric(metric, a, b, lo, hi, start, i0, i1, bp, gamma, keep_gamma, e
     _init_prev(prev, gamma, lo, hi, start, i0, ends)
     for i in range(i0, i1):  # the metric dominates; one row at a time is enough
         fill_metric(metric, a, b, i, lo[i], hi[i], crow)
-        if _dp_row(prev, cur, crow, lo[i], hi[i], bp[start[i] : start[i + 1]],
-                   _left0(lo, i, ends)):
+        if _dp_row(prev, cur, crow, lo[i], hi[i], bp[start[i] : start[i + 1]], _left0(lo, i, ends)):
             return i, np.nan
         _row_done(cur, lo, hi, i, ends, last_col, m)
         if _keep(keep_gamma, i, i1):
@@ -653,8 +654,9 @@ _METRICS: dict[str, Metric] = {
 }
 
 
-def register_metric(name: str, fn: Dispatcher | None = None, *, replace: bool = False,
-                    prepare=None, forward=None):
+def register_metric(
+    name: str, fn: Dispatcher | None = None, *, replace: bool = False, prepare=None, forward=None
+):
     """Register a numba metric ``fn(a_row, b_row) -> float`` under ``name``.
 
     Use as ``register_metric("name", fn)`` or as a decorator

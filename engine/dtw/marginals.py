@@ -58,8 +58,9 @@ def _gamma(problem: Problem, band: Band, ends: Ends) -> tuple[np.ndarray, float]
     last_col = np.empty(band.n)
     last_row = np.empty(band.m)
     e = ends.array()
-    bad, _ = problem.forward(band.lo, band.hi, band.start, 0, band.n, bp, gamma, 1, e,
-                             last_col, last_row)
+    bad, _ = problem.forward(
+        band.lo, band.hi, band.start, 0, band.n, bp, gamma, 1, e, last_col, last_row
+    )
     if bad >= 0:
         raise problem.bad_cost_error(int(bad), band)
     total, _, _ = K.best_end(last_row, last_col, band.lo, band.hi, e, band.n - 1)
@@ -68,8 +69,9 @@ def _gamma(problem: Problem, band: Band, ends: Ends) -> tuple[np.ndarray, float]
 
 
 @njit_cached()
-def _row_spread(gf, gb, lo, hi, start, rlo, rstart, n, m, centre, total, temperature, margin,
-                spread, reach):
+def _row_spread(
+    gf, gb, lo, hi, start, rlo, rstart, n, m, centre, total, temperature, margin, spread, reach
+):
     """Rows of ``spread``/``reach`` from ``gf`` = γ - D (forward problem) and ``gb`` = γ of
     the reversed problem on the reversed band (``rlo``, ``rstart``): cell ``(i, j)`` is
     reversed cell ``(n-1-i, m-1-j)``, so ``T(i, j) = gf + gb``."""
@@ -106,8 +108,9 @@ def _row_spread(gf, gb, lo, hi, start, rlo, rstart, n, m, centre, total, tempera
         reach[i] = far
 
 
-def row_spread(a, b, band: Band, metric, centre, temperature: float, margin: float,
-               ends: Ends = FIXED) -> RowSpread:
+def row_spread(
+    a, b, band: Band, metric, centre, temperature: float, margin: float, ends: Ends = FIXED
+) -> RowSpread:
     """Per-row spread of the cheap cells around ``centre`` for features ``a``, ``b``.
 
     a : (n, d) float body feature rows; b : (m, d) float hand feature rows
@@ -132,6 +135,21 @@ def row_spread(a, b, band: Band, metric, centre, temperature: float, margin: flo
     spread = np.empty(n)
     reach = np.empty(n)
     centre = np.ascontiguousarray(np.broadcast_to(np.asarray(centre, np.float64), (n,)))
-    _row_spread(gf, gb, band.lo, band.hi, band.start, rband.lo, rband.start, n, m, centre,
-                total, float(temperature), float(margin), spread, reach)
+    _row_spread(
+        gf,
+        gb,
+        band.lo,
+        band.hi,
+        band.start,
+        rband.lo,
+        rband.start,
+        n,
+        m,
+        centre,
+        total,
+        float(temperature),
+        float(margin),
+        spread,
+        reach,
+    )
     return RowSpread(total=total, spread=spread, reach=reach)

@@ -51,12 +51,20 @@ class _Buffer:
         self.gltf = gltf
         self.blob = bytearray()
 
-    def add(self, array: np.ndarray, kind: str, component: int, target: int | None = None,
-            minmax: bool = False, normalized: bool = False) -> int:
+    def add(
+        self,
+        array: np.ndarray,
+        kind: str,
+        component: int,
+        target: int | None = None,
+        minmax: bool = False,
+        normalized: bool = False,
+    ) -> int:
         """Append ``array`` (count, ...) as one accessor of ``kind`` (``"VEC3"``...);
         returns the accessor index."""
-        dtype = {FLOAT: "<f4", UNSIGNED_SHORT: "<u2", UNSIGNED_INT: "<u4",
-                 UNSIGNED_BYTE: "u1"}[component]
+        dtype = {FLOAT: "<f4", UNSIGNED_SHORT: "<u2", UNSIGNED_INT: "<u4", UNSIGNED_BYTE: "u1"}[
+            component
+        ]
         data = np.ascontiguousarray(array, dtype=dtype)
         while len(self.blob) % 4:
             self.blob.append(0)
@@ -65,8 +73,12 @@ class _Buffer:
             view["target"] = target
         self.blob += data.tobytes()
         self.gltf["bufferViews"].append(view)
-        acc = {"bufferView": len(self.gltf["bufferViews"]) - 1, "componentType": component,
-               "count": int(data.shape[0]), "type": kind}
+        acc = {
+            "bufferView": len(self.gltf["bufferViews"]) - 1,
+            "componentType": component,
+            "count": int(data.shape[0]),
+            "type": kind,
+        }
         if normalized:
             acc["normalized"] = True
         if minmax:
@@ -84,8 +96,7 @@ def _xyzw(q: np.ndarray) -> np.ndarray:
     return np.concatenate([q[..., 1:], q[..., :1]], axis=-1)
 
 
-def display_motion(motion: Motion, scale: float, axes: np.ndarray
-                   ) -> tuple[np.ndarray, np.ndarray]:
+def display_motion(motion: Motion, scale: float, axes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Local rotations (F, J, 4) (w, x, y, z) and translations (F, J, 3) in display space:
     translations scaled by ``scale``, each root turned by ``axes``."""
     q_axes = rot.from_matrix(axes)
@@ -115,23 +126,35 @@ def glb_bytes(motion: Motion, roles=None, frames: range | None = None) -> bytes:
         raise ParameterError("the take has no frames to export")
     skel = motion.skeleton
     pos, wrot = forward_kinematics(motion, 0, 1)
-    anatomy = find_anatomy(skel, pos[0], wrot[0], roles=roles,
-                           side_hint=side_from_name(motion.meta.source or ""))
+    anatomy = find_anatomy(
+        skel, pos[0], wrot[0], roles=roles, side_hint=side_from_name(motion.meta.source or "")
+    )
     mesh = build_mannequin(skel, anatomy, pose=(pos[0], wrot[0]))
     scale, axes = display_transform(motion, anatomy)
     rots, trans = display_motion(motion, scale, axes)
     rots = rot.make_continuous(rots, axis=0)
 
-    gltf: dict = {"asset": {"version": "2.0", "generator": "HandSplice"},
-                  "scene": 0, "scenes": [{"name": Path(motion.meta.source or "take").stem,
-                                          "nodes": []}],
-                  "nodes": [], "meshes": [], "skins": [], "animations": [],
-                  "materials": [], "buffers": [], "bufferViews": [], "accessors": []}
+    gltf: dict = {
+        "asset": {"version": "2.0", "generator": "HandSplice"},
+        "scene": 0,
+        "scenes": [{"name": Path(motion.meta.source or "take").stem, "nodes": []}],
+        "nodes": [],
+        "meshes": [],
+        "skins": [],
+        "animations": [],
+        "materials": [],
+        "buffers": [],
+        "bufferViews": [],
+        "accessors": [],
+    }
     buf = _Buffer(gltf)
     j_count = skel.n_joints
     for j in range(j_count):
-        node = {"name": skel.names[j], "translation": [float(v) for v in trans[0, j]],
-                "rotation": [float(v) for v in _xyzw(rots[0, j])]}
+        node = {
+            "name": skel.names[j],
+            "translation": [float(v) for v in trans[0, j]],
+            "rotation": [float(v) for v in _xyzw(rots[0, j])],
+        }
         children = skel.children(j)
         if children:
             node["children"] = children
@@ -166,11 +189,25 @@ def glb_bytes(motion: Motion, roles=None, frames: range | None = None) -> bytes:
     }
     index_type = UNSIGNED_SHORT if mesh.n_vertices < 65536 else UNSIGNED_INT
     indices = buf.add(mesh.faces.reshape(-1), "SCALAR", index_type, ELEMENT_ARRAY_BUFFER)
-    gltf["materials"].append({"name": "mannequin", "doubleSided": False, "pbrMetallicRoughness": {
-        "baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0,
-        "roughnessFactor": 0.8}})
-    gltf["meshes"].append({"name": "mannequin", "primitives": [
-        {"attributes": attributes, "indices": indices, "material": 0, "mode": 4}]})
+    gltf["materials"].append(
+        {
+            "name": "mannequin",
+            "doubleSided": False,
+            "pbrMetallicRoughness": {
+                "baseColorFactor": [1.0, 1.0, 1.0, 1.0],
+                "metallicFactor": 0.0,
+                "roughnessFactor": 0.8,
+            },
+        }
+    )
+    gltf["meshes"].append(
+        {
+            "name": "mannequin",
+            "primitives": [
+                {"attributes": attributes, "indices": indices, "material": 0, "mode": 4}
+            ],
+        }
+    )
     gltf["nodes"].append({"name": "mannequin", "mesh": 0, "skin": 0})
     gltf["scenes"][0]["nodes"] = roots + [j_count]
 
@@ -180,8 +217,9 @@ def glb_bytes(motion: Motion, roles=None, frames: range | None = None) -> bytes:
     samplers, channels = [], []
 
     def channel(node: int, path: str, values: np.ndarray, kind: str) -> None:
-        samplers.append({"input": t_acc, "output": buf.add(values, kind, FLOAT),
-                         "interpolation": "LINEAR"})
+        samplers.append(
+            {"input": t_acc, "output": buf.add(values, kind, FLOAT), "interpolation": "LINEAR"}
+        )
         channels.append({"sampler": len(samplers) - 1, "target": {"node": node, "path": path}})
 
     tol = 1e-6 * max(1.0, float(np.abs(trans).max()))
@@ -197,9 +235,15 @@ def glb_bytes(motion: Motion, roles=None, frames: range | None = None) -> bytes:
     text = json.dumps(gltf, separators=(",", ":")).encode("utf-8")
     text += b" " * (-len(text) % 4)
     total = 12 + 8 + len(text) + 8 + len(buf.blob)
-    return b"".join([struct.pack("<III", GLB_MAGIC, 2, total),
-                     struct.pack("<II", len(text), CHUNK_JSON), text,
-                     struct.pack("<II", len(buf.blob), CHUNK_BIN), bytes(buf.blob)])
+    return b"".join(
+        [
+            struct.pack("<III", GLB_MAGIC, 2, total),
+            struct.pack("<II", len(text), CHUNK_JSON),
+            text,
+            struct.pack("<II", len(buf.blob), CHUNK_BIN),
+            bytes(buf.blob),
+        ]
+    )
 
 
 def _four_influences(joints: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

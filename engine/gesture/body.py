@@ -84,8 +84,16 @@ def arms_from_roles(roles, sides=SIDES) -> BodyArms:
             mark = roles.landmarks(side).get("hand")
             if mark is not None:
                 tip = (int(mark.joint), np.asarray(mark.offset, dtype=float))
-        arms[side] = ArmJoints(side, int(shoulder), int(elbow), int(wrist),
-                               None if part.hand is None else int(part.hand), fingers, numbers, tip)
+        arms[side] = ArmJoints(
+            side,
+            int(shoulder),
+            int(elbow),
+            int(wrist),
+            None if part.hand is None else int(part.hand),
+            fingers,
+            numbers,
+            tip,
+        )
     return BodyArms(arms, _pelvis_index(sk))
 
 
@@ -107,8 +115,9 @@ def metres_per_unit(motion: Motion, arms: BodyArms) -> float:
 
     rest = rest_positions(motion.skeleton)
     arm = arms.arms["right"]
-    length = (np.linalg.norm(rest[arm.elbow] - rest[arm.shoulder])
-              + np.linalg.norm(rest[arm.wrist] - rest[arm.elbow]))
+    length = np.linalg.norm(rest[arm.elbow] - rest[arm.shoulder]) + np.linalg.norm(
+        rest[arm.wrist] - rest[arm.elbow]
+    )
     return ARM_LENGTH_M / length if length > 0 else 1.0
 
 
@@ -180,13 +189,13 @@ def arm_paths(motion: Motion, arms: BodyArms | None = None) -> ArmPaths:
 
     lr = rest[arms.arms["left"].shoulder] - rest[arms.arms["right"].shoulder]
     left = rot.rotate(wrot[:, arms.pelvis], lr)
-    left -= left[:, up:up + 1] * up_vec  # onto the ground plane
+    left -= left[:, up : up + 1] * up_vec  # onto the ground plane
     norm = np.linalg.norm(left, axis=1, keepdims=True)
     # degenerate (pelvis pitched 90 degrees): fall back to the current shoulder line
     bad = norm[:, 0] < 1e-9 * max(np.linalg.norm(lr), 1e-12)
     if bad.any():
         cur = pos[bad][:, arms.arms["left"].shoulder] - pos[bad][:, arms.arms["right"].shoulder]
-        cur -= cur[:, up:up + 1] * up_vec
+        cur -= cur[:, up : up + 1] * up_vec
         left[bad] = cur
         norm = np.linalg.norm(left, axis=1, keepdims=True)
     left = left / np.where(norm > 0, norm, 1.0)

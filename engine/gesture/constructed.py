@@ -28,8 +28,13 @@ def build(script, fps: float = 60.0, start=REST) -> tuple[np.ndarray, np.ndarray
     ``(phase, seconds, target)`` for phase in ``"prep"``, ``"stroke"``,
     ``"retract"`` (``target`` a 3-vector, or None for the rest position).
     """
-    names = {"rest": Phase.REST, "hold": Phase.HOLD, "prep": Phase.PREPARATION,
-             "stroke": Phase.STROKE, "retract": Phase.RETRACTION}
+    names = {
+        "rest": Phase.REST,
+        "hold": Phase.HOLD,
+        "prep": Phase.PREPARATION,
+        "stroke": Phase.STROKE,
+        "retract": Phase.RETRACTION,
+    }
     pos = [np.asarray(start, dtype=float)]
     labels = []
     here = np.asarray(start, dtype=float)
@@ -51,8 +56,15 @@ def build(script, fps: float = 60.0, start=REST) -> tuple[np.ndarray, np.ndarray
 
 def phrase_psh_r(space=(0.1, -0.1, 0.35), beat=(0.1, -0.3, 0.35)) -> list:
     """rest, preparation, two beat strokes, hold, retraction, rest."""
-    return [("rest", 0.6), ("prep", 0.5, space), ("stroke", 0.2, beat), ("stroke", 0.2, space),
-            ("hold", 0.5), ("retract", 0.6, None), ("rest", 0.6)]
+    return [
+        ("rest", 0.6),
+        ("prep", 0.5, space),
+        ("stroke", 0.2, beat),
+        ("stroke", 0.2, space),
+        ("hold", 0.5),
+        ("retract", 0.6, None),
+        ("rest", 0.6),
+    ]
 
 
 def random_phrase(rng: np.random.Generator, hold: bool = False) -> list:

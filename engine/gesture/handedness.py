@@ -55,12 +55,14 @@ class HandednessParameters:
     def __post_init__(self) -> None:
         if not (np.isfinite(self.threshold) and self.threshold >= 0):
             raise ParameterError(
-                f"handedness threshold: expected a number >= 0 (m/s), got {self.threshold!r}")
+                f"handedness threshold: expected a number >= 0 (m/s), got {self.threshold!r}"
+            )
         if self.point not in ("tip", "wrist"):
             raise ParameterError(f"handedness point: expected 'tip' or 'wrist', got {self.point!r}")
         if self.hold_span not in ("phrase", "hold"):
             raise ParameterError(
-                f"handedness hold_span: expected 'phrase' or 'hold', got {self.hold_span!r}")
+                f"handedness hold_span: expected 'phrase' or 'hold', got {self.hold_span!r}"
+            )
 
 
 @dataclass(frozen=True)
@@ -103,8 +105,9 @@ def path_length(positions: np.ndarray, mask: np.ndarray) -> float:
     return float(steps[m].sum())
 
 
-def classify(right: np.ndarray, left: np.ndarray, mask: np.ndarray, fps: float,
-             threshold: float = 0.12) -> tuple[str, float, float, float, float]:
+def classify(
+    right: np.ndarray, left: np.ndarray, mask: np.ndarray, fps: float, threshold: float = 0.12
+) -> tuple[str, float, float, float, float]:
     """Handedness of one phrase from both wrists' paths.
 
     Parameters
@@ -124,7 +127,9 @@ def classify(right: np.ndarray, left: np.ndarray, mask: np.ndarray, fps: float,
     left = np.asarray(left, dtype=float)
     mask = np.asarray(mask, dtype=bool)
     if right.shape != left.shape or right.ndim != 2 or right.shape[1] != 3:
-        raise ParameterError(f"handedness: right {right.shape} and left {left.shape} must both be (F, 3)")
+        raise ParameterError(
+            f"handedness: right {right.shape} and left {left.shape} must both be (F, 3)"
+        )
     if mask.shape != (len(right),):
         raise ParameterError(f"handedness: mask must be ({len(right)},), got {mask.shape}")
     if not (np.isfinite(fps) and fps > 0):
@@ -143,8 +148,9 @@ def classify(right: np.ndarray, left: np.ndarray, mask: np.ndarray, fps: float,
     return label, l_r, l_l, duration, diff
 
 
-def joint_phrases(phases: GesturePhases, hold_span: str = "phrase"
-                  ) -> list[tuple[int, int, np.ndarray]]:
+def joint_phrases(
+    phases: GesturePhases, hold_span: str = "phrase"
+) -> list[tuple[int, int, np.ndarray]]:
     """Phrases of both hands merged where they overlap by at least ``MERGE_OVERLAP``
     of the shorter one (a brief overlap only trims the later phrase, so phrases
     of the two hands do not chain into one long span in continuous motion).
@@ -204,8 +210,9 @@ def hand_paths(phases: GesturePhases, point: str = "tip") -> dict[str, np.ndarra
     return out
 
 
-def detect_handedness(phases: GesturePhases, params: HandednessParameters | None = None
-                      ) -> tuple[PhraseHandedness, ...]:
+def detect_handedness(
+    phases: GesturePhases, params: HandednessParameters | None = None
+) -> tuple[PhraseHandedness, ...]:
     """Handedness of every joint phrase of a take (see module docstring).
 
     ``phases`` must hold both ``"right"`` and ``"left"`` hands.
@@ -224,8 +231,9 @@ def detect_handedness(phases: GesturePhases, params: HandednessParameters | None
         full[: b - a] = mask
         if full[:-1].sum() == 0:
             continue  # a one-frame phrase at the take's end: nothing to measure
-        label, l_r, l_l, d, diff = classify(right[a:stop], left[a:stop], full, phases.fps,
-                                            params.threshold)
+        label, l_r, l_l, d, diff = classify(
+            right[a:stop], left[a:stop], full, phases.fps, params.threshold
+        )
         out.append(PhraseHandedness(a, b, label, l_r, l_l, d, diff, _ranges(mask, a)))
     return tuple(out)
 

@@ -72,19 +72,22 @@ class KeyPoseParameters:
         if w.ndim != 1 or len(w) < 1 or not np.all(np.isfinite(w)) or np.any(w < 0) or w.sum() <= 0:
             raise ParameterError(
                 f"key poses joint_weights: expected one weight >= 0 per point (shoulder, elbow, "
-                f"wrist, hand tip) with a positive sum, got {self.joint_weights!r}")
+                f"wrist, hand tip) with a positive sum, got {self.joint_weights!r}"
+            )
         for name in ("contrast_threshold", "min_prominence", "search_radius_s"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0):
                 raise ParameterError(f"key poses {name}: expected a number >= 0, got {v!r}")
         if not (np.isfinite(self.contrast_window_s) and self.contrast_window_s > 0):
             raise ParameterError(
-                f"key poses contrast_window_s: expected > 0, got {self.contrast_window_s!r}")
+                f"key poses contrast_window_s: expected > 0, got {self.contrast_window_s!r}"
+            )
         if not (np.isfinite(self.max_gain) and self.max_gain >= 1):
             raise ParameterError(f"key poses max_gain: expected >= 1, got {self.max_gain!r}")
         if int(self.max_map_frames) < 2:
             raise ParameterError(
-                f"key poses max_map_frames: expected >= 2, got {self.max_map_frames!r}")
+                f"key poses max_map_frames: expected >= 2, got {self.max_map_frames!r}"
+            )
 
 
 @dataclass(frozen=True)
@@ -114,8 +117,9 @@ class KeyPoses:
 class _PoseSpace:
     """Rows of the raw and enhanced distance map, computed on demand."""
 
-    def __init__(self, points: np.ndarray, weights: np.ndarray, fps: float,
-                 params: KeyPoseParameters):
+    def __init__(
+        self, points: np.ndarray, weights: np.ndarray, fps: float, params: KeyPoseParameters
+    ):
         self.points = points
         self.weights = weights
         self.n = len(points)
@@ -139,7 +143,7 @@ class _PoseSpace:
         h = self.half
         lo, hi = max(0, a - h), min(self.n, b + h)
         block = self.raw_rows(lo, hi)
-        raw = block[a - lo:b - lo]
+        raw = block[a - lo : b - lo]
         tau = self.params.contrast_threshold
         if tau <= 0:
             return raw, raw.copy()
@@ -147,7 +151,7 @@ class _PoseSpace:
         mean = uniform_filter1d(block, size, axis=1, mode="nearest")
         # edge-replicate rows so every output row sees a full (2h + 1)-row window
         mean = np.pad(mean, ((lo - (a - h), (b + h) - hi), (0, 0)), mode="edge")
-        mean = uniform_filter1d(mean, size, axis=0, mode="nearest")[h:h + (b - a)]
+        mean = uniform_filter1d(mean, size, axis=0, mode="nearest")[h : h + (b - a)]
         gain = np.ones_like(mean)
         low = mean < tau
         gain[low] = np.minimum(tau / np.maximum(mean[low], 1e-12), self.params.max_gain)
@@ -159,7 +163,8 @@ def _as_points(points: np.ndarray, fps: float, n_weights: int = 4) -> np.ndarray
     if pts.ndim != 3 or pts.shape[1:] != (n_weights, 3) or len(pts) < 1:
         raise ParameterError(
             f"key poses: points must be (frames, {n_weights}, 3), one point per joint weight "
-            f"(shoulder, elbow, wrist, hand tip), got {pts.shape}")
+            f"(shoulder, elbow, wrist, hand tip), got {pts.shape}"
+        )
     if not (np.isfinite(fps) and fps > 0):
         raise ParameterError(f"key poses: fps must be positive, got {fps!r}")
     if not np.all(np.isfinite(pts)):
@@ -169,8 +174,9 @@ def _as_points(points: np.ndarray, fps: float, n_weights: int = 4) -> np.ndarray
     return pts
 
 
-def pose_distance_map(points: np.ndarray, fps: float, params: KeyPoseParameters | None = None
-                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def pose_distance_map(
+    points: np.ndarray, fps: float, params: KeyPoseParameters | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Raw and contrast-enhanced pose-space distance maps for display.
 
     Parameters
@@ -201,21 +207,22 @@ def pose_distance_map(points: np.ndarray, fps: float, params: KeyPoseParameters 
         chunk = max(1, 262144 // max(n, 1))
         for k in range(0, g, chunk):
             r, e = space.rows(k, min(g, k + chunk))
-            raw[k:k + len(r)] = r
-            enh[k:k + len(e)] = e
+            raw[k : k + len(r)] = r
+            enh[k : k + len(e)] = e
     else:
         # long takes: the map at every stride-th frame, the local mean on that grid
         # (window shrunk by the stride), so display costs O(G^2) not O(F * G * window)
         sub = _PoseSpace(pts[frames], space.weights, fps / stride, params)
         for k in range(0, g, 512):
             r, e = sub.rows(k, min(g, k + 512))
-            raw[k:k + len(r)] = r
-            enh[k:k + len(e)] = e
+            raw[k : k + len(r)] = r
+            enh[k : k + len(e)] = e
     return raw, enh, frames
 
 
-def stepwise_key_frames(row_of, n_frames: int, fps: float, params: KeyPoseParameters,
-                        start: int = 0) -> np.ndarray:
+def stepwise_key_frames(
+    row_of, n_frames: int, fps: float, params: KeyPoseParameters, start: int = 0
+) -> np.ndarray:
     """The stepwise local-maximum search over rows given by ``row_of(i) -> (F,)``.
 
     Returns the key frames (after ``start``), increasing.
@@ -227,8 +234,9 @@ def stepwise_key_frames(row_of, n_frames: int, fps: float, params: KeyPoseParame
     i = int(start)
     while i < n_frames - 2:
         row = np.asarray(row_of(i), dtype=float)[i:]
-        peaks, _ = find_peaks(row, prominence=params.min_prominence if params.min_prominence > 0
-                              else None)
+        peaks, _ = find_peaks(
+            row, prominence=params.min_prominence if params.min_prominence > 0 else None
+        )
         peaks = peaks[peaks > 0]
         if len(peaks) == 0:
             break
@@ -244,8 +252,9 @@ def stepwise_key_frames(row_of, n_frames: int, fps: float, params: KeyPoseParame
     return np.asarray(keys, dtype=np.int64)
 
 
-def find_key_poses(points: np.ndarray, fps: float, params: KeyPoseParameters | None = None,
-                   with_map: bool = True) -> KeyPoses:
+def find_key_poses(
+    points: np.ndarray, fps: float, params: KeyPoseParameters | None = None, with_map: bool = True
+) -> KeyPoses:
     """Key frames of one arm (and the maps for display).
 
     Parameters
@@ -271,12 +280,19 @@ def find_key_poses(points: np.ndarray, fps: float, params: KeyPoseParameters | N
     else:
         raw = enh = np.zeros((0, 0), dtype=np.float32)
         map_frames = np.zeros(0, dtype=np.int64)
-    return KeyPoses(frames=frames, distance_map=raw, enhanced_map=enh, map_frames=map_frames,
-                    fps=float(fps))
+    return KeyPoses(
+        frames=frames, distance_map=raw, enhanced_map=enh, map_frames=map_frames, fps=float(fps)
+    )
 
 
-def key_poses(motion, side: str = "right", params: KeyPoseParameters | None = None, arms=None,
-              with_map: bool = True, paths=None) -> KeyPoses:
+def key_poses(
+    motion,
+    side: str = "right",
+    params: KeyPoseParameters | None = None,
+    arms=None,
+    with_map: bool = True,
+    paths=None,
+) -> KeyPoses:
     """Key poses of one arm of a full-body take (root translation and pelvis yaw removed).
 
     Parameters
@@ -294,4 +310,3 @@ def key_poses(motion, side: str = "right", params: KeyPoseParameters | None = No
         raise ParameterError(f"side: expected 'right' or 'left', got {side!r}")
     paths = paths or arm_paths(motion, arms)
     return find_key_poses(paths.points[side], motion.fps, params, with_map=with_map)
-

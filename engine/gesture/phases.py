@@ -123,19 +123,31 @@ class PhaseParameters:
         for name in positive:
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
-                raise ParameterError(f"phase parameter {name}: expected a positive number, got {v!r}")
-        for name in ("min_hold_s", "min_move_s", "stroke_accel", "stroke_accel_ratio", "radial_min"):
+                raise ParameterError(
+                    f"phase parameter {name}: expected a positive number, got {v!r}"
+                )
+        for name in (
+            "min_hold_s",
+            "min_move_s",
+            "stroke_accel",
+            "stroke_accel_ratio",
+            "radial_min",
+        ):
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0):
                 raise ParameterError(f"phase parameter {name}: expected a number >= 0, got {v!r}")
         if self.valley_depth >= 1:
-            raise ParameterError(f"phase parameter valley_depth: expected < 1, got {self.valley_depth!r}")
+            raise ParameterError(
+                f"phase parameter valley_depth: expected < 1, got {self.valley_depth!r}"
+            )
         if self.stroke_accel_ratio > 1:
             raise ParameterError(
-                f"phase parameter stroke_accel_ratio: expected <= 1, got {self.stroke_accel_ratio!r}")
+                f"phase parameter stroke_accel_ratio: expected <= 1, got {self.stroke_accel_ratio!r}"
+            )
         if self.reference not in ("shoulder", "pelvis"):
             raise ParameterError(
-                f"phase parameter reference: expected 'shoulder' or 'pelvis', got {self.reference!r}")
+                f"phase parameter reference: expected 'shoulder' or 'pelvis', got {self.reference!r}"
+            )
 
 
 @dataclass(frozen=True)
@@ -206,7 +218,7 @@ class HandPhases:
         mask = np.zeros(len(self.labels), dtype=bool)
         for phrase in self.phrases:
             for seg in phrase.expressive_segments():
-                mask[seg.start:seg.stop] = True
+                mask[seg.start : seg.stop] = True
         return mask
 
 
@@ -249,8 +261,9 @@ def fill_gaps(points: np.ndarray) -> np.ndarray:
     return pts
 
 
-def derivatives(positions: np.ndarray, fps: float, smoothing_s: float
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def derivatives(
+    positions: np.ndarray, fps: float, smoothing_s: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Smoothed positions, velocity and acceleration of ``positions (F, D)``.
 
     Savitzky-Golay (cubic) over a window of ``smoothing_s`` seconds (odd, >= 5
@@ -330,8 +343,13 @@ def _split_units(speed: np.ndarray, start: int, stop: int, depth: float) -> list
 # Segmentation of one trajectory
 
 
-def segment_trajectory(positions: np.ndarray, fps: float, params: PhaseParameters | None = None,
-                       rest_position: np.ndarray | None = None, up_axis: int = 1) -> HandPhases:
+def segment_trajectory(
+    positions: np.ndarray,
+    fps: float,
+    params: PhaseParameters | None = None,
+    rest_position: np.ndarray | None = None,
+    up_axis: int = 1,
+) -> HandPhases:
     """Phase labels and phrases of one wrist path.
 
     Parameters
@@ -396,16 +414,30 @@ def segment_trajectory(positions: np.ndarray, fps: float, params: PhaseParameter
         while j < len(items) and items[j][0] != "rest":
             j += 1
         # the take's first (last) frame counts as rest when the hand is in the rest zone
-        _label_excursion(items[i:j], labels, radial, accel, params,
-                         from_rest=i > 0 or radial[0] <= params.rest_radius,
-                         to_rest=j < len(items) or radial[-1] <= params.rest_radius)
+        _label_excursion(
+            items[i:j],
+            labels,
+            radial,
+            accel,
+            params,
+            from_rest=i > 0 or radial[0] <= params.rest_radius,
+            to_rest=j < len(items) or radial[-1] <= params.rest_radius,
+        )
         i = j
 
     segments = _segments(labels)
     phrases = _parse_phrases(segments, labels, accel)
     segments = _segments(labels)  # promotion may have relabelled units
-    return HandPhases(labels=labels, segments=segments, phrases=phrases, positions=smooth,
-                      speed=speed, acceleration=accel, rest_position=rest, fps=float(fps))
+    return HandPhases(
+        labels=labels,
+        segments=segments,
+        phrases=phrases,
+        positions=smooth,
+        speed=speed,
+        acceleration=accel,
+        rest_position=rest,
+        fps=float(fps),
+    )
 
 
 def _merge_items(items: list[tuple[str, int, int]]) -> list[tuple[str, int, int]]:
@@ -449,8 +481,9 @@ def _segments(labels: np.ndarray) -> tuple[PhaseSegment, ...]:
         return ()
     change = np.flatnonzero(np.diff(labels.astype(np.int16))) + 1
     bounds = np.concatenate([[0], change, [len(labels)]])
-    return tuple(PhaseSegment(Phase(int(labels[a])), int(a), int(b))
-                 for a, b in zip(bounds[:-1], bounds[1:]))
+    return tuple(
+        PhaseSegment(Phase(int(labels[a])), int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])
+    )
 
 
 def _parse_phrases(segments, labels: np.ndarray, accel: np.ndarray) -> tuple[Phrase, ...]:
@@ -488,8 +521,8 @@ def _parse_phrases(segments, labels: np.ndarray, accel: np.ndarray) -> tuple[Phr
     for segs in phrases:
         if not any(s.phase in (Phase.STROKE, Phase.HOLD) for s in segs):
             moving = [s for s in segs if s.phase in (Phase.PREPARATION, Phase.RETRACTION)]
-            best = max(moving, key=lambda s: float(accel[s.start:s.stop].max()))
-            labels[best.start:best.stop] = Phase.STROKE
+            best = max(moving, key=lambda s: float(accel[s.start : s.stop].max()))
+            labels[best.start : best.stop] = Phase.STROKE
             segs = [PhaseSegment(Phase.STROKE, s.start, s.stop) if s is best else s for s in segs]
         out.append(Phrase(tuple(_merge_same(segs))))
     return tuple(out)
@@ -509,8 +542,9 @@ def _merge_same(segs: list[PhaseSegment]) -> list[PhaseSegment]:
 # A whole take
 
 
-def segment_phases(motion, params: PhaseParameters | None = None, arms=None,
-                   rest_positions: dict | None = None) -> GesturePhases:
+def segment_phases(
+    motion, params: PhaseParameters | None = None, arms=None, rest_positions: dict | None = None
+) -> GesturePhases:
     """Phases of both hands of a full-body take.
 
     Parameters
@@ -534,10 +568,12 @@ def segment_phases(motion, params: PhaseParameters | None = None, arms=None,
     hands = {}
     for side in SIDES:
         rest = (rest_positions or {}).get(side)
-        hands[side] = segment_trajectory(paths.wrist(side, params.reference), motion.fps, params,
-                                         rest_position=rest)
-    return GesturePhases(hands=hands, fps=float(motion.fps), n_frames=motion.n_frames,
-                         params=params, paths=paths)
+        hands[side] = segment_trajectory(
+            paths.wrist(side, params.reference), motion.fps, params, rest_position=rest
+        )
+    return GesturePhases(
+        hands=hands, fps=float(motion.fps), n_frames=motion.n_frames, params=params, paths=paths
+    )
 
 
 def marker_phase_labels(markers: np.ndarray, fps: float) -> np.ndarray:

@@ -94,8 +94,9 @@ class HandPose:
 
 
 def _pose(name: str, thumb, index, middle, ring, pinky) -> HandPose:
-    return HandPose(name, {"thumb": thumb, "index": index, "middle": middle, "ring": ring,
-                           "pinky": pinky})
+    return HandPose(
+        name, {"thumb": thumb, "index": index, "middle": middle, "ring": ring, "pinky": pinky}
+    )
 
 
 _FLAT = (0.0, 0.0)
@@ -105,18 +106,23 @@ _THUMB_OPEN = (0.0, 0.0, 0.0)
 
 #: The built-in pose library (angles in degrees, see ``HandPose``). "three" counts
 #: index, middle and ring; "four" folds the thumb across the palm.
-HAND_POSES: dict[str, HandPose] = {p.name: p for p in (
-    _pose("relaxed", (10.0, 10.0, 15.0), (15.0, 25.0), (20.0, 30.0), (25.0, 35.0), (30.0, 40.0)),
-    _pose("fist", (35.0, 45.0, 60.0), _CURLED, _CURLED, _CURLED, _CURLED),
-    _pose("open", _THUMB_OPEN, _FLAT, _FLAT, _FLAT, _FLAT),
-    _pose("point", _THUMB_TUCKED, _FLAT, _CURLED, _CURLED, _CURLED),
-    _pose("ok", (25.0, 30.0, 30.0), (45.0, 60.0), (10.0, 10.0), (12.0, 12.0), (15.0, 15.0)),
-    _pose("one", _THUMB_TUCKED, _FLAT, _CURLED, _CURLED, _CURLED),
-    _pose("two", _THUMB_TUCKED, _FLAT, _FLAT, _CURLED, _CURLED),
-    _pose("three", _THUMB_TUCKED, _FLAT, _FLAT, _FLAT, _CURLED),
-    _pose("four", (40.0, 50.0, 50.0), _FLAT, _FLAT, _FLAT, _FLAT),
-    _pose("five", _THUMB_OPEN, _FLAT, _FLAT, _FLAT, _FLAT),
-)}
+HAND_POSES: dict[str, HandPose] = {
+    p.name: p
+    for p in (
+        _pose(
+            "relaxed", (10.0, 10.0, 15.0), (15.0, 25.0), (20.0, 30.0), (25.0, 35.0), (30.0, 40.0)
+        ),
+        _pose("fist", (35.0, 45.0, 60.0), _CURLED, _CURLED, _CURLED, _CURLED),
+        _pose("open", _THUMB_OPEN, _FLAT, _FLAT, _FLAT, _FLAT),
+        _pose("point", _THUMB_TUCKED, _FLAT, _CURLED, _CURLED, _CURLED),
+        _pose("ok", (25.0, 30.0, 30.0), (45.0, 60.0), (10.0, 10.0), (12.0, 12.0), (15.0, 15.0)),
+        _pose("one", _THUMB_TUCKED, _FLAT, _CURLED, _CURLED, _CURLED),
+        _pose("two", _THUMB_TUCKED, _FLAT, _FLAT, _CURLED, _CURLED),
+        _pose("three", _THUMB_TUCKED, _FLAT, _FLAT, _FLAT, _CURLED),
+        _pose("four", (40.0, 50.0, 50.0), _FLAT, _FLAT, _FLAT, _FLAT),
+        _pose("five", _THUMB_OPEN, _FLAT, _FLAT, _FLAT, _FLAT),
+    )
+}
 
 
 def get_pose(name: str) -> HandPose:
@@ -147,14 +153,22 @@ def gaussian_step(u: np.ndarray, sigma: float = 0.2) -> np.ndarray:
 
 def _hermite(p0, p1, m0, m1, t):
     t2, t3 = t * t, t * t * t
-    return ((2 * t3 - 3 * t2 + 1) * p0 + (t3 - 2 * t2 + t) * m0
-            + (-2 * t3 + 3 * t2) * p1 + (t3 - t2) * m1)
+    return (
+        (2 * t3 - 3 * t2 + 1) * p0
+        + (t3 - 2 * t2 + t) * m0
+        + (-2 * t3 + 3 * t2) * p1
+        + (t3 - t2) * m1
+    )
 
 
 def _hermite_dt(p0, p1, m0, m1, t):
     t2 = t * t
-    return ((6 * t2 - 6 * t) * p0 + (3 * t2 - 4 * t + 1) * m0
-            + (-6 * t2 + 6 * t) * p1 + (3 * t2 - 2 * t) * m1)
+    return (
+        (6 * t2 - 6 * t) * p0
+        + (3 * t2 - 4 * t + 1) * m0
+        + (-6 * t2 + 6 * t) * p1
+        + (3 * t2 - 2 * t) * m1
+    )
 
 
 def solve_hermite_time(x0: float, x1: float, m0: float, m1: float, x: np.ndarray) -> np.ndarray:
@@ -183,8 +197,9 @@ def solve_hermite_time(x0: float, x1: float, m0: float, m1: float, x: np.ndarray
     return t
 
 
-def key_weights(n_frames: int, key_frames: np.ndarray, easing: str = "hermite",
-                sigma: float = 0.2) -> tuple[np.ndarray, np.ndarray]:
+def key_weights(
+    n_frames: int, key_frames: np.ndarray, easing: str = "hermite", sigma: float = 0.2
+) -> tuple[np.ndarray, np.ndarray]:
     """Segment index and easing weight of every frame between sorted key frames.
 
     Returns ``segment (F,) int`` (key ``k`` to ``k + 1``; frames before the first
@@ -230,8 +245,9 @@ def key_weights(n_frames: int, key_frames: np.ndarray, easing: str = "hermite",
     return seg.astype(np.int64), w
 
 
-def interpolate_keys(n_frames: int, key_frames, key_values, easing: str = "hermite",
-                     sigma: float = 0.2) -> np.ndarray:
+def interpolate_keys(
+    n_frames: int, key_frames, key_values, easing: str = "hermite", sigma: float = 0.2
+) -> np.ndarray:
     """Interpolate values at sorted key frames to every frame.
 
     Parameters
@@ -285,8 +301,9 @@ def couple_dip(angles: np.ndarray) -> np.ndarray:
 # Speed-matched temporal alignment
 
 
-def speed_matched_warp(body_keys, clip_keys, n_body: int, n_clip: int, body_fps: float,
-                       clip_fps: float) -> np.ndarray:
+def speed_matched_warp(
+    body_keys, clip_keys, n_body: int, n_clip: int, body_fps: float, clip_fps: float
+) -> np.ndarray:
     """Clip time (fractional clip frame) for every body frame.
 
     Body interval ``[b_k, b_{k+1}]`` plays clip cycle ``[c_j, c_{j+1}]`` with
@@ -312,7 +329,8 @@ def speed_matched_warp(body_keys, clip_keys, n_body: int, n_clip: int, body_fps:
             raise ParameterError(f"speed matching: need at least 2 {name} key frames, got {len(k)}")
         if np.any(np.diff(k) <= 0) or k[0] < 0 or k[-1] > n - 1:
             raise ParameterError(
-                f"speed matching: {name} key frames must increase within [0, {n - 1}], got {k.tolist()}")
+                f"speed matching: {name} key frames must increase within [0, {n - 1}], got {k.tolist()}"
+            )
     rate = clip_fps / body_fps
     frames = np.arange(n_body, dtype=float)
     out = np.empty(n_body)
@@ -382,7 +400,8 @@ def hand_rig(skeleton, side: str, roles=None) -> HandRig:
     if not arm.has_fingers:
         raise RoleError(
             f"{side} hand: the skeleton has no finger joints ({skeleton.n_joints} joints); hand "
-            "synthesis needs finger joints (graft them with graft_fingers)")
+            "synthesis needs finger joints (graft them with graft_fingers)"
+        )
     wrist = roles.require(side, "wrist")
     joints = -np.ones((5, 3), dtype=np.int64)
     for f, finger in enumerate(FINGERS):
@@ -391,8 +410,11 @@ def hand_rig(skeleton, side: str, roles=None) -> HandRig:
                 joints[f, k - 1] = j
     rest = rest_positions(skeleton)
     base = rest[arm.hand if arm.hand is not None else wrist]
-    knuckles = [(f, rest[next(j for j in joints[f] if j >= 0)]) for f in range(1, 5)
-                if (joints[f] >= 0).any()]
+    knuckles = [
+        (f, rest[next(j for j in joints[f] if j >= 0)])
+        for f in range(1, 5)
+        if (joints[f] >= 0).any()
+    ]
     if knuckles:
         forward = np.mean([k for _, k in knuckles], axis=0) - base
     else:  # thumb only: the thumb's direction stands in for the fingers'
@@ -405,8 +427,10 @@ def hand_rig(skeleton, side: str, roles=None) -> HandRig:
         raise RoleError(f"{side} hand: too few finger joints to find the palm's orientation")
     normal = np.cross(lateral, forward) if side == "right" else np.cross(forward, lateral)
     if np.linalg.norm(normal) < 1e-9 * max(np.linalg.norm(forward), 1e-12) ** 2:
-        raise RoleError(f"{side} hand: finger bases are in line with the wrist; cannot find "
-                        "the palm's orientation")
+        raise RoleError(
+            f"{side} hand: finger bases are in line with the wrist; cannot find "
+            "the palm's orientation"
+        )
     normal = _unit(normal)
     toward_pinky = -_unit(lateral - np.dot(lateral, normal) * normal)
     axes = np.zeros((5, 3, 3))
@@ -476,8 +500,9 @@ def apply_flexion(motion, rig: HandRig, angles: np.ndarray):
                 continue
             a = ang[:, f, k]
             ok = np.isfinite(a)
-            rots[ok, j] = rot.from_axis_angle(np.broadcast_to(rig.axes[f, k], (ok.sum(), 3)),
-                                              np.radians(a[ok]))
+            rots[ok, j] = rot.from_axis_angle(
+                np.broadcast_to(rig.axes[f, k], (ok.sum(), 3)), np.radians(a[ok])
+            )
     return replace(motion, rotations=rots)
 
 
@@ -513,8 +538,13 @@ _DONOR_RIGHT = (
     ("HandPinky2", "HandPinky1", (0.035, 0.0, 0.0)),
     ("HandPinky3", "HandPinky2", (0.02, 0.0, 0.0)),
 )
-_DONOR_TIPS = {"HandThumb3": 0.02, "HandIndex3": 0.02, "HandMiddle3": 0.022,
-               "HandRing3": 0.02, "HandPinky3": 0.018}
+_DONOR_TIPS = {
+    "HandThumb3": 0.02,
+    "HandIndex3": 0.02,
+    "HandMiddle3": 0.022,
+    "HandRing3": 0.02,
+    "HandPinky3": 0.018,
+}
 
 
 def donor_hand(side: str = "right"):
@@ -534,10 +564,12 @@ def donor_hand(side: str = "right"):
     channels = [("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")]
     channels += [("Zrotation", "Xrotation", "Yrotation")] * (len(names) - 1)
     ends = {index[n]: _unit(offsets[index[n]]) * length for n, length in _DONOR_TIPS.items()}
-    sk = Skeleton(names=names, parents=np.array(parents), offsets=offsets, channels=channels,
-                  end_sites=ends)
-    return Motion.rest(sk, 1, 30.0, MotionMeta(units="m", source=f"procedural {side} hand",
-                                               format="derived"))
+    sk = Skeleton(
+        names=names, parents=np.array(parents), offsets=offsets, channels=channels, end_sites=ends
+    )
+    return Motion.rest(
+        sk, 1, 30.0, MotionMeta(units="m", source=f"procedural {side} hand", format="derived")
+    )
 
 
 def needs_graft(arm) -> bool:
@@ -568,9 +600,15 @@ def graft_fingers(body, sides=("right", "left"), donor=None, roles=None):
             continue
         hand = donor if donor is not None else donor_hand(side)
         hand_roles = find_roles(hand.skeleton, side_hint=side)
-        plan = plan_transfer(motion, hand, roles, hand_roles,
-                             {side: hand_frame(motion, roles, side)},
-                             {side: hand_frame(hand, hand_roles, side)}, (side,))
+        plan = plan_transfer(
+            motion,
+            hand,
+            roles,
+            hand_roles,
+            {side: hand_frame(motion, roles, side)},
+            {side: hand_frame(hand, hand_roles, side)},
+            (side,),
+        )
         n, jn = motion.n_frames, plan.skeleton.n_joints
         rots = np.zeros((n, jn, 4))
         rots[..., 0] = 1.0
@@ -578,8 +616,7 @@ def graft_fingers(body, sides=("right", "left"), donor=None, roles=None):
         rots[:, bi] = motion.rotations
         trans = np.broadcast_to(plan.skeleton.offsets, (n, jn, 3)).copy()
         # a body joint below a joint inserted in its chain keeps its motion less the offset
-        trans[:, bi] = motion.translations + (plan.skeleton.offsets[bi]
-                                              - motion.skeleton.offsets)
+        trans[:, bi] = motion.translations + (plan.skeleton.offsets[bi] - motion.skeleton.offsets)
         motion = Motion(plan.skeleton, rots, trans, motion.fps, motion.meta)
     return motion
 
@@ -634,8 +671,15 @@ def parse_pose_keys(specs, n_frames: int) -> list[tuple[int, str]]:
     return out
 
 
-def synthesize_from_poses(body, keys, sides=("right", "left"), easing: str = "hermite",
-                          sigma: float = 0.2, roles=None, graft: bool = True) -> SynthesisResult:
+def synthesize_from_poses(
+    body,
+    keys,
+    sides=("right", "left"),
+    easing: str = "hermite",
+    sigma: float = 0.2,
+    roles=None,
+    graft: bool = True,
+) -> SynthesisResult:
     """(c) Key-frame interpolation between library poses on a body with fingers.
 
     Parameters
@@ -694,15 +738,25 @@ def clip_key_frames(clip, rig: HandRig, params=None) -> np.ndarray:
     pts = np.stack(tips, axis=1) - pos[:, rig.wrist][:, None]
     inv = rot.conjugate(wrot[:, rig.wrist])[:, None]
     local = rot.rotate(np.broadcast_to(inv, pts.shape[:2] + (4,)), pts) * scale
-    params = params or KeyPoseParameters(joint_weights=(1.0,) * local.shape[1],
-                                         contrast_threshold=0.05, min_prominence=0.02)
+    params = params or KeyPoseParameters(
+        joint_weights=(1.0,) * local.shape[1], contrast_threshold=0.05, min_prominence=0.02
+    )
     keys = find_key_poses(local, clip.fps, params, with_map=False).frames
     return np.unique(np.r_[0, keys, clip.n_frames - 1]).astype(np.int64)
 
 
-def synthesize_from_clip(body, clip, side: str = "right", factor: float = 1.0,
-                         body_keys=None, clip_keys=None, clip_side: str | None = None,
-                         roles=None, clip_roles=None, graft: bool = True) -> SynthesisResult:
+def synthesize_from_clip(
+    body,
+    clip,
+    side: str = "right",
+    factor: float = 1.0,
+    body_keys=None,
+    clip_keys=None,
+    clip_side: str | None = None,
+    roles=None,
+    clip_roles=None,
+    graft: bool = True,
+) -> SynthesisResult:
     """(a) Speed-matched temporal alignment of a hand clip, with (b) flexion warping.
 
     Parameters
@@ -736,8 +790,9 @@ def synthesize_from_clip(body, clip, side: str = "right", factor: float = 1.0,
         body_keys = np.unique(np.r_[0, found, body.n_frames - 1])
     if clip_keys is None:
         clip_keys = clip_key_frames(clip, clip_rig)
-    warp = speed_matched_warp(body_keys, clip_keys, body.n_frames, clip.n_frames, body.fps,
-                              clip.fps)
+    warp = speed_matched_warp(
+        body_keys, clip_keys, body.n_frames, clip.n_frames, body.fps, clip.fps
+    )
     src = extract_flexion(clip, clip_rig)
     i0 = np.floor(warp).astype(np.int64)
     i1 = np.minimum(i0 + 1, clip.n_frames - 1)
@@ -745,6 +800,9 @@ def synthesize_from_clip(body, clip, side: str = "right", factor: float = 1.0,
     angles = src[i0] * (1.0 - w) + src[i1] * w
     angles = _for_rig(warp_flexion(angles, factor), rig)
     motion = apply_flexion(body, rig, angles)
-    return SynthesisResult(motion=motion, angles={side: angles},
-                           key_frames={side: np.asarray(body_keys, dtype=np.int64)},
-                           clip_time={side: warp})
+    return SynthesisResult(
+        motion=motion,
+        angles={side: angles},
+        key_frames={side: np.asarray(body_keys, dtype=np.int64)},
+        clip_time={side: warp},
+    )

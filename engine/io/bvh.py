@@ -118,7 +118,8 @@ def _decode(data: bytes, source: str) -> str:
     except UnicodeDecodeError as err:
         line = data.count(b"\n", 0, err.start) + 1
         raise MotionFormatError(
-            source, f"not UTF-8 text (byte 0x{data[err.start]:02x} at offset {err.start})",
+            source,
+            f"not UTF-8 text (byte 0x{data[err.start]:02x} at offset {err.start})",
             line=line,
         ) from None
     return text
@@ -197,7 +198,9 @@ def _parse_hierarchy(lines: list[str], where: str | None) -> tuple[Skeleton, int
             if stack:
                 raise fail(
                     f"unbalanced braces: block opened on line {stack[-1][2] + 1} is not "
-                    f"closed before MOTION", i)
+                    f"closed before MOTION",
+                    i,
+                )
             if not names:
                 raise fail("no ROOT joint before MOTION", i)
             return _make_skeleton(names, parents, offsets, channels, end_sites), i
@@ -208,7 +211,7 @@ def _parse_hierarchy(lines: list[str], where: str | None) -> tuple[Skeleton, int
             if pending is not None and tok != "{":
                 raise fail(f"expected '{{' after {pending[0]}, found {tok[:40]!r}", i)
             if up in ("ROOT", "JOINT"):
-                rest = tokens[k + 1:]
+                rest = tokens[k + 1 :]
                 if rest and rest[-1] == "{":
                     rest = rest[:-1]
                     k = len(tokens) - 1  # the "{" is handled next
@@ -223,11 +226,17 @@ def _parse_hierarchy(lines: list[str], where: str | None) -> tuple[Skeleton, int
                 if not name:
                     raise fail(f"{up} without a joint name", i)
                 if "{" in name or "}" in name:
-                    raise fail(f"joint name {name[:40]!r} contains a brace (a joint name is "
-                               "the text after ROOT/JOINT, without braces)", i)
+                    raise fail(
+                        f"joint name {name[:40]!r} contains a brace (a joint name is "
+                        "the text after ROOT/JOINT, without braces)",
+                        i,
+                    )
                 if len(stack) >= MAX_DEPTH:
-                    raise fail(f"joint {name[:40]!r} is nested more than {MAX_DEPTH} deep; "
-                               "refusing an absurd skeleton", i)
+                    raise fail(
+                        f"joint {name[:40]!r} is nested more than {MAX_DEPTH} deep; "
+                        "refusing an absurd skeleton",
+                        i,
+                    )
                 if up == "ROOT" and stack:
                     raise fail(f"ROOT {name!r} inside another joint's block", i)
                 if up == "JOINT" and (not stack or stack[-1][1] < 0):
@@ -283,7 +292,7 @@ def _parse_hierarchy(lines: list[str], where: str | None) -> tuple[Skeleton, int
             if up == "OFFSET":
                 if not stack:
                     raise fail("OFFSET outside a joint block", i)
-                vals = tokens[k + 1:k + 4]
+                vals = tokens[k + 1 : k + 4]
                 if len(vals) != 3:
                     raise fail(f"OFFSET needs 3 numbers, found {len(vals)}", i)
                 off = _finite_numbers(vals, where, i, "OFFSET")
@@ -300,19 +309,27 @@ def _parse_hierarchy(lines: list[str], where: str | None) -> tuple[Skeleton, int
                 if k + 1 >= len(tokens):
                     raise fail("CHANNELS without a count", i)
                 if not _WHOLE_RE.fullmatch(tokens[k + 1]):
-                    raise fail(f"CHANNELS count must be a whole number 0-6, found "
-                               f"{tokens[k + 1][:40]!r}", i)
+                    raise fail(
+                        f"CHANNELS count must be a whole number 0-6, found {tokens[k + 1][:40]!r}",
+                        i,
+                    )
                 n = int(tokens[k + 1])
-                listed = tokens[k + 2:k + 2 + n]
+                listed = tokens[k + 2 : k + 2 + n]
                 if n < 0 or n > 6 or len(listed) != n:
-                    raise fail(f"CHANNELS {tokens[k + 1]} lists {len(tokens) - k - 2} channel "
-                               f"names (expected a count of 0-6 matching the names)", i)
+                    raise fail(
+                        f"CHANNELS {tokens[k + 1]} lists {len(tokens) - k - 2} channel "
+                        f"names (expected a count of 0-6 matching the names)",
+                        i,
+                    )
                 chans = []
                 for c in listed:
                     canon = _CHANNEL_LOOKUP.get(c.lower())
                     if canon is None:
-                        raise fail(f"unknown channel {c[:40]!r} (expected one of "
-                                   f"{', '.join(_CHANNEL_NAMES)})", i)
+                        raise fail(
+                            f"unknown channel {c[:40]!r} (expected one of "
+                            f"{', '.join(_CHANNEL_NAMES)})",
+                            i,
+                        )
                     if canon in chans:
                         raise fail(f"channel {canon} listed twice", i)
                     chans.append(canon)
@@ -321,14 +338,18 @@ def _parse_hierarchy(lines: list[str], where: str | None) -> tuple[Skeleton, int
                 continue
             if up == "HIERARCHY":
                 raise fail("second 'HIERARCHY'", i)
-            raise fail(f"unexpected {tok[:40]!r} in HIERARCHY (expected ROOT, JOINT, End Site, "
-                       f"OFFSET, CHANNELS, braces or MOTION)", i)
+            raise fail(
+                f"unexpected {tok[:40]!r} in HIERARCHY (expected ROOT, JOINT, End Site, "
+                f"OFFSET, CHANNELS, braces or MOTION)",
+                i,
+            )
     if not started:
         raise MotionFormatError(where, "no 'HIERARCHY' section", line=1)
     last = len(lines)
     if stack or pending is not None:
-        raise MotionFormatError(where, "file ends inside the HIERARCHY (unbalanced braces, "
-                                       "truncated?)", line=last)
+        raise MotionFormatError(
+            where, "file ends inside the HIERARCHY (unbalanced braces, truncated?)", line=last
+        )
     raise MotionFormatError(where, "no 'MOTION' section after the HIERARCHY", line=last)
 
 
@@ -352,13 +373,17 @@ def _finite_numbers(vals: list[str], where: str | None, i: int, field: str) -> n
         raise MotionFormatError(where, f"{field}: {bad!r} is not a finite number", line=i + 1)
     if np.abs(out).max(initial=0.0) > MAX_ABS_VALUE:
         bad = vals[int(np.argmax(np.abs(out)))]
-        raise MotionFormatError(where, f"{field}: {bad[:40]!r} is beyond +-{MAX_ABS_VALUE:g}; "
-                                       "refusing an absurd value", line=i + 1)
+        raise MotionFormatError(
+            where,
+            f"{field}: {bad[:40]!r} is beyond +-{MAX_ABS_VALUE:g}; refusing an absurd value",
+            line=i + 1,
+        )
     return out
 
 
-def _parse_motion(lines: list[str], motion_line: int, skeleton: Skeleton, where: str | None,
-                  text_bytes: int = 0) -> tuple[float, np.ndarray]:
+def _parse_motion(
+    lines: list[str], motion_line: int, skeleton: Skeleton, where: str | None, text_bytes: int = 0
+) -> tuple[float, np.ndarray]:
     """fps and the ``(F, C)`` channel data of the MOTION section.
 
     The header's frame count, the rate and the poses they ask for are checked against
@@ -368,63 +393,85 @@ def _parse_motion(lines: list[str], motion_line: int, skeleton: Skeleton, where:
     i = motion_line + 1
     rest = lines[motion_line].split()[1:]
     if rest:
-        raise MotionFormatError(where, f"unexpected {rest[0][:40]!r} after MOTION",
-                                line=motion_line + 1)
+        raise MotionFormatError(
+            where, f"unexpected {rest[0][:40]!r} after MOTION", line=motion_line + 1
+        )
 
     def next_content(i: int, expected: str) -> int:
         while i < len(lines) and not lines[i].strip():
             i += 1
         if i >= len(lines):
-            raise MotionFormatError(where, f"file ends before '{expected}' (truncated?)",
-                                    line=len(lines))
+            raise MotionFormatError(
+                where, f"file ends before '{expected}' (truncated?)", line=len(lines)
+            )
         return i
 
     i = next_content(i, "Frames:")
     m = _FRAMES_RE.match(lines[i])
     if not m:
-        raise MotionFormatError(where, f"expected 'Frames: N', found {lines[i].strip()[:40]!r}",
-                                line=i + 1)
+        raise MotionFormatError(
+            where, f"expected 'Frames: N', found {lines[i].strip()[:40]!r}", line=i + 1
+        )
     if m.group(1).startswith("-") and _WHOLE_RE.fullmatch(m.group(1)[1:]):
         raise MotionFormatError(where, f"Frames: {m.group(1)[:40]} is negative", line=i + 1)
     if not _WHOLE_RE.fullmatch(m.group(1)):
-        raise MotionFormatError(where, f"Frames: {m.group(1)[:40]!r} is not a whole number",
-                                line=i + 1)
+        raise MotionFormatError(
+            where, f"Frames: {m.group(1)[:40]!r} is not a whole number", line=i + 1
+        )
     n_frames = int(m.group(1)[:40])  # more digits than 40 are far beyond the limit anyway
     if n_frames > MAX_FRAMES:
         raise MotionFormatError(
-            where, f"Frames: {n_frames} is more than {MAX_FRAMES:,}; refusing an absurd take",
-            line=i + 1)
+            where,
+            f"Frames: {n_frames} is more than {MAX_FRAMES:,}; refusing an absurd take",
+            line=i + 1,
+        )
     frames_line = i
     i = next_content(i + 1, "Frame Time:")
     m = _FRAME_TIME_RE.match(lines[i])
     if not m:
         raise MotionFormatError(
-            where, f"expected 'Frame Time: seconds', found {lines[i].strip()[:40]!r}", line=i + 1)
+            where, f"expected 'Frame Time: seconds', found {lines[i].strip()[:40]!r}", line=i + 1
+        )
     frame_time = float(m.group(1)) if _NUMBER_RE.fullmatch(m.group(1)) else float("nan")
     if not (np.isfinite(frame_time) and frame_time > 0):
         raise MotionFormatError(
-            where, f"Frame Time: {m.group(1)[:40]!r} is not a positive number of seconds",
-            line=i + 1)
+            where,
+            f"Frame Time: {m.group(1)[:40]!r} is not a positive number of seconds",
+            line=i + 1,
+        )
     fps = _snap_fps(1.0 / frame_time)
     limits.check_rate(fps, where, line=i + 1, field=f"Frame Time: {m.group(1)[:40]}")
     first_data = i + 1
-    limits.check_take(where, n_frames, fps, skeleton.n_joints, n_values, text_bytes,
-                      line=frames_line + 1)
+    limits.check_take(
+        where, n_frames, fps, skeleton.n_joints, n_values, text_bytes, line=frames_line + 1
+    )
 
     # data rows: every non-blank line after Frame Time
     row_lines = [k for k in range(first_data, len(lines)) if lines[k].strip()]
     if n_values == 0:  # no channels at all: the pose is the rest pose, rows must be empty
         if row_lines:
             raise MotionFormatError(
-                where, f"data row {lines[row_lines[0]].strip()[:40]!r} but no joint has "
-                       "channels (CHANNELS 0 everywhere: expected no values)",
-                line=row_lines[0] + 1)
+                where,
+                f"data row {lines[row_lines[0]].strip()[:40]!r} but no joint has "
+                "channels (CHANNELS 0 everywhere: expected no values)",
+                line=row_lines[0] + 1,
+            )
         return fps, np.zeros((n_frames, 0))
     if len(row_lines) > MAX_FRAMES + 1:
-        raise MotionFormatError(where, f"more than {MAX_FRAMES:,} data rows; refusing an absurd "
-                                       f"take", line=row_lines[MAX_FRAMES] + 1)
-    limits.check_take(where, len(row_lines), fps, skeleton.n_joints, n_values, text_bytes,
-                      line=row_lines[-1] + 1 if row_lines else first_data)
+        raise MotionFormatError(
+            where,
+            f"more than {MAX_FRAMES:,} data rows; refusing an absurd take",
+            line=row_lines[MAX_FRAMES] + 1,
+        )
+    limits.check_take(
+        where,
+        len(row_lines),
+        fps,
+        skeleton.n_joints,
+        n_values,
+        text_bytes,
+        line=row_lines[-1] + 1 if row_lines else first_data,
+    )
     odd = _NOT_DATA_RE.search("\n".join(lines[k] for k in row_lines))
     if odd is not None:
         raise _locate_bad_number([lines[k].split() for k in row_lines], row_lines, where)
@@ -435,13 +482,17 @@ def _parse_motion(lines: list[str], motion_line: int, skeleton: Skeleton, where:
         b = int(bad[0])
         found = int(counts[b])
         extra = " (truncated?)" if b == len(rows) - 1 and found < n_values else ""
-        raise MotionFormatError(where, f"expected {n_values} values, found {found}{extra}",
-                                line=row_lines[b] + 1)
+        raise MotionFormatError(
+            where, f"expected {n_values} values, found {found}{extra}", line=row_lines[b] + 1
+        )
     if len(rows) < n_frames:
         last = row_lines[-1] + 1 if row_lines else first_data
         raise MotionFormatError(
-            where, f"Frames: {n_frames} (line {frames_line + 1}) but the file ends after "
-                   f"{len(rows)} data rows (truncated?)", line=last)
+            where,
+            f"Frames: {n_frames} (line {frames_line + 1}) but the file ends after "
+            f"{len(rows)} data rows (truncated?)",
+            line=last,
+        )
     flat = [v for r in rows for v in r]
     try:
         data = np.array(flat, dtype=float)
@@ -452,26 +503,33 @@ def _parse_motion(lines: list[str], motion_line: int, skeleton: Skeleton, where:
     if not finite.all():
         r, c = (int(x[0]) for x in np.nonzero(~finite))
         raise MotionFormatError(
-            where, f"value {c + 1} is {rows[r][c]!r}; expected a finite number",
-            line=row_lines[r] + 1)
+            where,
+            f"value {c + 1} is {rows[r][c]!r}; expected a finite number",
+            line=row_lines[r] + 1,
+        )
     if data.size and np.abs(data).max() > MAX_ABS_VALUE:
         r, c = (int(x) for x in np.unravel_index(np.argmax(np.abs(data)), data.shape))
         raise MotionFormatError(
-            where, f"value {c + 1} is {rows[r][c][:40]!r}; beyond +-{MAX_ABS_VALUE:g}, "
-                   "refusing an absurd value", line=row_lines[r] + 1)
+            where,
+            f"value {c + 1} is {rows[r][c][:40]!r}; beyond +-{MAX_ABS_VALUE:g}, "
+            "refusing an absurd value",
+            line=row_lines[r] + 1,
+        )
     if len(rows) == n_frames + 1 and not data[0].any():
         data = data[1:]  # gestification: a zero row before the take
     return fps, data
 
 
-def _locate_bad_number(rows: list[list[str]], row_lines: list[int], where: str | None
-                       ) -> MotionFormatError:
+def _locate_bad_number(
+    rows: list[list[str]], row_lines: list[int], where: str | None
+) -> MotionFormatError:
     """The error for the first value numpy cannot read as a float (slow path)."""
     for r, k in zip(rows, row_lines, strict=True):
         for c, v in enumerate(r):
             if not _NUMBER_RE.fullmatch(v):
                 return MotionFormatError(
-                    where, f"value {c + 1} is {v[:40]!r}; expected a finite number", line=k + 1)
+                    where, f"value {c + 1} is {v[:40]!r}; expected a finite number", line=k + 1
+                )
     return MotionFormatError(where, "a data value is not a number", line=row_lines[0] + 1)
 
 
@@ -541,8 +599,9 @@ def _kind(skeleton: Skeleton) -> str:
     return "body"
 
 
-def _probe_positions(skeleton: Skeleton, rotations: np.ndarray, translations: np.ndarray
-                     ) -> np.ndarray:
+def _probe_positions(
+    skeleton: Skeleton, rotations: np.ndarray, translations: np.ndarray
+) -> np.ndarray:
     """World joint positions ``(S, J, 3)`` of up to 16 frames spread over the take."""
     from engine.kinematics import forward_kinematics, rest_positions  # kinematics imports motion
 
@@ -670,8 +729,10 @@ def _check_names(sk: Skeleton) -> None:
     seen: set[str] = set()
     for name in sk.names:
         if not name or name != " ".join(name.split()) or "{" in name or "}" in name:
-            raise ValueError(f"format_bvh: joint name {name!r} cannot be written to BVH (empty, "
-                             f"tabs, line breaks, outer or double spaces, or braces)")
+            raise ValueError(
+                f"format_bvh: joint name {name!r} cannot be written to BVH (empty, "
+                f"tabs, line breaks, outer or double spaces, or braces)"
+            )
         if name in seen:
             raise ValueError(f"format_bvh: joint name {name!r} is used twice")
         seen.add(name)
@@ -704,8 +765,9 @@ def _channel_euler(q: np.ndarray, chans: tuple[str, ...]) -> np.ndarray:
     n_rot = sum(c in ROTATION_CHANNELS for c in chans)
     e = rot.to_euler(q, _full_order(chans))
     if n_rot == 2:
-        alt = np.stack([_wrap180(e[..., 0] + 180.0), 180.0 - e[..., 1],
-                        _wrap180(e[..., 2] + 180.0)], axis=-1)
+        alt = np.stack(
+            [_wrap180(e[..., 0] + 180.0), 180.0 - e[..., 1], _wrap180(e[..., 2] + 180.0)], axis=-1
+        )
         use_alt = np.abs(_wrap180(e[..., 2])) > 90.0
         e = np.where(use_alt[..., None], alt, e)
     return e
@@ -729,14 +791,16 @@ def _check_representable(motion: Motion) -> None:
             if err > 1e-6:
                 raise ValueError(
                     f"format_bvh: joint {sk.names[j]!r} rotates up to {err:.3g} degrees about "
-                    f"axes it has no channels for ({' '.join(chans) or 'no channels'})")
+                    f"axes it has no channels for ({' '.join(chans) or 'no channels'})"
+                )
         for a, c in enumerate(POSITION_CHANNELS):
             if c not in chans:
                 dev = float(np.abs(motion.translations[:, j, a] - sk.offsets[j, a]).max())
                 if dev > 1e-9 * scale:
                     raise ValueError(
                         f"format_bvh: joint {sk.names[j]!r} moves {dev:.3g} units along "
-                        f"{c[0]} from its OFFSET but has no {c} channel")
+                        f"{c[0]} from its OFFSET but has no {c} channel"
+                    )
 
 
 def _pose_to_channels(motion: Motion, order: list[int]) -> np.ndarray:

@@ -37,8 +37,18 @@ from engine.motion import MarkerSet, MotionMeta
 
 _BLOCK = 512
 _PROCESSORS = {84: "intel", 85: "dec", 86: "mips"}
-_UNITS = {"mm": "mm", "millimeters": "mm", "millimetres": "mm", "cm": "cm", "m": "m",
-          "meters": "m", "metres": "m", "in": "in", "inch": "in", "inches": "in"}
+_UNITS = {
+    "mm": "mm",
+    "millimeters": "mm",
+    "millimetres": "mm",
+    "cm": "cm",
+    "m": "m",
+    "meters": "m",
+    "metres": "m",
+    "in": "in",
+    "inch": "in",
+    "inches": "in",
+}
 
 
 def read_c3d(path: str | Path) -> MarkerSet:
@@ -73,7 +83,7 @@ def parse_c3d(raw: bytes, source: str | Path = "<input>") -> MarkerSet:
     """Parse the bytes of a C3D file (see ``read_c3d``); ``source`` names it in errors."""
     header = _check_header(source, raw)
     start = (header["param_block"] - 1) * _BLOCK
-    section = raw[start:start + header["n_param_blocks"] * _BLOCK]
+    section = raw[start : start + header["n_param_blocks"] * _BLOCK]
     params = _walk_parameters(source, section, header)
     _check_parameters(source, params, header)
     reader = _ParamReader(params, header)
@@ -81,9 +91,12 @@ def parse_c3d(raw: bytes, source: str | Path = "<input>") -> MarkerSet:
     n_points = header["n_points"]
     n_frames = _frame_count(source, reader, header, len(raw))
     if n_frames > MAX_FRAMES or n_points > MAX_MARKERS:
-        raise MotionFormatError(source, f"{n_frames:,} frames of {n_points:,} markers is more than "
-                                        f"{MAX_FRAMES:,} frames or {MAX_MARKERS:,} markers; "
-                                        "refusing an absurd take")
+        raise MotionFormatError(
+            source,
+            f"{n_frames:,} frames of {n_points:,} markers is more than "
+            f"{MAX_FRAMES:,} frames or {MAX_MARKERS:,} markers; "
+            "refusing an absurd take",
+        )
     scale = reader.float("POINT", "SCALE", header["scale"])
     if not np.isfinite(scale):
         raise MotionFormatError(source, f"POINT:SCALE is {scale}, expected a finite number")
@@ -95,8 +108,10 @@ def parse_c3d(raw: bytes, source: str | Path = "<input>") -> MarkerSet:
     if len(raw) < needed:
         have = (len(raw) - offset) // max(per_frame * value_bytes, 1)
         raise MotionFormatError(
-            source, f"truncated C3D file (or damaged header): {n_frames} frames need {needed} "
-                    f"bytes, the file has {len(raw)} (about {max(have, 0)} frames)")
+            source,
+            f"truncated C3D file (or damaged header): {n_frames} frames need {needed} "
+            f"bytes, the file has {len(raw)} (about {max(have, 0)} frames)",
+        )
     fps = reader.float("POINT", "RATE", header["rate"])
     if not (np.isfinite(fps) and fps > 0):
         raise MotionFormatError(source, f"POINT:RATE must be a positive number, got {fps}")
@@ -107,7 +122,7 @@ def parse_c3d(raw: bytes, source: str | Path = "<input>") -> MarkerSet:
         values = _floats(data, header["processor"], header["endian"])
     else:
         values = np.frombuffer(data, dtype=np.dtype(header["endian"] + "i2")).astype(float)
-    values = values.reshape(n_frames, per_frame)[:, :n_points * 4].reshape(n_frames, n_points, 4)
+    values = values.reshape(n_frames, per_frame)[:, : n_points * 4].reshape(n_frames, n_points, 4)
     points = values[:, :, :3].copy()
     if not is_float:
         points *= abs(scale)
@@ -116,8 +131,9 @@ def parse_c3d(raw: bytes, source: str | Path = "<input>") -> MarkerSet:
     if not np.isfinite(seen).all():
         raise MotionFormatError(source, "point data holds infinite values")
     if seen.size and np.abs(seen).max() > MAX_ABS_VALUE:
-        raise MotionFormatError(source, f"point data holds values beyond +-{MAX_ABS_VALUE:g}; "
-                                        "refusing an absurd take")
+        raise MotionFormatError(
+            source, f"point data holds values beyond +-{MAX_ABS_VALUE:g}; refusing an absurd take"
+        )
 
     labels = reader.labels()
     if len(labels) < n_points:
@@ -134,15 +150,18 @@ def _frame_count(source, reader: _ParamReader, header: dict, size: int) -> int:
     first, last = header["first"], header["last"]
     if last != 0xFFFF:
         if last < first:
-            raise MotionFormatError(source, f"bad C3D header: last frame {last} before "
-                                            f"first frame {first}")
+            raise MotionFormatError(
+                source, f"bad C3D header: last frame {last} before first frame {first}"
+            )
         return last - first + 1
     # long takes: the 16-bit header overflows; TRIAL:ACTUAL_*_FIELD hold 32-bit numbers
     start = reader.uint32("TRIAL", "ACTUAL_START_FIELD")
     end = reader.uint32("TRIAL", "ACTUAL_END_FIELD")
     if start is None or end is None or end < start:
-        raise MotionFormatError(source, "C3D header frame count overflows and "
-                                        "TRIAL:ACTUAL_START_FIELD/END_FIELD are missing")
+        raise MotionFormatError(
+            source,
+            "C3D header frame count overflows and TRIAL:ACTUAL_START_FIELD/END_FIELD are missing",
+        )
     return end - start + 1
 
 
@@ -165,25 +184,33 @@ def _check_header(path, raw: bytes) -> dict:
     """Validate the 512-byte header and the parameter block start; return key numbers."""
     size = len(raw)
     if size < _BLOCK:
-        raise MotionFormatError(path, f"not a C3D file: {size} bytes, shorter than the "
-                                      f"{_BLOCK}-byte header")
+        raise MotionFormatError(
+            path, f"not a C3D file: {size} bytes, shorter than the {_BLOCK}-byte header"
+        )
     head = raw[:_BLOCK]
     if head[1] != 0x50:
-        raise MotionFormatError(path, f"not a C3D file: header byte 2 is 0x{head[1]:02x}, "
-                                      "expected 0x50")
+        raise MotionFormatError(
+            path, f"not a C3D file: header byte 2 is 0x{head[1]:02x}, expected 0x50"
+        )
     param_block = head[0]
     if param_block < 2:
-        raise MotionFormatError(path, f"bad C3D header: parameter block {param_block}, "
-                                      "expected 2 or more")
+        raise MotionFormatError(
+            path, f"bad C3D header: parameter block {param_block}, expected 2 or more"
+        )
     at = (param_block - 1) * _BLOCK
     if size < at + 4:
-        raise MotionFormatError(path, f"truncated C3D file: parameter block {param_block} "
-                                      f"lies beyond the end ({size} bytes)")
-    phead = raw[at:at + 4]
+        raise MotionFormatError(
+            path,
+            f"truncated C3D file: parameter block {param_block} lies beyond the end ({size} bytes)",
+        )
+    phead = raw[at : at + 4]
     processor = _PROCESSORS.get(phead[3])
     if processor is None:
-        raise MotionFormatError(path, f"bad C3D parameter block: processor type {phead[3]}, "
-                                      "expected 84 (Intel), 85 (DEC) or 86 (MIPS)")
+        raise MotionFormatError(
+            path,
+            f"bad C3D parameter block: processor type {phead[3]}, "
+            "expected 84 (Intel), 85 (DEC) or 86 (MIPS)",
+        )
     n_param_blocks = phead[2]
     endian = ">" if processor == "mips" else "<"
     words = struct.unpack(endian + "12H", head[:24])
@@ -195,17 +222,33 @@ def _check_header(path, raw: bytes) -> dict:
     if n_param_blocks < 1:
         raise MotionFormatError(path, "bad C3D parameter block: it declares 0 parameter blocks")
     if size < at + n_param_blocks * _BLOCK:
-        raise MotionFormatError(path, f"truncated C3D file: {size} bytes, the parameter "
-                                      f"section needs {at + n_param_blocks * _BLOCK}")
+        raise MotionFormatError(
+            path,
+            f"truncated C3D file: {size} bytes, the parameter "
+            f"section needs {at + n_param_blocks * _BLOCK}",
+        )
     if data_start < param_block + n_param_blocks:
-        raise MotionFormatError(path, f"bad C3D header: data starts at block {data_start}, "
-                                      f"inside the parameter section (blocks {param_block}.."
-                                      f"{param_block + n_param_blocks - 1})")
+        raise MotionFormatError(
+            path,
+            f"bad C3D header: data starts at block {data_start}, "
+            f"inside the parameter section (blocks {param_block}.."
+            f"{param_block + n_param_blocks - 1})",
+        )
     if not np.isfinite(scale) or scale == 0:
         raise MotionFormatError(path, f"bad C3D header: point scale {scale}")
-    return {"n_points": n_points, "n_analog": n_analog, "first": first, "last": last,
-            "rate": rate, "processor": processor, "endian": endian, "param_block": param_block,
-            "n_param_blocks": n_param_blocks, "data_start": data_start, "scale": scale}
+    return {
+        "n_points": n_points,
+        "n_analog": n_analog,
+        "first": first,
+        "last": last,
+        "rate": rate,
+        "processor": processor,
+        "endian": endian,
+        "param_block": param_block,
+        "n_param_blocks": n_param_blocks,
+        "data_start": data_start,
+        "scale": scale,
+    }
 
 
 def _header_float(b: bytes, processor: str, endian: str) -> float:
@@ -238,18 +281,18 @@ def _walk_parameters(path: Path, section: bytes, header: dict) -> dict[str, dict
         return MotionFormatError(path, f"damaged C3D parameter section at byte {base + at}: {what}")
 
     while pos + 2 <= end:
-        nchar = struct.unpack("b", section[pos:pos + 1])[0]
-        gid = struct.unpack("b", section[pos + 1:pos + 2])[0]
+        nchar = struct.unpack("b", section[pos : pos + 1])[0]
+        gid = struct.unpack("b", section[pos + 1 : pos + 2])[0]
         if nchar == 0 or gid == 0:
             break  # end of the section
         name_end = pos + 2 + abs(nchar)
         if name_end + 2 > end:
             raise bad(pos, "entry runs past the end of the section")
-        name_bytes = section[pos + 2:name_end]
+        name_bytes = section[pos + 2 : name_end]
         if not all(32 < b < 127 for b in name_bytes):
             raise bad(pos, f"entry name {name_bytes!r} is not ASCII")
         name = name_bytes.decode("ascii").upper()
-        offset = struct.unpack(endian + "h", section[name_end:name_end + 2])[0]
+        offset = struct.unpack(endian + "h", section[name_end : name_end + 2])[0]
         body = name_end + 2
         nxt = name_end + offset if offset > 0 else end
         if offset < 0 or nxt > end:
@@ -263,29 +306,38 @@ def _walk_parameters(path: Path, section: bytes, header: dict) -> dict[str, dict
         else:
             if body + 2 > nxt:
                 raise bad(pos, f"parameter {name}: type and dimensions run past the entry")
-            ptype = struct.unpack("b", section[body:body + 1])[0]
+            ptype = struct.unpack("b", section[body : body + 1])[0]
             if ptype not in _TYPE_SIZES:
                 raise bad(pos, f"parameter {name}: type {ptype}, expected -1, 1, 2 or 4")
             ndims = section[body + 1]
             if ndims > 7 or body + 2 + ndims > nxt:
                 raise bad(pos, f"parameter {name}: {ndims} dimensions do not fit the entry")
-            dims = tuple(section[body + 2:body + 2 + ndims])
-            n_bytes = _TYPE_SIZES[ptype] * int(np.prod(dims, dtype=np.int64)) if dims else \
-                _TYPE_SIZES[ptype]
+            dims = tuple(section[body + 2 : body + 2 + ndims])
+            n_bytes = (
+                _TYPE_SIZES[ptype] * int(np.prod(dims, dtype=np.int64))
+                if dims
+                else _TYPE_SIZES[ptype]
+            )
             data_at = body + 2 + ndims
             desc_at = data_at + n_bytes
             if desc_at + 1 > nxt or desc_at + 1 + section[desc_at] > nxt:
-                raise bad(pos, f"parameter {name}: {n_bytes} data bytes and the description "
-                               "do not fit the entry")
-            entries.append((gid, name, ptype, dims, section[data_at:data_at + n_bytes]))
+                raise bad(
+                    pos,
+                    f"parameter {name}: {n_bytes} data bytes and the description "
+                    "do not fit the entry",
+                )
+            entries.append((gid, name, ptype, dims, section[data_at : data_at + n_bytes]))
         if offset == 0:
             break
         pos = nxt
     out: dict[str, dict[str, tuple]] = {name: {} for name in groups.values()}
     for gid, name, ptype, dims, data in entries:
         if gid not in groups:
-            raise MotionFormatError(path, f"damaged C3D parameter section: parameter {name} "
-                                          f"belongs to group {gid}, which is not defined")
+            raise MotionFormatError(
+                path,
+                f"damaged C3D parameter section: parameter {name} "
+                f"belongs to group {gid}, which is not defined",
+            )
         out[groups[gid]][name] = (ptype, dims, data)
     return out
 
@@ -295,7 +347,7 @@ def _int_param(params: dict, group: str, name: str, endian: str) -> int | None:
     if entry is None or entry[0] not in (1, 2) or not entry[2]:
         return None
     fmt = "B" if entry[0] == 1 else endian + "H"
-    return int(struct.unpack(fmt, entry[2][:_TYPE_SIZES[entry[0]]])[0])
+    return int(struct.unpack(fmt, entry[2][: _TYPE_SIZES[entry[0]]])[0])
 
 
 def _check_parameters(path: Path, params: dict, header: dict) -> None:
@@ -306,16 +358,19 @@ def _check_parameters(path: Path, params: dict, header: dict) -> None:
     if used is None:
         raise MotionFormatError(path, "C3D file has no POINT:USED parameter")
     if used != header["n_points"]:
-        raise MotionFormatError(path, f"C3D header says {header['n_points']} points but "
-                                      f"POINT:USED is {used}")
+        raise MotionFormatError(
+            path, f"C3D header says {header['n_points']} points but POINT:USED is {used}"
+        )
     start = _int_param(params, "POINT", "DATA_START", header["endian"])
     if start is not None and start != header["data_start"]:
-        raise MotionFormatError(path, f"C3D header says data starts at block "
-                                      f"{header['data_start']} but POINT:DATA_START is {start}")
+        raise MotionFormatError(
+            path,
+            f"C3D header says data starts at block "
+            f"{header['data_start']} but POINT:DATA_START is {start}",
+        )
     labels = params["POINT"].get("LABELS")
     if used and (labels is None or labels[0] != -1):
         raise MotionFormatError(path, "C3D POINT:LABELS is missing or not text")
-
 
 
 class _ParamReader:
@@ -358,8 +413,10 @@ class _ParamReader:
             return [data.decode("latin-1").strip()] if dims else []
         width = dims[0]
         count = len(data) // width if width else 0
-        return [data[i * width:(i + 1) * width].decode("latin-1").replace("\x00", " ").strip()
-                for i in range(count)]
+        return [
+            data[i * width : (i + 1) * width].decode("latin-1").replace("\x00", " ").strip()
+            for i in range(count)
+        ]
 
     def labels(self) -> list[str]:
         labels: list[str] = self.strings("POINT", "LABELS") or []
@@ -369,4 +426,3 @@ class _ParamReader:
                 break
             labels.extend(more)
         return labels
-

@@ -41,8 +41,13 @@ PHASE_TIERS = {"right": "Phase RH", "left": "Phase LH"}
 HANDEDNESS_TIER = "Handedness"
 CSV_HEADER = ("tier", "start_frame", "stop_frame", "start_s", "stop_s", "value")
 
-_WORDS = {Phase.PREPARATION: "preparation", Phase.STROKE: "stroke", Phase.HOLD: "hold",
-          Phase.RETRACTION: "retraction", Phase.REST: "rest"}
+_WORDS = {
+    Phase.PREPARATION: "preparation",
+    Phase.STROKE: "stroke",
+    Phase.HOLD: "hold",
+    Phase.RETRACTION: "retraction",
+    Phase.REST: "rest",
+}
 _PARSE = {w: p for p, w in _WORDS.items()} | {p.letter.lower(): p for p in Phase if p != Phase.REST}
 _HANDEDNESS_VALUES = ("RH", "LH", "2H")
 
@@ -77,7 +82,7 @@ def labels_from_segments(segments, n_frames: int) -> np.ndarray:
     """(F,) uint8 labels from segments (frames outside every segment are REST)."""
     labels = np.zeros(int(n_frames), dtype=np.uint8)
     for s in segments:
-        labels[max(0, s.start):min(n_frames, s.stop)] = int(s.phase)
+        labels[max(0, s.start) : min(n_frames, s.stop)] = int(s.phase)
     return labels
 
 
@@ -87,8 +92,9 @@ def _rows(phases: GesturePhases, handedness) -> list[tuple[str, int, int, str]]:
         hand = phases.hands.get(side)
         if hand is None:
             continue
-        rows.extend((tier, s.start, s.stop, _WORDS[s.phase]) for s in hand.segments
-                    if s.phase != Phase.REST)
+        rows.extend(
+            (tier, s.start, s.stop, _WORDS[s.phase]) for s in hand.segments if s.phase != Phase.REST
+        )
     for h in handedness or ():
         rows.append((HANDEDNESS_TIER, int(h.start), int(h.stop), str(h.label)))
     return rows
@@ -102,8 +108,13 @@ def _frame(ms: float, fps: float) -> int:
     return int(round(ms * fps / 1000.0))
 
 
-def write_eaf(path: str | Path, phases: GesturePhases, handedness=(), source: str = "",
-              media: str | None = None) -> None:
+def write_eaf(
+    path: str | Path,
+    phases: GesturePhases,
+    handedness=(),
+    source: str = "",
+    media: str | None = None,
+) -> None:
     """Write phases (and handedness) as an ELAN file, atomically.
 
     Parameters
@@ -143,8 +154,11 @@ def write_eaf(path: str | Path, phases: GesturePhases, handedness=(), source: st
 def _parse_phase(value: str, where: str) -> Phase:
     key = str(value).strip().lower()
     if key not in _PARSE:
-        raise MotionFormatError(where, f"unknown phase {value!r}; expected one of "
-                                       "preparation, stroke, hold, retraction, rest (or P/S/H/R)")
+        raise MotionFormatError(
+            where,
+            f"unknown phase {value!r}; expected one of "
+            "preparation, stroke, hold, retraction, rest (or P/S/H/R)",
+        )
     return _PARSE[key]
 
 
@@ -172,13 +186,21 @@ def _collect(path: str, fps: float, n_frames: int | None, rows, source: str) -> 
     for side, segs in out.items():
         for prev, nxt in zip(segs, segs[1:]):
             if nxt.start < prev.stop:
-                raise MotionFormatError(path, f"tier {PHASE_TIERS[side]!r}: annotations overlap at "
-                                              f"frames {nxt.start}-{prev.stop}")
+                raise MotionFormatError(
+                    path,
+                    f"tier {PHASE_TIERS[side]!r}: annotations overlap at "
+                    f"frames {nxt.start}-{prev.stop}",
+                )
     if n_frames is None:
         ends = [s.stop for v in out.values() for s in v] + [h[1] for h in hands]
         n_frames = max(ends) if ends else None
-    return GestureAnnotations(fps=float(fps), n_frames=n_frames, phases=out,
-                              handedness=tuple(sorted(hands)), source=source)
+    return GestureAnnotations(
+        fps=float(fps),
+        n_frames=n_frames,
+        phases=out,
+        handedness=tuple(sorted(hands)),
+        source=source,
+    )
 
 
 def read_eaf(path: str | Path, fps: float | None = None) -> GestureAnnotations:
@@ -199,16 +221,18 @@ def read_eaf(path: str | Path, fps: float | None = None) -> GestureAnnotations:
     if not Path(path).is_file():
         raise FileNotFoundError(2, "No such file", path)
     if Path(path).stat().st_size > MAX_EAF_BYTES:
-        raise MotionFormatError(path, f"more than {MAX_EAF_BYTES:,} bytes; refusing an absurd "
-                                      "annotation file")
+        raise MotionFormatError(
+            path, f"more than {MAX_EAF_BYTES:,} bytes; refusing an absurd annotation file"
+        )
     try:
         with warnings.catch_warnings():  # "unknown version of ELAN spec": newer ELAN, readable
             warnings.simplefilter("ignore", UserWarning)
             eaf = Eaf(path)
         props = {str(k): str(v) for k, v in eaf.get_properties()}
     except (Exception, RecursionError) as exc:  # pympi raises bare exceptions on bad XML
-        raise MotionFormatError(path, f"not a readable ELAN file ({type(exc).__name__}: "
-                                      f"{_first_line(exc)})") from None
+        raise MotionFormatError(
+            path, f"not a readable ELAN file ({type(exc).__name__}: {_first_line(exc)})"
+        ) from None
     if fps is None:
         if "fps" not in props:
             raise ParameterError(f"{name}: no 'fps' property; pass the take's frame rate")
@@ -220,8 +244,10 @@ def read_eaf(path: str | Path, fps: float | None = None) -> GestureAnnotations:
     if "frames" in props:
         text = props["frames"].strip()
         if not (is_whole(text) and int(text[:20]) <= MAX_FRAMES):
-            raise MotionFormatError(path, f"property 'frames' is {text[:40]!r}; expected a whole "
-                                          f"number up to {MAX_FRAMES:,}")
+            raise MotionFormatError(
+                path,
+                f"property 'frames' is {text[:40]!r}; expected a whole number up to {MAX_FRAMES:,}",
+            )
         n_frames = int(text)
     max_ms = MAX_DURATION_S * 1000.0
     rows = []
@@ -231,18 +257,31 @@ def read_eaf(path: str | Path, fps: float | None = None) -> GestureAnnotations:
             for ann in eaf.get_annotation_data_for_tier(tier):
                 start, stop, value = ann[0], ann[1], ann[2]
                 where = f"{name} tier {str(tier)[:40]!r} at {start} ms"
-                if not all(isinstance(t, int | float) and np.isfinite(t) and 0 <= t <= max_ms
-                           for t in (start, stop)):
-                    raise MotionFormatError(path, f"tier {str(tier)[:40]!r}: annotation time "
-                                                  f"{start!r}-{stop!r} ms is not a time within "
-                                                  f"{MAX_DURATION_S / 3600:g} hours")
-                rows.append((str(tier), _frame(start, fps), _frame(stop, fps),
-                             "" if value is None else str(value), where))
+                if not all(
+                    isinstance(t, int | float) and np.isfinite(t) and 0 <= t <= max_ms
+                    for t in (start, stop)
+                ):
+                    raise MotionFormatError(
+                        path,
+                        f"tier {str(tier)[:40]!r}: annotation time "
+                        f"{start!r}-{stop!r} ms is not a time within "
+                        f"{MAX_DURATION_S / 3600:g} hours",
+                    )
+                rows.append(
+                    (
+                        str(tier),
+                        _frame(start, fps),
+                        _frame(stop, fps),
+                        "" if value is None else str(value),
+                        where,
+                    )
+                )
     except MotionFormatError:
         raise
     except (Exception, RecursionError) as exc:  # time slots, references pympi cannot resolve
-        raise MotionFormatError(path, f"damaged ELAN annotations ({type(exc).__name__}: "
-                                      f"{_first_line(exc)})") from None
+        raise MotionFormatError(
+            path, f"damaged ELAN annotations ({type(exc).__name__}: {_first_line(exc)})"
+        ) from None
     return _collect(path, fps, n_frames, rows, props.get("source", ""))
 
 
@@ -291,8 +330,9 @@ def read_csv(path: str | Path, fps: float | None = None) -> GestureAnnotations:
         if not rec or all(not c.strip() for c in rec):
             continue
         if len(rec) != len(CSV_HEADER):
-            raise MotionFormatError(path, f"expected {len(CSV_HEADER)} fields, found {len(rec)}",
-                                    line=lineno)
+            raise MotionFormatError(
+                path, f"expected {len(CSV_HEADER)} fields, found {len(rec)}", line=lineno
+            )
         tier, a, b, sa, sb, value = (c.strip() for c in rec)
         try:
             if a and b:
@@ -335,9 +375,13 @@ def phase_boundaries(segments) -> list[tuple[int, Phase, Phase]]:
     return out
 
 
-def phase_constraints(body_segments, hand_segments, tolerance: int = 0,
-                      n_body: int | None = None, n_hand: int | None = None
-                      ) -> list[tuple[int, int, int]]:
+def phase_constraints(
+    body_segments,
+    hand_segments,
+    tolerance: int = 0,
+    n_body: int | None = None,
+    n_hand: int | None = None,
+) -> list[tuple[int, int, int]]:
     """DTW matching points from corresponding phase boundaries of two annotated takes.
 
     Boundaries are matched in order by their type (phase before -> phase after)
@@ -363,7 +407,9 @@ def phase_constraints(body_segments, hand_segments, tolerance: int = 0,
     while i < n and j < m:
         if a[i][1:] == b[j][1:]:
             x, y = a[i][0], b[j][0]
-            inside = (n_body is None or 0 < x < n_body - 1) and (n_hand is None or 0 < y < n_hand - 1)
+            inside = (n_body is None or 0 < x < n_body - 1) and (
+                n_hand is None or 0 < y < n_hand - 1
+            )
             if inside and (not out or (x > out[-1][0] and y > out[-1][1])):
                 out.append((int(x), int(y), int(tolerance)))
             i += 1

@@ -136,9 +136,14 @@ def to_dict(spec: SessionSpec) -> dict:
         "inputs": inputs,
         "side": spec.side,
         "tolerance": _num_out(spec.tolerance),
-        "points": [{"body": p.body, "hand": p.hand,
-                    "tolerance": None if p.tolerance is None else _num_out(p.tolerance)}
-                   for p in spec.points],
+        "points": [
+            {
+                "body": p.body,
+                "hand": p.hand,
+                "tolerance": None if p.tolerance is None else _num_out(p.tolerance),
+            }
+            for p in spec.points
+        ],
     }
     for key, width in (("band", spec.band), ("refine_band", spec.refine_band)):
         if width is not None:
@@ -162,8 +167,11 @@ class _Reader:
         return SessionError(self.source, field_name, message)
 
     def integer(self, value, field_name: str) -> int:
-        if isinstance(value, bool) or not isinstance(value, int | float) or (
-                isinstance(value, float) and not value.is_integer()):
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, int | float)
+            or (isinstance(value, float) and not value.is_integer())
+        ):
             raise self.fail(field_name, f"expected a whole frame number, got {_show(value)}")
         if not 0 <= value < 2**31:
             raise self.fail(field_name, f"expected a frame number >= 0, got {_show(value)}")
@@ -176,16 +184,18 @@ class _Reader:
 
     def take(self, value, field_name: str) -> TakeRef:
         if not isinstance(value, dict):
-            raise self.fail(field_name, f'expected {{"path": ...}} or {{"sha256": ...}}, '
-                                        f"got {_show(value)}")
+            raise self.fail(
+                field_name, f'expected {{"path": ...}} or {{"sha256": ...}}, got {_show(value)}'
+            )
         unknown = set(value) - {"path", "sha256", "name"}
         if unknown:
             raise self.fail(f"{field_name}.{sorted(unknown)[0]}", "unknown field")
         if "sha256" in value:
             digest = value["sha256"]
             if not isinstance(digest, str) or not _HEX64.match(digest):
-                raise self.fail(f"{field_name}.sha256",
-                                f"expected 64 lowercase hex digits, got {_show(digest)}")
+                raise self.fail(
+                    f"{field_name}.sha256", f"expected 64 lowercase hex digits, got {_show(digest)}"
+                )
             name = value.get("name")
             if name is not None:
                 name = self.string(name, f"{field_name}.name", 255)
@@ -196,13 +206,26 @@ class _Reader:
 
 
 def _show(value) -> str:
-    text = json.dumps(value) if isinstance(value, str | int | float | bool | type(None)) \
+    text = (
+        json.dumps(value)
+        if isinstance(value, str | int | float | bool | type(None))
         else type(value).__name__
+    )
     return text if len(text) <= 40 else text[:37] + "..."
 
 
-_TOP_FIELDS = {"format", "version", "inputs", "side", "band", "refine_band", "tolerance",
-               "points", "roles", "view"}
+_TOP_FIELDS = {
+    "format",
+    "version",
+    "inputs",
+    "side",
+    "band",
+    "refine_band",
+    "tolerance",
+    "points",
+    "roles",
+    "view",
+}
 
 
 def from_dict(data: Any, source: str | None = None) -> SessionSpec:
@@ -216,14 +239,16 @@ def from_dict(data: Any, source: str | None = None) -> SessionSpec:
         raise r.fail("", f"expected a JSON object at the top level, got {_show(data)}")
     unknown = set(data) - _TOP_FIELDS
     if unknown:
-        raise r.fail(sorted(unknown)[0], "unknown field (known: "
-                     + ", ".join(sorted(_TOP_FIELDS)) + ")")
+        raise r.fail(
+            sorted(unknown)[0], "unknown field (known: " + ", ".join(sorted(_TOP_FIELDS)) + ")"
+        )
     if data.get("format", FORMAT) != FORMAT:
         raise r.fail("format", f'expected "{FORMAT}", got {_show(data.get("format"))}')
     version = data.get("version", VERSION)
     if version not in HAND_FRAMES or isinstance(version, bool):
-        raise r.fail("version", f"expected {' or '.join(map(str, HAND_FRAMES))}, "
-                                f"got {_show(version)}")
+        raise r.fail(
+            "version", f"expected {' or '.join(map(str, HAND_FRAMES))}, got {_show(version)}"
+        )
 
     sample = body = hand = None
     inputs = data.get("inputs", {})
@@ -272,15 +297,25 @@ def from_dict(data: Any, source: str | None = None) -> SessionSpec:
     if unknown:
         raise r.fail(f"view.{sorted(unknown)[0]}", "unknown field (known: matrix, frame)")
     if "matrix" in view and view["matrix"] not in MATRIX_VIEWS:
-        raise r.fail("view.matrix", f"expected one of {', '.join(MATRIX_VIEWS)}, "
-                                    f"got {_show(view['matrix'])}")
+        raise r.fail(
+            "view.matrix", f"expected one of {', '.join(MATRIX_VIEWS)}, got {_show(view['matrix'])}"
+        )
     if "frame" in view:
         r.integer(view["frame"], "view.frame")
 
-    spec = SessionSpec(sample=sample, body=body, hand=hand, side=side, band=band,
-                       refine_band=refine, tolerance=tolerance, points=tuple(points),
-                       roles={k: v for k, v in clean_roles.items() if v}, view=view,
-                       hand_frames=HAND_FRAMES[version])
+    spec = SessionSpec(
+        sample=sample,
+        body=body,
+        hand=hand,
+        side=side,
+        band=band,
+        refine_band=refine,
+        tolerance=tolerance,
+        points=tuple(points),
+        roles={k: v for k, v in clean_roles.items() if v},
+        view=view,
+        hand_frames=HAND_FRAMES[version],
+    )
     return validate(spec, source)
 
 
@@ -301,8 +336,9 @@ def _json_number_or_text(value):
 def _json_point(raw):
     """A JSON point object or list, with numbers only (no "B:H" text in a session file)."""
     if isinstance(raw, dict):
-        return {k: _json_number(v) if k in ("body", "hand", "tolerance") else v
-                for k, v in raw.items()}
+        return {
+            k: _json_number(v) if k in ("body", "hand", "tolerance") else v for k, v in raw.items()
+        }
     if isinstance(raw, list):
         return [_json_number(v) for v in raw]
     return object()
@@ -313,8 +349,9 @@ def _role_map(r: _Reader, mapping, field_name: str) -> dict:
     from engine.roles import normalize_overrides
 
     if not isinstance(mapping, dict):
-        raise r.fail(field_name, f'expected an object {{"right.wrist": "NAME"}}, '
-                                 f"got {_show(mapping)}")
+        raise r.fail(
+            field_name, f'expected an object {{"right.wrist": "NAME"}}, got {_show(mapping)}'
+        )
     if len(mapping) > 200:
         raise r.fail(field_name, f"expected at most 200 overrides, got {len(mapping)}")
     try:
@@ -433,8 +470,7 @@ def from_query(query: dict[str, str]) -> SessionSpec:
         if "tol" in q:
             data["tolerance"] = C.parse_tolerance(str(q["tol"]))
         if q.get("pts"):
-            data["points"] = [[p.body, p.hand, p.tolerance]
-                              for p in C.parse_points(str(q["pts"]))]
+            data["points"] = [[p.body, p.hand, p.tolerance] for p in C.parse_points(str(q["pts"]))]
     except C.ConstraintError as exc:
         raise SessionError(source, exc.field, exc.detail) from None
     if q.get("roles"):
@@ -456,6 +492,7 @@ def _query_number(text, field_name: str, source: str) -> float | int:
     try:
         x = float(text)
     except (TypeError, ValueError):
-        raise SessionError(source, field_name, f"expected a number, got {str(text)[:40]!r}") \
-            from None
+        raise SessionError(
+            source, field_name, f"expected a number, got {str(text)[:40]!r}"
+        ) from None
     return int(x) if x.is_integer() and abs(x) < 2**53 else x

@@ -34,8 +34,15 @@ from engine.io.numbers import is_non_finite, is_number
 from engine.limits import MAX_ABS_VALUE, MAX_FRAMES, MAX_MARKERS
 from engine.motion import MarkerSet, MotionMeta
 
-_UNITS = {"mm": "mm", "millimeters": "mm", "cm": "cm", "m": "m", "meters": "m",
-          "in": "in", "inches": "in"}
+_UNITS = {
+    "mm": "mm",
+    "millimeters": "mm",
+    "cm": "cm",
+    "m": "m",
+    "meters": "m",
+    "in": "in",
+    "inches": "in",
+}
 _GAP_TEXT = {"", "nan", "-nan", "+nan"}
 
 
@@ -75,12 +82,18 @@ def parse_trc(data: bytes | str, source: str | Path = "<input>", up_axis: str = 
     text = _decode(data, source)
     lines = text.splitlines()
     if len(lines) < 5:
-        raise MotionFormatError(source, f"not a TRC file: {len(lines)} lines, the header "
-                                        "alone needs 5", line=len(lines) or None)
+        raise MotionFormatError(
+            source,
+            f"not a TRC file: {len(lines)} lines, the header alone needs 5",
+            line=len(lines) or None,
+        )
     first = lines[0]
     if not first.lower().startswith("pathfiletype"):
-        raise MotionFormatError(source, f"not a TRC file: first line starts {first[:30]!r}, "
-                                        "expected 'PathFileType'", line=1)
+        raise MotionFormatError(
+            source,
+            f"not a TRC file: first line starts {first[:30]!r}, expected 'PathFileType'",
+            line=1,
+        )
     sep = "\t" if "\t" in first else ","
 
     keys = [k.strip() for k in lines[1].split(sep)]
@@ -92,21 +105,35 @@ def parse_trc(data: bytes | str, source: str | Path = "<input>", up_axis: str = 
 
     name_fields = [f.strip() for f in lines[3].split(sep)]
     if len(name_fields) < 2 or name_fields[0].lower() not in ("frame#", "frame"):
-        raise MotionFormatError(source, f"expected the marker-name row 'Frame#, Time, "
-                                        f"names...', found {lines[3][:40]!r}", line=4)
+        raise MotionFormatError(
+            source,
+            f"expected the marker-name row 'Frame#, Time, names...', found {lines[3][:40]!r}",
+            line=4,
+        )
     labels = _marker_names(name_fields, source)
     if len(labels) > MAX_MARKERS:
-        raise MotionFormatError(source, f"{len(labels):,} markers is more than {MAX_MARKERS:,}; "
-                                        "refusing an absurd file", line=4)
+        raise MotionFormatError(
+            source,
+            f"{len(labels):,} markers is more than {MAX_MARKERS:,}; refusing an absurd file",
+            line=4,
+        )
     if declared_markers:
-        if not (is_number(declared_markers) and float(declared_markers).is_integer()
-                and float(declared_markers) <= MAX_MARKERS):
-            raise MotionFormatError(source, f"NumMarkers is {declared_markers[:40]!r}, expected a "
-                                            "whole number", line=3)
+        if not (
+            is_number(declared_markers)
+            and float(declared_markers).is_integer()
+            and float(declared_markers) <= MAX_MARKERS
+        ):
+            raise MotionFormatError(
+                source, f"NumMarkers is {declared_markers[:40]!r}, expected a whole number", line=3
+            )
         n_declared = int(float(declared_markers))
         if n_declared != len(labels):
-            raise MotionFormatError(source, f"header says {n_declared} markers (NumMarkers) but "
-                                            f"the name row lists {len(labels)}", line=4)
+            raise MotionFormatError(
+                source,
+                f"header says {n_declared} markers (NumMarkers) but "
+                f"the name row lists {len(labels)}",
+                line=4,
+            )
 
     n_fields = 2 + 3 * len(labels)
     rows: list[list[float]] = []
@@ -118,12 +145,16 @@ def parse_trc(data: bytes | str, source: str | Path = "<input>", up_axis: str = 
             fields.pop()
         if len(fields) != n_fields:
             hint = " (file cut short?)" if number == len(lines) else ""
-            raise MotionFormatError(source, f"expected {n_fields} values (Frame#, Time, 3 x "
-                                            f"{len(labels)} markers), found {len(fields)}{hint}",
-                                    line=number)
+            raise MotionFormatError(
+                source,
+                f"expected {n_fields} values (Frame#, Time, 3 x "
+                f"{len(labels)} markers), found {len(fields)}{hint}",
+                line=number,
+            )
         if len(rows) >= MAX_FRAMES:
-            raise MotionFormatError(source, f"more than {MAX_FRAMES:,} data rows; refusing an "
-                                            "absurd take", line=number)
+            raise MotionFormatError(
+                source, f"more than {MAX_FRAMES:,} data rows; refusing an absurd take", line=number
+            )
         rows.append(_row_values(fields, number, labels, source))
     if not rows:
         raise MotionFormatError(source, "no data rows after the header", line=len(lines))
@@ -147,8 +178,10 @@ def _decode(data: bytes | str, source) -> str:
         printable = sum(1 for b in sample if b in (9, 10, 13) or 32 <= b < 127)
         if printable >= 0.95 * len(sample):  # a Latin-1 marker name, say
             return data.decode("latin-1")
-        raise MotionFormatError(source, f"binary data (byte 0x{data[exc.start]:02x} at offset "
-                                        f"{exc.start}), expected TRC text") from None
+        raise MotionFormatError(
+            source,
+            f"binary data (byte 0x{data[exc.start]:02x} at offset {exc.start}), expected TRC text",
+        ) from None
 
 
 def _header_number(header: dict, keys: tuple[str, ...], source) -> float:
@@ -160,8 +193,9 @@ def _header_number(header: dict, keys: tuple[str, ...], source) -> float:
             raise MotionFormatError(source, f"{key} is {text[:40]!r}, expected a number", line=3)
         value = float(text)
         if not (math.isfinite(value) and value > 0):
-            raise MotionFormatError(source, f"{key} must be a positive number, got {text[:40]}",
-                                    line=3)
+            raise MotionFormatError(
+                source, f"{key} must be a positive number, got {text[:40]}", line=3
+            )
         return limits.check_rate(value, source, line=3, field=key)
     raise MotionFormatError(source, f"header has no {' or '.join(keys)}", line=2)
 
@@ -193,16 +227,21 @@ def _row_values(fields: list[str], number: int, labels: list[str], source) -> li
             out.append(math.nan)
             continue
         if not (is_number(text) or is_non_finite(text)):
-            raise MotionFormatError(source, f"{_column_name(col, labels)}: {text[:20]!r} is not "
-                                            "a number", line=number)
+            raise MotionFormatError(
+                source, f"{_column_name(col, labels)}: {text[:20]!r} is not a number", line=number
+            )
         value = float(text)
         if not math.isfinite(value):
-            raise MotionFormatError(source, f"{_column_name(col, labels)}: {text!r} is not finite",
-                                    line=number)
+            raise MotionFormatError(
+                source, f"{_column_name(col, labels)}: {text!r} is not finite", line=number
+            )
         if abs(value) > MAX_ABS_VALUE:
-            raise MotionFormatError(source, f"{_column_name(col, labels)}: {text[:20]!r} is beyond "
-                                            f"+-{MAX_ABS_VALUE:g}; refusing an absurd value",
-                                    line=number)
+            raise MotionFormatError(
+                source,
+                f"{_column_name(col, labels)}: {text[:20]!r} is beyond "
+                f"+-{MAX_ABS_VALUE:g}; refusing an absurd value",
+                line=number,
+            )
         out.append(value)
     return out
 

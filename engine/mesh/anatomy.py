@@ -34,9 +34,31 @@ from engine.motion import Skeleton
 FINGERS = ("thumb", "index", "middle", "ring", "pinky")
 SIDES = ("left", "right")
 
-_BODY_WORDS = ("hand", "arm", "foot", "leg", "thumb", "index", "middle", "ring", "pinky",
-               "finger", "shoulder", "elbow", "wrist", "hip", "knee", "ankle", "toe",
-               "collar", "clavicle", "upleg", "up", "fore", "eye")
+_BODY_WORDS = (
+    "hand",
+    "arm",
+    "foot",
+    "leg",
+    "thumb",
+    "index",
+    "middle",
+    "ring",
+    "pinky",
+    "finger",
+    "shoulder",
+    "elbow",
+    "wrist",
+    "hip",
+    "knee",
+    "ankle",
+    "toe",
+    "collar",
+    "clavicle",
+    "upleg",
+    "up",
+    "fore",
+    "eye",
+)
 _FINGER_WORDS = {
     "thumb": ("thumb",),
     "index": ("index", "pointer"),
@@ -186,9 +208,13 @@ def _distinct_chain(chain: list[int], pos: np.ndarray, tol: float) -> list[int]:
     return out
 
 
-def find_anatomy(skeleton: Skeleton, positions: np.ndarray | None = None,
-                 rotations: np.ndarray | None = None, roles=None,
-                 side_hint: str | None = None) -> Anatomy:
+def find_anatomy(
+    skeleton: Skeleton,
+    positions: np.ndarray | None = None,
+    rotations: np.ndarray | None = None,
+    roles=None,
+    side_hint: str | None = None,
+) -> Anatomy:
     """Find the body parts of ``skeleton`` (see the module docstring).
 
     ``positions (J, 3)`` and ``rotations (J, 4)`` are the world pose the body frame
@@ -206,8 +232,9 @@ def find_anatomy(skeleton: Skeleton, positions: np.ndarray | None = None,
     names = skeleton.names
     pos = rest_positions(skeleton) if positions is None else np.asarray(positions, float)
     if pos.shape != (skeleton.n_joints, 3):
-        raise ValueError(f"find_anatomy: positions must be ({skeleton.n_joints}, 3), "
-                         f"got {pos.shape}")
+        raise ValueError(
+            f"find_anatomy: positions must be ({skeleton.n_joints}, 3), got {pos.shape}"
+        )
     n = skeleton.n_joints
     extent = float(np.max(np.ptp(pos, axis=0))) if n > 1 else 1.0
     tol = 1e-6 * max(extent, 1e-9)
@@ -224,17 +251,26 @@ def find_anatomy(skeleton: Skeleton, positions: np.ndarray | None = None,
     ankles = most_proximal([j for j in range(n) if _is_ankle_name(names[j])])
     # a wrist must not be below another wrist (CMU: LeftWrist -> lhand)
     for side in list(wrists):
-        if any(a in wrists.values() and a != wrists[side]
-               for a in skeleton.chain_to_root(wrists[side])[1:]):
+        if any(
+            a in wrists.values() and a != wrists[side]
+            for a in skeleton.chain_to_root(wrists[side])[1:]
+        ):
             del wrists[side]
 
     chest = _lca(skeleton, wrists["left"], wrists["right"]) if len(wrists) == 2 else None
     pelvis = _lca(skeleton, ankles["left"], ankles["right"]) if len(ankles) == 2 else None
     if chest is not None and chest in wrists.values():
         chest = None
-    head = next((j for j in range(n) if "head" in name_tokens(names[j])
-                 and "end" not in name_tokens(names[j])
-                 and (chest is None or chest in skeleton.chain_to_root(j))), None)
+    head = next(
+        (
+            j
+            for j in range(n)
+            if "head" in name_tokens(names[j])
+            and "end" not in name_tokens(names[j])
+            and (chest is None or chest in skeleton.chain_to_root(j))
+        ),
+        None,
+    )
     if chest is None and head is not None and pelvis is not None:
         chest = skeleton.parents[head] if skeleton.parents[head] >= 0 else None
     body = chest is not None or pelvis is not None
@@ -256,7 +292,7 @@ def find_anatomy(skeleton: Skeleton, positions: np.ndarray | None = None,
         top = head if head is not None else chest
         if top is not None and pelvis in skeleton.chain_to_root(top):
             spine = list(reversed(skeleton.chain_to_root(top)))
-            spine = spine[spine.index(pelvis):]
+            spine = spine[spine.index(pelvis) :]
         else:
             spine = [pelvis]
         if head is not None:
@@ -300,8 +336,11 @@ def find_anatomy(skeleton: Skeleton, positions: np.ndarray | None = None,
             f = finger_of(names[d])
             if f:
                 fingers.setdefault(f, []).append(d)
-            elif _is_hand_name(names[d]) and skeleton.parents[d] == w and \
-                    np.linalg.norm(pos[d] - pos[w]) <= tol:
+            elif (
+                _is_hand_name(names[d])
+                and skeleton.parents[d] == w
+                and np.linalg.norm(pos[d] - pos[w]) <= tol
+            ):
                 continue  # a second hand joint on the wrist (CMU lhand): part of the palm
             else:
                 other.append(d)
@@ -311,9 +350,9 @@ def find_anatomy(skeleton: Skeleton, positions: np.ndarray | None = None,
         up_chain = _distinct_chain(list(reversed(skeleton.chain_to_root(w))), pos, tol)
         if len(up_chain) >= 2 and (not body or side in arms):
             elbow = arms[side][2] if side in arms else up_chain[-2]
-        hands[side] = HandParts(side, w, elbow,
-                                {f: tuple(fingers[f]) for f in FINGERS if f in fingers},
-                                tuple(other))
+        hands[side] = HandParts(
+            side, w, elbow, {f: tuple(fingers[f]) for f in FINGERS if f in fingers}, tuple(other)
+        )
 
     if roles is None:
         try:
@@ -331,15 +370,32 @@ def find_anatomy(skeleton: Skeleton, positions: np.ndarray | None = None,
     if not np.isfinite(hand_length) or hand_length <= 0:
         hand_length = 0.108 * height
     return Anatomy(
-        kind="body" if body else "hand", pelvis=pelvis if body else None, chest=chest,
-        head=head, spine=tuple(spine), arms=arms, legs=legs, hands=hands,
-        hidden=frozenset(hidden), up=up, left=left, forward=forward,
-        height=float(height), hand_length=float(hand_length),
+        kind="body" if body else "hand",
+        pelvis=pelvis if body else None,
+        chest=chest,
+        head=head,
+        spine=tuple(spine),
+        arms=arms,
+        legs=legs,
+        hands=hands,
+        hidden=frozenset(hidden),
+        up=up,
+        left=left,
+        forward=forward,
+        height=float(height),
+        hand_length=float(hand_length),
     )
 
 
-def _merge_roles(skeleton: Skeleton, pos: np.ndarray, roles, hands: dict[str, HandParts],
-                 arms: dict, body: bool, tol: float) -> None:
+def _merge_roles(
+    skeleton: Skeleton,
+    pos: np.ndarray,
+    roles,
+    hands: dict[str, HandParts],
+    arms: dict,
+    body: bool,
+    tol: float,
+) -> None:
     """Take wrists, fingers and arm chains from ``roles`` (in place) where it has them."""
     found = {s: roles.side(s) for s in SIDES if roles.side(s).wrist is not None}
     if not body and found and "" in hands:
@@ -365,8 +421,7 @@ def _merge_roles(skeleton: Skeleton, pos: np.ndarray, roles, hands: dict[str, Ha
             elbow = old.elbow
         if not fingers and old is not None:
             fingers, tips = old.fingers, old.tips
-        hands[side] = HandParts(side, w, elbow, fingers, other or (old.other if old else ()),
-                                tips)
+        hands[side] = HandParts(side, w, elbow, fingers, other or (old.other if old else ()), tips)
         if body and arm.shoulder is not None and arm.elbow is not None and elbow is not None:
             chain = skeleton.chain_to_root(w)
             if arm.shoulder in chain and arm.elbow in chain:
@@ -381,8 +436,13 @@ def _lca_many(skeleton: Skeleton, joints: list[int]) -> int:
     return max(common) if common else 0
 
 
-def chain_tip(skeleton: Skeleton, pos: np.ndarray, chain: tuple[int, ...] | list[int],
-              fraction: float = 0.8, rotations: np.ndarray | None = None) -> np.ndarray:
+def chain_tip(
+    skeleton: Skeleton,
+    pos: np.ndarray,
+    chain: tuple[int, ...] | list[int],
+    fraction: float = 0.8,
+    rotations: np.ndarray | None = None,
+) -> np.ndarray:
     """Rest position of the tip beyond the last joint of ``chain`` (``(3,)``, file units).
 
     The last joint's End Site when it plausibly continues the last bone (0.2 to 1.6
@@ -402,9 +462,13 @@ def chain_tip(skeleton: Skeleton, pos: np.ndarray, chain: tuple[int, ...] | list
         end_len = float(np.linalg.norm(end))
         # exporters write placeholder End Sites (BEAT: 10 cm along +z on every leaf):
         # keep one only if it roughly continues the last bone
-        if end_len > 1e-9 and (length < 1e-9 or (
+        if end_len > 1e-9 and (
+            length < 1e-9
+            or (
                 0.2 * length <= end_len <= 1.6 * length
-                and np.dot(end, bone) > 0.5 * end_len * length)):
+                and np.dot(end, bone) > 0.5 * end_len * length
+            )
+        ):
             return pos[last] + end
     return pos[last] + fraction * bone
 
@@ -417,15 +481,24 @@ def finger_base(skeleton: Skeleton, pos: np.ndarray, hand: HandParts, finger: st
     return pos[chain[-3]]  # a metacarpal joint first (4-joint chains): the knuckle is 3 up
 
 
-def _hand_length(skeleton: Skeleton, pos: np.ndarray, hands: dict[str, HandParts],
-                 rotations: np.ndarray | None = None) -> float:
+def _hand_length(
+    skeleton: Skeleton,
+    pos: np.ndarray,
+    hands: dict[str, HandParts],
+    rotations: np.ndarray | None = None,
+) -> float:
     lengths = []
     for hand in hands.values():
         for f in ("middle", "index", "ring"):
             if f in hand.fingers:
                 chain = hand.fingers[f]
-                pts = np.vstack([pos[hand.wrist], pos[list(chain)],
-                                 chain_tip(skeleton, pos, chain, rotations=rotations)])
+                pts = np.vstack(
+                    [
+                        pos[hand.wrist],
+                        pos[list(chain)],
+                        chain_tip(skeleton, pos, chain, rotations=rotations),
+                    ]
+                )
                 lengths.append(float(np.sum(np.linalg.norm(np.diff(pts, axis=0), axis=1))))
                 break
     return float(np.median(lengths)) if lengths else float("nan")
@@ -484,8 +557,13 @@ def _body_frame(skeleton, pos, pelvis, head, chest, arms, legs, hands, body):
     return up, left, palm_normal(skeleton, pos, hand, up, left)
 
 
-def palm_normal(skeleton: Skeleton, pos: np.ndarray, hand: HandParts, finger_dir: np.ndarray,
-                thumb_side: np.ndarray) -> np.ndarray:
+def palm_normal(
+    skeleton: Skeleton,
+    pos: np.ndarray,
+    hand: HandParts,
+    finger_dir: np.ndarray,
+    thumb_side: np.ndarray,
+) -> np.ndarray:
     """Unit normal of the palm (pointing out of the palm) in pose ``pos``.
 
     From the way the fingers bend when they bend visibly (fingers flex towards the

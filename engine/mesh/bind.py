@@ -45,23 +45,31 @@ def load_mesh(path: str | Path):
 
     path = Path(path)
     if path.suffix.lower() not in MESH_FORMATS:
-        raise MeshFormatError(f"{path.name}: unsupported mesh format; expected one of "
-                              f"{', '.join(MESH_FORMATS)}")
+        raise MeshFormatError(
+            f"{path.name}: unsupported mesh format; expected one of {', '.join(MESH_FORMATS)}"
+        )
     if not path.exists():
         raise FileNotFoundError(2, "no such file", str(path))
     try:
         mesh = trimesh.load(path, force="mesh", process=False)
     except Exception as exc:  # trimesh raises many kinds on broken files
-        raise MeshFormatError(f"{path.name}: cannot read the mesh ({type(exc).__name__}: "
-                              f"{exc})") from exc
+        raise MeshFormatError(
+            f"{path.name}: cannot read the mesh ({type(exc).__name__}: {exc})"
+        ) from exc
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise MeshFormatError(f"{path.name}: holds no triangles")
     return mesh
 
 
-def bind_mesh(mesh, skeleton: Skeleton, pose: tuple[np.ndarray, np.ndarray] | None = None,
-              transform: np.ndarray | None = None, fit: bool = False,
-              blend: float = 0.5, color=None) -> SkinnedMesh:
+def bind_mesh(
+    mesh,
+    skeleton: Skeleton,
+    pose: tuple[np.ndarray, np.ndarray] | None = None,
+    transform: np.ndarray | None = None,
+    fit: bool = False,
+    blend: float = 0.5,
+    color=None,
+) -> SkinnedMesh:
     """Skin a mesh to ``skeleton`` with two-bone weights.
 
     Parameters
@@ -105,8 +113,10 @@ def bind_mesh(mesh, skeleton: Skeleton, pose: tuple[np.ndarray, np.ndarray] | No
     else:
         pos, rots = np.asarray(pose[0], float), np.asarray(pose[1], float)
         if pos.shape != (skeleton.n_joints, 3) or rots.shape != (skeleton.n_joints, 4):
-            raise ValueError(f"bind_mesh: pose must be ({skeleton.n_joints}, 3) positions and "
-                             f"({skeleton.n_joints}, 4) rotations")
+            raise ValueError(
+                f"bind_mesh: pose must be ({skeleton.n_joints}, 3) positions and "
+                f"({skeleton.n_joints}, 4) rotations"
+            )
     anatomy = find_anatomy(skeleton, pos, rots)
     if fit:
         verts = _fit(verts, pos, anatomy)
@@ -116,10 +126,17 @@ def bind_mesh(mesh, skeleton: Skeleton, pose: tuple[np.ndarray, np.ndarray] | No
     from engine import rotations as rot
 
     return SkinnedMesh(
-        vertices=verts, faces=faces, normals=vertex_normals(verts, faces), colors=colors,
-        joints=joints, weights=weights, bind_positions=pos,
+        vertices=verts,
+        faces=faces,
+        normals=vertex_normals(verts, faces),
+        colors=colors,
+        joints=joints,
+        weights=weights,
+        bind_positions=pos,
         bind_rotations=rot.identity((skeleton.n_joints,)) if rots is None else rots,
-        part=np.zeros(len(verts), np.int64), part_names=("body",))
+        part=np.zeros(len(verts), np.int64),
+        part_names=("body",),
+    )
 
 
 def _fit(verts: np.ndarray, joints: np.ndarray, anatomy) -> np.ndarray:

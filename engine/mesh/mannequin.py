@@ -62,8 +62,14 @@ def _perpendicular(t: np.ndarray, ref: np.ndarray) -> np.ndarray:
     return _unit(x)
 
 
-def sweep(centers: np.ndarray, half_a: np.ndarray, half_b: np.ndarray, lateral: np.ndarray,
-          n_around: int = 12, n_cap: int = 3) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def sweep(
+    centers: np.ndarray,
+    half_a: np.ndarray,
+    half_b: np.ndarray,
+    lateral: np.ndarray,
+    n_around: int = 12,
+    n_cap: int = 3,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A closed tube along ``centers (n, 3)`` with elliptic cross-sections and round caps.
 
     ``half_a (n,)`` is the half-width along ``lateral`` (projected perpendicular to the
@@ -87,14 +93,28 @@ def sweep(centers: np.ndarray, half_a: np.ndarray, half_b: np.ndarray, lateral: 
     angles = np.linspace(0.0, 0.5 * np.pi, n_cap + 2)[1:-1]
     r0 = 0.5 * (half_a[0] + half_b[0])
     for phi in angles[::-1]:
-        rings.append((centers[0] - tang[0] * r0 * np.sin(phi), tang[0],
-                      half_a[0] * np.cos(phi), half_b[0] * np.cos(phi), 0))
+        rings.append(
+            (
+                centers[0] - tang[0] * r0 * np.sin(phi),
+                tang[0],
+                half_a[0] * np.cos(phi),
+                half_b[0] * np.cos(phi),
+                0,
+            )
+        )
     for i in range(n):
         rings.append((centers[i], tang[i], half_a[i], half_b[i], i))
     r1 = 0.5 * (half_a[-1] + half_b[-1])
     for phi in angles:
-        rings.append((centers[-1] + tang[-1] * r1 * np.sin(phi), tang[-1],
-                      half_a[-1] * np.cos(phi), half_b[-1] * np.cos(phi), n - 1))
+        rings.append(
+            (
+                centers[-1] + tang[-1] * r1 * np.sin(phi),
+                tang[-1],
+                half_a[-1] * np.cos(phi),
+                half_b[-1] * np.cos(phi),
+                n - 1,
+            )
+        )
     theta = np.linspace(0.0, 2 * np.pi, n_around, endpoint=False)
     cos_t, sin_t = np.cos(theta), np.sin(theta)
     verts, src = [], []
@@ -156,8 +176,23 @@ class _Builder:
         self.blend.append(np.full(n, blend))
         self.count += n
 
-    def capsule(self, p0, p1, r0, r1, lateral, color, part, owner=-1, rigid=-1, blend=0.5,
-                n_around=12, n_along=3, n_cap=3, flatten=1.0):
+    def capsule(
+        self,
+        p0,
+        p1,
+        r0,
+        r1,
+        lateral,
+        color,
+        part,
+        owner=-1,
+        rigid=-1,
+        blend=0.5,
+        n_around=12,
+        n_along=3,
+        n_cap=3,
+        flatten=1.0,
+    ):
         p0, p1 = np.asarray(p0, float), np.asarray(p1, float)
         if np.linalg.norm(p1 - p0) < 1e-9 * max(r0, 1e-12):
             p1 = p0 + np.asarray(lateral) * 1e-3 * r0  # degenerate: a sphere
@@ -176,9 +211,9 @@ def _limb_color(side: str):
     return {"left": BODY_LEFT, "right": BODY_RIGHT}.get(side, BODY)
 
 
-def skeleton_bones(skeleton: Skeleton, anatomy: Anatomy, pos: np.ndarray,
-                   rotations: np.ndarray | None = None
-                   ) -> tuple[Bones, dict[tuple[int, int], int], np.ndarray]:
+def skeleton_bones(
+    skeleton: Skeleton, anatomy: Anatomy, pos: np.ndarray, rotations: np.ndarray | None = None
+) -> tuple[Bones, dict[tuple[int, int], int], np.ndarray]:
     """The skeleton's bones for weighting (hidden joints left out), a map
     ``(start joint, end joint or -1) -> bone index`` and each joint's id for adjacency
     (joints at the same place as their parent share the parent's id)."""
@@ -204,8 +239,11 @@ def skeleton_bones(skeleton: Skeleton, anatomy: Anatomy, pos: np.ndarray,
         head.append(canon[p])
         tail.append(canon[j])
     for j in range(n):
-        if j in anatomy.hidden or skeleton.children(j) and any(
-                c not in anatomy.hidden for c in skeleton.children(j)):
+        if (
+            j in anatomy.hidden
+            or skeleton.children(j)
+            and any(c not in anatomy.hidden for c in skeleton.children(j))
+        ):
             continue
         if skeleton.parents[j] < 0:
             continue
@@ -222,9 +260,12 @@ def skeleton_bones(skeleton: Skeleton, anatomy: Anatomy, pos: np.ndarray,
     return bones, index, canon
 
 
-def build_mannequin(skeleton: Skeleton, anatomy: Anatomy | None = None,
-                    detail: float = 1.0,
-                    pose: tuple[np.ndarray, np.ndarray] | None = None) -> SkinnedMesh:
+def build_mannequin(
+    skeleton: Skeleton,
+    anatomy: Anatomy | None = None,
+    detail: float = 1.0,
+    pose: tuple[np.ndarray, np.ndarray] | None = None,
+) -> SkinnedMesh:
     """A skinned mannequin for ``skeleton``, built and bound in a pose.
 
     Parameters
@@ -248,17 +289,20 @@ def build_mannequin(skeleton: Skeleton, anatomy: Anatomy | None = None,
     ``head``, ``left_hand``, ``right_hand`` (or ``hand`` for a hand take).
     """
     if skeleton.n_joints < 2:
-        raise ValueError(f"build_mannequin: a skeleton needs at least 2 joints, "
-                         f"got {skeleton.n_joints}")
+        raise ValueError(
+            f"build_mannequin: a skeleton needs at least 2 joints, got {skeleton.n_joints}"
+        )
     if pose is None:
         pos, rots = rest_positions(skeleton), None
     else:
         pos = np.asarray(pose[0], dtype=float)
         rots = np.asarray(pose[1], dtype=float)
         if pos.shape != (skeleton.n_joints, 3) or rots.shape != (skeleton.n_joints, 4):
-            raise ValueError(f"build_mannequin: pose must be ({skeleton.n_joints}, 3) positions "
-                             f"and ({skeleton.n_joints}, 4) rotations, got {pos.shape}, "
-                             f"{rots.shape}")
+            raise ValueError(
+                f"build_mannequin: pose must be ({skeleton.n_joints}, 3) positions "
+                f"and ({skeleton.n_joints}, 4) rotations, got {pos.shape}, "
+                f"{rots.shape}"
+            )
     anatomy = anatomy or find_anatomy(skeleton, pos, rots)
     bones, bone_of, canon = skeleton_bones(skeleton, anatomy, pos, rots)
 
@@ -293,16 +337,37 @@ def build_mannequin(skeleton: Skeleton, anatomy: Anatomy | None = None,
                 for j0, j1 in _path_bones(skeleton, clav, upper):
                     if (j0, j1) in bone_of:
                         k = bone_of[(j0, j1)]
-                        b.capsule(pos[j0], pos[j1], 0.032 * h, 0.034 * h, fwd, col, "body",
-                                  owner=k, n_around=nar)
+                        b.capsule(
+                            pos[j0],
+                            pos[j1],
+                            0.032 * h,
+                            0.034 * h,
+                            fwd,
+                            col,
+                            "body",
+                            owner=k,
+                            n_around=nar,
+                        )
                         drawn.add(k)
-            for (j0, j1), (r0, r1) in (((upper, elbow), (0.033, 0.026)),
-                                       ((elbow, wrist), (0.025, 0.019))):
+            for (j0, j1), (r0, r1) in (
+                ((upper, elbow), (0.033, 0.026)),
+                ((elbow, wrist), (0.025, 0.019)),
+            ):
                 for a0, a1 in _path_bones(skeleton, j0, j1):
                     if (a0, a1) in bone_of:
                         k = bone_of[(a0, a1)]
-                        b.capsule(pos[a0], pos[a1], r0 * h, r1 * h, fwd, col, "body", owner=k,
-                                  n_around=nar, n_along=4)
+                        b.capsule(
+                            pos[a0],
+                            pos[a1],
+                            r0 * h,
+                            r1 * h,
+                            fwd,
+                            col,
+                            "body",
+                            owner=k,
+                            n_around=nar,
+                            n_along=4,
+                        )
                         drawn.add(k)
     for hand in anatomy.hands.values():
         _hand(b, skeleton, anatomy, pos, bones, bone_of, drawn, hand, nar, virtual_bone, tip_of)
@@ -321,20 +386,34 @@ def build_mannequin(skeleton: Skeleton, anatomy: Anatomy | None = None,
     if not b.verts:
         raise ValueError("build_mannequin: found nothing to draw in this skeleton")
     if extra_start:
-        bones = bones.concat(Bones(np.reshape(extra_start, (-1, 3)),
-                                   np.reshape(extra_end, (-1, 3)), extra_joint, extra_head,
-                                   np.full(len(extra_start), -1)))
+        bones = bones.concat(
+            Bones(
+                np.reshape(extra_start, (-1, 3)),
+                np.reshape(extra_end, (-1, 3)),
+                extra_joint,
+                extra_head,
+                np.full(len(extra_start), -1),
+            )
+        )
     verts = np.vstack(b.verts)
     faces = np.vstack(b.faces)
     owner = np.concatenate(b.owner)
     rigid = np.concatenate(b.rigid)
-    joints, weights = two_bone_weights(verts, bones, owner=owner, blend=np.concatenate(b.blend),
-                                       rigid_joint=rigid)
+    joints, weights = two_bone_weights(
+        verts, bones, owner=owner, blend=np.concatenate(b.blend), rigid_joint=rigid
+    )
     return SkinnedMesh(
-        vertices=verts, faces=faces, normals=vertex_normals(verts, faces),
-        colors=np.vstack(b.colors), joints=joints, weights=weights, bind_positions=pos,
+        vertices=verts,
+        faces=faces,
+        normals=vertex_normals(verts, faces),
+        colors=np.vstack(b.colors),
+        joints=joints,
+        weights=weights,
+        bind_positions=pos,
         bind_rotations=rot.identity((skeleton.n_joints,)) if rots is None else rots,
-        part=np.concatenate(b.part), part_names=PART_NAMES)
+        part=np.concatenate(b.part),
+        part_names=PART_NAMES,
+    )
 
 
 def mannequin_for(motion: Motion, frame: int = 0, detail: float = 1.0) -> SkinnedMesh:
@@ -361,8 +440,9 @@ def _torso(b: _Builder, skeleton, anatomy: Anatomy, pos, bones: Bones, bone_of, 
     h = anatomy.height
     spine = list(anatomy.spine)
     if anatomy.chest is not None and anatomy.chest in spine:
-        top_i = spine.index(anatomy.chest) + (1 if spine.index(anatomy.chest) + 1 < len(spine)
-                                              else 0)
+        top_i = spine.index(anatomy.chest) + (
+            1 if spine.index(anatomy.chest) + 1 < len(spine) else 0
+        )
     else:
         top_i = len(spine) - 1
     if anatomy.head is not None and spine[top_i] == anatomy.head and top_i > 0:
@@ -391,15 +471,24 @@ def _torso(b: _Builder, skeleton, anatomy: Anatomy, pos, bones: Bones, bone_of, 
         span = np.linalg.norm(pos[anatomy.arms["left"][1]] - pos[anatomy.arms["right"][1]])
         chest_half = float(np.clip(0.5 * span * 0.78, 0.075 * h, 0.12 * h))
     key_s = np.array([0.0, 0.18, 0.45, 0.75, 0.93, 1.0])
-    key_w = np.array([0.8 * hip_half, hip_half, 0.82 * chest_half, chest_half,
-                      0.92 * chest_half, 0.6 * chest_half])
+    key_w = np.array(
+        [
+            0.8 * hip_half,
+            hip_half,
+            0.82 * chest_half,
+            chest_half,
+            0.92 * chest_half,
+            0.6 * chest_half,
+        ]
+    )
     key_d = np.array([0.055, 0.068, 0.058, 0.068, 0.06, 0.045]) * h
     half_a = np.interp(s, key_s, key_w)
     half_b = np.interp(s, key_s, key_d)
     v, f, _ = sweep(centers, half_a, half_b, left, n_around=max(12, int(nar * 1.5)), n_cap=2)
     # owner: nearest spine bone
-    spine_bones = [bone_of[(a, c)] for a, c in zip(spine[:-1], spine[1:], strict=True)
-                   if (a, c) in bone_of]
+    spine_bones = [
+        bone_of[(a, c)] for a, c in zip(spine[:-1], spine[1:], strict=True) if (a, c) in bone_of
+    ]
     if anatomy.head is not None and spine_bones and spine[-1] == anatomy.head:
         spine_bones = spine_bones[:-1] or spine_bones  # the neck-to-head bone: not the trunk
     if spine_bones:
@@ -435,11 +524,13 @@ def _head(b: _Builder, skeleton, anatomy: Anatomy, pos, bone_of, drawn, nar):
     neck_top = pos[head]
     below = [j for j in spine[:-1] if j != head]
     for a, c in zip(spine[:-1], spine[1:], strict=True):
-        if (a, c) in bone_of and (c == head or (anatomy.chest is not None and
-                                                spine.index(a) > spine.index(anatomy.chest))):
+        if (a, c) in bone_of and (
+            c == head or (anatomy.chest is not None and spine.index(a) > spine.index(anatomy.chest))
+        ):
             k = bone_of[(a, c)]
-            b.capsule(pos[a], pos[c], 0.03 * h, 0.028 * h, left, BODY, "body", owner=k,
-                      n_around=nar)
+            b.capsule(
+                pos[a], pos[c], 0.03 * h, 0.028 * h, left, BODY, "body", owner=k, n_around=nar
+            )
             drawn.add(k)
     if not below:
         return
@@ -450,10 +541,12 @@ def _head(b: _Builder, skeleton, anatomy: Anatomy, pos, bone_of, drawn, nar):
     st, ct = np.sin(theta)[:, None], np.cos(theta)[:, None]
     sp, cp = np.sin(phi)[None], np.cos(phi)[None]
     ax = (0.058 * h, 0.072 * h, 0.066 * h)  # left-right, up, front-back half axes
-    ring = (ct[..., None] * ax[1] * up + (st * cp)[..., None] * ax[0] * left
-            + (st * sp)[..., None] * ax[2] * fwd)
-    verts = np.vstack([center + ax[1] * up, (center + ring).reshape(-1, 3),
-                       center - ax[1] * up])
+    ring = (
+        ct[..., None] * ax[1] * up
+        + (st * cp)[..., None] * ax[0] * left
+        + (st * sp)[..., None] * ax[2] * fwd
+    )
+    verts = np.vstack([center + ax[1] * up, (center + ring).reshape(-1, 3), center - ax[1] * up])
     faces = []
     k = np.arange(n_lat)
     k1 = (k + 1) % n_lat
@@ -471,8 +564,19 @@ def _head(b: _Builder, skeleton, anatomy: Anatomy, pos, bone_of, drawn, nar):
     b.add(verts, faces, SKIN, "head", rigid=head)
     # the nose says where the face is
     nose0 = center + 0.058 * h * fwd - 0.005 * h * up
-    b.capsule(nose0, nose0 + 0.022 * h * fwd - 0.01 * h * up, 0.014 * h, 0.01 * h, up, NOSE,
-              "head", rigid=head, n_around=8, n_along=1, n_cap=2)
+    b.capsule(
+        nose0,
+        nose0 + 0.022 * h * fwd - 0.01 * h * up,
+        0.014 * h,
+        0.01 * h,
+        up,
+        NOSE,
+        "head",
+        rigid=head,
+        n_around=8,
+        n_along=1,
+        n_cap=2,
+    )
     for (a, _c), kk in bone_of.items():
         if a == head or a in anatomy.hidden:
             drawn.add(kk)
@@ -487,8 +591,18 @@ def _leg(b: _Builder, skeleton, anatomy: Anatomy, pos, bone_of, drawn, side, leg
         for a0, a1 in _path_bones(skeleton, j0, j1):
             if (a0, a1) in bone_of:
                 k = bone_of[(a0, a1)]
-                b.capsule(pos[a0], pos[a1], r0 * h, r1 * h, fwd, col, "body", owner=k,
-                          n_around=nar, n_along=4)
+                b.capsule(
+                    pos[a0],
+                    pos[a1],
+                    r0 * h,
+                    r1 * h,
+                    fwd,
+                    col,
+                    "body",
+                    owner=k,
+                    n_around=nar,
+                    n_along=4,
+                )
                 drawn.add(k)
     # foot: ankle -> toes -> tip, flattened, a little heel behind the ankle
     toes = [t for t in leg[3:] if skeleton.parents[t] in (ankle, *leg[3:])]
@@ -511,8 +625,19 @@ def _leg(b: _Builder, skeleton, anatomy: Anatomy, pos, bone_of, drawn, side, leg
             p0 = p0 - 0.25 * foot_len * _unit(p1 - p0)  # heel
         r0 = 0.026 * h if idx == 0 else 0.021 * h
         r1 = 0.022 * h if idx == 0 else 0.016 * h
-        b.capsule(p0, p1, r0, r1, left, col, "body", owner=-1 if k is None else k,
-                  rigid=j0 if k is None else -1, n_around=nar, flatten=0.7)
+        b.capsule(
+            p0,
+            p1,
+            r0,
+            r1,
+            left,
+            col,
+            "body",
+            owner=-1 if k is None else k,
+            rigid=j0 if k is None else -1,
+            n_around=nar,
+            flatten=0.7,
+        )
         if k is not None:
             drawn.add(k)
     for t in toes:
@@ -521,8 +646,19 @@ def _leg(b: _Builder, skeleton, anatomy: Anatomy, pos, bone_of, drawn, side, leg
                 drawn.add(kk)
 
 
-def _hand(b: _Builder, skeleton, anatomy: Anatomy, pos, bones: Bones, bone_of, drawn,
-          hand: HandParts, nar, virtual_bone, tip_of):
+def _hand(
+    b: _Builder,
+    skeleton,
+    anatomy: Anatomy,
+    pos,
+    bones: Bones,
+    bone_of,
+    drawn,
+    hand: HandParts,
+    nar,
+    virtual_bone,
+    tip_of,
+):
     """Palm, fingers (articulated where the skeleton has them) and, for a hand take,
     a forearm stub."""
     part = _hand_part(hand.side)
@@ -542,8 +678,11 @@ def _hand(b: _Builder, skeleton, anatomy: Anatomy, pos, bones: Bones, bone_of, d
             span = float(np.linalg.norm(across))
         elif len(named) >= 2:
             across = bases[named[0]] - bases[named[-1]]
-            span = float(np.linalg.norm(across)) * 3 / max(
-                1, FINGERS.index(named[-1]) - FINGERS.index(named[0]))
+            span = (
+                float(np.linalg.norm(across))
+                * 3
+                / max(1, FINGERS.index(named[-1]) - FINGERS.index(named[0]))
+            )
         else:
             across, span = anatomy.forward, 0.3 * lh
         across = _perpendicular(hand_dir, across)
@@ -560,8 +699,11 @@ def _hand(b: _Builder, skeleton, anatomy: Anatomy, pos, bones: Bones, bone_of, d
             if np.linalg.norm(tip - pos[o]) > 1e-6 * lh:
                 anchor_dir = _unit(tip - pos[o])
                 break
-        hand_dir = anchor_dir if anchor_dir is not None else (
-            fore_dir if fore_dir is not None else anatomy.up)
+        hand_dir = (
+            anchor_dir
+            if anchor_dir is not None
+            else (fore_dir if fore_dir is not None else anatomy.up)
+        )
         across = _perpendicular(hand_dir, anatomy.forward)
         knuckle = pos[w] + 0.45 * lh * hand_dir
         span = 0.36 * lh
@@ -575,11 +717,17 @@ def _hand(b: _Builder, skeleton, anatomy: Anatomy, pos, bones: Bones, bone_of, d
     half_a = (0.5 * span + 0.6 * radius) * (0.72 + 0.28 * s)  # wider at the knuckles
     half_b = 0.95 * radius * (1.05 - 0.15 * s)
     v, f, _ = sweep(centers, half_a, half_b, across, n_around=max(12, nar + 2), n_cap=2)
-    wrist_bones = [k for (a, c), k in bone_of.items() if a == w or (
-        skeleton.parents[w] >= 0 and a in _same_place(skeleton, pos, w))]
+    wrist_bones = [
+        k
+        for (a, c), k in bone_of.items()
+        if a == w or (skeleton.parents[w] >= 0 and a in _same_place(skeleton, pos, w))
+    ]
     finger_joints = {j for chain in hand.fingers.values() for j in chain}
-    wrist_bones = [k for k in wrist_bones if _bone_child(bone_of, k) in finger_joints
-                   or _bone_child(bone_of, k) in hand.other]
+    wrist_bones = [
+        k
+        for k in wrist_bones
+        if _bone_child(bone_of, k) in finger_joints or _bone_child(bone_of, k) in hand.other
+    ]
     if wrist_bones:
         from engine.mesh.skinning import segment_distances
 
@@ -598,8 +746,7 @@ def _hand(b: _Builder, skeleton, anatomy: Anatomy, pos, bones: Bones, bone_of, d
     for finger, chain in hand.fingers.items():
         r = radius * (1.12 if finger == "thumb" else 1.0)
         tip_joint = hand.tips.get(finger)
-        pts = [pos[j] for j in chain] + [pos[tip_joint] if tip_joint is not None
-                                         else tip_of(chain)]
+        pts = [pos[j] for j in chain] + [pos[tip_joint] if tip_joint is not None else tip_of(chain)]
         joints_ = list(chain) + [-1 if tip_joint is None else tip_joint]
         start_i = 0
         if finger != "thumb" and len(chain) > 3:
@@ -616,16 +763,40 @@ def _hand(b: _Builder, skeleton, anatomy: Anatomy, pos, bones: Bones, bone_of, d
             taper0 = 1.0 - 0.08 * level
             taper1 = taper0 - (0.14 if i == len(pts) - 2 else 0.08)
             shade = PHALANX[min(level + (3 - n_ph if n_ph < 3 else 0), 2)]
-            b.capsule(pts[i], pts[i + 1], r * taper0, r * taper1, palm, shade, part,
-                      owner=-1 if k is None else k, rigid=j0 if k is None else -1, blend=0.3,
-                      n_around=nf, n_along=1, n_cap=2)
+            b.capsule(
+                pts[i],
+                pts[i + 1],
+                r * taper0,
+                r * taper1,
+                palm,
+                shade,
+                part,
+                owner=-1 if k is None else k,
+                rigid=j0 if k is None else -1,
+                blend=0.3,
+                n_around=nf,
+                n_along=1,
+                n_cap=2,
+            )
             if k is not None:
                 drawn.add(k)
         if finger == "thumb" and (w, chain[0]) in bone_of:
             k = bone_of[(w, chain[0])]
             if k not in drawn:  # the thumb's metacarpal from the wrist
-                b.capsule(pos[w] + 0.15 * (pts[0] - pos[w]), pts[0], r * 1.1, r * 1.05, palm,
-                          SKIN, part, owner=k, blend=0.3, n_around=nf, n_along=1, n_cap=2)
+                b.capsule(
+                    pos[w] + 0.15 * (pts[0] - pos[w]),
+                    pts[0],
+                    r * 1.1,
+                    r * 1.05,
+                    palm,
+                    SKIN,
+                    part,
+                    owner=k,
+                    blend=0.3,
+                    n_around=nf,
+                    n_along=1,
+                    n_cap=2,
+                )
                 drawn.add(k)
     # procedural fingers where the skeleton has none
     missing = [f for f in ("index", "middle", "ring", "pinky") if f not in hand.fingers]
@@ -642,20 +813,38 @@ def _hand(b: _Builder, skeleton, anatomy: Anatomy, pos, bones: Bones, bone_of, d
                 d = _unit(d + 0.12 * palm)  # a relaxed curl
                 q = p + frac * length * d
                 taper0 = 1.0 - 0.08 * level
-                b.capsule(p, q, radius * taper0, radius * (taper0 - (0.14 if level == 2 else
-                                                                     0.08)),
-                          palm, PHALANX[level], part, rigid=anchor, n_around=nf, n_along=1,
-                          n_cap=2)
+                b.capsule(
+                    p,
+                    q,
+                    radius * taper0,
+                    radius * (taper0 - (0.14 if level == 2 else 0.08)),
+                    palm,
+                    PHALANX[level],
+                    part,
+                    rigid=anchor,
+                    n_around=nf,
+                    n_along=1,
+                    n_cap=2,
+                )
                 p = q
         if "thumb" not in hand.fingers:
             p = pos[w] + 0.12 * lh * hand_dir + 0.12 * lh * across + 0.03 * lh * palm
             d = _unit(0.6 * hand_dir + 0.6 * across + 0.3 * palm)
             for level, frac in enumerate((0.14, 0.11, 0.1)):
                 q = p + frac * lh * d
-                b.capsule(p, q, radius * 1.15 * (1 - 0.08 * level),
-                          radius * 1.15 * (0.92 - 0.08 * level - (0.08 if level == 2 else 0)),
-                          palm, PHALANX[level], part, rigid=w,
-                          n_around=nf, n_along=1, n_cap=2)
+                b.capsule(
+                    p,
+                    q,
+                    radius * 1.15 * (1 - 0.08 * level),
+                    radius * 1.15 * (0.92 - 0.08 * level - (0.08 if level == 2 else 0)),
+                    palm,
+                    PHALANX[level],
+                    part,
+                    rigid=w,
+                    n_around=nf,
+                    n_along=1,
+                    n_cap=2,
+                )
                 d = _unit(d + 0.15 * hand_dir)
                 p = q
         for o in hand.other:
@@ -665,8 +854,18 @@ def _hand(b: _Builder, skeleton, anatomy: Anatomy, pos, bones: Bones, bone_of, d
     # a hand take: a forearm stub behind the wrist
     if anatomy.kind == "hand":
         back = pos[w] - 1.2 * lh * hand_dir
-        b.capsule(pos[w], back, 1.9 * radius, 2.6 * radius, palm, BODY, "body",
-                  rigid=w, n_around=nar, n_along=2)
+        b.capsule(
+            pos[w],
+            back,
+            1.9 * radius,
+            2.6 * radius,
+            palm,
+            BODY,
+            "body",
+            rigid=w,
+            n_around=nar,
+            n_along=2,
+        )
     # bones of this hand not drawn as fingers (e.g. a forearm joint at the wrist)
     for (a, c), k in bone_of.items():
         if a in skeleton.descendants(w) and k not in drawn and c in hand.other:

@@ -86,10 +86,14 @@ class Bones:
         lists = []
         for b in range(self.n_bones):
             adj = [
-                m for m in range(self.n_bones)
-                if m != b and self.joint[m] != self.joint[b] and (
+                m
+                for m in range(self.n_bones)
+                if m != b
+                and self.joint[m] != self.joint[b]
+                and (
                     (self.tail[b] >= 0 and self.tail[b] == self.head[m])
-                    or (self.tail[m] >= 0 and self.tail[m] == self.head[b]))
+                    or (self.tail[m] >= 0 and self.tail[m] == self.head[b])
+                )
             ]
             lists.append(adj)
         k = max([len(a) for a in lists] + [1])
@@ -99,10 +103,13 @@ class Bones:
         return out
 
     def concat(self, other: Bones) -> Bones:
-        return Bones(np.vstack([self.start, other.start]), np.vstack([self.end, other.end]),
-                     np.concatenate([self.joint, other.joint]),
-                     np.concatenate([self.head, other.head]),
-                     np.concatenate([self.tail, other.tail]))
+        return Bones(
+            np.vstack([self.start, other.start]),
+            np.vstack([self.end, other.end]),
+            np.concatenate([self.joint, other.joint]),
+            np.concatenate([self.head, other.head]),
+            np.concatenate([self.tail, other.tail]),
+        )
 
 
 def segment_distances(points: np.ndarray, start: np.ndarray, end: np.ndarray) -> np.ndarray:
@@ -116,9 +123,14 @@ def segment_distances(points: np.ndarray, start: np.ndarray, end: np.ndarray) ->
     return np.sqrt(np.einsum("vbi,vbi->vb", closest, closest))
 
 
-def two_bone_weights(vertices: np.ndarray, bones: Bones, owner: np.ndarray | None = None,
-                     blend: float | np.ndarray = 0.5, rigid_joint: np.ndarray | None = None,
-                     chunk: int = 8192) -> tuple[np.ndarray, np.ndarray]:
+def two_bone_weights(
+    vertices: np.ndarray,
+    bones: Bones,
+    owner: np.ndarray | None = None,
+    blend: float | np.ndarray = 0.5,
+    rigid_joint: np.ndarray | None = None,
+    chunk: int = 8192,
+) -> tuple[np.ndarray, np.ndarray]:
     """Two joints and two weights per vertex by the Jin & Hahn rule (module docstring).
 
     Parameters
@@ -199,8 +211,12 @@ def two_bone_weights(vertices: np.ndarray, bones: Bones, owner: np.ndarray | Non
     return joints, weights
 
 
-def skinning_matrices(world_pos: np.ndarray, world_rot: np.ndarray, bind_pos: np.ndarray,
-                      bind_rot: np.ndarray | None = None) -> np.ndarray:
+def skinning_matrices(
+    world_pos: np.ndarray,
+    world_rot: np.ndarray,
+    bind_pos: np.ndarray,
+    bind_rot: np.ndarray | None = None,
+) -> np.ndarray:
     """Per-joint ``[R | t]`` (..., J, 3, 4) taking bind-pose points to the posed frame.
 
     world_pos : (..., J, 3), world_rot : (..., J, 4) from forward kinematics;
@@ -214,9 +230,13 @@ def skinning_matrices(world_pos: np.ndarray, world_rot: np.ndarray, bind_pos: np
     return np.concatenate([r, t[..., None]], axis=-1)
 
 
-def linear_blend_skinning(vertices: np.ndarray, normals: np.ndarray | None, joints: np.ndarray,
-                          weights: np.ndarray, matrices: np.ndarray
-                          ) -> tuple[np.ndarray, np.ndarray | None]:
+def linear_blend_skinning(
+    vertices: np.ndarray,
+    normals: np.ndarray | None,
+    joints: np.ndarray,
+    weights: np.ndarray,
+    matrices: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray | None]:
     """Skin rest ``vertices (V, 3)`` (and ``normals``) with ``matrices (J, 3, 4)``.
 
     ``joints (V, K)`` and ``weights (V, K)``; returns posed vertices ``(V, 3)`` and unit
@@ -266,24 +286,32 @@ class SkinnedMesh:
         object.__setattr__(self, "colors", np.asarray(self.colors, dtype=float))
         object.__setattr__(self, "joints", np.asarray(self.joints, dtype=np.int64))
         object.__setattr__(self, "weights", np.asarray(self.weights, dtype=float))
-        object.__setattr__(self, "bind_positions",
-                           np.asarray(self.bind_positions, dtype=float).reshape(-1, 3))
-        object.__setattr__(self, "bind_rotations",
-                           np.asarray(self.bind_rotations, dtype=float).reshape(-1, 4))
+        object.__setattr__(
+            self, "bind_positions", np.asarray(self.bind_positions, dtype=float).reshape(-1, 3)
+        )
+        object.__setattr__(
+            self, "bind_rotations", np.asarray(self.bind_rotations, dtype=float).reshape(-1, 4)
+        )
         if self.bind_rotations.shape[0] != self.bind_positions.shape[0]:
-            raise ValueError(f"skinned mesh: bind_rotations {self.bind_rotations.shape} do not "
-                             f"match bind_positions {self.bind_positions.shape}")
+            raise ValueError(
+                f"skinned mesh: bind_rotations {self.bind_rotations.shape} do not "
+                f"match bind_positions {self.bind_positions.shape}"
+            )
         part = np.asarray(self.part, dtype=np.int64)
         object.__setattr__(self, "part", part if part.size else np.zeros(n, np.int64))
         for name, shape in (("normals", (n, 3)), ("colors", (n, 4)), ("part", (n,))):
             if getattr(self, name).shape != shape:
-                raise ValueError(f"skinned mesh: {name} must be {shape}, "
-                                 f"got {getattr(self, name).shape}")
+                raise ValueError(
+                    f"skinned mesh: {name} must be {shape}, got {getattr(self, name).shape}"
+                )
         if self.joints.shape != self.weights.shape or self.joints.shape[0] != n:
-            raise ValueError(f"skinned mesh: joints {self.joints.shape} and weights "
-                             f"{self.weights.shape} must both be ({n}, K)")
-        if self.joints.size and (self.joints.min() < 0
-                                 or self.joints.max() >= self.bind_positions.shape[0]):
+            raise ValueError(
+                f"skinned mesh: joints {self.joints.shape} and weights "
+                f"{self.weights.shape} must both be ({n}, K)"
+            )
+        if self.joints.size and (
+            self.joints.min() < 0 or self.joints.max() >= self.bind_positions.shape[0]
+        ):
             raise ValueError("skinned mesh: a vertex is bound to a joint that does not exist")
         if self.faces.size and (self.faces.min() < 0 or self.faces.max() >= n):
             raise ValueError("skinned mesh: a face refers to a vertex that does not exist")
@@ -292,13 +320,13 @@ class SkinnedMesh:
     def n_vertices(self) -> int:
         return int(self.vertices.shape[0])
 
-    def pose(self, world_pos: np.ndarray, world_rot: np.ndarray
-             ) -> tuple[np.ndarray, np.ndarray]:
+    def pose(self, world_pos: np.ndarray, world_rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Posed vertices and normals ``(V, 3)`` for one frame's world joint positions
         ``(J, 3)`` and rotations ``(J, 4)`` (``forward_kinematics`` output)."""
         mats = skinning_matrices(world_pos, world_rot, self.bind_positions, self.bind_rotations)
-        verts, normals = linear_blend_skinning(self.vertices, self.normals, self.joints,
-                                               self.weights, mats)
+        verts, normals = linear_blend_skinning(
+            self.vertices, self.normals, self.joints, self.weights, mats
+        )
         return verts, normals
 
     def part_mask(self, *names: str) -> np.ndarray:
@@ -311,8 +339,11 @@ class SkinnedMesh:
         import trimesh
 
         return trimesh.Trimesh(
-            vertices=self.vertices if vertices is None else vertices, faces=self.faces,
-            vertex_colors=(np.clip(self.colors, 0, 1) * 255).astype(np.uint8), process=False)
+            vertices=self.vertices if vertices is None else vertices,
+            faces=self.faces,
+            vertex_colors=(np.clip(self.colors, 0, 1) * 255).astype(np.uint8),
+            process=False,
+        )
 
 
 def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:

@@ -9,14 +9,25 @@ from engine.render.backend import RenderBackendError, ensure_platform
 from engine.render.offscreen import VIEWS, Preview, parse_size
 from engine.render.scene import CAMERAS
 from engine.render.video import (
-                                 contact_sheet,
-                                 render_to_file,
-                                 to_png_bytes,
-                                 write_gif,
-                                 write_image,
-                                 write_mp4,
+    contact_sheet,
+    render_to_file,
+    to_png_bytes,
+    write_gif,
+    write_image,
+    write_mp4,
 )
 
-__all__ = ["CAMERAS", "VIEWS", "Preview", "RenderBackendError", "contact_sheet",
-           "ensure_platform", "parse_size", "render_to_file", "to_png_bytes", "write_gif",
-           "write_image", "write_mp4"]
+__all__ = [
+    "CAMERAS",
+    "VIEWS",
+    "Preview",
+    "RenderBackendError",
+    "contact_sheet",
+    "ensure_platform",
+    "parse_size",
+    "render_to_file",
+    "to_png_bytes",
+    "write_gif",
+    "write_image",
+    "write_mp4",
+]

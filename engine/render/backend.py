@@ -32,8 +32,10 @@ from engine.errors import HandSpliceError
 # state, and the web app renders from several threads
 GL_LOCK = threading.RLock()
 
-_INSTALL_HINT = ("install Mesa's headless OpenGL: apt-get install libegl1 libegl-mesa0 "
-                 "libgl1-mesa-dri (EGL) or libosmesa6 (OSMesa), or set PYOPENGL_PLATFORM")
+_INSTALL_HINT = (
+    "install Mesa's headless OpenGL: apt-get install libegl1 libegl-mesa0 "
+    "libgl1-mesa-dri (EGL) or libosmesa6 (OSMesa), or set PYOPENGL_PLATFORM"
+)
 
 
 class RenderBackendError(HandSpliceError):
@@ -50,18 +52,26 @@ def _egl_works() -> bool:
         get_proc = egl.eglGetProcAddress
         get_proc.restype = ctypes.c_void_p
         get_proc.argtypes = [ctypes.c_char_p]
-        egl.eglInitialize.argtypes = [ctypes.c_void_p, ctypes.POINTER(ctypes.c_int),
-                                      ctypes.POINTER(ctypes.c_int)]
+        egl.eglInitialize.argtypes = [
+            ctypes.c_void_p,
+            ctypes.POINTER(ctypes.c_int),
+            ctypes.POINTER(ctypes.c_int),
+        ]
         egl.eglInitialize.restype = ctypes.c_uint
         egl.eglTerminate.argtypes = [ctypes.c_void_p]
         query_ptr = get_proc(b"eglQueryDevicesEXT")
         display_ptr = get_proc(b"eglGetPlatformDisplayEXT")
         if not query_ptr or not display_ptr:
             return False
-        query = ctypes.CFUNCTYPE(ctypes.c_uint, ctypes.c_int, ctypes.POINTER(ctypes.c_void_p),
-                                 ctypes.POINTER(ctypes.c_int))(query_ptr)
-        get_display = ctypes.CFUNCTYPE(ctypes.c_void_p, ctypes.c_uint, ctypes.c_void_p,
-                                       ctypes.POINTER(ctypes.c_int))(display_ptr)
+        query = ctypes.CFUNCTYPE(
+            ctypes.c_uint,
+            ctypes.c_int,
+            ctypes.POINTER(ctypes.c_void_p),
+            ctypes.POINTER(ctypes.c_int),
+        )(query_ptr)
+        get_display = ctypes.CFUNCTYPE(
+            ctypes.c_void_p, ctypes.c_uint, ctypes.c_void_p, ctypes.POINTER(ctypes.c_int)
+        )(display_ptr)
         devices = (ctypes.c_void_p * 16)()
         count = ctypes.c_int(0)
         if not query(16, devices, ctypes.byref(count)) or count.value == 0:
@@ -153,24 +163,43 @@ class OSMesaPlatform:
         lib = self._lib
         lib.OSMesaCreateContextAttribs.restype = ctypes.c_void_p
         lib.OSMesaCreateContextAttribs.argtypes = [ctypes.POINTER(ctypes.c_int), ctypes.c_void_p]
-        attrs = (ctypes.c_int * 11)(0x22, 0x1908,  # OSMESA_FORMAT, OSMESA_RGBA
-                                    0x30, 24,  # OSMESA_DEPTH_BITS
-                                    0x33, 0x34,  # OSMESA_PROFILE, OSMESA_CORE_PROFILE
-                                    0x36, 3, 0x37, 3,  # context version 3.3
-                                    0)
+        attrs = (ctypes.c_int * 11)(
+            0x22,
+            0x1908,  # OSMESA_FORMAT, OSMESA_RGBA
+            0x30,
+            24,  # OSMESA_DEPTH_BITS
+            0x33,
+            0x34,  # OSMESA_PROFILE, OSMESA_CORE_PROFILE
+            0x36,
+            3,
+            0x37,
+            3,  # context version 3.3
+            0,
+        )
         self._context = lib.OSMesaCreateContextAttribs(attrs, None)
         if not self._context:
-            raise RenderBackendError("OSMesa: could not create an OpenGL 3.3 core context "
-                                     "(Mesa too old?)")
+            raise RenderBackendError(
+                "OSMesa: could not create an OpenGL 3.3 core context (Mesa too old?)"
+            )
         self._buffer = np.zeros((self.viewport_height, self.viewport_width, 4), np.uint8)
 
     def make_current(self) -> None:
         lib = self._lib
         lib.OSMesaMakeCurrent.restype = ctypes.c_uint
-        lib.OSMesaMakeCurrent.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_uint,
-                                          ctypes.c_int, ctypes.c_int]
-        ok = lib.OSMesaMakeCurrent(self._context, self._buffer.ctypes.data, 0x1401,  # UBYTE
-                                   self.viewport_width, self.viewport_height)
+        lib.OSMesaMakeCurrent.argtypes = [
+            ctypes.c_void_p,
+            ctypes.c_void_p,
+            ctypes.c_uint,
+            ctypes.c_int,
+            ctypes.c_int,
+        ]
+        ok = lib.OSMesaMakeCurrent(
+            self._context,
+            self._buffer.ctypes.data,
+            0x1401,  # UBYTE
+            self.viewport_width,
+            self.viewport_height,
+        )
         if not ok:
             raise RenderBackendError("OSMesa: could not make the context current")
 
@@ -239,8 +268,13 @@ def release_current(renderer) -> None:
         return
     if isinstance(platform, OSMesaPlatform):
         lib = platform._lib
-        lib.OSMesaMakeCurrent.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_uint,
-                                          ctypes.c_int, ctypes.c_int]
+        lib.OSMesaMakeCurrent.argtypes = [
+            ctypes.c_void_p,
+            ctypes.c_void_p,
+            ctypes.c_uint,
+            ctypes.c_int,
+            ctypes.c_int,
+        ]
         lib.OSMesaMakeCurrent(None, None, 0, 0, 0)
         return
     display = getattr(platform, "_egl_display", None)
@@ -272,7 +306,8 @@ def make_renderer(width: int, height: int):
         except Exception as exc:  # EGL probed fine but the context failed
             raise RenderBackendError(
                 f"headless OpenGL ({platform}) failed: {type(exc).__name__}: {exc}; "
-                f"try PYOPENGL_PLATFORM=osmesa, or {_INSTALL_HINT}") from exc
+                f"try PYOPENGL_PLATFORM=osmesa, or {_INSTALL_HINT}"
+            ) from exc
 
     _patch_pyopengl_osmesa()
 
@@ -290,5 +325,6 @@ def make_renderer(width: int, height: int):
     except RenderBackendError:
         raise
     except Exception as exc:
-        raise RenderBackendError(f"headless OpenGL (osmesa) failed: {type(exc).__name__}: "
-                                 f"{exc}; {_INSTALL_HINT}") from exc
+        raise RenderBackendError(
+            f"headless OpenGL (osmesa) failed: {type(exc).__name__}: {exc}; {_INSTALL_HINT}"
+        ) from exc

@@ -19,8 +19,13 @@ DOT = (120, 128, 140)
 HIGHLIGHT = (230, 110, 20)
 
 
-def marker_image(markers: MarkerSet, frame: int, size: tuple[int, int] = (320, 360),
-                 highlight=(), label: str | None = None) -> np.ndarray:
+def marker_image(
+    markers: MarkerSet,
+    frame: int,
+    size: tuple[int, int] = (320, 360),
+    highlight=(),
+    label: str | None = None,
+) -> np.ndarray:
     """``(H, W, 3) uint8``: the markers of ``frame`` seen from the front (x right, y up).
 
     ``highlight``: marker indices drawn larger and in orange (the arm the alignment

@@ -77,10 +77,16 @@ class Preview:
     close_up_sides : the hands the ``hands`` camera frames, e.g. ``("right",)`` (default all)
     """
 
-    def __init__(self, takes: Motion | Sequence[Motion], labels: Sequence[str] | None = None,
-                 meshes: Sequence[SkinnedMesh | None] | None = None,
-                 size: tuple[int, int] | str = (640, 480), phases=None,
-                 roles: Sequence | None = None, close_up_sides: Sequence | None = None):
+    def __init__(
+        self,
+        takes: Motion | Sequence[Motion],
+        labels: Sequence[str] | None = None,
+        meshes: Sequence[SkinnedMesh | None] | None = None,
+        size: tuple[int, int] | str = (640, 480),
+        phases=None,
+        roles: Sequence | None = None,
+        close_up_sides: Sequence | None = None,
+    ):
         takes = [takes] if isinstance(takes, Motion) else list(takes)
         if not takes:
             raise ValueError("Preview: needs at least one take")
@@ -98,11 +104,13 @@ class Preview:
         roles = list(roles) if roles is not None else [None] * len(takes)
         if len(roles) != len(takes):
             raise ValueError(f"Preview: {len(roles)} role sets for {len(takes)} takes")
-        self.views = [TakeView.from_motion(t, mesh=m, label=lab, roles=r,
-                                           close_up_sides=close_up_sides)
-                      for t, m, lab, r in zip(takes, meshes, labels, roles, strict=True)]
-        if phases is not None and not (isinstance(phases, Mapping)
-                                       and all(isinstance(k, int) for k in phases)):
+        self.views = [
+            TakeView.from_motion(t, mesh=m, label=lab, roles=r, close_up_sides=close_up_sides)
+            for t, m, lab, r in zip(takes, meshes, labels, roles, strict=True)
+        ]
+        if phases is not None and not (
+            isinstance(phases, Mapping) and all(isinstance(k, int) for k in phases)
+        ):
             phases = {0: phases}
         self.phases: dict[int, object] = dict(phases or {})
         self._materials = None
@@ -123,11 +131,21 @@ class Preview:
         t = self.views[0].check_frame(i) / self.views[0].motion.fps
         return [int(np.clip(round(t * v.motion.fps), 0, v.n_frames - 1)) for v in self.views]
 
-    def frame(self, i: int, view: str = "single", camera: str = "three-quarter",
-              size: tuple[int, int] | str | None = None, take: int = 0, overlay_take: int = 1,
-              frames: Sequence[int] | None = None, trails: bool = False,
-              trail_range: tuple[int, int] | None = None, trail_style: str = "line",
-              phases=None, floor: bool = True) -> np.ndarray:
+    def frame(
+        self,
+        i: int,
+        view: str = "single",
+        camera: str = "three-quarter",
+        size: tuple[int, int] | str | None = None,
+        take: int = 0,
+        overlay_take: int = 1,
+        frames: Sequence[int] | None = None,
+        trails: bool = False,
+        trail_range: tuple[int, int] | None = None,
+        trail_style: str = "line",
+        phases=None,
+        floor: bool = True,
+    ) -> np.ndarray:
         """Render frame ``i`` (of take 0, or of ``take``) as ``(H, W, 3) uint8``.
 
         view : ``single`` | ``side_by_side`` | ``overlay``
@@ -146,12 +164,18 @@ class Preview:
         if camera not in CAMERAS:
             raise ParameterError(f"camera {camera!r}: expected one of {', '.join(CAMERAS)}")
         if trail_style not in tr.STYLES:
-            raise ParameterError(f"trail style {trail_style!r}: expected one of "
-                                 f"{', '.join(tr.STYLES)}")
+            raise ParameterError(
+                f"trail style {trail_style!r}: expected one of {', '.join(tr.STYLES)}"
+            )
         width, height = parse_size(size) if size is not None else self.size
         take = self._check_take(take, "take")
-        options = dict(camera=camera, trails=trails, trail_range=trail_range,
-                       trail_style=trail_style, floor=floor)
+        options = dict(
+            camera=camera,
+            trails=trails,
+            trail_range=trail_range,
+            trail_style=trail_style,
+            floor=floor,
+        )
         if view == "side_by_side":
             picks = list(frames) if frames is not None else self.matched_frames(i)
             if len(picks) != len(self.views):
@@ -160,37 +184,64 @@ class Preview:
             widths = [width // n + (1 if k < width % n else 0) for k in range(n)]
             panels = []
             for k, (v, f, w) in enumerate(zip(self.views, picks, widths, strict=True)):
-                img = self._render(k, v.check_frame(f), (w, height), phases=self._phases(k, phases, take),
-                                   **options)
+                img = self._render(
+                    k,
+                    v.check_frame(f),
+                    (w, height),
+                    phases=self._phases(k, phases, take),
+                    **options,
+                )
                 panels.append(label_image(img, v.label) if n > 1 else img)
             out = np.concatenate(panels, axis=1)
             for x in np.cumsum(widths)[:-1]:
-                out[:, max(0, x - 1): x + 1] = 255
+                out[:, max(0, x - 1) : x + 1] = 255
             return out
         if view == "overlay":
             other = self._check_take(overlay_take if len(self.views) > 1 else 0, "overlay_take")
             if frames is not None:
-                fi, fo = (int(frames[take]), int(frames[other])) if len(frames) == len(
-                    self.views) else (int(frames[0]), int(frames[-1]))
+                fi, fo = (
+                    (int(frames[take]), int(frames[other]))
+                    if len(frames) == len(self.views)
+                    else (int(frames[0]), int(frames[-1]))
+                )
             else:
                 base = self.views[take].check_frame(i)
                 t = base / self.views[take].motion.fps
                 fi = base
-                fo = int(np.clip(round(t * self.views[other].motion.fps), 0,
-                                 self.views[other].n_frames - 1))
-            return self._render(take, fi, (width, height), stick=(other, fo),
-                                phases=self._phases(take, phases, take), **options)
-        return self._render(take, self.views[take].check_frame(i), (width, height),
-                            phases=self._phases(take, phases, take), **options)
+                fo = int(
+                    np.clip(
+                        round(t * self.views[other].motion.fps), 0, self.views[other].n_frames - 1
+                    )
+                )
+            return self._render(
+                take,
+                fi,
+                (width, height),
+                stick=(other, fo),
+                phases=self._phases(take, phases, take),
+                **options,
+            )
+        return self._render(
+            take,
+            self.views[take].check_frame(i),
+            (width, height),
+            phases=self._phases(take, phases, take),
+            **options,
+        )
 
     def joint_positions(self, i: int, take: int = 0) -> np.ndarray:
         """(J, 3) world joint positions of ``take`` at frame ``i``, display space (metres, +Y up)."""
         view = self.views[self._check_take(take, "take")]
         return view.positions[view.check_frame(i)].copy()
 
-    def project(self, points: np.ndarray, i: int, take: int = 0,
-                camera: str = "three-quarter", size: tuple[int, int] | str | None = None
-                ) -> np.ndarray:
+    def project(
+        self,
+        points: np.ndarray,
+        i: int,
+        take: int = 0,
+        camera: str = "three-quarter",
+        size: tuple[int, int] | str | None = None,
+    ) -> np.ndarray:
         """Pixel coordinates ``(N, 2)`` (x right, y down) of display-space ``points (N, 3)``
         in ``frame(i, view="single", take=take, camera=camera, size=size)``."""
         if camera not in CAMERAS:
@@ -234,23 +285,29 @@ class Preview:
         if self._materials is None:
             self._materials = {
                 "skin": pyrender.MetallicRoughnessMaterial(
-                    baseColorFactor=(1.0, 1.0, 1.0, 1.0), metallicFactor=0.0,
-                    roughnessFactor=0.7),
+                    baseColorFactor=(1.0, 1.0, 1.0, 1.0), metallicFactor=0.0, roughnessFactor=0.7
+                ),
                 "flat": pyrender.MetallicRoughnessMaterial(
-                    baseColorFactor=(1.0, 1.0, 1.0, 1.0), metallicFactor=0.0,
-                    roughnessFactor=1.0),
+                    baseColorFactor=(1.0, 1.0, 1.0, 1.0), metallicFactor=0.0, roughnessFactor=1.0
+                ),
                 "floor": pyrender.MetallicRoughnessMaterial(
-                    baseColorFactor=(1.0, 1.0, 1.0, 1.0), metallicFactor=0.0,
-                    roughnessFactor=1.0, alphaMode="BLEND"),
+                    baseColorFactor=(1.0, 1.0, 1.0, 1.0),
+                    metallicFactor=0.0,
+                    roughnessFactor=1.0,
+                    alphaMode="BLEND",
+                ),
             }
         if normals is None:
             from engine.mesh.skinning import vertex_normals
 
             normals = vertex_normals(verts, faces)
         prim = pyrender.Primitive(
-            positions=np.asarray(verts, np.float32), normals=np.asarray(normals, np.float32),
-            color_0=np.asarray(colors, np.float32), indices=np.asarray(faces, np.uint32),
-            material=self._materials[material])
+            positions=np.asarray(verts, np.float32),
+            normals=np.asarray(normals, np.float32),
+            color_0=np.asarray(colors, np.float32),
+            indices=np.asarray(faces, np.uint32),
+            material=self._materials[material],
+        )
         return pyrender.Mesh([prim])
 
     def _floor(self, k: int, i: int):
@@ -259,8 +316,9 @@ class Preview:
         if v.floor_y is None:
             return None
         radius = max(FLOOR_RADIUS * v.height_m, 1.4 * v.radius * FLOOR_RADIUS / 1.1)
-        verts, faces, colors = floor_mesh_arrays(v.targets[i], radius, v.floor_y - 1e-3,
-                                                 tile=0.5 * max(v.height_m / 1.75, 0.2))
+        verts, faces, colors = floor_mesh_arrays(
+            v.targets[i], radius, v.floor_y - 1e-3, tile=0.5 * max(v.height_m / 1.75, 0.2)
+        )
         normals = np.tile([0.0, 1.0, 0.0], (len(verts), 1))
         return self._mesh(verts, faces, colors, normals, "floor")
 
@@ -269,12 +327,18 @@ class Preview:
         lo, hi = (0, v.n_frames) if trail_range is None else trail_range
         lo, hi = int(max(0, lo)), int(min(v.n_frames, hi))
         if hi - lo < 1:
-            raise ParameterError(f"trail_range {trail_range}: empty for a take of "
-                                 f"{v.n_frames} frames")
+            raise ParameterError(
+                f"trail_range {trail_range}: empty for a take of {v.n_frames} frames"
+            )
         hands = v.anatomy.hand_joints()
         codes = tr.per_side_phases(phases, list(hands), v.n_frames)
-        key = (k, lo, hi, style, tuple((s, None if c is None else hash(c.tobytes()))
-                                       for s, c in sorted(codes.items())))
+        key = (
+            k,
+            lo,
+            hi,
+            style,
+            tuple((s, None if c is None else hash(c.tobytes())) for s, c in sorted(codes.items())),
+        )
         if key in self._trail_cache:
             return self._trail_cache[key]
         step = max(1, (hi - lo) // 600)
@@ -297,16 +361,27 @@ class Preview:
                 faces.append(pf + n)
                 colors.append(pc)
                 n += len(pv)
-            mesh = self._mesh(np.vstack(verts), np.vstack(faces), np.vstack(colors),
-                              material="flat")
+            mesh = self._mesh(
+                np.vstack(verts), np.vstack(faces), np.vstack(colors), material="flat"
+            )
         if len(self._trail_cache) > 16:
             self._trail_cache.clear()
         self._trail_cache[key] = mesh
         return mesh
 
-    def _render(self, k: int, i: int, size: tuple[int, int], camera: str, trails: bool,
-                trail_range, trail_style: str, floor: bool, phases=None,
-                stick: tuple[int, int] | None = None) -> np.ndarray:
+    def _render(
+        self,
+        k: int,
+        i: int,
+        size: tuple[int, int],
+        camera: str,
+        trails: bool,
+        trail_range,
+        trail_style: str,
+        floor: bool,
+        phases=None,
+        stick: tuple[int, int] | None = None,
+    ) -> np.ndarray:
         ensure_platform()
         import pyrender
 
@@ -325,12 +400,20 @@ class Preview:
                     scene.add(trail_mesh)
             width, height = size
             cam_pose = v.camera_pose(i, camera, width / height, YFOV)
-            scene.add(pyrender.PerspectiveCamera(yfov=YFOV, aspectRatio=width / height,
-                                                 znear=0.02 * v.radius, zfar=60.0 * v.radius),
-                      pose=cam_pose)
+            scene.add(
+                pyrender.PerspectiveCamera(
+                    yfov=YFOV,
+                    aspectRatio=width / height,
+                    znear=0.02 * v.radius,
+                    zfar=60.0 * v.radius,
+                ),
+                pose=cam_pose,
+            )
             for angles, power in LIGHTS:
-                scene.add(pyrender.DirectionalLight(color=np.ones(3), intensity=power),
-                          pose=cam_pose @ _rotation(*angles))
+                scene.add(
+                    pyrender.DirectionalLight(color=np.ones(3), intensity=power),
+                    pose=cam_pose @ _rotation(*angles),
+                )
             renderer = self._get_renderer(width, height)
             try:
                 color, depth = renderer.render(scene)
@@ -346,8 +429,9 @@ class Preview:
         other = self.views[k2]
         pos = other.positions[f2]
         radius = 0.009 * base_view.height_m if base_view.anatomy.kind == "body" else 0.003
-        verts, faces, colors = stick_arrays(pos, other.motion.skeleton.parents, other._visible,
-                                            radius)
+        verts, faces, colors = stick_arrays(
+            pos, other.motion.skeleton.parents, other._visible, radius
+        )
         for node in list(scene.mesh_nodes):
             node.mesh.is_visible = False
         scene.add(self._mesh(verts, faces, colors))
@@ -366,10 +450,12 @@ class Preview:
 def _rotation(pitch_deg: float, yaw_deg: float) -> np.ndarray:
     """4x4 rotation: yaw about +Y then pitch about +X (degrees)."""
     p, y = np.radians(pitch_deg), np.radians(yaw_deg)
-    ry = np.array([[np.cos(y), 0, np.sin(y), 0], [0, 1, 0, 0], [-np.sin(y), 0, np.cos(y), 0],
-                   [0, 0, 0, 1]])
-    rx = np.array([[1, 0, 0, 0], [0, np.cos(p), -np.sin(p), 0], [0, np.sin(p), np.cos(p), 0],
-                   [0, 0, 0, 1]])
+    ry = np.array(
+        [[np.cos(y), 0, np.sin(y), 0], [0, 1, 0, 0], [-np.sin(y), 0, np.cos(y), 0], [0, 0, 0, 1]]
+    )
+    rx = np.array(
+        [[1, 0, 0, 0], [0, np.cos(p), -np.sin(p), 0], [0, np.sin(p), np.cos(p), 0], [0, 0, 0, 1]]
+    )
     return ry @ rx
 
 

@@ -31,8 +31,12 @@ from engine.motion import Motion
 CAMERAS = ("front", "side", "three-quarter", "hands")
 # camera direction per name: (azimuth towards the character's right, elevation), degrees;
 # "hands" is a close-up from the front that keeps both hands in view
-_CAMERA_ANGLES = {"front": (0.0, 8.0), "side": (90.0, 5.0), "three-quarter": (40.0, 14.0),
-                  "hands": (15.0, 18.0)}
+_CAMERA_ANGLES = {
+    "front": (0.0, 8.0),
+    "side": (90.0, 5.0),
+    "three-quarter": (40.0, 14.0),
+    "hands": (15.0, 18.0),
+}
 _Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
 
@@ -46,8 +50,9 @@ def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray) -> np.ndarray:
     back = _unit(eye - target)
     right = np.cross(up, back)
     if np.linalg.norm(right) < 1e-9:
-        right = np.cross(np.array([0.0, 0.0, 1.0]) if abs(back[1]) > 0.9 else
-                         np.array([0.0, 1.0, 0.0]), back)
+        right = np.cross(
+            np.array([0.0, 0.0, 1.0]) if abs(back[1]) > 0.9 else np.array([0.0, 1.0, 0.0]), back
+        )
     right = _unit(right)
     true_up = np.cross(back, right)
     pose = np.eye(4)
@@ -108,9 +113,16 @@ class TakeView:
     hand_radius: float = 0.0
 
     @classmethod
-    def from_motion(cls, motion: Motion, mesh: SkinnedMesh | None = None,
-                    anatomy: Anatomy | None = None, label: str = "",
-                    bind_frame: int = 0, roles=None, close_up_sides=None) -> TakeView:
+    def from_motion(
+        cls,
+        motion: Motion,
+        mesh: SkinnedMesh | None = None,
+        anatomy: Anatomy | None = None,
+        label: str = "",
+        bind_frame: int = 0,
+        roles=None,
+        close_up_sides=None,
+    ) -> TakeView:
         """Prepare ``motion``; the mannequin is bound in captured frame ``bind_frame``.
 
         ``roles`` (``engine.roles.Roles``) fixes the arm and finger joints; default:
@@ -120,29 +132,41 @@ class TakeView:
         if motion.n_frames < 1:
             raise ValueError(f"{label or 'take'}: has no frames to render")
         if not 0 <= bind_frame < motion.n_frames:
-            raise ValueError(f"{label or 'take'}: bind frame {bind_frame} outside "
-                             f"0..{motion.n_frames - 1}")
+            raise ValueError(
+                f"{label or 'take'}: bind frame {bind_frame} outside 0..{motion.n_frames - 1}"
+            )
         pos, wrot = forward_kinematics(motion)
         bind_pos, bind_rot = pos[bind_frame], wrot[bind_frame]
         if anatomy is None:
             from engine.roles import side_from_name
 
-            anatomy = find_anatomy(motion.skeleton, bind_pos, bind_rot, roles=roles,
-                                   side_hint=side_from_name(motion.meta.source or ""))
+            anatomy = find_anatomy(
+                motion.skeleton,
+                bind_pos,
+                bind_rot,
+                roles=roles,
+                side_hint=side_from_name(motion.meta.source or ""),
+            )
         name = Path(motion.meta.source).name if motion.meta.source else label or "take"
         if anatomy.kind != "body" and not anatomy.hands:
-            raise RoleError(f"{name}: neither a body (hips, spine, arms or legs) nor a hand "
-                            "(wrist with fingers) found by joint name; nothing to draw "
-                            "(rename the joints or pass --roles)")
+            raise RoleError(
+                f"{name}: neither a body (hips, spine, arms or legs) nor a hand "
+                "(wrist with fingers) found by joint name; nothing to draw "
+                "(rename the joints or pass --roles)"
+            )
         if not (np.ptp(pos, axis=(0, 1)) > 0).any():
-            raise ParameterError(f"{name}: every joint sits at one point in every frame (all "
-                                 "offsets and motion zero); nothing to draw")
+            raise ParameterError(
+                f"{name}: every joint sits at one point in every frame (all "
+                "offsets and motion zero); nothing to draw"
+            )
         if mesh is None:
             mesh = build_mannequin(motion.skeleton, anatomy, pose=(bind_pos, bind_rot))
         elif mesh.bind_positions.shape[0] != motion.skeleton.n_joints:
-            raise ValueError(f"{label or 'take'}: the mesh is bound to "
-                             f"{mesh.bind_positions.shape[0]} joints, the skeleton has "
-                             f"{motion.skeleton.n_joints}")
+            raise ValueError(
+                f"{label or 'take'}: the mesh is bound to "
+                f"{mesh.bind_positions.shape[0]} joints, the skeleton has "
+                f"{motion.skeleton.n_joints}"
+            )
         scale, axes = display_transform(motion, anatomy)
         disp = scale * np.einsum("ij,fkj->fki", axes, pos)
         visible = np.ones(motion.skeleton.n_joints, bool)
@@ -153,13 +177,18 @@ class TakeView:
         half_diag = 0.5 * np.linalg.norm(hi - lo, axis=1)
         height_m = anatomy.height * scale
         margin = 0.12 * height_m if anatomy.kind == "body" else 0.08 * height_m
-        radius = float(max(np.percentile(half_diag, 95) + margin,
-                           0.5 * height_m if anatomy.kind == "body" else 0.1))
+        radius = float(
+            max(
+                np.percentile(half_diag, 95) + margin,
+                0.5 * height_m if anatomy.kind == "body" else 0.1,
+            )
+        )
         win = max(1, int(round(0.4 * motion.fps)))
         targets = _moving_average(center, win)
         # facing: the bind pose's facing carried by the pelvis (or wrist) rotation
-        anchor = anatomy.pelvis if anatomy.kind == "body" else next(
-            iter(anatomy.hands.values())).wrist
+        anchor = (
+            anatomy.pelvis if anatomy.kind == "body" else next(iter(anatomy.hands.values())).wrist
+        )
         rel = rot.multiply(wrot[:, anchor], rot.conjugate(bind_rot[anchor]))
         fwd = rot.rotate(rel, anatomy.forward) @ axes.T
         up_hand = rot.rotate(rel, anatomy.up) @ axes.T
@@ -175,12 +204,28 @@ class TakeView:
             view_up = _unit(np.mean(_unit(up_hand), axis=0))
             view_up = _unit(view_up - np.dot(view_up, facing) * facing)
         right = _unit(np.cross(facing, view_up))
-        view = cls(motion, anatomy, mesh, float(scale), axes, disp, wrot, targets, radius,
-                   facing, right, view_up, None, label, visible)
+        view = cls(
+            motion,
+            anatomy,
+            mesh,
+            float(scale),
+            axes,
+            disp,
+            wrot,
+            targets,
+            radius,
+            facing,
+            right,
+            view_up,
+            None,
+            label,
+            visible,
+        )
         # the mesh reaches beyond the joints (head, feet, a hand take's forearm): measure
         # it on a few frames for the floor height, the framing radius and centre offset
-        sample = np.unique(np.linspace(0, motion.n_frames - 1,
-                                       min(motion.n_frames, 24)).round().astype(int))
+        sample = np.unique(
+            np.linspace(0, motion.n_frames - 1, min(motion.n_frames, 24)).round().astype(int)
+        )
         offsets, radii, lowest = [], [], []
         for f in sample:
             verts = view.vertices(int(f))[0]
@@ -190,15 +235,22 @@ class TakeView:
             lowest.append(vlo[1])
         view.targets = targets + np.median(offsets, axis=0)
         # the hands' close-up: centre and size of the hands' joints (wrists and fingers)
-        hand_joints = sorted({d for side, h in anatomy.hands.items()
-                              if close_up_sides is None or side in close_up_sides
-                              for d in motion.skeleton.descendants(h.wrist)})
+        hand_joints = sorted(
+            {
+                d
+                for side, h in anatomy.hands.items()
+                if close_up_sides is None or side in close_up_sides
+                for d in motion.skeleton.descendants(h.wrist)
+            }
+        )
         if anatomy.kind == "body" and hand_joints:
             hp = disp[:, hand_joints]
             h_lo, h_hi = hp.min(axis=1), hp.max(axis=1)
             view.hand_targets = _moving_average(0.5 * (h_lo + h_hi), win)
-            view.hand_radius = float(np.percentile(0.5 * np.linalg.norm(h_hi - h_lo, axis=1), 90)
-                                     + 0.9 * anatomy.hand_length * scale)
+            view.hand_radius = float(
+                np.percentile(0.5 * np.linalg.norm(h_hi - h_lo, axis=1), 90)
+                + 0.9 * anatomy.hand_length * scale
+            )
         view.radius = float(max(radius - margin, np.percentile(radii, 95)) * 1.04)
         if anatomy.kind == "body":
             view.floor_y = float(min(lowest))
@@ -215,8 +267,9 @@ class TakeView:
     def check_frame(self, i: int) -> int:
         i = int(i)
         if not -self.n_frames <= i < self.n_frames:
-            raise ParameterError(f"{self.label or 'take'}: frame {i} is outside "
-                                 f"0..{self.n_frames - 1}")
+            raise ParameterError(
+                f"{self.label or 'take'}: frame {i} is outside 0..{self.n_frames - 1}"
+            )
         return i % self.n_frames
 
     def vertices(self, i: int) -> tuple[np.ndarray, np.ndarray]:
@@ -226,8 +279,7 @@ class TakeView:
         verts, normals = self.mesh.pose(file_pos, self.rotations[i])
         return self.scale * verts @ self.axes.T, normals @ self.axes.T
 
-    def camera_pose(self, i: int, camera: str, aspect: float, yfov: float
-                    ) -> np.ndarray:
+    def camera_pose(self, i: int, camera: str, aspect: float, yfov: float) -> np.ndarray:
         """4x4 pose of the camera ``camera`` (front, side, three-quarter, hands) at frame ``i``.
 
         ``hands`` frames both hands' joints (a hand take: the whole take, as ``front``
@@ -258,8 +310,9 @@ def _moving_average(x: np.ndarray, half: int) -> np.ndarray:
     return (c[hi] - c[lo]) / (hi - lo)[:, None]
 
 
-def floor_mesh_arrays(center: np.ndarray, radius: float, y: float, tile: float
-                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def floor_mesh_arrays(
+    center: np.ndarray, radius: float, y: float, tile: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A round checkered floor patch at height ``y`` around ``center`` whose opacity
     (colour alpha) fades to zero towards ``radius``. Tiles are aligned to the world
     grid, so the pattern stays put while the patch follows the character.
@@ -269,8 +322,9 @@ def floor_mesh_arrays(center: np.ndarray, radius: float, y: float, tile: float
     n = int(np.ceil(radius / tile)) + 1
     i0 = int(np.floor(center[0] / tile))
     k0 = int(np.floor(center[2] / tile))
-    ii, kk = np.meshgrid(np.arange(i0 - n, i0 + n + 1), np.arange(k0 - n, k0 + n + 1),
-                         indexing="ij")
+    ii, kk = np.meshgrid(
+        np.arange(i0 - n, i0 + n + 1), np.arange(k0 - n, k0 + n + 1), indexing="ij"
+    )
     ii, kk = ii.ravel(), kk.ravel()
     mid = np.stack([(ii + 0.5) * tile - center[0], (kk + 0.5) * tile - center[2]], 1)
     keep = np.hypot(mid[:, 0], mid[:, 1]) < radius + tile
@@ -280,8 +334,9 @@ def floor_mesh_arrays(center: np.ndarray, radius: float, y: float, tile: float
     zs = (kk[:, None] + corners[None, :, 1]) * tile
     verts = np.stack([xs, np.full_like(xs, y), zs], -1).reshape(-1, 3)
     base = 4 * np.arange(len(ii))
-    faces = np.concatenate([np.stack([base, base + 2, base + 1], 1),
-                            np.stack([base, base + 3, base + 2], 1)])
+    faces = np.concatenate(
+        [np.stack([base, base + 2, base + 1], 1), np.stack([base, base + 3, base + 2], 1)]
+    )
     dark = (ii + kk) % 2 == 0
     col = np.where(dark[:, None], [0.72, 0.74, 0.77], [0.84, 0.85, 0.88])
     col = np.repeat(col, 4, axis=0)
@@ -313,9 +368,13 @@ _CYL = _template_cylinder()
 _SPH = None
 
 
-def stick_arrays(positions: np.ndarray, parents: np.ndarray, visible: np.ndarray,
-                 radius: float, color=(0.05, 0.6, 0.25, 1.0)
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def stick_arrays(
+    positions: np.ndarray,
+    parents: np.ndarray,
+    visible: np.ndarray,
+    radius: float,
+    color=(0.05, 0.6, 0.25, 1.0),
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A stick figure: a cylinder per bone and a ball per joint.
 
     positions : (J, 3) display space; parents : (J,); visible : (J,) bool.
@@ -338,8 +397,12 @@ def stick_arrays(positions: np.ndarray, parents: np.ndarray, visible: np.ndarray
         x = _unit(np.cross(ref, z))
         y = np.cross(z, x)
         local = cv[None] * np.array([radius, radius, 1.0])
-        v = (a[:, None] + local[..., :1] * x[:, None] + local[..., 1:2] * y[:, None]
-             + local[..., 2:3] * length[:, None, None] * z[:, None])
+        v = (
+            a[:, None]
+            + local[..., :1] * x[:, None]
+            + local[..., 1:2] * y[:, None]
+            + local[..., 2:3] * length[:, None, None] * z[:, None]
+        )
         verts.append(v.reshape(-1, 3))
         faces.append((cf[None] + (np.arange(len(idx)) * len(cv))[:, None, None]).reshape(-1, 3))
         count += v.shape[0] * v.shape[1]
@@ -347,8 +410,9 @@ def stick_arrays(positions: np.ndarray, parents: np.ndarray, visible: np.ndarray
     if len(joints):
         v = joints[:, None] + 1.6 * radius * sv[None]
         verts.append(v.reshape(-1, 3))
-        faces.append((sf[None] + count + (np.arange(len(joints)) * len(sv))[:, None, None]
-                      ).reshape(-1, 3))
+        faces.append(
+            (sf[None] + count + (np.arange(len(joints)) * len(sv))[:, None, None]).reshape(-1, 3)
+        )
     verts = np.vstack(verts)
     faces = np.vstack(faces)
     colors = np.broadcast_to(np.asarray(color, float), (len(verts), 4))

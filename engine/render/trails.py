@@ -25,18 +25,31 @@ PHASE_COLORS = {
     HOLD: (0.15, 0.40, 0.90, 1.0),  # blue (our choice)
     RETRACTION: (0.85, 0.15, 0.80, 1.0),  # magenta
 }
-HAND_COLORS = {"left": (0.05, 0.62, 0.62, 1.0), "right": (0.95, 0.50, 0.08, 1.0),
-               "": (0.95, 0.50, 0.08, 1.0)}
-_NAMES = {"rest": REST, "-": REST, "": REST, "none": REST,
-          "preparation": PREPARATION, "prep": PREPARATION, "p": PREPARATION,
-          "stroke": STROKE, "s": STROKE,
-          "hold": HOLD, "h": HOLD,
-          "retraction": RETRACTION, "retract": RETRACTION, "r": RETRACTION}
+HAND_COLORS = {
+    "left": (0.05, 0.62, 0.62, 1.0),
+    "right": (0.95, 0.50, 0.08, 1.0),
+    "": (0.95, 0.50, 0.08, 1.0),
+}
+_NAMES = {
+    "rest": REST,
+    "-": REST,
+    "": REST,
+    "none": REST,
+    "preparation": PREPARATION,
+    "prep": PREPARATION,
+    "p": PREPARATION,
+    "stroke": STROKE,
+    "s": STROKE,
+    "hold": HOLD,
+    "h": HOLD,
+    "retraction": RETRACTION,
+    "retract": RETRACTION,
+    "r": RETRACTION,
+}
 STYLES = ("line", "spheres")
 
 
-def phase_codes(phases: Sequence | np.ndarray, n_frames: int, field: str = "phases"
-                ) -> np.ndarray:
+def phase_codes(phases: Sequence | np.ndarray, n_frames: int, field: str = "phases") -> np.ndarray:
     """(F,) int phase codes from ints, ``Phase`` members, letters or names.
 
     Raises ``ValueError`` naming the first unknown label or a length mismatch.
@@ -53,8 +66,10 @@ def phase_codes(phases: Sequence | np.ndarray, n_frames: int, field: str = "phas
         else:
             code = -1
         if code not in PHASE_COLORS:
-            raise ValueError(f"{field}[{k}]: unknown phase {p!r}; expected 0-4 or one of "
-                             "rest, preparation, stroke, hold, retraction (or -PSHR)")
+            raise ValueError(
+                f"{field}[{k}]: unknown phase {p!r}; expected 0-4 or one of "
+                "rest, preparation, stroke, hold, retraction (or -PSHR)"
+            )
         out[k] = code
     return out
 
@@ -67,14 +82,17 @@ def per_side_phases(phases, sides: Sequence[str], n_frames: int) -> dict[str, np
     if hasattr(phases, "hands") and isinstance(phases.hands, Mapping):  # GesturePhases
         phases = {s: h.labels for s, h in phases.hands.items()}
     if isinstance(phases, Mapping):
-        return {s: (phase_codes(phases[s], n_frames, f"phases[{s!r}]") if s in phases else None)
-                for s in sides}
+        return {
+            s: (phase_codes(phases[s], n_frames, f"phases[{s!r}]") if s in phases else None)
+            for s in sides
+        }
     codes = phase_codes(phases, n_frames)
     return {s: codes for s in sides}
 
 
-def trail_arrays(points: np.ndarray, colors: np.ndarray, radius: float, style: str = "line",
-                 n_around: int = 8) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def trail_arrays(
+    points: np.ndarray, colors: np.ndarray, radius: float, style: str = "line", n_around: int = 8
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Geometry of one trail: vertices ``(V, 3)``, faces ``(T, 3)``, colours ``(V, 4)``.
 
     points : (N, 3) path samples, display space; colors : (N, 4) per sample.
@@ -101,8 +119,9 @@ def trail_arrays(points: np.ndarray, colors: np.ndarray, radius: float, style: s
     ref = np.cross(pts[-1] - pts[0], [0.0, 1.0, 0.0])
     if np.linalg.norm(ref) < 1e-9:
         ref = np.array([1.0, 0.0, 0.0])
-    verts, faces, src = sweep(pts, np.full(len(pts), radius), np.full(len(pts), radius), ref,
-                              n_around=n_around, n_cap=1)
+    verts, faces, src = sweep(
+        pts, np.full(len(pts), radius), np.full(len(pts), radius), ref, n_around=n_around, n_cap=1
+    )
     return verts, faces, cols[src]
 
 

@@ -27,8 +27,7 @@ FORMATS = (".png", ".gif", ".mp4")
 def _as_frame(image: np.ndarray, field: str = "image") -> np.ndarray:
     arr = np.asarray(image)
     if arr.ndim != 3 or arr.shape[2] not in (3, 4) or arr.dtype != np.uint8:
-        raise ValueError(f"{field}: expected an (H, W, 3) uint8 image, got {arr.shape} "
-                         f"{arr.dtype}")
+        raise ValueError(f"{field}: expected an (H, W, 3) uint8 image, got {arr.shape} {arr.dtype}")
     return arr[..., :3]
 
 
@@ -54,9 +53,13 @@ def to_png_bytes(image: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
-def contact_sheet(images: Sequence[np.ndarray], columns: int | None = None,
-                  labels: Sequence[str] | None = None, gap: int = 4,
-                  background: int = 255) -> np.ndarray:
+def contact_sheet(
+    images: Sequence[np.ndarray],
+    columns: int | None = None,
+    labels: Sequence[str] | None = None,
+    gap: int = 4,
+    background: int = 255,
+) -> np.ndarray:
     """Tile images (each ``(H, W, 3) uint8``, sizes may differ) in rows of ``columns``.
 
     ``labels`` are written in each tile's top-left corner. Returns ``(H, W, 3) uint8``.
@@ -75,12 +78,13 @@ def contact_sheet(images: Sequence[np.ndarray], columns: int | None = None,
     rows = int(np.ceil(n / cols))
     th = max(t.shape[0] for t in tiles)
     tw = max(t.shape[1] for t in tiles)
-    sheet = np.full((rows * th + (rows + 1) * gap, cols * tw + (cols + 1) * gap, 3), background,
-                    np.uint8)
+    sheet = np.full(
+        (rows * th + (rows + 1) * gap, cols * tw + (cols + 1) * gap, 3), background, np.uint8
+    )
     for k, t in enumerate(tiles):
         r, c = divmod(k, cols)
         y, x = gap + r * (th + gap), gap + c * (tw + gap)
-        sheet[y: y + t.shape[0], x: x + t.shape[1]] = t
+        sheet[y : y + t.shape[0], x : x + t.shape[1]] = t
     return sheet
 
 
@@ -124,13 +128,26 @@ def gif_bytes(frames: Sequence[np.ndarray], fps: float) -> bytes:
     kept, delays = gif_schedule(len(frames), fps)
     images = [Image.fromarray(_as_frame(frames[k], f"frame {k}")) for k in kept]
     buf = io.BytesIO()
-    images[0].save(buf, format="GIF", save_all=True, append_images=images[1:],
-                   duration=delays, loop=0, optimize=False, disposal=1)
+    images[0].save(
+        buf,
+        format="GIF",
+        save_all=True,
+        append_images=images[1:],
+        duration=delays,
+        loop=0,
+        optimize=False,
+        disposal=1,
+    )
     return buf.getvalue()
 
 
-def write_gif(frames: Iterable[np.ndarray], path: str | Path, fps: float,
-              progress: Progress | None = None, total: int | None = None) -> Path:
+def write_gif(
+    frames: Iterable[np.ndarray],
+    path: str | Path,
+    fps: float,
+    progress: Progress | None = None,
+    total: int | None = None,
+) -> Path:
     """Write frames as a looping GIF playing at exactly ``fps`` (:func:`gif_bytes`)."""
     if not fps > 0:
         raise ParameterError(f"fps {fps}: must be positive")
@@ -146,9 +163,14 @@ def write_gif(frames: Iterable[np.ndarray], path: str | Path, fps: float,
     return path
 
 
-def write_mp4(frames: Iterable[np.ndarray], path: str | Path, fps: float,
-              progress: Progress | None = None, total: int | None = None,
-              quality: float = 7.0) -> Path:
+def write_mp4(
+    frames: Iterable[np.ndarray],
+    path: str | Path,
+    fps: float,
+    progress: Progress | None = None,
+    total: int | None = None,
+    quality: float = 7.0,
+) -> Path:
     """Write frames as H.264 MP4 at ``fps`` (imageio-ffmpeg). All frames one size."""
     import imageio_ffmpeg
 
@@ -166,16 +188,25 @@ def write_mp4(frames: Iterable[np.ndarray], path: str | Path, fps: float,
                     size = img.shape[:2]
                     even = (size[0] + size[0] % 2, size[1] + size[1] % 2)
                     writer = imageio_ffmpeg.write_frames(
-                        str(tmp), (even[1], even[0]), fps=float(fps), codec="libx264",
-                        quality=quality, macro_block_size=1, ffmpeg_log_level="error",
-                        output_params=["-preset", "veryfast", "-movflags", "+faststart"])
+                        str(tmp),
+                        (even[1], even[0]),
+                        fps=float(fps),
+                        codec="libx264",
+                        quality=quality,
+                        macro_block_size=1,
+                        ffmpeg_log_level="error",
+                        output_params=["-preset", "veryfast", "-movflags", "+faststart"],
+                    )
                     writer.send(None)
                 elif img.shape[:2] != size:
-                    raise ValueError(f"write_mp4: frame {k} is {img.shape[1]}x{img.shape[0]}, "
-                                     f"the first was {size[1]}x{size[0]}")
+                    raise ValueError(
+                        f"write_mp4: frame {k} is {img.shape[1]}x{img.shape[0]}, "
+                        f"the first was {size[1]}x{size[0]}"
+                    )
                 if even != size:
-                    img = np.pad(img, ((0, even[0] - size[0]), (0, even[1] - size[1]), (0, 0)),
-                                 mode="edge")
+                    img = np.pad(
+                        img, ((0, even[0] - size[0]), (0, even[1] - size[1]), (0, 0)), mode="edge"
+                    )
                 writer.send(np.ascontiguousarray(img))
                 count += 1
                 if progress:
@@ -205,15 +236,22 @@ def frame_range(n_frames: int, frames: str | tuple[int, int] | None = None) -> r
         sl = slice(*frames)
     out = range(n_frames)[sl]
     if len(out) == 0:
-        raise ParameterError(f"frames {frames!r}: selects no frame of a take with "
-                             f"{n_frames} frames")
+        raise ParameterError(
+            f"frames {frames!r}: selects no frame of a take with {n_frames} frames"
+        )
     return out
 
 
-def render_to_file(preview, path: str | Path, frames: range | Sequence[int] | None = None,
-                   frame: int | None = None, fps: float | None = None,
-                   progress: Progress | None = None, sheet_frames: int = 12,
-                   **frame_kwargs) -> Path:
+def render_to_file(
+    preview,
+    path: str | Path,
+    frames: range | Sequence[int] | None = None,
+    frame: int | None = None,
+    fps: float | None = None,
+    progress: Progress | None = None,
+    sheet_frames: int = 12,
+    **frame_kwargs,
+) -> Path:
     """Render ``preview`` to ``path`` by its suffix.
 
     ``.png``: frame ``frame`` (default: the first of ``frames``, or 0), or with
@@ -265,8 +303,7 @@ def render_to_file(preview, path: str | Path, frames: range | Sequence[int] | No
     return writer(generate(), path, out_fps, progress=progress, total=len(picks))
 
 
-def progress_printer(label: str = "rendering", stream=None, min_interval: float = 0.2
-                     ) -> Progress:
+def progress_printer(label: str = "rendering", stream=None, min_interval: float = 0.2) -> Progress:
     """A ``progress(done, total)`` that draws a one-line bar on ``stream`` (stderr)."""
     stream = stream or sys.stderr
     state = {"last": 0.0, "start": time.perf_counter()}

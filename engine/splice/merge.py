@@ -54,8 +54,7 @@ def median_warp(path: np.ndarray, n: int) -> np.ndarray:
     return 0.5 * (lo + hi).astype(float)  # median of a run of consecutive columns
 
 
-def smooth_warp(warp: np.ndarray, blend: float = BLEND_FRAMES, m: int | None = None
-                ) -> np.ndarray:
+def smooth_warp(warp: np.ndarray, blend: float = BLEND_FRAMES, m: int | None = None) -> np.ndarray:
     """Blend jumps of a non-decreasing warp over a Gaussian window of ``blend`` frames.
 
     The result stays non-decreasing and inside ``[0, m-1]`` when ``m`` is given.
@@ -68,10 +67,10 @@ def smooth_warp(warp: np.ndarray, blend: float = BLEND_FRAMES, m: int | None = N
         # point reflection at both ends keeps straight stretches straight (no pull toward
         # the end values, which plain edge padding would add) and keeps w non-decreasing
         k = min(len(w) - 1, int(np.ceil(4 * blend)))
-        head = 2 * w[0] - w[1:k + 1][::-1]
-        tail = 2 * w[-1] - w[-k - 1:-1][::-1]
+        head = 2 * w[0] - w[1 : k + 1][::-1]
+        tail = 2 * w[-1] - w[-k - 1 : -1][::-1]
         padded = np.concatenate([head, w, tail])
-        w = gaussian_filter1d(padded, blend, mode="nearest")[k:k + len(w)]
+        w = gaussian_filter1d(padded, blend, mode="nearest")[k : k + len(w)]
     w = np.maximum.accumulate(w)
     if m is not None:
         w = np.clip(w, 0.0, m - 1)
@@ -83,8 +82,9 @@ def merge_path(path: np.ndarray, n: int, m: int, blend: float = BLEND_FRAMES) ->
     return smooth_warp(median_warp(path, n), blend, m)
 
 
-def still_runs(speed: np.ndarray, threshold: float, min_frames: int, gap: int = 2
-               ) -> list[tuple[int, int]]:
+def still_runs(
+    speed: np.ndarray, threshold: float, min_frames: int, gap: int = 2
+) -> list[tuple[int, int]]:
     """Runs ``[first, last]`` of at least ``min_frames`` frames with ``speed < threshold``
     (runs apart by at most ``gap`` moving frames, a noise blip, are joined)."""
     still = np.asarray(speed) < threshold
@@ -96,8 +96,7 @@ def still_runs(speed: np.ndarray, threshold: float, min_frames: int, gap: int = 
                 still[a:b] = True
     edges = np.diff(np.concatenate([[0], still.astype(np.int8), [0]]))
     starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-    return [(int(a), int(b) - 1) for a, b in zip(starts, stops, strict=True)
-            if b - a >= min_frames]
+    return [(int(a), int(b) - 1) for a, b in zip(starts, stops, strict=True) if b - a >= min_frames]
 
 
 def straighten_holds(warp: np.ndarray, body_holds, hand_holds, slack: float) -> np.ndarray:
@@ -117,13 +116,14 @@ def straighten_holds(warp: np.ndarray, body_holds, hand_holds, slack: float) -> 
             continue
         for h0, h1 in hand_holds:
             if abs(w[b0] - h0) <= slack and abs(w[b1] - h1) <= slack and h1 > h0:
-                w[b0:b1 + 1] = h0 + (np.arange(b0, b1 + 1) - b0) * (h1 - h0) / (b1 - b0)
+                w[b0 : b1 + 1] = h0 + (np.arange(b0, b1 + 1) - b0) * (h1 - h0) / (b1 - b0)
                 break
     return np.maximum.accumulate(w)
 
 
-def grid_to_hand_frames(warp: np.ndarray, body_fps: float, hand_fps: float,
-                        hand_frames: int) -> np.ndarray:
+def grid_to_hand_frames(
+    warp: np.ndarray, body_fps: float, hand_fps: float, hand_frames: int
+) -> np.ndarray:
     """Grid columns (hand resampled to the body's rate) -> frames of the original hand take."""
     t = np.asarray(warp, dtype=float) * (hand_fps / body_fps)
     return np.clip(t, 0.0, hand_frames - 1)

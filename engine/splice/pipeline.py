@@ -158,13 +158,17 @@ def require_skeletal(body, hand) -> None:
     (C3D/TRC) can be aligned, but have no skeleton to receive fingers (body) or no finger
     rotations to give (hand). Call it before the passes to fail fast on long takes."""
     if not isinstance(body, Motion):
-        raise HandSpliceError(f"{_take_name(body)}: holds markers; a marker take has no "
-                              "skeleton to receive fingers: the body take must be a skeletal "
-                              "take (.bvh)")
+        raise HandSpliceError(
+            f"{_take_name(body)}: holds markers; a marker take has no "
+            "skeleton to receive fingers: the body take must be a skeletal "
+            "take (.bvh)"
+        )
     if not isinstance(hand, Motion):
-        raise HandSpliceError(f"{_take_name(hand)}: holds markers; a marker take has no finger "
-                              "rotations to give: the hand take must be a skeletal take (.bvh) "
-                              "with finger joints")
+        raise HandSpliceError(
+            f"{_take_name(hand)}: holds markers; a marker take has no finger "
+            "rotations to give: the hand take must be a skeletal take (.bvh) "
+            "with finger joints"
+        )
 
 
 def _roles_for(take, overrides, side: str | None = None):
@@ -182,8 +186,13 @@ def _roles_for(take, overrides, side: str | None = None):
     return sided_roles(take, roles, side)
 
 
-def resolve_sides(side: str, body_sides: Sequence[str], hand_sides: Sequence[str],
-                  body_name: str = "body", hand_name: str = "hand") -> tuple[str, ...]:
+def resolve_sides(
+    side: str,
+    body_sides: Sequence[str],
+    hand_sides: Sequence[str],
+    body_name: str = "body",
+    hand_name: str = "hand",
+) -> tuple[str, ...]:
     """Sides to splice. ``"auto"``: both when both takes have both, else the shared side."""
     side = (side or "auto").lower()
     common = [s for s in ("right", "left") if s in body_sides and s in hand_sides]
@@ -192,19 +201,23 @@ def resolve_sides(side: str, body_sides: Sequence[str], hand_sides: Sequence[str
             raise RoleError(
                 f"no side to splice: {body_name} has arms {list(body_sides) or 'none'}, "
                 f"{hand_name} has hands {list(hand_sides) or 'none'} (need a wrist on the "
-                f"same side in both)")
+                f"same side in both)"
+            )
         return tuple(common)
     if side not in ("right", "left", "both"):
         raise ParameterError(f"side must be 'right', 'left', 'both' or 'auto', got {side!r}")
     wanted = ("right", "left") if side == "both" else (side,)
     for s in wanted:
         if s not in body_sides:
-            raise RoleError(f"{body_name} has no {s} wrist (arms found: "
-                            f"{', '.join(body_sides) or 'none'})")
+            raise RoleError(
+                f"{body_name} has no {s} wrist (arms found: {', '.join(body_sides) or 'none'})"
+            )
         if s not in hand_sides:
-            raise RoleError(f"{hand_name} has no {s} hand (hands found: "
-                            f"{', '.join(hand_sides) or 'none'}); try --side "
-                            f"{hand_sides[0] if hand_sides else 'right'}")
+            raise RoleError(
+                f"{hand_name} has no {s} hand (hands found: "
+                f"{', '.join(hand_sides) or 'none'}); try --side "
+                f"{hand_sides[0] if hand_sides else 'right'}"
+            )
     return wanted
 
 
@@ -214,11 +227,20 @@ def _hand_sides(take, roles) -> list[str]:
     return [s for s in roles.sides_found()]
 
 
-def prepare(body: Motion | MarkerSet, hand: Motion | MarkerSet, side: str = "auto",
-            body_roles=None, hand_roles=None, theta: str = "window",
-            n_bins: int = M.THETA_BINS, smoothing_s: float = SMOOTHING_S,
-            dead_zone: float = DEAD_ZONE, step1: float = STEP1, step2: float = STEP2,
-            progress: Progress | None = None) -> SpliceFeatures:
+def prepare(
+    body: Motion | MarkerSet,
+    hand: Motion | MarkerSet,
+    side: str = "auto",
+    body_roles=None,
+    hand_roles=None,
+    theta: str = "window",
+    n_bins: int = M.THETA_BINS,
+    smoothing_s: float = SMOOTHING_S,
+    dead_zone: float = DEAD_ZONE,
+    step1: float = STEP1,
+    step2: float = STEP2,
+    progress: Progress | None = None,
+) -> SpliceFeatures:
     """Per-pair features of both passes.
 
     Parameters
@@ -252,9 +274,11 @@ def prepare(body: Motion | MarkerSet, hand: Motion | MarkerSet, side: str = "aut
             undecided = undecided_message(hand_name, hand, rh)
             if undecided:
                 raise RoleError(undecided)
-            raise RoleError(f"{hand_name} has no finger joints (hands found: "
-                            f"{', '.join(hand_sides) or 'none'}); the hand take must carry "
-                            "the fingers to splice")
+            raise RoleError(
+                f"{hand_name} has no finger joints (hands found: "
+                f"{', '.join(hand_sides) or 'none'}); the hand take must carry "
+                "the fingers to splice"
+            )
         hand_sides = with_fingers
     sides = resolve_sides(side, body_sides, hand_sides, body_name, hand_name)
     fps = float(body.fps)
@@ -289,8 +313,10 @@ def prepare(body: Motion | MarkerSet, hand: Motion | MarkerSet, side: str = "aut
     hand_markers = np.concatenate(hm, axis=1)
     n, m = body_markers.shape[0], hand_markers.shape[0]
     if n < 2 or m < 2:
-        raise ParameterError(f"takes too short to align: {body_name} {n} frames, "
-                             f"{hand_name} {m} frames at {fps:g} fps")
+        raise ParameterError(
+            f"takes too short to align: {body_name} {n} frames, "
+            f"{hand_name} {m} frames at {fps:g} fps"
+        )
 
     # trunk headings (radians about the vertical), where the takes have a trunk
     if hand_yaw is not None:
@@ -298,15 +324,21 @@ def prepare(body: Motion | MarkerSet, hand: Motion | MarkerSet, side: str = "aut
 
         hand_yaw = resample_points(hand_yaw, hand.fps, fps)
     if theta == "trunk" and body_yaw is None:
-        raise RoleError(f"theta='trunk': {body_name} has no left and right shoulders "
-                        "to give the trunk's heading")
+        raise RoleError(
+            f"theta='trunk': {body_name} has no left and right shoulders "
+            "to give the trunk's heading"
+        )
     timings["markers"] = time.perf_counter() - t0
 
     t1 = time.perf_counter()
-    bp = M.phase_features(body_markers, fps, yaw=body_yaw, window_s=smoothing_s,
-                          relative=dead_zone)
-    hp = M.phase_features(hand_markers, fps, yaw=hand_yaw if hand_yaw is not None
-                          else np.zeros(m), window_s=smoothing_s, relative=dead_zone)
+    bp = M.phase_features(body_markers, fps, yaw=body_yaw, window_s=smoothing_s, relative=dead_zone)
+    hp = M.phase_features(
+        hand_markers,
+        fps,
+        yaw=hand_yaw if hand_yaw is not None else np.zeros(m),
+        window_s=smoothing_s,
+        relative=dead_zone,
+    )
     yaw_offset = 0.0
     if theta == "trunk" and hand_yaw is None:
         # a hand take without a trunk: constant heading, estimated near the diagonal
@@ -318,19 +350,47 @@ def prepare(body: Motion | MarkerSet, hand: Motion | MarkerSet, side: str = "aut
     progress("features", 1.0)
     M.register_metrics()
     if hand_frames and all(not hand_frames[s].elbow_apart for s in sides):
-        side_notes.append("the hand take has no measured forearm: pass 2 (hand direction "
-                          "relative to the forearm) has nothing to refine; the alignment is "
-                          "pass 1's")
+        side_notes.append(
+            "the hand take has no measured forearm: pass 2 (hand direction "
+            "relative to the forearm) has nothing to refine; the alignment is "
+            "pass 1's"
+        )
     return SpliceFeatures(
-        body=body, hand=hand, sides=tuple(sides), n=n, m=m, m_hand=hand.n_frames, fps=fps,
-        hand_fps=float(hand.fps), body_markers=body_markers, hand_markers=hand_markers,
-        body_phase=bp, hand_phase=hp, pass1_rows=rows1, hand_has_yaw=hand_yaw is not None, theta=theta,
-        n_bins=n_bins, yaw_offset=yaw_offset, body_roles=rb, hand_roles=rh,
-        body_frames=body_frames, hand_frames=hand_frames, body_fk=body_fk,
-        params={"side": side, "sides": list(sides), "theta": theta, "n_bins": n_bins,
-                "smoothing_s": smoothing_s, "dead_zone": dead_zone, "step1": step1,
-                "step2": step2},
-        timings=timings, notes=side_notes)
+        body=body,
+        hand=hand,
+        sides=tuple(sides),
+        n=n,
+        m=m,
+        m_hand=hand.n_frames,
+        fps=fps,
+        hand_fps=float(hand.fps),
+        body_markers=body_markers,
+        hand_markers=hand_markers,
+        body_phase=bp,
+        hand_phase=hp,
+        pass1_rows=rows1,
+        hand_has_yaw=hand_yaw is not None,
+        theta=theta,
+        n_bins=n_bins,
+        yaw_offset=yaw_offset,
+        body_roles=rb,
+        hand_roles=rh,
+        body_frames=body_frames,
+        hand_frames=hand_frames,
+        body_fk=body_fk,
+        params={
+            "side": side,
+            "sides": list(sides),
+            "theta": theta,
+            "n_bins": n_bins,
+            "smoothing_s": smoothing_s,
+            "dead_zone": dead_zone,
+            "step1": step1,
+            "step2": step2,
+        },
+        timings=timings,
+        notes=side_notes,
+    )
 
 
 def heading_offset(body: M.PhaseFeatures, hand: M.PhaseFeatures, cells: np.ndarray) -> float:
@@ -407,7 +467,6 @@ class PassResult:
         return M.path_values(get_metric(self.metric).cell, a, b, self.path)
 
 
-
 def check_metrics(metrics) -> tuple[str, str]:
     """The (pass 1, pass 2) metric names, each registered with ``engine.dtw``."""
     M.register_metrics()
@@ -416,9 +475,11 @@ def check_metrics(metrics) -> tuple[str, str]:
     known = metric_names()
     for k, name in enumerate(metrics):
         if name not in known:
-            raise ParameterError(f"metrics[{k}]: unknown metric {name!r}; known: "
-                                 f"{', '.join(known)} (add one with "
-                                 "engine.dtw.register_metric)")
+            raise ParameterError(
+                f"metrics[{k}]: unknown metric {name!r}; known: "
+                f"{', '.join(known)} (add one with "
+                "engine.dtw.register_metric)"
+            )
     return metrics[0], metrics[1]
 
 
@@ -482,19 +543,24 @@ def holds(phase: M.PhaseFeatures, fps: float) -> list[tuple[int, int]]:
     the mean marker speed is below sqrt(3) times the pass-1 velocity dead zone (a marker
     whose three velocity components read 0 moves slower than that)."""
     speed = np.linalg.norm(phase.velocity, axis=-1).mean(axis=1)
-    return MG.still_runs(speed, np.sqrt(3.0) * phase.zone.velocity,
-                         max(2, int(round(HOLD_MIN_S * fps))))
+    return MG.still_runs(
+        speed, np.sqrt(3.0) * phase.zone.velocity, max(2, int(round(HOLD_MIN_S * fps)))
+    )
 
 
 def straighten_holds(features: SpliceFeatures, warp: np.ndarray) -> np.ndarray:
     """:func:`engine.splice.merge.straighten_holds` with the pair's holds."""
-    return MG.straighten_holds(warp, holds(features.body_phase, features.fps),
-                               holds(features.hand_phase, features.fps),
-                               HOLD_SLACK_S * features.fps)
+    return MG.straighten_holds(
+        warp,
+        holds(features.body_phase, features.fps),
+        holds(features.hand_phase, features.fps),
+        HOLD_SLACK_S * features.fps,
+    )
 
 
-def _solve(rows, metric: str, band: Band, solver=None, incremental: bool = False,
-           ends: Ends | None = None):
+def _solve(
+    rows, metric: str, band: Band, solver=None, incremental: bool = False, ends: Ends | None = None
+):
     """Solve one pass; returns (Alignment, solver or None)."""
     a, b = rows
     if solver is not None:
@@ -517,16 +583,16 @@ def check_ends_option(ends: str, max_unmatched_s: float | None) -> tuple[str, fl
         try:
             v = float(max_unmatched_s)
         except (TypeError, ValueError):
-            raise ParameterError(f"max unmatched must be seconds >= 0, got {max_unmatched_s!r}") \
-                from None
+            raise ParameterError(
+                f"max unmatched must be seconds >= 0, got {max_unmatched_s!r}"
+            ) from None
         if not (np.isfinite(v) and v >= 0):
             raise ParameterError(f"max unmatched must be seconds >= 0, got {max_unmatched_s!r}")
         max_unmatched_s = v
     return kind, max_unmatched_s
 
 
-def unmatched_limits(n: int, m: int, fps: float, max_unmatched_s: float | None
-                     ) -> tuple[int, int]:
+def unmatched_limits(n: int, m: int, fps: float, max_unmatched_s: float | None) -> tuple[int, int]:
     """Frames of the body take and of the hand take (grid) that may stay unmatched at each
     end: ``max_unmatched_s`` seconds, else :data:`MAX_UNMATCHED_SHARE` of the shorter take."""
     if max_unmatched_s is None:
@@ -540,8 +606,9 @@ def chance_cost(rows, metric: str, seed: int = 0) -> float:
     """Mean local cost of :data:`CHANCE_CELLS` random cells: matching unrelated frames."""
     a, b = rows
     rng = np.random.default_rng(seed)
-    cells = np.column_stack([rng.integers(0, len(a), CHANCE_CELLS),
-                             rng.integers(0, len(b), CHANCE_CELLS)])
+    cells = np.column_stack(
+        [rng.integers(0, len(a), CHANCE_CELLS), rng.integers(0, len(b), CHANCE_CELLS)]
+    )
     vals = M.path_values(get_metric(metric).cell, a, b, cells)
     vals = vals[np.isfinite(vals)]
     return float(vals.mean()) if vals.size else 0.0
@@ -573,8 +640,9 @@ def pass1_ends(features: SpliceFeatures, kind: str, max_unmatched_s: float | Non
     return Ends(limits[0], limits[1], 0.5 * cache["chance1"])
 
 
-def _solve_pass2(rows, band: Band, solver, incremental: bool, pass1: Ends,
-                 metric: str = DEFAULT_METRICS[1]):
+def _solve_pass2(
+    rows, band: Band, solver, incremental: bool, pass1: Ends, metric: str = DEFAULT_METRICS[1]
+):
     """Pass 2 with open ends (when ``pass1`` is open): returns (Alignment, solver, Ends).
 
     ``skip`` is the smaller of half the chance cost and the mean local cost per cell of
@@ -626,16 +694,22 @@ def hand_lacks_forearm(features: SpliceFeatures) -> bool:
     relative to the forearm; there it never changes, so pass 2 has nothing to refine and
     the pass-1 path is the alignment."""
     frames = features.hand_frames
-    return bool(frames) and all(s in frames and not frames[s].elbow_apart
-                                for s in features.sides)
+    return bool(frames) and all(s in frames and not frames[s].elbow_apart for s in features.sides)
 
 
-def align_passes(features: SpliceFeatures, band=None, refine_band=None,
-                 metrics: Sequence[str] = DEFAULT_METRICS,
-                 points: Sequence = (), previous: SpliceAlignment | None = None,
-                 blend: float = MG.BLEND_FRAMES, incremental: bool | None = None,
-                 progress: Progress | None = None, ends: str = ENDS,
-                 max_unmatched_s: float | None = None) -> SpliceAlignment:
+def align_passes(
+    features: SpliceFeatures,
+    band=None,
+    refine_band=None,
+    metrics: Sequence[str] = DEFAULT_METRICS,
+    points: Sequence = (),
+    previous: SpliceAlignment | None = None,
+    blend: float = MG.BLEND_FRAMES,
+    incremental: bool | None = None,
+    progress: Progress | None = None,
+    ends: str = ENDS,
+    max_unmatched_s: float | None = None,
+) -> SpliceAlignment:
     """Pass 1 (phase matching) and pass 2 (refinement), then merge and smooth.
 
     Parameters
@@ -675,12 +749,14 @@ def align_passes(features: SpliceFeatures, band=None, refine_band=None,
         incremental = band1.area <= INCREMENTAL_MAX_CELLS
     # a forearm-less hand take is aligned by pass 1, whose sign costs tie often: solve it
     # afresh (re-solves after edits may break ties otherwise), so the app and the CLI agree
-    same = previous is not None and previous.features_id == id(features) \
+    same = (
+        previous is not None
+        and previous.features_id == id(features)
         and not hand_lacks_forearm(features)
+    )
     solver1 = previous.pass1.solver if same else None
     ends1 = pass1_ends(features, kind, max_unmatched_s)
-    al1, solver1 = _solve(features.pass1_rows, metric1, band1, solver1, incremental,
-                          ends1)
+    al1, solver1 = _solve(features.pass1_rows, metric1, band1, solver1, incremental, ends1)
     t1 = time.perf_counter()
     timings["pass1"] = t1 - t0
     progress("pass 1", 1.0)
@@ -688,18 +764,16 @@ def align_passes(features: SpliceFeatures, band=None, refine_band=None,
     progress("pass 2", 0.0)
     body_heading, hand_heading = pass2_headings(features, al1.path)
     body2 = M.angle_features(features.body_markers, -body_heading).rows(
-        features.params.get("step2", 0.0))
+        features.params.get("step2", 0.0)
+    )
     hand2 = M.angle_features(features.hand_markers, -hand_heading).rows()
     radius = C.refine_radius(n, m, refine_band)
-    band2 = Band.around_path(al1.path, n, m, radius, points=pts if pts else None,
-                             open_ends=is_open)
+    band2 = Band.around_path(al1.path, n, m, radius, points=pts if pts else None, open_ends=is_open)
     limits.check_band("pass 2", band2.area)
     solver2 = None
-    if same and previous.pass2.solver is not None and \
-            np.array_equal(previous.pass2.rows[1], hand2):
+    if same and previous.pass2.solver is not None and np.array_equal(previous.pass2.rows[1], hand2):
         solver2 = previous.pass2.solver
-    al2, solver2, ends2 = _solve_pass2((body2, hand2), band2, solver2, incremental, ends1,
-                                        metric2)
+    al2, solver2, ends2 = _solve_pass2((body2, hand2), band2, solver2, incremental, ends1, metric2)
     t2 = time.perf_counter()
     timings["pass2"] = t2 - t1
     progress("pass 2", 1.0)
@@ -711,19 +785,45 @@ def align_passes(features: SpliceFeatures, band=None, refine_band=None,
     overlap = final.overlap
     timings["merge"] = time.perf_counter() - t2
     progress("merge", 1.0)
-    p1 = PassResult(path=np.asarray(al1.path), cost=float(al1.cost), band=band1,
-                    rows=features.pass1_rows, metric=metric1, solver=solver1,
-                    seconds=timings["pass1"], ends=ends1)
-    p2 = PassResult(path=np.asarray(al2.path), cost=float(al2.cost), band=band2,
-                    rows=(body2, hand2), metric=metric2,
-                    solver=solver2, seconds=timings["pass2"], ends=ends2)
-    return SpliceAlignment(pass1=p1, pass2=p2, warp=warp, map=hand_map,
-                           body_heading=body_heading, hand_heading=hand_heading,
-                           points=pts, band=float(band), refine_band=float(refine_band),
-                           radius=radius, blend=float(blend), timings=timings,
-                           features_id=id(features), metrics=(metric1, metric2),
-                           overlap=overlap, ends=kind,
-                           max_unmatched_s=max_unmatched_s)
+    p1 = PassResult(
+        path=np.asarray(al1.path),
+        cost=float(al1.cost),
+        band=band1,
+        rows=features.pass1_rows,
+        metric=metric1,
+        solver=solver1,
+        seconds=timings["pass1"],
+        ends=ends1,
+    )
+    p2 = PassResult(
+        path=np.asarray(al2.path),
+        cost=float(al2.cost),
+        band=band2,
+        rows=(body2, hand2),
+        metric=metric2,
+        solver=solver2,
+        seconds=timings["pass2"],
+        ends=ends2,
+    )
+    return SpliceAlignment(
+        pass1=p1,
+        pass2=p2,
+        warp=warp,
+        map=hand_map,
+        body_heading=body_heading,
+        hand_heading=hand_heading,
+        points=pts,
+        band=float(band),
+        refine_band=float(refine_band),
+        radius=radius,
+        blend=float(blend),
+        timings=timings,
+        features_id=id(features),
+        metrics=(metric1, metric2),
+        overlap=overlap,
+        ends=kind,
+        max_unmatched_s=max_unmatched_s,
+    )
 
 
 # --------------------------------------------------------------------------------------------
@@ -731,8 +831,9 @@ def align_passes(features: SpliceFeatures, band=None, refine_band=None,
 # --------------------------------------------------------------------------------------------
 
 
-def transfer(features: SpliceFeatures, result: SpliceAlignment,
-             progress: Progress | None = None) -> Motion:
+def transfer(
+    features: SpliceFeatures, result: SpliceAlignment, progress: Progress | None = None
+) -> Motion:
     """The body take with the hand take's wrists and fingers sampled at ``result.map``."""
     progress = progress or _noop
     body, hand = features.body, features.hand
@@ -748,9 +849,15 @@ def plan_for(features: SpliceFeatures) -> TR.TransferPlan:
     """The transfer plan of a pair (cached on the features)."""
     cached = features.params.get("_plan")
     if cached is None:
-        cached = TR.plan_transfer(features.body, features.hand, features.body_roles,
-                                  features.hand_roles, features.body_frames,
-                                  features.hand_frames, features.sides)
+        cached = TR.plan_transfer(
+            features.body,
+            features.hand,
+            features.body_roles,
+            features.hand_roles,
+            features.body_frames,
+            features.hand_frames,
+            features.sides,
+        )
         cached = replace(cached, notes=tuple(features.notes) + cached.notes)
         features.params["_plan"] = cached
     return cached
@@ -784,21 +891,36 @@ def grid_points_to_hand(features: SpliceFeatures, points) -> list[tuple[int, int
     (:func:`engine.dtw.constraints.points_to_hand`)."""
     out = []
     for x, y, t in points:
-        ((bx, hy, ht),) = C.points_to_hand([(x, y, t or 0.0)], features.fps, features.hand_fps,
-                                           features.m_hand)
+        ((bx, hy, ht),) = C.points_to_hand(
+            [(x, y, t or 0.0)], features.fps, features.hand_fps, features.m_hand
+        )
         out.append((bx, hy, None if t is None else ht))
     return out
 
 
-def splice(body: Motion, hand: Motion, side: str = "auto", band=None,
-           refine_band=None, points: Sequence = (), hand_points: bool = False,
-           theta: str = "window", body_roles=None, hand_roles=None,
-           blend: float = MG.BLEND_FRAMES, smoothing_s: float = SMOOTHING_S,
-           dead_zone: float = DEAD_ZONE, n_bins: int = M.THETA_BINS,
-           step1: float = STEP1, step2: float = STEP2,
-           progress: Progress | None = None, transfer_fingers: bool = True,
-           ends: str = ENDS, max_unmatched_s: float | None = None,
-           metrics: Sequence[str] = DEFAULT_METRICS) -> SpliceResult:
+def splice(
+    body: Motion,
+    hand: Motion,
+    side: str = "auto",
+    band=None,
+    refine_band=None,
+    points: Sequence = (),
+    hand_points: bool = False,
+    theta: str = "window",
+    body_roles=None,
+    hand_roles=None,
+    blend: float = MG.BLEND_FRAMES,
+    smoothing_s: float = SMOOTHING_S,
+    dead_zone: float = DEAD_ZONE,
+    n_bins: int = M.THETA_BINS,
+    step1: float = STEP1,
+    step2: float = STEP2,
+    progress: Progress | None = None,
+    transfer_fingers: bool = True,
+    ends: str = ENDS,
+    max_unmatched_s: float | None = None,
+    metrics: Sequence[str] = DEFAULT_METRICS,
+) -> SpliceResult:
     """Align and splice in one call (CLI, batch and benchmarks).
 
     ``points`` are ``(body_frame, hand_frame[, tol])``; with ``hand_points=True`` the
@@ -808,26 +930,52 @@ def splice(body: Motion, hand: Motion, side: str = "auto", band=None,
     ``ends``/``max_unmatched_s``: see :func:`align_passes`.
     """
     t0 = time.perf_counter()
-    feats = prepare(body, hand, side=side, body_roles=body_roles, hand_roles=hand_roles,
-                    theta=theta, n_bins=n_bins, smoothing_s=smoothing_s, dead_zone=dead_zone,
-                    step1=step1, step2=step2, progress=progress)
+    feats = prepare(
+        body,
+        hand,
+        side=side,
+        body_roles=body_roles,
+        hand_roles=hand_roles,
+        theta=theta,
+        n_bins=n_bins,
+        smoothing_s=smoothing_s,
+        dead_zone=dead_zone,
+        step1=step1,
+        step2=step2,
+        progress=progress,
+    )
     t1 = time.perf_counter()
     pts = C.point_triples(points)
     if hand_points and pts:
         # check order and range in the user's own frame numbers first
-        C.check_points(pts, feats.n, feats.m_hand,
-                       open_ends=check_ends_option(ends, None)[0] == "open")
+        C.check_points(
+            pts, feats.n, feats.m_hand, open_ends=check_ends_option(ends, None)[0] == "open"
+        )
         pts = hand_points_to_grid(feats, pts)
-    result = align_passes(feats, band=band, refine_band=refine_band, metrics=metrics,
-                          points=pts, blend=blend,
-                          incremental=False, progress=progress, ends=ends,
-                          max_unmatched_s=max_unmatched_s)
+    result = align_passes(
+        feats,
+        band=band,
+        refine_band=refine_band,
+        metrics=metrics,
+        points=pts,
+        blend=blend,
+        incremental=False,
+        progress=progress,
+        ends=ends,
+        max_unmatched_s=max_unmatched_s,
+    )
     t2 = time.perf_counter()
     motion = transfer(feats, result, progress) if transfer_fingers else None
     t3 = time.perf_counter()
-    timings = {"prepare": t1 - t0, **{f"prepare.{k}": v for k, v in feats.timings.items()},
-               "pass1": result.timings["pass1"], "pass2": result.timings["pass2"],
-               "merge": result.timings["merge"], "transfer": t3 - t2, "total": t3 - t0}
+    timings = {
+        "prepare": t1 - t0,
+        **{f"prepare.{k}": v for k, v in feats.timings.items()},
+        "pass1": result.timings["pass1"],
+        "pass2": result.timings["pass2"],
+        "merge": result.timings["merge"],
+        "transfer": t3 - t2,
+        "total": t3 - t0,
+    }
     return SpliceResult(motion=motion, features=feats, alignment=result, timings=timings)
 
 
@@ -838,6 +986,7 @@ def splice(body: Motion, hand: Motion, side: str = "auto", band=None,
 
 def wrist_speeds(features: SpliceFeatures) -> tuple[np.ndarray, np.ndarray]:
     """Speed of the wrist centre (m/s, summed over spliced arms): body ``(n,)``, hand ``(m,)``."""
+
     def speed(ph: M.PhaseFeatures) -> np.ndarray:
         v = ph.velocity.reshape(ph.n_frames, -1, 4, 3)
         centre = 0.5 * (v[:, :, 0] + v[:, :, 1])
@@ -846,8 +995,9 @@ def wrist_speeds(features: SpliceFeatures) -> tuple[np.ndarray, np.ndarray]:
     return speed(features.body_phase), speed(features.hand_phase)
 
 
-def cost_image(features: SpliceFeatures, kind: str, rows, cols,
-               result: SpliceAlignment | None = None) -> np.ndarray:
+def cost_image(
+    features: SpliceFeatures, kind: str, rows, cols, result: SpliceAlignment | None = None
+) -> np.ndarray:
     """Cost matrix values at body frames ``rows`` × grid hand frames ``cols``.
 
     kind : ``"pass1"`` / ``"pass2"`` (local costs; pass 2 uses the headings of
@@ -878,7 +1028,8 @@ def cost_image(features: SpliceFeatures, kind: str, rows, cols,
                 raise ParameterError(
                     f"the cumulative-cost view of this pass needs γ for {pr.band.area:,} band "
                     f"cells (limit {CUMULATIVE_MAX_CELLS:,}, about 18 bytes each): narrow the "
-                    "band or add matching points, or view the local cost")
+                    "band or add matching points, or view the local cost"
+                )
         if pr.solver is None:
             pr.solver = Aligner(pr.rows[0], pr.rows[1], metric=pr.metric)
             pr.solver.solve(pr.band)
@@ -889,5 +1040,6 @@ def cost_image(features: SpliceFeatures, kind: str, rows, cols,
         flat = bd.start[rows][:, None] + cols[None, :] - lo
         flat = np.where(inside, flat, 0)
         return np.where(inside, bv.values[flat], np.nan)
-    raise ParameterError(f"cost image kind must be pass1, pass2, cumulative1 or cumulative2, "
-                         f"got {kind!r}")
+    raise ParameterError(
+        f"cost image kind must be pass1, pass2, cumulative1 or cumulative2, got {kind!r}"
+    )

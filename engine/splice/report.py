@@ -52,8 +52,11 @@ def _round(x, nd: int = 4) -> list:
 
 
 def _band(band) -> dict:
-    return {"lo": [int(v) for v in band.lo], "hi": [int(v) for v in band.hi],
-            "cells": int(band.area)}
+    return {
+        "lo": [int(v) for v in band.lo],
+        "hi": [int(v) for v in band.hi],
+        "cells": int(band.area),
+    }
 
 
 def _headings(h: np.ndarray):
@@ -63,8 +66,9 @@ def _headings(h: np.ndarray):
     return _round(h, 3)
 
 
-def build_report(result, body_path=None, hand_path=None, output_path=None,
-                 points_given=None, assessment=None) -> dict:
+def build_report(
+    result, body_path=None, hand_path=None, output_path=None, points_given=None, assessment=None
+) -> dict:
     """The REPORT.json dictionary of a :class:`engine.splice.pipeline.SpliceResult`.
 
     assessment : engine.splice.uncertainty.Assessment, optional (adds the trust keys)
@@ -72,26 +76,41 @@ def build_report(result, body_path=None, hand_path=None, output_path=None,
     f, a = result.features, result.alignment
     report = {
         "version": VERSION,
-        "body": {"file": str(body_path or f.body.meta.source), "frames": int(f.n),
-                 "fps": float(f.fps)},
-        "hand": {"file": str(hand_path or f.hand.meta.source), "frames": int(f.m_hand),
-                 "fps": float(f.hand_fps)},
+        "body": {
+            "file": str(body_path or f.body.meta.source),
+            "frames": int(f.n),
+            "fps": float(f.fps),
+        },
+        "hand": {
+            "file": str(hand_path or f.hand.meta.source),
+            "frames": int(f.m_hand),
+            "fps": float(f.hand_fps),
+        },
         "output": None if output_path is None else str(output_path),
         "sides": list(f.sides),
         "map": _round(a.map),
         "map_seconds": _round(np.asarray(a.map) / f.hand_fps, 5),
         "grid": {"fps": float(f.fps), "hand_frames": int(f.m)},
         "warp": _round(a.warp),
-        "pass1": {"path": np.asarray(a.pass1.path).tolist(), "cost": float(a.pass1.cost),
-                  "band": _band(a.pass1.band), "metric": a.pass1.metric,
-                  "seconds": round(a.pass1.seconds, 6)},
-        "pass2": {"path": np.asarray(a.pass2.path).tolist(), "cost": float(a.pass2.cost),
-                  "band": _band(a.pass2.band), "metric": a.pass2.metric,
-                  "seconds": round(a.pass2.seconds, 6), "radius": int(a.radius),
-                  "headings_deg": {"body": _headings(a.body_heading),
-                                   "hand": _headings(a.hand_heading)}},
+        "pass1": {
+            "path": np.asarray(a.pass1.path).tolist(),
+            "cost": float(a.pass1.cost),
+            "band": _band(a.pass1.band),
+            "metric": a.pass1.metric,
+            "seconds": round(a.pass1.seconds, 6),
+        },
+        "pass2": {
+            "path": np.asarray(a.pass2.path).tolist(),
+            "cost": float(a.pass2.cost),
+            "band": _band(a.pass2.band),
+            "metric": a.pass2.metric,
+            "seconds": round(a.pass2.seconds, 6),
+            "radius": int(a.radius),
+            "headings_deg": {"body": _headings(a.body_heading), "hand": _headings(a.hand_heading)},
+        },
         "parameters": {
-            "band": a.band, "refine_band": a.refine_band,
+            "band": a.band,
+            "refine_band": a.refine_band,
             "points": [[int(x), int(y), float(t)] for x, y, t in a.points],
             "points_given": None if points_given is None else [list(p) for p in points_given],
             "blend": a.blend,
@@ -101,9 +120,10 @@ def build_report(result, body_path=None, hand_path=None, output_path=None,
     }
     (b0, b1), (h0, h1) = a.overlap
     hand_ends = f.grid_to_hand(np.array([h0, h1], dtype=float))
-    report["overlap"] = {"body": [int(b0), int(b1)],
-                         "hand": [int(np.floor(hand_ends[0] + 1e-6)),
-                                  int(np.ceil(hand_ends[1] - 1e-6))]}
+    report["overlap"] = {
+        "body": [int(b0), int(b1)],
+        "hand": [int(np.floor(hand_ends[0] + 1e-6)), int(np.ceil(hand_ends[1] - 1e-6))],
+    }
     report["unmatched_body"] = [[int(x), int(y)] for x, y in a.unmatched_body]
     report["parameters"]["ends"] = a.ends
     report["parameters"]["max_unmatched_s"] = a.max_unmatched_s
@@ -112,15 +132,18 @@ def build_report(result, body_path=None, hand_path=None, output_path=None,
     if plan is not None:
         sk = plan.skeleton
         report["transfer"] = {
-            "sides": {sp.side: {
-                "wrist": sk.names[plan.out(sp.body_frame.wrist)] if sp.wrist else None,
-                "fingers": [sk.names[m.body] for m in sp.mapped],
-                "grafted": [sk.names[new] for new, _ in sp.grafted],
-                "inserted": [sk.names[new] for new in sp.inserted],
-                "graft_scale": round(float(sp.scale), 6),
-                "body_dorsal_from": sp.body_frame.dorsal_source,
-                "hand_dorsal_from": sp.hand_frame.dorsal_source,
-            } for sp in plan.sides},
+            "sides": {
+                sp.side: {
+                    "wrist": sk.names[plan.out(sp.body_frame.wrist)] if sp.wrist else None,
+                    "fingers": [sk.names[m.body] for m in sp.mapped],
+                    "grafted": [sk.names[new] for new, _ in sp.grafted],
+                    "inserted": [sk.names[new] for new in sp.inserted],
+                    "graft_scale": round(float(sp.scale), 6),
+                    "body_dorsal_from": sp.body_frame.dorsal_source,
+                    "hand_dorsal_from": sp.hand_frame.dorsal_source,
+                }
+                for sp in plan.sides
+            },
             "notes": list(plan.notes),
         }
     if assessment is not None:
@@ -130,8 +153,9 @@ def build_report(result, body_path=None, hand_path=None, output_path=None,
 
 def dumps(report: dict) -> str:
     """JSON text with one top-level key per line (long arrays stay on their line)."""
-    items = [f"  {json.dumps(k)}: {json.dumps(v, separators=(', ', ': '))}"
-             for k, v in report.items()]
+    items = [
+        f"  {json.dumps(k)}: {json.dumps(v, separators=(', ', ': '))}" for k, v in report.items()
+    ]
     return "{\n" + ",\n".join(items) + "\n}\n"
 
 

@@ -24,10 +24,17 @@ def retimed_hand(hand: Motion, hand_frames: np.ndarray, fps: float) -> Motion:
     the result has ``n`` frames at ``fps`` (the body take's rate)."""
     if not isinstance(hand, Motion):
         name = Path(getattr(hand.meta, "source", "") or "the hand take").name
-        raise HandSpliceError(f"{name}: holds markers; a marker take has no finger rotations "
-                              "to give: the hand take must be a skeletal take (.bvh)")
+        raise HandSpliceError(
+            f"{name}: holds markers; a marker take has no finger rotations "
+            "to give: the hand take must be a skeletal take (.bvh)"
+        )
     frames = np.asarray(hand_frames, dtype=float)
     rotations, translations = kinematics.sample(hand, frames)
     source = Path(hand.meta.source).name if hand.meta.source else "hand take"
-    return Motion(hand.skeleton, rotations, translations, float(fps),
-                  replace(hand.meta, source=f"{source} retimed to the body", format="derived"))
+    return Motion(
+        hand.skeleton,
+        rotations,
+        translations,
+        float(fps),
+        replace(hand.meta, source=f"{source} retimed to the body", format="derived"),
+    )

@@ -126,8 +126,14 @@ def _bone_along(rest: np.ndarray, skeleton: Skeleton, j: int) -> np.ndarray | No
     return None
 
 
-def _joint_frame(rest: np.ndarray, skeleton: Skeleton, j: int, dorsal: np.ndarray,
-                 fallback_along: np.ndarray, side: str) -> np.ndarray:
+def _joint_frame(
+    rest: np.ndarray,
+    skeleton: Skeleton,
+    j: int,
+    dorsal: np.ndarray,
+    fallback_along: np.ndarray,
+    side: str,
+) -> np.ndarray:
     """(3, 3) rest anatomical frame of joint ``j``: bone direction, radial, dorsal."""
     along = _bone_along(rest, skeleton, j)
     if along is None:
@@ -140,7 +146,11 @@ def _joint_frame(rest: np.ndarray, skeleton: Skeleton, j: int, dorsal: np.ndarra
     if np.linalg.norm(n) < 1e-6:  # bone along the dorsal axis: use the radial side instead
         n = np.cross(along, fallback_along)
         if np.linalg.norm(n) < 1e-6:
-            n = np.cross(along, [1.0, 0.0, 0.0]) if abs(along[0]) < 0.9 else np.cross(along, [0, 1.0, 0])
+            n = (
+                np.cross(along, [1.0, 0.0, 0.0])
+                if abs(along[0]) < 0.9
+                else np.cross(along, [0, 1.0, 0])
+            )
     n = _unit(n)
     radial = np.cross(n, along) if side == "right" else np.cross(along, n)
     return np.column_stack([along, _unit(radial), n])
@@ -164,13 +174,14 @@ def _finger_chain(sk: Skeleton, arm, finger: str, hand_joint: int) -> list[int]:
     while len(sk.children(last)) == 1:
         last = sk.children(last)[0]
     path = sk.chain_to_root(last)
-    return path[:path.index(hand_joint)][::-1]
+    return path[: path.index(hand_joint)][::-1]
 
 
 def _anchors(sk: Skeleton, arm, finger: str, chain: list[int]) -> dict[int, int]:
     """Role number -> joint on ``chain``: metacarpal 0, joints 1..3, tip 4."""
-    out = {k: j for k, j in zip(arm.numbers[finger], arm.fingers[finger], strict=True)
-           if j in chain}
+    out = {
+        k: j for k, j in zip(arm.numbers[finger], arm.fingers[finger], strict=True) if j in chain
+    }
     if arm.metacarpals[finger] in chain:
         out[0] = arm.metacarpals[finger]
     if arm.tips[finger] in chain:
@@ -183,10 +194,10 @@ class _Builder:
     joints (``("n", k)``), each with a parent key, offset, channels and End Site."""
 
     def __init__(self, sk: Skeleton):
-        self.parent = {("b", j): (("b", int(p)) if p >= 0 else None)
-                       for j, p in enumerate(sk.parents)}
-        self.offset = {("b", j): np.asarray(sk.offsets[j], dtype=float)
-                       for j in range(sk.n_joints)}
+        self.parent = {
+            ("b", j): (("b", int(p)) if p >= 0 else None) for j, p in enumerate(sk.parents)
+        }
+        self.offset = {("b", j): np.asarray(sk.offsets[j], dtype=float) for j in range(sk.n_joints)}
         self.name = {("b", j): sk.names[j] for j in range(sk.n_joints)}
         self.channels = {("b", j): sk.channels[j] for j in range(sk.n_joints)}
         self.end = {("b", j): v for j, v in sk.end_sites.items()}
@@ -231,15 +242,25 @@ class _Builder:
             if k in with_new_kids and k[0] == "b":
                 continue  # fingers now hang here: the old End Site would be a stub
             ends[index[k]] = np.asarray(v, dtype=float)
-        skeleton = Skeleton(names=tuple(self.name[k] for k in order), parents=np.array(parents),
-                            offsets=np.array([self.offset[k] for k in order]),
-                            channels=tuple(self.channels[k] for k in order), end_sites=ends)
+        skeleton = Skeleton(
+            names=tuple(self.name[k] for k in order),
+            parents=np.array(parents),
+            offsets=np.array([self.offset[k] for k in order]),
+            channels=tuple(self.channels[k] for k in order),
+            end_sites=ends,
+        )
         return skeleton, index
 
 
-def plan_transfer(body: Motion, hand: Motion, body_roles, hand_roles,
-                  body_frames: dict[str, HandFrame], hand_frames: dict[str, HandFrame],
-                  sides: tuple[str, ...]) -> TransferPlan:
+def plan_transfer(
+    body: Motion,
+    hand: Motion,
+    body_roles,
+    hand_roles,
+    body_frames: dict[str, HandFrame],
+    hand_frames: dict[str, HandFrame],
+    sides: tuple[str, ...],
+) -> TransferPlan:
     """Decide, per side, which body joints the hand take drives and what to insert or graft.
 
     Every joint of the hand take's finger chains is carried: a joint matched by role
@@ -267,8 +288,10 @@ def plan_transfer(body: Motion, hand: Motion, body_roles, hand_roles,
         # rotation is always identity) and ManipNet has no forearm: the body keeps its wrist.
         wrist = fh.elbow_apart
         if not wrist:
-            notes.append(f"{side}: the hand take has no measured forearm (no elbow joint away "
-                         "from the wrist); the body keeps its own wrist rotation")
+            notes.append(
+                f"{side}: the hand take has no measured forearm (no elbow joint away "
+                "from the wrist); the body keeps its own wrist rotation"
+            )
         hand_b, hand_h = fb.hand_joint, fh.hand_joint
         driven: list[tuple] = []  # (body key, hand joint, body parent key, hand parent)
         grafted: list[tuple] = []  # (new key, hand joint)
@@ -282,8 +305,24 @@ def plan_transfer(body: Motion, hand: Motion, body_roles, hand_roles,
                 continue
             chain_b = _finger_chain(sk_b, arm_b, finger, hand_b)
             if chain_b:
-                _carry_chain(bld, sk_b, sk_h, rest_h, finger, arm_b, arm_h, chain_b, chain_h,
-                             hand_b, hand_h, wrist_name, size, u_hand_m, driven, inserted)
+                _carry_chain(
+                    bld,
+                    sk_b,
+                    sk_h,
+                    rest_h,
+                    finger,
+                    arm_b,
+                    arm_h,
+                    chain_b,
+                    chain_h,
+                    hand_b,
+                    hand_h,
+                    wrist_name,
+                    size,
+                    u_hand_m,
+                    driven,
+                    inserted,
+                )
                 continue
             # graft the hand take's subtree of this finger under the body's hand joint
             top = chain_h[0]
@@ -296,8 +335,12 @@ def plan_transfer(body: Motion, hand: Motion, body_roles, hand_roles,
                     parent_new = new_index[sk_h.parents[a]]
                     off_h = sk_h.offsets[a]
                 name = _graft_name(wrist_name, finger, arm_h, a, sk_h.names[a], bld.taken)
-                key = bld.add(name, parent_new, size * (u_hand_m @ np.asarray(off_h, float)),
-                              tuple(f"{c}rotation" for c in order))
+                key = bld.add(
+                    name,
+                    parent_new,
+                    size * (u_hand_m @ np.asarray(off_h, float)),
+                    tuple(f"{c}rotation" for c in order),
+                )
                 new_index[a] = key
                 if a in sk_h.end_sites:
                     bld.end[key] = size * (u_hand_m @ np.asarray(sk_h.end_sites[a]))
@@ -325,23 +368,53 @@ def plan_transfer(body: Motion, hand: Motion, body_roles, hand_roles,
                 between.append(j)
                 j = int(skeleton.parents[j])
             mapped.append(FingerMap(b, h, bp, h_parent, u_parent, u_child, tuple(between[::-1])))
-        plans.append(SidePlan(side=side, body_frame=fb, hand_frame=fh, u_hand=u_hand,
-                              wrist=wrist, mapped=tuple(mapped),
-                              grafted=tuple((index[k], a) for k, a in grafted), scale=size,
-                              inserted=tuple(index[k] for k in inserted)))
+        plans.append(
+            SidePlan(
+                side=side,
+                body_frame=fb,
+                hand_frame=fh,
+                u_hand=u_hand,
+                wrist=wrist,
+                mapped=tuple(mapped),
+                grafted=tuple((index[k], a) for k, a in grafted),
+                scale=size,
+                inserted=tuple(index[k] for k in inserted),
+            )
+        )
         n_ins = len(inserted)
         if n_ins:
-            notes.append(f"{side}: {n_ins} finger joint{'s' if n_ins > 1 else ''} of the hand "
-                         f"take the body lacks inserted in its finger chains: "
-                         + ", ".join(skeleton.names[index[k]] for k in inserted))
-    return TransferPlan(skeleton=skeleton, sides=tuple(plans), n_body_joints=sk_b.n_joints,
-                        notes=tuple(notes), body_index=body_index)
+            notes.append(
+                f"{side}: {n_ins} finger joint{'s' if n_ins > 1 else ''} of the hand "
+                f"take the body lacks inserted in its finger chains: "
+                + ", ".join(skeleton.names[index[k]] for k in inserted)
+            )
+    return TransferPlan(
+        skeleton=skeleton,
+        sides=tuple(plans),
+        n_body_joints=sk_b.n_joints,
+        notes=tuple(notes),
+        body_index=body_index,
+    )
 
 
-def _carry_chain(bld: _Builder, sk_b: Skeleton, sk_h: Skeleton, rest_h: np.ndarray,
-                 finger: str, arm_b, arm_h, chain_b: list[int], chain_h: list[int],
-                 hand_b: int, hand_h: int, wrist_name: str, size: float, u_hand_m: np.ndarray,
-                 driven: list, inserted: list) -> None:
+def _carry_chain(
+    bld: _Builder,
+    sk_b: Skeleton,
+    sk_h: Skeleton,
+    rest_h: np.ndarray,
+    finger: str,
+    arm_b,
+    arm_h,
+    chain_b: list[int],
+    chain_h: list[int],
+    hand_b: int,
+    hand_h: int,
+    wrist_name: str,
+    size: float,
+    u_hand_m: np.ndarray,
+    driven: list,
+    inserted: list,
+) -> None:
     """Drive the body's finger chain with every joint of the hand take's chain.
 
     Matched joints (same role number, in order along both chains) drive body joints.
@@ -356,22 +429,28 @@ def _carry_chain(bld: _Builder, sk_b: Skeleton, sk_h: Skeleton, rest_h: np.ndarr
     pairs = []
     for k in sorted(set(anc_h) & set(anc_b)):
         h, b = anc_h[k], anc_b[k]
-        if pairs and (chain_h.index(h) <= chain_h.index(pairs[-1][0])
-                      or chain_b.index(b) <= chain_b.index(pairs[-1][1])):
+        if pairs and (
+            chain_h.index(h) <= chain_h.index(pairs[-1][0])
+            or chain_b.index(b) <= chain_b.index(pairs[-1][1])
+        ):
             continue
         pairs.append((h, b))
     if not pairs:
         return
     chans = sk_b.channels[chain_b[0]]
-    rot_chans = tuple(c for c in chans if c.endswith("rotation")) or \
-        ("Zrotation", "Xrotation", "Yrotation")
+    rot_chans = tuple(c for c in chans if c.endswith("rotation")) or (
+        "Zrotation",
+        "Xrotation",
+        "Yrotation",
+    )
     prev_key, prev_h = ("b", hand_b), hand_h
     for h, b in pairs:
-        extras = chain_h[chain_h.index(prev_h) + 1 if prev_h in chain_h else 0:chain_h.index(h)]
+        extras = chain_h[chain_h.index(prev_h) + 1 if prev_h in chain_h else 0 : chain_h.index(h)]
         key_b = ("b", b)
         if extras:
-            lengths = np.array([np.linalg.norm(rest_h[e] - rest_h[sk_h.parents[e]])
-                                for e in extras + [h]])
+            lengths = np.array(
+                [np.linalg.norm(rest_h[e] - rest_h[sk_h.parents[e]]) for e in extras + [h]]
+            )
             total = float(lengths.sum())
             frac = np.cumsum(lengths) / total if total > 1e-12 else np.zeros(lengths.size)
             bone = bld.offset[key_b]
@@ -387,10 +466,11 @@ def _carry_chain(bld: _Builder, sk_b: Skeleton, sk_h: Skeleton, rest_h: np.ndarr
         driven.append((key_b, h, prev_key, prev_h))
         prev_key, prev_h = key_b, h
     # hand joints past the last matched one: appended below it
-    for e in chain_h[chain_h.index(prev_h) + 1:]:
+    for e in chain_h[chain_h.index(prev_h) + 1 :]:
         name = _unique(f"{wrist_name}_{finger}_{sk_h.names[e]}", bld.taken)
-        key = bld.add(name, prev_key, size * (u_hand_m @ np.asarray(sk_h.offsets[e], float)),
-                      rot_chans)
+        key = bld.add(
+            name, prev_key, size * (u_hand_m @ np.asarray(sk_h.offsets[e], float)), rot_chans
+        )
         if e in sk_h.end_sites:
             bld.end[key] = size * (u_hand_m @ np.asarray(sk_h.end_sites[e], float))
         driven.append((key, e, prev_key, prev_h))
@@ -431,8 +511,9 @@ def _rotation_order(sk: Skeleton, j: int) -> str:
     return sk.rotation_order(j)
 
 
-def _graft_name(wrist_name: str, finger: str, arm_h, joint: int, hand_name: str,
-                taken: list[str]) -> str:
+def _graft_name(
+    wrist_name: str, finger: str, arm_h, joint: int, hand_name: str, taken: list[str]
+) -> str:
     base = None
     for k, j in zip(arm_h.numbers[finger], arm_h.fingers[finger], strict=True):
         if j == joint:
@@ -452,8 +533,9 @@ def _conj_u(u: np.ndarray, r: np.ndarray, v: np.ndarray) -> np.ndarray:
 TRANSFER_CHUNK = 2048
 
 
-def apply_transfer(plan: TransferPlan, body: Motion, hand: Motion, hand_times: np.ndarray,
-                   body_fk=None) -> Motion:
+def apply_transfer(
+    plan: TransferPlan, body: Motion, hand: Motion, hand_times: np.ndarray, body_fk=None
+) -> Motion:
     """The spliced take: ``body`` with the hand take sampled at ``hand_times``.
 
     Parameters
@@ -490,13 +572,21 @@ def apply_transfer(plan: TransferPlan, body: Motion, hand: Motion, hand_times: n
             gb = g_b[f0:f1]
         _transfer_block(plan, body, hand, t[f0:f1], gb, f0, f1, rots[f0:f1], trans[f0:f1], nb)
     continuous_inplace(rots)
-    return Motion(plan.skeleton, rots, trans, body.fps,
-                  replace(body.meta, format="derived"))
+    return Motion(plan.skeleton, rots, trans, body.fps, replace(body.meta, format="derived"))
 
 
-def _transfer_block(plan: TransferPlan, body: Motion, hand: Motion, t: np.ndarray,
-                    g_b: np.ndarray, f0: int, f1: int, rots: np.ndarray, trans: np.ndarray,
-                    nb: int) -> None:
+def _transfer_block(
+    plan: TransferPlan,
+    body: Motion,
+    hand: Motion,
+    t: np.ndarray,
+    g_b: np.ndarray,
+    f0: int,
+    f1: int,
+    rots: np.ndarray,
+    trans: np.ndarray,
+    nb: int,
+) -> None:
     """Body frames ``f0..f1-1`` of :func:`apply_transfer` into ``rots``/``trans`` (views).
 
     Body joint ``j`` is output joint ``plan.body_index[j]`` (joints inserted in finger
@@ -542,8 +632,9 @@ def _transfer_block(plan: TransferPlan, body: Motion, hand: Motion, t: np.ndarra
                 between = None
                 for j in fm.between:
                     between = rots[:, j] if between is None else qmul(between, rots[:, j])
-                rots[:, fm.body] = desired[:, k] if between is None else \
-                    qmul_conj(between, desired[:, k])
+                rots[:, fm.body] = (
+                    desired[:, k] if between is None else qmul_conj(between, desired[:, k])
+                )
         if sp.grafted:
             new = np.array([g[0] for g in sp.grafted])
             src = np.array([g[1] for g in sp.grafted])

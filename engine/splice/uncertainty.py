@@ -54,8 +54,12 @@ class Stroke:
     verdict: str  # "ok" | "check" | "desync"
 
     def as_dict(self) -> dict:
-        return {"start": self.start, "end": self.end,
-                "uncertainty_ms": round(float(self.uncertainty_ms), 1), "verdict": self.verdict}
+        return {
+            "start": self.start,
+            "end": self.end,
+            "uncertainty_ms": round(float(self.uncertainty_ms), 1),
+            "verdict": self.verdict,
+        }
 
 
 @dataclass(frozen=True)
@@ -121,8 +125,9 @@ def pass_spread(result, warp: np.ndarray, kappa: float = KAPPA) -> np.ndarray:
     a, b = result.rows
     temperature = kappa * max(float(result.cost) / max(len(result.path), 1), TEMPERATURE_FLOOR)
     ends = getattr(result, "ends", None) or FIXED
-    return row_spread(a, b, result.band, result.metric, warp, temperature, margin=0.0,
-                      ends=ends).spread
+    return row_spread(
+        a, b, result.band, result.metric, warp, temperature, margin=0.0, ends=ends
+    ).spread
 
 
 def alignment_uncertainty(features, alignment) -> Uncertainty:
@@ -137,8 +142,13 @@ def alignment_uncertainty(features, alignment) -> Uncertainty:
 
     speed = wrist_speeds(features)[0]
     typical = float(np.median(speed)) or 1.0
-    return Uncertainty(ms=np.hypot(ms1, ms2), pass1_ms=ms1, pass2_ms=ms2,
-                       fps=float(features.fps), visibility=speed / (speed + typical))
+    return Uncertainty(
+        ms=np.hypot(ms1, ms2),
+        pass1_ms=ms1,
+        pass2_ms=ms2,
+        fps=float(features.fps),
+        visibility=speed / (speed + typical),
+    )
 
 
 def strokes(uncertainty: Uncertainty, labels: np.ndarray, stroke_label: int) -> list[Stroke]:
@@ -166,8 +176,10 @@ def summary_line(stroke_list: list[Stroke]) -> str:
     if not stroke_list:
         return "no gesture strokes found in the body take"
     if not bad:
-        return f"none of {len(stroke_list)} strokes is likely to show desync (all under " \
-               f"{DESYNC_MS:.0f} ms)"
+        return (
+            f"none of {len(stroke_list)} strokes is likely to show desync (all under "
+            f"{DESYNC_MS:.0f} ms)"
+        )
     where = ", ".join(f"{s.start}-{s.end}" for s in bad[:6]) + (", ..." if len(bad) > 6 else "")
     return f"{len(bad)} of {len(stroke_list)} strokes may show desync: body frames {where}"
 
@@ -211,5 +223,6 @@ def assess(features, alignment, stroke_labels: np.ndarray, stroke_code: int) -> 
     unc = alignment_uncertainty(features, alignment)
     hand_map = np.asarray(alignment.map, np.float64)
     picks = [(i, float(hand_map[i])) for i in unc.suggestions()]
-    return Assessment(uncertainty=unc, strokes=strokes(unc, stroke_labels, int(stroke_code)),
-                      suggestions=picks)
+    return Assessment(
+        uncertainty=unc, strokes=strokes(unc, stroke_labels, int(stroke_code)), suggestions=picks
+    )

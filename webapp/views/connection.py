@@ -12,8 +12,10 @@ from __future__ import annotations
 from bokeh.models import CustomJS
 
 NOTICE_ID = "hs-connection-lost"
-TEXT = ("Connection to the server lost: what you do now is not sent to the server. "
-        "Reload the page to continue (the link in the address bar keeps the session).")
+TEXT = (
+    "Connection to the server lost: what you do now is not sent to the server. "
+    "Reload the page to continue (the link in the address bar keeps the session)."
+)
 
 _JS = """
 if (window.__hs_connection_watch) { return; }

@@ -9,38 +9,71 @@ from bokeh.models import CustomJS
 from webapp import safe_text
 from webapp.state import Session, page_words
 
-MATRIX_CHOICES = {"Pass 1": "pass1", "Pass 2": "pass2", "Cumulative 1": "cumulative1",
-                  "Cumulative 2": "cumulative2"}
+MATRIX_CHOICES = {
+    "Pass 1": "pass1",
+    "Pass 2": "pass2",
+    "Cumulative 1": "cumulative1",
+    "Cumulative 2": "cumulative2",
+}
 
 
 def parameter_widgets(session: Session) -> pn.viewable.Viewable:
     """Band widths and global tolerance (recompute on release: throttled) and matrix choice."""
     params = pn.Param(
-        session.param, parameters=["band", "band_s", "refine_band", "refine_band_s",
-                                   "tolerance"], show_name=False,
+        session.param,
+        parameters=["band", "band_s", "refine_band", "refine_band_s", "tolerance"],
+        show_name=False,
         widgets={
-            "band": {"type": pn.widgets.FloatSlider, "throttled": True,
-                     "label": "Pass-1 band width W1 (fraction of body frames)", "step": 0.01},
+            "band": {
+                "type": pn.widgets.FloatSlider,
+                "throttled": True,
+                "label": "Pass-1 band width W1 (fraction of body frames)",
+                "step": 0.01,
+            },
             # a width in seconds wins over the fraction; empty = use the fraction (ranges:
             # engine.dtw.constraints, as for links and session files)
-            "band_s": {"type": pn.widgets.FloatInput, "name": "W1 in seconds (empty: fraction)",
-                       "step": 0.5},
-            "refine_band": {"type": pn.widgets.FloatSlider, "throttled": True,
-                            "label": "Pass-2 band width W2 around the pass-1 path", "step": 0.01},
-            "refine_band_s": {"type": pn.widgets.FloatInput,
-                              "name": "W2 in seconds (empty: fraction)", "step": 0.1},
-            "tolerance": {"type": pn.widgets.FloatSlider, "throttled": True, "end": 60.0,
-                          "label": "Global tolerance T (hand frames)", "step": 1.0},
+            "band_s": {
+                "type": pn.widgets.FloatInput,
+                "name": "W1 in seconds (empty: fraction)",
+                "step": 0.5,
+            },
+            "refine_band": {
+                "type": pn.widgets.FloatSlider,
+                "throttled": True,
+                "label": "Pass-2 band width W2 around the pass-1 path",
+                "step": 0.01,
+            },
+            "refine_band_s": {
+                "type": pn.widgets.FloatInput,
+                "name": "W2 in seconds (empty: fraction)",
+                "step": 0.1,
+            },
+            "tolerance": {
+                "type": pn.widgets.FloatSlider,
+                "throttled": True,
+                "end": 60.0,
+                "label": "Global tolerance T (hand frames)",
+                "step": 1.0,
+            },
         },
-        sizing_mode="stretch_width", css_classes=["hs-params"],
+        sizing_mode="stretch_width",
+        css_classes=["hs-params"],
     )
     matrix = pn.widgets.RadioButtonGroup(
-        label="Matrix", options=MATRIX_CHOICES, value=session.matrix, color="default",
-        css_classes=["hs-matrix-choice"])
+        label="Matrix",
+        options=MATRIX_CHOICES,
+        value=session.matrix,
+        color="default",
+        css_classes=["hs-matrix-choice"],
+    )
     matrix.link(session, value="matrix")
     session.param.watch(lambda e: setattr(matrix, "value", e.new), ["matrix"])
-    return pn.Column(params, pn.pane.Markdown("**Matrix shown**", margin=(0, 10)), matrix,
-                     sizing_mode="stretch_width")
+    return pn.Column(
+        params,
+        pn.pane.Markdown("**Matrix shown**", margin=(0, 10)),
+        matrix,
+        sizing_mode="stretch_width",
+    )
 
 
 def _points_frame(session: Session) -> pd.DataFrame:
@@ -48,14 +81,19 @@ def _points_frame(session: Session) -> pd.DataFrame:
     point's own tolerance (empty = global) and the tolerance in use, as text."""
     pts = session.points
     fps, hand_fps = session.fps or 1.0, session.hand_fps or 1.0
-    return pd.DataFrame({
-        "body frame": pd.Series([p.body for p in pts], dtype="int64"),
-        "hand frame": pd.Series([p.hand for p in pts], dtype="int64"),
-        "seconds": [f"{p.body / fps:.2f} s · {p.hand / hand_fps:.2f} s" for p in pts],
-        "tolerance": ["" if p.tolerance is None else f"{p.tolerance:g}" for p in pts],
-        "effective": [f"{session.tolerance:g} (global)" if p.tolerance is None
-                      else f"{p.tolerance:g}" for p in pts],
-    }, columns=["body frame", "hand frame", "seconds", "tolerance", "effective"])
+    return pd.DataFrame(
+        {
+            "body frame": pd.Series([p.body for p in pts], dtype="int64"),
+            "hand frame": pd.Series([p.hand for p in pts], dtype="int64"),
+            "seconds": [f"{p.body / fps:.2f} s · {p.hand / hand_fps:.2f} s" for p in pts],
+            "tolerance": ["" if p.tolerance is None else f"{p.tolerance:g}" for p in pts],
+            "effective": [
+                f"{session.tolerance:g} (global)" if p.tolerance is None else f"{p.tolerance:g}"
+                for p in pts
+            ],
+        },
+        columns=["body frame", "hand frame", "seconds", "tolerance", "effective"],
+    )
 
 
 class PointsTable:
@@ -68,28 +106,51 @@ class PointsTable:
         self.session = session
         self._syncing = False
         self.table = pn.widgets.Tabulator(
-            _points_frame(session), show_index=False, sizing_mode="stretch_width", height=180,
-            titles={"body frame": "body", "hand frame": "hand", "seconds": "times",
-                    "tolerance": "tol.", "effective": "tol. in use"},
-            widths={"body frame": 56, "hand frame": 56, "seconds": 124, "tolerance": 50,
-                    "effective": 96},
+            _points_frame(session),
+            show_index=False,
+            sizing_mode="stretch_width",
+            height=180,
+            titles={
+                "body frame": "body",
+                "hand frame": "hand",
+                "seconds": "times",
+                "tolerance": "tol.",
+                "effective": "tol. in use",
+            },
+            widths={
+                "body frame": 56,
+                "hand frame": 56,
+                "seconds": 124,
+                "tolerance": 50,
+                "effective": 96,
+            },
             header_align="center",
-            header_tooltips={"body frame": "body frame (body file's numbering)",
-                             "hand frame": "hand frame (hand file's numbering)",
-                             "seconds": "body time · hand time",
-                             "tolerance": "this point's tolerance in hand frames; "
-                                          "empty = the global tolerance",
-                             "effective": "the tolerance this point uses, hand frames"},
-            formatters={"body frame": {"type": "plaintext"}, "hand frame": {"type": "plaintext"},
-                        "seconds": {"type": "plaintext"}, "tolerance": {"type": "plaintext"},
-                        "effective": {"type": "plaintext"}},
-            editors={"effective": None, "seconds": None,
-                     "tolerance": {"type": "input"},
-                     "body frame": {"type": "number", "min": 0, "step": 1},
-                     "hand frame": {"type": "number", "min": 0, "step": 1}},
+            header_tooltips={
+                "body frame": "body frame (body file's numbering)",
+                "hand frame": "hand frame (hand file's numbering)",
+                "seconds": "body time · hand time",
+                "tolerance": "this point's tolerance in hand frames; empty = the global tolerance",
+                "effective": "the tolerance this point uses, hand frames",
+            },
+            formatters={
+                "body frame": {"type": "plaintext"},
+                "hand frame": {"type": "plaintext"},
+                "seconds": {"type": "plaintext"},
+                "tolerance": {"type": "plaintext"},
+                "effective": {"type": "plaintext"},
+            },
+            editors={
+                "effective": None,
+                "seconds": None,
+                "tolerance": {"type": "input"},
+                "body frame": {"type": "number", "min": 0, "step": 1},
+                "hand frame": {"type": "number", "min": 0, "step": 1},
+            },
             text_align={"tolerance": "right"},
             buttons={"delete": '<span title="delete this point" style="color:#c62828">✕</span>'},
-            css_classes=["hs-points"], selectable=False, layout="fit_data_table",
+            css_classes=["hs-points"],
+            selectable=False,
+            layout="fit_data_table",
             configuration={"columnDefaults": {"headerSort": False}},
         )
         self.table.on_edit(self._on_edit)
@@ -121,11 +182,17 @@ class PointsTable:
             elif column in ("body frame", "hand frame"):
                 p = s.points[k]
                 frame = int(float(value))
-                s.move_point(k, frame if column == "body frame" else p.body,
-                             frame if column == "hand frame" else p.hand)
+                s.move_point(
+                    k,
+                    frame if column == "body frame" else p.body,
+                    frame if column == "hand frame" else p.hand,
+                )
         except (TypeError, ValueError):
-            what = "a number of hand frames ≥ 0, or empty for the global tolerance" \
-                if column == "tolerance" else "a whole frame number"
+            what = (
+                "a number of hand frames ≥ 0, or empty for the global tolerance"
+                if column == "tolerance"
+                else "a whole frame number"
+            )
             s.error = f"{column} of matching point {k + 1}: expected {what}, got {value!r}"
         self._refresh()
 
@@ -139,10 +206,19 @@ class PointsTable:
 
 def status_line(session: Session) -> pn.viewable.Viewable:
     """One line: path costs, compute time, band cells, points; the error when one is set."""
-    pane = pn.pane.HTML("", css_classes=["hs-status"], sizing_mode="stretch_width",
-                        styles={"font-family": "monospace", "font-size": "13px",
-                                "padding": "6px 10px", "background": "#f3f5f7",
-                                "border-radius": "4px", "border": "1px solid #dde2e6"})
+    pane = pn.pane.HTML(
+        "",
+        css_classes=["hs-status"],
+        sizing_mode="stretch_width",
+        styles={
+            "font-family": "monospace",
+            "font-size": "13px",
+            "padding": "6px 10px",
+            "background": "#f3f5f7",
+            "border-radius": "4px",
+            "border": "1px solid #dde2e6",
+        },
+    )
 
     def update(*_):
         text = session.status_text()
@@ -155,8 +231,13 @@ def status_line(session: Session) -> pn.viewable.Viewable:
 
 def error_alert(session: Session) -> pn.viewable.Viewable:
     """A dismissible alert showing ``session.error`` (never a traceback)."""
-    alert = pn.pane.Alert("", alert_type="danger", visible=False, css_classes=["hs-error"],
-                          sizing_mode="stretch_width")
+    alert = pn.pane.Alert(
+        "",
+        alert_type="danger",
+        visible=False,
+        css_classes=["hs-error"],
+        sizing_mode="stretch_width",
+    )
 
     def update(*_):
         alert.object = safe_text.markdown(page_words(session.error))
@@ -168,10 +249,12 @@ def error_alert(session: Session) -> pn.viewable.Viewable:
 
 
 def undo_redo(session: Session) -> pn.viewable.Viewable:
-    undo = pn.widgets.Button(label="↶ Undo", disabled=not session.can_undo, width=90,
-                             css_classes=["hs-undo"])
-    redo = pn.widgets.Button(label="↷ Redo", disabled=not session.can_redo, width=90,
-                             css_classes=["hs-redo"])
+    undo = pn.widgets.Button(
+        label="↶ Undo", disabled=not session.can_undo, width=90, css_classes=["hs-undo"]
+    )
+    redo = pn.widgets.Button(
+        label="↷ Redo", disabled=not session.can_redo, width=90, css_classes=["hs-redo"]
+    )
     clear = pn.widgets.Button(label="Clear points", width=110, css_classes=["hs-clear"])
     undo.on_click(lambda e: session.undo())
     redo.on_click(lambda e: session.redo())

@@ -65,9 +65,12 @@ def _phase_quads(labels: np.ndarray | None, colors: dict) -> dict:
     starts = np.concatenate([[0], cut])
     stops = np.concatenate([cut, [len(labels)]])
     vals = labels[starts]
-    return {"start": starts - 0.5, "stop": stops - 0.5,
-            "color": [colors.get(int(v), "#cccccc") for v in vals],
-            "phase": [_phase_name(int(v)) for v in vals]}
+    return {
+        "start": starts - 0.5,
+        "stop": stops - 0.5,
+        "color": [colors.get(int(v), "#cccccc") for v in vals],
+        "phase": [_phase_name(int(v)) for v in vals],
+    }
 
 
 def _phase_name(code: int) -> str:
@@ -129,7 +132,9 @@ const adopt = () => {  // show the session's points once every edit sent is answ
 };
 """
 
-_JS_SEND_EDIT = _JS_STATE + """
+_JS_SEND_EDIT = (
+    _JS_STATE
+    + """
 if (st.syncing) return;
 const after = cols(src.data);
 const before = st.shown;
@@ -141,6 +146,7 @@ if (JSON.stringify(before) !== JSON.stringify(after)) {
 }
 adopt();
 """
+)
 
 #: Bokeh reports a second click within 300 ms as a double tap, which the point tool ignores:
 #: quick clicks were lost in the page itself. A double tap is handed to the tool as a tap.
@@ -161,9 +167,12 @@ gestures.press_threshold = 60000;
 """
 
 #: the page adopts the session's points once the server has answered every edit it sent
-_JS_RECONCILE = _JS_STATE + """
+_JS_RECONCILE = (
+    _JS_STATE
+    + """
 adopt();
 """
+)
 
 
 #: hover and axis texts: frames with their times (``rates`` holds both frame rates)
@@ -195,24 +204,32 @@ return `${tick}\n${(tick / fps).toFixed(1)} s`;
 
 def phase_legend_html(colors: dict) -> str:
     """The legend of the strips along the axes: wrist speed curves and phase colour bars."""
-    names = [(1, "P", "preparation"), (2, "S", "stroke"), (3, "H", "hold"),
-             (4, "R", "retraction"), (0, "–", "rest")]
+    names = [
+        (1, "P", "preparation"),
+        (2, "S", "stroke"),
+        (3, "H", "hold"),
+        (4, "R", "retraction"),
+        (0, "–", "rest"),
+    ]
     swatches = "".join(
         f'<span class="hs-phase-key" data-phase="{letter}" '
         f'style="margin-right:10px;white-space:nowrap">'
         f'<span style="display:inline-block;width:12px;height:10px;background:'
         f'{colors.get(code, "#cccccc")};margin-right:3px;vertical-align:-1px"></span>'
-        f"<b>{letter}</b> {name}</span>" for code, letter, name in names)
+        f"<b>{letter}</b> {name}</span>"
+        for code, letter, name in names
+    )
     return (
         '<div class="hs-legend" style="font-size:12px;color:#333;line-height:1.7">'
         '<div><span style="display:inline-block;width:18px;border-top:2px solid #333;'
         'vertical-align:3px;margin-right:4px"></span>wrist speed of each take along its '
-        'axis (scaled to its fastest moment) · colour bars: gesture phases '
+        "axis (scaled to its fastest moment) · colour bars: gesture phases "
         f"{swatches}</div>"
-        '<div>Matrix colour: local cost (colour bar at the right; dark = the two frames '
+        "<div>Matrix colour: local cost (colour bar at the right; dark = the two frames "
         'move alike) · <span style="color:#4fc3f7">■</span> band edges, outside dimmed · '
         '<span style="color:#ff3b30">━</span> optimal path · '
-        '<span style="color:#ffd60a">●</span> matching points</div></div>')
+        '<span style="color:#ffd60a">●</span> matching points</div></div>'
+    )
 
 
 class CostMatrixView:
@@ -229,16 +246,24 @@ class CostMatrixView:
         n = max(session.n, 1)
         lo, hi = self._hand_extent()
         # frame rates for the axes and hover (seconds next to frames)
-        self.rates = ColumnDataSource({"fps": [session.fps], "hand_fps": [session.hand_fps],
-                                       "tol": [session.tolerance]}, name="hs-rates")
+        self.rates = ColumnDataSource(
+            {"fps": [session.fps], "hand_fps": [session.hand_fps], "tol": [session.tolerance]},
+            name="hs-rates",
+        )
 
         self.x_range = Range1d(-0.5, n - 0.5, bounds=(-0.5, n - 0.5), name="hs-x-range")
         self.y_range = Range1d(lo, hi, bounds=(lo, hi), name="hs-y-range")
         fig = figure(
-            frame_width=size, frame_height=size, x_range=self.x_range, y_range=self.y_range,
-            tools="pan,wheel_zoom,box_zoom,reset,save", toolbar_location="right",
-            x_axis_label="body frame", y_axis_label="hand frame",
-            name="hs-cost-figure", output_backend="canvas",
+            frame_width=size,
+            frame_height=size,
+            x_range=self.x_range,
+            y_range=self.y_range,
+            tools="pan,wheel_zoom,box_zoom,reset,save",
+            toolbar_location="right",
+            x_axis_label="body frame",
+            y_axis_label="hand frame",
+            name="hs-cost-figure",
+            output_backend="canvas",
         )
         fig.css_classes = ["hs-cost-matrix"]
         fig.min_border_left, fig.min_border_top, fig.min_border_bottom = 10, 6, 6
@@ -248,97 +273,241 @@ class CostMatrixView:
         fig.background_fill_color = "#202020"
         self.mapper = LinearColorMapper(palette=Viridis256, nan_color="rgba(0,0,0,0)")
         self.image_source = ColumnDataSource(
-            {"image": [np.zeros((1, 1), dtype=np.float32)], "x": [-0.5], "y": [-0.5],
-             "dw": [1.0], "dh": [1.0]}, name="hs-image-source")
-        image = fig.image(image="image", x="x", y="y", dw="dw", dh="dh",
-                          source=self.image_source, color_mapper=self.mapper, level="image")
+            {
+                "image": [np.zeros((1, 1), dtype=np.float32)],
+                "x": [-0.5],
+                "y": [-0.5],
+                "dw": [1.0],
+                "dh": [1.0],
+            },
+            name="hs-image-source",
+        )
+        image = fig.image(
+            image="image",
+            x="x",
+            y="y",
+            dw="dw",
+            dh="dh",
+            source=self.image_source,
+            color_mapper=self.mapper,
+            level="image",
+        )
         # the band: cells outside it dimmed, its edges drawn
         self.band_source = ColumnDataSource({"x": [], "lo": [], "hi": []}, name="hs-band-source")
-        fig.varea(x="x", y1=-0.5, y2="lo", source=self.band_source, fill_color="black",
-                  fill_alpha=0.55, name="hs-band-below")
-        self._above = fig.varea(x="x", y1="hi", y2=hi, source=self.band_source,
-                                fill_color="black",
-                  fill_alpha=0.55, name="hs-band-above")
-        fig.line(x="x", y="lo", source=self.band_source, color=BAND_COLOR, line_width=1.5,
-                 name="hs-band-lo")
-        fig.line(x="x", y="hi", source=self.band_source, color=BAND_COLOR, line_width=1.5,
-                 name="hs-band-hi")
+        fig.varea(
+            x="x",
+            y1=-0.5,
+            y2="lo",
+            source=self.band_source,
+            fill_color="black",
+            fill_alpha=0.55,
+            name="hs-band-below",
+        )
+        self._above = fig.varea(
+            x="x",
+            y1="hi",
+            y2=hi,
+            source=self.band_source,
+            fill_color="black",
+            fill_alpha=0.55,
+            name="hs-band-above",
+        )
+        fig.line(
+            x="x",
+            y="lo",
+            source=self.band_source,
+            color=BAND_COLOR,
+            line_width=1.5,
+            name="hs-band-lo",
+        )
+        fig.line(
+            x="x",
+            y="hi",
+            source=self.band_source,
+            color=BAND_COLOR,
+            line_width=1.5,
+            name="hs-band-hi",
+        )
         # open ends: frames of either take outside the path's overlap, lightly shaded
         self.unmatched_source = ColumnDataSource(
-            {"left": [], "right": [], "bottom": [], "top": []}, name="hs-unmatched-source")
-        fig.quad(left="left", right="right", bottom="bottom", top="top",
-                 source=self.unmatched_source, fill_color="white", fill_alpha=0.14,
-                 line_alpha=0, name="hs-unmatched")
+            {"left": [], "right": [], "bottom": [], "top": []}, name="hs-unmatched-source"
+        )
+        fig.quad(
+            left="left",
+            right="right",
+            bottom="bottom",
+            top="top",
+            source=self.unmatched_source,
+            fill_color="white",
+            fill_alpha=0.14,
+            line_alpha=0,
+            name="hs-unmatched",
+        )
         self.other_path_source = ColumnDataSource({"x": [], "y": []}, name="hs-other-path")
-        fig.line(x="x", y="y", source=self.other_path_source, color=OTHER_PATH_COLOR,
-                 line_width=1.2, line_alpha=0.7, line_dash="dashed")
+        fig.line(
+            x="x",
+            y="y",
+            source=self.other_path_source,
+            color=OTHER_PATH_COLOR,
+            line_width=1.2,
+            line_alpha=0.7,
+            line_dash="dashed",
+        )
         self.path_source = ColumnDataSource({"x": [], "y": []}, name="hs-path-source")
-        fig.line(x="x", y="y", source=self.path_source, color=PATH_COLOR, line_width=2.2,
-                 name="hs-path")
+        fig.line(
+            x="x", y="y", source=self.path_source, color=PATH_COLOR, line_width=2.2, name="hs-path"
+        )
         self.tol_source = ColumnDataSource({"x": [], "y0": [], "y1": []}, name="hs-tol-source")
-        fig.segment(x0="x", y0="y0", x1="x", y1="y1", source=self.tol_source,
-                    color=POINT_COLOR, line_width=3, line_alpha=0.8)
+        fig.segment(
+            x0="x",
+            y0="y0",
+            x1="x",
+            y1="y1",
+            source=self.tol_source,
+            color=POINT_COLOR,
+            line_width=3,
+            line_alpha=0.8,
+        )
         self.frame_source = ColumnDataSource({"x": [0], "y": [0]}, name="hs-frame-source")
-        fig.scatter(x="x", y="y", source=self.frame_source, size=11, marker="circle_cross",
-                    fill_alpha=0, line_color="white", line_width=2)
-        self.points_source = ColumnDataSource({"x": [], "y": [], "tol": []},
-                                              name="hs-points-source")
-        points = fig.scatter(x="x", y="y", source=self.points_source, size=13,
-                             fill_color=POINT_COLOR, line_color="black", line_width=1.5,
-                             name="hs-points-glyph")
-        self.point_tool = PointDrawTool(renderers=[points], add=True, drag=True,
-                                        default_overrides={"tol": float("nan")},
-                                        name="hs-point-tool",
-                                        description="Matching points: click adds, drag moves, "
-                                                    "Backspace deletes")
+        fig.scatter(
+            x="x",
+            y="y",
+            source=self.frame_source,
+            size=11,
+            marker="circle_cross",
+            fill_alpha=0,
+            line_color="white",
+            line_width=2,
+        )
+        self.points_source = ColumnDataSource(
+            {"x": [], "y": [], "tol": []}, name="hs-points-source"
+        )
+        points = fig.scatter(
+            x="x",
+            y="y",
+            source=self.points_source,
+            size=13,
+            fill_color=POINT_COLOR,
+            line_color="black",
+            line_width=1.5,
+            name="hs-points-glyph",
+        )
+        self.point_tool = PointDrawTool(
+            renderers=[points],
+            add=True,
+            drag=True,
+            default_overrides={"tol": float("nan")},
+            name="hs-point-tool",
+            description="Matching points: click adds, drag moves, Backspace deletes",
+        )
         fig.add_tools(self.point_tool)
         fig.toolbar.active_drag = self.point_tool
         fig.toolbar.active_tap = self.point_tool
-        fig.add_tools(HoverTool(renderers=[points], name="hs-point-hover", tooltips=[
-            ("matching point", "body frame @x{0} · hand frame @y{0}"),
-            ("tolerance", "$index{custom}")], formatters={"$index": CustomJSHover(
-                args={"rates": self.rates, "src": self.points_source}, code=_JS_TOL)}))
+        fig.add_tools(
+            HoverTool(
+                renderers=[points],
+                name="hs-point-hover",
+                tooltips=[
+                    ("matching point", "body frame @x{0} · hand frame @y{0}"),
+                    ("tolerance", "$index{custom}"),
+                ],
+                formatters={
+                    "$index": CustomJSHover(
+                        args={"rates": self.rates, "src": self.points_source}, code=_JS_TOL
+                    )
+                },
+            )
+        )
         # every cell: both frames with their times, the local cost, inside the band or not
-        fig.add_tools(HoverTool(
-            renderers=[image], name="hs-cell-hover", tooltips=[
-                ("body frame", "$x{body}"), ("hand frame", "$y{hand}"),
-                ("cost", "@image{0.000}"), ("band", "$sx{band}")],
-            formatters={"$x": CustomJSHover(args={"rates": self.rates}, code=_JS_BODY_FRAME),
-                        "$y": CustomJSHover(args={"rates": self.rates}, code=_JS_HAND_FRAME),
-                        "$sx": CustomJSHover(args={"band": self.band_source},
-                                             code=_JS_IN_BAND)}))
-        fig.add_layout(ColorBar(color_mapper=self.mapper, width=8, padding=2,
-                                major_label_text_font_size="8pt", name="hs-colorbar",
-                                title="cost", title_text_font_size="8pt",
-                                title_standoff=4), "right")
+        fig.add_tools(
+            HoverTool(
+                renderers=[image],
+                name="hs-cell-hover",
+                tooltips=[
+                    ("body frame", "$x{body}"),
+                    ("hand frame", "$y{hand}"),
+                    ("cost", "@image{0.000}"),
+                    ("band", "$sx{band}"),
+                ],
+                formatters={
+                    "$x": CustomJSHover(args={"rates": self.rates}, code=_JS_BODY_FRAME),
+                    "$y": CustomJSHover(args={"rates": self.rates}, code=_JS_HAND_FRAME),
+                    "$sx": CustomJSHover(args={"band": self.band_source}, code=_JS_IN_BAND),
+                },
+            )
+        )
+        fig.add_layout(
+            ColorBar(
+                color_mapper=self.mapper,
+                width=8,
+                padding=2,
+                major_label_text_font_size="8pt",
+                name="hs-colorbar",
+                title="cost",
+                title_text_font_size="8pt",
+                title_standoff=4,
+            ),
+            "right",
+        )
         self.figure = fig
-        self.title = pn.pane.HTML("", css_classes=["hs-matrix-title"], margin=(0, 10, 0, 100),
-                                  styles={"font-size": "13px"})
+        self.title = pn.pane.HTML(
+            "",
+            css_classes=["hs-matrix-title"],
+            margin=(0, 10, 0, 100),
+            styles={"font-size": "13px"},
+        )
 
         # signals along the axes: body below (shares x), hand at the left (shares y)
         self.body_signal_source = ColumnDataSource({"x": [], "y": []})
         self.hand_signal_source = ColumnDataSource({"x": [], "y": []})
         self.body_phase_source = ColumnDataSource(_phase_quads(None, {}))
         self.hand_phase_source = ColumnDataSource(_phase_quads(None, {}))
-        body = figure(frame_width=size, frame_height=AXIS_SIGNAL_SIZE - 40, x_range=self.x_range,
-                      y_range=Range1d(-0.35, 1.05), tools="", toolbar_location=None,
-                      x_axis_label="body frame (and seconds)", name="hs-body-signal")
-        body.xaxis.formatter = CustomJSTickFormatter(args={"rates": self.rates, "key": "fps"},
-                                                     code=_JS_TICK)
-        body.quad(left="start", right="stop", bottom=-0.32, top=-0.08,
-                  color="color", source=self.body_phase_source)
+        body = figure(
+            frame_width=size,
+            frame_height=AXIS_SIGNAL_SIZE - 40,
+            x_range=self.x_range,
+            y_range=Range1d(-0.35, 1.05),
+            tools="",
+            toolbar_location=None,
+            x_axis_label="body frame (and seconds)",
+            name="hs-body-signal",
+        )
+        body.xaxis.formatter = CustomJSTickFormatter(
+            args={"rates": self.rates, "key": "fps"}, code=_JS_TICK
+        )
+        body.quad(
+            left="start",
+            right="stop",
+            bottom=-0.32,
+            top=-0.08,
+            color="color",
+            source=self.body_phase_source,
+        )
         body.line(x="x", y="y", source=self.body_signal_source, color="#333333")
         body.yaxis.visible = False
         body.ygrid.visible = False
-        hand = figure(width=AXIS_SIGNAL_SIZE, frame_height=size, y_range=self.y_range,
-                      x_range=Range1d(1.05, -0.35), tools="", toolbar_location=None,
-                      y_axis_label="hand frame, hand file's numbering (and seconds)",
-                      name="hs-hand-signal")
+        hand = figure(
+            width=AXIS_SIGNAL_SIZE,
+            frame_height=size,
+            y_range=self.y_range,
+            x_range=Range1d(1.05, -0.35),
+            tools="",
+            toolbar_location=None,
+            y_axis_label="hand frame, hand file's numbering (and seconds)",
+            name="hs-hand-signal",
+        )
         hand.yaxis.formatter = CustomJSTickFormatter(
-            args={"rates": self.rates, "key": "hand_fps"}, code=_JS_TICK)
+            args={"rates": self.rates, "key": "hand_fps"}, code=_JS_TICK
+        )
         hand.yaxis.axis_label_text_font_size = "9pt"
-        hand.quad(bottom="start", top="stop", left=-0.32, right=-0.08,
-                  color="color", source=self.hand_phase_source)
+        hand.quad(
+            bottom="start",
+            top="stop",
+            left=-0.32,
+            right=-0.08,
+            color="color",
+            source=self.hand_phase_source,
+        )
         hand.line(x="x", y="y", source=self.hand_signal_source, color="#333333")
         hand.xaxis.visible = False
         hand.xgrid.visible = False
@@ -351,18 +520,23 @@ class CostMatrixView:
         # the edit queue: the page numbers its edits and sends every unanswered one; the
         # session's points come back in ``server_points`` with the last edit they include
         self.edit_source = ColumnDataSource({"edits": ["[]"]}, name="hs-edit-queue")
-        self.server_points = ColumnDataSource({"x": [], "y": [], "tol": []}, tags=[0],
-                                              name="hs-server-points")
+        self.server_points = ColumnDataSource(
+            {"x": [], "y": [], "tol": []}, tags=[0], name="hs-server-points"
+        )
         self._acked = 0
         self._page_up = False
         if pn.state.curdoc is not None and pn.state.curdoc.session_context is not None:
             pn.state.onload(lambda: setattr(self, "_page_up", True))
-        args = {"src": self.points_source, "queue": self.edit_source,
-                "server": self.server_points, "fig": fig, "tool": self.point_tool}
+        args = {
+            "src": self.points_source,
+            "queue": self.edit_source,
+            "server": self.server_points,
+            "fig": fig,
+            "tool": self.point_tool,
+        }
         self.points_source.js_on_change("data", CustomJS(args=args, code=_JS_SEND_EDIT))
         reconcile = CustomJS(args=args, code=_JS_RECONCILE)
-        fig.js_on_event(DoubleTap, CustomJS(args=args, code=_JS_NO_PRESS
-                                            + _JS_DOUBLE_TAP_IS_A_TAP))
+        fig.js_on_event(DoubleTap, CustomJS(args=args, code=_JS_NO_PRESS + _JS_DOUBLE_TAP_IS_A_TAP))
         doc = pn.state.curdoc
         if doc is not None:
             doc.js_on_event("document_ready", CustomJS(code=_JS_NO_PRESS))
@@ -419,18 +593,27 @@ class CostMatrixView:
             self.other_path_source.data = {"x": [], "y": []}
             self.unmatched_source.data = _unmatched_quads(None, 0, 0)
             return
-        shown, other = (sol.pass2, sol.pass1) if s.matrix in ("pass2", "cumulative2") \
+        shown, other = (
+            (sol.pass2, sol.pass1)
+            if s.matrix in ("pass2", "cumulative2")
             else (sol.pass1, sol.pass2)
+        )
         r = s.hand_scale  # grid columns -> hand-file frames
         # the path first: it is what a drag is waiting for; compact dtypes keep messages small
-        self.path_source.data = {"x": shown.path[:, 0].astype(np.int32),
-                                 "y": (shown.path[:, 1] * r).astype(np.float32)}
+        self.path_source.data = {
+            "x": shown.path[:, 0].astype(np.int32),
+            "y": (shown.path[:, 1] * r).astype(np.float32),
+        }
         lo, hi = shown.band.lo, shown.band.hi
-        self.band_source.data = {"x": np.arange(len(lo), dtype=np.int32),
-                                 "lo": ((lo - 0.5) * r).astype(np.float32),
-                                 "hi": ((hi + 0.5) * r).astype(np.float32)}
-        self.other_path_source.data = {"x": other.path[:, 0].astype(np.int32),
-                                       "y": (other.path[:, 1] * r).astype(np.float32)}
+        self.band_source.data = {
+            "x": np.arange(len(lo), dtype=np.int32),
+            "lo": ((lo - 0.5) * r).astype(np.float32),
+            "hi": ((hi + 0.5) * r).astype(np.float32),
+        }
+        self.other_path_source.data = {
+            "x": other.path[:, 0].astype(np.int32),
+            "y": (other.path[:, 1] * r).astype(np.float32),
+        }
         quads = _unmatched_quads(shown.path, len(lo), shown.band.m)
         quads["bottom"] = [v * r for v in quads["bottom"]]
         quads["top"] = [v * r for v in quads["top"]]
@@ -457,17 +640,22 @@ class CostMatrixView:
         if self.rates.data["tol"] != [self.session.tolerance]:
             self.rates.data = {**self.rates.data, "tol": [self.session.tolerance]}
         tol = [self.session.tolerance if p.tolerance is None else p.tolerance for p in pts]
-        data = {"x": [p.body for p in pts], "y": [p.hand for p in pts],
-                "tol": [None if p.tolerance is None else p.tolerance for p in pts]}
+        data = {
+            "x": [p.body for p in pts],
+            "y": [p.hand for p in pts],
+            "tol": [None if p.tolerance is None else p.tolerance for p in pts],
+        }
         # data first, then the answered edit number: the page adopts the session's points
         # once nothing it sent is still unanswered (a newer click is never overwritten)
         self.server_points.data = data
         self.server_points.tags = [self._acked]
         if not self._page_up:  # the page is not up yet: its first points are the session's
             self.points_source.data = dict(data)
-        self.tol_source.data = {"x": [p.body for p in pts],
-                                "y0": [p.hand - t - 0.5 for p, t in zip(pts, tol)],
-                                "y1": [p.hand + t + 0.5 for p, t in zip(pts, tol)]}
+        self.tol_source.data = {
+            "x": [p.body for p in pts],
+            "y0": [p.hand - t - 0.5 for p, t in zip(pts, tol)],
+            "y1": [p.hand + t + 0.5 for p, t in zip(pts, tol)],
+        }
 
     def _visible(self) -> tuple[float, float, float, float]:
         return (self.x_range.start, self.x_range.end, self.y_range.start, self.y_range.end)
@@ -484,23 +672,44 @@ class CostMatrixView:
         view = s.cost_view((x0, x1, y0 / r, y1 / r), self.max_pixels)
         if view is None:
             return
-        key = (s.matrix, view.x0, view.x1, view.y0, view.y1, view.image.shape, s.revision
-               if s.matrix.startswith("cumulative") else 0)
+        key = (
+            s.matrix,
+            view.x0,
+            view.x1,
+            view.y0,
+            view.y1,
+            view.image.shape,
+            s.revision if s.matrix.startswith("cumulative") else 0,
+        )
         if key == self._image_key:
             return
         self._image_key = key
         img = np.ascontiguousarray(view.image.T, dtype=np.float32)  # rows = hand frames (y)
         finite = img[np.isfinite(img)]
         if finite.size:
-            lo, hi = np.percentile(finite, [1, 99]) if finite.size > 100 else \
-                (finite.min(), finite.max())
+            lo, hi = (
+                np.percentile(finite, [1, 99])
+                if finite.size > 100
+                else (finite.min(), finite.max())
+            )
             self.mapper.update(low=float(lo), high=float(hi if hi > lo else lo + 1))
-        self.image_source.data = {"image": [img], "x": [view.x0 - 0.5],
-                                  "y": [(view.y0 - 0.5) * r],
-                                  "dw": [float(view.x1 - view.x0)],
-                                  "dh": [float(view.y1 - view.y0) * r]}
-        self.title.object = "<b>" + MATRIX_LABELS[s.matrix] + "</b>" + (
-            "" if view.stride == (1, 1) else f"  ·  1 pixel = {view.stride[0]}×{view.stride[1]} cells")
+        self.image_source.data = {
+            "image": [img],
+            "x": [view.x0 - 0.5],
+            "y": [(view.y0 - 0.5) * r],
+            "dw": [float(view.x1 - view.x0)],
+            "dh": [float(view.y1 - view.y0) * r],
+        }
+        self.title.object = (
+            "<b>"
+            + MATRIX_LABELS[s.matrix]
+            + "</b>"
+            + (
+                ""
+                if view.stride == (1, 1)
+                else f"  ·  1 pixel = {view.stride[0]}×{view.stride[1]} cells"
+            )
+        )
 
     # ------------------------------------------------------------ page -> session
 
@@ -518,8 +727,10 @@ class CostMatrixView:
             queue = json.loads((self.edit_source.data.get("edits") or ["[]"])[0])
         except (TypeError, ValueError):
             return
-        fresh = sorted((e for e in queue if isinstance(e, dict)
-                        and int(e.get("seq", 0)) > self._acked), key=lambda e: int(e["seq"]))
+        fresh = sorted(
+            (e for e in queue if isinstance(e, dict) and int(e.get("seq", 0)) > self._acked),
+            key=lambda e: int(e["seq"]),
+        )
         if not fresh:
             return
         for edit in fresh:  # one at a time: each is solved before the next is merged
@@ -558,15 +769,30 @@ class CostMatrixView:
         size = self.figure.frame_width + 70
         return pn.Column(
             self.title,
-            pn.Row(pn.pane.Bokeh(self.hand_figure, sizing_mode="fixed", margin=0),
-                   pn.pane.Bokeh(self.figure, sizing_mode="fixed", margin=0),
-                   sizing_mode=None, width=size + AXIS_SIGNAL_SIZE, margin=0),
-            pn.Row(pn.Spacer(width=AXIS_SIGNAL_SIZE, margin=0),
-                   pn.pane.Bokeh(self.body_figure, sizing_mode="fixed", margin=0),
-                   sizing_mode=None, width=size + AXIS_SIGNAL_SIZE, margin=0),
-            pn.pane.HTML(phase_legend_html(self._colors), css_classes=["hs-legends"],
-                         width=size + AXIS_SIGNAL_SIZE, margin=(4, 0)),
-            sizing_mode=None, width=size + AXIS_SIGNAL_SIZE, margin=(0, 10))
+            pn.Row(
+                pn.pane.Bokeh(self.hand_figure, sizing_mode="fixed", margin=0),
+                pn.pane.Bokeh(self.figure, sizing_mode="fixed", margin=0),
+                sizing_mode=None,
+                width=size + AXIS_SIGNAL_SIZE,
+                margin=0,
+            ),
+            pn.Row(
+                pn.Spacer(width=AXIS_SIGNAL_SIZE, margin=0),
+                pn.pane.Bokeh(self.body_figure, sizing_mode="fixed", margin=0),
+                sizing_mode=None,
+                width=size + AXIS_SIGNAL_SIZE,
+                margin=0,
+            ),
+            pn.pane.HTML(
+                phase_legend_html(self._colors),
+                css_classes=["hs-legends"],
+                width=size + AXIS_SIGNAL_SIZE,
+                margin=(4, 0),
+            ),
+            sizing_mode=None,
+            width=size + AXIS_SIGNAL_SIZE,
+            margin=(0, 10),
+        )
 
 
 def _unmatched_quads(path, n: int, m: int) -> dict:
@@ -575,12 +801,15 @@ def _unmatched_quads(path, n: int, m: int) -> dict:
     if path is None or len(path) == 0:
         return q
     (i0, j0), (i1, j1) = path[0], path[-1]
-    for left, right, bottom, top in ((-0.5, i0 - 0.5, -0.5, m - 0.5),
-                                     (i1 + 0.5, n - 0.5, -0.5, m - 0.5),
-                                     (-0.5, n - 0.5, -0.5, j0 - 0.5),
-                                     (-0.5, n - 0.5, j1 + 0.5, m - 0.5)):
+    for left, right, bottom, top in (
+        (-0.5, i0 - 0.5, -0.5, m - 0.5),
+        (i1 + 0.5, n - 0.5, -0.5, m - 0.5),
+        (-0.5, n - 0.5, -0.5, j0 - 0.5),
+        (-0.5, n - 0.5, j1 + 0.5, m - 0.5),
+    ):
         if right > left and top > bottom:
-            for k, v in zip(("left", "right", "bottom", "top"), (left, right, bottom, top),
-                            strict=True):
+            for k, v in zip(
+                ("left", "right", "bottom", "top"), (left, right, bottom, top), strict=True
+            ):
                 q[k].append(float(v))
     return q

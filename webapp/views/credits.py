@@ -13,17 +13,21 @@ import panel as pn
 from webapp import config
 from webapp.state import Session
 
-NO_SHARE_TEXT = ("Do not share spliced results of this pair: its licence forbids adapted "
-                 "material (CC BY-NC-ND). Downloads are for your own use.")
+NO_SHARE_TEXT = (
+    "Do not share spliced results of this pair: its licence forbids adapted "
+    "material (CC BY-NC-ND). Downloads are for your own use."
+)
 
 
 def credits_html(session: Session) -> str:
     """The open pair's description and, per take, its file, source and licence (HTML)."""
     cfg = session.config
     if not session.sample:
-        return ("<div class='hs-credits' style='font-size:12px;color:#444'>Your own takes: "
-                f"{html.escape(session.body_name or 'body')} and "
-                f"{html.escape(session.hand_name or 'hand')}.</div>")
+        return (
+            "<div class='hs-credits' style='font-size:12px;color:#444'>Your own takes: "
+            f"{html.escape(session.body_name or 'body')} and "
+            f"{html.escape(session.hand_name or 'hand')}.</div>"
+        )
     try:
         pair = cfg.sample(session.sample)
     except KeyError:
@@ -35,23 +39,33 @@ def credits_html(session: Session) -> str:
         entry = files.get(rel, {})
         rows.append(
             f"<li><b>{role}</b> <code>{html.escape(rel)}</code>"
-            + (f" — {html.escape(str(entry['description']))}" if entry.get("description")
-               else "")
-            + (f"<br><span style='color:#555'>credit: {html.escape(str(entry['source']))}"
-               if entry.get("source") else "<br><span style='color:#555'>")
-            + (f" · licence: {html.escape(str(entry['licence']))}" if entry.get("licence")
-               else "") + "</span></li>")
-    warning = (f"<div class='hs-no-share' style='color:#b71c1c;font-weight:600'>"
-               f"{html.escape(NO_SHARE_TEXT)}</div>" if config.no_share(pair) else "")
-    return (f"<div class='hs-credits' style='font-size:12px;color:#333'>"
-            f"<b>{html.escape(pair.name)}</b>: {html.escape(pair.description)}"
-            f"<ul style='margin:4px 0 0 0;padding-left:18px'>{''.join(rows)}</ul>{warning}</div>")
+            + (f" — {html.escape(str(entry['description']))}" if entry.get("description") else "")
+            + (
+                f"<br><span style='color:#555'>credit: {html.escape(str(entry['source']))}"
+                if entry.get("source")
+                else "<br><span style='color:#555'>"
+            )
+            + (f" · licence: {html.escape(str(entry['licence']))}" if entry.get("licence") else "")
+            + "</span></li>"
+        )
+    warning = (
+        f"<div class='hs-no-share' style='color:#b71c1c;font-weight:600'>"
+        f"{html.escape(NO_SHARE_TEXT)}</div>"
+        if config.no_share(pair)
+        else ""
+    )
+    return (
+        f"<div class='hs-credits' style='font-size:12px;color:#333'>"
+        f"<b>{html.escape(pair.name)}</b>: {html.escape(pair.description)}"
+        f"<ul style='margin:4px 0 0 0;padding-left:18px'>{''.join(rows)}</ul>{warning}</div>"
+    )
 
 
 def credits_pane(session: Session) -> pn.viewable.Viewable:
     """The credits of the open takes, following the session's inputs."""
-    pane = pn.pane.HTML(credits_html(session), css_classes=["hs-credits-pane"],
-                        sizing_mode="stretch_width")
+    pane = pn.pane.HTML(
+        credits_html(session), css_classes=["hs-credits-pane"], sizing_mode="stretch_width"
+    )
 
     def update(*_):
         pane.object = credits_html(session)
@@ -62,13 +76,19 @@ def credits_pane(session: Session) -> pn.viewable.Viewable:
 
 def no_share_alert(session: Session) -> pn.viewable.Viewable:
     """The no-share warning shown next to the downloads (only for pairs that carry it)."""
-    alert = pn.pane.Alert(NO_SHARE_TEXT, alert_type="warning", css_classes=["hs-no-share-alert"],
-                          sizing_mode="stretch_width", visible=False)
+    alert = pn.pane.Alert(
+        NO_SHARE_TEXT,
+        alert_type="warning",
+        css_classes=["hs-no-share-alert"],
+        sizing_mode="stretch_width",
+        visible=False,
+    )
 
     def update(*_):
         try:
             alert.visible = bool(session.sample) and config.no_share(
-                session.config.sample(session.sample))
+                session.config.sample(session.sample)
+            )
         except KeyError:
             alert.visible = False
 

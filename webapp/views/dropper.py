@@ -43,7 +43,11 @@ class TakeDropper(pn.widgets.FileDropper):
         if event.event_name != "upload_event":
             return  # the user removed the file from the field: the kept upload stays
         data = event.data
-        name, chunk, total = str(data.get("name", "")), int(data["chunk"]), int(data["total_chunks"])
+        name, chunk, total = (
+            str(data.get("name", "")),
+            int(data["chunk"]),
+            int(data["total_chunks"]),
+        )
         try:
             if chunk == 1:
                 self._drop(name)

@@ -32,10 +32,12 @@ MARKER_BODY_NOTE = (
     "The alignment, matching points and bands work as for any pair; *Spliced BVH* gives the "
     "**hand take retimed to the body** (one frame per body frame, at the body's frame rate) "
     "to pair with your markers in an animation tool, and the preview draws the body's "
-    "markers (the aligned arm in orange) beside the hand.")
+    "markers (the aligned arm in orange) beside the hand."
+)
 MARKER_HAND_NOTE = (
     "The hand take holds **markers** (C3D/TRC): it has no finger rotations to give. The "
-    "alignment works; splicing and the preview need a skeletal hand take (.bvh).")
+    "alignment works; splicing and the preview need a skeletal hand take (.bvh)."
+)
 
 
 class InputsView:
@@ -45,41 +47,66 @@ class InputsView:
         self.session = session
         cfg = session.config
         self._names = [p.name for p in cfg.samples()]
-        self.sample = pn.widgets.Select(options=self._sample_options(),
-                                        value=self._sample_value(),
-                                        css_classes=["hs-sample"], width=260)
+        self.sample = pn.widgets.Select(
+            options=self._sample_options(),
+            value=self._sample_value(),
+            css_classes=["hs-sample"],
+            width=260,
+        )
         self.sample.param.watch(self._on_sample, "value")
         limit = f"{cfg.max_upload_bytes / 2**20:.0f} MiB"
-        self.body_file = TakeDropper(cfg, css_classes=["hs-upload-body"], width=280,
-                                     label="body take")
-        self.hand_file = TakeDropper(cfg, css_classes=["hs-upload-hand"], width=280,
-                                     label="hand take")
+        self.body_file = TakeDropper(
+            cfg, css_classes=["hs-upload-body"], width=280, label="body take"
+        )
+        self.hand_file = TakeDropper(
+            cfg, css_classes=["hs-upload-hand"], width=280, label="hand take"
+        )
         for which, dropper in (("body", self.body_file), ("hand", self.hand_file)):
             dropper.on_progress = self._on_progress
             dropper.on_staged = lambda staged, w=which: self._on_staged(w, staged)
             dropper.on_refused = lambda text, w=which: self._refuse(w, text)
-        self.side = pn.widgets.RadioButtonGroup.from_param(session.param.side,
-                                                           css_classes=["hs-side"], width=180)
-        self.message = pn.pane.Alert("", alert_type="danger", visible=False,
-                                     css_classes=["hs-upload-error"], sizing_mode="stretch_width")
-        self.uploaded = pn.pane.HTML("", css_classes=["hs-upload-status"],
-                                     sizing_mode="stretch_width")
-        self.note = pn.pane.Alert("", alert_type="info", visible=False,
-                                  css_classes=["hs-marker-note"], sizing_mode="stretch_width")
+        self.side = pn.widgets.RadioButtonGroup.from_param(
+            session.param.side, css_classes=["hs-side"], width=180
+        )
+        self.message = pn.pane.Alert(
+            "",
+            alert_type="danger",
+            visible=False,
+            css_classes=["hs-upload-error"],
+            sizing_mode="stretch_width",
+        )
+        self.uploaded = pn.pane.HTML(
+            "", css_classes=["hs-upload-status"], sizing_mode="stretch_width"
+        )
+        self.note = pn.pane.Alert(
+            "",
+            alert_type="info",
+            visible=False,
+            css_classes=["hs-marker-note"],
+            sizing_mode="stretch_width",
+        )
         self._pending: dict[str, uploads.Kept] = {}
         self._opening = False
         self.roles_body = pn.widgets.TextAreaInput(
-            label="Body take", placeholder="right.wrist = RHand\nright.elbow = RForeArm",
-            height=90, css_classes=["hs-roles-body"])
+            label="Body take",
+            placeholder="right.wrist = RHand\nright.elbow = RForeArm",
+            height=90,
+            css_classes=["hs-roles-body"],
+        )
         self.roles_hand = pn.widgets.TextAreaInput(
-            label="Hand take", placeholder="right.index1 = rIndex1", height=90,
-            css_classes=["hs-roles-hand"])
-        self.roles_apply = pn.widgets.Button(label="Apply overrides", width=140,
-                                             css_classes=["hs-roles-apply"])
+            label="Hand take",
+            placeholder="right.index1 = rIndex1",
+            height=90,
+            css_classes=["hs-roles-hand"],
+        )
+        self.roles_apply = pn.widgets.Button(
+            label="Apply overrides", width=140, css_classes=["hs-roles-apply"]
+        )
         self.roles_apply.on_click(self._on_roles)
         self._show_roles()
-        session.param.watch(self._on_session_inputs,
-                            ["sample", "body_sha256", "hand_sha256", "roles"])
+        session.param.watch(
+            self._on_session_inputs, ["sample", "body_sha256", "hand_sha256", "roles"]
+        )
         session.param.watch(self._show_note, ["inputs_revision"])
         self._show_note()
         self.limit_note = pn.pane.Markdown(
@@ -87,7 +114,8 @@ class InputsView:
             "files before sending). Files are checked with the engine's reader and kept on "
             "this server by content hash, so a shared link can name them. A C3D/TRC body "
             "aligns with a BVH hand; what it cannot give is said here once it is open.",
-            styles={"color": "#555", "font-size": "12px"})
+            styles={"color": "#555", "font-size": "12px"},
+        )
 
     # ------------------------------------------------------------ the sample selector
 
@@ -133,9 +161,11 @@ class InputsView:
     # ------------------------------------------------------------ uploads
 
     def _on_progress(self, name: str, received: int, total: int):
-        self.uploaded.object = (f"<span class='hs-receiving'>receiving "
-                                f"<b>{safe_text.html(name)}</b>: {received / 2**20:.1f} of "
-                                f"{max(total, received) / 2**20:.1f} MiB</span>")
+        self.uploaded.object = (
+            f"<span class='hs-receiving'>receiving "
+            f"<b>{safe_text.html(name)}</b>: {received / 2**20:.1f} of "
+            f"{max(total, received) / 2**20:.1f} MiB</span>"
+        )
 
     def _on_staged(self, which: str, staged: uploads.Staged):
         self.uploaded.object = f"checking <b>{safe_text.html(staged.name)}</b>…"
@@ -145,8 +175,7 @@ class InputsView:
         """Check the file off the event loop; open the pair once both takes are in."""
         loop = asyncio.get_running_loop()
         try:
-            kept = await loop.run_in_executor(_WORKERS, uploads.check, self.session.config,
-                                              staged)
+            kept = await loop.run_in_executor(_WORKERS, uploads.check, self.session.config, staged)
         except uploads.UploadError as exc:
             self._refuse(which, one_line(exc))
             return
@@ -169,14 +198,17 @@ class InputsView:
         for which in ("body", "hand"):
             kept = self._pending.get(which)
             if kept is not None:
-                parts.append(f"{which}: <b>{safe_text.html(kept.name)}</b> "
-                             f"({safe_text.html(_describe(kept.summary))})")
+                parts.append(
+                    f"{which}: <b>{safe_text.html(kept.name)}</b> "
+                    f"({safe_text.html(_describe(kept.summary))})"
+                )
         if not parts:
             self.uploaded.object = ""
             return
-        tail = (" — open." if opened else "" if len(parts) == 2 else " — now the other take.")
-        self.uploaded.object = ("<span class='hs-uploaded'>Uploaded " + ", ".join(parts)
-                                + tail + "</span>")
+        tail = " — open." if opened else "" if len(parts) == 2 else " — now the other take."
+        self.uploaded.object = (
+            "<span class='hs-uploaded'>Uploaded " + ", ".join(parts) + tail + "</span>"
+        )
 
     async def _open_pair(self):
         """Open the two checked uploads; the features are computed on a worker thread
@@ -190,9 +222,17 @@ class InputsView:
         loop = asyncio.get_running_loop()
         self.uploaded.object += " <span class='hs-opening'>aligning…</span>"
         try:
-            await loop.run_in_executor(_WORKERS, functools.partial(
-                backend.prepare, body.path, hand.path, s.side, dict(s.roles),
-                takes=(body.take, hand.take)))
+            await loop.run_in_executor(
+                _WORKERS,
+                functools.partial(
+                    backend.prepare,
+                    body.path,
+                    hand.path,
+                    s.side,
+                    dict(s.roles),
+                    takes=(body.take, hand.take),
+                ),
+            )
         except Exception as exc:  # the reason is shown; nothing changes
             self._show_uploaded()
             self._show_error(f"{body.name} + {hand.name}: {one_line(exc)}")
@@ -203,16 +243,20 @@ class InputsView:
         s.load_uploads(body.digest, hand.digest, body.name, hand.name)
         if s.body_sha256 != body.digest or s.hand_sha256 != hand.digest:
             self._show_uploaded()
-            self._show_error(s.error if s.error and s.error != before
-                             else "the uploaded pair could not be opened")
+            self._show_error(
+                s.error
+                if s.error and s.error != before
+                else "the uploaded pair could not be opened"
+            )
         else:
             self._show_uploaded(opened=True)
 
     def _show_roles(self):
         for take, widget in (("body", self.roles_body), ("hand", self.roles_hand)):
             mapping = self.session.roles.get(take, {})
-            widget.value = "\n".join(f"{k} = {'none' if v is None else v}"
-                                     for k, v in mapping.items())
+            widget.value = "\n".join(
+                f"{k} = {'none' if v is None else v}" for k, v in mapping.items()
+            )
 
     def _on_roles(self, _event=None):
         roles = {}
@@ -224,8 +268,10 @@ class InputsView:
                     continue
                 key, sep, joint = line.partition("=")
                 if not sep:
-                    self._show_error(f"{take} role overrides line {n}: expected "
-                                     f"'right.wrist = JointName', got {line!r}")
+                    self._show_error(
+                        f"{take} role overrides line {n}: expected "
+                        f"'right.wrist = JointName', got {line!r}"
+                    )
                     return
                 joint = joint.strip()
                 mapping[key.strip()] = None if joint.lower() in ("", "none", "null") else joint
@@ -244,27 +290,48 @@ class InputsView:
 
     def panel(self) -> pn.viewable.Viewable:
         def labelled(text, widget, width):
-            return pn.Column(pn.pane.Markdown(f"**{text}**", margin=(0, 10, -10, 10)), widget,
-                             width=width, sizing_mode=None)
+            return pn.Column(
+                pn.pane.Markdown(f"**{text}**", margin=(0, 10, -10, 10)),
+                widget,
+                width=width,
+                sizing_mode=None,
+            )
 
         return pn.Column(
-            pn.Row(labelled("Sample pair", self.sample, 280), labelled("Side", self.side, 200),
-                   labelled("or upload a body take", self.body_file, 300),
-                   labelled("and a hand take", self.hand_file, 300)),
-            self.limit_note, self.uploaded, self.message, self.note,
-            pn.Card(pn.pane.Markdown(
-                "Joints are found by name (SMPL-X, Mixamo, Bandai, CMU, Leap and more). When a "
-                "take names them differently, map roles to joint names, one per line: "
-                "`right.wrist = RHand` (roles: shoulder, elbow, wrist, hand, thumb1..pinky3; "
-                "`none` switches one off).", styles={"font-size": "12px"}),
-                pn.Row(self.roles_body, self.roles_hand), self.roles_apply,
-                title="Joint-role overrides", collapsed=True, sizing_mode="stretch_width",
-                css_classes=["hs-roles"]),
-            sizing_mode="stretch_width")
+            pn.Row(
+                labelled("Sample pair", self.sample, 280),
+                labelled("Side", self.side, 200),
+                labelled("or upload a body take", self.body_file, 300),
+                labelled("and a hand take", self.hand_file, 300),
+            ),
+            self.limit_note,
+            self.uploaded,
+            self.message,
+            self.note,
+            pn.Card(
+                pn.pane.Markdown(
+                    "Joints are found by name (SMPL-X, Mixamo, Bandai, CMU, Leap and more). When a "
+                    "take names them differently, map roles to joint names, one per line: "
+                    "`right.wrist = RHand` (roles: shoulder, elbow, wrist, hand, thumb1..pinky3; "
+                    "`none` switches one off).",
+                    styles={"font-size": "12px"},
+                ),
+                pn.Row(self.roles_body, self.roles_hand),
+                self.roles_apply,
+                title="Joint-role overrides",
+                collapsed=True,
+                sizing_mode="stretch_width",
+                css_classes=["hs-roles"],
+            ),
+            sizing_mode="stretch_width",
+        )
 
 
 def _describe(summary: dict) -> str:
     """``BVH, 59 joints, 839 frames at 120 fps`` from an upload's check summary."""
-    what = (f"{summary.get('markers', 0)} markers" if summary.get("kind") == "markers"
-            else f"{summary.get('joints', 0)} joints")
+    what = (
+        f"{summary.get('markers', 0)} markers"
+        if summary.get("kind") == "markers"
+        else f"{summary.get('joints', 0)} joints"
+    )
     return f"{what}, {summary.get('frames', 0)} frames at {summary.get('fps', 0):g} fps"

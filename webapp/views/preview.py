@@ -24,33 +24,64 @@ PLAY_TICK_MS = 30
 
 
 class PreviewView:
-    TEXT = ("Skinned mannequins of the body take, the hand take at the matched frame and the "
-            "spliced result (body with the hand take's wrist and fingers), and the spliced "
-            "hands close up. Drag the frame slider or press Play (the take's real speed); "
-            "with *Pick frames* a click on the matrix jumps there.")
+    TEXT = (
+        "Skinned mannequins of the body take, the hand take at the matched frame and the "
+        "spliced result (body with the hand take's wrist and fingers), and the spliced "
+        "hands close up. Drag the frame slider or press Play (the take's real speed); "
+        "with *Pick frames* a click on the matrix jumps there."
+    )
 
-    def __init__(self, session: Session, size: tuple[int, int] = (680, 240),
-                 closeup_size: tuple[int, int] = (330, 300)):
+    def __init__(
+        self,
+        session: Session,
+        size: tuple[int, int] = (680, 240),
+        closeup_size: tuple[int, int] = (330, 300),
+    ):
         self.session = session
         self.size = size
         self.closeup_size = closeup_size
-        self.image = pn.pane.PNG(None, width=size[0], height=size[1], sizing_mode="fixed",
-                                 css_classes=["hs-preview-image"], margin=(0, 0, 4, 0))
-        self.closeup = pn.pane.PNG(None, width=closeup_size[0], height=closeup_size[1],
-                                   sizing_mode="fixed", css_classes=["hs-closeup-image"],
-                                   margin=0)
-        self.info = pn.pane.HTML("", css_classes=["hs-preview-info"],
-                                 styles={"font-family": "monospace", "font-size": "12px"})
-        self.alert = pn.pane.Alert("", alert_type="warning", visible=False,
-                                   css_classes=["hs-preview-error"])
+        self.image = pn.pane.PNG(
+            None,
+            width=size[0],
+            height=size[1],
+            sizing_mode="fixed",
+            css_classes=["hs-preview-image"],
+            margin=(0, 0, 4, 0),
+        )
+        self.closeup = pn.pane.PNG(
+            None,
+            width=closeup_size[0],
+            height=closeup_size[1],
+            sizing_mode="fixed",
+            css_classes=["hs-closeup-image"],
+            margin=0,
+        )
+        self.info = pn.pane.HTML(
+            "",
+            css_classes=["hs-preview-info"],
+            styles={"font-family": "monospace", "font-size": "12px"},
+        )
+        self.alert = pn.pane.Alert(
+            "", alert_type="warning", visible=False, css_classes=["hs-preview-error"]
+        )
         n = max(session.n, 1)
-        self.slider = pn.widgets.IntSlider(label="Body frame", start=0, end=max(n - 1, 1),
-                                           value=session.frame, css_classes=["hs-frame-slider"],
-                                           width=330)
-        self.play = pn.widgets.Toggle(label="▶ Play", value=False, width=90,
-                                      css_classes=["hs-play"])
-        self.camera = pn.widgets.Select(label="Camera", options=["three-quarter", "front", "side"],
-                                        value="three-quarter", width=130)
+        self.slider = pn.widgets.IntSlider(
+            label="Body frame",
+            start=0,
+            end=max(n - 1, 1),
+            value=session.frame,
+            css_classes=["hs-frame-slider"],
+            width=330,
+        )
+        self.play = pn.widgets.Toggle(
+            label="▶ Play", value=False, width=90, css_classes=["hs-play"]
+        )
+        self.camera = pn.widgets.Select(
+            label="Camera",
+            options=["three-quarter", "front", "side"],
+            value="three-quarter",
+            width=130,
+        )
         self.trails = pn.widgets.Checkbox(label="Hand trails", value=False, width=110)
         self.auto = pn.widgets.Checkbox(label="Follow edits", value=True, width=110)
         self.slider.param.watch(self._on_slider, "value")
@@ -149,10 +180,10 @@ class PreviewView:
         self._inflight = True
         t0 = time.perf_counter()
         try:
-            image = backend.render_frame(s.prepared, s.solution, s.frame, self.camera.value,
-                                         self.trails.value, self.size)
-            closeup = backend.render_closeup(s.prepared, s.solution, s.frame,
-                                             self.closeup_size)
+            image = backend.render_frame(
+                s.prepared, s.solution, s.frame, self.camera.value, self.trails.value, self.size
+            )
+            closeup = backend.render_closeup(s.prepared, s.solution, s.frame, self.closeup_size)
             png, close_png = backend.png_bytes(image), backend.png_bytes(closeup)
         except Exception as exc:  # shown in the page, never a traceback
             self.alert.object = safe_text.markdown(f"preview: {backend.one_line(exc)}")
@@ -169,19 +200,35 @@ class PreviewView:
         self.info.object = (
             f'<span data-frame="{b}" data-hand-frame="{h}">body frame {b} ({b / s.fps:.2f} s)'
             f" · hand frame {h} ({h / s.hand_fps:.2f} s) · spliced frame {o}"
-            f"<br>rendered in {ms:.0f} ms</span>")
+            f"<br>rendered in {ms:.0f} ms</span>"
+        )
         return True
 
     def panel(self) -> pn.viewable.Viewable:
         controls = pn.Column(
             pn.Row(self.play, self.camera, margin=0),
-            self.slider, pn.Row(self.trails, self.auto, margin=0), self.info, self.alert,
-            width=self.size[0] - self.closeup_size[0] - 10, sizing_mode=None)
+            self.slider,
+            pn.Row(self.trails, self.auto, margin=0),
+            self.info,
+            self.alert,
+            width=self.size[0] - self.closeup_size[0] - 10,
+            sizing_mode=None,
+        )
         return pn.Column(
             self.image,
-            pn.Row(pn.Column(self.closeup,
-                             pn.pane.HTML("<div style='font-size:11px;color:#555'>the spliced "
-                                          "hands close up</div>", margin=(0, 4)),
-                             margin=0),
-                   controls, margin=0),
-            css_classes=["hs-preview"], width=self.size[0] + 10, sizing_mode=None)
+            pn.Row(
+                pn.Column(
+                    self.closeup,
+                    pn.pane.HTML(
+                        "<div style='font-size:11px;color:#555'>the spliced hands close up</div>",
+                        margin=(0, 4),
+                    ),
+                    margin=0,
+                ),
+                controls,
+                margin=0,
+            ),
+            css_classes=["hs-preview"],
+            width=self.size[0] + 10,
+            sizing_mode=None,
+        )

@@ -51,45 +51,85 @@ class _Download(pn.widgets.FileDownload):
 
 
 class SharingView:
-    TEXT = ("Download the spliced take (BVH, opens in Blender and MotionBuilder; or GLB: the "
-            "skinned mannequin in 3D for Blender and browser glTF viewers), an animated "
-            "preview (GIF or MP4, a few seconds to render), or the session file. The link "
-            "restores this exact state on this server: sample or uploaded files, parameters "
-            "and matching points; so does opening a downloaded session file. The command line "
-            "below redoes the same splice offline.")
+    TEXT = (
+        "Download the spliced take (BVH, opens in Blender and MotionBuilder; or GLB: the "
+        "skinned mannequin in 3D for Blender and browser glTF viewers), an animated "
+        "preview (GIF or MP4, a few seconds to render), or the session file. The link "
+        "restores this exact state on this server: sample or uploaded files, parameters "
+        "and matching points; so does opening a downloaded session file. The command line "
+        "below redoes the same splice offline."
+    )
 
     def __init__(self, session: Session):
         self.session = session
-        self.message = pn.pane.Alert("", alert_type="danger", visible=False,
-                                     css_classes=["hs-share-error"])
-        self.bvh = _Download(callback=self._bvh, filename="spliced.bvh",
-                                           label="Spliced BVH", color="primary",
-                                           css_classes=["hs-download-bvh"], width=160)
-        self.glb = _Download(callback=self._glb, filename="spliced.glb",
-                             label="Spliced GLB (3D)", css_classes=["hs-download-glb"], width=160)
+        self.message = pn.pane.Alert(
+            "", alert_type="danger", visible=False, css_classes=["hs-share-error"]
+        )
+        self.bvh = _Download(
+            callback=self._bvh,
+            filename="spliced.bvh",
+            label="Spliced BVH",
+            color="primary",
+            css_classes=["hs-download-bvh"],
+            width=160,
+        )
+        self.glb = _Download(
+            callback=self._glb,
+            filename="spliced.glb",
+            label="Spliced GLB (3D)",
+            css_classes=["hs-download-glb"],
+            width=160,
+        )
         self.session_file = _Download(
-            callback=self._session_json, filename=SESSION_FILENAME,
-            label="Session JSON", css_classes=["hs-download-session"], width=160)
-        self.gif = _Download(callback=self._gif, filename="preview.gif",
-                                           label="Preview GIF", css_classes=["hs-download-gif"],
-                                           width=160)
-        self.mp4 = _Download(callback=self._mp4, filename="preview.mp4",
-                                           label="Preview MP4", css_classes=["hs-download-mp4"],
-                                           width=160)
-        self.progress = pn.indicators.Progress(value=0, max=100, visible=False, width=300,
-                                               css_classes=["hs-export-progress"])
-        self.progress_text = pn.pane.HTML("", visible=False, css_classes=["hs-export-status"],
-                                          styles={"font-size": "12px", "color": "#444"})
+            callback=self._session_json,
+            filename=SESSION_FILENAME,
+            label="Session JSON",
+            css_classes=["hs-download-session"],
+            width=160,
+        )
+        self.gif = _Download(
+            callback=self._gif,
+            filename="preview.gif",
+            label="Preview GIF",
+            css_classes=["hs-download-gif"],
+            width=160,
+        )
+        self.mp4 = _Download(
+            callback=self._mp4,
+            filename="preview.mp4",
+            label="Preview MP4",
+            css_classes=["hs-download-mp4"],
+            width=160,
+        )
+        self.progress = pn.indicators.Progress(
+            value=0, max=100, visible=False, width=300, css_classes=["hs-export-progress"]
+        )
+        self.progress_text = pn.pane.HTML(
+            "",
+            visible=False,
+            css_classes=["hs-export-status"],
+            styles={"font-size": "12px", "color": "#444"},
+        )
         self._exporting = False
-        self.open_session = pn.widgets.FileInput(accept=".json", css_classes=["hs-open-session"],
-                                                 width=260)
+        self.open_session = pn.widgets.FileInput(
+            accept=".json", css_classes=["hs-open-session"], width=260
+        )
         self.open_session.param.watch(self._on_open_session, "value")
-        self.link = pn.widgets.TextInput(label="Link to this session", value="",
-                                         css_classes=["hs-share-url"], disabled=False)
-        self.command = pn.pane.HTML("", css_classes=["hs-cli"], sizing_mode="stretch_width",
-                                    styles={"font-family": "monospace", "font-size": "12px",
-                                            "background": "#f3f5f7", "padding": "6px 10px",
-                                            "border-radius": "4px"})
+        self.link = pn.widgets.TextInput(
+            label="Link to this session", value="", css_classes=["hs-share-url"], disabled=False
+        )
+        self.command = pn.pane.HTML(
+            "",
+            css_classes=["hs-cli"],
+            sizing_mode="stretch_width",
+            styles={
+                "font-family": "monospace",
+                "font-size": "12px",
+                "background": "#f3f5f7",
+                "padding": "6px 10px",
+                "border-radius": "4px",
+            },
+        )
         session.param.watch(self._update_link, ["revision", "inputs_revision", "matrix"])
         self._update_link()
         doc = pn.state.curdoc
@@ -167,8 +207,9 @@ class SharingView:
         self.progress_text.object = f"{what}: starting…"
         t0 = time.perf_counter()
         loop = asyncio.get_running_loop()
-        job = loop.run_in_executor(_EXPORTS, lambda: backend.preview_video(
-            prepared, solution, fmt, progress=progress))
+        job = loop.run_in_executor(
+            _EXPORTS, lambda: backend.preview_video(prepared, solution, fmt, progress=progress)
+        )
         try:
             while True:
                 done, _ = await asyncio.wait({job}, timeout=PROGRESS_INTERVAL)
@@ -187,8 +228,9 @@ class SharingView:
             self.gif.disabled = self.mp4.disabled = False
         self.message.visible = False
         self.progress.value = 100
-        self.progress_text.object = (f"{what}: {len(data) / 1024:.0f} KiB in "
-                                     f"{time.perf_counter() - t0:.1f} s, downloading")
+        self.progress_text.object = (
+            f"{what}: {len(data) / 1024:.0f} KiB in {time.perf_counter() - t0:.1f} s, downloading"
+        )
         return io.BytesIO(data)
 
     def _on_open_session(self, *_):
@@ -226,19 +268,28 @@ class SharingView:
             body = s.body_name or paths[0].name
             hand = s.hand_name or paths[1].name
             session_cmd = backend.cli_session_command(body, hand, SESSION_FILENAME)
-            flags_cmd = backend.cli_command(s.prepared, body, hand, s.side, *s.widths(),
-                                            s.constraint_points(), s.roles)
+            flags_cmd = backend.cli_command(
+                s.prepared, body, hand, s.side, *s.widths(), s.constraint_points(), s.roles
+            )
             self.command.object = (
                 "$ " + safe_text.html(session_cmd) + "<br>"
                 "<span style='color:#777'># or with explicit flags (--match takes hand-file "
-                "frames):</span><br>$ " + safe_text.html(flags_cmd))
+                "frames):</span><br>$ " + safe_text.html(flags_cmd)
+            )
 
     def panel(self) -> pn.viewable.Viewable:
         from webapp.views.credits import no_share_alert
 
-        return pn.Column(no_share_alert(self.session),
-                         pn.Row(self.bvh, self.glb, self.session_file, self.gif, self.mp4),
-                         pn.Row(self.progress, self.progress_text),
-                         pn.Row(pn.pane.Markdown("**Open a session file**",
-                                                 margin=(12, 10, 0, 10)), self.open_session),
-                         self.link, self.command, self.message, sizing_mode="stretch_width")
+        return pn.Column(
+            no_share_alert(self.session),
+            pn.Row(self.bvh, self.glb, self.session_file, self.gif, self.mp4),
+            pn.Row(self.progress, self.progress_text),
+            pn.Row(
+                pn.pane.Markdown("**Open a session file**", margin=(12, 10, 0, 10)),
+                self.open_session,
+            ),
+            self.link,
+            self.command,
+            self.message,
+            sizing_mode="stretch_width",
+        )

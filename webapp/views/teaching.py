@@ -32,8 +32,8 @@ EXAMPLE_FPS = 10.0
 
 def _gesture(t: np.ndarray, amplitude: float, offset: float) -> np.ndarray:
     """Two strokes with a hold between them (a smooth made-up wrist height)."""
-    stroke1 = np.exp(-((t - 0.25) / 0.09) ** 2)
-    stroke2 = 0.8 * np.exp(-((t - 0.7) / 0.11) ** 2)
+    stroke1 = np.exp(-(((t - 0.25) / 0.09) ** 2))
+    stroke2 = 0.8 * np.exp(-(((t - 0.7) / 0.11) ** 2))
     return offset + amplitude * (stroke1 + stroke2)
 
 
@@ -54,10 +54,18 @@ def local_costs(body: np.ndarray, hand: np.ndarray, metric: str) -> np.ndarray:
     for x in (body, hand):
         v, a = metrics.derivatives(x[:, None], EXAMPLE_FPS, window_s=0.3)
         zone = metrics.dead_zone(v[:, :, None], a[:, :, None])
-        codes.append(np.concatenate([metrics.sign_dead_zone(v, zone.velocity),
-                                     metrics.sign_dead_zone(a, zone.acceleration)], axis=1))
-    return local_cost_image(codes[0].astype(float), codes[1].astype(float), "sqeuclidean",
-                            (n, m)).image
+        codes.append(
+            np.concatenate(
+                [
+                    metrics.sign_dead_zone(v, zone.velocity),
+                    metrics.sign_dead_zone(a, zone.acceleration),
+                ],
+                axis=1,
+            )
+        )
+    return local_cost_image(
+        codes[0].astype(float), codes[1].astype(float), "sqeuclidean", (n, m)
+    ).image
 
 
 def short_number(x: float, width: int = 4) -> str:
@@ -92,8 +100,10 @@ class TeachingModel(param.Parameterized):
         self.n, self.m = n, m
         self.body, self.hand = example_signals(n, m)
         self.solve()
-        self.param.watch(lambda e: self.solve(),
-                         ["metric", "width", "use_point", "point_body", "point_hand", "point_tol"])
+        self.param.watch(
+            lambda e: self.solve(),
+            ["metric", "width", "use_point", "point_body", "point_hand", "point_tol"],
+        )
 
     def points(self) -> list[tuple[int, int, int]]:
         return [(self.point_body, self.point_hand, self.point_tol)] if self.use_point else []
@@ -140,10 +150,12 @@ class TeachingModel(param.Parameterized):
         """The recurrence at the current cell with its numbers (HTML)."""
         cell = self.current()
         if cell is None:
-            return ("Press <b>Step</b> to compute the first cell. The solver fills the band "
-                    "body frame by body frame (i), and within one, hand frame by hand frame "
-                    "(j). Small grey numbers are the local costs D(i, j); hatched cells lie "
-                    "outside the band and are never computed.")
+            return (
+                "Press <b>Step</b> to compute the first cell. The solver fills the band "
+                "body frame by body frame (i), and within one, hand frame by hand frame "
+                "(j). Small grey numbers are the local costs D(i, j); hatched cells lie "
+                "outside the band and are never computed."
+            )
         i, j = cell
         g = self.gamma
 
@@ -154,82 +166,143 @@ class TeachingModel(param.Parameterized):
 
         d = self.cost[i, j]
         if i == 0 and j == 0:
-            return (f"<b>γ(0, 0) = D(0, 0) = {d:.4g}</b> — every path starts here "
-                    "(eq. 1).")
+            return f"<b>γ(0, 0) = D(0, 0) = {d:.4g}</b> — every path starts here (eq. 1)."
         preds = [val(i - 1, j - 1), val(i - 1, j), val(i, j - 1)]
-        best = "∞" if all(p == "∞" for p in preds) else \
-            f"{min(float(p) for p in preds if p != '∞'):.4g}"
-        return (f"<b>γ({i}, {j}) = D({i}, {j}) + min(γ({i - 1}, {j - 1}), γ({i - 1}, {j}), "
-                f"γ({i}, {j - 1}))</b><br>= {d:.4g} + min({', '.join(preds)}) = {d:.4g} + "
-                f"{best} = <b>{val(i, j)}</b><br><span style='color:#666'>(eq. 2; ∞ = outside "
-                f"the band or the matrix)</span>")
+        best = (
+            "∞"
+            if all(p == "∞" for p in preds)
+            else f"{min(float(p) for p in preds if p != '∞'):.4g}"
+        )
+        return (
+            f"<b>γ({i}, {j}) = D({i}, {j}) + min(γ({i - 1}, {j - 1}), γ({i - 1}, {j}), "
+            f"γ({i}, {j - 1}))</b><br>= {d:.4g} + min({', '.join(preds)}) = {d:.4g} + "
+            f"{best} = <b>{val(i, j)}</b><br><span style='color:#666'>(eq. 2; ∞ = outside "
+            f"the band or the matrix)</span>"
+        )
 
     def band_text(self) -> str:
         n, m, w = self.n, self.m, self.width
         lam = w * n * math.sqrt(n * n + m * m) / (2 * n)
-        text = (f"Band (eq. 3): W = {w:.2f} × n = {w * n:.1f} frames wide around the diagonal; "
-                f"vertical half-width Λ = W·√(n²+m²)/(2n) = {lam:.2f} frames. "
-                f"{self.band.area} of {n * m} cells are searched.")
+        text = (
+            f"Band (eq. 3): W = {w:.2f} × n = {w * n:.1f} frames wide around the diagonal; "
+            f"vertical half-width Λ = W·√(n²+m²)/(2n) = {lam:.2f} frames. "
+            f"{self.band.area} of {n * m} cells are searched."
+        )
         if self.use_point:
             x, y, t = self.points()[0]
-            text += (f" Matching point ({x}, {y}) with tolerance T = {t} (eqs. 4-5): the band "
-                     f"is split into two diagonal bands meeting there, and the path must cross "
-                     f"body frame {x} at a hand frame within {y - t}..{y + t}.")
+            text += (
+                f" Matching point ({x}, {y}) with tolerance T = {t} (eqs. 4-5): the band "
+                f"is split into two diagonal bands meeting there, and the path must cross "
+                f"body frame {x} at a hand frame within {y - t}..{y + t}."
+            )
         return text
 
 
 class TeachingView:
-    TEXT = ("A 12-frame body take against a 10-frame hand take (wrist heights; the hand "
-            "performer moved less, lower and slower). Step through the recurrence, narrow the "
-            "band, pin a matching point, and switch between the value-based and the "
-            "sign-based local cost.")
+    TEXT = (
+        "A 12-frame body take against a 10-frame hand take (wrist heights; the hand "
+        "performer moved less, lower and slower). Step through the recurrence, narrow the "
+        "band, pin a matching point, and switch between the value-based and the "
+        "sign-based local cost."
+    )
 
     def __init__(self, model: TeachingModel | None = None):
         self.model = model or TeachingModel()
         mdl = self.model
         n, m = mdl.n, mdl.m
         self.cells = ColumnDataSource(self._cells(), name="hs-teach-cells")
-        fig = figure(width=520, height=450, x_range=Range1d(-0.5, n - 0.5),
-                     y_range=Range1d(-0.5, m - 0.5), tools="", toolbar_location=None,
-                     x_axis_label="body frame i", y_axis_label="hand frame j",
-                     name="hs-teach-grid")
+        fig = figure(
+            width=520,
+            height=450,
+            x_range=Range1d(-0.5, n - 0.5),
+            y_range=Range1d(-0.5, m - 0.5),
+            tools="",
+            toolbar_location=None,
+            x_axis_label="body frame i",
+            y_axis_label="hand frame j",
+            name="hs-teach-grid",
+        )
         fig.css_classes = ["hs-teach-grid"]
-        fig.rect(x="i", y="j", width=0.96, height=0.96, source=self.cells, fill_color="fill",
-                 line_color="line", line_width="lw", line_dash="dash", hatch_pattern="hatch",
-                 hatch_color="#cccccc", hatch_scale=8)
-        fig.text(x="i", y="j", text="gamma", source=self.cells, text_align="center",
-                 text_baseline="middle", text_font_size="9pt", text_font_style="bold",
-                 name="hs-teach-gamma")
-        fig.text(x="dx", y="dy", text="d", source=self.cells, text_align="left",
-                 text_baseline="top", text_font_size="7pt", text_color="#555555")
+        fig.rect(
+            x="i",
+            y="j",
+            width=0.96,
+            height=0.96,
+            source=self.cells,
+            fill_color="fill",
+            line_color="line",
+            line_width="lw",
+            line_dash="dash",
+            hatch_pattern="hatch",
+            hatch_color="#cccccc",
+            hatch_scale=8,
+        )
+        fig.text(
+            x="i",
+            y="j",
+            text="gamma",
+            source=self.cells,
+            text_align="center",
+            text_baseline="middle",
+            text_font_size="9pt",
+            text_font_style="bold",
+            name="hs-teach-gamma",
+        )
+        fig.text(
+            x="dx",
+            y="dy",
+            text="d",
+            source=self.cells,
+            text_align="left",
+            text_baseline="top",
+            text_font_size="7pt",
+            text_color="#555555",
+        )
         self.path = ColumnDataSource({"x": [], "y": []})
         fig.line(x="x", y="y", source=self.path, color="#e31a1c", line_width=3, line_alpha=0.7)
         self.point = ColumnDataSource({"x": [], "y0": [], "y1": []})
-        fig.segment(x0="x", y0="y0", x1="x", y1="y1", source=self.point, color="#f2a900",
-                    line_width=6, line_alpha=0.6)
+        fig.segment(
+            x0="x",
+            y0="y0",
+            x1="x",
+            y1="y1",
+            source=self.point,
+            color="#f2a900",
+            line_width=6,
+            line_alpha=0.6,
+        )
         fig.xaxis.ticker = list(range(n))
         fig.yaxis.ticker = list(range(m))
         fig.grid.visible = False
         self.grid = fig
 
-        self.equation = pn.pane.HTML("", css_classes=["hs-teach-equation"],
-                                     styles={"font-size": "14px", "min-height": "70px"})
+        self.equation = pn.pane.HTML(
+            "",
+            css_classes=["hs-teach-equation"],
+            styles={"font-size": "14px", "min-height": "70px"},
+        )
         self.band_note = pn.pane.HTML("", styles={"font-size": "13px", "color": "#333"})
         self.alert = pn.pane.Alert("", alert_type="warning", visible=False)
         self.buttons = {
             "reset": pn.widgets.Button(label="Reset", width=80),
             "back": pn.widgets.Button(label="Back", width=80),
-            "step": pn.widgets.Button(label="Step", color="primary", width=80,
-                                      css_classes=["hs-teach-step"]),
-            "row": pn.widgets.Button(label="Next row i", width=100, css_classes=["hs-teach-row"],
-                                     description="compute the rest of this body frame's row "
-                                                 "(drawn upright: one x) of the matrix"),
+            "step": pn.widgets.Button(
+                label="Step", color="primary", width=80, css_classes=["hs-teach-step"]
+            ),
+            "row": pn.widgets.Button(
+                label="Next row i",
+                width=100,
+                css_classes=["hs-teach-row"],
+                description="compute the rest of this body frame's row "
+                "(drawn upright: one x) of the matrix",
+            ),
             "end": pn.widgets.Button(label="Finish", width=80),
         }
         self.buttons["reset"].on_click(lambda e: setattr(mdl, "step", 0))
         self.buttons["back"].on_click(lambda e: setattr(mdl, "step", max(mdl.step - 1, 0)))
-        self.buttons["step"].on_click(lambda e: setattr(mdl, "step",
-                                                        min(mdl.step + 1, len(mdl.order))))
+        self.buttons["step"].on_click(
+            lambda e: setattr(mdl, "step", min(mdl.step + 1, len(mdl.order)))
+        )
         self.buttons["row"].on_click(self._next_row)
         self.buttons["end"].on_click(lambda e: setattr(mdl, "step", len(mdl.order)))
         self.compare = self._comparison()
@@ -246,7 +319,7 @@ class TeachingView:
         ii, jj = ii.ravel(), jj.ravel()
         inside = mdl.band.contains(ii, jj)
         revealed = np.zeros(n * m, bool)
-        for i, j in mdl.order[:mdl.step]:
+        for i, j in mdl.order[: mdl.step]:
             revealed[i * m + j] = True
         cost = mdl.cost.ravel()
         top = max(float(cost.max()), 1e-9)
@@ -256,8 +329,11 @@ class TeachingView:
                 fill.append("#f7f7f7")
             else:
                 shade = int(255 - 90 * cost[k] / top)  # darker = more expensive
-                fill.append(f"#{shade:02x}{shade:02x}ff" if revealed[k] else
-                            f"#{shade:02x}{shade:02x}{shade:02x}")
+                fill.append(
+                    f"#{shade:02x}{shade:02x}ff"
+                    if revealed[k]
+                    else f"#{shade:02x}{shade:02x}{shade:02x}"
+                )
         line = ["#bbbbbb"] * (n * m)
         lw = [0.5] * (n * m)
         dash = ["solid"] * (n * m)
@@ -270,12 +346,20 @@ class TeachingView:
             line[i * m + j], lw[i * m + j] = "#ff7f00", 4
         gamma = mdl.gamma.ravel()
         return {
-            "i": ii, "j": jj, "fill": fill, "line": line, "lw": lw, "dash": dash,
-            "gamma": [short_number(gamma[k]) if revealed[k] and np.isfinite(gamma[k]) else ""
-                      for k in range(n * m)],
+            "i": ii,
+            "j": jj,
+            "fill": fill,
+            "line": line,
+            "lw": lw,
+            "dash": dash,
+            "gamma": [
+                short_number(gamma[k]) if revealed[k] and np.isfinite(gamma[k]) else ""
+                for k in range(n * m)
+            ],
             "d": [short_number(cost[k], 3) if inside[k] else "" for k in range(n * m)],
             "hatch": [" " if inside[k] else "/" for k in range(n * m)],
-            "dx": ii - 0.44, "dy": jj + 0.46,
+            "dx": ii - 0.44,
+            "dy": jj + 0.46,
         }
 
     @with_document_lock
@@ -294,31 +378,54 @@ class TeachingView:
             self.point.data = {"x": [x], "y0": [y - t - 0.45], "y1": [y + t + 0.45]}
         else:
             self.point.data = {"x": [], "y0": [], "y1": []}
-        done = (f"<br><b>Done:</b> the optimal path (red) costs γ({mdl.n - 1}, {mdl.m - 1}) = "
-                f"{mdl.alignment.cost:.4g}; it is traced back from the last cell along the "
-                f"cheapest predecessors." if mdl.finished else "")
-        self.equation.object = (f"<div>Step {mdl.step} of {len(mdl.order)}</div>"
-                                + mdl.explain() + done)
+        done = (
+            f"<br><b>Done:</b> the optimal path (red) costs γ({mdl.n - 1}, {mdl.m - 1}) = "
+            f"{mdl.alignment.cost:.4g}; it is traced back from the last cell along the "
+            f"cheapest predecessors."
+            if mdl.finished
+            else ""
+        )
+        self.equation.object = (
+            f"<div>Step {mdl.step} of {len(mdl.order)}</div>" + mdl.explain() + done
+        )
         self.band_note.object = mdl.band_text()
 
     def _comparison(self) -> pn.viewable.Viewable:
         """Figure 3 of the paper: value-based versus sign-based matching on longer takes."""
         body, hand = example_signals(60, 45)
         figs = []
-        for metric, title in (("value", "Value-based cost (height difference)"),
-                              ("sign", "Sign-based cost (eq. 6)")):
+        for metric, title in (
+            ("value", "Value-based cost (height difference)"),
+            ("sign", "Sign-based cost (eq. 6)"),
+        ):
             cost = local_costs(body, hand, metric)
             path = Aligner.from_cost(cost).solve(Band.full(len(body), len(hand))).path
-            f = figure(width=420, height=220, title=title, tools="", toolbar_location=None,
-                       name=f"hs-teach-compare-{metric}")
+            f = figure(
+                width=420,
+                height=220,
+                title=title,
+                tools="",
+                toolbar_location=None,
+                name=f"hs-teach-compare-{metric}",
+            )
             lift = 1.2
             xs = [[int(i), int(j) * (len(body) - 1) / (len(hand) - 1)] for i, j in path[::2]]
             ys = [[body[i] + lift, hand[j]] for i, j in path[::2]]
             f.multi_line(xs=xs, ys=ys, color="#999999", line_width=0.8)
-            f.line(np.arange(len(body)), body + lift, color="#1f78b4", line_width=2,
-                   legend_label="body")
-            f.line(np.linspace(0, len(body) - 1, len(hand)), hand, color="#e31a1c",
-                   line_width=2, legend_label="hand")
+            f.line(
+                np.arange(len(body)),
+                body + lift,
+                color="#1f78b4",
+                line_width=2,
+                legend_label="body",
+            )
+            f.line(
+                np.linspace(0, len(body) - 1, len(hand)),
+                hand,
+                color="#e31a1c",
+                line_width=2,
+                legend_label="hand",
+            )
             f.legend.location = "top_right"
             f.legend.label_text_font_size = "8pt"
             f.yaxis.visible = False
@@ -329,23 +436,39 @@ class TeachingView:
             "Grey lines join matched frames. With values, the small, lower hand take is matched "
             "by height, so peaks meet slopes; with signs of velocity and acceleration, the "
             "rises, peaks and falls of both takes meet — the reason pass 1 uses signs.",
-            styles={"color": "#444"})
+            styles={"color": "#444"},
+        )
         return pn.Column(pn.Row(*figs), note)
 
     def panel(self) -> pn.viewable.Viewable:
         mdl = self.model
         controls = pn.Column(
             pn.widgets.RadioButtonGroup.from_param(mdl.param.metric, label="Local cost"),
-            pn.widgets.FloatSlider.from_param(mdl.param.width, label="Band width W (fraction of n)"),
+            pn.widgets.FloatSlider.from_param(
+                mdl.param.width, label="Band width W (fraction of n)"
+            ),
             pn.widgets.Checkbox.from_param(mdl.param.use_point, label="Matching point"),
-            pn.Row(pn.widgets.IntSlider.from_param(mdl.param.point_body, label="body frame x",
-                                                   width=130),
-                   pn.widgets.IntSlider.from_param(mdl.param.point_hand, label="hand frame y",
-                                                   width=130),
-                   pn.widgets.IntSlider.from_param(mdl.param.point_tol, label="tolerance T",
-                                                   width=110)),
+            pn.Row(
+                pn.widgets.IntSlider.from_param(
+                    mdl.param.point_body, label="body frame x", width=130
+                ),
+                pn.widgets.IntSlider.from_param(
+                    mdl.param.point_hand, label="hand frame y", width=130
+                ),
+                pn.widgets.IntSlider.from_param(
+                    mdl.param.point_tol, label="tolerance T", width=110
+                ),
+            ),
             pn.Row(*self.buttons.values()),
-            self.equation, self.band_note, self.alert, width=480, sizing_mode=None)
-        return pn.Column(pn.Row(pn.pane.Bokeh(self.grid, sizing_mode="fixed"), controls),
-                         pn.pane.Markdown("#### Why signs? (the paper's Figure 3)"),
-                         self.compare, css_classes=["hs-teaching"])
+            self.equation,
+            self.band_note,
+            self.alert,
+            width=480,
+            sizing_mode=None,
+        )
+        return pn.Column(
+            pn.Row(pn.pane.Bokeh(self.grid, sizing_mode="fixed"), controls),
+            pn.pane.Markdown("#### Why signs? (the paper's Figure 3)"),
+            self.compare,
+            css_classes=["hs-teaching"],
+        )

@@ -27,8 +27,11 @@ from webapp.state import Session
 from webapp.views._dispatch import with_document_lock
 
 VERDICT_COLORS = {"ok": "#2e7d32", "check": "#f9a825", "desync": "#c62828"}
-VERDICT_WORDS = {"ok": "in sync (< 50 ms)", "check": "check (50–100 ms)",
-                 "desync": "may look out of sync (> 100 ms)"}
+VERDICT_WORDS = {
+    "ok": "in sync (< 50 ms)",
+    "check": "check (50–100 ms)",
+    "desync": "may look out of sync (> 100 ms)",
+}
 REGION_COLOR = "#ffffff"
 #: wait this long after an edit before assessing it (a drag sends many edits)
 DEBOUNCE_MS = 250
@@ -43,9 +46,12 @@ def _runs(values: list[str]) -> dict:
     cut = np.flatnonzero(v[1:] != v[:-1]) + 1
     starts = np.concatenate([[0], cut])
     stops = np.concatenate([cut, [len(v)]])
-    return {"start": starts - 0.5, "stop": stops - 0.5,
-            "color": [VERDICT_COLORS[x] for x in v[starts]],
-            "verdict": [VERDICT_WORDS[x] for x in v[starts]]}
+    return {
+        "start": starts - 0.5,
+        "stop": stops - 0.5,
+        "color": [VERDICT_COLORS[x] for x in v[starts]],
+        "verdict": [VERDICT_WORDS[x] for x in v[starts]],
+    }
 
 
 class TrustView:
@@ -60,37 +66,81 @@ class TrustView:
         self._pending = False
         self._armed: int | None = None  # suggestion index whose moment is being shown
         fig = matrix.figure
-        self.region_source = ColumnDataSource({"x": [], "lo": [], "hi": []},
-                                              name="hs-uncertain-region-source")
-        fig.varea(x="x", y1="lo", y2="hi", source=self.region_source, fill_color=REGION_COLOR,
-                  fill_alpha=0.22, name="hs-uncertain-region", level="underlay")
+        self.region_source = ColumnDataSource(
+            {"x": [], "lo": [], "hi": []}, name="hs-uncertain-region-source"
+        )
+        fig.varea(
+            x="x",
+            y1="lo",
+            y2="hi",
+            source=self.region_source,
+            fill_color=REGION_COLOR,
+            fill_alpha=0.22,
+            name="hs-uncertain-region",
+            level="underlay",
+        )
         # two rows under the body take's phase track (which spans -0.32..-0.08): the desync
         # meter (one bar per stroke) and the confidence strip (one cell per body frame)
         body_fig = matrix.body_figure
         body_fig.y_range.start = -0.80
         self.meter_source = ColumnDataSource(
             {"start": [], "stop": [], "color": [], "verdict": [], "ms": []},
-            name="hs-desync-meter-source")
-        meter = body_fig.quad(left="start", right="stop", bottom=-0.52, top=-0.37,
-                              color="color", line_color="#202020", line_width=1,
-                              source=self.meter_source, name="hs-desync-meter")
-        body_fig.add_tools(HoverTool(renderers=[meter], tooltips=[
-            ("stroke", "body frames @start{0}–@stop{0}"), ("timing uncertainty", "@ms{0} ms"),
-            ("verdict", "@verdict")]))
-        self.strip_source = ColumnDataSource({"start": [], "stop": [], "color": [],
-                                              "verdict": []}, name="hs-confidence-source")
-        quads = body_fig.quad(left="start", right="stop", bottom=-0.78, top=-0.58,
-                              color="color", source=self.strip_source,
-                              name="hs-confidence-strip")
-        body_fig.add_tools(HoverTool(renderers=[quads], tooltips=[
-            ("body frames", "@start{0}–@stop{0}"), ("timing", "@verdict")]))
+            name="hs-desync-meter-source",
+        )
+        meter = body_fig.quad(
+            left="start",
+            right="stop",
+            bottom=-0.52,
+            top=-0.37,
+            color="color",
+            line_color="#202020",
+            line_width=1,
+            source=self.meter_source,
+            name="hs-desync-meter",
+        )
+        body_fig.add_tools(
+            HoverTool(
+                renderers=[meter],
+                tooltips=[
+                    ("stroke", "body frames @start{0}–@stop{0}"),
+                    ("timing uncertainty", "@ms{0} ms"),
+                    ("verdict", "@verdict"),
+                ],
+            )
+        )
+        self.strip_source = ColumnDataSource(
+            {"start": [], "stop": [], "color": [], "verdict": []}, name="hs-confidence-source"
+        )
+        quads = body_fig.quad(
+            left="start",
+            right="stop",
+            bottom=-0.78,
+            top=-0.58,
+            color="color",
+            source=self.strip_source,
+            name="hs-confidence-strip",
+        )
+        body_fig.add_tools(
+            HoverTool(
+                renderers=[quads],
+                tooltips=[("body frames", "@start{0}–@stop{0}"), ("timing", "@verdict")],
+            )
+        )
         body_fig.frame_height = body_fig.frame_height + 22
-        self.summary = pn.pane.HTML("", css_classes=["hs-desync-summary"],
-                                    styles={"font-size": "13px"}, margin=(2, 10))
-        self.buttons = [pn.widgets.Button(name="", visible=False, button_type="light",
-                                          css_classes=["hs-suggestion"], margin=(2, 4),
-                                          width=300)
-                        for _ in range(3)]
+        self.summary = pn.pane.HTML(
+            "", css_classes=["hs-desync-summary"], styles={"font-size": "13px"}, margin=(2, 10)
+        )
+        self.buttons = [
+            pn.widgets.Button(
+                name="",
+                visible=False,
+                button_type="light",
+                css_classes=["hs-suggestion"],
+                margin=(2, 4),
+                width=300,
+            )
+            for _ in range(3)
+        ]
         for k, b in enumerate(self.buttons):
             b.on_click(lambda _e, k=k: self._on_suggestion(k))
         session.param.watch(self._on_revision, ["revision"])
@@ -139,8 +189,7 @@ class TrustView:
         if trust is None or s.solution is None:
             self.region_source.data = {"x": [], "lo": [], "hi": []}
             self.strip_source.data = _runs([])
-            self.meter_source.data = {"start": [], "stop": [], "color": [], "verdict": [],
-                                      "ms": []}
+            self.meter_source.data = {"start": [], "stop": [], "color": [], "verdict": [], "ms": []}
             self.summary.object = ""
             for b in self.buttons:
                 b.visible = False
@@ -150,15 +199,20 @@ class TrustView:
         warp = np.asarray(s.solution.warp, dtype=float) * r
         frames = unc.ms * unc.fps / 1000.0 * r  # ms -> grid columns -> hand-file frames
         x = np.arange(len(warp), dtype=np.int32)
-        self.region_source.data = {"x": x, "lo": (warp - frames).astype(np.float32),
-                                   "hi": (warp + frames).astype(np.float32)}
+        self.region_source.data = {
+            "x": x,
+            "lo": (warp - frames).astype(np.float32),
+            "hi": (warp + frames).astype(np.float32),
+        }
         self.strip_source.data = _runs([self._verdict(v) for v in unc.ms])
         st = trust.strokes
-        self.meter_source.data = {"start": [k.start - 0.5 for k in st],
-                                  "stop": [k.end + 0.5 for k in st],
-                                  "color": [VERDICT_COLORS[k.verdict] for k in st],
-                                  "verdict": [VERDICT_WORDS[k.verdict] for k in st],
-                                  "ms": [k.uncertainty_ms for k in st]}
+        self.meter_source.data = {
+            "start": [k.start - 0.5 for k in st],
+            "stop": [k.end + 0.5 for k in st],
+            "color": [VERDICT_COLORS[k.verdict] for k in st],
+            "verdict": [VERDICT_WORDS[k.verdict] for k in st],
+            "ms": [k.uncertainty_ms for k in st],
+        }
         self.summary.object = "<b>Desync meter:</b> " + html.escape(trust.summary)
         for k, b in enumerate(self.buttons):
             if k < len(trust.suggestions):
@@ -187,14 +241,21 @@ class TrustView:
         legend = " ".join(
             f'<span style="display:inline-block;width:10px;height:10px;background:{c};'
             f'margin:0 3px 0 10px"></span>{html.escape(VERDICT_WORDS[k])}'
-            for k, c in VERDICT_COLORS.items())
+            for k, c in VERDICT_COLORS.items()
+        )
         return pn.Column(
-            pn.pane.HTML("Under the body's gesture phases: <b>desync meter</b> (one bar per "
-                         "stroke) and <b>timing confidence</b> per body frame; the light "
-                         "region around the path is where the match could move." + "<br>"
-                         + legend, styles={"font-size": "12px"}, margin=(2, 10)),
+            pn.pane.HTML(
+                "Under the body's gesture phases: <b>desync meter</b> (one bar per "
+                "stroke) and <b>timing confidence</b> per body frame; the light "
+                "region around the path is where the match could move." + "<br>" + legend,
+                styles={"font-size": "12px"},
+                margin=(2, 10),
+            ),
             self.summary,
-            pn.Row(pn.pane.HTML("<b>Least certain places:</b>", margin=(8, 4, 0, 10),
-                                width=170),
-                   *self.buttons, margin=0),
-            margin=0)
+            pn.Row(
+                pn.pane.HTML("<b>Least certain places:</b>", margin=(8, 4, 0, 10), width=170),
+                *self.buttons,
+                margin=0,
+            ),
+            margin=0,
+        )
