@@ -785,4 +785,6 @@ def test_app_session_restores_any_link_or_refuses(app_session, query):
             assert str(err)
     assert app_session.n in (0, 40)
     if app_session.prepared is not None and app_session.solution is not None:
-        assert 0 <= app_session.hand_frame_for(app_session.n - 1) < app_session.m
+        assert (
+            0 <= app_session.hand_frame_for(app_session.n - 1) < app_session.m_hand
+        )  # hand-file frames

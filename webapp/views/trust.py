@@ -132,9 +132,9 @@ class TrustView:
         )
         self.buttons = [
             pn.widgets.Button(
-                name="",
+                label="",
                 visible=False,
-                button_type="light",
+                color="light",
                 css_classes=["hs-suggestion"],
                 margin=(2, 4),
                 width=300,
@@ -217,8 +217,8 @@ class TrustView:
         for k, b in enumerate(self.buttons):
             if k < len(trust.suggestions):
                 body, _ = trust.suggestions[k]
-                b.name = f"Check body frame {body} (±{unc.ms[body]:.0f} ms)"
-                b.button_type = "light"
+                b.label = f"Check body frame {body} (±{unc.ms[body]:.0f} ms)"
+                b.color = "light"
                 b.visible = True
             else:
                 b.visible = False
@@ -231,8 +231,8 @@ class TrustView:
         if self._armed != k:  # first click: show the moment (body and hand side by side)
             self._armed = k
             s.frame = body
-            self.buttons[k].name = f"Place a matching point at body frame {body}"
-            self.buttons[k].button_type = "primary"
+            self.buttons[k].label = f"Place a matching point at body frame {body}"
+            self.buttons[k].color = "primary"
             return
         self._armed = None
         s.add_point(body, s.hand_frame_for(body))
