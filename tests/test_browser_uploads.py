@@ -173,7 +173,9 @@ def _download(page, selector: str, path: Path) -> Path:
 
 
 def _render_preview(page) -> str:
-    page.locator(".hs-render button").click()
+    """The preview's caption once it is rendered (the page renders it on load and after
+    every edit: no button to press)."""
+    page.locator(".hs-preview-image img").wait_for(timeout=BUSY_S * 1000)
     info = page.locator(".hs-preview-info span[data-frame]")
     info.wait_for(timeout=BUSY_S * 1000)
     return info.inner_text()
