@@ -62,6 +62,7 @@ class TrustView:
 
         self.session = session
         self._verdict = verdict
+        self._width = matrix.figure.frame_width + 70 + 90  # as the matrix panel (axes included)
         self._doc = pn.state.curdoc
         self._pending = False
         self._armed: int | None = None  # suggestion index whose moment is being shown
@@ -128,7 +129,11 @@ class TrustView:
         )
         body_fig.frame_height = body_fig.frame_height + 22
         self.summary = pn.pane.HTML(
-            "", css_classes=["hs-desync-summary"], styles={"font-size": "13px"}, margin=(2, 10)
+            "",
+            css_classes=["hs-desync-summary"],
+            styles={"font-size": "13px"},
+            margin=(2, 10),
+            width=matrix.figure.frame_width + 140,
         )
         self.buttons = [
             pn.widgets.Button(
@@ -137,7 +142,7 @@ class TrustView:
                 color="light",
                 css_classes=["hs-suggestion"],
                 margin=(2, 4),
-                width=300,
+                width=400,
             )
             for _ in range(3)
         ]
@@ -237,12 +242,22 @@ class TrustView:
         self._armed = None
         s.add_point(body, s.hand_frame_for(body))
 
+    @property
+    def width(self) -> int:
+        """Pixels of the matrix panel this view sits under (its margins included)."""
+        return self._width + 20
+
     def panel(self) -> pn.viewable.Viewable:
+        """Legend, summary and suggestions, no wider than the matrix (the preview sits
+        beside them on a wide screen)."""
+        width = self._width
         legend = " ".join(
             f'<span style="display:inline-block;width:10px;height:10px;background:{c};'
             f'margin:0 3px 0 10px"></span>{html.escape(VERDICT_WORDS[k])}'
             for k, c in VERDICT_COLORS.items()
         )
+        for b in self.buttons:
+            b.width = width - 30
         return pn.Column(
             pn.pane.HTML(
                 "Under the body's gesture phases: <b>desync meter</b> (one bar per "
@@ -250,12 +265,11 @@ class TrustView:
                 "region around the path is where the match could move." + "<br>" + legend,
                 styles={"font-size": "12px"},
                 margin=(2, 10),
+                width=width - 20,
             ),
             self.summary,
-            pn.Row(
-                pn.pane.HTML("<b>Least certain places:</b>", margin=(8, 4, 0, 10), width=170),
-                *self.buttons,
-                margin=0,
-            ),
+            pn.pane.HTML("<b>Least certain places:</b>", margin=(4, 10, 0, 10)),
+            *self.buttons,
+            width=width,
             margin=0,
         )
