@@ -14,6 +14,8 @@ tabs) never share matching points or parameters.
 from __future__ import annotations
 
 import argparse
+import logging
+import traceback
 from pathlib import Path
 
 from engine.limits import MAX_SESSION_BYTES, MAX_UPLOAD_BYTES
@@ -116,6 +118,21 @@ def _check_args(args: argparse.Namespace) -> None:
             raise ValueError(f"{what} {path.name}: expected a .bvh, .c3d or .trc file")
 
 
+class _ClosedSessionMessages(logging.Filter):
+    """Bokeh logs "error handling message" with an ``AssertionError`` from
+    ``ServerConnection.session`` when a closed tab's last edit arrives after its session was
+    discarded (``assert self._session is not None``): the tab is gone, so there is nothing
+    to handle and nothing the user could act on. Every other message error is kept."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        exc = record.exc_info[1] if record.exc_info else None
+        if not isinstance(exc, AssertionError):
+            return True
+        frames = traceback.extract_tb(exc.__traceback__)
+        last = frames[-1] if frames else None
+        return not (last and last.name == "session" and last.filename.endswith("connection.py"))
+
+
 def _drop_closed_websocket_writes(loop, context: dict) -> None:
     """asyncio exception handler: a browser tab that closed while the server was still
     sending to it leaves un-awaited tornado write tasks failing with ``WebSocketClosedError``
@@ -189,6 +206,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         server.start()
         server.io_loop.asyncio_loop.set_exception_handler(_drop_closed_websocket_writes)
+        logging.getLogger("bokeh.server.protocol_handler").addFilter(_ClosedSessionMessages())
         server.io_loop.start()
     finally:
         server.stop()
