@@ -765,8 +765,13 @@ class CostMatrixView:
         """Pick mode: a click chooses the previewed frame pair instead of adding a point."""
         self.point_tool.add = not pick
 
+    @property
+    def panel_width(self) -> int:
+        """Pixels of :meth:`panel`'s content: hand strip, matrix with its colour bar and tools."""
+        return self.figure.frame_width + 70 + AXIS_SIGNAL_SIZE
+
     def panel(self) -> pn.viewable.Viewable:
-        size = self.figure.frame_width + 70
+        size = self.panel_width - AXIS_SIGNAL_SIZE
         return pn.Column(
             self.title,
             pn.Row(

@@ -62,7 +62,7 @@ class TrustView:
 
         self.session = session
         self._verdict = verdict
-        self._width = matrix.figure.frame_width + 70 + 90  # as the matrix panel (axes included)
+        self._width = matrix.panel_width
         self._doc = pn.state.curdoc
         self._pending = False
         self._armed: int | None = None  # suggestion index whose moment is being shown
@@ -133,7 +133,7 @@ class TrustView:
             css_classes=["hs-desync-summary"],
             styles={"font-size": "13px"},
             margin=(2, 10),
-            width=matrix.figure.frame_width + 140,
+            width=matrix.panel_width - 20,
         )
         self.buttons = [
             pn.widgets.Button(
