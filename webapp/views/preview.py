@@ -13,6 +13,7 @@ EGL/OSMesa) on the server; each image is sent as a PNG.
 from __future__ import annotations
 
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 import panel as pn
 
@@ -21,6 +22,23 @@ from webapp.state import Session
 
 #: how often the player looks at the clock, ms (each look shows the frame of that moment)
 PLAY_TICK_MS = 30
+#: the worker that renders previews of all sessions (OpenGL calls take turns anyway:
+#: engine.render.backend.GL_LOCK), so the event loop never waits for a render
+_RENDERS = ThreadPoolExecutor(max_workers=1, thread_name_prefix="hs-preview")
+
+
+def _render_images(prepared, solution, frame, camera, trails, size, closeup_size):
+    """``(png, close-up png, (body, hand, spliced frame), ms)`` of one moment, or the
+    exception that stopped it (a worker thread's result; shown by the page)."""
+    t0 = time.perf_counter()
+    try:
+        image = backend.render_frame(prepared, solution, frame, camera, trails, size)
+        closeup = backend.render_closeup(prepared, solution, frame, closeup_size)
+        pngs = backend.png_bytes(image), backend.png_bytes(closeup)
+        frames = backend.frame_triplet(prepared, solution, frame)
+    except Exception as exc:  # noqa: BLE001 - returned, the page shows it in one line
+        return exc
+    return (*pngs, frames, (time.perf_counter() - t0) * 1000)
 
 
 class PreviewView:
@@ -93,6 +111,7 @@ class PreviewView:
         self.trails.param.watch(lambda e: self.render(), "value")
         self._rendered_key = None
         self._inflight = False
+        self._again = False
         self._scheduled = False
         self._player = None
         self._clock = (0.0, 0)
@@ -149,7 +168,7 @@ class PreviewView:
 
     def _render_soon(self):
         """Render after the current update has gone out (a drag's new path is not held
-        back by the preview's tens of milliseconds)."""
+        back by the preview)."""
         doc = pn.state.curdoc
         if doc is None or doc.session_context is None:
             self.render()
@@ -158,45 +177,78 @@ class PreviewView:
 
             def run():
                 self._scheduled = False
-                from webapp.views.sharing import exports_running
-
-                if exports_running():  # the renderer is busy: try again soon
-                    self._scheduled = True
-                    doc.add_timeout_callback(run, 500)
-                    return
                 self.render()
 
             doc.add_next_tick_callback(run)
 
+    def _key(self) -> tuple:
+        s = self.session
+        return (s.revision, s.inputs_revision, s.frame, self.camera.value, self.trails.value)
+
     def render(self) -> bool:
         """Render the current frame (full bodies and the hands close up); False (and a
-        message) when it cannot."""
+        message) when it cannot.
+
+        In a server session the render runs on a worker thread (hundreds of ms with a
+        software OpenGL): the event loop goes on serving this page and every other
+        meanwhile, and the images are shown when they are ready. A frame asked for while
+        one renders is rendered next (only the newest). Without a server (tests, page
+        building) it renders at once."""
         s = self.session
-        if s.prepared is None or s.solution is None or self._inflight:
+        if s.prepared is None or s.solution is None:
             return False
-        key = (s.revision, s.inputs_revision, s.frame, self.camera.value, self.trails.value)
+        key = self._key()
         if key == self._rendered_key:
             return True
+        job = (s.prepared, s.solution, s.frame, self.camera.value, self.trails.value)
+        doc = pn.state.curdoc
+        if doc is None or doc.session_context is None:
+            if self._inflight:
+                return False
+            self._inflight = True
+            try:
+                return self._show(key, _render_images(*job, self.size, self.closeup_size))
+            finally:
+                self._inflight = False
+        if self._inflight:
+            self._again = True  # rendered when the one in flight is shown
+            return True
         self._inflight = True
-        t0 = time.perf_counter()
+        future = _RENDERS.submit(_render_images, *job, self.size, self.closeup_size)
+
+        def done(f):
+            try:
+                doc.add_next_tick_callback(lambda: self._finish(key, f))
+            except Exception:  # the page was closed meanwhile: nothing to show
+                pass
+
+        future.add_done_callback(done)
+        return True
+
+    def _finish(self, key: tuple, future) -> None:
+        """Show a worker's render (on the event loop, under the document lock)."""
+        self._inflight = False
         try:
-            image = backend.render_frame(
-                s.prepared, s.solution, s.frame, self.camera.value, self.trails.value, self.size
-            )
-            closeup = backend.render_closeup(s.prepared, s.solution, s.frame, self.closeup_size)
-            png, close_png = backend.png_bytes(image), backend.png_bytes(closeup)
-        except Exception as exc:  # shown in the page, never a traceback
-            self.alert.object = safe_text.markdown(f"preview: {backend.one_line(exc)}")
+            result = future.result()
+        except Exception as exc:  # the worker's own failure: shown like any other
+            result = exc
+        self._show(key, result)
+        if self._again or key != self._key():
+            self._again = False
+            self.render()
+
+    def _show(self, key: tuple, result) -> bool:
+        """Put a render's PNGs (or its error) on the page."""
+        if isinstance(result, Exception):  # shown in the page, never a traceback
+            self.alert.object = safe_text.markdown(f"preview: {backend.one_line(result)}")
             self.alert.visible = True
             return False
-        finally:
-            self._inflight = False
+        png, close_png, (b, h, o), ms = result
+        s = self.session
         self.alert.visible = False
         self.image.object = png
         self.closeup.object = close_png
         self._rendered_key = key
-        b, h, o = backend.frame_triplet(s.prepared, s.solution, s.frame)
-        ms = (time.perf_counter() - t0) * 1000
         self.info.object = (
             f'<span data-frame="{b}" data-hand-frame="{h}">body frame {b} ({b / s.fps:.2f} s)'
             f" · hand frame {h} ({h / s.hand_fps:.2f} s) · spliced frame {o}"

@@ -24,15 +24,6 @@ from webapp.state import Session
 
 #: exports of all sessions share these threads (renders take turns on the OpenGL lock)
 _EXPORTS = ThreadPoolExecutor(max_workers=2, thread_name_prefix="hs-export")
-#: exports running now (all sessions): previews wait rather than block the event loop on
-#: the renderer an export holds
-_RUNNING = [0]
-
-
-def exports_running() -> bool:
-    return _RUNNING[0] > 0
-
-
 #: how often the page's progress follows an export, seconds
 PROGRESS_INTERVAL = 0.25
 #: the name the page gives the downloaded session file (the command line refers to it)
@@ -200,7 +191,6 @@ class SharingView:
             self.progress_text.object = f"{what}: rendering… {step}"
 
         self._exporting = True
-        _RUNNING[0] += 1
         self.gif.disabled = self.mp4.disabled = True
         self.progress.value = 0
         self.progress.visible = self.progress_text.visible = True
@@ -224,7 +214,6 @@ class SharingView:
             return None
         finally:
             self._exporting = False
-            _RUNNING[0] -= 1
             self.gif.disabled = self.mp4.disabled = False
         self.message.visible = False
         self.progress.value = 100

@@ -195,9 +195,15 @@ class TrustView:
             self.region_source.data = {"x": [], "lo": [], "hi": []}
             self.strip_source.data = _runs([])
             self.meter_source.data = {"start": [], "stop": [], "color": [], "verdict": [], "ms": []}
-            self.summary.object = ""
+            # the old suggestions are greyed out, not hidden, until the new ones arrive:
+            # showing and hiding widgets lays the whole page out again in the browser
+            # (hundreds of ms each in a software-rendered page), on every edit
+            if self.summary.object:
+                self.summary.object = "<b>Desync meter:</b> updating…"
             for b in self.buttons:
-                b.visible = False
+                b.disabled = True
+                if s.solution is None:  # no takes: no suggestions to come
+                    b.visible = False
             return
         unc = trust.uncertainty
         r = s.hand_scale  # the matrix's hand axis counts hand-file frames
@@ -224,6 +230,7 @@ class TrustView:
                 body, _ = trust.suggestions[k]
                 b.label = f"Check body frame {body} (±{unc.ms[body]:.0f} ms)"
                 b.color = "light"
+                b.disabled = False
                 b.visible = True
             else:
                 b.visible = False
