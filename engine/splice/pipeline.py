@@ -52,6 +52,7 @@ from engine.features import (
 from engine.hand_side import match_chirality, undecided_message
 from engine.motion import MarkerSet, Motion
 from engine.splice import merge as MG
+from engine.splice import spin as SP
 from engine.splice import transfer as TR
 
 Progress = Callable[[str, float], None]
@@ -351,9 +352,9 @@ def prepare(
     M.register_metrics()
     if hand_frames and all(not hand_frames[s].elbow_apart for s in sides):
         side_notes.append(
-            "the hand take has no measured forearm: pass 2 (hand direction "
-            "relative to the forearm) has nothing to refine; the alignment is "
-            "pass 1's"
+            "the hand take has no measured forearm: pass 2 compares how the hand "
+            "turns (angular velocity relative to the trunk, in the hand's frame) "
+            "instead of its direction relative to the forearm"
         )
     return SpliceFeatures(
         body=body,
@@ -691,10 +692,16 @@ def pass2_headings(features: SpliceFeatures, path1: np.ndarray) -> tuple[np.ndar
 def hand_lacks_forearm(features: SpliceFeatures) -> bool:
     """True when no spliced arm of the hand take has a measured forearm (ManipNet's wrist
     root, Leap's forearm joint at the wrist). D2 (pass 2) compares the hand's direction
-    relative to the forearm; there it never changes, so pass 2 has nothing to refine and
-    the pass-1 path is the alignment."""
+    relative to the forearm; there it never changes, so pass 2 compares the hand's
+    turning instead (:func:`uses_spin`, :mod:`engine.splice.spin`)."""
     frames = features.hand_frames
     return bool(frames) and all(s in frames and not frames[s].elbow_apart for s in features.sides)
+
+
+def uses_spin(features: SpliceFeatures) -> bool:
+    """Pass 2 compares the hand's turning (:mod:`engine.splice.spin`) instead of D2: the
+    hand take has no forearm and both takes are skeletal."""
+    return hand_lacks_forearm(features) and SP.spin_available(features)
 
 
 def align_passes(
@@ -763,12 +770,18 @@ def align_passes(
 
     progress("pass 2", 0.0)
     body_heading, hand_heading = pass2_headings(features, al1.path)
-    body2 = M.angle_features(features.body_markers, -body_heading).rows(
-        features.params.get("step2", 0.0)
-    )
-    hand2 = M.angle_features(features.hand_markers, -hand_heading).rows()
     radius = C.refine_radius(n, m, refine_band)
-    band2 = Band.around_path(al1.path, n, m, radius, points=pts if pts else None, open_ends=is_open)
+    spin = uses_spin(features)
+    if spin:  # no forearm in the hand take: the hand's turning, over pass 1's band
+        (body2, hand2), metric2, band2 = SP.spin_pass_rows(features), SP.METRIC, band1
+    else:
+        body2 = M.angle_features(features.body_markers, -body_heading).rows(
+            features.params.get("step2", 0.0)
+        )
+        hand2 = M.angle_features(features.hand_markers, -hand_heading).rows()
+        band2 = Band.around_path(
+            al1.path, n, m, radius, points=pts if pts else None, open_ends=is_open
+        )
     limits.check_band("pass 2", band2.area)
     solver2 = None
     if same and previous.pass2.solver is not None and np.array_equal(previous.pass2.rows[1], hand2):
@@ -779,7 +792,7 @@ def align_passes(
     progress("pass 2", 1.0)
 
     progress("merge", 0.0)
-    final = al1 if hand_lacks_forearm(features) else al2
+    final = al1 if hand_lacks_forearm(features) and not spin else al2
     warp = MG.smooth_warp(straighten_holds(features, MG.median_warp(final.path, n)), blend, m)
     hand_map = features.grid_to_hand(warp)
     overlap = final.overlap
