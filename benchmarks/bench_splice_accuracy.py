@@ -35,6 +35,7 @@ from benchmarks._results import write_section
 from benchmarks.split import Case, Realism, finger_error, finger_pairs, make_case
 from benchmarks.split_rigs import make_rig_case
 from engine.dtw import Band, align_features
+from engine.dtw import constraints as C
 from engine.splice import merge as MG
 from engine.splice import pipeline as P
 from engine.splice import transfer as TR
@@ -142,7 +143,7 @@ _RIG_DEV = tuple(range(300, 304))
 
 @family(
     "left",
-    12,
+    20,
     "left-handed performer (take mirrored, sides swapped): the left hand "
     "only; body 25-120 fps, hand 25-120 fps",
     _RIG_DEV,
@@ -153,7 +154,7 @@ def _left(seed: int) -> Case:
 
 @family(
     "manipnet",
-    12,
+    20,
     "ManipNet rig: real ManipNet finger capture (4-joint thumb with "
     "THUMB_CMC_AA) on the body's wrist; hand take rooted at a 6-DoF WRIST, no side in "
     "names or file name (side from geometry); odd seeds left; body 25-120 fps, hand "
@@ -166,7 +167,7 @@ def _manipnet(seed: int) -> Case:
 
 @family(
     "leap",
-    12,
+    20,
     "Leap rig (gestification): rForeArm root at the wrist > rHand > "
     "fingers, millimetres, hand 36-40 fps; odd seeds left; body 25-120 fps",
     _RIG_DEV,
@@ -199,7 +200,7 @@ def method_maps(case: Case) -> tuple[dict[str, np.ndarray], P.SpliceResult, floa
         "handsplice": res.alignment.map,
         "pass1": f.grid_to_hand(MG.merge_path(res.alignment.pass1.path, n, m, blend)),
     }
-    band = Band.sakoe_chiba(n, m, P.BAND)
+    band = Band.sakoe_chiba(n, m, C.BAND.resolve(None, n, f.fps))
     pos_b = f.body_markers.reshape(n, -1)
     pos_h = f.hand_markers.reshape(m, -1)
     al = align_features(pos_b, pos_h, band)
