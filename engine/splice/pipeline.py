@@ -54,6 +54,7 @@ from engine.motion import MarkerSet, Motion
 from engine.splice import merge as MG
 from engine.splice import spin as SP
 from engine.splice import transfer as TR
+from engine.splice.end_band import open_end_band
 
 Progress = Callable[[str, float], None]
 
@@ -751,6 +752,9 @@ def align_passes(
     t0 = time.perf_counter()
     progress("pass 1", 0.0)
     band1 = Band.from_constraints(n, m, float(band), pts, open_ends=is_open)
+    if is_open:  # room for the unmatched ends (engine.splice.end_band)
+        limits1 = unmatched_limits(n, m, features.fps, max_unmatched_s)
+        band1 = open_end_band(band1, float(band), limits1, pts)
     limits.check_band("pass 1", band1.area)
     if incremental is None:
         incremental = band1.area <= INCREMENTAL_MAX_CELLS

@@ -1,0 +1,65 @@
+"""Pass 1's band with open ends: room for the unmatched ends (issue 12).
+
+The paper's band (METHOD.md §4) is a strip of half-width ``Λ`` around the diagonal from
+``(0, 0)`` to ``(n-1, m-1)``. With open ends the true path runs from ``(0, s)`` (the hand
+take starts ``s`` frames earlier) or ``(s, 0)`` to ``(n-1, m-1-e)`` or ``(n-1-e, m-1)``:
+a straight path of another slope, ``s`` frames off the diagonal at the first row and
+``e`` at the last. Where ``s`` or ``e`` exceeds ``Λ`` (a hand take 1-2 s longer at each
+end of a 5-8 s body take), the strip leaves the true ends out and pass 1 must end on the
+strip's edge; pass 2 refines around that path and cannot recover.
+
+:func:`open_end_band` widens the strip toward both sides by ``E(i)``, ``E`` at the first
+and last rows, tapering linearly to 0 at the middle row. ``E = min(Λ, limit)``: any
+straight path whose unmatched ends are each up to ``Λ + E`` (twice the half-width) off
+the diagonal stays inside (the deviation from the diagonal is linear in the row, and so is
+the allowance), and the band never reaches further than the unmatched limits allow. The
+pass-1 band grows by about half its area; pass 2's band (around the pass-1 path) does not.
+Matching points keep their tolerance clips (the widened band is intersected with them).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from engine.dtw import Band
+
+__all__ = ["open_end_band"]
+
+
+def open_end_band(
+    band: Band, width: float, limits: tuple[int, int], points=(), taper: float = 0.5
+) -> Band:
+    """``band`` (from ``Band.from_constraints(n, m, width, points, open_ends=True)``)
+    widened for unmatched ends.
+
+    Parameters
+    ----------
+    band : Band, ``n`` rows, ``m`` columns
+    width : float, the band width as a fraction of ``n`` (``W = width * n``)
+    limits : (body, hand) frames that may stay unmatched at each end (grid frames)
+    points : matching points ``(x, y, tol)`` (grid frames); their clips are kept
+    taper : share of the take over which the widening falls from ``E`` to 0 at each end
+    """
+    n, m = band.n, band.m
+    if n < 2 or width <= 0:
+        return band
+    lam = width * math.sqrt(n * n + m * m) / 2.0
+    body_lim, hand_lim = limits
+    e_hand = min(lam, float(hand_lim))  # hand frames unmatched: columns off the diagonal
+    e_body = min(lam, float(body_lim) * m / n)  # body frames unmatched, in columns
+    i = np.arange(n, dtype=float)
+    span = max(taper * (n - 1), 1.0)
+    start = np.clip(1.0 - i / span, 0.0, 1.0)
+    end = np.clip(1.0 - (n - 1 - i) / span, 0.0, 1.0)
+    # hand starts earlier / body ends later: columns above; body starts earlier / hand
+    # ends later: columns below
+    up = np.round(e_hand * start + e_body * end).astype(np.int64)
+    down = np.round(e_body * start + e_hand * end).astype(np.int64)
+    lo = np.maximum(band.lo - down, 0)
+    hi = np.minimum(band.hi + up, m - 1)
+    wide = Band(lo, hi, m, open_ends=True)
+    if points:
+        wide = wide.intersect(Band.from_constraints(n, m, None, points, open_ends=True))
+    return wide
