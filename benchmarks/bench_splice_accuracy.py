@@ -340,7 +340,7 @@ def markdown(table: dict, results: list[dict], seeds: dict) -> str:
         "body frame of the family); finger error = mean geodesic angle over finger joints and "
         "frames vs the original fingers. Parameters (merge blend 3 frames, pass-2 step cost "
         "0.05 rad) were chosen on seeds 100-107 (issue-12 families: developed on seeds "
-        "200-207); reported seeds: "
+        "200-207, rig families left/manipnet/leap on 300-311); reported seeds: "
         + ", ".join(f"{k} {_seed_text(v)}" for k, v in seeds.items())
         + ". "
         "left_share = (finger error - oracle) / (uniform - oracle).",
