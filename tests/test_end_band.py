@@ -74,3 +74,19 @@ def test_an_untrimmed_pair_whose_ends_lie_outside_the_papers_strip():
     err = np.abs(res.alignment.map - case.truth) / case.hand.fps * 1000.0
     assert np.percentile(err, 95) < 100.0
     assert np.median(err) <= 1000.0 / case.body.fps
+
+
+def test_long_takes_get_a_few_seconds_of_room_not_half_the_band():
+    """A 2-minute pair at 30 fps with a 30 % band: the widening is capped at MAX_ROOM_S
+    seconds and tapers within TAPER_WIDTHS times that, so pass 1 grows by ~10 %, not 40 %."""
+    from engine.splice.end_band import MAX_ROOM_S, TAPER_WIDTHS
+
+    fps, n, m = 30.0, 3600, 3700
+    paper = Band.from_constraints(n, m, 0.3, open_ends=True)
+    wide = open_end_band(paper, 0.3, (n // 2, m // 2), fps=fps)
+    room = MAX_ROOM_S * fps
+    assert np.all(wide.hi - paper.hi <= 2 * room + 1)
+    assert wide.hi[0] - paper.hi[0] >= room - 1
+    middle = slice(int(TAPER_WIDTHS * room * n / m) + 2, n - int(TAPER_WIDTHS * room * n / m) - 2)
+    assert np.array_equal(wide.lo[middle], paper.lo[middle])
+    assert wide.area <= 1.15 * paper.area

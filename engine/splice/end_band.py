@@ -12,8 +12,10 @@ strip's edge; pass 2 refines around that path and cannot recover.
 and last rows, tapering linearly to 0 at the middle row. ``E = min(Λ, limit)``: any
 straight path whose unmatched ends are each up to ``Λ + E`` (twice the half-width) off
 the diagonal stays inside (the deviation from the diagonal is linear in the row, and so is
-the allowance), and the band never reaches further than the unmatched limits allow. The
-pass-1 band grows by about half its area; pass 2's band (around the pass-1 path) does not.
+the allowance), and the band never reaches further than the unmatched limits allow. On
+short takes the pass-1 band grows by about half its area; on long takes ``E`` is capped at
+:data:`MAX_ROOM_S` seconds and its taper at :data:`TAPER_WIDTHS` times ``E`` (about 10 %
+more cells on a 2-minute pair). Pass 2's band (around the pass-1 path) does not grow.
 Matching points keep their tolerance clips (the widened band is intersected with them).
 """
 
@@ -28,8 +30,20 @@ from engine.dtw import Band
 __all__ = ["open_end_band"]
 
 
+#: the widening at each end is at most this many seconds (real takes start and end a few
+#: seconds apart; on long takes the band's own width in seconds already covers more)
+MAX_ROOM_S = 4.0
+#: the widening tapers to nothing over at most this many times its own width (rows)
+TAPER_WIDTHS = 8.0
+
+
 def open_end_band(
-    band: Band, width: float, limits: tuple[int, int], points=(), taper: float = 0.5
+    band: Band,
+    width: float,
+    limits: tuple[int, int],
+    points=(),
+    fps: float | None = None,
+    taper: float = 0.5,
 ) -> Band:
     """``band`` (from ``Band.from_constraints(n, m, width, points, open_ends=True)``)
     widened for unmatched ends.
@@ -40,6 +54,9 @@ def open_end_band(
     width : float, the band width as a fraction of ``n`` (``W = width * n``)
     limits : (body, hand) frames that may stay unmatched at each end (grid frames)
     points : matching points ``(x, y, tol)`` (grid frames); their clips are kept
+    fps : frame rate of the grid; with it ``E`` is at most :data:`MAX_ROOM_S` seconds and
+        the taper at most :data:`TAPER_WIDTHS` times ``E`` rows (long takes: about 10 %
+        more pass-1 cells instead of 40 %)
     taper : share of the take over which the widening falls from ``E`` to 0 at each end
     """
     n, m = band.n, band.m
@@ -47,10 +64,14 @@ def open_end_band(
         return band
     lam = width * math.sqrt(n * n + m * m) / 2.0
     body_lim, hand_lim = limits
-    e_hand = min(lam, float(hand_lim))  # hand frames unmatched: columns off the diagonal
-    e_body = min(lam, float(body_lim) * m / n)  # body frames unmatched, in columns
+    cap = lam if fps is None else min(lam, MAX_ROOM_S * fps)
+    e_hand = min(cap, float(hand_lim))  # hand frames unmatched: columns off the diagonal
+    e_body = min(cap, float(body_lim) * m / n)  # body frames unmatched, in columns
     i = np.arange(n, dtype=float)
-    span = max(taper * (n - 1), 1.0)
+    span = taper * (n - 1)
+    if fps is not None:
+        span = min(span, TAPER_WIDTHS * max(e_hand, e_body) * n / m)
+    span = max(span, 1.0)
     start = np.clip(1.0 - i / span, 0.0, 1.0)
     end = np.clip(1.0 - (n - 1 - i) / span, 0.0, 1.0)
     # hand starts earlier / body ends later: columns above; body starts earlier / hand

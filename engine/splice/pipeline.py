@@ -754,7 +754,7 @@ def align_passes(
     band1 = Band.from_constraints(n, m, float(band), pts, open_ends=is_open)
     if is_open:  # room for the unmatched ends (engine.splice.end_band)
         limits1 = unmatched_limits(n, m, features.fps, max_unmatched_s)
-        band1 = open_end_band(band1, float(band), limits1, pts)
+        band1 = open_end_band(band1, float(band), limits1, pts, features.fps)
     limits.check_band("pass 1", band1.area)
     if incremental is None:
         incremental = band1.area <= INCREMENTAL_MAX_CELLS
