@@ -220,9 +220,7 @@ class _Hierarchy:
                 "file ends inside the HIERARCHY (unbalanced braces, truncated?)",
                 line=last,
             )
-        raise MotionFormatError(
-            self.where, "no 'MOTION' section after the HIERARCHY", line=last
-        )
+        raise MotionFormatError(self.where, "no 'MOTION' section after the HIERARCHY", line=last)
 
     def _finish(self, i: int) -> Skeleton:
         """The skeleton, at the MOTION line ``i`` (every block closed)."""
@@ -238,9 +236,7 @@ class _Hierarchy:
             )
         if not self.names:
             raise self.fail("no ROOT joint before MOTION", i)
-        return _make_skeleton(
-            self.names, self.parents, self.offsets, self.channels, self.end_sites
-        )
+        return _make_skeleton(self.names, self.parents, self.offsets, self.channels, self.end_sites)
 
     def _token(self, tokens: list[str], k: int, i: int) -> int:
         """Read the keyword at ``tokens[k]`` of line ``i``; the index of the next one."""
