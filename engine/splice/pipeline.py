@@ -717,6 +717,8 @@ def align_passes(
     previous : the last result for the same ``features`` (reuses DTW rows that the
         edit cannot change)
     blend : merge smoothing (Gaussian σ, body frames)
+    (a hand take without a forearm: pass 2 compares the hand's turning over pass 1's band,
+    ``engine.splice.spin``, whatever ``metrics[1]`` says)
     incremental : keep ``Aligner`` solvers (γ for cumulative-cost views, partial
         re-solves); default when the pass-1 band has at most 12 M cells.
     ends : ``"open"`` (default: either take may start earlier or end later; the
