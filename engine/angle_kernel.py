@@ -33,6 +33,9 @@ from __future__ import annotations
 
 import numba
 import numpy as np
+from llvmlite import ir
+from numba import types
+from numba.extending import intrinsic
 
 from engine.dtw import kernels as K
 
@@ -40,11 +43,34 @@ from engine.dtw import kernels as K
 HEADER = 2
 #: values per arm in a row (see :func:`frame_rows`)
 ARM = 16
-FORE, HAND, CROSS, FH, FF, HH, PERP, PH = 0, 3, 6, 9, 10, 11, 12, 15
+FORE, HAND, CROSS, FH, FF, INV, PERP, PH = 0, 3, 6, 9, 10, 11, 12, 15
 #: forearms closer to antiparallel than this cosine turn by a half turn
 ANTIPARALLEL = -0.999999
-#: |h|² |k|² below this: a degenerate vector, the cell costs 0
+#: a hand vector with |v|² below this is degenerate (its cells cost 0)
 TINY_NORM2 = 1e-24
+
+
+@intrinsic
+def fma(typingctx, a, b, c):
+    """``a * b + c`` rounded once (``llvm.fma.f64``): the same result in scalar and in
+    vectorised loops (a hardware FMA where the CPU has one)."""
+    if not all(isinstance(t, types.Float) for t in (a, b, c)):
+        return None
+    sig = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, signature, args):
+        f64 = ir.DoubleType()
+        fnty = ir.FunctionType(f64, [f64, f64, f64])
+        fn = builder.module.declare_intrinsic("llvm.fma", [f64], fnty)
+        return builder.call(fn, args)
+
+    return sig, codegen
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def dot3(ax, ay, az, bx, by, bz):
+    """``a · b`` of 3-vectors with two FMAs."""
+    return fma(az, bz, fma(ay, by, ax * bx))
 
 # fdlibm e_acos.c (Sun Microsystems, 1993; "Permission to use, copy, modify, and
 # distribute this software is freely granted, provided that this notice is preserved.")
@@ -74,8 +100,8 @@ def acos(x):
     a = abs(x)
     small = a < 0.5
     z = x * x if small else (1.0 - a) * 0.5
-    p = z * (_PS0 + z * (_PS1 + z * (_PS2 + z * (_PS3 + z * (_PS4 + z * _PS5)))))
-    q = 1.0 + z * (_QS1 + z * (_QS2 + z * (_QS3 + z * _QS4)))
+    p = z * fma(z, fma(z, fma(z, fma(z, fma(z, _PS5, _PS4), _PS3), _PS2), _PS1), _PS0)
+    q = fma(z, fma(z, fma(z, fma(z, _QS4, _QS3), _QS2), _QS1), 1.0)
     r = p / q
     s = np.sqrt(z)
     t = s + s * r
@@ -87,27 +113,28 @@ def acos(x):
 
 @numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def arm_angle(
-    fx, fy, fz, hx, hy, hz, ux, uy, uz, fh, ff, hh, gx, gy, gz, kx, ky, kz, xx, xy, xz, gk, gg, kk,
+    fx, fy, fz, hx, hy, hz, ux, uy, uz, fh, ff, ih, gx, gy, gz, kx, ky, kz, xx, xy, xz, gk, gg, ik,
     ax, ay, az, ak,
 ):  # fmt: skip
-    """D2 of one arm (radians): body ``f, h, u = f×h, f·h, |f|², |h|²``; hand ``g, k,
-    x = g×k, g·k, |g|², |k|²`` and the half-turn axis ``a ⟂ g`` with ``a·k``."""
-    c = gx * fx + gy * fy + gz * fz
-    hk = hx * kx + hy * ky + hz * kz
-    gh = gx * hx + gy * hy + gz * hz
-    fk = fx * kx + fy * ky + fz * kz
-    gu = gx * ux + gy * uy + gz * uz
-    fxh = fx * xx + fy * xy + fz * xz
-    w2 = gg * ff - c * c
-    main = hk + (gk * fh - gh * fk) - (gu * fxh + hk * w2) / (1.0 + c)
-    anti = 2.0 * ak * (ax * hx + ay * hy + az * hz) - hk
+    """D2 of one arm (radians): body ``f, h, u = f×h, f·h, |f|², 1/|h|``; hand ``g, k,
+    x = g×k, g·k, |g|², 1/|k|`` and the half-turn axis ``a ⟂ g`` with ``a·k``
+    (``1/|v|`` is 0 for a degenerate vector: the arm then costs 0)."""
+    c = dot3(gx, gy, gz, fx, fy, fz)
+    hk = dot3(hx, hy, hz, kx, ky, kz)
+    gh = dot3(gx, gy, gz, hx, hy, hz)
+    fk = dot3(fx, fy, fz, kx, ky, kz)
+    gu = dot3(gx, gy, gz, ux, uy, uz)
+    fxh = dot3(fx, fy, fz, xx, xy, xz)
+    w2 = fma(gg, ff, -(c * c))
+    main = hk + fma(gk, fh, -(gh * fk)) - fma(gu, fxh, hk * w2) / (1.0 + c)
+    anti = fma(2.0 * ak, dot3(ax, ay, az, hx, hy, hz), -hk)
     dot = anti if c < ANTIPARALLEL else main
-    nr2 = hh * kk
-    cosine = dot / np.sqrt(nr2)
+    norm = ih * ik
+    cosine = dot * norm
     cosine = 1.0 if cosine > 1.0 else cosine
     cosine = -1.0 if cosine < -1.0 else cosine
     angle = acos(cosine)
-    return angle if nr2 >= TINY_NORM2 else 0.0
+    return angle if norm > 0.0 else 0.0
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -140,8 +167,9 @@ def frame_rows(fore: np.ndarray, hand: np.ndarray, step: float = 0.0) -> np.ndar
     step : radians added to every cell (put it in the body rows only).
 
     Row: ``[A, step]`` then per arm ``fore (3), hand (3), fore × hand (3), fore · hand,
-    |fore|², |hand|², a (3), a · hand`` with ``a`` the unit axis perpendicular to the
-    forearm used for a half turn (zero for a zero forearm). The same layout serves the
+    |fore|², 1/|hand|, a (3), a · hand`` with ``a`` the unit axis perpendicular to the
+    forearm used for a half turn (zero for a zero forearm) and ``1/|hand|`` zero where
+    ``|hand|² <`` :data:`TINY_NORM2`. The same layout serves the
     body take (``f, h``) and the hand take (``g, k``).
     """
     fore = np.ascontiguousarray(fore, dtype=np.float64)
@@ -167,9 +195,10 @@ def _frame_rows_kernel(fore, hand, out):
             row[6] = fy * hz - fz * hy
             row[7] = fz * hx - fx * hz
             row[8] = fx * hy - fy * hx
-            row[9] = fx * hx + fy * hy + fz * hz
-            row[10] = fx * fx + fy * fy + fz * fz
-            row[11] = hx * hx + hy * hy + hz * hz
+            row[9] = dot3(fx, fy, fz, hx, hy, hz)
+            row[10] = dot3(fx, fy, fz, fx, fy, fz)
+            hh = dot3(hx, hy, hz, hx, hy, hz)
+            row[11] = 1.0 / np.sqrt(hh) if hh >= TINY_NORM2 else 0.0
             # half-turn axis: perpendicular to the forearm (as the rotation form chose it)
             if abs(fx) < 0.9:
                 ax, ay, az = 0.0, -fz, fy
@@ -183,7 +212,7 @@ def _frame_rows_kernel(fore, hand, out):
             else:
                 ax = ay = az = 0.0
             row[12], row[13], row[14] = ax, ay, az
-            row[15] = ax * hx + ay * hy + az * hz
+            row[15] = dot3(ax, ay, az, hx, hy, hz)
 
 
 # --------------------------------------------------------------------------------------------
@@ -238,7 +267,7 @@ def _fill(a, ht, i, lo, hi, crow):
         o = HEADER + ARM * arm
         b = row[o : o + ARM]
         fx, fy, fz, hx, hy, hz = b[0], b[1], b[2], b[3], b[4], b[5]
-        ux, uy, uz, fh, ff, hh = b[6], b[7], b[8], b[9], b[10], b[11]
+        ux, uy, uz, fh, ff, ih = b[6], b[7], b[8], b[9], b[10], b[11]
         c0 = ARM * arm
         gx = ht[c0, lo : hi + 1]
         gy = ht[c0 + 1, lo : hi + 1]
@@ -251,16 +280,16 @@ def _fill(a, ht, i, lo, hi, crow):
         xz = ht[c0 + 8, lo : hi + 1]
         gk = ht[c0 + 9, lo : hi + 1]
         gg = ht[c0 + 10, lo : hi + 1]
-        kk = ht[c0 + 11, lo : hi + 1]
+        ik = ht[c0 + 11, lo : hi + 1]
         ax = ht[c0 + 12, lo : hi + 1]
         ay = ht[c0 + 13, lo : hi + 1]
         az = ht[c0 + 14, lo : hi + 1]
         ak = ht[c0 + 15, lo : hi + 1]
         for t in range(w):
             out[t] += arm_angle(
-                fx, fy, fz, hx, hy, hz, ux, uy, uz, fh, ff, hh,
+                fx, fy, fz, hx, hy, hz, ux, uy, uz, fh, ff, ih,
                 gx[t], gy[t], gz[t], kx[t], ky[t], kz[t], xx[t], xy[t], xz[t], gk[t], gg[t],
-                kk[t], ax[t], ay[t], az[t], ak[t],
+                ik[t], ax[t], ay[t], az[t], ak[t],
             )  # fmt: skip
 
 
