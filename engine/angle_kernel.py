@@ -27,6 +27,10 @@ per-cell costs bit for bit and the DTW path is the same. Against the rotation fo
 to rounding (about 1e-15 rad, up to ~1e-8 rad where the angle is near 0 or π: arccos
 amplifies the last bit of a cosine near ±1); tests and ``bench_splice_speed`` compare
 paths on real captures.
+
+numba's on-disk cache does not notice a change to this module in functions that inline it
+from another module (``engine.metrics.splice_angle``): after editing the arithmetic here,
+clear ``NUMBA_CACHE_DIR`` (the row-versus-cell test then catches any mismatch).
 """
 
 from __future__ import annotations

@@ -29,6 +29,12 @@ Implementation notes (where this differs from the paper, and why)
   :func:`phase_cost_reference` computes eq. 6 with exact θ (tests compare).
 * The window of eq. 7 uses frames ``i-2..i+2`` clipped at the take's ends
   (edge frames repeated), so every window holds 5 × markers points.
+* Pass 2's cost is computed as dot products of per-frame vectors (the rotation ``R``
+  never built) with a branch-free fdlibm ``arccos``; whole band rows go through the row
+  kernel of :mod:`engine.angle_kernel` (vectorised, about a fifth of the per-cell time),
+  :func:`splice_angle` computes one cell with the same arithmetic (bit for bit).
+  :func:`splice_angle_literal` is the rotation form (cross products, libm ``arccos``)
+  it replaced; they agree to rounding and give the same paths on real captures (tests).
 * With both arms aligned jointly, one θ is computed from both arms' markers
   (one trunk rotation for the take) and the two arms' costs are summed.
 * The dead zone ``ε`` is relative to each take's own 90th-percentile marker speed
