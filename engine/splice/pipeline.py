@@ -552,13 +552,13 @@ def holds(phase: M.PhaseFeatures, fps: float) -> list[tuple[int, int]]:
 
 
 def straighten_holds(features: SpliceFeatures, warp: np.ndarray) -> np.ndarray:
-    """:func:`engine.splice.merge.straighten_holds` with the pair's holds."""
-    return MG.straighten_holds(
-        warp,
-        holds(features.body_phase, features.fps),
-        holds(features.hand_phase, features.fps),
-        HOLD_SLACK_S * features.fps,
-    )
+    """:func:`engine.splice.merge.straighten_holds` with the pair's holds (found once per
+    ``features``: an app edit does not scan the takes again)."""
+    runs = features.params.get("_holds")
+    if runs is None:
+        runs = (holds(features.body_phase, features.fps), holds(features.hand_phase, features.fps))
+        features.params["_holds"] = runs
+    return MG.straighten_holds(warp, runs[0], runs[1], HOLD_SLACK_S * features.fps)
 
 
 def _solve(
