@@ -312,10 +312,13 @@ def report_pass2(kernel, longs) -> str:
             p2 = statistics.median(
                 n["stages"]["pass2"] / b["stages"]["pass2"] for b, n in zip(by["before"], by["now"])
             )
+            nw, bf = by["now"][0], by["before"][0]
             lines.append(
                 f"- {lg['seconds'] / 60:g} min: now / before CPU time **{cpu:.2f}**, pass-2 "
-                f"wall {p2:.2f}; peak {by['now'][0]['peak_mb']:.0f} vs "
-                f"{by['before'][0]['peak_mb']:.0f} MB."
+                f"wall {p2:.2f}; peak {nw['peak_mb']:.0f} vs {bf['peak_mb']:.0f} MB, of which "
+                f"while splicing (peak counter reset after reading) {nw['peak_splice_mb']:.0f} "
+                f"vs {bf['peak_splice_mb']:.0f} MB, while reading the two BVH files "
+                f"{nw['peak_read_mb']:.0f} vs {bf['peak_read_mb']:.0f} MB."
             )
     lines += [
         "",
