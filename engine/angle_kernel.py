@@ -76,6 +76,7 @@ def dot3(ax, ay, az, bx, by, bz):
     """``a · b`` of 3-vectors with two FMAs."""
     return fma(az, bz, fma(ay, by, ax * bx))
 
+
 # fdlibm e_acos.c (Sun Microsystems, 1993; "Permission to use, copy, modify, and
 # distribute this software is freely granted, provided that this notice is preserved.")
 _PIO2_HI = 1.57079632679489655800e00

@@ -65,9 +65,7 @@ def test_costs_are_eq9_to_rounding(pass2):
         hand=b[:, 2:].reshape(len(b), arms, AK.ARM)[::40, :, 3:6],
     )
     ref = M.angle_cost_reference(body, hand) + step
-    got = M.cost_grid(
-        M.splice_angle, a, b, np.arange(0, len(a), 40), np.arange(0, len(b), 40)
-    )
+    got = M.cost_grid(M.splice_angle, a, b, np.arange(0, len(a), 40), np.arange(0, len(b), 40))
     assert np.allclose(got, ref, rtol=0, atol=1e-7)
 
 
