@@ -95,3 +95,44 @@ def test_session_drops_an_assessment_of_an_older_edit(tmp_path):
     assert s.trust is None
     assert s.update_trust(revision=s.revision)
     assert len(s.trust.uncertainty.ms) == s.n
+
+
+def test_an_open_end_band_keeps_the_unpointed_cells_outside_its_points():
+    from engine.dtw import Band
+
+    n, m = 140, 240
+    base = Band.from_constraints(n, m, 0.3, (), open_ends=True)
+    pointed = Band.from_constraints(n, m, 0.3, [(108, 147, 0)], open_ends=True)
+    before, after = slice(0, 108), slice(109, n)
+    # before the point: every unpointed cell left of the point's column is kept
+    assert np.all(pointed.lo[before] <= base.lo[before])
+    assert np.all(pointed.hi[before] >= np.minimum(base.hi[before], 147))
+    assert np.all(pointed.hi[after] >= base.hi[after])
+    assert pointed.lo[108] == pointed.hi[108] == 147
+    # fixed ends keep the paper's segments anchored at the corners
+    fixed = Band.from_constraints(n, m, 0.3, [(108, 147, 0)])
+    assert fixed.hi[0] < base.hi[0]
+
+
+def test_a_point_at_its_true_frame_leaves_the_far_open_end_alone():
+    """An untrimmed pair (the hand take starts 1-2 s earlier and ends later): a point
+    placed at its true hand frame near the end fixes the end and keeps the start."""
+    from benchmarks.split import Realism, make_case
+
+    case = make_case("beat", 2, realism=Realism(untrimmed_s=(1.0, 2.0)))
+    res = P.splice(case.body, case.hand, transfer_fingers=False)
+    n = res.features.n
+    at = int(0.8 * n)
+    fixed = P.splice(
+        case.body,
+        case.hand,
+        transfer_fingers=False,
+        hand_points=True,
+        points=[(at, int(round(case.truth[at])), 0)],
+    )
+    before = np.abs(res.alignment.map - case.truth)
+    after = np.abs(fixed.alignment.map - case.truth)
+    frame = case.hand.fps / res.features.fps  # hand frames per body frame
+    start = slice(0, n // 4)
+    assert after[start].max() <= before[start].max() + frame
+    assert np.percentile(after, 95) < np.percentile(before, 95)
