@@ -136,3 +136,17 @@ def test_a_point_at_its_true_frame_leaves_the_far_open_end_alone():
     start = slice(0, n // 4)
     assert after[start].max() <= before[start].max() + frame
     assert np.percentile(after, 95) < np.percentile(before, 95)
+
+
+def test_a_matching_point_inside_a_matched_hold_is_met_not_straightened_away():
+    from engine.splice import merge as MG
+
+    # the path sits in the hold's first column, then runs up its last ten rows
+    warp = np.concatenate([np.arange(50.0), np.full(20, 50.0), np.arange(51.0, 81.0)])
+    plain = MG.straighten_holds(warp, [(50, 79)], [(50, 60)], slack=3)
+    warp[65] = 52.0  # the path met the user's point (65, 52) inside the hold
+    kept = MG.straighten_holds(warp, [(50, 79)], [(50, 60)], slack=3, keep=[65])
+    assert plain[65] == pytest.approx(50 + 15 * 10 / 29)
+    assert kept[65] == 52.0
+    assert kept[50] == 50.0 and kept[79] == 60.0
+    assert np.all(np.diff(kept) >= 0)
