@@ -150,3 +150,29 @@ def test_a_matching_point_inside_a_matched_hold_is_met_not_straightened_away():
     assert kept[65] == 52.0
     assert kept[50] == 50.0 and kept[79] == 60.0
     assert np.all(np.diff(kept) >= 0)
+
+
+def test_warp_bend_is_zero_on_one_rate_and_counts_the_frames_a_rate_change_gains():
+    straight = 1.5 * np.arange(100.0)
+    assert np.allclose(U.warp_bend(straight, 8), 0.0)
+    kink = np.where(np.arange(100) < 50, np.arange(100.0), 50 + 2.0 * (np.arange(100) - 50))
+    bend = U.warp_bend(kink, 8)
+    assert bend[50] == pytest.approx(8.0)  # 8 rows at rate 2 after, 8 at rate 1 before
+    assert bend[0] == bend[-1] == 0.0
+    assert np.allclose(bend[:42], 0.0) and np.allclose(bend[59:], 0.0)
+
+
+def test_uncertainty_ranks_the_true_error_of_an_untrimmed_pair():
+    """A real split pair with known truth: the frames the uncertainty ranks high are the
+    ones truly off (the bench measures this over every family)."""
+    from scipy.stats import spearmanr
+
+    from benchmarks.split import Realism, make_case
+
+    case = make_case("beat", 2, realism=Realism(untrimmed_s=(1.0, 2.0)))
+    res = P.splice(case.body, case.hand, transfer_fingers=False)
+    unc = U.alignment_uncertainty(res.features, res.alignment).ms
+    err = np.abs(res.alignment.map - case.truth) * 1000.0 / case.hand.fps
+    assert spearmanr(unc, err).statistic > 0.4
+    flagged = unc > U.DESYNC_MS
+    assert (err[flagged] > 100).mean() > 5 * (err[~flagged] > 100).mean()
