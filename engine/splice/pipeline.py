@@ -551,14 +551,17 @@ def holds(phase: M.PhaseFeatures, fps: float) -> list[tuple[int, int]]:
     )
 
 
-def straighten_holds(features: SpliceFeatures, warp: np.ndarray) -> np.ndarray:
+def straighten_holds(features: SpliceFeatures, warp: np.ndarray, points=()) -> np.ndarray:
     """:func:`engine.splice.merge.straighten_holds` with the pair's holds (found once per
-    ``features``: an app edit does not scan the takes again)."""
+    ``features``: an app edit does not scan the takes again); the body frames of
+    ``points`` (matching points) keep their matched column."""
     runs = features.params.get("_holds")
     if runs is None:
         runs = (holds(features.body_phase, features.fps), holds(features.hand_phase, features.fps))
         features.params["_holds"] = runs
-    return MG.straighten_holds(warp, runs[0], runs[1], HOLD_SLACK_S * features.fps)
+    return MG.straighten_holds(
+        warp, runs[0], runs[1], HOLD_SLACK_S * features.fps, keep=[p[0] for p in points]
+    )
 
 
 def _solve(
@@ -817,7 +820,9 @@ def align_passes(
 
     progress("merge", 0.0)
     final = al1 if hand_lacks_forearm(features) else al2
-    warp = MG.smooth_warp(straighten_holds(features, MG.median_warp(final.path, n)), blend, m)
+    warp = MG.smooth_warp(
+        straighten_holds(features, MG.median_warp(final.path, n), pts), blend, m
+    )
     hand_map = features.grid_to_hand(warp)
     overlap = final.overlap
     timings["merge"] = time.perf_counter() - t2
