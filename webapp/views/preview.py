@@ -5,7 +5,9 @@ matches to it, and the spliced take's frame ``i`` side by side, and next to them
 spliced hands close up (the fingers fill that frame, so they can be judged). The
 first frame is rendered when the page opens. One frame slider chooses the moment;
 Play runs at the take's own frame rate, skipping frames when a render is slower
-than a frame, with the slider always on the frame shown. A click on the cost matrix
+than a frame. While playing, the slider, the caption, the matrix's frame marker and the
+image move together: a frame is rendered first and the page steps to it with its
+image (the slider never runs ahead of the picture). A click on the cost matrix
 in "Pick frames" mode chooses the frame too. Rendering is offscreen (pyrender,
 EGL/OSMesa) on the server; each image is sent as a PNG.
 """
@@ -154,15 +156,16 @@ class PreviewView:
                 self._player = None
 
     def _tick(self) -> None:
-        """Show the frame the clock has reached (at the take's rate); frames that went by
-        while the last render ran are skipped, so playback keeps real time."""
+        """Render the frame the clock has reached (at the take's rate); frames that went
+        by while the last render ran are skipped, so playback keeps real time. The
+        session's frame (slider, caption, marker) steps when that frame's image is shown."""
         s = self.session
         if s.n <= 1 or self._inflight or self._scheduled:
             return
         start, first = self._clock
         frame = (first + int((time.perf_counter() - start) * s.fps)) % s.n
         if frame != s.frame:
-            s.frame = frame
+            self.render(frame)
 
     # ------------------------------------------------------------ rendering
 
@@ -181,12 +184,14 @@ class PreviewView:
 
             doc.add_next_tick_callback(run)
 
-    def _key(self) -> tuple:
+    def _key(self, frame: int | None = None) -> tuple:
         s = self.session
-        return (s.revision, s.inputs_revision, s.frame, self.camera.value, self.trails.value)
+        frame = s.frame if frame is None else frame
+        return (s.revision, s.inputs_revision, frame, self.camera.value, self.trails.value)
 
-    def render(self) -> bool:
-        """Render the current frame (full bodies and the hands close up); False (and a
+    def render(self, frame: int | None = None) -> bool:
+        """Render the current frame, or body frame ``frame`` (Play: the session steps to
+        it when its image is shown); full bodies and the hands close up. False (and a
         message) when it cannot.
 
         In a server session the render runs on a worker thread (hundreds of ms with a
@@ -197,10 +202,10 @@ class PreviewView:
         s = self.session
         if s.prepared is None or s.solution is None:
             return False
-        key = self._key()
+        key = self._key(frame)
         if key == self._rendered_key:
             return True
-        job = (s.prepared, s.solution, s.frame, self.camera.value, self.trails.value)
+        job = (s.prepared, s.solution, key[2], self.camera.value, self.trails.value)
         doc = pn.state.curdoc
         if doc is None or doc.session_context is None:
             if self._inflight:
@@ -211,7 +216,8 @@ class PreviewView:
             finally:
                 self._inflight = False
         if self._inflight:
-            self._again = True  # rendered when the one in flight is shown
+            if frame is None:
+                self._again = True  # rendered when the one in flight is shown
             return True
         self._inflight = True
         future = _RENDERS.submit(_render_images, *job, self.size, self.closeup_size)
@@ -232,7 +238,10 @@ class PreviewView:
             result = future.result()
         except Exception as exc:  # the worker's own failure: shown like any other
             result = exc
-        self._show(key, result)
+        shown = self._show(key, result)
+        s = self.session
+        if shown and key[2] != s.frame and key[:2] == self._key()[:2]:
+            s.frame = key[2]  # a played frame: slider, caption and marker step with its image
         if self._again or key != self._key():
             self._again = False
             self.render()
