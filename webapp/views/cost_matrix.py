@@ -200,7 +200,7 @@ _JS_NOT_ON_A_POINT = """
 const view = Bokeh.index.find_one(fig);
 if (view == null) return true;
 const xs = view.frame.x_scale, ys = view.frame.y_scale;
-const d = src.data, sx = vars.sx, sy = vars.sy;
+const d = src.data, sx = cb_data.vars.sx, sy = cb_data.vars.sy;
 for (let k = 0; k < d.x.length; k++) {
   if (Math.hypot(xs.compute(d.x[k]) - sx, ys.compute(d.y[k]) - sy) <= radius) return false;
 }
