@@ -10,6 +10,7 @@ Debian's Chromium through the page as a person does: mouse, buttons, downloads).
 from __future__ import annotations
 
 import time
+
 import pytest
 
 from webapp.launch import PAGE_HELPERS, launch_chromium, running_server
