@@ -59,10 +59,10 @@ class InputsView:
         self.sample.param.watch(self._on_sample, "value")
         limit = f"{cfg.max_upload_bytes / 2**20:.0f} MiB"
         self.body_file = TakeDropper(
-            cfg, css_classes=["hs-upload-body"], width=280, label="body take"
+            cfg, css_classes=["hs-upload-body"], width=320, label="body take"
         )
         self.hand_file = TakeDropper(
-            cfg, css_classes=["hs-upload-hand"], width=280, label="hand take"
+            cfg, css_classes=["hs-upload-hand"], width=320, label="hand take"
         )
         for which, dropper in (("body", self.body_file), ("hand", self.hand_file)):
             dropper.on_progress = self._on_progress
@@ -196,7 +196,7 @@ class InputsView:
     def _on_staged(self, which: str, staged: uploads.Staged):
         self.uploaded.object = f"checking <b>{safe_text.html(staged.name)}</b>…"
         tile = self._droppers[which].file_name
-        self._droppers[which].verdict("checking", tile, "Checking…", "reading it on the server")
+        self._droppers[which].verdict("checking", tile, "Checking…", "on the server")
         pn.state.execute(functools.partial(self._check, which, staged, tile))
 
     async def _check(self, which: str, staged: uploads.Staged, tile: str):
@@ -210,7 +210,9 @@ class InputsView:
         except Exception as exc:  # never a traceback in the page
             self._refuse(which, f"{staged.name}: cannot be read ({type(exc).__name__})", tile)
             return
-        self._droppers[which].verdict("ok", tile, "Checked", _describe(kept.summary))
+        # the tile is narrow: the frame count there, the whole description in the line below
+        frames = kept.summary.get("frames", 0)
+        self._droppers[which].verdict("ok", tile, "Checked", f"{frames} frames")
         self._pending[which] = kept
         self.message.visible = False
         self._show_uploaded()
@@ -225,7 +227,7 @@ class InputsView:
             "refused",
             dropper.file_name if tile is None else tile,
             "Refused",
-            "the reason is shown below" if checked else "not received",
+            "see below" if checked else "not received",
         )
         if which in self._open:
             self._pending[which] = self._open[which]
@@ -360,8 +362,8 @@ class InputsView:
             pn.Row(
                 labelled("Sample pair", self.sample, 280),
                 labelled("Side", self.side, 200),
-                labelled("or upload a body take", self.body_file, 300),
-                labelled("and a hand take", self.hand_file, 300),
+                labelled("or upload a body take", self.body_file, 340),
+                labelled("and a hand take", self.hand_file, 340),
             ),
             self.limit_note,
             self.uploaded,
