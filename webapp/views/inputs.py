@@ -16,6 +16,7 @@ from __future__ import annotations
 import asyncio
 import dataclasses
 import functools
+import time
 from concurrent.futures import ThreadPoolExecutor
 
 import panel as pn
@@ -236,7 +237,7 @@ class InputsView:
         self._show_uploaded()
         self._show_error(text)
 
-    def _show_uploaded(self, opened: bool = False):
+    def _show_uploaded(self, opened: bool = False, failed: bool = False):
         parts = []
         for which in ("body", "hand"):
             kept = self._pending.get(which)
@@ -250,7 +251,15 @@ class InputsView:
             return
         if not opened and len(parts) == 2:
             opened = self._pending == self._open and self._open_is_shown()
-        tail = " — open." if opened else "" if len(parts) == 2 else " — now the other take."
+        tail = (
+            " — open."
+            if opened
+            else " — not opened (the reason is below)."
+            if failed
+            else ""
+            if len(parts) == 2
+            else " — now the other take."
+        )
         self.uploaded.object = (
             "<span class='hs-uploaded'>Uploaded " + ", ".join(parts) + tail + "</span>"
         )
@@ -266,21 +275,30 @@ class InputsView:
             self._show_uploaded(opened=True)
             return
         loop = asyncio.get_running_loop()
-        self.uploaded.object += " <span class='hs-opening'>aligning…</span>"
+        line = self.uploaded.object
+        self.uploaded.object = line + " <span class='hs-opening'>aligning…</span>"
+        job = loop.run_in_executor(
+            _WORKERS,
+            functools.partial(
+                backend.prepare,
+                body.path,
+                hand.path,
+                s.side,
+                dict(s.roles),
+                takes=(body.take, hand.take),
+            ),
+        )
+        t0 = time.monotonic()
         try:
-            await loop.run_in_executor(
-                _WORKERS,
-                functools.partial(
-                    backend.prepare,
-                    body.path,
-                    hand.path,
-                    s.side,
-                    dict(s.roles),
-                    takes=(body.take, hand.take),
-                ),
-            )
+            while not (await asyncio.wait({job}, timeout=1.0))[0]:
+                # a long take takes a while: the line says it is still at work
+                self.uploaded.object = (
+                    line + f" <span class='hs-opening'>aligning… {time.monotonic() - t0:.0f} s"
+                    "</span>"
+                )
+            job.result()
         except Exception as exc:  # the reason is shown; nothing changes
-            self._show_uploaded()
+            self._show_uploaded(failed=True)
             self._show_error(f"{body.name} + {hand.name}: {one_line(exc)}")
             return
         # the engine's cache holds the takes now: this view keeps only their names
@@ -293,7 +311,7 @@ class InputsView:
             self._opening = False
             self._inputs_key = self._session_key()
         if s.body_sha256 != body.digest or s.hand_sha256 != hand.digest:
-            self._show_uploaded()
+            self._show_uploaded(failed=True)
             self._show_error(
                 s.error
                 if s.error and s.error != before
