@@ -287,7 +287,9 @@ def test_a_bad_file_says_why_and_the_pair_stays(page, tmp_path):
     assert (main, sub) == ("Refused", "see below")
     tile = page.locator(".hs-upload-body .filepond--item").first
     assert "Upload complete" not in tile.inner_text()
-    red = tile.locator(".filepond--item-panel").evaluate("e => getComputedStyle(e).backgroundColor")
+    red = tile.locator(".filepond--panel-center").evaluate(
+        "e => getComputedStyle(e).backgroundColor"
+    )
     assert red == "rgb(196, 78, 71)", red
     page.wait_for_timeout(1500)  # nothing else arrives later
     assert _matrix_size(page) == size

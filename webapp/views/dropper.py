@@ -48,8 +48,8 @@ const paint = () => {
   li.dataset.hsVerdict = state;
   li.querySelector('.filepond--file-status-main').textContent = main;
   li.querySelector('.filepond--file-status-sub').textContent = sub;
-  const panel = li.querySelector('.filepond--item-panel');
-  if (panel) panel.style.backgroundColor = colors[state] ?? '';
+  for (const part of li.querySelectorAll('.filepond--item-panel'))  // top, centre, bottom
+    part.style.backgroundColor = colors[state] ?? '';
   return true;
 };
 const serial = cb_obj.tags[4];
