@@ -333,7 +333,8 @@ def test_download_preview_gif(page, browser, server, tmp_path):
     """The export shows its progress, and another session stays responsive meanwhile."""
     other = _open(browser, server)
     try:
-        with page.expect_download(timeout=120_000) as info:
+        # every frame of the demo take (30 fps): a few minutes on a loaded 2-core machine
+        with page.expect_download(timeout=600_000) as info:
             page.locator(".hs-download-gif button").click()
             page.locator("progress.hs-export-progress").wait_for(state="visible", timeout=30_000)
             rev = _revision(other)
