@@ -112,6 +112,7 @@ class PreviewView:
         self.camera.param.watch(lambda e: self.render(), "value")
         self.trails.param.watch(lambda e: self.render(), "value")
         self._rendered_key = None
+        self._played = None
         self._inflight = False
         self._again = False
         self._scheduled = False
@@ -122,7 +123,10 @@ class PreviewView:
             pn.state.onload(self.render)  # the first frame as soon as the page is up
 
     def _on_slider(self, event):
-        self.session.frame = int(event.new)
+        frame = int(event.new)
+        if self.play.value and frame != self.session.frame:  # moved by hand while playing:
+            self._clock = (time.perf_counter(), frame)  # play on from there
+        self.session.frame = frame
 
     def _on_inputs(self, *_):
         end = max(self.session.n - 1, 1)
@@ -220,6 +224,8 @@ class PreviewView:
                 self._again = True  # rendered when the one in flight is shown
             return True
         self._inflight = True
+        if frame is not None:
+            self._played = key  # shown, it moves the session to its frame
         future = _RENDERS.submit(_render_images, *job, self.size, self.closeup_size)
 
         def done(f):
@@ -240,7 +246,14 @@ class PreviewView:
             result = exc
         shown = self._show(key, result)
         s = self.session
-        if shown and key[2] != s.frame and key[:2] == self._key()[:2]:
+        played, self._played = self._played, None
+        if (
+            shown
+            and key == played
+            and self.play.value
+            and not self._again  # nothing asked for meanwhile (a slider moved by hand)
+            and key[:2] == self._key()[:2]
+        ):
             s.frame = key[2]  # a played frame: slider, caption and marker step with its image
         if self._again or key != self._key():
             self._again = False
