@@ -145,7 +145,14 @@ def _upload_pair(page, body, hand) -> str:
     _upload(page, "body", body)
     _wait_uploaded(page, r"Uploaded body:.*now the other take")
     _upload(page, "hand", hand)
-    return _wait_uploaded(page, r"Uploaded body:.*hand:.*open\.")
+    text = _wait_uploaded(page, r"Uploaded body:.*hand:.*open\.")
+    # the matrix follows the line by a moment: wait until it shows the new body take
+    page.wait_for_function(
+        "(n) => hs.model('hs-x-range').end === n - 0.5",
+        arg=load_take(Path(body)).n_frames,
+        timeout=BUSY_S * 1000,
+    )
+    return text
 
 
 def _revision(page) -> int:
