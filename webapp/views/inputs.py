@@ -304,6 +304,10 @@ class InputsView:
         # the engine's cache holds the takes now: this view keeps only their names
         self._pending = {k: dataclasses.replace(v, take=None) for k, v in self._pending.items()}
         before = s.error
+        # the alignment is solved next, on this page's turn of the event loop (seconds on
+        # a long pair): the line says so before it starts (the text goes out first)
+        self.uploaded.object = line + " <span class='hs-opening'>solving the alignment…</span>"
+        await asyncio.sleep(0.05)
         self._opening = True
         try:
             s.load_uploads(body.digest, hand.digest, body.name, hand.name)
