@@ -18,9 +18,15 @@ HEADER = "# Benchmark results\n\nEach section is rewritten by the script named i
 
 
 def machine() -> str:
+    """The machine and how busy it was (1-minute load average: timings on a shared 2-core
+    machine are only comparable at a similar load; ratios measured side by side are)."""
     import os
 
-    return f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}"
+    try:
+        load = f", load {os.getloadavg()[0]:.1f}"
+    except OSError:  # no load average on this platform
+        load = ""
+    return f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}{load}"
 
 
 def write_section(name: str, markdown: str) -> None:

@@ -123,6 +123,9 @@ def test_defaults_from_empty_object():
         ({"colour": 1}, "colour", "unknown field"),
         ({"version": 3}, "version", "expected 1 or 2"),
         ({"view": {"matrix": "pass3"}}, "view.matrix", "pass1"),
+        ({"version": [2]}, "version", "expected 1 or 2"),  # unhashable: found by the fuzz bench
+        ({"version": {"v": 2}}, "version", "expected 1 or 2"),
+        ({"view": {"matrix": ["pass1"]}}, "view.matrix", "pass1"),
         ({"roles": {"body": {"right.wrist": 3}}}, "", "roles.body: right.wrist"),
         ({"roles": {"body": {"right.wirst": "R"}}}, "", "did you mean right.wrist"),
         ({"roles": {"right": {"wrist": "R"}}}, "roles.right", "body, hand"),

@@ -310,7 +310,7 @@ def parse_tolerance(value, field: str = "tolerance") -> float:
 # ---------------------------------------------------------------------------------------
 
 ENDS = ("fixed", "open")
-DEFAULT_ENDS = "open"  # as engine.splice.pipeline.ENDS (open-end DTW, issue 12)
+DEFAULT_ENDS = "open"  # open-end DTW (issue 12); engine.splice.pipeline.ENDS is this
 #: the open-end limit, seconds (None = half of the shorter take)
 MAX_UNMATCHED = Range("max_unmatched_s", 0.0, 0.0, 3600.0, "seconds")
 

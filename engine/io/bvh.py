@@ -165,192 +165,235 @@ def parse_bvh(text: str, source: str = "") -> Motion:
 
 def _parse_hierarchy(lines: list[str], where: str | None) -> tuple[Skeleton, int]:
     """Skeleton from the HIERARCHY section; returns it and the index of the MOTION line."""
-    names: list[str] = []
-    parents: list[int] = []
-    offsets: list[np.ndarray | None] = []
-    channels: list[tuple[str, ...]] = []
-    end_sites: dict[int, np.ndarray] = {}
-    seen: dict[str, int] = {}
-    # stack of open blocks: (kind, joint index or -1 for End Site, line opened)
-    stack: list[tuple[str, int, int]] = []
-    pending: tuple[str, int, int] | None = None  # block declared, "{" not yet seen
-    end_offset: np.ndarray | None = None
-    started = False
+    return _Hierarchy(where).parse(lines)
 
-    def fail(msg: str, i: int) -> MotionFormatError:
-        return MotionFormatError(where, msg, line=i + 1)
 
-    for i, raw in enumerate(lines):
-        tokens = raw.split()
-        if not tokens:
-            continue
-        if not started:
-            if tokens[0].upper() != "HIERARCHY":
-                raise fail(f"expected 'HIERARCHY' as the first word, found {tokens[0][:40]!r}", i)
-            started = True
-            tokens = tokens[1:]
+class _Hierarchy:
+    """The HIERARCHY section's reader: one method per keyword, the open blocks on a stack.
+
+    A joint's block is ``(label, joint index, line opened)``; an End Site's block has the
+    index ``-1 - joint`` (negative). ``pending`` is a block declared whose ``{`` has not
+    been seen yet. Every refusal is a MotionFormatError with the file's line number.
+    """
+
+    def __init__(self, where: str | None):
+        self.where = where
+        self.names: list[str] = []
+        self.parents: list[int] = []
+        self.offsets: list[np.ndarray | None] = []
+        self.channels: list[tuple[str, ...]] = []
+        self.end_sites: dict[int, np.ndarray] = {}
+        self.seen: dict[str, int] = {}
+        self.stack: list[tuple[str, int, int]] = []
+        self.pending: tuple[str, int, int] | None = None
+        self.end_offset: np.ndarray | None = None
+
+    def fail(self, msg: str, i: int) -> MotionFormatError:
+        return MotionFormatError(self.where, msg, line=i + 1)
+
+    def parse(self, lines: list[str]) -> tuple[Skeleton, int]:
+        started = False
+        for i, raw in enumerate(lines):
+            tokens = raw.split()
             if not tokens:
                 continue
-        head = tokens[0].upper()
-        if head == "MOTION":
-            if pending is not None:
-                raise fail(f"'{{' missing after {pending[0]} declared on line {pending[2] + 1}", i)
-            if stack:
-                raise fail(
-                    f"unbalanced braces: block opened on line {stack[-1][2] + 1} is not "
-                    f"closed before MOTION",
-                    i,
-                )
-            if not names:
-                raise fail("no ROOT joint before MOTION", i)
-            return _make_skeleton(names, parents, offsets, channels, end_sites), i
-        k = 0
-        while k < len(tokens):
-            tok = tokens[k]
-            up = tok.upper()
-            if pending is not None and tok != "{":
-                raise fail(f"expected '{{' after {pending[0]}, found {tok[:40]!r}", i)
-            if up in ("ROOT", "JOINT"):
-                rest = tokens[k + 1 :]
-                if rest and rest[-1] == "{":
-                    rest = rest[:-1]
-                    k = len(tokens) - 1  # the "{" is handled next
-                else:
-                    k = len(tokens)
-                name = " ".join(rest)
-                if name.endswith("{") and name.count("{") == 1 and "}" not in name:
-                    name = name[:-1].rstrip()  # "JOINT Chest{": the brace opens the block
-                    pending_brace = True
-                else:
-                    pending_brace = False
-                if not name:
-                    raise fail(f"{up} without a joint name", i)
-                if "{" in name or "}" in name:
-                    raise fail(
-                        f"joint name {name[:40]!r} contains a brace (a joint name is "
-                        "the text after ROOT/JOINT, without braces)",
-                        i,
+            if not started:
+                if tokens[0].upper() != "HIERARCHY":
+                    raise self.fail(
+                        f"expected 'HIERARCHY' as the first word, found {tokens[0][:40]!r}", i
                     )
-                if len(stack) >= MAX_DEPTH:
-                    raise fail(
-                        f"joint {name[:40]!r} is nested more than {MAX_DEPTH} deep; "
-                        "refusing an absurd skeleton",
-                        i,
-                    )
-                if up == "ROOT" and stack:
-                    raise fail(f"ROOT {name!r} inside another joint's block", i)
-                if up == "JOINT" and (not stack or stack[-1][1] < 0):
-                    raise fail(f"JOINT {name!r} outside a joint block", i)
-                if name in seen:
-                    raise fail(f"duplicate joint name {name!r} (first on line {seen[name] + 1})", i)
-                if len(names) >= MAX_JOINTS:
-                    raise fail(f"more than {MAX_JOINTS} joints; refusing an absurd skeleton", i)
-                seen[name] = i
-                names.append(name)
-                parents.append(stack[-1][1] if stack else -1)
-                offsets.append(None)
-                channels.append(())
-                pending = (f"{up} {name}", len(names) - 1, i)
-                if pending_brace:
-                    stack.append((pending[0], pending[1], i))
-                    pending = None
-                continue
-            if up == "END":
-                if k + 1 >= len(tokens) or tokens[k + 1].upper() != "SITE":
-                    raise fail("expected 'End Site'", i)
-                if not stack or stack[-1][1] < 0:
-                    raise fail("End Site outside a joint block", i)
-                pending = ("End Site", stack[-1][1], i)
-                end_offset = None
-                k += 2
-                continue
-            if tok == "{":
-                if pending is None:
-                    raise fail("unexpected '{'", i)
-                label, idx, _ = pending
-                if label == "End Site":
-                    stack.append((label, -1 - idx, i))  # End Site of joint idx: -1 - idx < 0
-                else:
-                    stack.append((label, idx, i))
-                pending = None
-                k += 1
-                continue
-            if tok == "}":
-                if not stack:
-                    raise fail("unbalanced braces: '}' without an open block", i)
-                label, idx, opened = stack.pop()
-                if idx < 0:
-                    joint = -1 - idx
-                    if end_offset is None:
-                        raise fail(f"End Site opened on line {opened + 1} has no OFFSET", i)
-                    end_sites[joint] = end_offset
-                    end_offset = None
-                elif offsets[idx] is None:
-                    raise fail(f"{label} (line {opened + 1}) has no OFFSET", i)
-                k += 1
-                continue
-            if up == "OFFSET":
-                if not stack:
-                    raise fail("OFFSET outside a joint block", i)
-                vals = tokens[k + 1 : k + 4]
-                if len(vals) != 3:
-                    raise fail(f"OFFSET needs 3 numbers, found {len(vals)}", i)
-                off = _finite_numbers(vals, where, i, "OFFSET")
-                idx = stack[-1][1]
-                if idx < 0:
-                    end_offset = off
-                else:
-                    offsets[idx] = off
-                k += 4
-                continue
-            if up == "CHANNELS":
-                if not stack or stack[-1][1] < 0:
-                    raise fail("CHANNELS outside a joint block", i)
-                if k + 1 >= len(tokens):
-                    raise fail("CHANNELS without a count", i)
-                if not _WHOLE_RE.fullmatch(tokens[k + 1]):
-                    raise fail(
-                        f"CHANNELS count must be a whole number 0-6, found {tokens[k + 1][:40]!r}",
-                        i,
-                    )
-                n = int(tokens[k + 1])
-                listed = tokens[k + 2 : k + 2 + n]
-                if n < 0 or n > 6 or len(listed) != n:
-                    raise fail(
-                        f"CHANNELS {tokens[k + 1]} lists {len(tokens) - k - 2} channel "
-                        f"names (expected a count of 0-6 matching the names)",
-                        i,
-                    )
-                chans = []
-                for c in listed:
-                    canon = _CHANNEL_LOOKUP.get(c.lower())
-                    if canon is None:
-                        raise fail(
-                            f"unknown channel {c[:40]!r} (expected one of "
-                            f"{', '.join(_CHANNEL_NAMES)})",
-                            i,
-                        )
-                    if canon in chans:
-                        raise fail(f"channel {canon} listed twice", i)
-                    chans.append(canon)
-                channels[stack[-1][1]] = tuple(chans)
-                k += 2 + n
-                continue
-            if up == "HIERARCHY":
-                raise fail("second 'HIERARCHY'", i)
-            raise fail(
-                f"unexpected {tok[:40]!r} in HIERARCHY (expected ROOT, JOINT, End Site, "
-                f"OFFSET, CHANNELS, braces or MOTION)",
+                started = True
+                tokens = tokens[1:]
+                if not tokens:
+                    continue
+            if tokens[0].upper() == "MOTION":
+                return self._finish(i), i
+            k = 0
+            while k < len(tokens):
+                k = self._token(tokens, k, i)
+        last = len(lines)
+        if not started:
+            raise MotionFormatError(self.where, "no 'HIERARCHY' section", line=1)
+        if self.stack or self.pending is not None:
+            raise MotionFormatError(
+                self.where,
+                "file ends inside the HIERARCHY (unbalanced braces, truncated?)",
+                line=last,
+            )
+        raise MotionFormatError(self.where, "no 'MOTION' section after the HIERARCHY", line=last)
+
+    def _finish(self, i: int) -> Skeleton:
+        """The skeleton, at the MOTION line ``i`` (every block closed)."""
+        if self.pending is not None:
+            raise self.fail(
+                f"'{{' missing after {self.pending[0]} declared on line {self.pending[2] + 1}", i
+            )
+        if self.stack:
+            raise self.fail(
+                f"unbalanced braces: block opened on line {self.stack[-1][2] + 1} is not "
+                f"closed before MOTION",
                 i,
             )
-    if not started:
-        raise MotionFormatError(where, "no 'HIERARCHY' section", line=1)
-    last = len(lines)
-    if stack or pending is not None:
-        raise MotionFormatError(
-            where, "file ends inside the HIERARCHY (unbalanced braces, truncated?)", line=last
+        if not self.names:
+            raise self.fail("no ROOT joint before MOTION", i)
+        return _make_skeleton(self.names, self.parents, self.offsets, self.channels, self.end_sites)
+
+    def _token(self, tokens: list[str], k: int, i: int) -> int:
+        """Read the keyword at ``tokens[k]`` of line ``i``; the index of the next one."""
+        tok = tokens[k]
+        up = tok.upper()
+        if self.pending is not None and tok != "{":
+            raise self.fail(f"expected '{{' after {self.pending[0]}, found {tok[:40]!r}", i)
+        if up in ("ROOT", "JOINT"):
+            return self._joint(tokens, k, i, up)
+        if up == "END":
+            return self._end_site(tokens, k, i)
+        if tok == "{":
+            return self._open(k, i)
+        if tok == "}":
+            return self._close(k, i)
+        if up == "OFFSET":
+            return self._offset(tokens, k, i)
+        if up == "CHANNELS":
+            return self._channels(tokens, k, i)
+        if up == "HIERARCHY":
+            raise self.fail("second 'HIERARCHY'", i)
+        raise self.fail(
+            f"unexpected {tok[:40]!r} in HIERARCHY (expected ROOT, JOINT, End Site, "
+            f"OFFSET, CHANNELS, braces or MOTION)",
+            i,
         )
-    raise MotionFormatError(where, "no 'MOTION' section after the HIERARCHY", line=last)
+
+    def _joint(self, tokens: list[str], k: int, i: int, up: str) -> int:
+        """``ROOT name`` / ``JOINT name`` (the name is the rest of the line, a trailing
+        ``{`` opens its block)."""
+        rest = tokens[k + 1 :]
+        if rest and rest[-1] == "{":
+            rest = rest[:-1]
+            k = len(tokens) - 1  # the "{" is handled next
+        else:
+            k = len(tokens)
+        name = " ".join(rest)
+        if name.endswith("{") and name.count("{") == 1 and "}" not in name:
+            name = name[:-1].rstrip()  # "JOINT Chest{": the brace opens the block
+            brace = True
+        else:
+            brace = False
+        self._check_joint(name, i, up)
+        stack = self.stack
+        self.seen[name] = i
+        self.names.append(name)
+        self.parents.append(stack[-1][1] if stack else -1)
+        self.offsets.append(None)
+        self.channels.append(())
+        self.pending = (f"{up} {name}", len(self.names) - 1, i)
+        if brace:
+            stack.append((self.pending[0], self.pending[1], i))
+            self.pending = None
+        return k
+
+    def _check_joint(self, name: str, i: int, up: str) -> None:
+        """Refuse a joint that is unnamed, misplaced, a duplicate or one too many."""
+        if not name:
+            raise self.fail(f"{up} without a joint name", i)
+        if "{" in name or "}" in name:
+            raise self.fail(
+                f"joint name {name[:40]!r} contains a brace (a joint name is "
+                "the text after ROOT/JOINT, without braces)",
+                i,
+            )
+        if len(self.stack) >= MAX_DEPTH:
+            raise self.fail(
+                f"joint {name[:40]!r} is nested more than {MAX_DEPTH} deep; "
+                "refusing an absurd skeleton",
+                i,
+            )
+        if up == "ROOT" and self.stack:
+            raise self.fail(f"ROOT {name!r} inside another joint's block", i)
+        if up == "JOINT" and (not self.stack or self.stack[-1][1] < 0):
+            raise self.fail(f"JOINT {name!r} outside a joint block", i)
+        if name in self.seen:
+            raise self.fail(
+                f"duplicate joint name {name!r} (first on line {self.seen[name] + 1})", i
+            )
+        if len(self.names) >= MAX_JOINTS:
+            raise self.fail(f"more than {MAX_JOINTS} joints; refusing an absurd skeleton", i)
+
+    def _end_site(self, tokens: list[str], k: int, i: int) -> int:
+        if k + 1 >= len(tokens) or tokens[k + 1].upper() != "SITE":
+            raise self.fail("expected 'End Site'", i)
+        if not self.stack or self.stack[-1][1] < 0:
+            raise self.fail("End Site outside a joint block", i)
+        self.pending = ("End Site", self.stack[-1][1], i)
+        self.end_offset = None
+        return k + 2
+
+    def _open(self, k: int, i: int) -> int:
+        if self.pending is None:
+            raise self.fail("unexpected '{'", i)
+        label, idx, _ = self.pending
+        # End Site of joint idx: -1 - idx < 0
+        self.stack.append((label, -1 - idx if label == "End Site" else idx, i))
+        self.pending = None
+        return k + 1
+
+    def _close(self, k: int, i: int) -> int:
+        if not self.stack:
+            raise self.fail("unbalanced braces: '}' without an open block", i)
+        label, idx, opened = self.stack.pop()
+        if idx < 0:
+            if self.end_offset is None:
+                raise self.fail(f"End Site opened on line {opened + 1} has no OFFSET", i)
+            self.end_sites[-1 - idx] = self.end_offset
+            self.end_offset = None
+        elif self.offsets[idx] is None:
+            raise self.fail(f"{label} (line {opened + 1}) has no OFFSET", i)
+        return k + 1
+
+    def _offset(self, tokens: list[str], k: int, i: int) -> int:
+        if not self.stack:
+            raise self.fail("OFFSET outside a joint block", i)
+        vals = tokens[k + 1 : k + 4]
+        if len(vals) != 3:
+            raise self.fail(f"OFFSET needs 3 numbers, found {len(vals)}", i)
+        off = _finite_numbers(vals, self.where, i, "OFFSET")
+        idx = self.stack[-1][1]
+        if idx < 0:
+            self.end_offset = off
+        else:
+            self.offsets[idx] = off
+        return k + 4
+
+    def _channels(self, tokens: list[str], k: int, i: int) -> int:
+        if not self.stack or self.stack[-1][1] < 0:
+            raise self.fail("CHANNELS outside a joint block", i)
+        if k + 1 >= len(tokens):
+            raise self.fail("CHANNELS without a count", i)
+        if not _WHOLE_RE.fullmatch(tokens[k + 1]):
+            raise self.fail(
+                f"CHANNELS count must be a whole number 0-6, found {tokens[k + 1][:40]!r}", i
+            )
+        n = int(tokens[k + 1])
+        listed = tokens[k + 2 : k + 2 + n]
+        if n < 0 or n > 6 or len(listed) != n:
+            raise self.fail(
+                f"CHANNELS {tokens[k + 1]} lists {len(tokens) - k - 2} channel "
+                f"names (expected a count of 0-6 matching the names)",
+                i,
+            )
+        chans: list[str] = []
+        for c in listed:
+            canon = _CHANNEL_LOOKUP.get(c.lower())
+            if canon is None:
+                raise self.fail(
+                    f"unknown channel {c[:40]!r} (expected one of {', '.join(_CHANNEL_NAMES)})",
+                    i,
+                )
+            if canon in chans:
+                raise self.fail(f"channel {canon} listed twice", i)
+            chans.append(canon)
+        self.channels[self.stack[-1][1]] = tuple(chans)
+        return k + 2 + n
 
 
 def _make_skeleton(names, parents, offsets, channels, end_sites) -> Skeleton:

@@ -245,7 +245,8 @@ def from_dict(data: Any, source: str | None = None) -> SessionSpec:
     if data.get("format", FORMAT) != FORMAT:
         raise r.fail("format", f'expected "{FORMAT}", got {_show(data.get("format"))}')
     version = data.get("version", VERSION)
-    if version not in HAND_FRAMES or isinstance(version, bool):
+    # a list or an object is no version (and cannot be looked up: unhashable)
+    if isinstance(version, bool) or not isinstance(version, int) or version not in HAND_FRAMES:
         raise r.fail(
             "version", f"expected {' or '.join(map(str, HAND_FRAMES))}, got {_show(version)}"
         )

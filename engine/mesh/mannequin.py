@@ -663,6 +663,55 @@ def _hand(
     a forearm stub."""
     part = _hand_part(hand.side)
     w = hand.wrist
+    palm = _palm_frame(skeleton, anatomy, pos, hand, tip_of)
+    _palm_mesh(b, skeleton, pos, bones, bone_of, drawn, hand, nar, virtual_bone, palm, part)
+    nf = max(6, int(round(8 * (nar / 12))))
+    _articulated_fingers(b, skeleton, anatomy, pos, bone_of, drawn, hand, tip_of, palm, part, nf)
+    if not palm.named and any(f not in hand.fingers for f in ("index", "middle", "ring", "pinky")):
+        _procedural_fingers(b, anatomy, pos, bone_of, drawn, hand, palm, part, nf)
+    # a hand take: a forearm stub behind the wrist
+    if anatomy.kind == "hand":
+        back = pos[w] - 1.2 * anatomy.hand_length * palm.hand_dir
+        b.capsule(
+            pos[w],
+            back,
+            1.9 * palm.radius,
+            2.6 * palm.radius,
+            palm.normal,
+            BODY,
+            "body",
+            rigid=w,
+            n_around=nar,
+            n_along=2,
+        )
+    # bones of this hand not drawn as fingers (e.g. a forearm joint at the wrist)
+    for (a, c), k in bone_of.items():
+        if a in skeleton.descendants(w) and k not in drawn and c in hand.other:
+            drawn.add(k)
+
+
+@dataclass(frozen=True)
+class _Palm:
+    """Where a hand's palm lies in the bind pose (model units).
+
+    ``knuckle (3,)`` the knuckles' centre; ``hand_dir (3,)`` wrist to knuckles, unit;
+    ``across (3,)`` unit, across the knuckles (perpendicular to ``hand_dir``);
+    ``normal (3,)`` the palm's normal, unit; ``span`` the knuckles' width; ``radius``
+    a finger's; ``named`` the long fingers the skeleton has (thumb excluded)."""
+
+    knuckle: np.ndarray
+    hand_dir: np.ndarray
+    across: np.ndarray
+    normal: np.ndarray
+    span: float
+    radius: float
+    named: tuple[str, ...]
+
+
+def _palm_frame(skeleton, anatomy: Anatomy, pos, hand: HandParts, tip_of) -> _Palm:
+    """The palm from the finger bases, or (no long fingers) from the wrist's other
+    children and the forearm."""
+    w = hand.wrist
     lh = anatomy.hand_length
     named = [f for f in FINGERS if f in hand.fingers and f != "thumb"]
     if hand.elbow is not None:
@@ -709,14 +758,18 @@ def _hand(
         span = 0.36 * lh
         radius = 0.045 * lh
     # palm normal, from the finger flexion or the thumb side and the side of the body
-    palm = palm_normal(skeleton, pos, hand, hand_dir, across)
+    normal = palm_normal(skeleton, pos, hand, hand_dir, across)
+    return _Palm(knuckle, hand_dir, across, normal, span, radius, tuple(named))
 
-    # palm: owned by the wrist's bones towards the fingers, or a virtual palm bone
+
+def _palm_mesh(b, skeleton, pos, bones, bone_of, drawn, hand, nar, virtual_bone, palm, part):
+    """The palm: owned by the wrist's bones towards the fingers, or a virtual palm bone."""
+    w = hand.wrist
     s = np.linspace(0.0, 1.0, 5)
-    centers = pos[w][None] + (knuckle - pos[w])[None] * (s[:, None] - 0.02)
-    half_a = (0.5 * span + 0.6 * radius) * (0.72 + 0.28 * s)  # wider at the knuckles
-    half_b = 0.95 * radius * (1.05 - 0.15 * s)
-    v, f, _ = sweep(centers, half_a, half_b, across, n_around=max(12, nar + 2), n_cap=2)
+    centers = pos[w][None] + (palm.knuckle - pos[w])[None] * (s[:, None] - 0.02)
+    half_a = (0.5 * palm.span + 0.6 * palm.radius) * (0.72 + 0.28 * s)  # wider at the knuckles
+    half_b = 0.95 * palm.radius * (1.05 - 0.15 * s)
+    v, f, _ = sweep(centers, half_a, half_b, palm.across, n_around=max(12, nar + 2), n_cap=2)
     wrist_bones = [
         k
         for (a, c), k in bone_of.items()
@@ -738,11 +791,16 @@ def _hand(
             if _bone_child(bone_of, k) not in (hand.fingers.get("thumb", ()) or ()):
                 drawn.add(k)
     else:
-        kv = virtual_bone(pos[w], knuckle, w)
+        kv = virtual_bone(pos[w], palm.knuckle, w)
         b.add(v, f, SKIN, part, owner=kv, blend=0.6)
 
-    # articulated fingers
-    nf = max(6, int(round(8 * (nar / 12))))
+
+def _articulated_fingers(b, skeleton, anatomy, pos, bone_of, drawn, hand, tip_of, palm, part, nf):
+    """A capsule per phalanx of every finger the skeleton has (metacarpals of the long
+    fingers lie inside the palm; the thumb's is drawn from the wrist)."""
+    w = hand.wrist
+    lh = anatomy.hand_length
+    radius = palm.radius
     for finger, chain in hand.fingers.items():
         r = radius * (1.12 if finger == "thumb" else 1.0)
         tip_joint = hand.tips.get(finger)
@@ -768,7 +826,7 @@ def _hand(
                 pts[i + 1],
                 r * taper0,
                 r * taper1,
-                palm,
+                palm.normal,
                 shade,
                 part,
                 owner=-1 if k is None else k,
@@ -788,7 +846,7 @@ def _hand(
                     pts[0],
                     r * 1.1,
                     r * 1.05,
-                    palm,
+                    palm.normal,
                     SKIN,
                     part,
                     owner=k,
@@ -798,78 +856,66 @@ def _hand(
                     n_cap=2,
                 )
                 drawn.add(k)
-    # procedural fingers where the skeleton has none
+
+
+def _procedural_fingers(b, anatomy, pos, bone_of, drawn, hand, frame: _Palm, part, nf):
+    """Relaxed fingers (and a thumb) where the skeleton has no long fingers at all: rigid
+    on the wrist's other child (or the wrist)."""
+    w = hand.wrist
+    lh = anatomy.hand_length
+    knuckle, span, radius = frame.knuckle, frame.span, frame.radius
+    across, hand_dir, palm = frame.across, frame.hand_dir, frame.normal
     missing = [f for f in ("index", "middle", "ring", "pinky") if f not in hand.fingers]
-    if missing and not named:
-        anchor = hand.other[0] if hand.other else w
-        lengths = {"index": 0.37, "middle": 0.41, "ring": 0.38, "pinky": 0.3}
-        offsets = {"index": 0.75, "middle": 0.25, "ring": -0.25, "pinky": -0.75}
-        for f in missing:
-            base = knuckle + offsets[f] * (span * 0.95 - 2 * radius) * across
-            length = lengths[f] * lh
-            d = hand_dir
-            p = base
-            for level, frac in enumerate((0.45, 0.3, 0.25)):
-                d = _unit(d + 0.12 * palm)  # a relaxed curl
-                q = p + frac * length * d
-                taper0 = 1.0 - 0.08 * level
-                b.capsule(
-                    p,
-                    q,
-                    radius * taper0,
-                    radius * (taper0 - (0.14 if level == 2 else 0.08)),
-                    palm,
-                    PHALANX[level],
-                    part,
-                    rigid=anchor,
-                    n_around=nf,
-                    n_along=1,
-                    n_cap=2,
-                )
-                p = q
-        if "thumb" not in hand.fingers:
-            p = pos[w] + 0.12 * lh * hand_dir + 0.12 * lh * across + 0.03 * lh * palm
-            d = _unit(0.6 * hand_dir + 0.6 * across + 0.3 * palm)
-            for level, frac in enumerate((0.14, 0.11, 0.1)):
-                q = p + frac * lh * d
-                b.capsule(
-                    p,
-                    q,
-                    radius * 1.15 * (1 - 0.08 * level),
-                    radius * 1.15 * (0.92 - 0.08 * level - (0.08 if level == 2 else 0)),
-                    palm,
-                    PHALANX[level],
-                    part,
-                    rigid=w,
-                    n_around=nf,
-                    n_along=1,
-                    n_cap=2,
-                )
-                d = _unit(d + 0.15 * hand_dir)
-                p = q
-        for o in hand.other:
-            for (a, c), kk in bone_of.items():
-                if a == o or c == o:
-                    drawn.add(kk)
-    # a hand take: a forearm stub behind the wrist
-    if anatomy.kind == "hand":
-        back = pos[w] - 1.2 * lh * hand_dir
-        b.capsule(
-            pos[w],
-            back,
-            1.9 * radius,
-            2.6 * radius,
-            palm,
-            BODY,
-            "body",
-            rigid=w,
-            n_around=nar,
-            n_along=2,
-        )
-    # bones of this hand not drawn as fingers (e.g. a forearm joint at the wrist)
-    for (a, c), k in bone_of.items():
-        if a in skeleton.descendants(w) and k not in drawn and c in hand.other:
-            drawn.add(k)
+    anchor = hand.other[0] if hand.other else w
+    lengths = {"index": 0.37, "middle": 0.41, "ring": 0.38, "pinky": 0.3}
+    offsets = {"index": 0.75, "middle": 0.25, "ring": -0.25, "pinky": -0.75}
+    for f in missing:
+        base = knuckle + offsets[f] * (span * 0.95 - 2 * radius) * across
+        length = lengths[f] * lh
+        d = hand_dir
+        p = base
+        for level, frac in enumerate((0.45, 0.3, 0.25)):
+            d = _unit(d + 0.12 * palm)  # a relaxed curl
+            q = p + frac * length * d
+            taper0 = 1.0 - 0.08 * level
+            b.capsule(
+                p,
+                q,
+                radius * taper0,
+                radius * (taper0 - (0.14 if level == 2 else 0.08)),
+                palm,
+                PHALANX[level],
+                part,
+                rigid=anchor,
+                n_around=nf,
+                n_along=1,
+                n_cap=2,
+            )
+            p = q
+    if "thumb" not in hand.fingers:
+        p = pos[w] + 0.12 * lh * hand_dir + 0.12 * lh * across + 0.03 * lh * palm
+        d = _unit(0.6 * hand_dir + 0.6 * across + 0.3 * palm)
+        for level, frac in enumerate((0.14, 0.11, 0.1)):
+            q = p + frac * lh * d
+            b.capsule(
+                p,
+                q,
+                radius * 1.15 * (1 - 0.08 * level),
+                radius * 1.15 * (0.92 - 0.08 * level - (0.08 if level == 2 else 0)),
+                palm,
+                PHALANX[level],
+                part,
+                rigid=w,
+                n_around=nf,
+                n_along=1,
+                n_cap=2,
+            )
+            d = _unit(d + 0.15 * hand_dir)
+            p = q
+    for o in hand.other:
+        for (a, c), kk in bone_of.items():
+            if a == o or c == o:
+                drawn.add(kk)
 
 
 def _same_place(skeleton: Skeleton, pos: np.ndarray, j: int) -> set[int]:

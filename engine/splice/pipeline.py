@@ -68,7 +68,7 @@ STEP1 = 0.0
 STEP2 = 0.05
 #: where the alignment may start and end: "open" (either take may begin earlier or end
 #: later; up to ``MAX_UNMATCHED`` at each end) or "fixed" (the paper: corner to corner)
-ENDS = "open"
+ENDS = C.DEFAULT_ENDS
 #: default limit of unmatched frames at each end, as a share of the shorter take
 MAX_UNMATCHED_SHARE = 0.5
 #: frames (Gaussian σ, body frames) over which the fingers ease into the first matched hand
@@ -574,22 +574,9 @@ def _solve(
 def check_ends_option(ends: str, max_unmatched_s: float | None) -> tuple[str, float | None]:
     """Validated ``(ends, max_unmatched_s)``: ``"open"`` or ``"fixed"``, seconds >= 0 or None.
 
-    The one place the splice reads the ends option (CLI ``--ends``/``--max-unmatched``,
-    batch, app)."""
-    kind = (ends or ENDS).lower() if isinstance(ends, str) else ends
-    if kind not in ("open", "fixed"):
-        raise ParameterError(f"ends must be 'open' or 'fixed', got {ends!r}")
-    if max_unmatched_s is not None:
-        try:
-            v = float(max_unmatched_s)
-        except (TypeError, ValueError):
-            raise ParameterError(
-                f"max unmatched must be seconds >= 0, got {max_unmatched_s!r}"
-            ) from None
-        if not (np.isfinite(v) and v >= 0):
-            raise ParameterError(f"max unmatched must be seconds >= 0, got {max_unmatched_s!r}")
-        max_unmatched_s = v
-    return kind, max_unmatched_s
+    The splice's entry to the ends rule, which :mod:`engine.dtw.constraints` owns (the
+    CLI's ``--ends``/``--max-unmatched``, the batch and the app read it there too)."""
+    return C.parse_ends(ends), C.parse_max_unmatched(max_unmatched_s)
 
 
 def unmatched_limits(n: int, m: int, fps: float, max_unmatched_s: float | None) -> tuple[int, int]:
