@@ -548,13 +548,15 @@ def holds(phase: M.PhaseFeatures, fps: float) -> list[tuple[int, int]]:
     )
 
 
-def straighten_holds(features: SpliceFeatures, warp: np.ndarray) -> np.ndarray:
-    """:func:`engine.splice.merge.straighten_holds` with the pair's holds."""
+def straighten_holds(features: SpliceFeatures, warp: np.ndarray, points=()) -> np.ndarray:
+    """:func:`engine.splice.merge.straighten_holds` with the pair's holds; the body frames
+    of ``points`` (matching points) keep their matched column."""
     return MG.straighten_holds(
         warp,
         holds(features.body_phase, features.fps),
         holds(features.hand_phase, features.fps),
         HOLD_SLACK_S * features.fps,
+        keep=[p[0] for p in points],
     )
 
 
@@ -767,7 +769,9 @@ def align_passes(
 
     progress("merge", 0.0)
     final = al1 if hand_lacks_forearm(features) else al2
-    warp = MG.smooth_warp(straighten_holds(features, MG.median_warp(final.path, n)), blend, m)
+    warp = MG.smooth_warp(
+        straighten_holds(features, MG.median_warp(final.path, n), pts), blend, m
+    )
     hand_map = features.grid_to_hand(warp)
     overlap = final.overlap
     timings["merge"] = time.perf_counter() - t2
