@@ -71,14 +71,15 @@ def main(argv=None) -> int:
         "rate exp(σ·noise), 1 s correlation): largest distance from the diagonal, "
         f"seconds, over {seeds} warps per cell (median / max). Then the default pass-1 "
         "width W1 of `engine.dtw.constraints` (the paper's 0.30 of the take, or "
-        "1.5 s·√T when narrower), its vertical reach Λ = W1·√2/2 (takes of equal length) "
+        "1.5 s·√T when narrower, capped so that the band fits `engine.limits."
+        "MAX_BAND_CELLS` less 10 %), its vertical reach Λ = W1·√2/2 (takes of equal length) "
         "and its band cells beside a 30 % band at 120 fps.",
         "",
         "| take | drift σ=0.15 | drift σ=0.3 | default W1 | Λ | Λ / worst drift | "
         "cells (default) | cells (30 %) |",
         "|---|---|---|---|---|---|---|---|",
     ]
-    ratios = []
+    ratios, capped = [], []
     for duration in DURATIONS:
         cells = []
         for sigma in SIGMAS:
@@ -90,7 +91,13 @@ def main(argv=None) -> int:
         area = Band.from_constraints(n, n, width.fraction(n, FPS)).area
         area30 = Band.from_constraints(n, n, 0.30).area
         worst = max(c[1] for c in cells)
-        ratios.append(lam / worst)
+        if (
+            C.BAND.long_take_seconds(duration) > C.BAND.cap_seconds(n, FPS)
+            and width.unit == C.SECONDS
+        ):
+            capped.append((duration, lam / worst))
+        else:
+            ratios.append(lam / worst)
         lines.append(
             f"| {duration:g} s | {cells[0][0]:.2f} / {cells[0][1]:.2f} s | "
             f"{cells[1][0]:.2f} / {cells[1][1]:.2f} s | {width.text()} | {lam:.1f} s | "
@@ -104,6 +111,13 @@ def main(argv=None) -> int:
         "not grow. Warps of 2 and 10 minutes are sampled every 10 ms (the same process "
         "as the bench's 1 ms `smooth_warp`, which is used up to 20 s).",
     ]
+    for duration, ratio in capped:
+        lines.append(
+            f"At {duration:g} s the cell limit caps W1 (1.5 s·√T would be "
+            f"{C.BAND.long_take_seconds(duration):g} s): Λ is {ratio:.1f}× the worst drift "
+            "seen, the widest band the engine accepts at this length; takes that drift "
+            "more must be spliced in parts (or the limit raised)."
+        )
     text = "\n".join(lines)
     print(text)
     if not args.quick:

@@ -486,13 +486,16 @@ def bench_long_edits(seconds_list=(120.0, 600.0), n_points: int = 9, n_edits: in
 
 
 def report_long_edits(rows) -> str:
+    from benchmarks import long_pairs as LP
+
     lines = [
         "**Edits on long takes** (issue 13): the engine side of moving one matching point in "
         "the app: `pipeline.align_passes` with the previous result (incremental pass 1 and "
         "pass 2 `Aligner`s, merge), 9 points on the true path (tolerance 2), the middle one "
         "moved ±12 frames ten times; long pairs of `benchmarks/long_pairs.py` (real LAFAN1 "
         "captures in turn, re-timed hand take), time band. *today* = the same script on the "
-        "engine at the baseline commit. Memory: resident set after the features, after the "
+        f"engine at `{LP.BASELINE}` (`HANDSPLICE_BASELINE`), in the same run. Memory: resident "
+        "set after the features, after the "
         "first solve, after the edits (the solvers' stores).",
         "",
         "| pair | band (pass 1 / 2 cells) | code | first solve (CPU) | edit p50 / p95 wall | "

@@ -28,6 +28,7 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import json
+import os
 import statistics
 import subprocess
 import sys
@@ -40,6 +41,8 @@ from benchmarks._results import write_section
 
 PAPER_569_S = 10.95
 TIME_BAND_S = 4.0
+#: the code before the pass-2 row kernel (main when that work began): ``--pass2``'s "before"
+PASS2_BASE = os.environ.get("HANDSPLICE_PASS2_BASE", "3539261")
 
 CHILD = r"""
 import json, sys, time
@@ -55,7 +58,7 @@ def rss_kb():
 from engine.io.bvh import read_bvh
 from engine.splice import pipeline as P
 body_p, hand_p, truth_p = sys.argv[1:4]
-band, refine = float(sys.argv[4]), float(sys.argv[5])
+band, refine = [None if v == "default" else float(v) for v in sys.argv[4:6]]
 t0 = time.perf_counter()
 body, hand = read_bvh(body_p), read_bvh(hand_p)
 read_s = time.perf_counter() - t0
@@ -129,21 +132,23 @@ def bench_short(reps: int) -> dict:
     }
 
 
-def _old_metrics():
-    """engine/metrics.py as at the baseline, imported as a separate module."""
+def _old_metrics(ref: str = LP.BASELINE):
+    """engine/metrics.py as at ``ref``, imported as a separate module."""
     src = subprocess.run(
-        ["git", "show", f"{LP.BASELINE}:engine/metrics.py"],
+        ["git", "show", f"{ref}:engine/metrics.py"],
         cwd=LP.ROOT,
         capture_output=True,
         text=True,
         check=True,
     ).stdout
-    path = LP.CACHE / f"old_metrics_{LP.BASELINE}.py"
+    path = LP.CACHE / f"old_metrics_{ref}.py"
     LP.CACHE.mkdir(parents=True, exist_ok=True)
-    path.write_text(src)
-    spec = importlib.util.spec_from_file_location("old_metrics", path)
+    if not path.exists() or path.read_text() != src:
+        path.write_text(src)
+    name = f"old_metrics_{ref}"
+    spec = importlib.util.spec_from_file_location(name, path)
     mod = importlib.util.module_from_spec(spec)
-    sys.modules["old_metrics"] = mod  # dataclasses look their module up
+    sys.modules[name] = mod  # dataclasses look their module up
     spec.loader.exec_module(mod)
     return mod
 
@@ -195,7 +200,139 @@ def bench_pass1_kernel(body_p, hand_p, reps: int) -> dict:
     }
 
 
-def long_run(files, band: float, refine: float, tree=None) -> dict:
+def bench_pass2_kernel(body_p, hand_p, reps: int) -> dict:
+    """ns per band cell of pass 2 (both solves' kind: the open-ends solve of the splice) on
+    the pair's real pass-2 rows and band: the row kernel now, and the per-cell
+    ``splice_angle`` of ``engine/metrics.py`` as at :data:`PASS2_BASE` (its own rows);
+    same path and cost checked."""
+    from engine.dtw import align_features, register_metric
+    from engine.io.bvh import read_bvh
+    from engine.splice import pipeline as P
+
+    old = _old_metrics(PASS2_BASE)
+    register_metric("splice_angle_before", old.splice_angle, replace=True)
+    feats = P.prepare(read_bvh(body_p), read_bvh(hand_p))
+    res = P.align_passes(feats)
+    a, b = res.pass2.rows
+    band, ends = res.pass2.band, res.pass2.ends
+    step = feats.params.get("step2", 0.0)
+    oa = old.angle_features(feats.body_markers, -res.body_heading).rows(step)
+    ob = old.angle_features(feats.hand_markers, -res.hand_heading).rows()
+    runs = {
+        "new": lambda: align_features(a, b, band, metric="splice_angle", ends=ends),
+        "old": lambda: align_features(oa, ob, band, metric="splice_angle_before", ends=ends),
+    }
+    out = {k: f() for k, f in runs.items()}  # warm-up (JIT) and results
+    times = {k: [] for k in runs}
+    for _ in range(reps):  # interleaved
+        for k, f in runs.items():
+            c0 = time.thread_time()
+            f()
+            times[k].append(time.thread_time() - c0)
+    return {
+        "cells": int(band.area),
+        "ns": {k: statistics.median(v) / band.area * 1e9 for k, v in times.items()},
+        "ratio": statistics.median(n / o for n, o in zip(times["new"], times["old"])),
+        "same_path": bool(np.array_equal(out["new"].path, out["old"].path)),
+        "cost_new": float(out["new"].cost),
+        "cost_old": float(out["old"].cost),
+        "reps": reps,
+    }
+
+
+def bench_long_default(seconds: float, fps: float, before, reps: int, drift_band=False) -> dict:
+    """Splices of the ``seconds`` pair with the default bands (or, ``drift_band``, the time
+    band of :func:`time_band` that covers the pair's true drift), the code at
+    :data:`PASS2_BASE` and now alternately (fresh child each)."""
+    files = LP.pair_files(seconds, fps)
+    truth = np.load(files[2])
+    n = truth.shape[0]
+    label, band, refine = "default", "default", "default"
+    if drift_band:
+        label, band, refine = time_band(n, fps, LP.drift_seconds(truth, n, fps))
+    out = {"seconds": seconds, "n": n, "runs": []}
+    for _ in range(reps):
+        for code, tree in (("before", before), ("now", None)):
+            r = long_run(files, str(band), str(refine), tree)
+            r.update(code=code, band=label)
+            print(json.dumps(r), flush=True)
+            out["runs"].append(r)
+    return out
+
+
+def report_pass2(kernel, longs) -> str:
+    k = kernel
+    lines = [
+        "## Splice speed: the pass-2 row kernel (issue 13)",
+        "",
+        f"*before* = the engine at `{PASS2_BASE}` (main before the pass-2 kernel), *now* = "
+        "this branch, in the same run (`bench_splice_speed --pass2`). Machine shared "
+        "(2 cores, other sessions): CPU time and ratios are the figures to read.",
+        "",
+        f"**Pass-2 kernel**, 2-minute pair (14,400 x 14,400 at 120 fps), the splice's own "
+        f"pass-2 band and open ends ({k['cells']:,} cells), CPU time per band cell, median "
+        f"of {k['reps']} interleaved runs:",
+        "",
+        "| kernel | ns per band cell |",
+        "|---|---:|",
+        f"| before: per-cell `splice_angle` (rotate by cross products, libm arccos) | "
+        f"{k['ns']['old']:.1f} |",
+        f"| now: row kernel (`engine/angle_kernel.py`: dot products of per-frame vectors, "
+        f"vectorised fdlibm arccos) | **{k['ns']['new']:.1f}** |",
+        "",
+        f"Now / before: **{k['ratio']:.2f}** (median of paired ratios); same path: "
+        f"{k['same_path']}; cost {k['cost_new']:.9f} vs {k['cost_old']:.9f}.",
+        "",
+        "**Whole splices, default bands** (pass 1 W1 = 1.5 s x sqrt(T), pass 2 W2 = 2 s; "
+        "BVH read back; one fresh child process per run after a 600-frame warm-up splice; "
+        "engine stages prepare + passes + merge + transfer; peak = VmHWM of the process):",
+        "",
+        "| pair | band | code | wall | CPU | prepare / pass 1 / pass 2 / merge / transfer (wall, "
+        "s) | pass-1 / pass-2 cells | peak | timing error median / p95 (frames) |",
+        "|---|---|---|---:|---:|---|---|---:|---|",
+    ]
+    for lg in longs:
+        for r in lg["runs"]:
+            st = r["stages"]
+            lines.append(
+                f"| {lg['seconds'] / 60:g} min ({r['frames'][0]:,} x {r['frames'][1]:,}) | "
+                f"{r['band']} | {r['code']} | {r['wall_s']:.2f} s | {r['cpu_s']:.2f} s | "
+                f"{st['prepare']:.2f} / {st['pass1']:.2f} / {st['pass2']:.2f} / "
+                f"{st['merge']:.2f} / {st['transfer']:.2f} | "
+                f"{r['cells'][0] / 1e6:.1f} M / {r['cells'][1] / 1e6:.1f} M | "
+                f"{r['peak_mb']:.0f} MB | {r['err_median']:.2f} / {r['err_p95']:.2f} |"
+            )
+    lines.append("")
+    for lg in longs:
+        by = {c: [r for r in lg["runs"] if r["code"] == c] for c in ("before", "now")}
+        if by["before"] and by["now"]:
+            cpu = statistics.median(
+                n["cpu_s"] / b["cpu_s"] for b, n in zip(by["before"], by["now"])
+            )
+            p2 = statistics.median(
+                n["stages"]["pass2"] / b["stages"]["pass2"] for b, n in zip(by["before"], by["now"])
+            )
+            nw, bf = by["now"][0], by["before"][0]
+            lines.append(
+                f"- {lg['seconds'] / 60:g} min: now / before CPU time **{cpu:.2f}**, pass-2 "
+                f"wall {p2:.2f}; peak {nw['peak_mb']:.0f} vs {bf['peak_mb']:.0f} MB, of which "
+                f"while splicing (peak counter reset after reading) {nw['peak_splice_mb']:.0f} "
+                f"vs {bf['peak_splice_mb']:.0f} MB, while reading the two BVH files "
+                f"{nw['peak_read_mb']:.0f} vs {bf['peak_read_mb']:.0f} MB."
+            )
+    lines += [
+        "",
+        "The 10-minute pair runs with a time band covering its true drift (±6 s, refine ±2 s), "
+        "as in the runs before the default pass-1 band was capped to fit "
+        "`engine.limits.MAX_BAND_CELLS` (36.7 s = 438.8 M cells was refused; now 14.7 s).",
+        "",
+        "Goals (issue 13): 2-minute pair ≤ 1.0 s warm, peak ≤ 600 MB, median timing error ≤ 1 "
+        "frame; 10-minute pair ≤ 10 s, peak ≤ 1.5 GB.",
+    ]
+    return "\n".join(lines)
+
+
+def long_run(files, band, refine, tree=None) -> dict:
     body_p, hand_p, truth_p = files
     return LP.run_child(
         CHILD, str(body_p), str(hand_p), str(truth_p), str(band), str(refine), tree=tree
@@ -295,8 +432,27 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="30-second pair only, prints only")
     ap.add_argument("--no-10min", action="store_true")
     ap.add_argument("--reps", type=int, default=5, help="pass-1 kernel repetitions")
+    ap.add_argument(
+        "--pass2",
+        action="store_true",
+        help="only the pass-2 kernel and default-band splices beside PASS2_BASE "
+        "(section splice_speed_pass2)",
+    )
+    ap.add_argument("--long-reps", type=int, default=1, help="--pass2: runs of each code")
     args = ap.parse_args(argv)
     fps = 120.0
+    if args.pass2:
+        files = LP.pair_files(120.0, fps)
+        kernel2 = bench_pass2_kernel(files[0], files[1], max(args.reps, 1))
+        print(json.dumps(kernel2), flush=True)
+        before = LP.baseline_tree(PASS2_BASE)
+        longs = [bench_long_default(120.0, fps, before, args.long_reps)]
+        if not args.no_10min:
+            longs.append(bench_long_default(600.0, fps, before, 1, drift_band=True))
+        text = report_pass2(kernel2, longs)
+        print(text)
+        write_section("splice_speed_pass2", text)
+        return 0
     short = bench_short(3 if args.quick else 10)
     short["reps"] = 3 if args.quick else 10
     print(json.dumps(short), flush=True)

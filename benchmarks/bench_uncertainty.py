@@ -11,7 +11,12 @@ known truth) each case is spliced with the defaults and assessed
 * frames flagged uncertain (> 100 ms): how often they are truly off by more than 100 ms,
   against unflagged frames (the ratio must be >= 5);
 * the top suggested matching point placed at its true hand frame (what a user does after
-  looking at the two previews): p95 timing error before and after.
+  looking at the two previews; the nearest whole frame of the hand file): p95 timing
+  error before and after, per family and pooled over the hard families (``HARD``: every
+  family but the clean splits, the issue-12 takes and the other rigs).
+
+The constants of the uncertainty (``KAPPA``, ``BEND_S``) were chosen on the families'
+tuning seeds (100-107, 200-207, 300-303); the table reports seeds ``0..N-1``.
 """
 
 from __future__ import annotations
@@ -29,8 +34,12 @@ from engine.splice import pipeline as P
 from engine.splice import uncertainty as U
 from engine.trust import assess_splice
 
-SEEDS = 6
+SEEDS = 8
 FLAG_MS = U.DESYNC_MS
+#: the clean splits; every other family is a hard one (issue 12's takes, other rigs)
+CLEAN = ("beat", "bandai", "lafan1")
+#: the top suggestion must lower a hard family's p95 by this share (issue 17)
+P95_GOAL = 0.30
 
 
 def run_case(case) -> dict:
@@ -55,7 +64,7 @@ def run_case(case) -> dict:
                 case.hand,
                 transfer_fingers=False,
                 hand_points=True,
-                points=[(body, float(case.truth[body]), 0.0)],
+                points=[(body, int(round(float(case.truth[body]))), 0)],
             )
             out["err_fixed"] = np.abs(fixed.alignment.map - case.truth) * hand_ms
         except ParameterError:  # the point cannot be met under these ends/band: counted
@@ -99,29 +108,86 @@ def _ratio(s: dict) -> str:
     return f"{s['p_flag'] / s['p_unfl']:.1f}×"
 
 
-def markdown(table: dict, pooled: dict, seeds: int) -> str:
+#: what the table does not show by itself (measured when the method last changed)
+NOTES = [
+    "Notes. The hard families' pooled p95 change is carried by a few takes whose errors sit "
+    "in one stretch (an untrimmed end, a forearm-less rig's long hold): over seeds 0-4 alone "
+    "it is -9 % (untrimmed -74 %, every other hard family -1 to -10 %). Where the error is "
+    "spread over many short stretches one point cannot move a family's p95, and in a slow "
+    "stretch the suggestion sits at its visible edge (ranking stretches without the "
+    "visibility weight placed worse points on the tuning seeds). On the forearm-less rigs "
+    "(manipnet, leap) pass 2 has nothing to measure, its spread is its band's, so most "
+    "frames are flagged. Before this version (seeds 0-4, same cases): pooled ρ 0.47, "
+    "ratio 23×, hard families' p95 with the top suggestion 72 -> 70 ms, untrimmed "
+    "237 -> 339 ms (+43 %: the point's band cut the other open end).",
+]
+
+
+def _row(name: str, s: dict) -> str:
+    return (
+        f"| {name} | {s['cases']} | {s['rho']:.2f} | {s['flagged'] * 100:.1f} % | "
+        f"{s['p_flag']:.3f} | {s['p_unfl']:.4f} | {_ratio(s)} | {s['p95']:.0f} ms | "
+        f"{s['p95_fixed']:.0f} ms | {_change(s) * 100:+.0f} % | {s['refused']} | "
+        f"{s['seconds'] * 1000:.0f} ms |"
+    )
+
+
+def _change(s: dict) -> float:
+    """Relative change of the p95 timing error with the top suggestion placed."""
+    return (s["p95_fixed"] - s["p95"]) / s["p95"] if s["p95"] > 0 else 0.0
+
+
+def goals(table: dict, pooled: dict, hard: dict | None) -> list[str]:
+    """The issue's "Done when" lines with their status."""
+    ratio = pooled["p_flag"] / pooled["p_unfl"] if pooled["p_unfl"] > 0 else np.inf
+    out = [
+        "| goal | status | value |",
+        "|---|---|---|",
+        f"| pooled Spearman ρ >= 0.5 | {'met' if pooled['rho'] >= 0.5 else '**missed**'} | "
+        f"{pooled['rho']:.2f} |",
+        f"| flagged frames off > {FLAG_MS:.0f} ms at least 5x as often | "
+        f"{'met' if ratio >= 5 else '**missed**'} | {_ratio(pooled)} |",
+    ]
+    if hard is not None:
+        ok = _change(hard) <= -P95_GOAL
+        out.append(
+            f"| top suggestion lowers the hard families' p95 by >= {P95_GOAL * 100:.0f} % "
+            f"(pooled) | {'met' if ok else '**missed**'} | {hard['p95']:.0f} -> "
+            f"{hard['p95_fixed']:.0f} ms ({_change(hard) * 100:+.0f} %) |"
+        )
+        for name, s in table.items():
+            if name not in CLEAN:
+                ok = _change(s) <= -P95_GOAL
+                out.append(
+                    f"| ... {name} | {'met' if ok else '**missed**'} | {s['p95']:.0f} -> "
+                    f"{s['p95_fixed']:.0f} ms ({_change(s) * 100:+.0f} %) |"
+                )
+    return out
+
+
+def markdown(table: dict, pooled: dict, seeds: int, hard: dict | None = None) -> str:
     out = [
         "## Trust: uncertainty against the true timing error (issue 17)",
         "",
         f"`benchmarks/bench_uncertainty.py`: seeds 0-{seeds - 1} of every family of the "
-        "accuracy bench, default parameters. ρ: Spearman rank correlation between "
+        "accuracy bench, default parameters (the uncertainty's constants were chosen on "
+        "the tuning seeds). ρ: Spearman rank correlation between "
         "`uncertainty_ms` and the true timing error over every body frame. Flagged: "
         f"uncertainty > {FLAG_MS:.0f} ms; 'off': true error > {FLAG_MS:.0f} ms. "
         "Suggested point: the top suggestion placed at its true hand frame (a point the "
-        "band cannot take is counted in 'refused' and leaves the case unchanged).",
+        "band cannot take is counted in 'refused' and leaves the case unchanged). Hard "
+        "families (*): every family but the clean splits " + ", ".join(CLEAN) + ".",
         "",
         "| family | cases | ρ | flagged | P(off \\| flagged) | P(off \\| not) | ratio | "
         "p95 before | p95 with the top suggestion | change | refused | assess time |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for name, s in list(table.items()) + [("**pooled**", pooled)]:
-        change = (s["p95_fixed"] - s["p95"]) / s["p95"] * 100 if s["p95"] > 0 else 0.0
-        out.append(
-            f"| {name} | {s['cases']} | {s['rho']:.2f} | {s['flagged'] * 100:.1f} % | "
-            f"{s['p_flag']:.3f} | {s['p_unfl']:.4f} | {_ratio(s)} | {s['p95']:.0f} ms | "
-            f"{s['p95_fixed']:.0f} ms | {change:+.0f} % | {s['refused']} | "
-            f"{s['seconds'] * 1000:.0f} ms |"
-        )
+    for name, s in table.items():
+        out.append(_row(name if name in CLEAN else f"{name} *", s))
+    if hard is not None:
+        out.append(_row("**hard families, pooled**", hard))
+    out.append(_row("**pooled**", pooled))
+    out += ["", *goals(table, pooled, hard), "", *NOTES]
     return "\n".join(out)
 
 
@@ -133,7 +199,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     names = args.families.split(",") if args.families else list(FAMILIES)
     seeds = 2 if args.quick else args.seeds
-    table, every = {}, []
+    table, every, hard = {}, [], []
     for name in names:
         rows = []
         for seed in range(seeds):
@@ -147,7 +213,8 @@ def main(argv=None) -> int:
             )
         table[name] = stats(rows)
         every += rows
-    md = markdown(table, stats(every), seeds)
+        hard += rows if name not in CLEAN else []
+    md = markdown(table, stats(every), seeds, stats(hard) if hard else None)
     print(md)
     if not args.quick and not args.families:
         write_section("uncertainty", md)

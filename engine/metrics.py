@@ -29,6 +29,12 @@ Implementation notes (where this differs from the paper, and why)
   :func:`phase_cost_reference` computes eq. 6 with exact θ (tests compare).
 * The window of eq. 7 uses frames ``i-2..i+2`` clipped at the take's ends
   (edge frames repeated), so every window holds 5 × markers points.
+* Pass 2's cost is computed as dot products of per-frame vectors (the rotation ``R``
+  never built) with a branch-free fdlibm ``arccos``; whole band rows go through the row
+  kernel of :mod:`engine.angle_kernel` (vectorised, about a fifth of the per-cell time),
+  :func:`splice_angle` computes one cell with the same arithmetic (bit for bit).
+  :func:`splice_angle_literal` is the rotation form (cross products, libm ``arccos``)
+  it replaced; they agree to rounding and give the same paths on real captures (tests).
 * With both arms aligned jointly, one θ is computed from both arms' markers
   (one trunk rotation for the take) and the two arms' costs are summed.
 * The dead zone ``ε`` is relative to each take's own 90th-percentile marker speed
@@ -43,6 +49,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from engine import angle_kernel as AK
 from engine import phase_kernel as PK
 from engine.errors import ParameterError
 from engine.jit import FASTMATH_REASSOC
@@ -660,14 +667,11 @@ class AngleFeatures:
         return int(self.forearm.shape[0])
 
     def rows(self, step: float = 0.0) -> np.ndarray:
-        """``(F, 2 + 6A)`` float64 rows for the ``"splice_angle"`` metric:
-        ``[A, step, f, h, f, h, ...]``; ``step`` (radians) is added to every cell
+        """``(F, 2 + 16A)`` float64 rows for the ``"splice_angle"`` metric
+        (:func:`engine.angle_kernel.frame_rows`: ``[A, step]``, then per arm ``f, h`` and
+        the per-frame products a cell needs); ``step`` (radians) is added to every cell
         (put it in the body rows only; see :func:`phase_rows`)."""
-        f, a = self.forearm.shape[:2]
-        body = np.concatenate([self.forearm, self.hand], axis=2).reshape(f, 6 * a)
-        return np.ascontiguousarray(
-            np.column_stack([np.full(f, a), np.full(f, float(step)), body]), dtype=np.float64
-        )
+        return AK.frame_rows(self.forearm, self.hand, step)
 
 
 def angle_features(markers: np.ndarray, theta: np.ndarray | float | None = None) -> AngleFeatures:
@@ -698,18 +702,28 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return np.where(n > 1e-12, v / np.where(n > 1e-12, n, 1.0), 0.0)
 
 
-@numba.njit(cache=True, fastmath=_FASTMATH, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def splice_angle(body_row, hand_row):
     """Pass-2 local cost ``D2`` (eq. 9, radians, summed over arms) of one cell.
 
     ``R`` is the smallest rotation taking the hand take's forearm vector ``f'``
     onto the body's ``f``; the cost is the angle between ``h`` and ``R h'``.
     Antiparallel forearms use a half turn about an axis perpendicular to ``f'``.
+    Computed as dot products of per-frame vectors (:mod:`engine.angle_kernel`, whose
+    row kernel gives the same costs bit for bit for whole band rows).
     """
+    return AK.cell(body_row, hand_row)
+
+
+@numba.njit(cache=True, fastmath=_FASTMATH, nogil=True)
+def splice_angle_literal(body_row, hand_row):
+    """``D2`` by rotating ``h'`` explicitly (cross products) and libm's ``arccos``: the
+    per-cell code before :mod:`engine.angle_kernel` (references, tests, benchmarks).
+    Same :meth:`AngleFeatures.rows`; agrees with :func:`splice_angle` to rounding."""
     arms = int(body_row[0])
     total = body_row[1]
     for a in range(arms):
-        o = 2 + 6 * a
+        o = AK.HEADER + AK.ARM * a
         total += _angle_after_align(
             body_row[o],
             body_row[o + 1],
@@ -867,7 +881,9 @@ def register_metrics() -> None:
     register_metric(
         "splice_phase", splice_phase, replace=True, prepare=PK.prepare, forward=PK.forward
     )
-    register_metric("splice_angle", splice_angle, replace=True)
+    register_metric(
+        "splice_angle", splice_angle, replace=True, prepare=AK.prepare, forward=AK.forward
+    )
 
 
 @numba.njit(nogil=True)  # no cache: a dispatcher argument breaks numba's cache

@@ -131,11 +131,28 @@ def _wait_uploaded(page, pattern: str, timeout: float = BUSY_S) -> str:
         page.wait_for_timeout(100)
 
 
+def _tile(page, which: str, state: str, timeout: float = BUSY_S) -> tuple[str, str]:
+    """(main, sub) text of an upload field's file tile once the server's verdict ``state``
+    ("checking", "ok", "refused") is on it."""
+    tile = page.locator(f".hs-upload-{which} .filepond--item[data-hs-verdict='{state}']")
+    tile.wait_for(timeout=timeout * 1000)
+    main = tile.locator(".filepond--file-status-main").inner_text()
+    sub = tile.locator(".filepond--file-status-sub").inner_text()
+    return main, sub
+
+
 def _upload_pair(page, body, hand) -> str:
     _upload(page, "body", body)
     _wait_uploaded(page, r"Uploaded body:.*now the other take")
     _upload(page, "hand", hand)
-    return _wait_uploaded(page, r"Uploaded body:.*hand:.*open\.")
+    text = _wait_uploaded(page, r"Uploaded body:.*hand:.*open\.")
+    # the matrix follows the line by a moment: wait until it shows the new body take
+    page.wait_for_function(
+        "(n) => hs.model('hs-x-range').end === n - 0.5",
+        arg=load_take(Path(body)).n_frames,
+        timeout=BUSY_S * 1000,
+    )
+    return text
 
 
 def _revision(page) -> int:
@@ -189,6 +206,9 @@ def test_upload_a_bvh_pair_then_edit_splice_and_preview(page, tmp_path):
     body_frames = read_bvh(BODY_BVH).n_frames
     text = _upload_pair(page, BODY_BVH, HAND_BVH)
     assert BODY_BVH.name in text and HAND_BVH.name in text
+    # each field's tile says what the server read (FilePond alone says "Upload complete")
+    assert _tile(page, "body", "ok") == ("Checked", f"{body_frames} frames")
+    assert _tile(page, "hand", "ok")[0] == "Checked"
     page.wait_for_function(
         "(n) => hs.model('hs-x-range').end === n - 0.5", arg=body_frames, timeout=BUSY_S * 1000
     )
@@ -269,9 +289,50 @@ def test_a_bad_file_says_why_and_the_pair_stays(page, tmp_path):
     text = _text(alert).strip()
     assert text.startswith("broken.bvh line") and "\n" not in text, text
     assert "Traceback" not in page.content()
+    # the refused file's tile says so (it said "Upload complete"), in FilePond's error red
+    main, sub = _tile(page, "body", "refused")
+    assert (main, sub) == ("Refused", "see below")
+    tile = page.locator(".hs-upload-body .filepond--item").first
+    assert "Upload complete" not in tile.inner_text()
+    red = tile.locator(".filepond--panel-center").evaluate(
+        "e => getComputedStyle(e).backgroundColor"
+    )
+    assert red == "rgb(196, 78, 71)", red
     page.wait_for_timeout(1500)  # nothing else arrives later
     assert _matrix_size(page) == size
     assert "uploaded pair" in page.locator(".hs-sample select").input_value()
+    # the line names the pair that is still open, not a half pair
+    line = _text(page.locator(".hs-upload-status"))
+    assert re.search(rf"Uploaded body: {BODY_BVH.name} .*hand: {HAND_BVH.name} .*open\.", line)
+    page.locator(".hs-upload-body").first.scroll_into_view_if_needed()
+    page.screenshot(path=str(tmp_path / "refused.png"))
+    # a good file in its place: the tile turns green, the new pair opens
+    _upload(page, "body", BODY_C3D)
+    _tile(page, "body", "ok")
+    _wait_uploaded(page, rf"Uploaded body: {BODY_C3D.name} .*hand: .*open\.")
+    assert not alert.is_visible()
+
+
+def test_opening_a_sample_clears_the_uploads(page, tmp_path):
+    """After an upload (and a refused file), choosing a sample leaves nothing of the uploads
+    on the page: no "Uploaded ..." line, no error, empty fields."""
+    _upload_pair(page, BODY_BVH, HAND_BVH)
+    bad = tmp_path / "broken.bvh"
+    bad.write_text("HIERARCHY\nROOT Hips\n{\n OFFSET 0 0\n")
+    _upload(page, "hand", bad)
+    page.locator(".hs-upload-error").wait_for(state="visible", timeout=BUSY_S * 1000)
+    select = page.locator(".hs-sample select")
+    sample = [o for o in select.evaluate("s => [...s.options].map(o => o.value)") if "(" not in o][0]
+    select.select_option(sample)
+    page.locator(".hs-upload-error").wait_for(state="hidden", timeout=BUSY_S * 1000)
+    deadline = time.monotonic() + BUSY_S
+    while _text(page.locator(".hs-upload-status")).strip():
+        assert time.monotonic() < deadline, _text(page.locator(".hs-upload-status"))
+        page.wait_for_timeout(100)
+    page.locator(".hs-upload-body .filepond--item").first.wait_for(state="detached", timeout=10_000)
+    assert page.locator(".hs-upload-hand .filepond--item").count() == 0
+    assert select.input_value() == sample
+    assert "uploaded pair" not in select.evaluate("s => [...s.options].map(o => o.value).join()")
 
 
 def test_a_file_over_the_limit_is_refused_by_the_browser(page, served):

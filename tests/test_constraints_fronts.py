@@ -213,8 +213,19 @@ def test_defaults_are_the_papers_fractions_on_short_takes_and_seconds_on_long():
     assert C.REFINE_BAND.default_for(187, 30.0) == C.Width(0.10)
     two_minutes, ten_minutes = 120 * 120, 600 * 120
     assert C.BAND.default_for(two_minutes, 120.0) == C.Width(16.4, C.SECONDS)
-    assert C.BAND.default_for(ten_minutes, 120.0) == C.Width(36.7, C.SECONDS)
+    # 1.5 s x sqrt(600) = 36.7 s would be 439 M cells: capped to fit the engine's limit
+    assert C.BAND.default_for(ten_minutes, 120.0) == C.Width(14.7, C.SECONDS)
+    assert C.BAND.long_take_seconds(600.0) == 36.7
     assert C.REFINE_BAND.default_for(two_minutes, 120.0) == C.Width(2.0, C.SECONDS)
+    # the default band of any long take fits the engine's cell limit (open ends included)
+    from engine.dtw import Band
+    from engine.limits import MAX_BAND_CELLS
+
+    for minutes, fps in ((10, 120.0), (30, 60.0), (5, 240.0)):
+        n = int(minutes * 60 * fps)
+        fraction = C.BAND.default_for(n, fps).fraction(n, fps)
+        area = Band.from_constraints(n, n, fraction, [], open_ends=True).area
+        assert MAX_BAND_CELLS * 0.8 < area <= MAX_BAND_CELLS, (minutes, fps, area)
     # the rule is continuous: the switch (25 s for W1) is where both give the same width
     for n in (24 * 30, 26 * 30):
         width = C.BAND.default_for(n, 30.0)

@@ -60,10 +60,23 @@ def test_app_gif_plays_at_the_takes_rate(tmp_path):
     session.load_sample("wave-ok")
     assert session.error == ""
     prepared, solution = session.prepared, session.solution
+    assert prepared.body.fps == 30 and prepared.n > 20
     data = backend.preview_video(prepared, solution, "gif", max_frames=20, size=(96, 72))
     delays = gif_delays_ms(data)
-    step = -(-prepared.n // 20)
-    frames = len(range(0, prepared.n, step))
-    assert len(delays) == frames
-    fps = float(prepared.body.fps) / step
-    assert abs(sum(delays) - 1000 * frames / fps) <= 5
+    # every body frame (30 fps, not thinned to 10 fps): 20 frames from the start frame
+    assert len(delays) == 20
+    assert abs(sum(delays) - 1000 * 20 / 30) <= 5
+    assert set(delays) <= {30, 40}
+
+
+def test_app_video_frames_keep_the_rate_under_30_fps():
+    """120 fps: every 4th frame (30 fps); 100 fps: every 4th (25 fps); a long take: the
+    window from the start frame, moved back to stay full length."""
+    shown, fps = backend.video_frames(839, 120.0)
+    assert (shown.step, fps) == (4, 30.0) and len(shown) == 210
+    shown, fps = backend.video_frames(580, 100.0)
+    assert (shown.step, fps) == (4, 25.0)
+    shown, fps = backend.video_frames(4587, 30.0, start=4500, max_frames=300)
+    assert (shown.start, shown.stop, shown.step, fps) == (4287, 4587, 1, 30.0)
+    shown, _ = backend.video_frames(4587, 30.0, start=1000, max_frames=300)
+    assert (shown.start, len(shown)) == (1000, 300)

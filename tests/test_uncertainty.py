@@ -95,3 +95,84 @@ def test_session_drops_an_assessment_of_an_older_edit(tmp_path):
     assert s.trust is None
     assert s.update_trust(revision=s.revision)
     assert len(s.trust.uncertainty.ms) == s.n
+
+
+def test_an_open_end_band_keeps_the_unpointed_cells_outside_its_points():
+    from engine.dtw import Band
+
+    n, m = 140, 240
+    base = Band.from_constraints(n, m, 0.3, (), open_ends=True)
+    pointed = Band.from_constraints(n, m, 0.3, [(108, 147, 0)], open_ends=True)
+    before, after = slice(0, 108), slice(109, n)
+    # before the point: every unpointed cell left of the point's column is kept
+    assert np.all(pointed.lo[before] <= base.lo[before])
+    assert np.all(pointed.hi[before] >= np.minimum(base.hi[before], 147))
+    assert np.all(pointed.hi[after] >= base.hi[after])
+    assert pointed.lo[108] == pointed.hi[108] == 147
+    # fixed ends keep the paper's segments anchored at the corners
+    fixed = Band.from_constraints(n, m, 0.3, [(108, 147, 0)])
+    assert fixed.hi[0] < base.hi[0]
+
+
+def test_a_point_at_its_true_frame_leaves_the_far_open_end_alone():
+    """An untrimmed pair (the hand take starts 1-2 s earlier and ends later): a point
+    placed at its true hand frame near the end fixes the end and keeps the start."""
+    from benchmarks.split import Realism, make_case
+
+    case = make_case("beat", 2, realism=Realism(untrimmed_s=(1.0, 2.0)))
+    res = P.splice(case.body, case.hand, transfer_fingers=False)
+    n = res.features.n
+    at = int(0.8 * n)
+    fixed = P.splice(
+        case.body,
+        case.hand,
+        transfer_fingers=False,
+        hand_points=True,
+        points=[(at, int(round(case.truth[at])), 0)],
+    )
+    before = np.abs(res.alignment.map - case.truth)
+    after = np.abs(fixed.alignment.map - case.truth)
+    frame = case.hand.fps / res.features.fps  # hand frames per body frame
+    start = slice(0, n // 4)
+    assert after[start].max() <= before[start].max() + frame
+    assert np.percentile(after, 95) < np.percentile(before, 95)
+
+
+def test_a_matching_point_inside_a_matched_hold_is_met_not_straightened_away():
+    from engine.splice import merge as MG
+
+    # the path sits in the hold's first column, then runs up its last ten rows
+    warp = np.concatenate([np.arange(50.0), np.full(20, 50.0), np.arange(51.0, 81.0)])
+    plain = MG.straighten_holds(warp, [(50, 79)], [(50, 60)], slack=3)
+    warp[65] = 52.0  # the path met the user's point (65, 52) inside the hold
+    kept = MG.straighten_holds(warp, [(50, 79)], [(50, 60)], slack=3, keep=[65])
+    assert plain[65] == pytest.approx(50 + 15 * 10 / 29)
+    assert kept[65] == 52.0
+    assert kept[50] == 50.0 and kept[79] == 60.0
+    assert np.all(np.diff(kept) >= 0)
+
+
+def test_warp_bend_is_zero_on_one_rate_and_counts_the_frames_a_rate_change_gains():
+    straight = 1.5 * np.arange(100.0)
+    assert np.allclose(U.warp_bend(straight, 8), 0.0)
+    kink = np.where(np.arange(100) < 50, np.arange(100.0), 50 + 2.0 * (np.arange(100) - 50))
+    bend = U.warp_bend(kink, 8)
+    assert bend[50] == pytest.approx(8.0)  # 8 rows at rate 2 after, 8 at rate 1 before
+    assert bend[0] == bend[-1] == 0.0
+    assert np.allclose(bend[:42], 0.0) and np.allclose(bend[59:], 0.0)
+
+
+def test_uncertainty_ranks_the_true_error_of_an_untrimmed_pair():
+    """A real split pair with known truth: the frames the uncertainty ranks high are the
+    ones truly off (the bench measures this over every family)."""
+    from scipy.stats import spearmanr
+
+    from benchmarks.split import Realism, make_case
+
+    case = make_case("beat", 2, realism=Realism(untrimmed_s=(1.0, 2.0)))
+    res = P.splice(case.body, case.hand, transfer_fingers=False)
+    unc = U.alignment_uncertainty(res.features, res.alignment).ms
+    err = np.abs(res.alignment.map - case.truth) * 1000.0 / case.hand.fps
+    assert spearmanr(unc, err).statistic > 0.4
+    flagged = unc > U.DESYNC_MS
+    assert (err[flagged] > 100).mean() > 5 * (err[~flagged] > 100).mean()

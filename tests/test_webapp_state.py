@@ -582,7 +582,9 @@ def test_video_export_runs_off_the_event_loop_with_progress(session, monkeypatch
     data, gaps, shown = asyncio.run(export())
     assert threads and all(name.startswith("hs-export") for name in threads)
     assert max(gaps) < 0.5 and len(gaps) > 10  # the loop ran all along
-    assert (True, "preview GIF: rendering") in shown  # buttons off, progress text on
+    # buttons off, progress text on, naming the frames and their rate (every frame: 30 fps)
+    # (this test renders 12 of them; the text names the frames a real export renders)
+    assert (True, "preview GIF (body frames 0–186 at 30 fps): rendering") in shown, shown
     frames = iio.imread(data.getvalue(), index=None)
     assert frames.shape[0] >= 10 and not view.gif.disabled
     assert view.progress.value == 100 and "KiB" in view.progress_text.object

@@ -16,6 +16,7 @@ caching, so the session object and the views stay free of engine details:
 
 from __future__ import annotations
 
+import math
 import re
 import threading
 import time
@@ -518,17 +519,47 @@ def png_bytes(image: np.ndarray) -> bytes:
     return to_png_bytes(np.asarray(image, dtype=np.uint8))
 
 
+#: the app's preview videos: at most this rate (every body frame of a 30 fps take; every
+#: 4th of a 120 fps one: GIF delays are whole centiseconds, 30 fps plays exactly) and at
+#: most this many frames (10 s at 30 fps; a longer take gives the 10 s from a start frame)
+VIDEO_MAX_FPS = 30.0
+VIDEO_MAX_FRAMES = 300
+
+
+def video_frames(
+    n: int,
+    fps: float,
+    start: int = 0,
+    max_fps: float = VIDEO_MAX_FPS,
+    max_frames: int = VIDEO_MAX_FRAMES,
+) -> tuple[range, float]:
+    """Which of ``n`` body frames at ``fps`` a preview video shows, and its frame rate.
+
+    Every ``step``-th frame, ``step`` the smallest whole number that keeps the rate at
+    or under ``max_fps``; when that is more than ``max_frames`` frames, the
+    ``max_frames`` from body frame ``start`` (moved back so the video is full length).
+    """
+    if n <= 0:
+        raise HandSpliceError("no frames to show")
+    step = max(1, math.ceil(fps / max_fps - 1e-9))
+    span = max_frames * step  # body frames one video covers
+    first = 0 if n <= span else min(max(int(start), 0), n - span)
+    return range(first, min(n, first + span), step), float(fps) / step
+
+
 def preview_video(
     prepared: Prepared,
     solution: Solution,
     fmt: str,
     camera: str = "three-quarter",
-    max_frames: int = 90,
+    max_frames: int = VIDEO_MAX_FRAMES,
     size: tuple[int, int] = (720, 272),
     progress=None,
+    start: int = 0,
 ) -> bytes:
-    """An animated preview (GIF or MP4 bytes) of the whole take, at most ``max_frames``
-    frames (evenly spaced), played at the take's speed.
+    """An animated preview (GIF or MP4 bytes) at the take's speed: the body frames of
+    :func:`video_frames` (at most 30 fps, at most ``max_frames`` frames from body frame
+    ``start`` of a long take).
 
     ``progress(done, total)`` is called after each rendered frame and once more (total,
     total) when the file is encoded. Safe to call from a worker thread (the renderer
@@ -542,15 +573,15 @@ def preview_video(
         raise HandSpliceError("no takes loaded")
     if fmt not in ("gif", "mp4"):
         raise ValueError(f"format: expected gif or mp4, got {fmt!r}")
-    step = max(1, -(-prepared.n // max_frames))
-    indices = range(0, prepared.n, step)
+    indices, fps = video_frames(
+        prepared.n, float(prepared.body.fps), start, max_frames=max_frames
+    )
     total = len(indices) + 1  # + encoding
     frames = []
     for done, i in enumerate(indices, 1):
         frames.append(render_frame(prepared, solution, i, camera, False, size))
         if progress is not None:
             progress(done, total)
-    fps = max(1.0, float(prepared.body.fps) / step)
     # one video encoder for the CLI and the app: engine.render.video
     if fmt == "gif":
         data = gif_bytes(frames, fps)  # exact timing: per-frame centisecond delays

@@ -289,7 +289,10 @@ class Band:
 
         ``open_ends``: paths may start and end away from the corners
         (``engine.dtw.Ends``), so a point may sit on the first or last body frame
-        at any hand frame; the band need not hold the corners.
+        at any hand frame; the band need not hold the corners. The corners are then no
+        anchors: before the first point and after the last one the band keeps every
+        cell of the band without points too (only the tolerance clips remove cells
+        there), so a point never pushes an open end out of reach.
         """
         n = _as_count(n, "n (body frames)")
         m = _as_count(m, "m (hand frames)")
@@ -303,6 +306,8 @@ class Band:
         if width is None:
             return cls(hard_lo, hard_hi, m, open_ends=open_ends)
         soft_lo, soft_hi = _diagonal_segments(n, m, float(width) * n, xs, ys)
+        if open_ends and len(xs):
+            _keep_open_ends(soft_lo, soft_hi, n, m, float(width) * n, xs, ys)
         lo = np.maximum(soft_lo, hard_lo)
         hi = np.minimum(soft_hi, hard_hi)
         _connect(lo, hi, hard_lo, hard_hi, m)
@@ -452,6 +457,23 @@ def _diagonal_segments(n: int, m: int, w_frames: float, xs, ys):
     np.clip(lo, 0, m - 1, out=lo)
     np.clip(hi, 0, m - 1, out=hi)
     return lo, hi
+
+
+def _keep_open_ends(lo, hi, n: int, m: int, w_frames: float, xs, ys) -> None:
+    """Widen (in place) the first and last segments of an open-end band through points
+    ``xs``/``ys`` to the union with the band without points.
+
+    With fixed ends the corners anchor the first and last segments (eq. 5). With open
+    ends they do not: a path may start up to the open-end limit from a corner, and a
+    segment line drawn from the corner to a point can leave the true start outside its
+    Λ (a hand take that starts seconds earlier, with a point placed near the other end:
+    the unmatched stretch is then cut by the narrowed band).
+    """
+    base_lo, base_hi = _diagonal_segments(n, m, w_frames, xs[:0], ys[:0])
+    first, last = int(xs[0]), int(xs[-1])
+    for rows in (slice(0, first), slice(last + 1, n)):
+        lo[rows] = np.minimum(lo[rows], base_lo[rows])
+        hi[rows] = np.maximum(hi[rows], base_hi[rows])
 
 
 def _connect(lo, hi, hard_lo, hard_hi, m: int) -> None:

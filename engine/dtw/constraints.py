@@ -41,6 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from engine.errors import ParameterError
+from engine.limits import MAX_BAND_CELLS
 from engine.tolerances import FRAME_EPS
 
 # slack when rounding tolerances and band edges computed in floating point
@@ -58,7 +59,12 @@ DRIFT_NOTE = (
     "(sigma 0.3; benchmarks/RESULTS.md, 'Band widths in seconds'). W1's vertical "
     "half-width (about W1 / sqrt 2 when both takes last about as long) is then 11.6 s at "
     "2 min and 26 s at 10 min, 1.5x and 1.2x the worst drift, with half the cells of a "
-    "30 % band at 2 minutes and a fifth at 10. Pass 2 only corrects the pass-1 path "
+    "30 % band at 2 minutes and a fifth at 10. W1 is capped so that its band keeps within "
+    "the engine's cell limit (engine.limits.MAX_BAND_CELLS, less 10 %): 14.7 s at 10 "
+    "minutes and 120 fps (vertical half-width 10.4 s: 1.0x the worst drift at sigma 0.15, "
+    "1.05x the median and 0.5x the worst at sigma 0.3), the widest band the engine accepts "
+    "there; takes that drift more must be spliced in parts (or the limit raised). "
+    "Pass 2 only corrects the pass-1 path "
     "locally, an error that does not grow with the take: the 2 s the paper's 0.10 gives a "
     "20 s take (radius about 0.7 s) is kept."
 )
@@ -165,6 +171,9 @@ class WidthRule:
     lo_s: float
     hi_s: float
     grows: bool = False  # the long-take width grows as the square root of the take
+    #: the default width is capped so that its band (both takes about as long) keeps
+    #: within this many cells (None: no cap)
+    max_cells: int | None = None
 
     @property
     def expected(self) -> str:
@@ -199,11 +208,23 @@ class WidthRule:
 
     def default_for(self, n: int, fps: float) -> Width:
         """The default width for a body take of ``n`` frames at ``fps``: the paper's
-        fraction, or the time width when that is narrower (long takes)."""
+        fraction, or the time width when that is narrower (long takes), capped by
+        :meth:`cap_seconds`."""
         seconds = self.long_take_seconds(n / float(fps))
+        if self.max_cells is not None:
+            seconds = min(seconds, self.cap_seconds(n, fps))
         if self.default * n > seconds * float(fps):
             return Width(seconds, SECONDS)
         return Width(self.default, FRACTION)
+
+    def cap_seconds(self, n: int, fps: float) -> float:
+        """The widest time width (0.1 s steps) whose band over ``n x n`` frames keeps within
+        :attr:`max_cells` (a diagonal band of width ``W`` has about ``sqrt 2 · n · W · fps``
+        cells), less 10 % for the band's rounding and open-ends corners."""
+        if self.max_cells is None or n <= 0:
+            return math.inf
+        cap = 0.9 * self.max_cells / (math.sqrt(2.0) * n * float(fps))
+        return max(self.lo_s, math.floor(cap * 10.0) / 10.0)
 
     def long_take_seconds(self, duration_s: float) -> float:
         """The time width (seconds, 0.1 s steps) for a take of ``duration_s`` seconds."""
@@ -236,6 +257,7 @@ BAND = WidthRule(
     lo_s=0.1,
     hi_s=3600.0,
     grows=True,
+    max_cells=MAX_BAND_CELLS,
 )
 REFINE_BAND = WidthRule(
     "refine_band",

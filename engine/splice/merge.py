@@ -99,7 +99,9 @@ def still_runs(
     return [(int(a), int(b) - 1) for a, b in zip(starts, stops, strict=True) if b - a >= min_frames]
 
 
-def straighten_holds(warp: np.ndarray, body_holds, hand_holds, slack: float) -> np.ndarray:
+def straighten_holds(
+    warp: np.ndarray, body_holds, hand_holds, slack: float, keep=()
+) -> np.ndarray:
     """The warp made linear across holds matched to holds (METHOD: holds).
 
     In a hold both takes are still, every cell of the rectangle costs the same and the
@@ -109,14 +111,20 @@ def straighten_holds(warp: np.ndarray, body_holds, hand_holds, slack: float) -> 
     ``slack`` frames of ``h0`` and leaves within ``slack`` of ``h1``), the hold
     boundaries are matched to each other and the warp runs straight between them.
     ``warp (n,)`` grid columns per body frame (unsmoothed); returns a new array.
+    ``keep``: body frames (the user's matching points) whose matched column stays as it
+    is: the straight run bends there (a point inside a hold is met, not overridden).
     """
+    kept = sorted({int(k) for k in keep})
     w = np.asarray(warp, dtype=float).copy()
     for b0, b1 in body_holds:
         if b1 <= b0:
             continue
         for h0, h1 in hand_holds:
             if abs(w[b0] - h0) <= slack and abs(w[b1] - h1) <= slack and h1 > h0:
-                w[b0 : b1 + 1] = h0 + (np.arange(b0, b1 + 1) - b0) * (h1 - h0) / (b1 - b0)
+                inside = [k for k in kept if b0 < k < b1]
+                knots = [b0, *inside, b1]
+                cols = [float(h0), *(w[k] for k in inside), float(h1)]
+                w[b0 : b1 + 1] = np.interp(np.arange(b0, b1 + 1), knots, cols)
                 break
     return np.maximum.accumulate(w)
 

@@ -444,6 +444,8 @@ class PassResult:
     metric : name of the pass's metric in ``engine.dtw``'s registry
     solver : engine.dtw.Aligner or None (kept for incremental re-solves and γ)
     seconds : float
+    probe : engine.dtw.Aligner or None: pass 2's first open-ends solve (the one that sizes
+        ``ends.skip``, :func:`_solve_pass2`), kept for incremental re-solves
     """
 
     path: np.ndarray
@@ -454,6 +456,7 @@ class PassResult:
     solver: object = None
     seconds: float = 0.0
     ends: Ends = field(default_factory=Ends)
+    probe: object = None
 
     def local_costs(self, rows_idx=None, cols_idx=None) -> np.ndarray:
         """Local costs on a grid of cells (all cells by default: small takes only)."""
@@ -550,13 +553,16 @@ def holds(phase: M.PhaseFeatures, fps: float) -> list[tuple[int, int]]:
     )
 
 
-def straighten_holds(features: SpliceFeatures, warp: np.ndarray) -> np.ndarray:
-    """:func:`engine.splice.merge.straighten_holds` with the pair's holds."""
+def straighten_holds(features: SpliceFeatures, warp: np.ndarray, points=()) -> np.ndarray:
+    """:func:`engine.splice.merge.straighten_holds` with the pair's holds (found once per
+    ``features``: an app edit does not scan the takes again); the body frames of
+    ``points`` (matching points) keep their matched column."""
+    runs = features.params.get("_holds")
+    if runs is None:
+        runs = (holds(features.body_phase, features.fps), holds(features.hand_phase, features.fps))
+        features.params["_holds"] = runs
     return MG.straighten_holds(
-        warp,
-        holds(features.body_phase, features.fps),
-        holds(features.hand_phase, features.fps),
-        HOLD_SLACK_S * features.fps,
+        warp, runs[0], runs[1], HOLD_SLACK_S * features.fps, keep=[p[0] for p in points]
     )
 
 
@@ -629,32 +635,73 @@ def pass1_ends(features: SpliceFeatures, kind: str, max_unmatched_s: float | Non
     return Ends(limits[0], limits[1], 0.5 * cache["chance1"])
 
 
+#: pass 2's skip per unmatched frame is rounded down to this many steps per octave, so
+#: the small cost changes of an edit mostly leave it (and the solver's rows) as they were
+SKIP_STEPS_PER_OCTAVE = 32
+
+
+def skip_step(value: float) -> float:
+    """``value`` (>= 0) rounded down to :data:`SKIP_STEPS_PER_OCTAVE` steps per octave
+    (at most 1/32 = 3 % lower)."""
+    if not (np.isfinite(value) and value > 0.0):
+        return 0.0
+    mant, exp = np.frexp(value)  # value = mant * 2**exp, mant in [0.5, 1)
+    steps = 2 * SKIP_STEPS_PER_OCTAVE
+    return float(np.ldexp(np.floor(mant * steps) / steps, int(exp)))
+
+
 def _solve_pass2(
-    rows, band: Band, solver, incremental: bool, pass1: Ends, metric: str = DEFAULT_METRICS[1]
+    rows,
+    band: Band,
+    solver,
+    incremental: bool,
+    pass1: Ends,
+    metric: str = DEFAULT_METRICS[1],
+    probe=None,
 ):
-    """Pass 2 with open ends (when ``pass1`` is open): returns (Alignment, solver, Ends).
+    """Pass 2 with open ends (when ``pass1`` is open): returns (Alignment, solver, Ends,
+    probe solver).
 
     ``skip`` is the smaller of half the chance cost and the mean local cost per cell of
-    the open path found with it. Pass 2's angle costs change smoothly, so the neighbours
+    the open path found with it (rounded down by :func:`skip_step`). Pass 2's angle costs
+    change smoothly, so the neighbours
     of the true start cost far less than chance: with the typical matched cost, the
     path does not absorb extra frames of one take by horizontal or vertical runs whose
     cells cost more than a typical matched cell, and an end stretch stays matched on the
     diagonal while its cells cost less than about twice that. The band around the
     pass-1 path keeps the ends near pass 1's.
+
+    Incremental (the app): both solves keep an ``Aligner`` (``probe`` for the first), so
+    an edit recomputes only the rows its band change touches in each, as long as the
+    rounded skip stays the same.
     """
     if pass1.fixed:
         al, solver = _solve(rows, metric, band, solver, incremental, Ends())
-        return al, solver, Ends()
+        return al, solver, Ends(), None
     n, m = len(rows[0]), len(rows[1])
     first = Ends(pass1.body, pass1.hand, 0.5 * chance_cost(rows, metric))
-    al = align_features(*rows, band, metric=metric, ends=first)
+    al, probe = _solve(rows, metric, band, probe, incremental, first)
     matched = al.cost - first.skip * unmatched_frames(al.path, n, m)
-    typical = max(matched, 0.0) / len(al.path)
+    typical = skip_step(max(matched, 0.0) / len(al.path))
     ends = Ends(pass1.body, pass1.hand, min(first.skip, typical))
-    if ends == first and not incremental and solver is None:
-        return al, None, ends
+    if ends == first:
+        return al, probe, ends, probe
+    if solver is probe:
+        solver = None
     al, solver = _solve(rows, metric, band, solver, incremental, ends)
-    return al, solver, ends
+    return al, solver, ends, probe
+
+
+def _same_headings(previous, body_heading: np.ndarray, hand_heading: np.ndarray) -> bool:
+    """True when ``previous`` (a ``SpliceAlignment``) turned both takes by these headings."""
+    b = getattr(previous, "body_heading", None)
+    h = getattr(previous, "hand_heading", None)
+    return (
+        b is not None
+        and h is not None
+        and np.array_equal(b, body_heading)
+        and np.array_equal(h, hand_heading)
+    )
 
 
 def pass2_headings(features: SpliceFeatures, path1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -763,30 +810,38 @@ def align_passes(
 
     progress("pass 2", 0.0)
     body_heading, hand_heading = pass2_headings(features, al1.path)
+    prev2 = previous.pass2 if same else None
     radius = C.refine_radius(n, m, refine_band)
     spin = uses_spin(features)
     if spin:  # no forearm in the hand take: the hand's turning, over pass 1's band
         (body2, hand2), metric2, band2 = SP.spin_pass_rows(features), SP.METRIC, band1
     else:
-        body2 = M.angle_features(features.body_markers, -body_heading).rows(
-            features.params.get("step2", 0.0)
-        )
-        hand2 = M.angle_features(features.hand_markers, -hand_heading).rows()
+        if prev2 is not None and _same_headings(previous, body_heading, hand_heading):
+            body2, hand2 = prev2.rows  # an edit that keeps the headings keeps pass 2's rows
+        else:
+            body2 = M.angle_features(features.body_markers, -body_heading).rows(
+                features.params.get("step2", 0.0)
+            )
+            hand2 = M.angle_features(features.hand_markers, -hand_heading).rows()
         band2 = Band.around_path(
             al1.path, n, m, radius, points=pts if pts else None, open_ends=is_open
         )
     limits.check_band("pass 2", band2.area)
-    solver2 = None
-    if same and previous.pass2.solver is not None and np.array_equal(previous.pass2.rows[1], hand2):
-        solver2 = previous.pass2.solver
-    al2, solver2, ends2 = _solve_pass2((body2, hand2), band2, solver2, incremental, ends1, metric2)
+    solver2 = probe2 = None
+    if prev2 is not None and prev2.rows[1] is not None and np.array_equal(prev2.rows[1], hand2):
+        solver2, probe2 = prev2.solver, getattr(prev2, "probe", None)
+    al2, solver2, ends2, probe2 = _solve_pass2(
+        (body2, hand2), band2, solver2, incremental, ends1, metric2, probe2
+    )
     t2 = time.perf_counter()
     timings["pass2"] = t2 - t1
     progress("pass 2", 1.0)
 
     progress("merge", 0.0)
     final = al1 if hand_lacks_forearm(features) and not spin else al2
-    warp = MG.smooth_warp(straighten_holds(features, MG.median_warp(final.path, n)), blend, m)
+    warp = MG.smooth_warp(
+        straighten_holds(features, MG.median_warp(final.path, n), pts), blend, m
+    )
     hand_map = features.grid_to_hand(warp)
     overlap = final.overlap
     timings["merge"] = time.perf_counter() - t2
@@ -810,6 +865,7 @@ def align_passes(
         solver=solver2,
         seconds=timings["pass2"],
         ends=ends2,
+        probe=probe2,
     )
     return SpliceAlignment(
         pass1=p1,

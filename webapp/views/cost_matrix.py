@@ -53,6 +53,10 @@ PATH_COLOR = "#ff3b30"
 OTHER_PATH_COLOR = "#ffffff"
 BAND_COLOR = "#4fc3f7"
 POINT_COLOR = "#ffd60a"
+#: a matching point's marker, pixels across, and how near (pixels from its centre) the
+#: pointer shows the point's tooltip instead of the cell's
+POINT_SIZE = 13
+POINT_HOVER_PX = POINT_SIZE / 2 + 2
 AXIS_SIGNAL_SIZE = 90
 
 
@@ -189,6 +193,18 @@ const x = Math.round(special_vars.x), y = special_vars.y;
 const k = band.data.x.indexOf(x);
 if (k < 0) return "outside (no band)";
 return (band.data.lo[k] <= y && y <= band.data.hi[k]) ? "inside (searched)" : "outside (never searched)";
+"""
+#: the cell hover's filter: false (no cell tooltip) within ``radius`` pixels of a matching
+#: point, where the point's own tooltip shows
+_JS_NOT_ON_A_POINT = """
+const view = Bokeh.index.find_one(fig);
+if (view == null) return true;
+const xs = view.frame.x_scale, ys = view.frame.y_scale;
+const d = src.data, sx = cb_data.vars.sx, sy = cb_data.vars.sy;
+for (let k = 0; k < d.x.length; k++) {
+  if (Math.hypot(xs.compute(d.x[k]) - sx, ys.compute(d.y[k]) - sy) <= radius) return false;
+}
+return true;
 """
 _JS_TOL = """
 value = src.data.tol[value];  // by row: Bokeh prints a NaN field without formatting it
@@ -386,7 +402,7 @@ class CostMatrixView:
             x="x",
             y="y",
             source=self.points_source,
-            size=13,
+            size=POINT_SIZE,
             fill_color=POINT_COLOR,
             line_color="black",
             line_width=1.5,
@@ -418,11 +434,18 @@ class CostMatrixView:
                 },
             )
         )
-        # every cell: both frames with their times, the local cost, inside the band or not
+        # every cell: both frames with their times, the local cost, inside the band or not;
+        # over a matching point only the point's own tooltip (one box, not two overlapping)
         fig.add_tools(
             HoverTool(
                 renderers=[image],
                 name="hs-cell-hover",
+                filters={
+                    "$sx": CustomJS(
+                        args={"fig": fig, "src": self.points_source, "radius": POINT_HOVER_PX},
+                        code=_JS_NOT_ON_A_POINT,
+                    )
+                },
                 tooltips=[
                     ("body frame", "$x{body}"),
                     ("hand frame", "$y{hand}"),

@@ -6,19 +6,63 @@ the browser before sending (``max_file_size``; FilePond says "File is too large"
 Panel keeps every chunk in memory and joins them; :class:`TakeDropper` instead
 appends each chunk to a staging file (:class:`webapp.uploads.Incoming`) and hands
 the finished :class:`webapp.uploads.Staged` file to its owner.
+
+FilePond marks a file "Upload complete" as soon as its last chunk is sent; whether the
+server then accepts it is told by :meth:`TakeDropper.verdict`, which rewrites the
+file's tile in the page: grey "Checking…", green "Checked" with what was read, or red
+"Refused" (the reason is in the page's message), or empties the field. Text reaches
+the tile through ``textContent`` only.
 """
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable
 
 import panel as pn
+from bokeh.models import CustomJS
 
 from webapp import uploads
 from webapp.config import AppConfig
+from webapp.views._dispatch import with_document_lock
 
 #: bytes per websocket message of an upload
 CHUNK_BYTES = 4 * 1024 * 1024
+#: tile colours of the server's verdicts (FilePond's own green and red, a neutral grey)
+VERDICT_COLORS = {"checking": "#64605e", "ok": "#369763", "refused": "#c44e47"}
+
+#: the page side of :meth:`TakeDropper.verdict`: the model's ``tags`` are
+#: ``[state, file name, main text, sub text, serial]``; the tile of that file gets the
+#: texts and colour once FilePond has marked it sent (status 5), and keeps them (FilePond
+#: writes a tile only when the file's own state changes)
+_JS_VERDICT = """
+const [state, name, main, sub] = cb_obj.tags;
+const pond = Bokeh.index.find_one(cb_obj)?._file_pond;
+if (pond == null || state == null) return;
+if (state === 'clear') { pond.removeFiles(); return; }
+const paint = () => {
+  const item = pond.getFiles().find(f => f.filename === name.split(/[\\\\/]/).pop());
+  if (item == null || item.status !== 5) return false;
+  const li = pond.element.querySelector('#filepond--item-' + item.id);
+  if (li == null) return false;
+  li.dataset.hsVerdict = state;
+  li.querySelector('.filepond--file-status-main').textContent = main;
+  li.querySelector('.filepond--file-status-sub').textContent = sub;
+  for (const part of li.querySelectorAll('.filepond--item-panel'))  // top, centre, bottom
+    part.style.backgroundColor = colors[state] ?? '';
+  return true;
+};
+const serial = cb_obj.tags[4];
+let tries = 0;
+const again = () => {  // until FilePond has drawn the sent state; then check it stayed
+  if (cb_obj.tags[4] !== serial) return;  // a newer verdict took over
+  const done = paint();
+  tries += 1;
+  if (tries < 40) setTimeout(again, done ? 500 : 100);
+};
+again();
+"""
+_SERIAL = itertools.count(1)
 
 
 class TakeDropper(pn.widgets.FileDropper):
@@ -38,6 +82,21 @@ class TakeDropper(pn.widgets.FileDropper):
         self.on_progress: Callable[[str, int, int], None] = lambda *a: None
         self.on_staged: Callable[[uploads.Staged], None] = lambda s: None
         self.on_refused: Callable[[str], None] = lambda m: None
+        #: the name the browser gave the latest file (its tile's name; shown names are cleaned)
+        self.file_name = ""
+
+    def _get_model(self, doc, root=None, parent=None, comm=None):
+        model = super()._get_model(doc, root, parent, comm)
+        model.js_on_change("tags", CustomJS(args={"colors": VERDICT_COLORS}, code=_JS_VERDICT))
+        return model
+
+    @with_document_lock
+    def verdict(self, state: str, name: str = "", main: str = "", sub: str = "") -> None:
+        """Show the server's word on file ``name`` in its tile: ``state`` "checking",
+        "ok" or "refused" with a main and a sub text, or "clear" (empty the field)."""
+        tags = [state, name, main, sub, next(_SERIAL)]
+        for model, _ in list(self._models.values()):
+            model.tags = tags
 
     def _process_event(self, event) -> None:
         if event.event_name != "upload_event":
@@ -50,6 +109,7 @@ class TakeDropper(pn.widgets.FileDropper):
         )
         try:
             if chunk == 1:
+                self.file_name = name
                 self._drop(name)
                 self._incoming[name] = None  # refused until opened (a bad name stays refused)
                 self._incoming[name] = uploads.Incoming(self._cfg, name)

@@ -4,8 +4,11 @@ Uploads arrive in chunks (:class:`webapp.views.dropper.TakeDropper`), are checke
 the engine's reader in a child process off the event loop (:func:`webapp.uploads.check`)
 and the pair's features are computed on a worker thread, so a large or hostile file
 never holds up this or any other session. A refused file shows the reader's one-line
-reason and the pair that is open stays open. Every file name and message shown here
-goes through :mod:`webapp.safe_text`.
+reason and the pair that is open stays open. Each field's tile says what the server
+made of its file (checking, checked, refused: :meth:`TakeDropper.verdict`), and the
+"Uploaded …" line names only takes that are open or waiting for their partner: a
+sample, a session file or a link that opens other takes clears both. Every file name
+and message shown here goes through :mod:`webapp.safe_text`.
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ from __future__ import annotations
 import asyncio
 import dataclasses
 import functools
+import time
 from concurrent.futures import ThreadPoolExecutor
 
 import panel as pn
@@ -56,15 +60,15 @@ class InputsView:
         self.sample.param.watch(self._on_sample, "value")
         limit = f"{cfg.max_upload_bytes / 2**20:.0f} MiB"
         self.body_file = TakeDropper(
-            cfg, css_classes=["hs-upload-body"], width=280, label="body take"
+            cfg, css_classes=["hs-upload-body"], width=320, label="body take"
         )
         self.hand_file = TakeDropper(
-            cfg, css_classes=["hs-upload-hand"], width=280, label="hand take"
+            cfg, css_classes=["hs-upload-hand"], width=320, label="hand take"
         )
         for which, dropper in (("body", self.body_file), ("hand", self.hand_file)):
             dropper.on_progress = self._on_progress
             dropper.on_staged = lambda staged, w=which: self._on_staged(w, staged)
-            dropper.on_refused = lambda text, w=which: self._refuse(w, text)
+            dropper.on_refused = lambda text, w=which: self._refuse(w, text, checked=False)
         self.side = pn.widgets.RadioButtonGroup.from_param(
             session.param.side, css_classes=["hs-side"], width=180
         )
@@ -85,8 +89,12 @@ class InputsView:
             css_classes=["hs-marker-note"],
             sizing_mode="stretch_width",
         )
+        #: checked takes the next pair opens with; the uploaded pair that is open (if any)
         self._pending: dict[str, uploads.Kept] = {}
+        self._open: dict[str, uploads.Kept] = {}
         self._opening = False
+        self._droppers = {"body": self.body_file, "hand": self.hand_file}
+        self._inputs_key = self._session_key()
         self.roles_body = pn.widgets.TextAreaInput(
             label="Body take",
             placeholder="right.wrist = RHand\nright.elbow = RForeArm",
@@ -133,10 +141,21 @@ class InputsView:
         if event.new and event.new != UPLOADED and event.new != self.session.sample:
             self.session.load_sample(event.new)
 
+    def _session_key(self) -> tuple:
+        s = self.session
+        return (s.sample, s.body_sha256, s.hand_sha256)
+
     def _on_session_inputs(self, *_):
         """Follow inputs set by the session itself (uploads, a session file, undo of roles):
         the selector shows the open sample, or "your uploaded pair" (never a sample that
-        would then be loaded over the upload)."""
+        would then be loaded over the upload). Other takes opened (a sample, a session
+        file, a link) clear the upload fields, the "Uploaded …" line and its message."""
+        key = self._session_key()
+        if key != self._inputs_key and not self._opening:
+            self._inputs_key = key
+            opened = (self._open.get("body"), self._open.get("hand"))
+            if key[0] or None in opened or key[1:] != tuple(k.digest for k in opened):
+                self._forget_uploads()
         options, value = self._sample_options(), self._sample_value()
         if list(self.sample.options) != options:
             self.sample.param.update(options=options, value=value)
@@ -160,6 +179,14 @@ class InputsView:
 
     # ------------------------------------------------------------ uploads
 
+    def _forget_uploads(self):
+        """Other takes are open: the uploads' line, message and fields are cleared."""
+        self._pending, self._open = {}, {}
+        self.uploaded.object = ""
+        self.message.visible = False
+        for dropper in self._droppers.values():
+            dropper.verdict("clear")
+
     def _on_progress(self, name: str, received: int, total: int):
         self.uploaded.object = (
             f"<span class='hs-receiving'>receiving "
@@ -169,31 +196,48 @@ class InputsView:
 
     def _on_staged(self, which: str, staged: uploads.Staged):
         self.uploaded.object = f"checking <b>{safe_text.html(staged.name)}</b>…"
-        pn.state.execute(functools.partial(self._check, which, staged))
+        tile = self._droppers[which].file_name
+        self._droppers[which].verdict("checking", tile, "Checking…", "on the server")
+        pn.state.execute(functools.partial(self._check, which, staged, tile))
 
-    async def _check(self, which: str, staged: uploads.Staged):
+    async def _check(self, which: str, staged: uploads.Staged, tile: str):
         """Check the file off the event loop; open the pair once both takes are in."""
         loop = asyncio.get_running_loop()
         try:
             kept = await loop.run_in_executor(_WORKERS, uploads.check, self.session.config, staged)
         except uploads.UploadError as exc:
-            self._refuse(which, one_line(exc))
+            self._refuse(which, one_line(exc), tile)
             return
         except Exception as exc:  # never a traceback in the page
-            self._refuse(which, f"{staged.name}: cannot be read ({type(exc).__name__})")
+            self._refuse(which, f"{staged.name}: cannot be read ({type(exc).__name__})", tile)
             return
+        # the tile is narrow: the frame count there, the whole description in the line below
+        frames = kept.summary.get("frames", 0)
+        self._droppers[which].verdict("ok", tile, "Checked", f"{frames} frames")
         self._pending[which] = kept
         self.message.visible = False
         self._show_uploaded()
         if len(self._pending) == 2:
             await self._open_pair()
 
-    def _refuse(self, which: str, text: str):
-        self._pending.pop(which, None)
+    def _refuse(self, which: str, text: str, tile: str | None = None, checked: bool = True):
+        """A take was refused: its tile turns red, the reason is shown, and the take of the
+        open uploaded pair (if any) is the one the next upload pairs with."""
+        dropper = self._droppers[which]
+        dropper.verdict(
+            "refused",
+            dropper.file_name if tile is None else tile,
+            "Refused",
+            "see below" if checked else "not received",
+        )
+        if which in self._open:
+            self._pending[which] = self._open[which]
+        else:
+            self._pending.pop(which, None)
         self._show_uploaded()
         self._show_error(text)
 
-    def _show_uploaded(self, opened: bool = False):
+    def _show_uploaded(self, opened: bool = False, failed: bool = False):
         parts = []
         for which in ("body", "hand"):
             kept = self._pending.get(which)
@@ -205,7 +249,17 @@ class InputsView:
         if not parts:
             self.uploaded.object = ""
             return
-        tail = " — open." if opened else "" if len(parts) == 2 else " — now the other take."
+        if not opened and len(parts) == 2:
+            opened = self._pending == self._open and self._open_is_shown()
+        tail = (
+            " — open."
+            if opened
+            else " — not opened (the reason is below)."
+            if failed
+            else ""
+            if len(parts) == 2
+            else " — now the other take."
+        )
         self.uploaded.object = (
             "<span class='hs-uploaded'>Uploaded " + ", ".join(parts) + tail + "</span>"
         )
@@ -217,39 +271,68 @@ class InputsView:
         s = self.session
         body, hand = self._pending["body"], self._pending["hand"]
         if (s.body_sha256, s.hand_sha256) == (body.digest, hand.digest) and not s.sample:
+            self._open = dict(self._pending)
             self._show_uploaded(opened=True)
             return
         loop = asyncio.get_running_loop()
-        self.uploaded.object += " <span class='hs-opening'>aligning…</span>"
+        line = self.uploaded.object
+        self.uploaded.object = line + " <span class='hs-opening'>aligning…</span>"
+        job = loop.run_in_executor(
+            _WORKERS,
+            functools.partial(
+                backend.prepare,
+                body.path,
+                hand.path,
+                s.side,
+                dict(s.roles),
+                takes=(body.take, hand.take),
+            ),
+        )
+        t0 = time.monotonic()
         try:
-            await loop.run_in_executor(
-                _WORKERS,
-                functools.partial(
-                    backend.prepare,
-                    body.path,
-                    hand.path,
-                    s.side,
-                    dict(s.roles),
-                    takes=(body.take, hand.take),
-                ),
-            )
+            while not (await asyncio.wait({job}, timeout=1.0))[0]:
+                # a long take takes a while: the line says it is still at work
+                self.uploaded.object = (
+                    line + f" <span class='hs-opening'>aligning… {time.monotonic() - t0:.0f} s"
+                    "</span>"
+                )
+            job.result()
         except Exception as exc:  # the reason is shown; nothing changes
-            self._show_uploaded()
+            self._show_uploaded(failed=True)
             self._show_error(f"{body.name} + {hand.name}: {one_line(exc)}")
             return
         # the engine's cache holds the takes now: this view keeps only their names
         self._pending = {k: dataclasses.replace(v, take=None) for k, v in self._pending.items()}
         before = s.error
-        s.load_uploads(body.digest, hand.digest, body.name, hand.name)
+        # the alignment is solved next, on this page's turn of the event loop (seconds on
+        # a long pair): the line says so before it starts (the text goes out first)
+        self.uploaded.object = line + " <span class='hs-opening'>solving the alignment…</span>"
+        await asyncio.sleep(0.05)
+        self._opening = True
+        try:
+            s.load_uploads(body.digest, hand.digest, body.name, hand.name)
+        finally:
+            self._opening = False
+            self._inputs_key = self._session_key()
         if s.body_sha256 != body.digest or s.hand_sha256 != hand.digest:
-            self._show_uploaded()
+            self._show_uploaded(failed=True)
             self._show_error(
                 s.error
                 if s.error and s.error != before
                 else "the uploaded pair could not be opened"
             )
         else:
+            self._open = dict(self._pending)
             self._show_uploaded(opened=True)
+
+    def _open_is_shown(self) -> bool:
+        s, opened = self.session, self._open
+        return (
+            not s.sample
+            and "body" in opened
+            and "hand" in opened
+            and (s.body_sha256, s.hand_sha256) == (opened["body"].digest, opened["hand"].digest)
+        )
 
     def _show_roles(self):
         for take, widget in (("body", self.roles_body), ("hand", self.roles_hand)):
@@ -301,8 +384,8 @@ class InputsView:
             pn.Row(
                 labelled("Sample pair", self.sample, 280),
                 labelled("Side", self.side, 200),
-                labelled("or upload a body take", self.body_file, 300),
-                labelled("and a hand take", self.hand_file, 300),
+                labelled("or upload a body take", self.body_file, 340),
+                labelled("and a hand take", self.hand_file, 340),
             ),
             self.limit_note,
             self.uploaded,

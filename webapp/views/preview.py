@@ -5,7 +5,9 @@ matches to it, and the spliced take's frame ``i`` side by side, and next to them
 spliced hands close up (the fingers fill that frame, so they can be judged). The
 first frame is rendered when the page opens. One frame slider chooses the moment;
 Play runs at the take's own frame rate, skipping frames when a render is slower
-than a frame, with the slider always on the frame shown. A click on the cost matrix
+than a frame. While playing, the slider, the caption, the matrix's frame marker and the
+image move together: a frame is rendered first and the page steps to it with its
+image (the slider never runs ahead of the picture). A click on the cost matrix
 in "Pick frames" mode chooses the frame too. Rendering is offscreen (pyrender,
 EGL/OSMesa) on the server; each image is sent as a PNG.
 """
@@ -110,6 +112,7 @@ class PreviewView:
         self.camera.param.watch(lambda e: self.render(), "value")
         self.trails.param.watch(lambda e: self.render(), "value")
         self._rendered_key = None
+        self._played = None
         self._inflight = False
         self._again = False
         self._scheduled = False
@@ -120,7 +123,10 @@ class PreviewView:
             pn.state.onload(self.render)  # the first frame as soon as the page is up
 
     def _on_slider(self, event):
-        self.session.frame = int(event.new)
+        frame = int(event.new)
+        if self.play.value and frame != self.session.frame:  # moved by hand while playing:
+            self._clock = (time.perf_counter(), frame)  # play on from there
+        self.session.frame = frame
 
     def _on_inputs(self, *_):
         end = max(self.session.n - 1, 1)
@@ -154,15 +160,16 @@ class PreviewView:
                 self._player = None
 
     def _tick(self) -> None:
-        """Show the frame the clock has reached (at the take's rate); frames that went by
-        while the last render ran are skipped, so playback keeps real time."""
+        """Render the frame the clock has reached (at the take's rate); frames that went
+        by while the last render ran are skipped, so playback keeps real time. The
+        session's frame (slider, caption, marker) steps when that frame's image is shown."""
         s = self.session
         if s.n <= 1 or self._inflight or self._scheduled:
             return
         start, first = self._clock
         frame = (first + int((time.perf_counter() - start) * s.fps)) % s.n
         if frame != s.frame:
-            s.frame = frame
+            self.render(frame)
 
     # ------------------------------------------------------------ rendering
 
@@ -181,12 +188,14 @@ class PreviewView:
 
             doc.add_next_tick_callback(run)
 
-    def _key(self) -> tuple:
+    def _key(self, frame: int | None = None) -> tuple:
         s = self.session
-        return (s.revision, s.inputs_revision, s.frame, self.camera.value, self.trails.value)
+        frame = s.frame if frame is None else frame
+        return (s.revision, s.inputs_revision, frame, self.camera.value, self.trails.value)
 
-    def render(self) -> bool:
-        """Render the current frame (full bodies and the hands close up); False (and a
+    def render(self, frame: int | None = None) -> bool:
+        """Render the current frame, or body frame ``frame`` (Play: the session steps to
+        it when its image is shown); full bodies and the hands close up. False (and a
         message) when it cannot.
 
         In a server session the render runs on a worker thread (hundreds of ms with a
@@ -197,10 +206,10 @@ class PreviewView:
         s = self.session
         if s.prepared is None or s.solution is None:
             return False
-        key = self._key()
+        key = self._key(frame)
         if key == self._rendered_key:
             return True
-        job = (s.prepared, s.solution, s.frame, self.camera.value, self.trails.value)
+        job = (s.prepared, s.solution, key[2], self.camera.value, self.trails.value)
         doc = pn.state.curdoc
         if doc is None or doc.session_context is None:
             if self._inflight:
@@ -211,9 +220,12 @@ class PreviewView:
             finally:
                 self._inflight = False
         if self._inflight:
-            self._again = True  # rendered when the one in flight is shown
+            if frame is None:
+                self._again = True  # rendered when the one in flight is shown
             return True
         self._inflight = True
+        if frame is not None:
+            self._played = key  # shown, it moves the session to its frame
         future = _RENDERS.submit(_render_images, *job, self.size, self.closeup_size)
 
         def done(f):
@@ -232,7 +244,17 @@ class PreviewView:
             result = future.result()
         except Exception as exc:  # the worker's own failure: shown like any other
             result = exc
-        self._show(key, result)
+        shown = self._show(key, result)
+        s = self.session
+        played, self._played = self._played, None
+        if (
+            shown
+            and key == played
+            and self.play.value
+            and not self._again  # nothing asked for meanwhile (a slider moved by hand)
+            and key[:2] == self._key()[:2]
+        ):
+            s.frame = key[2]  # a played frame: slider, caption and marker step with its image
         if self._again or key != self._key():
             self._again = False
             self.render()

@@ -45,7 +45,9 @@ class SharingView:
     TEXT = (
         "Download the spliced take (BVH, opens in Blender and MotionBuilder; or GLB: the "
         "skinned mannequin in 3D for Blender and browser glTF viewers), an animated "
-        "preview (GIF or MP4, a few seconds to render), or the session file. The link "
+        "preview (GIF or MP4 at the take's speed, up to 30 frames a second: the whole take, "
+        "or 10 s from the frame the preview shows; a bar follows the rendering), or the "
+        "session file. The link "
         "restores this exact state on this server: sample or uploaded files, parameters "
         "and matching points; so does opening a downloaded session file. The command line "
         "below redoes the same splice offline."
@@ -176,6 +178,14 @@ class SharingView:
             return None
         widget.filename = f"{s.output_stem()}.{fmt}"
         prepared, solution = s.prepared, s.solution  # this state, whatever is edited meanwhile
+        start = s.frame  # a long take's video starts at the frame the preview shows
+        try:
+            shown, fps = backend.video_frames(prepared.n, float(prepared.body.fps), start)
+        except Exception as exc:  # no takes open: shown in the page
+            self.message.object = safe_text.markdown(f"{what}: {backend.one_line(exc)}")
+            self.message.visible = True
+            return None
+        span = f"body frames {shown.start}–{shown[-1]} at {fps:.3g} fps"
         counts = {"done": 0, "total": 1}
         lock = threading.Lock()
 
@@ -188,7 +198,7 @@ class SharingView:
                 done, total = counts["done"], counts["total"]
             self.progress.value = int(100 * done / max(total, 1))
             step = "encoding" if done >= total - 1 else f"frame {done} of {total - 1}"
-            self.progress_text.object = f"{what}: rendering… {step}"
+            self.progress_text.object = f"{what} ({span}): rendering… {step}"
 
         self._exporting = True
         self.gif.disabled = self.mp4.disabled = True
@@ -198,7 +208,8 @@ class SharingView:
         t0 = time.perf_counter()
         loop = asyncio.get_running_loop()
         job = loop.run_in_executor(
-            _EXPORTS, lambda: backend.preview_video(prepared, solution, fmt, progress=progress)
+            _EXPORTS,
+            lambda: backend.preview_video(prepared, solution, fmt, progress=progress, start=start),
         )
         try:
             while True:
@@ -218,7 +229,8 @@ class SharingView:
         self.message.visible = False
         self.progress.value = 100
         self.progress_text.object = (
-            f"{what}: {len(data) / 1024:.0f} KiB in {time.perf_counter() - t0:.1f} s, downloading"
+            f"{what} ({span}): {len(data) / 1024:.0f} KiB in {time.perf_counter() - t0:.1f} s, "
+            "downloading"
         )
         return io.BytesIO(data)
 
