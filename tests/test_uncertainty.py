@@ -135,7 +135,8 @@ def test_a_point_at_its_true_frame_leaves_the_far_open_end_alone():
     frame = case.hand.fps / res.features.fps  # hand frames per body frame
     start = slice(0, n // 4)
     assert after[start].max() <= before[start].max() + frame
-    assert np.percentile(after, 95) < np.percentile(before, 95)
+    # (with the open-end band the end is usually right without the point: never worse)
+    assert np.percentile(after, 95) <= np.percentile(before, 95)
 
 
 def test_a_matching_point_inside_a_matched_hold_is_met_not_straightened_away():
