@@ -118,29 +118,37 @@ def _check_args(args: argparse.Namespace) -> None:
             raise ValueError(f"{what} {path.name}: expected a .bvh, .c3d or .trc file")
 
 
+def _closed_session_error(exc: BaseException | None) -> bool:
+    """A closed tab's late message: bokeh's ``assert self._session is not None`` in
+    ``ServerConnection.session``, raised when a message (or the close itself) arrives
+    after the tab's session was discarded. The tab is gone: nothing to handle, nothing a
+    user could act on."""
+    if not isinstance(exc, AssertionError):
+        return False
+    frames = traceback.extract_tb(exc.__traceback__)
+    last = frames[-1] if frames else None
+    return bool(last and last.name == "session" and last.filename.endswith("connection.py"))
+
+
 class _ClosedSessionMessages(logging.Filter):
-    """Bokeh logs "error handling message" with an ``AssertionError`` from
-    ``ServerConnection.session`` when a closed tab's last edit arrives after its session was
-    discarded (``assert self._session is not None``): the tab is gone, so there is nothing
-    to handle and nothing the user could act on. Every other message error is kept."""
+    """Drops the log records of a closed tab's late messages (:func:`_closed_session_error`),
+    whichever logger reports them (bokeh's "error handling message", tornado's uncaught
+    exception in a websocket callback); every other error is kept."""
 
     def filter(self, record: logging.LogRecord) -> bool:
-        exc = record.exc_info[1] if record.exc_info else None
-        if not isinstance(exc, AssertionError):
-            return True
-        frames = traceback.extract_tb(exc.__traceback__)
-        last = frames[-1] if frames else None
-        return not (last and last.name == "session" and last.filename.endswith("connection.py"))
+        return not _closed_session_error(record.exc_info[1] if record.exc_info else None)
 
 
 def _drop_closed_websocket_writes(loop, context: dict) -> None:
     """asyncio exception handler: a browser tab that closed while the server was still
     sending to it leaves un-awaited tornado write tasks failing with ``WebSocketClosedError``
-    (bokeh already logs a one-line warning for it); drop those, report everything else."""
+    (bokeh already logs a one-line warning for it), or a late message failing on its
+    discarded session; drop those, report everything else."""
     from tornado.iostream import StreamClosedError
     from tornado.websocket import WebSocketClosedError
 
-    if isinstance(context.get("exception"), WebSocketClosedError | StreamClosedError):
+    exc = context.get("exception")
+    if isinstance(exc, WebSocketClosedError | StreamClosedError) or _closed_session_error(exc):
         return
     loop.default_exception_handler(context)
 
@@ -206,7 +214,11 @@ def run(args: argparse.Namespace) -> int:
     try:
         server.start()
         server.io_loop.asyncio_loop.set_exception_handler(_drop_closed_websocket_writes)
-        logging.getLogger("bokeh.server.protocol_handler").addFilter(_ClosedSessionMessages())
+        closed = _ClosedSessionMessages()
+        for name in ("bokeh.server.protocol_handler", "tornado.application", "tornado.general"):
+            logging.getLogger(name).addFilter(closed)
+        for handler in logging.getLogger().handlers:  # records propagated from any logger
+            handler.addFilter(closed)
         server.io_loop.start()
     finally:
         server.stop()
