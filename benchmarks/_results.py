@@ -11,7 +11,7 @@ import re
 import time
 from pathlib import Path
 
-from engine.atomic import write_text
+from engine.base.atomic import write_text
 
 RESULTS = Path(__file__).with_name("RESULTS.md")
 HEADER = "# Benchmark results\n\nEach section is rewritten by the script named in it.\n"

@@ -75,7 +75,7 @@ def big_pair(folder: Path) -> tuple[int, int]:
     """Write the 2,000 x 2,001 pair and its samples.json into ``folder``."""
     from engine.io import load_take
     from engine.io.bvh import write_bvh
-    from engine.kinematics import resample
+    from engine.model.kinematics import resample
 
     body = load_take(MOCAP / "lafan1" / "dance1_subject1.bvh")
     write_bvh(resample(body, 60.0).frames(0, 2000), folder / "dance1_60fps_2000.bvh")

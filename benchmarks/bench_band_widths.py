@@ -71,7 +71,7 @@ def main(argv=None) -> int:
         "rate exp(σ·noise), 1 s correlation): largest distance from the diagonal, "
         f"seconds, over {seeds} warps per cell (median / max). Then the default pass-1 "
         "width W1 of `engine.dtw.constraints` (the paper's 0.30 of the take, or "
-        "1.5 s·√T when narrower, capped so that the band fits `engine.limits."
+        "1.5 s·√T when narrower, capped so that the band fits `engine.base.limits."
         "MAX_BAND_CELLS` less 10 %), its vertical reach Λ = W1·√2/2 (takes of equal length) "
         "and its band cells beside a 30 % band at 120 fps.",
         "",

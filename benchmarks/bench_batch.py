@@ -17,7 +17,7 @@ Measures
   the extra peak memory of the splice divided by the DTW band cells (pass 1 + pass 2)
   should stay about constant if memory is proportional to band area, and far below
   ``n * m`` cells.
-* **Batch throughput**: ``engine.batch.run_batch`` on 8 pairs (10 s LAFAN1-derived
+* **Batch throughput**: ``engine.jobs.batch.run_batch`` on 8 pairs (10 s LAFAN1-derived
   pairs at 120 fps, 1,200 x 1,200 frames, thumbnails rendered), 1 and 2 worker
   processes (embedded LocalCluster; cluster start-up included in the wall time).
 """
@@ -53,7 +53,7 @@ def make_pair(
     """Write ``body.bvh`` / ``hand.bvh`` of ``frames`` frames at 120 fps (module docstring)."""
     from benchmarks.split import MOCAP, add_fingers, make_hand_take
     from engine.io.bvh import read_bvh, write_bvh
-    from engine.kinematics import resample
+    from engine.model.kinematics import resample
 
     rng = np.random.default_rng(seed)
     take = resample(read_bvh(MOCAP / source), FPS)
@@ -217,7 +217,7 @@ def run_throughput(manifest: Path, workers: int, out: Path) -> dict:
     """One batch run on a fresh LocalCluster; start-up timed apart from the pairs."""
     from distributed import Client
 
-    from engine.batch import local_cluster, run_batch
+    from engine.jobs.batch import local_cluster, run_batch
 
     t0 = time.perf_counter()
     cluster = local_cluster(workers)
@@ -389,7 +389,7 @@ def report(runs: list[dict], throughput: list[dict], load: float, load_after: fl
         t = throughput
         lines += [
             "",
-            f"**Batch throughput** (`engine.batch.run_batch`, {t[0]['pairs']} pairs of 30 s "
+            f"**Batch throughput** (`engine.jobs.batch.run_batch`, {t[0]['pairs']} pairs of 30 s "
             f"LAFAN1-derived takes at 120 fps ({t[0]['frames']:,} x {t[0]['frames']:,} frames), "
             "both hands, BVH in and out, rendered thumbnails, embedded "
             "LocalCluster(processes=True, threads_per_worker=1)):",

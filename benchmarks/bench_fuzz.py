@@ -37,7 +37,7 @@ Failures, by kind:
   its declared outputs (temporary files, ``.bak``, an output written by a refused run),
   or an input modified.
 
-Cases run in forked runner processes (``engine.sandbox``: one per lane, kept between
+Cases run in forked runner processes (``engine.jobs.sandbox``: one per lane, kept between
 cases so numba compiles once, replaced after a limit). The resident size counts the
 interpreter, numpy, numba and everything compiled so far, as a CLI process would. The
 peak of every case is taken from ``VmHWM`` (reset per case through
@@ -556,7 +556,7 @@ def _snapshot(folder: Path) -> dict[str, bytes]:
 
 def run_case(case: dict) -> dict:
     """One case, in the runner process: returns {"outcome", "detail", "peak_mb"}."""
-    from engine.errors import HandSpliceError, MotionFormatError, ParameterError
+    from engine.base.errors import HandSpliceError, MotionFormatError, ParameterError
 
     folder = Path(case["folder"])
     inputs = _snapshot(folder)
@@ -585,7 +585,7 @@ def run_case(case: dict) -> dict:
 
                 expected = (SessionError,)
             elif target == "roles":
-                from engine.roles import load_role_overrides as call
+                from engine.model.roles import load_role_overrides as call
 
                 expected = (ParameterError,)
             elif target == "upload":
@@ -806,7 +806,7 @@ def _upload_available() -> bool:
 
 
 def run_in_lane(case: dict) -> dict:
-    from engine.sandbox import ChildFailed, LimitExceeded, run_limited
+    from engine.jobs.sandbox import ChildFailed, LimitExceeded, run_limited
 
     seconds = CLI_SECONDS if case["target"] == "cli" else READER_SECONDS
     t0 = time.monotonic()
@@ -825,7 +825,7 @@ def run_in_lane(case: dict) -> dict:
         res["detail"] = f"(file of {size} bytes) " + res["detail"]
     # a stopped case may leave its partial outputs only as stale temporaries: cleaned next
     if res["outcome"] in ("hang", "over 1 GB", "crash"):
-        from engine.atomic import clean_stale
+        from engine.base.atomic import clean_stale
 
         clean_stale(case["folder"])
     return res

@@ -8,7 +8,7 @@ Run: ``.venv/bin/python -m benchmarks.bench_splice_speed [--quick] [--no-10min]`
   transfer, warm, median of 10 calls. Goal < 50 ms.
 * **Pass-1 kernel**: ns per band cell of the pass-1 DTW (``splice_phase`` metric, its
   row kernel now) on the 2-minute pair's rows, 30 % band, beside today's per-cell
-  kernel (``engine/metrics.py`` as at ``long_pairs.BASELINE``, loaded from git) and a
+  kernel (``engine/align/metrics.py`` as at ``long_pairs.BASELINE``, loaded from git) and a
   plain DTW of 1-D features (the recurrence alone); same cost and path checked.
   CPU time (``thread_time``): the machine is shared, wall time is noise.
 * **2-minute and 10-minute pairs at 120 fps** (14,400 and 72,000 frames,
@@ -86,8 +86,8 @@ def make_pair(n: int, fps: float, seed: int = 0):
     """A LAFAN1 crop of ``n`` frames at ``fps`` split into (body, hand) (the short pair)."""
     from benchmarks.split import MOCAP, add_fingers, make_hand_take, strip_fingers
     from engine.io.bvh import read_bvh
-    from engine.kinematics import resample
-    from engine.roles import find_roles
+    from engine.model.kinematics import resample
+    from engine.model.roles import find_roles
 
     base = read_bvh(MOCAP / "lafan1/multipleActions1_subject1.bvh")
     if fps != base.fps:
@@ -133,9 +133,9 @@ def bench_short(reps: int) -> dict:
 
 
 def _old_metrics(ref: str = LP.BASELINE):
-    """engine/metrics.py as at ``ref``, imported as a separate module."""
+    """engine/align/metrics.py as at ``ref``, imported as a separate module."""
     src = subprocess.run(
-        ["git", "show", f"{ref}:engine/metrics.py"],
+        ["git", "show", f"{ref}:engine/align/metrics.py"],
         cwd=LP.ROOT,
         capture_output=True,
         text=True,
@@ -203,7 +203,7 @@ def bench_pass1_kernel(body_p, hand_p, reps: int) -> dict:
 def bench_pass2_kernel(body_p, hand_p, reps: int) -> dict:
     """ns per band cell of pass 2 (both solves' kind: the open-ends solve of the splice) on
     the pair's real pass-2 rows and band: the row kernel now, and the per-cell
-    ``splice_angle`` of ``engine/metrics.py`` as at :data:`PASS2_BASE` (its own rows);
+    ``splice_angle`` of ``engine/align/metrics.py`` as at :data:`PASS2_BASE` (its own rows);
     same path and cost checked."""
     from engine.dtw import align_features, register_metric
     from engine.io.bvh import read_bvh
@@ -277,7 +277,7 @@ def report_pass2(kernel, longs) -> str:
         "|---|---:|",
         f"| before: per-cell `splice_angle` (rotate by cross products, libm arccos) | "
         f"{k['ns']['old']:.1f} |",
-        f"| now: row kernel (`engine/angle_kernel.py`: dot products of per-frame vectors, "
+        f"| now: row kernel (`engine/align/angle_kernel.py`: dot products of per-frame vectors, "
         f"vectorised fdlibm arccos) | **{k['ns']['new']:.1f}** |",
         "",
         f"Now / before: **{k['ratio']:.2f}** (median of paired ratios); same path: "
@@ -324,7 +324,7 @@ def report_pass2(kernel, longs) -> str:
         "",
         "The 10-minute pair runs with a time band covering its true drift (±6 s, refine ±2 s), "
         "as in the runs before the default pass-1 band was capped to fit "
-        "`engine.limits.MAX_BAND_CELLS` (36.7 s = 438.8 M cells was refused; now 14.7 s).",
+        "`engine.base.limits.MAX_BAND_CELLS` (36.7 s = 438.8 M cells was refused; now 14.7 s).",
         "",
         "Goals (issue 13): 2-minute pair ≤ 1.0 s warm, peak ≤ 600 MB, median timing error ≤ 1 "
         "frame; 10-minute pair ≤ 10 s, peak ≤ 1.5 GB.",
@@ -385,7 +385,7 @@ def report(short, kernel, longs) -> str:
         "| kernel | ns per band cell |",
         "|---|---:|",
         f"| today: per-cell `splice_phase` (θ dot product + atan2 per cell) | {k['ns']['old']:.1f} |",
-        f"| now: row kernel (`engine/phase_kernel.py`) | **{k['ns']['new']:.1f}** |",
+        f"| now: row kernel (`engine/align/phase_kernel.py`) | **{k['ns']['new']:.1f}** |",
         f"| the DTW recurrence alone (1-D squared distance) | {k['ns']['dtw']:.1f} |",
         "",
         f"Now / today: **{k['ratio']:.3f}** (median of paired ratios); same path: "

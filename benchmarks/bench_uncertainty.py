@@ -29,7 +29,7 @@ from scipy.stats import spearmanr
 
 from benchmarks._results import write_section
 from benchmarks.bench_splice_accuracy import FAMILIES
-from engine.errors import ParameterError
+from engine.base.errors import ParameterError
 from engine.splice import pipeline as P
 from engine.splice import uncertainty as U
 from engine.trust import assess_splice

@@ -39,7 +39,7 @@ SOURCES = ("lafan1/multipleActions1_subject1.bvh", "lafan1/dance1_subject1.bvh")
 def _concatenate(parts):
     """Takes of one skeleton played one after another; each root continues (horizontally)
     from where the previous part stopped."""
-    from engine.motion import Motion
+    from engine.model.motion import Motion
 
     first = parts[0]
     sk = first.skeleton
@@ -60,8 +60,8 @@ def make_long_pair(seconds: float, fps: float = 120.0, seed: int = 0):
     """(body, hand, truth): takes of ``seconds`` at ``fps`` and the true hand frame
     ``(n,)`` of every body frame (see the module docstring)."""
     from engine.io.bvh import read_bvh
-    from engine.kinematics import resample
-    from engine.roles import find_roles
+    from engine.model.kinematics import resample
+    from engine.model.roles import find_roles
 
     try:
         from benchmarks.split import MOCAP, add_fingers, make_hand_take, strip_fingers

@@ -31,12 +31,12 @@ from pathlib import Path
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from engine import rotations as rot
-from engine.features import hand_frame
+from engine.align.features import hand_frame
 from engine.io.bvh import read_bvh
-from engine.kinematics import forward_kinematics, rest_positions, sample
-from engine.motion import Motion, Skeleton
-from engine.roles import FINGERS, find_roles
+from engine.model import rotations as rot
+from engine.model.kinematics import forward_kinematics, rest_positions, sample
+from engine.model.motion import Motion, Skeleton
+from engine.model.roles import FINGERS, find_roles
 
 #: the shared real captures beside the checkout (``HANDSPLICE_MOCAP`` overrides), as
 #: tests/conftest.py finds them; this bench lives in the repository, not the package

@@ -34,12 +34,12 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.split import MOCAP, Case, base_take, make_hand_take, strip_fingers, subset
-from engine.features import hand_frame
-from engine.hand_side import mirror_take
+from engine.align.features import hand_frame
 from engine.io.bvh import read_bvh
-from engine.kinematics import resample
-from engine.motion import Motion, Skeleton
-from engine.roles import FINGERS, find_roles
+from engine.model.hand_side import mirror_take
+from engine.model.kinematics import resample
+from engine.model.motion import Motion, Skeleton
+from engine.model.roles import FINGERS, find_roles
 from engine.splice import transfer as TR
 
 RIG_KINDS = ("left", "manipnet", "leap")

@@ -17,8 +17,8 @@ def turned_and_scaled(motion, yaw_deg: float = 90.0, shift=(3.0, 0.0, -2.0), uni
     """
     from dataclasses import replace
 
-    from engine import rotations as rot
-    from engine.motion import UNIT_TO_METERS, MotionMeta
+    from engine.model import rotations as rot
+    from engine.model.motion import UNIT_TO_METERS, MotionMeta
 
     up = np.zeros(3)
     up[2 if motion.meta.up_axis == "z" else 1] = 1.0

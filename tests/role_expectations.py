@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from engine.motion import Skeleton
+from engine.model.motion import Skeleton
 
 FINGERS = ("thumb", "index", "middle", "ring", "pinky")
 NO_FINGERS = {f: [] for f in FINGERS}

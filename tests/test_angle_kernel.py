@@ -1,4 +1,4 @@
-"""The pass-2 row kernel (engine/angle_kernel.py).
+"""The pass-2 row kernel (engine/align/angle_kernel.py).
 
 It must give exactly the per-cell ``splice_angle`` costs (so every view, report and the DTW
 agree), those must be eq. 9 (the rotation form that was the metric before the kernel, and
@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from benchmarks.split import make_case
-from engine import angle_kernel as AK
-from engine import metrics as M
+from engine.align import angle_kernel as AK
+from engine.align import metrics as M
 from engine.dtw import Aligner, Band, Ends, align_features
 from engine.splice import pipeline as P
 

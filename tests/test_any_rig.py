@@ -15,13 +15,13 @@ import pytest
 from conftest import MOCAP
 
 from benchmarks.split import strip_fingers
-from engine import rotations as rot
-from engine.errors import RoleError
-from engine.fastkin import forward_kinematics
-from engine.hand_side import geometric_side, mirror_take
+from engine.base.errors import RoleError
 from engine.io.bvh import format_bvh, read_bvh, write_bvh
-from engine.kinematics import sample
-from engine.roles import find_roles
+from engine.model import rotations as rot
+from engine.model.fastkin import forward_kinematics
+from engine.model.hand_side import geometric_side, mirror_take
+from engine.model.kinematics import sample
+from engine.model.roles import find_roles
 from engine.splice import pipeline as P
 from engine.splice import transfer as TR
 

@@ -13,7 +13,9 @@ from pathlib import Path
 import pytest
 from conftest import MOCAP
 
-from engine.batch import (
+from engine.cli import main
+from engine.io.bvh import read_bvh, write_bvh
+from engine.jobs.batch import (
     MARKER_DIR,
     ManifestError,
     PairJob,
@@ -22,8 +24,6 @@ from engine.batch import (
     read_manifest,
     run_pair,
 )
-from engine.cli import main
-from engine.io.bvh import read_bvh, write_bvh
 
 pytestmark = pytest.mark.timeout(300, method="thread")
 
@@ -262,7 +262,7 @@ def test_cli_manifest_error_is_one_line_exit_2(tmp_path, capsys):
 def one_worker_cluster():
     from distributed import Client
 
-    from engine.batch import local_cluster
+    from engine.jobs.batch import local_cluster
 
     # a task whose worker dies is failed at once (no retry): a quicker test
     cluster = local_cluster(1, config={"distributed.scheduler.allowed-failures": 0})
@@ -275,7 +275,7 @@ def one_worker_cluster():
 
 
 def test_scheduler_address_and_a_dying_worker(takes, tmp_path, capsys, one_worker_cluster):
-    from engine.batch import run_batch, splice_pair
+    from engine.jobs.batch import run_batch, splice_pair
 
     cluster, client = one_worker_cluster
     b = [f"bodies/{Path(n).name}" for n in BODIES]
@@ -333,6 +333,6 @@ def test_scheduler_address_and_a_dying_worker(takes, tmp_path, capsys, one_worke
     result = run_batch(manifest, out2, client=client, thumbnails="none", splice=splice_or_die)
     status = {r["name"]: r for r in result.records}
     assert status["dies"]["status"] == "failed", status["dies"]
-    # the pair's own process died (engine.sandbox); the worker lives on for the next pair
+    # the pair's own process died (engine.jobs.sandbox); the worker lives on for the next pair
     assert "process died (exit status 3)" in status["dies"]["error"], status["dies"]
     assert status["first"]["status"] == status["last"]["status"] == "done"

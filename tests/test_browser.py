@@ -306,7 +306,7 @@ def test_download_glb_is_the_spliced_take_in_3d(page, tmp_path):
     from test_glb import accessor, animated_world
 
     from engine.io.bvh import read_bvh
-    from engine.kinematics import forward_kinematics
+    from engine.model.kinematics import forward_kinematics
 
     saved = {}
     for name in ("glb", "bvh"):

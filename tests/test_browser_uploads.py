@@ -322,7 +322,9 @@ def test_opening_a_sample_clears_the_uploads(page, tmp_path):
     _upload(page, "hand", bad)
     page.locator(".hs-upload-error").wait_for(state="visible", timeout=BUSY_S * 1000)
     select = page.locator(".hs-sample select")
-    sample = [o for o in select.evaluate("s => [...s.options].map(o => o.value)") if "(" not in o][0]
+    sample = [o for o in select.evaluate("s => [...s.options].map(o => o.value)") if "(" not in o][
+        0
+    ]
     select.select_option(sample)
     page.locator(".hs-upload-error").wait_for(state="hidden", timeout=BUSY_S * 1000)
     deadline = time.monotonic() + BUSY_S

@@ -11,10 +11,10 @@ from conftest import MOCAP, mocap_files
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from engine import rotations as rot
-from engine.errors import MotionFormatError
+from engine.base.errors import MotionFormatError
 from engine.io.bvh import format_bvh, parse_bvh, read_bvh, write_bvh
-from engine.motion import Motion, MotionMeta, Skeleton
+from engine.model import rotations as rot
+from engine.model.motion import Motion, MotionMeta, Skeleton
 
 REAL = mocap_files("**/*.bvh")
 REAL_IDS = [str(p.relative_to(MOCAP)) for p in REAL]

@@ -118,7 +118,7 @@ def test_synthesize_poses_and_clip(tmp_path, capsys):
 
 def test_synthesize_grafts_fingers_onto_a_body_without_them(tmp_path, capsys):
     from engine.io.bvh import read_bvh
-    from engine.roles import find_roles
+    from engine.model.roles import find_roles
 
     out = tmp_path / "grafted.bvh"
     assert main(["synthesize", str(WAVE), "-o", str(out), "--poses", "relaxed@0", "fist@-1"]) == 0

@@ -80,9 +80,9 @@ def _cli(tmp, band, refine, points, capsys):
 
 
 def _manifest(tmp, band, refine, points, capsys):
-    from engine import batch
-    from engine.errors import HandSpliceError
+    from engine.base.errors import HandSpliceError
     from engine.io import load_take
+    from engine.jobs import batch
 
     text = "body,hand,side,band,refine_band,match\n" + ",".join(
         [str(BODY), str(HAND), "right", band or "", refine or "", ";".join(_point_text(points))]
@@ -218,8 +218,8 @@ def test_defaults_are_the_papers_fractions_on_short_takes_and_seconds_on_long():
     assert C.BAND.long_take_seconds(600.0) == 36.7
     assert C.REFINE_BAND.default_for(two_minutes, 120.0) == C.Width(2.0, C.SECONDS)
     # the default band of any long take fits the engine's cell limit (open ends included)
+    from engine.base.limits import MAX_BAND_CELLS
     from engine.dtw import Band
-    from engine.limits import MAX_BAND_CELLS
 
     for minutes, fps in ((10, 120.0), (30, 60.0), (5, 240.0)):
         n = int(minutes * 60 * fps)

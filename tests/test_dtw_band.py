@@ -8,8 +8,8 @@ import naive
 import numpy as np
 import pytest
 
+from engine.base.errors import ParameterError
 from engine.dtw import Band, align, check_path
-from engine.errors import ParameterError
 
 
 def test_sakoe_chiba_half_width_follows_method():

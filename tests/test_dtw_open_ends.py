@@ -6,9 +6,9 @@ import naive
 import numpy as np
 import pytest
 
+from engine.base.errors import ParameterError
 from engine.dtw import Aligner, Band, align, align_features
 from engine.dtw.align import Ends, check_ends
-from engine.errors import ParameterError
 
 
 def _random_case(rng, n, m, ties):

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from gesture_traj import REST, build, phrase_psh_r
 
-from engine.errors import MotionFormatError, ParameterError
+from engine.base.errors import MotionFormatError, ParameterError
 from engine.gesture.handedness import detect_handedness
 from engine.gesture.phases import GesturePhases, Phase, PhaseSegment, segment_trajectory
 from engine.io.eaf import (

@@ -9,13 +9,13 @@ import pytest
 from conftest import MOCAP
 
 from benchmarks.split import strip_fingers
-from engine import features as FE
-from engine import rotations as rot
-from engine.errors import RoleError
+from engine.align import features as FE
+from engine.base.errors import RoleError
 from engine.io import load_take
 from engine.io.bvh import read_bvh
-from engine.motion import Motion, Skeleton
-from engine.roles import find_roles
+from engine.model import rotations as rot
+from engine.model.motion import Motion, Skeleton
+from engine.model.roles import find_roles
 
 
 @pytest.fixture(scope="module")
@@ -135,7 +135,7 @@ def test_resample_points_keeps_the_duration():
     ],
 )
 def test_hand_frames_of_real_rigs(path, source):
-    from engine.roles import side_from_name
+    from engine.model.roles import side_from_name
 
     take = read_bvh(MOCAP / path)
     roles = find_roles(take.skeleton, side_hint=side_from_name(path))

@@ -40,12 +40,12 @@ from conftest import MOCAP
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-from engine.errors import HandSpliceError, MotionFormatError
+from engine.base.errors import HandSpliceError, MotionFormatError
 from engine.io import load_take
 from engine.io.bvh import parse_bvh, read_bvh
 from engine.io.session import SessionError, SessionSpec, from_query, parse_session
 from engine.io.trc import parse_trc
-from engine.motion import MarkerSet, Motion
+from engine.model.motion import MarkerSet, Motion
 
 pytestmark = pytest.mark.timeout(300, method="thread")
 
@@ -440,7 +440,7 @@ _CHILD = textwrap.dedent("""
     import json, struct, sys, traceback
     from pathlib import Path
     import numpy as np
-    from engine.errors import MotionFormatError
+    from engine.base.errors import MotionFormatError
     from engine.io.c3d import read_c3d
     path = Path(sys.argv[1])
     inp, out = sys.stdin.buffer, sys.stdout
@@ -776,7 +776,7 @@ _APP_VALUES = [
 def test_app_session_restores_any_link_or_refuses(app_session, query):
     """A shared link opens a session or is refused (HandSpliceError, KeyError, ValueError);
     the session stays usable either way."""
-    from engine.errors import HandSpliceError as Refused
+    from engine.base.errors import HandSpliceError as Refused
 
     with time_bound():
         try:

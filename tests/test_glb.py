@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 from conftest import ROOT, SAMPLE_DATA, mocap_files
 
-from engine import rotations as rot
 from engine.cli import main
 from engine.io.bvh import read_bvh
-from engine.kinematics import forward_kinematics
+from engine.model import rotations as rot
+from engine.model.kinematics import forward_kinematics
 
 JS = ROOT / "tests" / "js"
 BODY = SAMPLE_DATA / "bandai-namco" / "dataset-2_wave-right-hand_normal_001.bvh"  # cm, Y up
@@ -228,8 +228,8 @@ def test_glb_of_each_capture_family_validates_and_follows_fk(path, tmp_path):
     import pygltflib
 
     from engine.mesh.anatomy import find_anatomy
+    from engine.model.roles import side_from_name
     from engine.render.scene import display_transform
-    from engine.roles import side_from_name
 
     _js_ready()
     from playwright._impl._driver import compute_driver_executable

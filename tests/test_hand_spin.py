@@ -1,4 +1,4 @@
-"""Pass 2 of hand takes without a forearm: the hand's turning (issue 12, engine.hand_spin)."""
+"""Pass 2 of hand takes without a forearm: the hand's turning (issue 12, engine.align.hand_spin)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import pytest
 
 from benchmarks.split import Realism, _spiky
 from benchmarks.split_rigs import make_rig_case
-from engine import rotations as rot
-from engine.hand_spin import hand_spin, spin_rows
+from engine.align.hand_spin import hand_spin, spin_rows
+from engine.model import rotations as rot
 from engine.splice import merge as MG
 from engine.splice import pipeline as P
 

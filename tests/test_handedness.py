@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from gesture_traj import REST, build, phrase_psh_r
 
-from engine.errors import ParameterError
+from engine.base.errors import ParameterError
 from engine.gesture.handedness import (
     HandednessParameters,
     classify,

@@ -1,7 +1,7 @@
 """Issue 15 items 1, 3, 4, 7, 8, 9: hostile but fair input, case by case.
 
 1. small files that would exhaust memory are refused before anything is allocated
-   (``engine.limits``), and the issue's files stay under 1 GB at the command line;
+   (``engine.base.limits``), and the issue's files stay under 1 GB at the command line;
 3. bad input exits with status 2 and one line, never "internal error";
 4. outputs that belong together are replaced together; temporary files are removed on
    failure, SIGTERM and SIGINT, and stale ones of a killed run by the next; no ``.bak``;
@@ -28,9 +28,9 @@ import numpy as np
 import pytest
 from conftest import MOCAP, ROOT
 
-from engine import atomic, limits
+from engine.base import atomic, limits
+from engine.base.errors import HandSpliceError, MotionFormatError
 from engine.cli import main
-from engine.errors import HandSpliceError, MotionFormatError
 from engine.io.bvh import parse_bvh, read_bvh
 from engine.io.trc import parse_trc
 
@@ -316,7 +316,7 @@ def test_splice_replaces_bvh_and_report_together(tmp_path, capsys, monkeypatch):
 
 _WRITER = textwrap.dedent("""
     import sys, time
-    from engine import atomic
+    from engine.base import atomic
     atomic.handle_termination()
     folder = sys.argv[1]
     try:
@@ -552,13 +552,13 @@ def _greedy(body, hand, job):
 
 
 def _job(name: str):
-    from engine.batch import PairJob
+    from engine.jobs.batch import PairJob
 
     return PairJob(line=2, name=name, body=str(BODY), hand=str(HAND), side="right")
 
 
 def test_batch_pair_time_limit(tmp_path):
-    from engine.batch import run_pair
+    from engine.jobs.batch import run_pair
 
     t0 = time.monotonic()
     rec = run_pair(_job("slow"), tmp_path, "none", _sleepy, seconds=2, memory_mb=0)
@@ -568,7 +568,7 @@ def test_batch_pair_time_limit(tmp_path):
 
 
 def test_batch_pair_memory_limit(tmp_path):
-    from engine.batch import run_pair
+    from engine.jobs.batch import run_pair
 
     rec = run_pair(_job("greedy"), tmp_path, "none", _greedy, seconds=60, memory_mb=300)
     assert rec["status"] == "failed" and "memory limit of 300 MB" in rec["error"], rec
@@ -578,7 +578,7 @@ def test_batch_pair_memory_limit(tmp_path):
 
 
 def test_batch_summary_grows_as_pairs_finish(tmp_path, monkeypatch):
-    from engine import batch
+    from engine.jobs import batch
 
     manifest = tmp_path / "m.csv"
     manifest.write_text(

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.ndimage import uniform_filter
 
-from engine.errors import ParameterError
+from engine.base.errors import ParameterError
 from engine.gesture.keyposes import (
     KeyPoseParameters,
     find_key_poses,

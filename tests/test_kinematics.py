@@ -8,16 +8,16 @@ import numpy as np
 import pytest
 from conftest import MOCAP
 
-from engine import rotations as rot
 from engine.io.bvh import parse_bvh, read_bvh
-from engine.kinematics import (
+from engine.model import rotations as rot
+from engine.model.kinematics import (
     end_site_positions,
     forward_kinematics,
     resample,
     rest_positions,
     sample,
 )
-from engine.motion import Motion, Skeleton
+from engine.model.motion import Motion, Skeleton
 
 ORDERS = ["XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX"]
 

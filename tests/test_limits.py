@@ -20,8 +20,8 @@ import numpy as np
 import pytest
 from conftest import MOCAP, ROOT
 
-from engine import limits
-from engine.errors import HandSpliceError
+from engine.base import limits
+from engine.base.errors import HandSpliceError
 from engine.io import bvh as bvh_io
 from engine.io import c3d as c3d_io
 from engine.io import load_take

@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 from conftest import MOCAP
 
-from engine.errors import MotionFormatError
+from engine.base.errors import MotionFormatError
 from engine.io import load_take, take_format
 from engine.io.c3d import parse_c3d, read_c3d
 from engine.io.trc import parse_trc, read_trc
-from engine.motion import MarkerSet, Motion
+from engine.model.motion import MarkerSet, Motion
 
 C3D_FILE = MOCAP / "pyomeca/markers_analogs.c3d"
 TRC_FILE = MOCAP / "pyomeca/markers.trc"

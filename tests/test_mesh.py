@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 from conftest import mocap_files
 
-from engine import rotations as rot
 from engine.io.bvh import read_bvh
-from engine.kinematics import forward_kinematics
 from engine.mesh import bind_mesh, build_mannequin, find_anatomy, load_mesh, mannequin_for
 from engine.mesh.bind import MeshFormatError
-from engine.motion import Motion, MotionMeta, Skeleton
-from engine.roles import side_from_name
+from engine.model import rotations as rot
+from engine.model.kinematics import forward_kinematics
+from engine.model.motion import Motion, MotionMeta, Skeleton
+from engine.model.roles import side_from_name
 
 ALL_BVH = mocap_files()
 FINGERS = ("thumb", "index", "middle", "ring", "pinky")

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from conftest import MOCAP
 
+from engine.base.errors import ParameterError
 from engine.dtw import metric_names, register_metric
-from engine.errors import ParameterError
 from engine.io.bvh import read_bvh
 from engine.splice import pipeline as P
 

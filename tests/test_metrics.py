@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from engine import metrics as M
-from engine import rotations as rot
+from engine.align import metrics as M
+from engine.model import rotations as rot
 
 
 def _arm_markers(frames: int, rng: np.random.Generator, arms: int = 1) -> np.ndarray:
@@ -224,7 +224,7 @@ def test_two_arms_sum():
 
 
 def test_bad_inputs_raise():
-    from engine.errors import ParameterError
+    from engine.base.errors import ParameterError
 
     with pytest.raises(ParameterError, match="4\\*arms"):
         M.phase_features(np.zeros((10, 3, 3)), 30.0)
@@ -252,9 +252,9 @@ def test_packed_rotated_codes_equal_the_numpy_ones():
 def test_fast_kinematics_match_the_reference():
     from conftest import MOCAP
 
-    from engine import fastkin
     from engine.io.bvh import read_bvh
-    from engine.kinematics import forward_kinematics
+    from engine.model import fastkin
+    from engine.model.kinematics import forward_kinematics
 
     take = read_bvh(MOCAP / "beat/1_wayne_0_1_1.bvh")
     p0, r0 = forward_kinematics(take)

@@ -1,4 +1,4 @@
-"""The pass-1 row kernel (engine/phase_kernel.py) and the memory-bounded feature/transfer paths.
+"""The pass-1 row kernel (engine/align/phase_kernel.py) and the memory-bounded feature/transfer paths.
 
 The row kernel must give exactly the per-cell ``splice_phase`` costs (so the DTW path is the
 same), and those must be eq. 6 with θ quantised (the dense numpy reference), except where
@@ -13,8 +13,8 @@ import pytest
 from naive import dtw_banded
 
 from benchmarks.split import make_case
-from engine import metrics as M
-from engine import phase_kernel as PK
+from engine.align import metrics as M
+from engine.align import phase_kernel as PK
 from engine.dtw import Aligner, Band, align_features
 from engine.splice import pipeline as P
 from engine.splice import transfer as TR
@@ -128,8 +128,8 @@ def test_popcount_and_theta_bins():
 
 
 def test_take_markers_by_blocks_equal_the_whole_take(case):
-    from engine.features import hand_frame, motion_markers, skeleton_yaw, take_markers
-    from engine.roles import find_roles
+    from engine.align.features import hand_frame, motion_markers, skeleton_yaw, take_markers
+    from engine.model.roles import find_roles
 
     hand = case.hand
     roles = find_roles(hand.skeleton)
@@ -139,7 +139,7 @@ def test_take_markers_by_blocks_equal_the_whole_take(case):
         ref = motion_markers(hand, s, roles, fps=30.0, frame=frames[s]).markers
         assert np.array_equal(mk[s], ref)
     assert np.array_equal(yaw, skeleton_yaw(hand, roles))
-    from engine.fastkin import forward_kinematics
+    from engine.model.fastkin import forward_kinematics
 
     assert np.array_equal(rots, forward_kinematics(hand)[1])
 
@@ -151,7 +151,7 @@ def test_transfer_by_blocks_equals_one_block(case, feats, monkeypatch):
     blocks = P.transfer(feats, res)
     assert np.array_equal(whole.rotations, blocks.rotations)
     assert np.array_equal(whole.translations, blocks.translations)
-    from engine.fastkin import continuous
+    from engine.model.fastkin import continuous
 
     q = np.random.default_rng(2).standard_normal((40, 3, 4))
     ref = continuous(q)
@@ -172,8 +172,8 @@ def test_rows_of_every_other_frame_fall_back_to_the_per_cell_metric(feats):
 
 
 def test_fast_sampling_and_normalising_match_the_numpy_ones(case):
-    from engine import kinematics, rotations
-    from engine.fastkin import normalize_inplace, sample
+    from engine.model import kinematics, rotations
+    from engine.model.fastkin import normalize_inplace, sample
 
     hand = case.hand
     t = np.r_[-1.0, np.linspace(0, hand.n_frames - 1, 301), hand.n_frames + 3.5]

@@ -7,7 +7,7 @@ import pytest
 from conftest import MOCAP
 from gesture_traj import REST, build, phrase_psh_r
 
-from engine.errors import ParameterError
+from engine.base.errors import ParameterError
 from engine.gesture.phases import (
     Phase,
     PhaseParameters,

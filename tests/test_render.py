@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 from conftest import MOCAP, ROOT, mocap_files
 
-from engine import rotations as rot
 from engine.io.bvh import read_bvh
+from engine.model import rotations as rot
+from engine.model.roles import find_roles
 from engine.render import Preview, render_to_file
 from engine.render.backend import RenderBackendError, ensure_platform
 from engine.render.offscreen import BACKGROUND
-from engine.roles import find_roles
 
 ALL_BVH = mocap_files()
 BEAT = MOCAP / "beat" / "1_wayne_0_1_1.bvh"
@@ -153,7 +153,7 @@ def test_trails_are_coloured_by_phase():
 
 
 def test_bad_parameters_raise(beat_preview):
-    from engine.errors import ParameterError
+    from engine.base.errors import ParameterError
 
     with pytest.raises(ParameterError, match="view"):
         beat_preview.frame(0, view="panorama")
@@ -301,7 +301,7 @@ def test_z_up_metres_and_y_up_centimetres_render_alike():
     """The same motion written Y-up in cm and Z-up in m gives the same picture."""
     from test_mesh import humanoid
 
-    from engine.motion import Motion, MotionMeta, Skeleton
+    from engine.model.motion import Motion, MotionMeta, Skeleton
 
     sk = humanoid()
     rng = np.random.default_rng(4)

@@ -9,11 +9,11 @@ import pytest
 from conftest import mocap_files
 from role_expectations import FINGERS, body_rig, expected_roles, rig
 
-from engine import rotations as rot
-from engine.errors import ParameterError, RoleError
+from engine.base.errors import ParameterError, RoleError
 from engine.io.bvh import read_bvh
-from engine.kinematics import forward_kinematics
-from engine.roles import (
+from engine.model import rotations as rot
+from engine.model.kinematics import forward_kinematics
+from engine.model.roles import (
     MARKER_ROLES,
     ROLE_NAMES,
     find_marker_roles,

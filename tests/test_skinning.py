@@ -7,8 +7,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from engine import rotations as rot
-from engine.kinematics import forward_kinematics, rest_positions
 from engine.mesh.skinning import (
     Bones,
     SkinnedMesh,
@@ -18,7 +16,9 @@ from engine.mesh.skinning import (
     two_bone_weights,
     vertex_normals,
 )
-from engine.motion import Motion, Skeleton
+from engine.model import rotations as rot
+from engine.model.kinematics import forward_kinematics, rest_positions
+from engine.model.motion import Motion, Skeleton
 
 
 def chain_skeleton(bend_deg: float = 0.0) -> Skeleton:

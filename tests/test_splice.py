@@ -9,10 +9,10 @@ import pytest
 from conftest import MOCAP
 
 from benchmarks.split import finger_error, finger_pairs, make_case
-from engine import rotations as rot
-from engine.errors import ParameterError, RoleError
+from engine.base.errors import ParameterError, RoleError
 from engine.io.bvh import read_bvh, write_bvh
-from engine.roles import find_roles
+from engine.model import rotations as rot
+from engine.model.roles import find_roles
 from engine.splice import merge as MG
 from engine.splice import pipeline as P
 from engine.splice.report import build_report, dumps

@@ -9,7 +9,7 @@ from conftest import MOCAP
 
 from engine.cli import main
 from engine.io.bvh import read_bvh
-from engine.roles import find_roles
+from engine.model.roles import find_roles
 
 BODY = MOCAP / "bandai-namco/dataset-2_wave-right-hand_normal_001.bvh"
 HAND = MOCAP / "gestification/hello-world.bvh"

@@ -15,7 +15,7 @@ import pytest
 from conftest import mocap_files
 
 from engine.io.bvh import format_bvh, parse_bvh, read_bvh
-from engine.roles import find_roles, side_from_name
+from engine.model.roles import find_roles, side_from_name
 from engine.splice import pipeline as P
 
 CROP_S = 2.5

@@ -100,9 +100,9 @@ def test_app_shades_the_unmatched_ends():
 
 
 def test_pass1_row_kernel_with_open_ends_equals_the_cost_matrix():
-    """The pass-1 row kernel (engine.phase_kernel) honours open ends exactly as the plain
+    """The pass-1 row kernel (engine.align.phase_kernel) honours open ends exactly as the plain
     kernels do on the tabulated local costs."""
-    from engine import metrics as M
+    from engine.align import metrics as M
     from engine.dtw import Band, Ends, align, align_features
 
     case = make_case("bandai", 4)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from conftest import MOCAP
 
-from engine.errors import ParameterError
+from engine.base.errors import ParameterError
 from engine.gesture.synthesis import (
     DIP_PER_PIP,
     EASINGS,
@@ -161,8 +161,8 @@ def beat():
 
 
 def _tips_in_wrist_frame(motion, rig):
-    from engine import rotations as rot
-    from engine.kinematics import forward_kinematics
+    from engine.model import rotations as rot
+    from engine.model.kinematics import forward_kinematics
 
     pos, wrot = forward_kinematics(motion)
     last = [int(rig.joints[f][rig.joints[f] >= 0][-1]) for f in range(5)]
@@ -222,7 +222,7 @@ def test_pose_synthesis_is_smooth_and_coupled(beat, easing):
 
 
 def test_finger_less_bodies_get_grafted_fingers():
-    from engine.errors import RoleError
+    from engine.base.errors import RoleError
     from engine.gesture.synthesis import (
         extract_flexion,
         graft_fingers,
@@ -230,8 +230,8 @@ def test_finger_less_bodies_get_grafted_fingers():
         synthesize_from_poses,
     )
     from engine.io.bvh import read_bvh
-    from engine.kinematics import forward_kinematics
-    from engine.roles import find_roles
+    from engine.model.kinematics import forward_kinematics
+    from engine.model.roles import find_roles
 
     body = read_bvh(MOCAP / "bandai-namco" / "dataset-2_wave-right-hand_normal_001.bvh").frames(
         0, 40
@@ -273,7 +273,7 @@ def test_clip_synthesis_matches_speed_and_end_poses(beat):
         synthesize_from_clip,
     )
     from engine.io.bvh import read_bvh
-    from engine.roles import find_roles
+    from engine.model.roles import find_roles
 
     clip = read_bvh(CLENCH)
     clip_rig = hand_rig(clip.skeleton, "right", find_roles(clip.skeleton))

@@ -8,7 +8,7 @@ from urllib.parse import parse_qsl, urlsplit
 import numpy as np
 import pytest
 
-from engine.errors import HandSpliceError
+from engine.base.errors import HandSpliceError
 from engine.io.session import MatchPoint, SessionError
 from webapp import backend, config, uploads
 from webapp.state import Session, page_words
@@ -286,7 +286,7 @@ def test_upload_folder_problems_are_one_line_upload_errors(cfg, tmp_path, monkey
 def test_upload_limit_has_one_source():
     import argparse
 
-    from engine.limits import MAX_UPLOAD_BYTES
+    from engine.base.limits import MAX_UPLOAD_BYTES
     from webapp import serve_cli as serve
 
     assert config.AppConfig().max_upload_bytes == MAX_UPLOAD_BYTES
@@ -696,7 +696,7 @@ def test_points_table_shows_whole_frames_times_and_the_global_tolerance(session)
 
 
 def test_page_errors_use_the_pages_words():
-    from engine.errors import RoleError
+    from engine.base.errors import RoleError
 
     text = backend.one_line(
         RoleError("h.bvh has no left hand (hands found: right); try --side right")

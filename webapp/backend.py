@@ -25,8 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from engine import tolerances as T
-from engine.errors import HandSpliceError
+from engine.base import tolerances as T
+from engine.base.errors import HandSpliceError
 
 #: command-line wording in engine messages -> what the page calls the same control
 _PAGE_WORDS = (
@@ -141,7 +141,7 @@ _PREPARED_LIMIT = 4
 #: pass-1 local costs are tabulated once per pair up to this many cells (8 bytes each):
 #: a drag then re-solves from the table (a few ns per cell) instead of evaluating the
 #: sign metric with its θ (eq. 7) per cell (tens of ns)
-DENSE_PASS1_MAX_CELLS = T.DENSE_PASS1_MAX_CELLS  # engine.tolerances: every cell budget
+DENSE_PASS1_MAX_CELLS = T.DENSE_PASS1_MAX_CELLS  # engine.base.tolerances: every cell budget
 _PREPARE_LOCK = threading.Lock()
 
 
@@ -480,8 +480,8 @@ def _marker_body_frame(
 ) -> np.ndarray:
     """Body markers (a third of the width, the aligned arm highlighted) | hand take |
     hand retimed to the body."""
+    from engine.model.roles import find_marker_roles
     from engine.render.markers import marker_image
-    from engine.roles import find_marker_roles
 
     w, h = size
     left = w // 3
@@ -573,9 +573,7 @@ def preview_video(
         raise HandSpliceError("no takes loaded")
     if fmt not in ("gif", "mp4"):
         raise ValueError(f"format: expected gif or mp4, got {fmt!r}")
-    indices, fps = video_frames(
-        prepared.n, float(prepared.body.fps), start, max_frames=max_frames
-    )
+    indices, fps = video_frames(prepared.n, float(prepared.body.fps), start, max_frames=max_frames)
     total = len(indices) + 1  # + encoding
     frames = []
     for done, i in enumerate(indices, 1):

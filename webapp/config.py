@@ -11,7 +11,7 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from engine.limits import MAX_UPLOAD_BYTES
+from engine.base.limits import MAX_UPLOAD_BYTES
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE_DIR = ROOT / "sample_data"

@@ -18,7 +18,7 @@ import logging
 import traceback
 from pathlib import Path
 
-from engine.limits import MAX_SESSION_BYTES, MAX_UPLOAD_BYTES
+from engine.base.limits import MAX_SESSION_BYTES, MAX_UPLOAD_BYTES
 
 #: the largest websocket message the server accepts: an upload chunk (4 MiB) or a
 #: session file sent whole (base64: 4/3 of MAX_SESSION_BYTES), with room to spare
@@ -88,7 +88,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         type=float,
         default=MAX_UPLOAD_BYTES / 2**20,
         help="largest accepted upload in MiB (default "
-        f"{MAX_UPLOAD_BYTES / 2**20:g}, engine.limits.MAX_UPLOAD_BYTES)",
+        f"{MAX_UPLOAD_BYTES / 2**20:g}, engine.base.limits.MAX_UPLOAD_BYTES)",
     )
     p.add_argument(
         "--no-warm",

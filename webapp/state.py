@@ -22,8 +22,8 @@ from urllib.parse import urlencode
 import numpy as np
 import param
 
+from engine.base.errors import HandSpliceError
 from engine.dtw import constraints as C
-from engine.errors import HandSpliceError
 from engine.io import session as session_io
 from engine.io.session import MatchPoint, SessionSpec, TakeRef
 from webapp import backend, config

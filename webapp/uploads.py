@@ -30,7 +30,7 @@ import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from engine.errors import HandSpliceError
+from engine.base.errors import HandSpliceError
 from webapp.config import AppConfig
 
 EXTENSIONS = (".bvh", ".c3d", ".trc")
@@ -313,7 +313,7 @@ def _child_read(path: str, memory: int, conn) -> None:  # runs in the child proc
         pass
     try:
         from engine.io import load_take
-        from engine.motion import MarkerSet
+        from engine.model.motion import MarkerSet
 
         take = load_take(path)
         if isinstance(take, MarkerSet):

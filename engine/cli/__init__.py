@@ -6,7 +6,7 @@ pyrender, panel) stay inside ``run`` so ``handsplice info`` starts fast.
 
 Errors: a ``HandSpliceError`` / ``ValueError`` / ``OSError`` is bad input and
 prints one line ``handsplice: error: ...`` with exit status 2, as do ``MemoryError``
-and ``RecursionError`` (input beyond what ``engine.limits`` refuses up front, one line,
+and ``RecursionError`` (input beyond what ``engine.base.limits`` refuses up front, one line,
 never a traceback); anything else is
 a bug, printed on one line with exit status 1 (``--debug`` shows the traceback).
 """
@@ -18,7 +18,7 @@ import importlib
 import sys
 
 from engine import __version__
-from engine.errors import HandSpliceError
+from engine.base.errors import HandSpliceError
 
 # module names under engine.cli, in the order shown by --help
 SUBCOMMANDS = ["info", "splice", "analyze", "synthesize", "render", "batch"]
@@ -57,7 +57,7 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help(sys.stderr)
         return 2
-    from engine.atomic import Terminated, handle_termination
+    from engine.base.atomic import Terminated, handle_termination
 
     if args.command != "serve":  # the server keeps its own signal handling (tornado)
         handle_termination()  # SIGTERM unwinds like Ctrl-C: temporary outputs are removed
@@ -75,7 +75,7 @@ def main(argv: list[str] | None = None) -> int:
             msg = f"{exc.filename}: {exc.strerror or msg}"
         print(f"handsplice: error: {msg}", file=sys.stderr)
         return 2
-    except (MemoryError, RecursionError) as exc:  # input beyond what engine.limits foresaw
+    except (MemoryError, RecursionError) as exc:  # input beyond what engine.base.limits foresaw
         if args.debug:
             raise
         what = "memory" if isinstance(exc, MemoryError) else "nesting depth"

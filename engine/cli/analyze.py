@@ -55,13 +55,13 @@ def run(args: argparse.Namespace) -> int:
     import json
     from dataclasses import replace
 
-    from engine.errors import MotionFormatError
+    from engine.base.errors import MotionFormatError
     from engine.gesture.analysis import analyze_take, summary_lines
     from engine.gesture.body import find_arms
     from engine.gesture.handedness import HandednessParameters
     from engine.gesture.phases import PhaseParameters
     from engine.io import load_take
-    from engine.motion import Motion
+    from engine.model.motion import Motion
 
     take = load_take(args.file)
     if not isinstance(take, Motion):
@@ -80,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
     params = replace(params, **changes)
     overrides = None
     if args.roles:
-        from engine.roles import load_role_overrides
+        from engine.model.roles import load_role_overrides
 
         overrides = load_role_overrides(args.roles)
     arms = find_arms(take.skeleton, overrides)

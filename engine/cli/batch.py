@@ -6,7 +6,7 @@ scheduler), with a progress line per pair on stderr, and writes per pair the
 spliced BVH, its report and a thumbnail; ``summary.csv`` grows as pairs finish, and
 ``index.html`` comes at the end. Each pair runs under a time and a memory limit
 (``--pair-seconds``, ``--pair-memory-mb``); a pair beyond them is stopped and failed.
-Re-running skips finished pairs. See :mod:`engine.batch` for the manifest format.
+Re-running skips finished pairs. See :mod:`engine.jobs.batch` for the manifest format.
 
 Exit status: 0 when every pair is done or skipped, 3 when the batch finished but
 some pairs failed (listed in the summary), 2 for a malformed manifest or option.
@@ -18,7 +18,7 @@ import argparse
 import os
 import sys
 
-from engine.limits import PAIR_MEMORY_MB, PAIR_SECONDS
+from engine.base.limits import PAIR_MEMORY_MB, PAIR_SECONDS
 
 EXIT_PAIRS_FAILED = 3
 
@@ -77,8 +77,8 @@ def add_parser(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from engine.batch import run_batch
-    from engine.errors import ParameterError
+    from engine.base.errors import ParameterError
+    from engine.jobs.batch import run_batch
 
     workers = args.workers
     if workers is None:

@@ -46,17 +46,17 @@ def add_parser(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from engine.io import load_take
-    from engine.motion import MarkerSet
+    from engine.model.motion import MarkerSet
 
     overrides = None
     if args.roles:
-        from engine.roles import load_role_overrides
+        from engine.model.roles import load_role_overrides
 
         overrides = load_role_overrides(args.roles)
     take = load_take(args.file)
     if isinstance(take, MarkerSet):
         if overrides:
-            from engine.errors import ParameterError
+            from engine.base.errors import ParameterError
 
             raise ParameterError(
                 f"--roles applies to skeletal takes (.bvh); {args.file} holds markers"
@@ -74,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
 
 def describe_motion(motion, path, overrides=None, side=None) -> dict:
     """The ``info`` report of a skeletal take as a JSON-ready dict."""
-    from engine.roles import SIDES, find_roles, side_from_name
+    from engine.model.roles import SIDES, find_roles, side_from_name
 
     hint = side or side_from_name(path)
     roles = find_roles(motion.skeleton, overrides=overrides, side_hint=hint)
@@ -97,7 +97,7 @@ def describe_markers(markers, path, side=None) -> dict:
     """The ``info`` report of a marker take (C3D, TRC) as a JSON-ready dict."""
     import numpy as np
 
-    from engine.roles import SIDES, find_marker_roles, side_from_name
+    from engine.model.roles import SIDES, find_marker_roles, side_from_name
 
     roles = find_marker_roles(markers.labels, side_hint=side or side_from_name(path))
 

@@ -81,7 +81,7 @@ def add_parser(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from engine.errors import ParameterError
+    from engine.base.errors import ParameterError
     from engine.render.offscreen import parse_size
     from engine.render.video import FORMATS, frame_range, progress_printer, render_to_file
 
@@ -135,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _export_glb(args: argparse.Namespace, out) -> int:
     """``-o OUT.glb``: the take in 3D; the picture options do not apply."""
-    from engine.errors import ParameterError
+    from engine.base.errors import ParameterError
     from engine.export.glb import write_glb
     from engine.render.video import frame_range
 
@@ -162,9 +162,9 @@ def _export_glb(args: argparse.Namespace, out) -> int:
 
 
 def _load(path: str):
-    from engine.errors import ParameterError
+    from engine.base.errors import ParameterError
     from engine.io import load_take
-    from engine.motion import Motion
+    from engine.model.motion import Motion
 
     take = load_take(path)
     if not isinstance(take, Motion):
@@ -177,7 +177,7 @@ def _load(path: str):
 def _roles(args, motion):
     if not (args.roles or args.side):
         return None
-    from engine.roles import find_roles, load_role_overrides, side_from_name
+    from engine.model.roles import find_roles, load_role_overrides, side_from_name
 
     overrides = load_role_overrides(args.roles) if args.roles else None
     hint = args.side or side_from_name(args.file)
@@ -186,7 +186,7 @@ def _roles(args, motion):
 
 def _phases(motion):
     """Gesture phases of a body take for the trail colours, or None (per-hand colours)."""
-    from engine.errors import HandSpliceError
+    from engine.base.errors import HandSpliceError
 
     try:
         from engine.gesture.phases import segment_phases

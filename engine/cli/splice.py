@@ -112,8 +112,8 @@ def add_parser(subparsers) -> None:
 
 def split_roles(mapping: dict, body, hand) -> tuple[dict | None, dict | None]:
     """Role overrides per take from a ``--roles`` map (see the module docstring)."""
-    from engine.errors import ParameterError
-    from engine.roles import normalize_overrides
+    from engine.base.errors import ParameterError
+    from engine.model.roles import normalize_overrides
 
     if not isinstance(mapping, dict):
         raise ParameterError("--roles: expected a JSON object")
@@ -158,9 +158,9 @@ class _Progress:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from engine.atomic import write_texts
+    from engine.base.atomic import write_texts
+    from engine.base.errors import ParameterError
     from engine.dtw import constraints as C
-    from engine.errors import ParameterError
     from engine.io import load_take
     from engine.io.bvh import format_bvh
     from engine.splice import pipeline
@@ -195,7 +195,7 @@ def run(args: argparse.Namespace) -> int:
     pipeline.require_skeletal(body, hand)
     body_roles = hand_roles = None
     if args.roles:
-        from engine.roles import read_roles_json
+        from engine.model.roles import read_roles_json
 
         mapping = read_roles_json(args.roles)
         body_roles, hand_roles = split_roles(mapping, body, hand)
@@ -258,7 +258,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _preview(motion, path: str, quiet: bool) -> None:
-    from engine.errors import HandSpliceError
+    from engine.base.errors import HandSpliceError
 
     try:
         from engine.render.offscreen import Preview

@@ -58,11 +58,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from engine.errors import MotionFormatError, ParameterError
+    from engine.base.errors import MotionFormatError, ParameterError
     from engine.gesture.synthesis import synthesize_from_clip, synthesize_from_poses
     from engine.io import load_take
     from engine.io.bvh import write_bvh
-    from engine.motion import Motion
+    from engine.model.motion import Motion
 
     body = load_take(args.body)
     if not isinstance(body, Motion):

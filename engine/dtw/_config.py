@@ -1,7 +1,7 @@
-"""Numba options of the DTW kernels: :mod:`engine.jit` (the one place for every kernel)."""
+"""Numba options of the DTW kernels: :mod:`engine.base.jit` (the one place for every kernel)."""
 
 from __future__ import annotations
 
-from engine.jit import FASTMATH, JIT, JIT_CACHED, njit, njit_cached
+from engine.base.jit import FASTMATH, JIT, JIT_CACHED, njit, njit_cached
 
 __all__ = ["FASTMATH", "JIT", "JIT_CACHED", "njit", "njit_cached"]

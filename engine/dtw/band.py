@@ -32,9 +32,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from engine.base.errors import ParameterError
 from engine.dtw.constraints import EPS as _EPS
 from engine.dtw.constraints import check_points, half_width
-from engine.errors import ParameterError
 
 
 def _as_count(value, name: str) -> int:

@@ -40,9 +40,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from engine.errors import ParameterError
-from engine.limits import MAX_BAND_CELLS
-from engine.tolerances import FRAME_EPS
+from engine.base.errors import ParameterError
+from engine.base.limits import MAX_BAND_CELLS
+from engine.base.tolerances import FRAME_EPS
 
 # slack when rounding tolerances and band edges computed in floating point
 EPS = FRAME_EPS
@@ -60,7 +60,7 @@ DRIFT_NOTE = (
     "half-width (about W1 / sqrt 2 when both takes last about as long) is then 11.6 s at "
     "2 min and 26 s at 10 min, 1.5x and 1.2x the worst drift, with half the cells of a "
     "30 % band at 2 minutes and a fifth at 10. W1 is capped so that its band keeps within "
-    "the engine's cell limit (engine.limits.MAX_BAND_CELLS, less 10 %): 14.7 s at 10 "
+    "the engine's cell limit (engine.base.limits.MAX_BAND_CELLS, less 10 %): 14.7 s at 10 "
     "minutes and 120 fps (vertical half-width 10.4 s: 1.0x the worst drift at sigma 0.15, "
     "1.05x the median and 0.5x the worst at sigma 0.3), the widest band the engine accepts "
     "there; takes that drift more must be spliced in parts (or the limit raised). "

@@ -643,7 +643,7 @@ class Metric:
     kind: int = -1
     #: optional row kernel: ``prepare(a, b) -> state`` once per problem, then
     #: ``forward(state, lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col,
-    #: last_row)`` as the ``forward_*`` kernels (open ends included); must give exactly ``cell``'s costs (see engine.phase_kernel)
+    #: last_row)`` as the ``forward_*`` kernels (open ends included); must give exactly ``cell``'s costs (see engine.align.phase_kernel)
     prepare: object = None
     forward: object = None
 

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba.core.dispatcher import Dispatcher
 
-from engine.errors import ParameterError
+from engine.base.errors import ParameterError
 
 from . import kernels as K
 from ._config import njit, njit_cached

@@ -31,11 +31,11 @@ from pathlib import Path
 
 import numpy as np
 
-from engine import rotations as rot
-from engine.atomic import write_bytes
-from engine.errors import ParameterError
-from engine.kinematics import forward_kinematics
-from engine.motion import Motion
+from engine.base.atomic import write_bytes
+from engine.base.errors import ParameterError
+from engine.model import rotations as rot
+from engine.model.kinematics import forward_kinematics
+from engine.model.motion import Motion
 
 GLB_MAGIC = 0x46546C67  # "glTF"
 CHUNK_JSON = 0x4E4F534A
@@ -111,12 +111,12 @@ def display_motion(motion: Motion, scale: float, axes: np.ndarray) -> tuple[np.n
 def glb_bytes(motion: Motion, roles=None, frames: range | None = None) -> bytes:
     """The take (frames ``frames``, default all) as a GLB with the skinned mannequin.
 
-    ``roles`` (``engine.roles.Roles``) fixes arms and fingers as for the renderer.
+    ``roles`` (``engine.model.roles.Roles``) fixes arms and fingers as for the renderer.
     """
     from engine.mesh.anatomy import find_anatomy
     from engine.mesh.mannequin import build_mannequin
+    from engine.model.roles import side_from_name
     from engine.render.scene import display_transform
-    from engine.roles import side_from_name
 
     if frames is not None:
         if len(frames) == 0 or frames.step != 1:

@@ -18,9 +18,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from engine import rotations as rot
-from engine.errors import RoleError
-from engine.motion import Motion, Skeleton
+from engine.base.errors import RoleError
+from engine.model import rotations as rot
+from engine.model.motion import Motion, Skeleton
 
 SIDES = ("right", "left")
 FINGERS = ("thumb", "index", "middle", "ring", "pinky")
@@ -69,7 +69,7 @@ def _pelvis_index(skeleton: Skeleton) -> int:
 
 
 def arms_from_roles(roles, sides=SIDES) -> BodyArms:
-    """``BodyArms`` from ``engine.roles.Roles``; ``RoleError`` names a missing joint."""
+    """``BodyArms`` from ``engine.model.roles.Roles``; ``RoleError`` names a missing joint."""
     sk = roles.skeleton
     arms = {}
     for side in sides:
@@ -98,11 +98,11 @@ def arms_from_roles(roles, sides=SIDES) -> BodyArms:
 
 
 def find_arms(skeleton: Skeleton, overrides=None) -> BodyArms:
-    """Both arms of a full-body skeleton, from ``engine.roles.find_roles``.
+    """Both arms of a full-body skeleton, from ``engine.model.roles.find_roles``.
 
     Raises ``RoleError`` (naming the nearest joint names) when an arm joint is missing.
     """
-    from engine.roles import find_roles
+    from engine.model.roles import find_roles
 
     return arms_from_roles(find_roles(skeleton, overrides))
 
@@ -111,7 +111,7 @@ def metres_per_unit(motion: Motion, arms: BodyArms) -> float:
     """Metres per file unit (see module docstring)."""
     if motion.meta.units in ("m", "dm", "cm", "mm", "in"):
         return motion.meters_per_unit
-    from engine.kinematics import rest_positions
+    from engine.model.kinematics import rest_positions
 
     rest = rest_positions(motion.skeleton)
     arm = arms.arms["right"]
@@ -174,7 +174,7 @@ def arm_paths(motion: Motion, arms: BodyArms | None = None) -> ArmPaths:
     -------
     ArmPaths
     """
-    from engine.kinematics import forward_kinematics, rest_positions
+    from engine.model.kinematics import forward_kinematics, rest_positions
 
     arms = arms or find_arms(motion.skeleton)
     sk = motion.skeleton

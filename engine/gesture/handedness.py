@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from engine.errors import ParameterError
+from engine.base.errors import ParameterError
 from engine.gesture.phases import GesturePhases
 
 LABELS = ("RH", "LH", "2H")

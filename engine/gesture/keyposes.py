@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from engine.errors import ParameterError
+from engine.base.errors import ParameterError
 
 JOINTS = ("shoulder", "elbow", "wrist", "hand_tip")
 
@@ -297,7 +297,7 @@ def key_poses(
 
     Parameters
     ----------
-    motion : engine.motion.Motion
+    motion : engine.model.motion.Motion
     side : ``"right"`` or ``"left"``
     params : KeyPoseParameters
     arms : engine.gesture.body.BodyArms, found from joint roles when omitted

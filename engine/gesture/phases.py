@@ -47,7 +47,7 @@ from enum import IntEnum
 
 import numpy as np
 
-from engine.errors import ParameterError
+from engine.base.errors import ParameterError
 
 
 class Phase(IntEnum):
@@ -549,7 +549,7 @@ def segment_phases(
 
     Parameters
     ----------
-    motion : engine.motion.Motion
+    motion : engine.model.motion.Motion
         Any units and up axis; positions are converted to metres in the body frame
         (``engine.gesture.body``).
     params : PhaseParameters
@@ -579,7 +579,7 @@ def segment_phases(
 def marker_phase_labels(markers: np.ndarray, fps: float) -> np.ndarray:
     """Gesture phase codes (:class:`Phase`) per frame of the wrist of a virtual-marker set.
 
-    markers : (frames, 4A, 3) float, metres (``engine.features`` markers: the first two of
+    markers : (frames, 4A, 3) float, metres (``engine.align.features`` markers: the first two of
         each arm straddle the wrist); the first arm's wrist centre is segmented.
     Returns ``(frames,)`` int codes.
     """

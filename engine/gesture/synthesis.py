@@ -60,7 +60,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from engine.errors import ParameterError
+from engine.base.errors import ParameterError
 
 FINGERS = ("thumb", "index", "middle", "ring", "pinky")
 EASINGS = ("hermite", "gaussian", "linear")
@@ -387,13 +387,13 @@ def _unit(v: np.ndarray) -> np.ndarray:
 def hand_rig(skeleton, side: str, roles=None) -> HandRig:
     """Finger joints of ``side`` and their flexion axes from the rest geometry.
 
-    ``roles`` (``engine.roles.Roles``) is found from the joint names when omitted.
+    ``roles`` (``engine.model.roles.Roles``) is found from the joint names when omitted.
     Raises ``RoleError`` when the hand has no finger joints, saying that synthesis
     needs a skeleton with fingers.
     """
-    from engine.errors import RoleError
-    from engine.kinematics import rest_positions
-    from engine.roles import find_roles
+    from engine.base.errors import RoleError
+    from engine.model.kinematics import rest_positions
+    from engine.model.roles import find_roles
 
     roles = roles or find_roles(skeleton)
     arm = roles.side(side)
@@ -467,7 +467,7 @@ def extract_flexion(motion, rig: HandRig) -> np.ndarray:
     (positive toward the palm). Exact for rotations about the flexion axis; twist
     about the bone and sideways (abduction) swing do not count.
     """
-    from engine import rotations as rot
+    from engine.model import rotations as rot
 
     out = np.full((motion.n_frames, 5, 3), np.nan)
     for f in range(5):
@@ -487,7 +487,7 @@ def apply_flexion(motion, rig: HandRig, angles: np.ndarray):
     """``motion`` with each finger joint rotated by ``angles (F, 5, 3)`` degrees about
     its flexion axis, relative to the rest pose. NaN angles keep the joint's rotation.
     """
-    from engine import rotations as rot
+    from engine.model import rotations as rot
 
     ang = np.asarray(angles, dtype=float)
     if ang.shape != (motion.n_frames, 5, 3):
@@ -551,7 +551,7 @@ def donor_hand(side: str = "right"):
     """A one-frame procedural hand (forearm, wrist, 15 finger joints), metres, rest =
     flat hand, used to graft fingers onto bodies without them. The left hand is the
     mirror image of the right (z negated)."""
-    from engine.motion import Motion, MotionMeta, Skeleton
+    from engine.model.motion import Motion, MotionMeta, Skeleton
 
     if side not in ("right", "left"):
         raise ParameterError(f"side: expected 'right' or 'left', got {side!r}")
@@ -588,9 +588,9 @@ def graft_fingers(body, sides=("right", "left"), donor=None, roles=None):
     are left as they are (``needs_graft``); a thumb-only hand gets the donor's fingers
     where it has none.
     """
-    from engine.features import hand_frame
-    from engine.motion import Motion
-    from engine.roles import find_roles
+    from engine.align.features import hand_frame
+    from engine.model.motion import Motion
+    from engine.model.roles import find_roles
     from engine.splice.transfer import plan_transfer
 
     motion = body
@@ -688,11 +688,11 @@ def synthesize_from_poses(
     keys : list of ``(frame, pose name)`` or of ``"pose@frame"`` strings
     sides : hands to animate
     easing : ``"hermite"``, ``"gaussian"`` or ``"linear"``
-    roles : engine.roles.Roles of ``body`` (found when omitted)
+    roles : engine.model.roles.Roles of ``body`` (found when omitted)
     graft : give a hand without finger joints the procedural ``donor_hand``'s
         fingers (``graft_fingers``); when False such a hand is an error
     """
-    from engine.roles import find_roles
+    from engine.model.roles import find_roles
 
     if keys and isinstance(keys[0], str):
         keys = parse_pose_keys(keys, body.n_frames)
@@ -719,9 +719,9 @@ def synthesize_from_poses(
 def clip_key_frames(clip, rig: HandRig, params=None) -> np.ndarray:
     """Cycle boundaries of a hand clip: its first and last frame and the key poses
     of its fingertips in the wrist frame (``engine.gesture.keyposes``)."""
-    from engine import rotations as rot
     from engine.gesture.keyposes import KeyPoseParameters, find_key_poses
-    from engine.kinematics import forward_kinematics, rest_positions
+    from engine.model import rotations as rot
+    from engine.model.kinematics import forward_kinematics, rest_positions
 
     pos, wrot = forward_kinematics(clip)
     rest = rest_positions(clip.skeleton)
@@ -772,7 +772,7 @@ def synthesize_from_clip(
     graft : give a finger-less body hand the procedural ``donor_hand``'s fingers
     """
     from engine.gesture.keyposes import key_poses
-    from engine.roles import find_roles, side_from_name
+    from engine.model.roles import find_roles, side_from_name
 
     roles = roles or find_roles(body.skeleton)
     if graft and needs_graft(roles.side(side)):

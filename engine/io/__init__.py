@@ -13,8 +13,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from engine.errors import MotionFormatError
-from engine.motion import MarkerSet, Motion
+from engine.base.errors import MotionFormatError
+from engine.model.motion import MarkerSet, Motion
 
 EXTENSIONS = (".bvh", ".c3d", ".trc")
 

@@ -10,7 +10,7 @@ What the reader accepts (as real files contain it)
   CRLF/CR line ends, blank lines, a UTF-8 byte-order mark, ``Frames:``/``Frame Time:``
   with or without extra white space, ``{`` on the ``JOINT`` line.
 * Rotations become quaternions ``R = R_a(c0) R_b(c1) R_c(c2)`` in each joint's own
-  channel order (``engine.rotations.from_euler``). Missing rotation axes count as 0.
+  channel order (``engine.model.rotations.from_euler``). Missing rotation axes count as 0.
 * Translations follow ``Motion``: a position channel replaces the matching component
   of the joint's ``OFFSET`` (the convention of Blender, MotionBuilder and the BEAT and
   Bandai files, whose position channels repeat the offsets); other joints keep their
@@ -48,7 +48,7 @@ missing or bad ``Frames:``/``Frame Time:``, rows with the wrong number of values
 binary data, text that is not UTF-8, an empty file, numbers Python would read but no
 exporter writes (``1_000``, Arabic-Indic or full-width digits: ``engine.io.numbers``),
 data rows when no joint has channels, braces in a joint name, and absurd sizes, checked
-before anything is allocated (``engine.limits``: more than 1,000 joints or 100 levels,
+before anything is allocated (``engine.base.limits``: more than 1,000 joints or 100 levels,
 2,000,000 frames, a rate outside 1-10,000 fps, 6 hours, too many poses for the file).
 
 Writer precision: data values are written with ``precision`` decimals (default 6,
@@ -67,13 +67,13 @@ from pathlib import Path
 
 import numpy as np
 
-from engine import limits
-from engine import rotations as rot
-from engine.atomic import write_text
-from engine.errors import MotionFormatError
+from engine.base import limits
+from engine.base.atomic import write_text
+from engine.base.errors import MotionFormatError
+from engine.base.limits import MAX_ABS_VALUE, MAX_DEPTH, MAX_FRAMES, MAX_JOINTS
 from engine.io.numbers import NOT_NUMERIC_RE, NUMBER_RE, WHOLE_RE
-from engine.limits import MAX_ABS_VALUE, MAX_DEPTH, MAX_FRAMES, MAX_JOINTS
-from engine.motion import (
+from engine.model import rotations as rot
+from engine.model.motion import (
     POSITION_CHANNELS,
     ROTATION_CHANNELS,
     UNIT_TO_METERS,
@@ -430,7 +430,7 @@ def _parse_motion(
     """fps and the ``(F, C)`` channel data of the MOTION section.
 
     The header's frame count, the rate and the poses they ask for are checked against
-    ``engine.limits`` before any row is read (``text_bytes``: the size of the file).
+    ``engine.base.limits`` before any row is read (``text_bytes``: the size of the file).
     """
     n_values = sum(len(c) for c in skeleton.channels)
     i = motion_line + 1
@@ -646,7 +646,10 @@ def _probe_positions(
     skeleton: Skeleton, rotations: np.ndarray, translations: np.ndarray
 ) -> np.ndarray:
     """World joint positions ``(S, J, 3)`` of up to 16 frames spread over the take."""
-    from engine.kinematics import forward_kinematics, rest_positions  # kinematics imports motion
+    from engine.model.kinematics import (  # kinematics imports motion
+        forward_kinematics,
+        rest_positions,
+    )
 
     n_frames = rotations.shape[0]
     if n_frames == 0:

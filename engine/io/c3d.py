@@ -30,10 +30,10 @@ from pathlib import Path
 
 import numpy as np
 
-from engine import limits
-from engine.errors import MotionFormatError
-from engine.limits import MAX_ABS_VALUE, MAX_FRAMES, MAX_MARKERS
-from engine.motion import MarkerSet, MotionMeta
+from engine.base import limits
+from engine.base.errors import MotionFormatError
+from engine.base.limits import MAX_ABS_VALUE, MAX_FRAMES, MAX_MARKERS
+from engine.model.motion import MarkerSet, MotionMeta
 
 _BLOCK = 512
 _PROCESSORS = {84: "intel", 85: "dec", 86: "mips"}

@@ -31,11 +31,11 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.atomic import atomic_path, write_text
-from engine.errors import MotionFormatError, ParameterError
+from engine.base.atomic import atomic_path, write_text
+from engine.base.errors import MotionFormatError, ParameterError
+from engine.base.limits import MAX_DURATION_S, MAX_EAF_BYTES, MAX_FRAMES, check_rate
 from engine.gesture.phases import GesturePhases, Phase, PhaseSegment
 from engine.io.numbers import is_number, is_whole
-from engine.limits import MAX_DURATION_S, MAX_EAF_BYTES, MAX_FRAMES, check_rate
 
 PHASE_TIERS = {"right": "Phase RH", "left": "Phase LH"}
 HANDEDNESS_TIER = "Handedness"

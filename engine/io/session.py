@@ -46,11 +46,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from engine.atomic import write_text
+from engine.base.atomic import write_text
+from engine.base.errors import ParameterError
+from engine.base.limits import MAX_SESSION_BYTES
 from engine.dtw import constraints as C
 from engine.dtw.constraints import MatchPoint, Width
-from engine.errors import ParameterError
-from engine.limits import MAX_SESSION_BYTES
 
 FORMAT = "handsplice-session"
 VERSION = 2
@@ -59,7 +59,7 @@ HAND_FRAMES = {1: "grid", 2: "file"}
 SIDES = ("right", "left", "both")
 MATRIX_VIEWS = ("pass1", "pass2", "cumulative1", "cumulative2")
 MAX_POINTS = C.MAX_POINTS
-MAX_TEXT = MAX_SESSION_BYTES  # a session is small; refuse anything bigger (engine.limits)
+MAX_TEXT = MAX_SESSION_BYTES  # a session is small; refuse anything bigger (engine.base.limits)
 _HEX64 = re.compile(r"^[0-9a-f]{64}$")
 
 
@@ -346,8 +346,8 @@ def _json_point(raw):
 
 
 def _role_map(r: _Reader, mapping, field_name: str) -> dict:
-    """``{"right.wrist": "Name" or None}`` checked by ``engine.roles.normalize_overrides``."""
-    from engine.roles import normalize_overrides
+    """``{"right.wrist": "Name" or None}`` checked by ``engine.model.roles.normalize_overrides``."""
+    from engine.model.roles import normalize_overrides
 
     if not isinstance(mapping, dict):
         raise r.fail(

@@ -28,11 +28,11 @@ from pathlib import Path
 
 import numpy as np
 
-from engine import limits
-from engine.errors import MotionFormatError
+from engine.base import limits
+from engine.base.errors import MotionFormatError
+from engine.base.limits import MAX_ABS_VALUE, MAX_FRAMES, MAX_MARKERS
 from engine.io.numbers import is_non_finite, is_number
-from engine.limits import MAX_ABS_VALUE, MAX_FRAMES, MAX_MARKERS
-from engine.motion import MarkerSet, MotionMeta
+from engine.model.motion import MarkerSet, MotionMeta
 
 _UNITS = {
     "mm": "mm",

@@ -26,10 +26,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from engine import rotations as rot
-from engine.errors import HandSpliceError
-from engine.kinematics import rest_positions
-from engine.motion import Skeleton
+from engine.base.errors import HandSpliceError
+from engine.model import rotations as rot
+from engine.model.kinematics import rest_positions
+from engine.model.motion import Skeleton
 
 FINGERS = ("thumb", "index", "middle", "ring", "pinky")
 SIDES = ("left", "right")
@@ -222,7 +222,7 @@ def find_anatomy(
     not anatomical (Bandai-Namco's shoulders are turned 90 degrees against its
     hips), so the mannequin measures on a captured frame.
 
-    Arms, wrists and fingers come from :func:`engine.roles.find_roles` (``roles``,
+    Arms, wrists and fingers come from :func:`engine.model.roles.find_roles` (``roles``,
     or found with ``side_hint`` for hand takes whose names carry no side) where it
     finds them, so the mannequin agrees with the splice (and its overrides).
 
@@ -356,7 +356,7 @@ def find_anatomy(
 
     if roles is None:
         try:
-            from engine.roles import find_roles
+            from engine.model.roles import find_roles
 
             roles = find_roles(skeleton, side_hint=side_hint)
         except HandSpliceError:

@@ -20,12 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.errors import HandSpliceError
-from engine.kinematics import rest_positions
+from engine.base.errors import HandSpliceError
 from engine.mesh.anatomy import find_anatomy
 from engine.mesh.mannequin import skeleton_bones
 from engine.mesh.skinning import SkinnedMesh, two_bone_weights, vertex_normals
-from engine.motion import Skeleton
+from engine.model.kinematics import rest_positions
+from engine.model.motion import Skeleton
 
 MESH_FORMATS = (".obj", ".ply", ".glb", ".gltf", ".stl", ".off")
 DEFAULT_COLOR = (0.62, 0.66, 0.72, 1.0)
@@ -123,7 +123,7 @@ def bind_mesh(
     bones, _, _ = skeleton_bones(skeleton, anatomy, pos, rots)
     joints, weights = two_bone_weights(verts, bones, blend=blend)
     colors = _colors(mesh, len(verts), color)
-    from engine import rotations as rot
+    from engine.model import rotations as rot
 
     return SkinnedMesh(
         vertices=verts,

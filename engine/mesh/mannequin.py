@@ -20,8 +20,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from engine import rotations as rot
-from engine.kinematics import forward_kinematics, rest_positions
 from engine.mesh.anatomy import (
     FINGERS,
     Anatomy,
@@ -32,7 +30,9 @@ from engine.mesh.anatomy import (
     palm_normal,
 )
 from engine.mesh.skinning import Bones, SkinnedMesh, two_bone_weights, vertex_normals
-from engine.motion import Motion, Skeleton
+from engine.model import rotations as rot
+from engine.model.kinematics import forward_kinematics, rest_positions
+from engine.model.motion import Motion, Skeleton
 
 PART_NAMES = ("body", "head", "left_hand", "right_hand", "hand")
 

@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from engine import rotations as rot
+from engine.model import rotations as rot
 
 
 @dataclass(frozen=True)

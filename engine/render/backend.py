@@ -26,7 +26,7 @@ import os
 import sys
 import threading
 
-from engine.errors import HandSpliceError
+from engine.base.errors import HandSpliceError
 
 # one lock for every OpenGL call in the process: pyrender and PyOpenGL keep global
 # state, and the web app renders from several threads

@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.features import to_y_up
-from engine.motion import MarkerSet
+from engine.align.features import to_y_up
+from engine.model.motion import MarkerSet
 
 BACKGROUND = (246, 247, 249)
 DOT = (120, 128, 140)

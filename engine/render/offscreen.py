@@ -28,9 +28,9 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from engine.errors import ParameterError
+from engine.base.errors import ParameterError
 from engine.mesh.skinning import SkinnedMesh
-from engine.motion import Motion
+from engine.model.motion import Motion
 from engine.render import trails as tr
 from engine.render.backend import GL_LOCK, ensure_platform, release_current, shared_renderer
 from engine.render.scene import CAMERAS, TakeView, floor_mesh_arrays, stick_arrays
@@ -73,7 +73,7 @@ class Preview:
     phases : per-frame gesture phases for the trails of take 0, or
         ``{take index: phases}``; each is one array for both hands,
         ``{"left": array, "right": array}`` or a ``GesturePhases``
-    roles : optional ``engine.roles.Roles`` per take (``None``: found from names)
+    roles : optional ``engine.model.roles.Roles`` per take (``None``: found from names)
     close_up_sides : the hands the ``hands`` camera frames, e.g. ``("right",)`` (default all)
     """
 

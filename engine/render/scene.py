@@ -20,13 +20,13 @@ from pathlib import Path
 
 import numpy as np
 
-from engine import rotations as rot
-from engine.errors import ParameterError, RoleError
-from engine.kinematics import forward_kinematics
+from engine.base.errors import ParameterError, RoleError
 from engine.mesh.anatomy import Anatomy, find_anatomy
 from engine.mesh.mannequin import build_mannequin
 from engine.mesh.skinning import SkinnedMesh
-from engine.motion import Motion
+from engine.model import rotations as rot
+from engine.model.kinematics import forward_kinematics
+from engine.model.motion import Motion
 
 CAMERAS = ("front", "side", "three-quarter", "hands")
 # camera direction per name: (azimuth towards the character's right, elevation), degrees;
@@ -125,7 +125,7 @@ class TakeView:
     ) -> TakeView:
         """Prepare ``motion``; the mannequin is bound in captured frame ``bind_frame``.
 
-        ``roles`` (``engine.roles.Roles``) fixes the arm and finger joints; default:
+        ``roles`` (``engine.model.roles.Roles``) fixes the arm and finger joints; default:
         found from the names (a hand take's side from its file name).
         ``close_up_sides`` (e.g. ``("right",)``): the hands the ``hands`` camera frames
         (default all)."""
@@ -138,7 +138,7 @@ class TakeView:
         pos, wrot = forward_kinematics(motion)
         bind_pos, bind_rot = pos[bind_frame], wrot[bind_frame]
         if anatomy is None:
-            from engine.roles import side_from_name
+            from engine.model.roles import side_from_name
 
             anatomy = find_anatomy(
                 motion.skeleton,

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.atomic import atomic_path, write_bytes
-from engine.errors import ParameterError
+from engine.base.atomic import atomic_path, write_bytes
+from engine.base.errors import ParameterError
 
 Progress = Callable[[int, int], None]
 FORMATS = (".png", ".gif", ".mp4")

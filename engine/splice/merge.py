@@ -11,7 +11,7 @@ the jump is blended over a window: ``w`` is smoothed with a Gaussian of
 ``blend`` frames (standard deviation), which keeps it non-decreasing (the ends are
 padded by point reflection, so a steady rate stays exactly steady up to the ends). The hand
 take is then sampled at ``w(i)`` with slerp between the two nearest hand frames
-(:func:`engine.kinematics.sample`), so rotations are blended along the arc.
+(:func:`engine.model.kinematics.sample`), so rotations are blended along the arc.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from engine.errors import ParameterError
+from engine.base.errors import ParameterError
 
 #: default blend window (Gaussian standard deviation, body frames)
 BLEND_FRAMES = 3.0
@@ -99,9 +99,7 @@ def still_runs(
     return [(int(a), int(b) - 1) for a, b in zip(starts, stops, strict=True) if b - a >= min_frames]
 
 
-def straighten_holds(
-    warp: np.ndarray, body_holds, hand_holds, slack: float, keep=()
-) -> np.ndarray:
+def straighten_holds(warp: np.ndarray, body_holds, hand_holds, slack: float, keep=()) -> np.ndarray:
     """The warp made linear across holds matched to holds (METHOD: holds).
 
     In a hold both takes are still, every cell of the rectangle costs the same and the

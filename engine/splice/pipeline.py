@@ -34,14 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
-from engine import limits
-from engine import metrics as M
-from engine import tolerances as T
-from engine.dtw import Aligner, Band, Ends, align_features
-from engine.dtw import constraints as C
-from engine.dtw.kernels import get_metric, metric_names
-from engine.errors import HandSpliceError, ParameterError, RoleError
-from engine.features import (
+from engine.align import metrics as M
+from engine.align.features import (
     HandFrame,
     hand_frame,
     marker_set_markers,
@@ -49,8 +43,14 @@ from engine.features import (
     take_markers,
     take_sides,
 )
-from engine.hand_side import match_chirality, undecided_message
-from engine.motion import MarkerSet, Motion
+from engine.base import limits
+from engine.base import tolerances as T
+from engine.base.errors import HandSpliceError, ParameterError, RoleError
+from engine.dtw import Aligner, Band, Ends, align_features
+from engine.dtw import constraints as C
+from engine.dtw.kernels import get_metric, metric_names
+from engine.model.hand_side import match_chirality, undecided_message
+from engine.model.motion import MarkerSet, Motion
 from engine.splice import merge as MG
 from engine.splice import spin as SP
 from engine.splice import transfer as TR
@@ -78,7 +78,7 @@ MAX_UNMATCHED_SHARE = 0.5
 EASE_FRAMES = 3.0
 #: random cell pairs that estimate the cost of matching unrelated frames (the skip cost)
 CHANCE_CELLS = 4096
-#: cell budgets: engine.tolerances (one place, with the app's)
+#: cell budgets: engine.base.tolerances (one place, with the app's)
 INCREMENTAL_MAX_CELLS = T.INCREMENTAL_MAX_CELLS
 CUMULATIVE_MAX_CELLS = T.CUMULATIVE_MAX_CELLS
 
@@ -175,9 +175,9 @@ def require_skeletal(body, hand) -> None:
 
 def _roles_for(take, overrides, side: str | None = None):
     """Roles from joint names; a hand-only rig without a side gets it from the file name,
-    else ``side`` (``--side right|left``), else its geometry (``engine.hand_side``)."""
-    from engine.hand_side import sided_roles
-    from engine.roles import find_roles, side_from_name
+    else ``side`` (``--side right|left``), else its geometry (``engine.model.hand_side``)."""
+    from engine.model.hand_side import sided_roles
+    from engine.model.roles import find_roles, side_from_name
 
     if isinstance(take, MarkerSet):
         return None
@@ -322,7 +322,7 @@ def prepare(
 
     # trunk headings (radians about the vertical), where the takes have a trunk
     if hand_yaw is not None:
-        from engine.features import resample_points
+        from engine.align.features import resample_points
 
         hand_yaw = resample_points(hand_yaw, hand.fps, fps)
     if theta == "trunk" and body_yaw is None:
@@ -839,9 +839,7 @@ def align_passes(
 
     progress("merge", 0.0)
     final = al1 if hand_lacks_forearm(features) and not spin else al2
-    warp = MG.smooth_warp(
-        straighten_holds(features, MG.median_warp(final.path, n), pts), blend, m
-    )
+    warp = MG.smooth_warp(straighten_holds(features, MG.median_warp(final.path, n), pts), blend, m)
     hand_map = features.grid_to_hand(warp)
     overlap = final.overlap
     timings["merge"] = time.perf_counter() - t2

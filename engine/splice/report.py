@@ -42,7 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.atomic import write_text
+from engine.base.atomic import write_text
 
 VERSION = 1
 

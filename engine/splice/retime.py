@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from engine import kinematics
-from engine.errors import HandSpliceError
-from engine.motion import Motion
+from engine.base.errors import HandSpliceError
+from engine.model import kinematics
+from engine.model.motion import Motion
 
 
 def retimed_hand(hand: Motion, hand_frames: np.ndarray, fps: float) -> Motion:

@@ -3,7 +3,7 @@
 :func:`engine.splice.pipeline.align_passes` calls :func:`spin_pass_rows` when
 :func:`engine.splice.pipeline.hand_lacks_forearm`: D2 (the hand relative to the forearm)
 is constant for such a take, so pass 2 compares the hand's angular velocity relative to
-the trunk's heading, in the hand's own frame (:mod:`engine.hand_spin`).
+the trunk's heading, in the hand's own frame (:mod:`engine.align.hand_spin`).
 
 That signal needs no θ and no heading, so pass 2 searches the whole pass-1 band (with the
 same matching points and ends), not only a strip around the pass-1 path: pass 1's sign
@@ -15,9 +15,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from engine.hand_spin import METRIC, spin_rows, take_spins
-from engine.kinematics import forward_kinematics
-from engine.motion import Motion
+from engine.align.hand_spin import METRIC, spin_rows, take_spins
+from engine.model.kinematics import forward_kinematics
+from engine.model.motion import Motion
 
 __all__ = ["METRIC", "spin_pass_rows", "spin_available"]
 

@@ -19,7 +19,7 @@ The body keeps every joint down to the forearm. Per spliced side:
 
 Rotations move between rigs *relative to the rest pose*: each joint gets a rest
 anatomical frame ``F`` (columns: bone direction, radial, dorsal; the hand's from
-:func:`engine.features.hand_frame`, a finger joint's from its bone and the hand's
+:func:`engine.align.features.hand_frame`, a finger joint's from its bone and the hand's
 dorsal axis) and a relative rotation ``R_A`` between two joints of the hand take
 becomes ``U_parent R_A U_child^T`` with ``U = F_body F_hand^T``. Two takes of the
 same rig get ``U = I`` (rotations copied exactly); different axes (z-up/y-up),
@@ -32,9 +32,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from engine import rotations as rot
-from engine.errors import RoleError
-from engine.fastkin import (
+from engine.align.features import HAND_TO_FOREARM, HandFrame
+from engine.base.errors import RoleError
+from engine.model import rotations as rot
+from engine.model.fastkin import (
     continuous_inplace,
     forward_kinematics,
     normalize_inplace,
@@ -42,10 +43,9 @@ from engine.fastkin import (
     qmul_conj,
     sample,
 )
-from engine.features import HAND_TO_FOREARM, HandFrame
-from engine.kinematics import rest_positions
-from engine.motion import Motion, Skeleton
-from engine.roles import FINGERS
+from engine.model.kinematics import rest_positions
+from engine.model.motion import Motion, Skeleton
+from engine.model.roles import FINGERS
 
 
 @dataclass(frozen=True)

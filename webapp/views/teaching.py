@@ -6,7 +6,7 @@ tolerance to see how they reshape the search (eqs. 3-5); and compares a
 value-based local cost with the paper's sign-based one on takes that differ in
 amplitude (as Majkowska et al.'s Figure 3 does).
 
-All numbers come from the engine: local costs from ``engine.metrics``, the band
+All numbers come from the engine: local costs from ``engine.align.metrics``, the band
 from ``Band.from_constraints``, the path and γ from the DTW solver. The view only
 reveals them in the order the recurrence fills them.
 """
@@ -21,10 +21,10 @@ import param
 from bokeh.models import ColumnDataSource, Range1d
 from bokeh.plotting import figure
 
-from engine import metrics
+from engine.align import metrics
+from engine.base.errors import HandSpliceError
 from engine.dtw import Aligner, Band
 from engine.dtw.views import local_cost_image
-from engine.errors import HandSpliceError
 from webapp.views._dispatch import with_document_lock
 
 EXAMPLE_FPS = 10.0

@@ -27,7 +27,7 @@ every reader and the splice pipeline call them.
 
 from __future__ import annotations
 
-from engine.errors import MotionFormatError, ParameterError
+from engine.base.errors import MotionFormatError, ParameterError
 
 #: joints in one skeleton (BVH).
 MAX_JOINTS = 1_000

@@ -8,7 +8,7 @@ of 5 frames × markers, or from the trunk yaw of both takes).
 Pass 2 (refinement, eqs. 8-9): angle between the hand vectors after the smallest
 rotation that takes the hand take's forearm vector onto the body's.
 
-Everything works on marker arrays from :mod:`engine.features` (metres, y up).
+Everything works on marker arrays from :mod:`engine.align.features` (metres, y up).
 
 The costs reach the DTW engine (:mod:`engine.dtw`) through its metric plug-in:
 each frame becomes one float64 row (:func:`phase_rows`, :meth:`AngleFeatures.rows`)
@@ -23,7 +23,7 @@ Implementation notes (where this differs from the paper, and why)
   codes are precomputed for every direction and packed into two 48-bit masks
   (positive, negative), so a band cell costs θ of eq. 7, a polynomial ``atan2``
   and three popcounts instead of rotating 16 vectors. Whole band rows go through
-  the row kernel of :mod:`engine.phase_kernel` (θ by diagonal sums of per-frame
+  the row kernel of :mod:`engine.align.phase_kernel` (θ by diagonal sums of per-frame
   products, about a tenth of the per-cell time); :func:`splice_phase` computes one
   cell with the same float32 arithmetic, so both give the same costs bit for bit.
   :func:`phase_cost_reference` computes eq. 6 with exact θ (tests compare).
@@ -31,7 +31,7 @@ Implementation notes (where this differs from the paper, and why)
   (edge frames repeated), so every window holds 5 × markers points.
 * Pass 2's cost is computed as dot products of per-frame vectors (the rotation ``R``
   never built) with a branch-free fdlibm ``arccos``; whole band rows go through the row
-  kernel of :mod:`engine.angle_kernel` (vectorised, about a fifth of the per-cell time),
+  kernel of :mod:`engine.align.angle_kernel` (vectorised, about a fifth of the per-cell time),
   :func:`splice_angle` computes one cell with the same arithmetic (bit for bit).
   :func:`splice_angle_literal` is the rotation form (cross products, libm ``arccos``)
   it replaced; they agree to rounding and give the same paths on real captures (tests).
@@ -49,12 +49,12 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from engine import angle_kernel as AK
-from engine import phase_kernel as PK
-from engine.errors import ParameterError
-from engine.jit import FASTMATH_REASSOC
+from engine.align import angle_kernel as AK
+from engine.align import phase_kernel as PK
+from engine.base.errors import ParameterError
+from engine.base.jit import FASTMATH_REASSOC
 
-# numba options: engine.jit (no nnan/ninf: NaN gaps in capture data are real)
+# numba options: engine.base.jit (no nnan/ninf: NaN gaps in capture data are real)
 _FASTMATH = set(FASTMATH_REASSOC)
 
 #: window of eq. 7 in frames (the paper: 5 frames × 4 markers = 20 points)
@@ -384,7 +384,7 @@ def _theta_windows(markers: np.ndarray) -> np.ndarray:
 def _raw_windows(markers: np.ndarray, out: np.ndarray) -> None:
     """``out (F, 2*W*K)`` = x then z of the W-frame window around each frame, not
     centred per window (the pass-1 kernel subtracts each window's centroid in its sums,
-    which lets one product serve five cells; :mod:`engine.phase_kernel`) but shifted
+    which lets one product serve five cells; :mod:`engine.align.phase_kernel`) but shifted
     by the take's mean horizontal position (θ does not change; float32 sums stay
     accurate)."""
     f, k, _ = markers.shape
@@ -621,7 +621,7 @@ def _popcount(x):
 def _theta_bin(body_row, hand_row):
     """Index of the quantised θ (eq. 7) of one cell: window formula, or trunk-yaw difference.
 
-    The same arithmetic as the pass-1 row kernel (:mod:`engine.phase_kernel`), so a cell
+    The same arithmetic as the pass-1 row kernel (:mod:`engine.align.phase_kernel`), so a cell
     costs the same here and there, bit for bit."""
     half = int(body_row[0])
     nb = int(body_row[1])
@@ -635,7 +635,7 @@ def _theta_bin(body_row, hand_row):
 def splice_phase(body_row, hand_row):
     """Pass-1 local cost ``D1`` (eq. 6) of one cell from :func:`phase_rows` rows.
 
-    Whole band rows go through :func:`engine.phase_kernel.forward` (same costs)."""
+    Whole band rows go through :func:`engine.align.phase_kernel.forward` (same costs)."""
     half = int(body_row[0])
     b = _theta_bin(body_row, hand_row)
     k = _HEADER + 2 * half
@@ -668,7 +668,7 @@ class AngleFeatures:
 
     def rows(self, step: float = 0.0) -> np.ndarray:
         """``(F, 2 + 16A)`` float64 rows for the ``"splice_angle"`` metric
-        (:func:`engine.angle_kernel.frame_rows`: ``[A, step]``, then per arm ``f, h`` and
+        (:func:`engine.align.angle_kernel.frame_rows`: ``[A, step]``, then per arm ``f, h`` and
         the per-frame products a cell needs); ``step`` (radians) is added to every cell
         (put it in the body rows only; see :func:`phase_rows`)."""
         return AK.frame_rows(self.forearm, self.hand, step)
@@ -709,7 +709,7 @@ def splice_angle(body_row, hand_row):
     ``R`` is the smallest rotation taking the hand take's forearm vector ``f'``
     onto the body's ``f``; the cost is the angle between ``h`` and ``R h'``.
     Antiparallel forearms use a half turn about an axis perpendicular to ``f'``.
-    Computed as dot products of per-frame vectors (:mod:`engine.angle_kernel`, whose
+    Computed as dot products of per-frame vectors (:mod:`engine.align.angle_kernel`, whose
     row kernel gives the same costs bit for bit for whole band rows).
     """
     return AK.cell(body_row, hand_row)
@@ -718,7 +718,7 @@ def splice_angle(body_row, hand_row):
 @numba.njit(cache=True, fastmath=_FASTMATH, nogil=True)
 def splice_angle_literal(body_row, hand_row):
     """``D2`` by rotating ``h'`` explicitly (cross products) and libm's ``arccos``: the
-    per-cell code before :mod:`engine.angle_kernel` (references, tests, benchmarks).
+    per-cell code before :mod:`engine.align.angle_kernel` (references, tests, benchmarks).
     Same :meth:`AngleFeatures.rows`; agrees with :func:`splice_angle` to rounding."""
     arms = int(body_row[0])
     total = body_row[1]

@@ -29,7 +29,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from engine.errors import HandSpliceError
+from engine.base.errors import HandSpliceError
 
 #: seconds between two looks at the child's memory and clock
 POLL_S = 0.05
@@ -92,7 +92,7 @@ def _serve(in_fd: int, out_fd: int, memory_mb: float | None, first=None) -> None
 
     ``first``: a call inherited through the fork (not picklable), answered before the loop.
     """
-    from engine.atomic import handle_termination
+    from engine.base.atomic import handle_termination
 
     handle_termination()  # SIGTERM: Terminated, temporary files removed on the way out
     signal.signal(signal.SIGINT, signal.default_int_handler)

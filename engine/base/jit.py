@@ -8,7 +8,7 @@ dimensions is added in order, as in the plain-Python references
 
 ``FASTMATH_REASSOC`` adds ``reassoc`` for kernels whose result does not depend on
 the order of additions beyond rounding that tests tolerate (the pass-1 and pass-2
-local-cost metrics in :mod:`engine.metrics`, compared to references within 1e-9).
+local-cost metrics in :mod:`engine.align.metrics`, compared to references within 1e-9).
 
 ``JIT_CACHED`` is for kernels that are always called with one fixed set of
 argument types (float64 C-contiguous arrays, int64 band bounds): their machine

@@ -1,6 +1,6 @@
 """Pass-1 kernel: the ``splice_phase`` cost of a whole band row at a time (docs/method.md §2).
 
-:func:`engine.metrics.splice_phase` computes one cell: θ of eq. 7 from the two
+:func:`engine.align.metrics.splice_phase` computes one cell: θ of eq. 7 from the two
 5-frame windows (a 5·K-point complex dot product), then the sign-code cost of the
 hand take's codes turned by θ (three popcounts). Called once per band cell, the θ
 dot product dominates (about 42 ns per cell). This module computes the same costs
@@ -22,7 +22,7 @@ a band row at a time, with the same arithmetic, in about a tenth of the time:
   with a hardware popcount.
 
 Exactness: :func:`theta_bin` and :func:`cell_cost` are the *only* θ and cost
-arithmetic; the per-cell metric (:func:`engine.metrics.splice_phase`, used by
+arithmetic; the per-cell metric (:func:`engine.align.metrics.splice_phase`, used by
 views, reports and tests) calls them with the same operands in the same order
 (no fast-math: no contraction, no reassociation; the five diagonal terms are
 summed symmetrically, ``((C0 + C4) + (C1 + C3)) + C2``, so a reversed problem
@@ -269,8 +269,8 @@ def forward(
 ):
     """Rows ``i0..i1-1`` of the DTW forward pass (as ``engine.dtw.kernels.forward_*``,
     open ends included: ``ends``, ``last_col``, ``last_row``)."""
-    if state.fallback:  # the per-cell metric from the registry (engine.metrics registers
-        # it; importing engine.metrics here would make an import cycle)
+    if state.fallback:  # the per-cell metric from the registry (engine.align.metrics registers
+        # it; importing engine.align.metrics here would make an import cycle)
         splice_phase = K.get_metric("splice_phase").cell
 
         return K.forward_metric(

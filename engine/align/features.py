@@ -43,12 +43,12 @@ from pathlib import Path
 
 import numpy as np
 
-from engine import rotations as rot
-from engine.errors import ParameterError, RoleError
-from engine.fastkin import forward_kinematics
-from engine.kinematics import rest_positions
-from engine.limits import check_grid
-from engine.motion import MarkerSet, Motion
+from engine.base.errors import ParameterError, RoleError
+from engine.base.limits import check_grid
+from engine.model import rotations as rot
+from engine.model.fastkin import forward_kinematics
+from engine.model.kinematics import rest_positions
+from engine.model.motion import MarkerSet, Motion
 
 MARKER_NAMES = ("wrist_radial", "wrist_ulnar", "forearm", "hand")
 #: marker offsets as fractions of the forearm length L
@@ -189,7 +189,7 @@ def resample_points(points: np.ndarray, fps: float, target_fps: float) -> np.nda
     """Resampling of ``(F, ...)`` trajectories to ``target_fps`` without aliasing.
 
     Output has ``round((F-1) * target_fps / fps) + 1`` frames spanning the same
-    duration (as :func:`engine.kinematics.resample`). Going to a lower rate, the
+    duration (as :func:`engine.model.kinematics.resample`). Going to a lower rate, the
     trajectories are first low-passed by a Gaussian of ``0.5 / target_fps`` seconds:
     the new Nyquist frequency keeps about 30 % of its amplitude and frame-to-frame
     jitter of the faster take does not fold into the slow motion. Then linear
@@ -205,7 +205,7 @@ def resample_points(points: np.ndarray, fps: float, target_fps: float) -> np.nda
     if target_fps < fps and f > 1:
         from scipy.ndimage import gaussian_filter1d
 
-        from engine.metrics import _fill_gaps
+        from engine.align.metrics import _fill_gaps
 
         if np.isnan(p).any():
             gaps = np.isnan(p).astype(float)
@@ -255,7 +255,7 @@ def _finger_bases(arm, hand: int, skeleton) -> list[int]:
 def hand_frame(motion: Motion, roles, side: str) -> HandFrame:
     """The rest-pose anatomical frame of ``side``'s hand (see the module docstring).
 
-    ``roles`` is an :class:`engine.roles.Roles` of ``motion.skeleton``. Raises
+    ``roles`` is an :class:`engine.model.roles.Roles` of ``motion.skeleton``. Raises
     ``RoleError`` when the side has no wrist, or when neither a forearm nor finger
     joints give the hand's direction.
     """
@@ -412,7 +412,7 @@ def skeleton_markers(positions: np.ndarray, rotations: np.ndarray, frame: HandFr
     """Virtual markers ``(F, 4, 3)`` (file units and axes) from FK results.
 
     positions, rotations : (F, J, 3), (F, J, 4) world joint positions and rotations
-    (:func:`engine.kinematics.forward_kinematics`). At rest every world rotation is
+    (:func:`engine.model.kinematics.forward_kinematics`). At rest every world rotation is
     the identity, so a rest-world offset turns with the joint's world rotation.
     """
     offs, rides = marker_offsets(frame)
@@ -438,7 +438,7 @@ def motion_markers(
     ----------
     motion : Motion
     side : ``"right"`` or ``"left"``
-    roles : engine.roles.Roles, optional (found from joint names if omitted)
+    roles : engine.model.roles.Roles, optional (found from joint names if omitted)
     fps : float, optional
         Resample the markers to this rate (:func:`resample_points`: low-passed first
         when the rate drops). Single-frame spikes are removed first (:func:`despike`).
@@ -447,7 +447,7 @@ def motion_markers(
         Precomputed forward kinematics of the whole take.
     """
     if roles is None:
-        from engine.roles import find_roles
+        from engine.model.roles import find_roles
 
         roles = find_roles(motion.skeleton)
     if frame is None:
@@ -545,14 +545,14 @@ def skeleton_yaw(motion: Motion, roles, fk=None) -> np.ndarray | None:
 def marker_set_markers(markers: MarkerSet, side: str, fps: float | None = None) -> ArmMarkers:
     """Alignment markers of one arm of a marker take (C3D/TRC), metres, y up.
 
-    Markers are found by :func:`engine.roles.find_marker_roles` (Plug-in Gait
+    Markers are found by :func:`engine.model.roles.find_marker_roles` (Plug-in Gait
     ``RWRA``/``RWRB``/``RFRA``/``RFIN``/``RSHO``; pyomeca ``STYLr``, ``STYLu``,
     ``LARM*``, ``LATH``, ``ACRO_tip``). A set whose labels carry no side (pyomeca's
     single arm) serves the side asked for. Without a forearm marker the midpoint of
     the elbow marker and the wrist is used. Gaps stay NaN here (the metrics fill
     them). ``RoleError`` names what is missing.
     """
-    from engine.roles import find_marker_roles
+    from engine.model.roles import find_marker_roles
 
     roles = find_marker_roles(markers.labels, side_hint=side)
     arm = roles.side(side)

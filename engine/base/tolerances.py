@@ -1,4 +1,4 @@
-"""Numerical tolerances and work budgets, in one place (beside :mod:`engine.limits`,
+"""Numerical tolerances and work budgets, in one place (beside :mod:`engine.base.limits`,
 which bounds outside input).
 
 Tolerances

@@ -26,7 +26,7 @@ Per pair ``NAME`` the output folder receives (every file written atomically)::
 and ``summary.csv`` (rewritten as pairs finish) and, at the end, ``index.html`` (one row
 and thumbnail per pair).
 
-Limits: each pair runs in a forked child process (``engine.sandbox``) that is stopped
+Limits: each pair runs in a forked child process (``engine.jobs.sandbox``) that is stopped
 after ``pair_seconds`` (default 900) or beyond ``pair_memory_mb`` MB resident (default
 2048); the pair is then failed with that reason, its temporary files removed.
 
@@ -64,10 +64,10 @@ from pathlib import Path
 from typing import Any
 
 from engine import __version__
-from engine.atomic import atomic_path, clean_stale, write_text, write_texts
+from engine.base.atomic import atomic_path, clean_stale, write_text, write_texts
+from engine.base.errors import HandSpliceError
+from engine.base.limits import MAX_MANIFEST_ROWS, PAIR_MEMORY_MB, PAIR_SECONDS
 from engine.dtw import constraints as C
-from engine.errors import HandSpliceError
-from engine.limits import MAX_MANIFEST_ROWS, PAIR_MEMORY_MB, PAIR_SECONDS
 
 REQUIRED_COLUMNS = ("body", "hand", "side")
 OPTIONAL_COLUMNS = ("band", "refine_band", "match", "name")
@@ -341,14 +341,14 @@ def run_pair(
 ) -> dict:
     """Splice one pair and write its outputs; never raises (errors go into the record).
 
-    The pair runs in a forked child process (``engine.sandbox``) stopped after
+    The pair runs in a forked child process (``engine.jobs.sandbox``) stopped after
     ``seconds`` of wall time or beyond ``memory_mb`` MB of resident memory (``None`` or
     0: no limit); a stopped pair is recorded as failed and leaves no partial outputs.
 
     Returns the pair's summary record (``SUMMARY_COLUMNS``) with ``status`` ``"done"``
     or ``"failed"`` and, when failed, a one-line ``error``.
     """
-    from engine.sandbox import ChildFailed, LimitExceeded, run_limited
+    from engine.jobs.sandbox import ChildFailed, LimitExceeded, run_limited
 
     t0 = time.perf_counter()
     try:
@@ -552,7 +552,7 @@ def stick_figure_png(motion, path: Path, frame: int, size: tuple[int, int] = THU
     import numpy as np
     from PIL import Image, ImageDraw
 
-    from engine.kinematics import forward_kinematics
+    from engine.model.kinematics import forward_kinematics
 
     pos, _ = forward_kinematics(motion, frame, frame + 1)
     p = pos[0]

@@ -26,8 +26,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from engine.kinematics import forward_kinematics
-from engine.motion import Motion, Skeleton
+from engine.model.kinematics import forward_kinematics
+from engine.model.motion import Motion, Skeleton
 
 #: frames sampled (evenly) to measure the cues
 MAX_FRAMES = 400
@@ -66,7 +66,7 @@ def geometric_side(motion: Motion, arm, fk=None) -> SideVote:
     Parameters
     ----------
     motion : Motion holding the hand
-    arm : ``engine.roles.ArmRoles`` of that hand (wrist and finger roles; its side is
+    arm : ``engine.model.roles.ArmRoles`` of that hand (wrist and finger roles; its side is
         not used, so the unsided roles of a hand-only rig work)
     fk : (positions (F, J, 3), rotations) of ``motion``, optional (reused)
     """
@@ -197,7 +197,7 @@ def sided_roles(take: Motion, roles, side: str | None = None):
     with a side, or that geometry cannot decide, come back unchanged (the caller's
     error then names ``--side``: :func:`undecided_message`).
     """
-    from engine.roles import find_roles
+    from engine.model.roles import find_roles
 
     arm = getattr(roles, "unsided", None)
     if arm is None or not arm.has_fingers:

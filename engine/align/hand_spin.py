@@ -9,7 +9,7 @@ to the trunk's heading, seen from the hand itself.
 
 * In the hand's own frame, the angular velocity does not depend on where the take faces
   (no θ, no heading estimate) nor on the rig's rest pose (components along the hand's
-  anatomical axes ``along, radial, dorsal`` of :class:`engine.features.HandFrame`).
+  anatomical axes ``along, radial, dorsal`` of :class:`engine.align.features.HandFrame`).
 * The trunk's turning (a dancer's spin) is removed first: the body take's world angular
   velocity minus its trunk yaw rate about the vertical. A hand take without a trunk is
   taken as captured in a still frame (a desk, a Leap device), as it is in practice.
@@ -24,7 +24,7 @@ The local cost is the Euclidean distance of the rows (``"euclidean"`` in
 ``engine.dtw``'s registry), summed over arms through the concatenation.
 
 Angular velocity from noisy rotations: quaternions are made continuous, single-frame
-spikes removed (:func:`engine.features.despike`), then Savitzky-Golay smoothed and
+spikes removed (:func:`engine.align.features.despike`), then Savitzky-Golay smoothed and
 differentiated over ``window_s`` (``ω_world = 2 q̇ q*``), so a 2° frame jitter does not
 turn into a large angular velocity at 120 fps.
 """
@@ -34,8 +34,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import savgol_filter
 
-from engine import rotations as rot
-from engine.features import despike, resample_points, up_vector
+from engine.align.features import despike, resample_points, up_vector
+from engine.model import rotations as rot
 
 #: Savitzky-Golay window (seconds) of the angular velocity (half the pass-1 window: the
 #: signal is already a derivative; chosen on seeds 300-311, clean and with 2° jitter)
@@ -67,10 +67,10 @@ def hand_spin(
         rotation per frame (file axes; identity at rest, as BVH joints).
     fps : float, frames per second of the rotations
     basis : (3, 3) float, columns ``along, radial, dorsal`` of the hand at rest (file
-        axes): :attr:`engine.features.HandFrame.basis`
+        axes): :attr:`engine.align.features.HandFrame.basis`
     up_axis : ``"y"`` or ``"z"``, the take's up axis
     yaw : (F,) float radians or None, the trunk's heading about the vertical (y-up, as
-        :func:`engine.features.skeleton_yaw`); its rate is removed. None: a still trunk.
+        :func:`engine.align.features.skeleton_yaw`); its rate is removed. None: a still trunk.
     window_s : smoothing window, seconds (default :data:`WINDOW_S`)
 
     Returns
@@ -122,7 +122,7 @@ def take_spins(
 ) -> list[np.ndarray]:
     """:func:`hand_spin` of each side's hand joint (``frames[side]``, a HandFrame), from
     world rotations ``(F, J, 4)``; resampled to ``target_fps`` when given (low-passed when
-    the rate drops, :func:`engine.features.resample_points`)."""
+    the rate drops, :func:`engine.align.features.resample_points`)."""
     out = []
     for s in sides:
         fr = frames[s]

@@ -20,16 +20,16 @@ This module computes the same quantity as dot products of per-frame vectors:
   row is one pass over contiguous columns per arm.
 
 Exactness: :func:`arm_angle` is the only per-cell arithmetic; the per-cell metric
-(:func:`engine.metrics.splice_angle`, used by views, reports and tests) calls it with
+(:func:`engine.align.metrics.splice_angle`, used by views, reports and tests) calls it with
 the same operands in the same order (no fast-math), so the row kernel gives the
 per-cell costs bit for bit and the DTW path is the same. Against the rotation form
-(:func:`engine.metrics.splice_angle_literal`, the code before this kernel) costs agree
+(:func:`engine.align.metrics.splice_angle_literal`, the code before this kernel) costs agree
 to rounding (about 1e-15 rad, up to ~1e-8 rad where the angle is near 0 or π: arccos
 amplifies the last bit of a cosine near ±1); tests and ``bench_splice_speed`` compare
 paths on real captures.
 
 numba's on-disk cache does not notice a change to this module in functions that inline it
-from another module (``engine.metrics.splice_angle``): after editing the arithmetic here,
+from another module (``engine.align.metrics.splice_angle``): after editing the arithmetic here,
 clear ``NUMBA_CACHE_DIR`` (the row-versus-cell test then catches any mismatch).
 """
 
@@ -168,7 +168,7 @@ def frame_rows(fore: np.ndarray, hand: np.ndarray, step: float = 0.0) -> np.ndar
     """``(F, 2 + 16 A)`` float64 rows of the ``"splice_angle"`` metric.
 
     fore, hand : (F, A, 3) float, the forearm and hand vectors of ``A`` arms (unit or
-        zero; :func:`engine.metrics.angle_features`).
+        zero; :func:`engine.align.metrics.angle_features`).
     step : radians added to every cell (put it in the body rows only).
 
     Row: ``[A, step]`` then per arm ``fore (3), hand (3), fore × hand (3), fore · hand,

@@ -1,6 +1,6 @@
 """Numba versions of the kinematics the splice runs on every call.
 
-Same conventions and results as :mod:`engine.kinematics` and :mod:`engine.rotations`
+Same conventions and results as :mod:`engine.model.kinematics` and :mod:`engine.model.rotations`
 (quaternions ``(w, x, y, z)``; ``tests/test_features.py`` compares them), without
 numpy's per-call overhead, which dominates for a few hundred frames:
 
@@ -16,10 +16,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from engine.jit import FASTMATH
-from engine.motion import Motion
+from engine.base.jit import FASTMATH
+from engine.model.motion import Motion
 
-_FASTMATH = set(FASTMATH)  # engine.jit: the one place for numba options
+_FASTMATH = set(FASTMATH)  # engine.base.jit: the one place for numba options
 
 
 @numba.njit(cache=True, fastmath=_FASTMATH, inline="always")
@@ -109,7 +109,7 @@ def qmul_conj(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def continuous(q: np.ndarray) -> np.ndarray:
     """Quaternions ``(F, ..., 4)`` with signs flipped so frame ``f`` and ``f-1`` have a
-    non-negative dot product (as :func:`engine.rotations.make_continuous`)."""
+    non-negative dot product (as :func:`engine.model.rotations.make_continuous`)."""
     q = np.array(q, dtype=float, copy=True)
     if q.shape[0] < 2:
         return q
@@ -187,7 +187,7 @@ def _sample_kernel(rot, trans, t, out_r, out_t):
 
 
 def sample(motion: Motion, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`engine.kinematics.sample` (slerp / linear at fractional frames ``times (T,)``,
+    """:func:`engine.model.kinematics.sample` (slerp / linear at fractional frames ``times (T,)``,
     clipped to the take) in one numba loop: ``(T, J, 4)`` rotations, ``(T, J, 3)``
     translations (equal to rounding)."""
     if motion.n_frames == 0:

@@ -10,8 +10,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from engine import rotations as rot
-from engine.motion import Motion, Skeleton
+from engine.model import rotations as rot
+from engine.model.motion import Motion, Skeleton
 
 
 def forward_kinematics(

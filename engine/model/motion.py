@@ -1,7 +1,7 @@
 """The data model: ``Skeleton``, ``Motion`` and ``MarkerSet``.
 
 Plain dataclasses over numpy arrays. Nothing here reads files (see ``engine.io``)
-or computes kinematics (see ``engine.kinematics``).
+or computes kinematics (see ``engine.model.kinematics``).
 
 Units are the file's own (``meta.units`` says which: ``"m"``, ``"cm"``, ``"mm"``,
 ``"in"``, ``"dm"`` or ``"unknown"``); ``Motion.meters_per_unit`` converts.
@@ -13,7 +13,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from engine import rotations as rot
+from engine.model import rotations as rot
 
 POSITION_CHANNELS = ("Xposition", "Yposition", "Zposition")
 ROTATION_CHANNELS = ("Xrotation", "Yrotation", "Zrotation")

@@ -65,8 +65,8 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.errors import ParameterError, RoleError
-from engine.motion import Skeleton
+from engine.base.errors import ParameterError, RoleError
+from engine.model.motion import Skeleton
 
 SIDES = ("right", "left")
 FINGERS = ("thumb", "index", "middle", "ring", "pinky")
@@ -749,10 +749,10 @@ def read_roles_json(path: str | Path):
     """The JSON value of a roles file, unchecked (``load_role_overrides`` checks it).
 
     Raises ``FileNotFoundError`` for a missing file and ``ParameterError`` naming the
-    file (and line) for a file over ``engine.limits.MAX_ROLES_BYTES``, text that is not
+    file (and line) for a file over ``engine.base.limits.MAX_ROLES_BYTES``, text that is not
     UTF-8, invalid JSON, or JSON nested too deeply to be a roles map.
     """
-    from engine.limits import MAX_ROLES_BYTES
+    from engine.base.limits import MAX_ROLES_BYTES
 
     path = Path(path)
     with open(path, "rb") as f:

@@ -1,0 +1,1 @@
+"""Running many splices: the batch (Dask) and the child-process sandbox that reads untrusted files."""

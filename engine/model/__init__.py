@@ -1,0 +1,1 @@
+"""The skeleton model: motions (BVH-like takes), rotations, forward kinematics, joint roles and the hand's side."""
