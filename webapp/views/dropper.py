@@ -33,8 +33,8 @@ VERDICT_COLORS = {"checking": "#64605e", "ok": "#369763", "refused": "#c44e47"}
 
 #: the page side of :meth:`TakeDropper.verdict`: the model's ``tags`` are
 #: ``[state, file name, main text, sub text, serial]``; the tile of that file gets the
-#: texts and colour once FilePond has marked it sent (status 5), and keeps them (FilePond
-#: writes a tile only when the file's own state changes)
+#: texts and colour once FilePond has marked it sent (status 5), and keeps them: an
+#: observer writes them back whenever FilePond writes its own ("Upload complete") there
 _JS_VERDICT = """
 const [state, name, main, sub] = cb_obj.tags;
 const pond = Bokeh.index.find_one(cb_obj)?._file_pond;
@@ -45,11 +45,23 @@ const paint = () => {
   if (item == null || item.status !== 5) return false;
   const li = pond.element.querySelector('#filepond--item-' + item.id);
   if (li == null) return false;
-  li.dataset.hsVerdict = state;
-  li.querySelector('.filepond--file-status-main').textContent = main;
-  li.querySelector('.filepond--file-status-sub').textContent = sub;
-  for (const part of li.querySelectorAll('.filepond--item-panel'))  // top, centre, bottom
-    part.style.backgroundColor = colors[state] ?? '';
+  li._hsVerdict = {state, main, sub};
+  const apply = () => {  // the server's texts, again whenever FilePond writes its own
+    const v = li._hsVerdict;
+    const m = li.querySelector('.filepond--file-status-main');
+    const s = li.querySelector('.filepond--file-status-sub');
+    if (m != null && m.textContent !== v.main) m.textContent = v.main;
+    if (s != null && s.textContent !== v.sub) s.textContent = v.sub;
+    li.dataset.hsVerdict = v.state;
+    for (const part of li.querySelectorAll('.filepond--item-panel'))  // top, centre, bottom
+      part.style.backgroundColor = colors[v.state] ?? '';
+  };
+  apply();
+  if (li._hsObserver == null) {
+    li._hsObserver = new MutationObserver(apply);
+    const status = li.querySelector('.filepond--file-status') ?? li;
+    li._hsObserver.observe(status, {childList: true, characterData: true, subtree: true});
+  }
   return true;
 };
 const serial = cb_obj.tags[4];
