@@ -217,8 +217,6 @@ def run(args: argparse.Namespace) -> int:
         closed = _ClosedSessionMessages()
         for name in ("bokeh.server.protocol_handler", "tornado.application", "tornado.general"):
             logging.getLogger(name).addFilter(closed)
-        for handler in logging.getLogger().handlers:  # records propagated from any logger
-            handler.addFilter(closed)
         server.io_loop.start()
     finally:
         server.stop()

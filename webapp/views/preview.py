@@ -30,16 +30,13 @@ _RENDERS = ThreadPoolExecutor(max_workers=1, thread_name_prefix="hs-preview")
 
 
 def _render_images(prepared, solution, frame, camera, trails, size, closeup_size):
-    """``(png, close-up png, (body, hand, spliced frame), ms)`` of one moment, or the
-    exception that stopped it (a worker thread's result; shown by the page)."""
+    """``(png, close-up png, (body, hand, spliced frame), ms)`` of one moment (run on the
+    render worker, or at once without a server)."""
     t0 = time.perf_counter()
-    try:
-        image = backend.render_frame(prepared, solution, frame, camera, trails, size)
-        closeup = backend.render_closeup(prepared, solution, frame, closeup_size)
-        pngs = backend.png_bytes(image), backend.png_bytes(closeup)
-        frames = backend.frame_triplet(prepared, solution, frame)
-    except Exception as exc:  # noqa: BLE001 - returned, the page shows it in one line
-        return exc
+    image = backend.render_frame(prepared, solution, frame, camera, trails, size)
+    closeup = backend.render_closeup(prepared, solution, frame, closeup_size)
+    pngs = backend.png_bytes(image), backend.png_bytes(closeup)
+    frames = backend.frame_triplet(prepared, solution, frame)
     return (*pngs, frames, (time.perf_counter() - t0) * 1000)
 
 
@@ -216,9 +213,12 @@ class PreviewView:
                 return False
             self._inflight = True
             try:
-                return self._show(key, _render_images(*job, self.size, self.closeup_size))
+                result = _render_images(*job, self.size, self.closeup_size)
+            except Exception as exc:  # shown in the page, never a traceback
+                result = exc
             finally:
                 self._inflight = False
+            return self._show(key, result)
         if self._inflight:
             if frame is None:
                 self._again = True  # rendered when the one in flight is shown
