@@ -177,3 +177,31 @@ def test_uncertainty_ranks_the_true_error_of_an_untrimmed_pair():
     assert spearmanr(unc, err).statistic > 0.4
     flagged = unc > U.DESYNC_MS
     assert (err[flagged] > 100).mean() > 5 * (err[~flagged] > 100).mean()
+
+
+def test_smoothing_keeps_a_matching_points_row_on_its_column():
+    from engine.splice import merge as MG
+
+    # the path lags, runs up 30 columns into the user's point (40, 70), then goes on
+    warp = np.concatenate([np.arange(40.0), [70.0], 71.0 + np.arange(39.0)])
+    plain = MG.smooth_warp(warp, 3.0, m=120)
+    kept = MG.smooth_warp(warp, 3.0, m=120, anchors=[40])
+    assert abs(plain[40] - 70.0) > 5.0  # the jump beside it pulls the point's row off
+    assert kept[40] == 70.0
+    assert np.all(np.diff(kept) >= 0)
+    assert np.allclose(kept[55:75], plain[55:75], atol=0.05)  # far from the jump: as before
+
+
+def test_a_point_at_its_true_frame_is_met_by_the_map_beside_a_hold():
+    """A real take with holds: pass 2 reaches the point by a long run up its column (the
+    hold left its lane arbitrary); the spliced map still meets the point."""
+    from benchmarks.bench_splice_accuracy import FAMILIES
+
+    case = FAMILIES["holds"].make(7)
+    at = 132
+    hand = int(round(float(case.truth[at])))
+    fixed = P.splice(
+        case.body, case.hand, transfer_fingers=False, hand_points=True, points=[(at, hand, 0)]
+    )
+    grid = case.hand.fps / fixed.features.fps  # hand frames per grid column
+    assert abs(fixed.alignment.map[at] - hand) <= grid

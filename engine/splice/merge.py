@@ -54,27 +54,48 @@ def median_warp(path: np.ndarray, n: int) -> np.ndarray:
     return 0.5 * (lo + hi).astype(float)  # median of a run of consecutive columns
 
 
-def smooth_warp(warp: np.ndarray, blend: float = BLEND_FRAMES, m: int | None = None) -> np.ndarray:
+def smooth_warp(
+    warp: np.ndarray, blend: float = BLEND_FRAMES, m: int | None = None, anchors=()
+) -> np.ndarray:
     """Blend jumps of a non-decreasing warp over a Gaussian window of ``blend`` frames.
 
     The result stays non-decreasing and inside ``[0, m-1]`` when ``m`` is given.
-    ``blend = 0`` returns the warp unchanged.
+    ``blend = 0`` returns the warp unchanged. ``anchors``: body frames (the user's
+    matching points) whose value stays as it is: the warp is smoothed piece by piece
+    between them (each piece padded by point reflection at both ends), so a jump beside
+    a point is blended on its own side and never pulls the point's row off its column.
     """
     w = np.asarray(warp, dtype=float)
     if blend < 0 or not np.isfinite(blend):
         raise ParameterError(f"merge: blend must be >= 0 frames, got {blend}")
     if blend > 0 and len(w) > 1:
-        # point reflection at both ends keeps straight stretches straight (no pull toward
-        # the end values, which plain edge padding would add) and keeps w non-decreasing
-        k = min(len(w) - 1, int(np.ceil(4 * blend)))
-        head = 2 * w[0] - w[1 : k + 1][::-1]
-        tail = 2 * w[-1] - w[-k - 1 : -1][::-1]
-        padded = np.concatenate([head, w, tail])
-        w = gaussian_filter1d(padded, blend, mode="nearest")[k : k + len(w)]
+        cuts = sorted({int(a) for a in anchors if 0 < int(a) < len(w) - 1})
+        if cuts:
+            bounds = [0, *cuts, len(w) - 1]
+            out = w.copy()
+            for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+                out[a : b + 1] = _smooth_piece(w[a : b + 1], blend)
+            out[cuts] = w[cuts]
+            w = out
+        else:
+            w = _smooth_piece(w, blend)
     w = np.maximum.accumulate(w)
     if m is not None:
         w = np.clip(w, 0.0, m - 1)
     return w
+
+
+def _smooth_piece(w: np.ndarray, blend: float) -> np.ndarray:
+    """``w`` (k,) smoothed with a Gaussian of ``blend`` frames, padded by point reflection
+    at both ends (straight stretches stay straight, the end values stay about as they are,
+    no pull toward them as plain edge padding would add, and w stays non-decreasing)."""
+    if len(w) < 3:
+        return w.copy()
+    k = min(len(w) - 1, int(np.ceil(4 * blend)))
+    head = 2 * w[0] - w[1 : k + 1][::-1]
+    tail = 2 * w[-1] - w[-k - 1 : -1][::-1]
+    padded = np.concatenate([head, w, tail])
+    return gaussian_filter1d(padded, blend, mode="nearest")[k : k + len(w)]
 
 
 def merge_path(path: np.ndarray, n: int, m: int, blend: float = BLEND_FRAMES) -> np.ndarray:

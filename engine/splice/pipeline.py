@@ -839,7 +839,12 @@ def align_passes(
 
     progress("merge", 0.0)
     final = al1 if hand_lacks_forearm(features) and not spin else al2
-    warp = MG.smooth_warp(straighten_holds(features, MG.median_warp(final.path, n), pts), blend, m)
+    warp = MG.smooth_warp(
+        straighten_holds(features, MG.median_warp(final.path, n), pts),
+        blend,
+        m,
+        anchors=[p[0] for p in pts],
+    )
     hand_map = features.grid_to_hand(warp)
     overlap = final.overlap
     timings["merge"] = time.perf_counter() - t2
