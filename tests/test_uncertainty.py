@@ -205,3 +205,26 @@ def test_a_point_at_its_true_frame_is_met_by_the_map_beside_a_hold():
     )
     grid = case.hand.fps / fixed.features.fps  # hand frames per grid column
     assert abs(fixed.alignment.map[at] - hand) <= grid
+
+
+def test_the_top_suggestion_on_a_take_with_holds_is_where_a_point_helps():
+    """A split pair with holds of another length in each take (the bench's ``holds``
+    family, a tuning seed): the largest true error sits in a slow stretch; the top
+    suggestion is there, not at the stretch's moving edge, and a point placed at it (at
+    its true hand frame) lowers the take's p95 timing error by at least 30 %."""
+    from benchmarks.bench_splice_accuracy import FAMILIES
+
+    case = FAMILIES["holds"].make(204)
+    res = P.splice(case.body, case.hand, transfer_fingers=False)
+    err = np.abs(res.alignment.map - case.truth)
+    top = int(assess_splice(res.features, res.alignment).suggestions[0][0])
+    assert abs(top - int(np.argmax(err))) <= 0.5 * res.features.fps
+    fixed = P.splice(
+        case.body,
+        case.hand,
+        transfer_fingers=False,
+        hand_points=True,
+        points=[(top, int(round(float(case.truth[top]))), 0)],
+    )
+    after = np.abs(fixed.alignment.map - case.truth)
+    assert np.percentile(after, 95) <= 0.7 * np.percentile(err, 95)

@@ -73,16 +73,13 @@ class Uncertainty:
     ms : (n,) float, milliseconds of the hand take per body frame
     pass1_ms, pass2_ms : (n,) float, each pass's part
     fps : float, body frames per second
-    visibility : (n,) float in [0, 1] or None: how well a person can tell the moment from
-        the pose (the body wrist's speed against its median: a held pose looks the same
-        for the whole hold, so a matching point cannot be placed there with confidence)
+    bend_ms : (n,) float or None, the bend term's part (:func:`warp_bend`)
     """
 
     ms: np.ndarray
     pass1_ms: np.ndarray
     pass2_ms: np.ndarray
     fps: float
-    visibility: np.ndarray | None = None
     bend_ms: np.ndarray | None = None
 
     def suggestions(self, count: int = SUGGESTIONS, gap_s: float = SUGGEST_GAP_S) -> list[int]:
@@ -91,9 +88,10 @@ class Uncertainty:
         A place is scored by the uncertainty summed over ``gap_s`` around it, so a long
         uncertain stretch (many mistimed frames, where one matching point fixes most) comes
         before a one-frame spike; the frame returned is the least certain one of the stretch.
-        With ``visibility`` both are weighted by it (a moment a person can tell from the
-        pose; measured on the tuning seeds, ranking the stretches without it placed worse
-        points).
+        Slow stretches are not ranked down: the largest true errors sit in holds and slow
+        moves, and a point placed at the uncertainty's peak there lowered the hard families'
+        p95 more than one at the stretch's visible (moving) edge (issue 17; measured on the
+        tuning seeds, then on the reported ones: ``benchmarks/bench_uncertainty.py``).
         """
         gap = max(1, int(round(gap_s * self.fps)))
         n = len(self.ms)
@@ -102,16 +100,13 @@ class Uncertainty:
         lo = np.clip(np.arange(n) - half, 0, n)
         hi = np.clip(np.arange(n) + half + 1, 0, n)
         score = csum[hi] - csum[lo]
-        if self.visibility is not None:
-            score = score * self.visibility
         order = np.argsort(-score, kind="stable")
         chosen: list[int] = []
         for i in order:
             if score[i] <= 0.0 or len(chosen) >= count:
                 break
             a, b = int(lo[i]), int(hi[i])
-            local = self.ms[a:b] * (1.0 if self.visibility is None else self.visibility[a:b])
-            peak = a + int(np.argmax(local))
+            peak = a + int(np.argmax(self.ms[a:b]))
             if all(abs(peak - c) >= gap for c in chosen):
                 chosen.append(peak)
         return chosen
@@ -167,8 +162,6 @@ def alignment_uncertainty(features, alignment, bend_s: float = BEND_S) -> Uncert
     the whole take look far more certain than its errors are). ``bend_s``: half-window
     (seconds) of the bend term (:func:`warp_bend`).
     """
-    from engine.splice.pipeline import wrist_speeds
-
     warp = np.asarray(alignment.warp, np.float64)
     p1, p2 = alignment.pass1, alignment.pass2
     frame_ms = 1000.0 / float(features.fps)
@@ -176,14 +169,11 @@ def alignment_uncertainty(features, alignment, bend_s: float = BEND_S) -> Uncert
     ms2 = pass_spread(p2, warp) * frame_ms
     half = max(1, int(round(bend_s * float(features.fps))))
     bend = warp_bend(warp, half) * frame_ms
-    speed = wrist_speeds(features)[0]
-    typical = float(np.median(speed)) or 1.0
     return Uncertainty(
         ms=np.sqrt(ms1**2 + ms2**2 + bend**2),
         pass1_ms=ms1,
         pass2_ms=ms2,
         fps=float(features.fps),
-        visibility=speed / (speed + typical),
         bend_ms=bend,
     )
 
