@@ -228,3 +228,16 @@ def test_the_top_suggestion_on_a_take_with_holds_is_where_a_point_helps():
     )
     after = np.abs(fixed.alignment.map - case.truth)
     assert np.percentile(after, 95) <= 0.7 * np.percentile(err, 95)
+
+
+def test_a_matching_point_on_a_holds_first_frame_is_met_not_straightened_away():
+    from engine.splice import merge as MG
+
+    # a body hold at the take's start (rows 0-29) matched to a hand hold (columns 7-50);
+    # the user's point (0, 0) sits on the hold's first row
+    warp = np.concatenate([[0.0], np.linspace(6.0, 50.0, 29), 51.0 + np.arange(70.0)])
+    plain = MG.straighten_holds(warp, [(0, 29)], [(7, 50)], slack=9)
+    kept = MG.straighten_holds(warp, [(0, 29)], [(7, 50)], slack=9, keep=[0])
+    assert plain[0] == 7.0
+    assert kept[0] == 0.0 and kept[29] == 50.0
+    assert np.all(np.diff(kept) >= 0)

@@ -131,7 +131,8 @@ def straighten_holds(warp: np.ndarray, body_holds, hand_holds, slack: float, kee
     boundaries are matched to each other and the warp runs straight between them.
     ``warp (n,)`` grid columns per body frame (unsmoothed); returns a new array.
     ``keep``: body frames (the user's matching points) whose matched column stays as it
-    is: the straight run bends there (a point inside a hold is met, not overridden).
+    is: the straight run bends there (a point inside a hold or on its first or last frame
+    is met, not overridden).
     """
     kept = sorted({int(k) for k in keep})
     w = np.asarray(warp, dtype=float).copy()
@@ -140,10 +141,12 @@ def straighten_holds(warp: np.ndarray, body_holds, hand_holds, slack: float, kee
             continue
         for h0, h1 in hand_holds:
             if abs(w[b0] - h0) <= slack and abs(w[b1] - h1) <= slack and h1 > h0:
-                inside = [k for k in kept if b0 < k < b1]
-                knots = [b0, *inside, b1]
-                cols = [float(h0), *(w[k] for k in inside), float(h1)]
-                w[b0 : b1 + 1] = np.interp(np.arange(b0, b1 + 1), knots, cols)
+                points = [k for k in kept if b0 <= k <= b1]
+                ends = [(k, float(h)) for k, h in ((b0, h0), (b1, h1)) if k not in points]
+                knots = sorted([*ends, *((k, float(w[k])) for k in points)])
+                w[b0 : b1 + 1] = np.interp(
+                    np.arange(b0, b1 + 1), [k for k, _ in knots], [c for _, c in knots]
+                )
                 break
     return np.maximum.accumulate(w)
 
