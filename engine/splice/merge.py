@@ -89,7 +89,7 @@ def _smooth_piece(w: np.ndarray, blend: float) -> np.ndarray:
     """``w`` (k,) smoothed with a Gaussian of ``blend`` frames, padded by point reflection
     at both ends (straight stretches stay straight, the end values stay about as they are,
     no pull toward them as plain edge padding would add, and w stays non-decreasing)."""
-    if len(w) < 3:
+    if len(w) < 2:
         return w.copy()
     k = min(len(w) - 1, int(np.ceil(4 * blend)))
     head = 2 * w[0] - w[1 : k + 1][::-1]
