@@ -51,6 +51,11 @@ data rows when no joint has channels, braces in a joint name, and absurd sizes, 
 before anything is allocated (``engine.base.limits``: more than 1,000 joints or 100 levels,
 2,000,000 frames, a rate outside 1-10,000 fps, 6 hours, too many poses for the file).
 
+Memory: the data rows are split and converted ``ROWS_PER_CHUNK`` at a time straight into
+the pose arrays (``_read_rows``), and ``read_bvh`` frees the file's bytes and text once its
+lines exist: reading holds the lines and the take's arrays, never a Python object per
+value (a 115 MB, 72,000-frame take: 0.46 GB peak instead of 1.5 GB; issue 13).
+
 Writer precision: data values are written with ``precision`` decimals (default 6,
 error <= 5e-7 degrees or file units); offsets and the frame time exactly (shortest
 round-trip form). Write -> read reproduces rotations within ~1e-6 degrees and
