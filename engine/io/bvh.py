@@ -54,7 +54,8 @@ before anything is allocated (``engine.base.limits``: more than 1,000 joints or 
 Memory: the data rows are split and converted ``ROWS_PER_CHUNK`` at a time straight into
 the pose arrays (``_read_rows``), and ``read_bvh`` frees the file's bytes and text once its
 lines exist: reading holds the lines and the take's arrays, never a Python object per
-value (a 115 MB, 72,000-frame take: 0.46 GB peak instead of 1.5 GB; issue 13).
+value (a 115 MB, 72,000-frame hand take read after its body take: process peak 0.46 GB
+instead of 1.54 GB; issue 13).
 
 Writer precision: data values are written with ``precision`` decimals (default 6,
 error <= 5e-7 degrees or file units); offsets and the frame time exactly (shortest
