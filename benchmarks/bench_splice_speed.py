@@ -21,6 +21,9 @@ Run: ``.venv/bin/python -m benchmarks.bench_splice_speed [--quick] [--no-10min]`
   of ±4 s (refine ±4/3 s, the paper's ratio), or wider when the pair's true drift
   needs it. Peak = VmHWM of the child (whole process: interpreter, libraries, both
   takes, warm-up). Accuracy: median |warp − truth| in hand frames.
+* ``--engine``: only the 2- and 10-minute pairs with default bands, beside
+  :data:`ENGINE_BASE` (the chunked BVH reader and the blend in seconds), with the peak
+  while reading and while splicing apart (section ``splice_speed_engine``).
 """
 
 from __future__ import annotations
