@@ -21,6 +21,9 @@ Run: ``.venv/bin/python -m benchmarks.bench_splice_speed [--quick] [--no-10min]`
   of ±4 s (refine ±4/3 s, the paper's ratio), or wider when the pair's true drift
   needs it. Peak = VmHWM of the child (whole process: interpreter, libraries, both
   takes, warm-up). Accuracy: median |warp − truth| in hand frames.
+* ``--engine``: only the 2- and 10-minute pairs with default bands, beside
+  :data:`ENGINE_BASE` (the chunked BVH reader and the blend in seconds), with the peak
+  while reading and while splicing apart (section ``splice_speed_engine``).
 """
 
 from __future__ import annotations
@@ -43,6 +46,8 @@ PAPER_569_S = 10.95
 TIME_BAND_S = 4.0
 #: the code before the pass-2 row kernel (main when that work began): ``--pass2``'s "before"
 PASS2_BASE = os.environ.get("HANDSPLICE_PASS2_BASE", "3539261")
+#: main when issue 13's reader and merge work began: ``--engine``'s "before"
+ENGINE_BASE = os.environ.get("HANDSPLICE_ENGINE_BASE", "46e6d22")
 
 CHILD = r"""
 import json, sys, time
@@ -332,6 +337,62 @@ def report_pass2(kernel, longs) -> str:
     return "\n".join(lines)
 
 
+def report_engine(longs, load) -> str:
+    """The ``--engine`` section: whole splices beside :data:`ENGINE_BASE`."""
+    lines = [
+        "## Splice speed and memory: the chunked BVH reader and the blend in seconds (issue 13)",
+        "",
+        f"*before* = the engine at `{ENGINE_BASE}` (main when this work began), *now* = this "
+        "branch, alternately in the same run (`bench_splice_speed --engine`), default bands "
+        "(pass 1 W1 = 1.5 s x sqrt(T) capped to the cell limit, pass 2 W2 = 2 s). Each run "
+        "is a fresh child process: read both BVH files, a 600-frame warm-up splice, then one "
+        "timed `pipeline.splice` (prepare + passes + merge + transfer). Peak = VmHWM of the "
+        "process; *reading* = its peak after reading both files and the warm-up, "
+        "*splicing* = the peak counter reset (`/proc/self/clear_refs`) before the timed "
+        "splice. Timing error: |map - truth| in hand frames.",
+        "",
+        "| pair | code | read (wall) | splice wall | splice CPU | prepare / pass 1 / pass 2 / "
+        "merge / transfer (wall, s) | pass-1 / pass-2 cells | peak reading | peak splicing | "
+        "peak | timing error median / p95 (frames) |",
+        "|---|---|---:|---:|---:|---|---|---:|---:|---:|---|",
+    ]
+    for lg in longs:
+        for r in lg["runs"]:
+            st = r["stages"]
+            lines.append(
+                f"| {lg['seconds'] / 60:g} min ({r['frames'][0]:,} x {r['frames'][1]:,}) | "
+                f"{r['code']} | {r['read_s']:.1f} s | {r['wall_s']:.2f} s | {r['cpu_s']:.2f} s | "
+                f"{st['prepare']:.2f} / {st['pass1']:.2f} / {st['pass2']:.2f} / "
+                f"{st['merge']:.2f} / {st['transfer']:.2f} | "
+                f"{r['cells'][0] / 1e6:.1f} M / {r['cells'][1] / 1e6:.1f} M | "
+                f"{r['peak_read_mb']:.0f} MB | {r['peak_splice_mb']:.0f} MB | "
+                f"**{r['peak_mb']:.0f} MB** | {r['err_median']:.2f} / {r['err_p95']:.2f} |"
+            )
+    lines.append("")
+    for lg in longs:
+        by = {c: [r for r in lg["runs"] if r["code"] == c] for c in ("before", "now")}
+        if by["before"] and by["now"]:
+            ratio = {
+                k: statistics.median(n[k] / b[k] for b, n in zip(by["before"], by["now"]))
+                for k in ("cpu_s", "read_s", "peak_mb", "peak_read_mb")
+            }
+            lines.append(
+                f"- {lg['seconds'] / 60:g} min, now / before: process peak **{ratio['peak_mb']:.2f}**, "
+                f"peak while reading {ratio['peak_read_mb']:.2f}, reading time "
+                f"{ratio['read_s']:.2f}, splice CPU time {ratio['cpu_s']:.2f}."
+            )
+    lines += [
+        "",
+        f"Load average (1 min) {load[0]:.1f} at the start, {load[1]:.1f} at the end, on 2 cores "
+        "shared by five sessions and a fresh-machine check: wall times are several times the "
+        "CPU times; read the ratios and the CPU times.",
+        "",
+        "Goals (issue 13): 2-minute pair ≤ 1.0 s warm, peak ≤ 600 MB, median timing error ≤ 1 "
+        "frame; 10-minute pair ≤ 10 s, peak ≤ 1.5 GB.",
+    ]
+    return "\n".join(lines)
+
+
 def long_run(files, band, refine, tree=None) -> dict:
     body_p, hand_p, truth_p = files
     return LP.run_child(
@@ -439,8 +500,24 @@ def main(argv=None) -> int:
         "(section splice_speed_pass2)",
     )
     ap.add_argument("--long-reps", type=int, default=1, help="--pass2: runs of each code")
+    ap.add_argument(
+        "--engine",
+        action="store_true",
+        help="only default-band splices of the long pairs beside ENGINE_BASE "
+        "(section splice_speed_engine)",
+    )
     args = ap.parse_args(argv)
     fps = 120.0
+    if args.engine:
+        load0 = os.getloadavg()[0]
+        before = LP.baseline_tree(ENGINE_BASE)
+        longs = [bench_long_default(120.0, fps, before, args.long_reps)]
+        if not args.no_10min:
+            longs.append(bench_long_default(600.0, fps, before, 1))
+        text = report_engine(longs, (load0, os.getloadavg()[0]))
+        print(text)
+        write_section("splice_speed_engine", text)
+        return 0
     if args.pass2:
         files = LP.pair_files(120.0, fps)
         kernel2 = bench_pass2_kernel(files[0], files[1], max(args.reps, 1))
