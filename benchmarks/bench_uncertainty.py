@@ -124,7 +124,7 @@ def _ratio(s: dict) -> str:
 #: what the table does not show by itself (measured when the method last changed, on
 #: the hard families' seeds 0-11 with /tmp scripts reading the same cases)
 NOTES = [
-    "Notes (2026-12-01, after the end-band merge). Why one point moves a family's p95 "
+    "Notes (2026-12-01, after the end-band merge, before the blend in seconds). Why one point moves a family's p95 "
     "so little: the family's worst 5 % of frames are spread over several stretches per "
     "take and over many takes; only 34-56 % of them lie within 0.5 s of their take's "
     "worst frame (untrimmed 41 %, noisy 50 %, holds 56 %, fps 52 %, left 34 %, manipnet "
@@ -147,7 +147,9 @@ NOTES = [
     "tuning seeds' best (κ 0.25-4 and bend 0.1-0.5 s tried there: ρ 0.39-0.51, 0.50 at "
     "κ = 1, 0.25 s).",
     "",
-    "Before and after this change, the same 84 hard takes (seeds 0-11), change of the p95:",
+    "Before and after this change, the same 84 hard takes (seeds 0-11), both measured "
+    "before main's blend in seconds (the table above is after it, with this change), "
+    "change of the p95:",
     "",
     "| family | p95 | top suggestion, before | top suggestion, now | point at the worst "
     "frame, before | now |",
