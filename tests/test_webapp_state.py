@@ -164,6 +164,63 @@ def test_url_round_trip_restores_the_state(session, cfg):
     assert other.solution.pass1.cost == pytest.approx(session.solution.pass1.cost)
 
 
+def test_view_state_is_saved_and_restored_by_file_and_link(session, cfg):
+    """Camera, trails, follow edits and pick mode live in the session: its file and link
+    restore them; a file or link without them (made before) gives the defaults."""
+    session.param.update(camera="front", trails=True, follow=False, pick=True)
+    view = {"camera": "front", "trails": True, "follow": False, "pick": True}
+    for restore in (
+        lambda s: s.from_json(session.to_json(), source="s.json"),
+        lambda s: s.from_query(dict(parse_qsl(urlsplit(session.share_url("/")).query))),
+    ):
+        other = Session(cfg)
+        restore(other)
+        assert {k: getattr(other, k) for k in view} == view and not other.error
+        assert other.to_spec() == session.to_spec()
+    old = json.loads(session.to_json())
+    old["view"] = {"matrix": "pass1", "frame": 3}  # a file written before the view state
+    other = Session(cfg)
+    other.param.update(camera="side", trails=True, follow=False, pick=True)
+    other.from_json(json.dumps(old), source="old.json")
+    assert (other.camera, other.trails, other.follow, other.pick) == (
+        "three-quarter",
+        False,
+        True,
+        False,
+    )
+
+
+def test_bad_view_state_is_refused_and_changes_nothing(session):
+    session.param.update(camera="side", trails=True)
+    before = _snapshot(session)
+    spec = json.loads(session.to_json())
+    spec["view"]["camera"] = "<b>top</b>"
+    with pytest.raises(SessionError, match=r"^bad.json: view.camera: expected one of"):
+        session.from_json(json.dumps(spec), source="bad.json")
+    with pytest.raises(SessionError, match=r"^URL: view.trails: expected true or false"):
+        session.from_query({"sample": DEMO, "trails": "sometimes"})
+    assert _snapshot(session) == before and (session.camera, session.trails) == ("side", True)
+
+
+def test_preview_and_matrix_widgets_are_the_sessions_view_state(session):
+    """The preview's camera, trails and follow boxes and the matrix's click mode read and
+    write the session (so a restored session shows in them, and they save with it)."""
+    from webapp.views.cost_matrix import CostMatrixView
+    from webapp.views.preview import PreviewView
+
+    session.param.update(camera="side", pick=True)
+    preview, matrix = PreviewView(session), CostMatrixView(session)
+    assert preview.camera.value == "side" and matrix.point_tool.add is False
+    preview.trails.value = True
+    preview.auto.value = False
+    assert session.trails and not session.follow
+    assert preview._key()[3:] == ("side", True)
+    session.pick = False
+    assert matrix.point_tool.add is True
+    session.camera = "front"
+    assert preview.camera.value == "front"
+
+
 def test_two_sessions_are_independent(cfg):
     a, b = Session(cfg), Session(cfg)
     a.load_sample(DEMO)

@@ -70,6 +70,10 @@ SHARE_KEYS = (
     "roles",
     "view",
     "frame",
+    "camera",
+    "trails",
+    "follow",
+    "pick",
 )
 
 
@@ -113,10 +117,12 @@ def create_app() -> pn.viewable.Viewable:
     matrix = CostMatrixView(session)
     trust = TrustView(session, matrix)
     points = controls.PointsTable(session)
-    pick = pn.widgets.RadioButtonGroup(
-        options=["Edit points", "Pick frames"], value="Edit points", css_classes=["hs-click-mode"]
+    pick = pn.widgets.RadioButtonGroup.from_param(  # the session's pick mode (its file, link)
+        session.param.pick,
+        name="",
+        options={"Edit points": False, "Pick frames": True},
+        css_classes=["hs-click-mode"],
     )
-    pick.param.watch(lambda e: matrix.set_pick_mode(e.new == "Pick frames"), "value")
 
     side_panel = pn.Column(
         controls.parameter_widgets(session),

@@ -30,6 +30,9 @@ from webapp import backend, config
 
 EDIT_PARAMS = ("band", "band_s", "refine_band", "refine_band_s", "tolerance", "points")
 INPUT_PARAMS = ("sample", "body_sha256", "hand_sha256", "side", "roles")
+#: the page's view state kept in the session (file and link): preview camera, hand trails,
+#: follow edits, pick mode
+VIEW_STATE = tuple(session_io.VIEW_DEFAULTS)
 MATRIX_LABELS = {
     "pass1": "Pass 1 local cost D1 (signs of velocity, acceleration)",
     "pass2": "Pass 2 local cost D2 (forearm/hand angle)",
@@ -147,6 +150,23 @@ class Session(param.Parameterized):
         default="pass1", objects=list(MATRIX_LABELS), doc="which cost matrix the figure shows"
     )
     frame = param.Integer(default=0, bounds=(0, None), doc="body frame shown in the preview")
+    # view state (saved in the session file and link; defaults: engine.io.session.VIEW_DEFAULTS)
+    camera = param.Selector(
+        default=session_io.VIEW_DEFAULTS["camera"],
+        objects=list(session_io.PREVIEW_CAMERAS),
+        doc="the preview's camera",
+    )
+    trails = param.Boolean(
+        default=session_io.VIEW_DEFAULTS["trails"], doc="hand trails in the preview"
+    )
+    follow = param.Boolean(
+        default=session_io.VIEW_DEFAULTS["follow"],
+        doc="the preview renders again after every edit (else only when its frame changes)",
+    )
+    pick = param.Boolean(
+        default=session_io.VIEW_DEFAULTS["pick"],
+        doc="a click on the matrix picks the previewed frame (True) or adds a matching point",
+    )
 
     # results (written by the session only)
     n = param.Integer(default=0, constant=True, doc="body frames (rows)")
@@ -670,7 +690,7 @@ class Session(param.Parameterized):
             tolerance=self.tolerance,
             points=self.points,
             roles=dict(self.roles),
-            view={"matrix": self.matrix, "frame": self.frame},
+            view={"matrix": self.matrix, "frame": self.frame, **self._current(VIEW_STATE)},
         )
 
     def apply_spec(self, spec: SessionSpec) -> None:
@@ -769,6 +789,7 @@ class Session(param.Parameterized):
             points=points,
             matrix=spec.view.get("matrix", self.matrix),
             frame=int(min(spec.view.get("frame", 0), max(prepared.n - 1, 0))),
+            **{k: spec.view.get(k, session_io.VIEW_DEFAULTS[k]) for k in VIEW_STATE},
         )
         return {
             "values": values,

@@ -410,7 +410,7 @@ class CostMatrixView:
         )
         self.point_tool = PointDrawTool(
             renderers=[points],
-            add=True,
+            add=not session.pick,
             drag=True,
             default_overrides={"tol": float("nan")},
             name="hs-point-tool",
@@ -573,6 +573,7 @@ class CostMatrixView:
         session.param.watch(self._on_matrix, ["matrix"])
         session.param.watch(self._on_frame, ["frame"])
         session.param.watch(self._on_inputs, ["inputs_revision"])
+        session.param.watch(lambda e: self.set_pick_mode(e.new), ["pick"])
         self._on_inputs()
 
     # ------------------------------------------------------------ session -> page
