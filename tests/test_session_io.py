@@ -9,8 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from engine.io.session import (
-    MatchPoint,
     VIEW_DEFAULTS,
+    MatchPoint,
     SessionError,
     SessionSpec,
     TakeRef,

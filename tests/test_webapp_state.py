@@ -219,6 +219,8 @@ def test_preview_and_matrix_widgets_are_the_sessions_view_state(session):
     assert matrix.point_tool.add is True
     session.camera = "front"
     assert preview.camera.value == "front"
+    session.param.update(camera="side", trails=False)  # together (a session file): one render
+    assert preview._key()[3:] == ("side", False)
 
 
 def test_two_sessions_are_independent(cfg):

@@ -122,6 +122,7 @@ def create_app() -> pn.viewable.Viewable:
         name="",
         options={"Edit points": False, "Pick frames": True},
         css_classes=["hs-click-mode"],
+        description=None,
     )
 
     side_panel = pn.Column(

@@ -95,21 +95,22 @@ class PreviewView:
         )
         # the view state lives in the session (saved in its file and link): widgets of its
         # parameters
+        view = {"description": None}  # no tooltip (the widgets looked the same before)
         self.camera = pn.widgets.Select.from_param(
-            session.param.camera, name="Camera", width=130, css_classes=["hs-camera"]
+            session.param.camera, name="Camera", width=130, css_classes=["hs-camera"], **view
         )
         self.trails = pn.widgets.Checkbox.from_param(
-            session.param.trails, name="Hand trails", width=110, css_classes=["hs-trails"]
+            session.param.trails, name="Hand trails", width=110, css_classes=["hs-trails"], **view
         )
         self.auto = pn.widgets.Checkbox.from_param(
-            session.param.follow, name="Follow edits", width=110, css_classes=["hs-follow"]
+            session.param.follow, name="Follow edits", width=110, css_classes=["hs-follow"], **view
         )
         self.slider.param.watch(self._on_slider, "value")
         self.play.param.watch(self._on_play, "value")
         session.param.watch(self._on_frame, ["frame"])
         session.param.watch(self._on_inputs, ["inputs_revision"])
         session.param.watch(self._on_solution, ["revision"])
-        session.param.watch(lambda e: self._render_soon(), ["camera", "trails"])
+        session.param.watch(lambda *_: self._render_soon(), ["camera", "trails"])
         self._rendered_key = None
         self._played = None
         self._inflight = False
