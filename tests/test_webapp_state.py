@@ -11,7 +11,7 @@ import pytest
 from engine.base.errors import HandSpliceError
 from engine.io.session import MatchPoint, SessionError
 from webapp import backend, config, uploads
-from webapp.state import Session, page_words
+from webapp.state import Session
 
 DEMO = "wave-ok"
 
@@ -108,7 +108,7 @@ def test_infeasible_points_are_rejected_and_leave_state_alone(session):
     session.add_point(40, 20, 0)
     rev, points, undo = session.revision, session.points, session.can_undo
     session.add_point(60, 10, 0)  # after (40, 20) in body frames but before it in hand frames
-    shown = page_words(session.error)  # what the page's alert says
+    shown = session.page_error()  # what the page's alert says
     assert "(body 60, hand 10) not kept" in shown and "points[" not in shown
     assert session.points == points and session.revision == rev and session.can_undo == undo
     session.add_point(session.n + 5, session.m_hand - 1, 0)
@@ -121,7 +121,7 @@ def test_view_edits_round_clip_and_sort(session):
     # dragged past the matrix edge: clipped to the last row; crossing the other point: refused
     assert not session.set_points_from_view([(20, 5, 3.0), (1e9, 2, None)])
     assert session.points == (MatchPoint(20, 5, 3.0), MatchPoint(80, 31))
-    assert f"(body {session.n - 1}, hand 2) not kept" in page_words(session.error)
+    assert f"(body {session.n - 1}, hand 2) not kept" in session.page_error()
 
 
 def test_undo_redo_across_points_and_parameters(session):
@@ -761,6 +761,61 @@ def test_page_errors_use_the_pages_words():
         RoleError("h.bvh has no left hand (hands found: right); try --side right")
     )
     assert "--side" not in text and "choose side right in the page" in text
+
+
+def _regex_page_words(message: str) -> str:
+    """The page's words as a regex over the message made them before refusals carried
+    structured fields: the reference for 'the page says the same'."""
+    import re
+
+    point = r"(\d+):(\d+)(?::[\d.]+)?"
+    text = re.sub(
+        rf"^points\[\d+\](?:\.\w+)?: {point} ",
+        r"matching point (body \1, hand \2) not kept: it ",
+        message,
+    )
+    text = re.sub(
+        r"^points\[\d+\] = \(x=(\d+), y=(\d+), tol=[\d.]+\) ",
+        r"matching point (body \1, hand \2) not kept: it ",
+        text,
+    )
+    return re.sub(rf"\b{point}\b", r"(body \1, hand \2)", text)
+
+
+def test_page_words_come_from_the_structured_refusal(session, cfg):
+    """Every kind of refusal the page shows reads as it did when a regex over the message
+    made the page's words; the words come from the ConstraintError's fields."""
+    from webapp import app
+
+    n, m = session.n, session.m_hand
+    seen = []
+
+    def check(edit):
+        edit(session)
+        assert session.error
+        seen.append((session.error, session.page_error()))
+        assert session.page_error() == _regex_page_words(session.error), session.error
+
+    session.add_point(40, 20, 1)
+    check(lambda s: s.add_point(60, 10, 2))  # crosses (the order rule)
+    check(lambda s: s.add_point(40, 25))  # the same body frame (out of order)
+    check(lambda s: s.add_point(n + 5, m - 1, 0))  # outside the matrix (check_points)
+    check(lambda s: s.add_point(41, 60, 0))  # a neighbour too far away (check_points)
+    check(lambda s: s.set_point_tolerance(0, 900))  # a tolerance out of range
+    check(lambda s: s.set_constraints(band=5))  # a band width out of range
+    check(lambda s: s.set_constraints(points="10:5 8:9"))  # typed out of order
+    refusal = session.refusal()
+    assert (refusal.field, refusal.point, refusal.value) == ("points[1]", (8, 9), MatchPoint(8, 9))
+    assert "crosses" not in refusal.reason and "{0}" in refusal.reason
+    linked = Session(cfg)
+    app._initial_state(linked, {"sample": DEMO, "pts": "60:10,40:20:1"})
+    assert linked.error.startswith("shared link: URL: points[1]:")
+    assert linked.page_error() == _regex_page_words(linked.error)
+    assert "(after (body 60, hand 10))" in linked.page_error()
+    seen.append((linked.error, linked.page_error()))
+    assert sum("not kept: it" in words for _, words in seen) == 5
+    session.error = "h.bvh line 12:30: a message that is no constraint's"
+    assert session.refusal() is None and session.page_error() == session.error
 
 
 def test_sample_credits_and_the_no_share_warning(session):

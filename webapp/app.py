@@ -95,12 +95,12 @@ def _initial_state(session: Session, args: dict[str, str] | None = None) -> None
         try:
             session.load_sample(cfg.default_sample)
         except Exception as exc:
-            session.error = one_line(exc)
+            session.refuse(exc)
     if any(k in args for k in SHARE_KEYS):
         try:
             session.from_query(args)
         except Exception as exc:  # nothing was applied: the reason is shown
-            session.error = f"shared link: {one_line(exc)}"
+            session.refuse(exc, f"shared link: {one_line(exc)}")
 
 
 def create_app() -> pn.viewable.Viewable:

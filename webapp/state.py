@@ -68,24 +68,24 @@ def _same(a, b) -> bool:
         return False
 
 
-def page_words(message: str) -> str:
-    """A constraint refusal (``engine.dtw.constraints``' one text for every front) in the
-    page's words: ``points[1]: 60:10:0 crosses 40:20:0: ...`` becomes ``matching point
-    (body 60, hand 10) not kept: it crosses (body 40, hand 20): ...``."""
-    import re
+def page_point(body: int, hand: int, tolerance: float | None = None) -> str:
+    """A matching point as the page writes it in messages: ``(body 60, hand 10)``."""
+    return f"(body {body}, hand {hand})"
 
-    point = r"(\d+):(\d+)(?::[\d.]+)?"
-    text = re.sub(
-        rf"^points\[\d+\](?:\.\w+)?: {point} ",
-        r"matching point (body \1, hand \2) not kept: it ",
-        message,
-    )
-    text = re.sub(
-        r"^points\[\d+\] = \(x=(\d+), y=(\d+), tol=[\d.]+\) ",
-        r"matching point (body \1, hand \2) not kept: it ",
-        text,
-    )
-    return re.sub(rf"\b{point}\b", r"(body \1, hand \2)", text)
+
+def page_words(message: str, refusal: C.ConstraintError | None = None) -> str:
+    """``message`` in the page's words, from the structured constraint refusal behind it
+    (``engine.dtw.constraints``' one text for every front; ``Session.refusal``): a refused
+    point ``points[1]: 60:10:0 crosses 40:20:0: ...`` becomes ``matching point (body 60,
+    hand 10) not kept: it crosses (body 40, hand 20): ...``; the refusal inside a longer
+    message (a shared link's) has its points written the page's way. Any other message is
+    shown as it is."""
+    if refusal is None or str(refusal) not in message:
+        return message
+    reason = refusal.reason_with(page_point)
+    if message == str(refusal) and reason is not None:
+        return f"matching point {page_point(*refusal.point)} not kept: it {reason}"
+    return message.replace(str(refusal), refusal.text_with(page_point))
 
 
 class Session(param.Parameterized):
@@ -198,10 +198,31 @@ class Session(param.Parameterized):
         self._redo: list[Snapshot] = []
         self._applying = False
         self._slider_run: tuple[str, float] | None = None
+        self._refused: tuple[str, C.ConstraintError | None] = ("", None)
         self.prepared: backend.Prepared | None = None
         super().__init__(**params)
         self.param.watch(self._on_edit, list(EDIT_PARAMS))
         self.param.watch(self._on_inputs, list(INPUT_PARAMS))
+
+    # ------------------------------------------------------------ refusals
+
+    def refuse(self, exc: BaseException, text: str | None = None) -> None:
+        """Say why an edit or input was refused: ``error`` is ``text`` (default: the
+        exception's one line) and :meth:`refusal` the constraint behind it, if any."""
+        text = backend.one_line(exc) if text is None else text
+        cause = exc if isinstance(exc, C.ConstraintError) else getattr(exc, "constraint", None)
+        self._refused = (text, cause)
+        self.error = text
+
+    def refusal(self) -> C.ConstraintError | None:
+        """The structured constraint refusal (field, value, expected, the refused point)
+        behind the current ``error``; None when ``error`` is not a constraint's."""
+        text, cause = self._refused
+        return cause if self.error and text == self.error else None
+
+    def page_error(self) -> str:
+        """``error`` in the page's words (:func:`page_words`)."""
+        return page_words(self.error, self.refusal())
 
     # ------------------------------------------------------------ inputs
 
@@ -255,7 +276,7 @@ class Session(param.Parameterized):
         try:
             spec = session_io.from_dict({"roles": roles}, source="role overrides")
         except session_io.SessionError as exc:
-            self.error = str(exc)
+            self.refuse(exc, str(exc))
             return False
         self.roles = spec.roles
         return not self.error
@@ -278,7 +299,7 @@ class Session(param.Parameterized):
             message = backend.one_line(exc)
             if self.prepared is not None:  # keep what worked: inputs back to their old values
                 self._apply({e.name: e.old for e in events if e.name in INPUT_PARAMS})
-            self.error = message
+            self.refuse(exc, message)
             return
         self.prepared = prepared
         self._undo.clear()
@@ -403,7 +424,7 @@ class Session(param.Parameterized):
             if points is not None:
                 values["points"] = C.parse_points(points)
         except C.ConstraintError as exc:
-            self.error = str(exc)
+            self.refuse(exc, str(exc))
             return False
         self.error = ""
         self.param.update(**values)
@@ -433,7 +454,7 @@ class Session(param.Parameterized):
             try:
                 tolerance = C.parse_tolerance(tolerance, f"points[{index}].tolerance")
             except C.ConstraintError as exc:
-                self.error = str(exc)
+                self.refuse(exc, str(exc))
                 return
         pts = list(self.points)
         pts[index] = MatchPoint(
@@ -539,14 +560,15 @@ class Session(param.Parameterized):
         try:
             return C.sort_points(points)
         except C.ConstraintError as exc:
-            self.error = str(exc)
+            self.refuse(exc, str(exc))
             return self.points
 
     # ------------------------------------------------------------ compute
 
     def _check_points(self) -> None:
         """Refuse points outside the takes or out of order: the rule and its text are
-        ``engine.dtw.constraints``' (the page shows it in its own words: ``page_words``)."""
+        ``engine.dtw.constraints``' (the page shows it in its own words from its structured
+        fields: ``page_words``)."""
         C.check_points(self.user_points(), self.n, self.m_hand, open_ends=C.DEFAULT_ENDS == "open")
 
     def _solve(self, t0: float | None = None) -> bool:
@@ -565,7 +587,7 @@ class Session(param.Parameterized):
                 previous=self.solution,
             )
         except (HandSpliceError, ValueError) as exc:
-            self.error = backend.one_line(exc)
+            self.refuse(exc)
             return False
         self.param.update(
             solution=sol, trust=None, compute_ms=(time.perf_counter() - t0) * 1000.0, error=""
@@ -653,7 +675,7 @@ class Session(param.Parameterized):
         try:
             return backend.cost_view(self.prepared, self.solution, self.matrix, ranges, max_pixels)
         except HandSpliceError as exc:
-            self.error = backend.one_line(exc)
+            self.refuse(exc)
             return None
 
     def spliced(self):

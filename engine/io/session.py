@@ -74,12 +74,21 @@ _HEX64 = re.compile(r"^[0-9a-f]{64}$")
 
 
 class SessionError(ParameterError):
-    """A session file or dict is malformed; the message names the field."""
+    """A session file or dict is malformed; the message names the field. ``constraint`` is
+    the :class:`~engine.dtw.constraints.ConstraintError` behind it, if any (its structured
+    fields: value, expected, the refused point)."""
 
-    def __init__(self, source: str | None, field_name: str, message: str):
+    def __init__(
+        self,
+        source: str | None,
+        field_name: str,
+        message: str,
+        constraint: C.ConstraintError | None = None,
+    ):
         self.source = source
         self.field = field_name
         self.detail = message
+        self.constraint = constraint
         where = f"{source}: " if source else ""
         super().__init__(f"{where}{field_name}: {message}" if field_name else f"{where}{message}")
 
@@ -290,7 +299,7 @@ def from_dict(data: Any, source: str | None = None) -> SessionSpec:
             raise C.ConstraintError("points", f"expected a list, got {_show(raw_points)}")
         points = C.parse_points([_json_point(p) for p in raw_points])
     except C.ConstraintError as exc:
-        raise SessionError(source, exc.field, exc.detail) from None
+        raise SessionError(source, exc.field, exc.detail, exc) from None
 
     roles = data.get("roles", {})
     if not isinstance(roles, dict):
@@ -494,7 +503,7 @@ def from_query(query: dict[str, str]) -> SessionSpec:
         if q.get("pts"):
             data["points"] = [[p.body, p.hand, p.tolerance] for p in C.parse_points(str(q["pts"]))]
     except C.ConstraintError as exc:
-        raise SessionError(source, exc.field, exc.detail) from None
+        raise SessionError(source, exc.field, exc.detail, exc) from None
     if q.get("roles"):
         try:
             data["roles"] = json.loads(str(q["roles"]))
