@@ -35,7 +35,7 @@ def _open(browser, url: str):
     page = context.new_page()
     errors: list[str] = []
     page.on("pageerror", lambda e: errors.append(str(e)))
-    page.goto(url)
+    page.goto(url, timeout=180_000)
     page.wait_for_function(
         "() => window.Bokeh && Bokeh.documents.length && "
         "Bokeh.documents[0].get_model_by_name('hs-path-source')?.data.x?.length > 0",
@@ -158,5 +158,28 @@ def test_a_link_with_a_bad_camera_opens_the_demo_and_says_why(browser_and_url):
         assert "<b>" in text  # shown as text, never as markup
         assert _controls(page)["camera"] == "three-quarter"
         assert not _controls(page)["trails"]  # nothing of the bad link was applied
+    finally:
+        page.context.close()
+
+
+def test_a_refused_click_is_worded_from_the_refusal(browser_and_url):
+    """Two clicks that cross: the second point is refused, and the alert names both points
+    the page's way (from the ConstraintError's fields)."""
+    browser, url = browser_and_url
+    page = _open(browser, url)
+    try:
+        page.mouse.click(*page.evaluate("hs.xy(40, 60)"))
+        page.wait_for_function("() => hs.cols('hs-server-points', ['x']).x.length === 1")
+        first = page.evaluate("hs.cols('hs-server-points', ['x', 'y'])")
+        b, h = round(first["x"][0]), round(first["y"][0])
+        page.mouse.click(*page.evaluate("hs.xy(80, 20)"))
+        alert = page.locator(".hs-error")
+        alert.wait_for(state="visible", timeout=60_000)
+        text = _text(alert)
+        assert "matching point (body 80, hand " in text and f"crosses (body {b}, hand {h})" in text
+        assert "not kept: it crosses" in text and "points[" not in text
+        page.wait_for_function("() => hs.cols('hs-points-source', ['x']).x.length === 1")
+        alert.screenshot(path="/tmp/rules_refusal.png")
+        assert not page.errors, page.errors
     finally:
         page.context.close()

@@ -95,15 +95,18 @@ class PreviewView:
         )
         # the view state lives in the session (saved in its file and link): widgets of its
         # parameters
-        view = {"description": None}  # no tooltip (the widgets looked the same before)
         self.camera = pn.widgets.Select.from_param(
-            session.param.camera, name="Camera", width=130, css_classes=["hs-camera"], **view
+            session.param.camera,
+            name="Camera",
+            width=130,
+            css_classes=["hs-camera"],
+            description=None,  # no tooltip from the parameter's doc (the page looks as before)
         )
         self.trails = pn.widgets.Checkbox.from_param(
-            session.param.trails, name="Hand trails", width=110, css_classes=["hs-trails"], **view
+            session.param.trails, name="Hand trails", width=110, css_classes=["hs-trails"]
         )
         self.auto = pn.widgets.Checkbox.from_param(
-            session.param.follow, name="Follow edits", width=110, css_classes=["hs-follow"], **view
+            session.param.follow, name="Follow edits", width=110, css_classes=["hs-follow"]
         )
         self.slider.param.watch(self._on_slider, "value")
         self.play.param.watch(self._on_play, "value")
