@@ -290,3 +290,39 @@ def test_shared_command_line_replays_the_apps_tolerance_exactly():
                 [C.parse_point(text).resolved()], body_fps, hand_fps, 10_000
             )
             assert back == tol, (body_fps, hand_fps, tol, text)
+
+
+def test_a_refusal_carries_field_value_and_expected():
+    """A ConstraintError's structured fields: what a front needs to word it its own way."""
+    with pytest.raises(C.ConstraintError) as info:
+        C.BAND.parse("5")
+    err = info.value
+    assert (err.field, err.value, err.expected) == ("band", 5.0, C.BAND.expected)
+    assert str(err) == f"band: expected {C.BAND.expected}, got 5"
+    with pytest.raises(C.ConstraintError) as info:
+        C.parse_tolerance(-2, "points[3].tolerance")
+    assert (info.value.field, info.value.value) == ("points[3].tolerance", -2.0)
+
+    with pytest.raises(C.ConstraintError) as info:
+        C.parse_points("10:5:2 8:9")
+    err = info.value
+    assert (err.field, err.value, err.point) == ("points[1]", C.MatchPoint(8, 9), (8, 9))
+    assert err.others == (C.MatchPoint(10, 5, 2.0),) and err.expected is None
+    assert str(err) == "points[1]: 8:9 is out of order: body frames must increase (after 10:5:2)"
+
+    def show(body, hand, tolerance):
+        return f"<{body}|{hand}>"
+
+    assert err.text_with(show) == (
+        "points[1]: <8|9> is out of order: body frames must increase (after <10|5>)"
+    )
+
+    with pytest.raises(C.ConstraintError) as info:  # check_points: its own text stays
+        C.check_points([(3, 50, 0)], 10, 20)
+    err = info.value
+    assert (err.point, err.value) == ((3, 50), (3.0, 50.0, 0.0))
+    assert err.reason.startswith("is outside the 10 x 20 matrix")
+    assert err.text_with(show) == str(err)
+    with pytest.raises(C.ConstraintError) as info:  # a malformed point is not "placed"
+        C.check_points([(3.5, 5, 0)], 10, 20)
+    assert info.value.point is None and info.value.reason_with(show) is None

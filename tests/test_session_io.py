@@ -9,6 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from engine.io.session import (
+    VIEW_DEFAULTS,
     MatchPoint,
     SessionError,
     SessionSpec,
@@ -126,6 +127,12 @@ def test_defaults_from_empty_object():
         ({"version": [2]}, "version", "expected 1 or 2"),  # unhashable: found by the fuzz bench
         ({"version": {"v": 2}}, "version", "expected 1 or 2"),
         ({"view": {"matrix": ["pass1"]}}, "view.matrix", "pass1"),
+        ({"view": {"camera": "top"}}, "view.camera", "three-quarter, front, side"),
+        ({"view": {"camera": ["front"]}}, "view.camera", "three-quarter, front, side"),
+        ({"view": {"trails": "yes"}}, "view.trails", 'expected true or false, got "yes"'),
+        ({"view": {"follow": 1}}, "view.follow", "expected true or false, got 1"),
+        ({"view": {"pick": None}}, "view.pick", "expected true or false, got null"),
+        ({"view": {"orbit": 30}}, "view.orbit", "unknown field (known: matrix, frame, camera"),
         ({"roles": {"body": {"right.wrist": 3}}}, "", "roles.body: right.wrist"),
         ({"roles": {"body": {"right.wirst": "R"}}}, "", "did you mean right.wrist"),
         ({"roles": {"right": {"wrist": "R"}}}, "roles.right", "body, hand"),
@@ -211,3 +218,39 @@ def test_any_json_is_valid_or_session_error(data):
         assert str(exc)
     else:
         assert from_dict(to_dict(spec)) == spec
+
+
+def test_view_state_round_trips_through_file_and_link(tmp_path):
+    """The app's view state (preview camera, hand trails, follow edits, pick mode) is saved
+    and read back by the file and the link; the link carries only what is not the default."""
+    view = {
+        "matrix": "pass1",
+        "frame": 5,
+        "camera": "side",
+        "trails": True,
+        "follow": False,
+        "pick": True,
+    }
+    spec = _spec(view=view)
+    write_session(spec, tmp_path / "s.json")
+    assert read_session(tmp_path / "s.json").view == view
+    q = to_query(spec)
+    assert (q["camera"], q["trails"], q["follow"], q["pick"]) == ("side", "1", "0", "1")
+    assert from_query(q).view == view
+    default = to_query(_spec(view={"frame": 0, **VIEW_DEFAULTS}))
+    assert not set(VIEW_DEFAULTS) & set(default)  # links of default views read as before
+
+
+@pytest.mark.parametrize(
+    ("query", "field", "words"),
+    [
+        ({"camera": "top"}, "view.camera", "expected one of three-quarter, front, side"),
+        ({"trails": "maybe"}, "view.trails", 'expected true or false, got "maybe"'),
+        ({"pick": "2"}, "view.pick", 'expected true or false, got "2"'),
+    ],
+)
+def test_bad_view_state_in_a_link_names_the_field(query, field, words):
+    with pytest.raises(SessionError) as info:
+        from_query({"sample": "demo", **query})
+    assert info.value.field == field and str(info.value).startswith(f"URL: {field}: ")
+    assert words in str(info.value)

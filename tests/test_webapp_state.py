@@ -11,7 +11,7 @@ import pytest
 from engine.base.errors import HandSpliceError
 from engine.io.session import MatchPoint, SessionError
 from webapp import backend, config, uploads
-from webapp.state import Session, page_words
+from webapp.state import Session
 
 DEMO = "wave-ok"
 
@@ -108,7 +108,7 @@ def test_infeasible_points_are_rejected_and_leave_state_alone(session):
     session.add_point(40, 20, 0)
     rev, points, undo = session.revision, session.points, session.can_undo
     session.add_point(60, 10, 0)  # after (40, 20) in body frames but before it in hand frames
-    shown = page_words(session.error)  # what the page's alert says
+    shown = session.page_error()  # what the page's alert says
     assert "(body 60, hand 10) not kept" in shown and "points[" not in shown
     assert session.points == points and session.revision == rev and session.can_undo == undo
     session.add_point(session.n + 5, session.m_hand - 1, 0)
@@ -121,7 +121,7 @@ def test_view_edits_round_clip_and_sort(session):
     # dragged past the matrix edge: clipped to the last row; crossing the other point: refused
     assert not session.set_points_from_view([(20, 5, 3.0), (1e9, 2, None)])
     assert session.points == (MatchPoint(20, 5, 3.0), MatchPoint(80, 31))
-    assert f"(body {session.n - 1}, hand 2) not kept" in page_words(session.error)
+    assert f"(body {session.n - 1}, hand 2) not kept" in session.page_error()
 
 
 def test_undo_redo_across_points_and_parameters(session):
@@ -162,6 +162,65 @@ def test_url_round_trip_restores_the_state(session, cfg):
     other.from_query(query)
     assert other.to_spec() == session.to_spec()
     assert other.solution.pass1.cost == pytest.approx(session.solution.pass1.cost)
+
+
+def test_view_state_is_saved_and_restored_by_file_and_link(session, cfg):
+    """Camera, trails, follow edits and pick mode live in the session: its file and link
+    restore them; a file or link without them (made before) gives the defaults."""
+    session.param.update(camera="front", trails=True, follow=False, pick=True)
+    view = {"camera": "front", "trails": True, "follow": False, "pick": True}
+    for restore in (
+        lambda s: s.from_json(session.to_json(), source="s.json"),
+        lambda s: s.from_query(dict(parse_qsl(urlsplit(session.share_url("/")).query))),
+    ):
+        other = Session(cfg)
+        restore(other)
+        assert {k: getattr(other, k) for k in view} == view and not other.error
+        assert other.to_spec() == session.to_spec()
+    old = json.loads(session.to_json())
+    old["view"] = {"matrix": "pass1", "frame": 3}  # a file written before the view state
+    other = Session(cfg)
+    other.param.update(camera="side", trails=True, follow=False, pick=True)
+    other.from_json(json.dumps(old), source="old.json")
+    assert (other.camera, other.trails, other.follow, other.pick) == (
+        "three-quarter",
+        False,
+        True,
+        False,
+    )
+
+
+def test_bad_view_state_is_refused_and_changes_nothing(session):
+    session.param.update(camera="side", trails=True)
+    before = _snapshot(session)
+    spec = json.loads(session.to_json())
+    spec["view"]["camera"] = "<b>top</b>"
+    with pytest.raises(SessionError, match=r"^bad.json: view.camera: expected one of"):
+        session.from_json(json.dumps(spec), source="bad.json")
+    with pytest.raises(SessionError, match=r"^URL: view.trails: expected true or false"):
+        session.from_query({"sample": DEMO, "trails": "sometimes"})
+    assert _snapshot(session) == before and (session.camera, session.trails) == ("side", True)
+
+
+def test_preview_and_matrix_widgets_are_the_sessions_view_state(session):
+    """The preview's camera, trails and follow boxes and the matrix's click mode read and
+    write the session (so a restored session shows in them, and they save with it)."""
+    from webapp.views.cost_matrix import CostMatrixView
+    from webapp.views.preview import PreviewView
+
+    session.param.update(camera="side", pick=True)
+    preview, matrix = PreviewView(session), CostMatrixView(session)
+    assert preview.camera.value == "side" and matrix.point_tool.add is False
+    preview.trails.value = True
+    preview.auto.value = False
+    assert session.trails and not session.follow
+    assert preview._key()[3:] == ("side", True)
+    session.pick = False
+    assert matrix.point_tool.add is True
+    session.camera = "front"
+    assert preview.camera.value == "front"
+    session.param.update(camera="side", trails=False)  # together (a session file): one render
+    assert preview._key()[3:] == ("side", False)
 
 
 def test_two_sessions_are_independent(cfg):
@@ -706,6 +765,61 @@ def test_page_errors_use_the_pages_words():
         RoleError("h.bvh has no left hand (hands found: right); try --side right")
     )
     assert "--side" not in text and "choose side right in the page" in text
+
+
+def _regex_page_words(message: str) -> str:
+    """The page's words as a regex over the message made them before refusals carried
+    structured fields: the reference for 'the page says the same'."""
+    import re
+
+    point = r"(\d+):(\d+)(?::[\d.]+)?"
+    text = re.sub(
+        rf"^points\[\d+\](?:\.\w+)?: {point} ",
+        r"matching point (body \1, hand \2) not kept: it ",
+        message,
+    )
+    text = re.sub(
+        r"^points\[\d+\] = \(x=(\d+), y=(\d+), tol=[\d.]+\) ",
+        r"matching point (body \1, hand \2) not kept: it ",
+        text,
+    )
+    return re.sub(rf"\b{point}\b", r"(body \1, hand \2)", text)
+
+
+def test_page_words_come_from_the_structured_refusal(session, cfg):
+    """Every kind of refusal the page shows reads as it did when a regex over the message
+    made the page's words; the words come from the ConstraintError's fields."""
+    from webapp import app
+
+    n, m = session.n, session.m_hand
+    seen = []
+
+    def check(edit):
+        edit(session)
+        assert session.error
+        seen.append((session.error, session.page_error()))
+        assert session.page_error() == _regex_page_words(session.error), session.error
+
+    session.add_point(40, 20, 1)
+    check(lambda s: s.add_point(60, 10, 2))  # crosses (the order rule)
+    check(lambda s: s.add_point(40, 25))  # the same body frame (out of order)
+    check(lambda s: s.add_point(n + 5, m - 1, 0))  # outside the matrix (check_points)
+    check(lambda s: s.add_point(41, 60, 0))  # a neighbour too far away (check_points)
+    check(lambda s: s.set_point_tolerance(0, 900))  # a tolerance out of range
+    check(lambda s: s.set_constraints(band=5))  # a band width out of range
+    check(lambda s: s.set_constraints(points="10:5 8:9"))  # typed out of order
+    refusal = session.refusal()
+    assert (refusal.field, refusal.point, refusal.value) == ("points[1]", (8, 9), MatchPoint(8, 9))
+    assert "crosses" not in refusal.reason and "{0}" in refusal.reason
+    linked = Session(cfg)
+    app._initial_state(linked, {"sample": DEMO, "pts": "60:10,40:20:1"})
+    assert linked.error.startswith("shared link: URL: points[1]:")
+    assert linked.page_error() == _regex_page_words(linked.error)
+    assert "(after (body 60, hand 10))" in linked.page_error()
+    seen.append((linked.error, linked.page_error()))
+    assert sum("not kept: it" in words for _, words in seen) == 5
+    session.error = "h.bvh line 12:30: a message that is no constraint's"
+    assert session.refusal() is None and session.page_error() == session.error
 
 
 def test_sample_credits_and_the_no_share_warning(session):

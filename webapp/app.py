@@ -70,6 +70,10 @@ SHARE_KEYS = (
     "roles",
     "view",
     "frame",
+    "camera",
+    "trails",
+    "follow",
+    "pick",
 )
 
 
@@ -91,12 +95,12 @@ def _initial_state(session: Session, args: dict[str, str] | None = None) -> None
         try:
             session.load_sample(cfg.default_sample)
         except Exception as exc:
-            session.error = one_line(exc)
+            session.refuse(exc)
     if any(k in args for k in SHARE_KEYS):
         try:
             session.from_query(args)
         except Exception as exc:  # nothing was applied: the reason is shown
-            session.error = f"shared link: {one_line(exc)}"
+            session.refuse(exc, f"shared link: {one_line(exc)}")
 
 
 def create_app() -> pn.viewable.Viewable:
@@ -113,10 +117,13 @@ def create_app() -> pn.viewable.Viewable:
     matrix = CostMatrixView(session)
     trust = TrustView(session, matrix)
     points = controls.PointsTable(session)
-    pick = pn.widgets.RadioButtonGroup(
-        options=["Edit points", "Pick frames"], value="Edit points", css_classes=["hs-click-mode"]
+    pick = pn.widgets.RadioButtonGroup.from_param(  # the session's pick mode (its file, link)
+        session.param.pick,
+        name="",
+        options={"Edit points": False, "Pick frames": True},
+        css_classes=["hs-click-mode"],
+        description=None,
     )
-    pick.param.watch(lambda e: matrix.set_pick_mode(e.new == "Pick frames"), "value")
 
     side_panel = pn.Column(
         controls.parameter_widgets(session),

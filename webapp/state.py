@@ -30,6 +30,9 @@ from webapp import backend, config
 
 EDIT_PARAMS = ("band", "band_s", "refine_band", "refine_band_s", "tolerance", "points")
 INPUT_PARAMS = ("sample", "body_sha256", "hand_sha256", "side", "roles")
+#: the page's view state kept in the session (file and link): preview camera, hand trails,
+#: follow edits, pick mode
+VIEW_STATE = tuple(session_io.VIEW_DEFAULTS)
 MATRIX_LABELS = {
     "pass1": "Pass 1 local cost D1 (signs of velocity, acceleration)",
     "pass2": "Pass 2 local cost D2 (forearm/hand angle)",
@@ -65,24 +68,24 @@ def _same(a, b) -> bool:
         return False
 
 
-def page_words(message: str) -> str:
-    """A constraint refusal (``engine.dtw.constraints``' one text for every front) in the
-    page's words: ``points[1]: 60:10:0 crosses 40:20:0: ...`` becomes ``matching point
-    (body 60, hand 10) not kept: it crosses (body 40, hand 20): ...``."""
-    import re
+def page_point(body: int, hand: int, tolerance: float | None = None) -> str:
+    """A matching point as the page writes it in messages: ``(body 60, hand 10)``."""
+    return f"(body {body}, hand {hand})"
 
-    point = r"(\d+):(\d+)(?::[\d.]+)?"
-    text = re.sub(
-        rf"^points\[\d+\](?:\.\w+)?: {point} ",
-        r"matching point (body \1, hand \2) not kept: it ",
-        message,
-    )
-    text = re.sub(
-        r"^points\[\d+\] = \(x=(\d+), y=(\d+), tol=[\d.]+\) ",
-        r"matching point (body \1, hand \2) not kept: it ",
-        text,
-    )
-    return re.sub(rf"\b{point}\b", r"(body \1, hand \2)", text)
+
+def page_words(message: str, refusal: C.ConstraintError | None = None) -> str:
+    """``message`` in the page's words, from the structured constraint refusal behind it
+    (``engine.dtw.constraints``' one text for every front; ``Session.refusal``): a refused
+    point ``points[1]: 60:10:0 crosses 40:20:0: ...`` becomes ``matching point (body 60,
+    hand 10) not kept: it crosses (body 40, hand 20): ...``; the refusal inside a longer
+    message (a shared link's) has its points written the page's way. Any other message is
+    shown as it is."""
+    if refusal is None or str(refusal) not in message:
+        return message
+    reason = refusal.reason_with(page_point)
+    if message == str(refusal) and reason is not None:
+        return f"matching point {page_point(*refusal.point)} not kept: it {reason}"
+    return message.replace(str(refusal), refusal.text_with(page_point))
 
 
 class Session(param.Parameterized):
@@ -147,6 +150,23 @@ class Session(param.Parameterized):
         default="pass1", objects=list(MATRIX_LABELS), doc="which cost matrix the figure shows"
     )
     frame = param.Integer(default=0, bounds=(0, None), doc="body frame shown in the preview")
+    # view state (saved in the session file and link; defaults: engine.io.session.VIEW_DEFAULTS)
+    camera = param.Selector(
+        default=session_io.VIEW_DEFAULTS["camera"],
+        objects=list(session_io.PREVIEW_CAMERAS),
+        doc="the preview's camera",
+    )
+    trails = param.Boolean(
+        default=session_io.VIEW_DEFAULTS["trails"], doc="hand trails in the preview"
+    )
+    follow = param.Boolean(
+        default=session_io.VIEW_DEFAULTS["follow"],
+        doc="the preview renders again after every edit (else only when its frame changes)",
+    )
+    pick = param.Boolean(
+        default=session_io.VIEW_DEFAULTS["pick"],
+        doc="a click on the matrix picks the previewed frame (True) or adds a matching point",
+    )
 
     # results (written by the session only)
     n = param.Integer(default=0, constant=True, doc="body frames (rows)")
@@ -178,10 +198,31 @@ class Session(param.Parameterized):
         self._redo: list[Snapshot] = []
         self._applying = False
         self._slider_run: tuple[str, float] | None = None
+        self._refused: tuple[str, C.ConstraintError | None] = ("", None)
         self.prepared: backend.Prepared | None = None
         super().__init__(**params)
         self.param.watch(self._on_edit, list(EDIT_PARAMS))
         self.param.watch(self._on_inputs, list(INPUT_PARAMS))
+
+    # ------------------------------------------------------------ refusals
+
+    def refuse(self, exc: BaseException, text: str | None = None) -> None:
+        """Say why an edit or input was refused: ``error`` is ``text`` (default: the
+        exception's one line) and :meth:`refusal` the constraint behind it, if any."""
+        text = backend.one_line(exc) if text is None else text
+        cause = exc if isinstance(exc, C.ConstraintError) else getattr(exc, "constraint", None)
+        self._refused = (text, cause)
+        self.error = text
+
+    def refusal(self) -> C.ConstraintError | None:
+        """The structured constraint refusal (field, value, expected, the refused point)
+        behind the current ``error``; None when ``error`` is not a constraint's."""
+        text, cause = self._refused
+        return cause if self.error and text == self.error else None
+
+    def page_error(self) -> str:
+        """``error`` in the page's words (:func:`page_words`)."""
+        return page_words(self.error, self.refusal())
 
     # ------------------------------------------------------------ inputs
 
@@ -235,7 +276,7 @@ class Session(param.Parameterized):
         try:
             spec = session_io.from_dict({"roles": roles}, source="role overrides")
         except session_io.SessionError as exc:
-            self.error = str(exc)
+            self.refuse(exc, str(exc))
             return False
         self.roles = spec.roles
         return not self.error
@@ -258,7 +299,7 @@ class Session(param.Parameterized):
             message = backend.one_line(exc)
             if self.prepared is not None:  # keep what worked: inputs back to their old values
                 self._apply({e.name: e.old for e in events if e.name in INPUT_PARAMS})
-            self.error = message
+            self.refuse(exc, message)
             return
         self.prepared = prepared
         self._undo.clear()
@@ -383,7 +424,7 @@ class Session(param.Parameterized):
             if points is not None:
                 values["points"] = C.parse_points(points)
         except C.ConstraintError as exc:
-            self.error = str(exc)
+            self.refuse(exc, str(exc))
             return False
         self.error = ""
         self.param.update(**values)
@@ -413,7 +454,7 @@ class Session(param.Parameterized):
             try:
                 tolerance = C.parse_tolerance(tolerance, f"points[{index}].tolerance")
             except C.ConstraintError as exc:
-                self.error = str(exc)
+                self.refuse(exc, str(exc))
                 return
         pts = list(self.points)
         pts[index] = MatchPoint(
@@ -519,14 +560,15 @@ class Session(param.Parameterized):
         try:
             return C.sort_points(points)
         except C.ConstraintError as exc:
-            self.error = str(exc)
+            self.refuse(exc, str(exc))
             return self.points
 
     # ------------------------------------------------------------ compute
 
     def _check_points(self) -> None:
         """Refuse points outside the takes or out of order: the rule and its text are
-        ``engine.dtw.constraints``' (the page shows it in its own words: ``page_words``)."""
+        ``engine.dtw.constraints``' (the page shows it in its own words from its structured
+        fields: ``page_words``)."""
         C.check_points(self.user_points(), self.n, self.m_hand, open_ends=C.DEFAULT_ENDS == "open")
 
     def _solve(self, t0: float | None = None) -> bool:
@@ -545,7 +587,7 @@ class Session(param.Parameterized):
                 previous=self.solution,
             )
         except (HandSpliceError, ValueError) as exc:
-            self.error = backend.one_line(exc)
+            self.refuse(exc)
             return False
         self.param.update(
             solution=sol, trust=None, compute_ms=(time.perf_counter() - t0) * 1000.0, error=""
@@ -633,7 +675,7 @@ class Session(param.Parameterized):
         try:
             return backend.cost_view(self.prepared, self.solution, self.matrix, ranges, max_pixels)
         except HandSpliceError as exc:
-            self.error = backend.one_line(exc)
+            self.refuse(exc)
             return None
 
     def spliced(self):
@@ -670,7 +712,7 @@ class Session(param.Parameterized):
             tolerance=self.tolerance,
             points=self.points,
             roles=dict(self.roles),
-            view={"matrix": self.matrix, "frame": self.frame},
+            view={"matrix": self.matrix, "frame": self.frame, **self._current(VIEW_STATE)},
         )
 
     def apply_spec(self, spec: SessionSpec) -> None:
@@ -769,6 +811,7 @@ class Session(param.Parameterized):
             points=points,
             matrix=spec.view.get("matrix", self.matrix),
             frame=int(min(spec.view.get("frame", 0), max(prepared.n - 1, 0))),
+            **{k: spec.view.get(k, session_io.VIEW_DEFAULTS[k]) for k in VIEW_STATE},
         )
         return {
             "values": values,

@@ -256,7 +256,8 @@ _CONTEXT = None
 
 def _context():
     """A forkserver context: children fork from a small clean process that has the
-    readers imported (fast, and never a copy of the busy server)."""
+    readers imported (fast, and never a copy of the busy, threaded server; which is why
+    this is not ``engine.jobs.sandbox.run_limited``, whose child is a fork of its caller)."""
     global _CONTEXT
     if _CONTEXT is None:
         ctx = multiprocessing.get_context("forkserver")

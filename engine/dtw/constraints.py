@@ -71,13 +71,83 @@ DRIFT_NOTE = (
 
 
 class ConstraintError(ParameterError):
-    """A constraint a user can break is out of range; ``field`` names it, ``detail`` says
-    what was expected. ``str(err)`` is ``"field: detail"``."""
+    """A constraint a user can break is out of range, as structured fields: ``field``
+    names it (``points[2].tolerance``), ``value`` is what was given, ``expected`` what was
+    expected (None where the refusal is a conflict between points rather than a range);
+    ``detail`` is the sentence after the field and ``str(err)`` is ``"field: detail"`` (or
+    ``text``, check_points' ``points[k] = (x=.., y=.., tol=..) ...`` form).
 
-    def __init__(self, field: str, detail: str, text: str | None = None):
+    A refusal of one matching point also keeps its parts apart, so that a front can write
+    the points its own way (:meth:`text_with`, the page's ``(body 60, hand 10)``):
+    ``point`` is the refused point ``(body, hand)``, ``reason`` what is wrong with it, with
+    ``{0}``, ``{1}`` ... where the points it conflicts with (``others``) are named."""
+
+    def __init__(
+        self,
+        field: str,
+        detail: str,
+        text: str | None = None,
+        *,
+        value=None,
+        expected: str | None = None,
+        point: tuple[int, int] | None = None,
+        reason: str | None = None,
+        others: tuple = (),
+    ):
         self.field = field
         self.detail = detail
+        self.value = value
+        self.expected = expected
+        self.point = point
+        self.reason = reason
+        self.others = tuple(others)
+        self._own_text = text is not None
         super().__init__(text or (f"{field}: {detail}" if field else detail))
+
+    def reason_with(self, show_point) -> str | None:
+        """``reason`` with the conflicting points written by ``show_point(body, hand,
+        tolerance)``; None when the refusal is not about one point."""
+        if self.point is None or self.reason is None:
+            return None
+        if not self.others:
+            return self.reason
+        return self.reason.format(*(show_point(*_triple(p)) for p in self.others))
+
+    def text_with(self, show_point) -> str:
+        """``str(self)`` with the matching points written by ``show_point(body, hand,
+        tolerance)`` (the message every front shows, in a front's own point form); a
+        message given as ``text`` stays as it is."""
+        reason = self.reason_with(show_point)
+        if reason is None or self._own_text:
+            return str(self)
+        body, hand = self.point
+        tol = self.value.tolerance if isinstance(self.value, MatchPoint) else None
+        return f"{self.field}: {show_point(body, hand, tol)} {reason}"
+
+
+def _triple(point) -> tuple[int, int, float | None]:
+    if isinstance(point, MatchPoint):
+        return point.body, point.hand, point.tolerance
+    return tuple(point) + (None,) * (3 - len(point))
+
+
+def _engine_point(body: int, hand: int, tolerance: float | None = None) -> str:
+    """A point in the engine's text form, ``B:H`` or ``B:H:T`` (``MatchPoint.text``)."""
+    return MatchPoint(body, hand, tolerance).text()
+
+
+def _point_refusal(field: str, point: MatchPoint, reason: str, *others) -> ConstraintError:
+    """``field: B:H REASON`` with the points kept apart (``reason`` names ``others`` as
+    ``{0}``, ``{1}`` ...)."""
+    detail = f"{point.text()} " + reason.format(*(o.text() for o in others))
+    return ConstraintError(
+        field,
+        detail,
+        value=point,
+        point=(point.body, point.hand),
+        reason=reason,
+        others=others,
+    )
 
 
 def _show(value) -> str:
@@ -96,18 +166,26 @@ def _show(value) -> str:
 def _number(value, field: str, expected: str) -> float:
     """A finite float from a number or numeric text; ConstraintError otherwise."""
     if isinstance(value, bool) or value is None:
-        raise ConstraintError(field, f"expected {expected}, got {_show(value)}")
+        raise ConstraintError(
+            field, f"expected {expected}, got {_show(value)}", value=value, expected=expected
+        )
     if isinstance(value, str):
         text = value.strip()
         if not re.fullmatch(r"[+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?", text):
-            raise ConstraintError(field, f"expected {expected}, got {_show(value)}")
+            raise ConstraintError(
+                field, f"expected {expected}, got {_show(value)}", value=value, expected=expected
+            )
         value = text
     try:
         x = float(value)
     except (TypeError, ValueError, OverflowError):
-        raise ConstraintError(field, f"expected {expected}, got {_show(value)}") from None
+        raise ConstraintError(
+            field, f"expected {expected}, got {_show(value)}", value=value, expected=expected
+        ) from None
     if not math.isfinite(x):
-        raise ConstraintError(field, f"expected {expected}, got {_show(value)}")
+        raise ConstraintError(
+            field, f"expected {expected}, got {_show(value)}", value=value, expected=expected
+        )
     return x
 
 
@@ -203,7 +281,9 @@ class WidthRule:
         lo, hi = (self.lo, self.hi) if unit == FRACTION else (self.lo_s, self.hi_s)
         if not lo - EPS <= x <= hi + EPS:
             got = f"{x:g}" + ("s" if unit == SECONDS else "")
-            raise ConstraintError(self.name, f"expected {self.expected}, got {got}")
+            raise ConstraintError(
+                self.name, f"expected {self.expected}, got {got}", value=x, expected=self.expected
+            )
         return Width(float(x), unit)
 
     def default_for(self, n: int, fps: float) -> Width:
@@ -239,7 +319,12 @@ class WidthRule:
         values are parsed and checked as every front does."""
         if isinstance(value, int | float | np.number) and not isinstance(value, bool):
             if not (math.isfinite(value) and value >= 0):
-                raise ConstraintError(self.name, f"expected {self.expected}, got {_show(value)}")
+                raise ConstraintError(
+                    self.name,
+                    f"expected {self.expected}, got {_show(value)}",
+                    value=value,
+                    expected=self.expected,
+                )
             return float(value)
         width = self.parse(value)
         if width is None:
@@ -285,7 +370,10 @@ def refine_radius(n: int, m: int, refine_band: float) -> int:
     """
     if not (np.isfinite(refine_band) and refine_band >= 0):
         raise ConstraintError(
-            REFINE_BAND.name, f"expected {REFINE_BAND.expected}, got {_show(refine_band)}"
+            REFINE_BAND.name,
+            f"expected {REFINE_BAND.expected}, got {_show(refine_band)}",
+            value=refine_band,
+            expected=REFINE_BAND.expected,
         )
     lam = half_width(refine_band * n, n, m)
     return max(1, int(round(lam / (1.0 + m / n))))
@@ -314,7 +402,9 @@ class Range:
         field = field or self.name
         x = _number(value, field, self.expected)
         if not self.lo <= x <= self.hi:
-            raise ConstraintError(field, f"expected {self.expected}, got {x:g}")
+            raise ConstraintError(
+                field, f"expected {self.expected}, got {x:g}", value=x, expected=self.expected
+            )
         return x
 
 
@@ -343,7 +433,10 @@ def parse_ends(value) -> str:
         return DEFAULT_ENDS
     text = value.strip().lower() if isinstance(value, str) else value
     if text not in ENDS:
-        raise ConstraintError("ends", f"expected {' or '.join(ENDS)}, got {_show(value)}")
+        expected = " or ".join(ENDS)
+        raise ConstraintError(
+            "ends", f"expected {expected}, got {_show(value)}", value=value, expected=expected
+        )
     return text
 
 
@@ -402,7 +495,12 @@ _POINT_EXPECTED = "BODY:HAND or BODY:HAND:TOL (frames >= 0, tolerance in frames)
 def _frame(value, field: str) -> int:
     x = _number(value, field, "a whole frame number >= 0")
     if x != round(x) or not 0 <= x < _FRAME_LIMIT:
-        raise ConstraintError(field, f"expected a whole frame number >= 0, got {_show(value)}")
+        raise ConstraintError(
+            field,
+            f"expected a whole frame number >= 0, got {_show(value)}",
+            value=value,
+            expected="a whole frame number >= 0",
+        )
     return int(x)
 
 
@@ -414,7 +512,7 @@ def parse_point(value, field: str = "points[0]") -> MatchPoint:
     if isinstance(value, str):
         parts = value.strip().split(":")
         if len(parts) not in (2, 3):
-            raise ConstraintError(field, f"expected {_POINT_EXPECTED}, got {_show(value)}")
+            raise _bad_form(field, value)
         value = parts
     if isinstance(value, dict):
         unknown = set(value) - {"body", "hand", "tolerance"}
@@ -424,15 +522,24 @@ def parse_point(value, field: str = "points[0]") -> MatchPoint:
             )
         for key in ("body", "hand"):
             if key not in value:
-                raise ConstraintError(f"{field}.{key}", "missing")
+                raise ConstraintError(f"{field}.{key}", "missing", expected="a frame number")
         value = (value["body"], value["hand"], value.get("tolerance"))
     if not isinstance(value, list | tuple | np.ndarray) or len(value) not in (2, 3):
-        raise ConstraintError(field, f"expected {_POINT_EXPECTED}, got {_show(value)}")
+        raise _bad_form(field, value)
     body = _frame(value[0], f"{field}.body")
     hand = _frame(value[1], f"{field}.hand")
     tol = value[2] if len(value) == 3 else None
     tol = None if tol is None else parse_tolerance(tol, f"{field}.tolerance")
     return MatchPoint(body, hand, tol)
+
+
+def _bad_form(field: str, value) -> ConstraintError:
+    return ConstraintError(
+        field,
+        f"expected {_POINT_EXPECTED}, got {_show(value)}",
+        value=value,
+        expected=_POINT_EXPECTED,
+    )
 
 
 def split_points_text(text: str) -> list[str]:
@@ -449,23 +556,31 @@ def parse_points(items, field: str = "points") -> tuple[MatchPoint, ...]:
     if isinstance(items, str):
         items = split_points_text(items)
     if not isinstance(items, list | tuple):
-        raise ConstraintError(field, f"expected a list of {_POINT_EXPECTED}, got {_show(items)}")
+        expected = f"a list of {_POINT_EXPECTED}"
+        raise ConstraintError(
+            field, f"expected {expected}, got {_show(items)}", value=items, expected=expected
+        )
     if len(items) > MAX_POINTS:
-        raise ConstraintError(field, f"expected at most {MAX_POINTS} points, got {len(items)}")
+        raise ConstraintError(
+            field,
+            f"expected at most {MAX_POINTS} points, got {len(items)}",
+            value=items,
+            expected=f"at most {MAX_POINTS} points",
+        )
     points = tuple(parse_point(p, f"{field}[{k}]") for k, p in enumerate(items))
     for k in range(1, len(points)):
         a, b = points[k - 1], points[k]
         if b.body <= a.body:
-            raise ConstraintError(
-                f"{field}[{k}]",
-                f"{b.text()} is out of order: body frames must increase (after {a.text()})",
+            raise _point_refusal(
+                f"{field}[{k}]", b, "is out of order: body frames must increase (after {0})", a
             )
         if b.hand < a.hand:
-            raise ConstraintError(
+            raise _point_refusal(
                 f"{field}[{k}]",
-                f"{b.text()} crosses {a.text()}: the hand frame goes back "
-                f"from {a.hand} to {b.hand} while the body frame advances, and a path cannot "
-                "go back in time",
+                b,
+                f"crosses {{0}}: the hand frame goes back from {a.hand} to {b.hand} while the "
+                "body frame advances, and a path cannot go back in time",
+                a,
             )
     return points
 
@@ -493,10 +608,19 @@ def _point_text(k: int, x, y, tol) -> str:
     return f"points[{k}] = (x={x:g}, y={y:g}, tol={tol:g})"
 
 
-def _bad_point(k: int, where: str, detail: str) -> ConstraintError:
-    """``points[k] = (x=.., y=.., tol=..) DETAIL`` (field ``points[k]``)."""
+def _bad_point(k: int, value: tuple, where: str, detail: str) -> ConstraintError:
+    """``points[k] = (x=.., y=.., tol=..) DETAIL`` (field ``points[k]``, ``value`` the point's
+    ``(x, y, tol)``). A refusal of the point as placed (``where`` without a colon: outside the
+    matrix, out of order, too far from its neighbour) keeps the point and the reason apart."""
+    x, y, _ = value
+    placed = not where.endswith(":") and x >= 0 and y >= 0 and x == int(x) and y == int(y)
     return ConstraintError(
-        f"points[{k}]", f"{where[len(f'points[{k}] = ') :]} {detail}", text=f"{where} {detail}"
+        f"points[{k}]",
+        f"{where[len(f'points[{k}] = ') :]} {detail}",
+        text=f"{where} {detail}",
+        value=value,
+        point=(int(x), int(y)) if placed else None,
+        reason=detail if placed else None,
     )
 
 
@@ -522,35 +646,45 @@ def check_points(
                 f"points[{k}]",
                 f"expected (x, y) or (x, y, tol), got {p!r}",
                 text=f"points[{k}] = {p!r}: expected (x, y) or (x, y, tol)",
+                value=p,
+                expected="(x, y) or (x, y, tol)",
             ) from None
         if len(vals) not in (2, 3):
             raise ConstraintError(
                 f"points[{k}]",
                 f"expected (x, y) or (x, y, tol), got {p!r}",
                 text=f"points[{k}] = {p!r}: expected (x, y) or (x, y, tol)",
+                value=p,
+                expected="(x, y) or (x, y, tol)",
             )
         x, y = vals[0], vals[1]
         tol = vals[2] if len(vals) == 3 else 0.0
         where = _point_text(k, x, y, tol)
         if not all(math.isfinite(v) for v in (x, y, tol)):
-            raise _bad_point(k, where + ":", "values must be finite")
+            raise _bad_point(k, (x, y, tol), where + ":", "values must be finite")
         if x != round(x) or y != round(y):
-            raise _bad_point(k, where + ":", "body and hand frames must be whole numbers")
+            raise _bad_point(
+                k, (x, y, tol), where + ":", "body and hand frames must be whole numbers"
+            )
         if tol < 0:
-            raise _bad_point(k, where + ":", "tolerance must be >= 0 frames")
+            raise _bad_point(k, (x, y, tol), where + ":", "tolerance must be >= 0 frames")
         if not (0 <= x <= n - 1 and 0 <= y <= m - 1):
             raise _bad_point(
-                k, where, f"is outside the {n} x {m} matrix (x in 0..{n - 1}, y in 0..{m - 1})"
+                k,
+                (x, y, tol),
+                where,
+                f"is outside the {n} x {m} matrix (x in 0..{n - 1}, y in 0..{m - 1})",
             )
         t = math.floor(tol + EPS)
         if xs and order:
             px, py, pt = xs[-1], ys[-1], tols[-1]
             before = _point_text(k - 1, px, py, pt)
             if x == px and y == py:
-                raise _bad_point(k, where, f"duplicates {before}")
+                raise _bad_point(k, (x, y, tol), where, f"duplicates {before}")
             if x == px:
                 raise _bad_point(
                     k,
+                    (x, y, tol),
                     where,
                     f"is on the same body frame as {before}; give one "
                     "point per body frame (a larger tolerance covers "
@@ -558,11 +692,15 @@ def check_points(
                 )
             if x < px:
                 raise _bad_point(
-                    k, where, f"is out of order: body frames must increase (after {before})"
+                    k,
+                    (x, y, tol),
+                    where,
+                    f"is out of order: body frames must increase (after {before})",
                 )
             if y < py:
                 raise _bad_point(
                     k,
+                    (x, y, tol),
                     where,
                     f"crosses {before}: the hand frame goes back from "
                     f"{py:g} to {y:g} while the body frame advances, "
@@ -571,6 +709,7 @@ def check_points(
             if x == px + 1 and y - t > py + pt + 1:
                 raise _bad_point(
                     k,
+                    (x, y, tol),
                     where,
                     f"and {before} are on consecutive body frames, but "
                     f"their hand frames {py:g} and {y:g} are more than "
@@ -580,6 +719,7 @@ def check_points(
         if order and not open_ends and x == 0 and y - t > 0:
             raise _bad_point(
                 k,
+                (x, y, tol),
                 where + ":",
                 f"every path starts at (0, 0), so on body frame 0 "
                 f"it covers hand frame 0; the tolerance must be "
@@ -588,6 +728,7 @@ def check_points(
         if order and not open_ends and x == n - 1 and y + t < m - 1:
             raise _bad_point(
                 k,
+                (x, y, tol),
                 where + ":",
                 f"every path ends at ({n - 1}, {m - 1}), so on "
                 f"body frame {n - 1} it covers hand frame "

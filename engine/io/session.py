@@ -26,10 +26,14 @@ Schema (version 2)::
                               # tolerance in hand frames, null = the global one
       "roles": {"body": {"right.wrist": "RHand"},        # optional joint-role overrides per
                 "hand": {"right.index1": "rIdx1"}},      # take (as handsplice splice --roles)
-      "view": {"matrix": "pass1", "frame": 0}            # optional, app display only
+      "view": {"matrix": "pass1", "frame": 0,            # optional, app display only:
+               "camera": "three-quarter",               # the preview's camera (front, side)
+               "trails": false, "follow": true,         # hand trails; re-render after edits
+               "pick": false}                           # a click on the matrix picks a frame
     }
 
-Frames are each file's own: body frames of the body take, hand frames (and
+A missing view field takes its default (``VIEW_DEFAULTS``: files and links made before
+the camera, trails, follow and pick fields open as they did). Frames are each file's own: body frames of the body take, hand frames (and
 tolerances) of the hand take at its own frame rate. Version 1 files (the app before
 it showed one frame numbering) hold hand frames on the alignment grid (the hand take
 resampled to the body's rate); they are still read, with ``hand_frames == "grid"``
@@ -58,18 +62,33 @@ VERSION = 2
 HAND_FRAMES = {1: "grid", 2: "file"}
 SIDES = ("right", "left", "both")
 MATRIX_VIEWS = ("pass1", "pass2", "cumulative1", "cumulative2")
+#: the preview's cameras (engine.render.scene's, less the hands close-up the page always shows)
+PREVIEW_CAMERAS = ("three-quarter", "front", "side")
+#: the app's view state a session file or link may carry, with its defaults (a field left
+#: out, as in files and links made before it existed, takes its default)
+VIEW_DEFAULTS = {"camera": "three-quarter", "trails": False, "follow": True, "pick": False}
+VIEW_FIELDS = ("matrix", "frame", *VIEW_DEFAULTS)
 MAX_POINTS = C.MAX_POINTS
 MAX_TEXT = MAX_SESSION_BYTES  # a session is small; refuse anything bigger (engine.base.limits)
 _HEX64 = re.compile(r"^[0-9a-f]{64}$")
 
 
 class SessionError(ParameterError):
-    """A session file or dict is malformed; the message names the field."""
+    """A session file or dict is malformed; the message names the field. ``constraint`` is
+    the :class:`~engine.dtw.constraints.ConstraintError` behind it, if any (its structured
+    fields: value, expected, the refused point)."""
 
-    def __init__(self, source: str | None, field_name: str, message: str):
+    def __init__(
+        self,
+        source: str | None,
+        field_name: str,
+        message: str,
+        constraint: C.ConstraintError | None = None,
+    ):
         self.source = source
         self.field = field_name
         self.detail = message
+        self.constraint = constraint
         where = f"{source}: " if source else ""
         super().__init__(f"{where}{field_name}: {message}" if field_name else f"{where}{message}")
 
@@ -280,7 +299,7 @@ def from_dict(data: Any, source: str | None = None) -> SessionSpec:
             raise C.ConstraintError("points", f"expected a list, got {_show(raw_points)}")
         points = C.parse_points([_json_point(p) for p in raw_points])
     except C.ConstraintError as exc:
-        raise SessionError(source, exc.field, exc.detail) from None
+        raise SessionError(source, exc.field, exc.detail, exc) from None
 
     roles = data.get("roles", {})
     if not isinstance(roles, dict):
@@ -294,15 +313,21 @@ def from_dict(data: Any, source: str | None = None) -> SessionSpec:
     view = data.get("view", {})
     if not isinstance(view, dict):
         raise r.fail("view", f"expected an object, got {_show(view)}")
-    unknown = set(view) - {"matrix", "frame"}
+    unknown = set(view) - set(VIEW_FIELDS)
     if unknown:
-        raise r.fail(f"view.{sorted(unknown)[0]}", "unknown field (known: matrix, frame)")
-    if "matrix" in view and view["matrix"] not in MATRIX_VIEWS:
         raise r.fail(
-            "view.matrix", f"expected one of {', '.join(MATRIX_VIEWS)}, got {_show(view['matrix'])}"
+            f"view.{sorted(unknown)[0]}", f"unknown field (known: {', '.join(VIEW_FIELDS)})"
         )
+    for key, choices in (("matrix", MATRIX_VIEWS), ("camera", PREVIEW_CAMERAS)):
+        if key in view and (not isinstance(view[key], str) or view[key] not in choices):
+            raise r.fail(
+                f"view.{key}", f"expected one of {', '.join(choices)}, got {_show(view[key])}"
+            )
     if "frame" in view:
         r.integer(view["frame"], "view.frame")
+    for key in ("trails", "follow", "pick"):
+        if key in view and not isinstance(view[key], bool):
+            raise r.fail(f"view.{key}", f"expected true or false, got {_show(view[key])}")
 
     spec = SessionSpec(
         sample=sample,
@@ -423,8 +448,9 @@ def to_query(spec: SessionSpec) -> dict[str, str]:
 
     ``sample=NAME`` or ``body=SHA256&hand=SHA256``, ``side``, ``band``, ``refine``, ``tol``,
     ``pts=B:H[:T],...``, ``roles`` (JSON), ``view``, ``frame``, and ``frames=hand`` when the
-    hand frames are the hand file's own (links made before have grid frames). Take paths
-    (CLI sessions) are not put in URLs.
+    hand frames are the hand file's own (links made before have grid frames); the view
+    state ``camera``, ``trails``, ``follow`` and ``pick`` (``1`` or ``0``) only where it is
+    not the default (``VIEW_DEFAULTS``). Take paths (CLI sessions) are not put in URLs.
     """
     q: dict[str, str] = {}
     if spec.sample is not None:
@@ -449,6 +475,10 @@ def to_query(spec: SessionSpec) -> dict[str, str]:
         q["view"] = spec.view["matrix"]
     if "frame" in spec.view:
         q["frame"] = str(spec.view["frame"])
+    for key, default in VIEW_DEFAULTS.items():
+        value = spec.view.get(key, default)
+        if value != default:
+            q[key] = str(int(value)) if isinstance(value, bool) else str(value)
     return q
 
 
@@ -473,7 +503,7 @@ def from_query(query: dict[str, str]) -> SessionSpec:
         if q.get("pts"):
             data["points"] = [[p.body, p.hand, p.tolerance] for p in C.parse_points(str(q["pts"]))]
     except C.ConstraintError as exc:
-        raise SessionError(source, exc.field, exc.detail) from None
+        raise SessionError(source, exc.field, exc.detail, exc) from None
     if q.get("roles"):
         try:
             data["roles"] = json.loads(str(q["roles"]))
@@ -484,9 +514,17 @@ def from_query(query: dict[str, str]) -> SessionSpec:
         view["matrix"] = q["view"]
     if q.get("frame"):
         view["frame"] = _query_number(q["frame"], "frame", source)
+    for key, default in VIEW_DEFAULTS.items():  # checked with the file's rules (from_dict)
+        if key in q:
+            flag = isinstance(default, bool)
+            view[key] = _QUERY_FLAGS.get(str(q[key]).strip().lower(), q[key]) if flag else q[key]
     if view:
         data["view"] = view
     return from_dict(data, source)
+
+
+#: a link's on/off values (anything else reaches from_dict as text, which refuses it)
+_QUERY_FLAGS = {"1": True, "0": False, "true": True, "false": False}
 
 
 def _query_number(text, field_name: str, source: str) -> float | int:

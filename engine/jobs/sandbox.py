@@ -19,6 +19,12 @@ resource tracker pipe, say) would otherwise keep the exiting parent waiting on i
 new child closes the pipes of the others, so no child keeps a sibling alive.
 
 Where ``os.fork`` does not exist, ``fn`` runs in this process without limits.
+
+The app's upload check (``webapp.uploads``) keeps its own child on purpose: it runs
+inside the web server, whose threads make a plain fork of it unsafe, so it starts each
+reader from a forkserver (a small clean process with only the readers imported) under
+``RLIMIT_AS``, one fresh child per file; here a batch worker forks itself and keeps the
+child so numba compiles once.
 """
 
 from __future__ import annotations

@@ -229,7 +229,6 @@ def find_anatomy(
     Never fails: parts that cannot be found are left out (``None``, empty), and the
     mannequin then draws plain limb segments for the joints not classified.
     """
-    names = skeleton.names
     pos = rest_positions(skeleton) if positions is None else np.asarray(positions, float)
     if pos.shape != (skeleton.n_joints, 3):
         raise ValueError(
@@ -237,7 +236,59 @@ def find_anatomy(
         )
     n = skeleton.n_joints
     extent = float(np.max(np.ptp(pos, axis=0))) if n > 1 else 1.0
-    tol = 1e-6 * max(extent, 1e-9)
+    tol = 1e-6 * max(extent, 1e-9)  # joints closer than this are one place
+
+    wrists, ankles = _wrists_and_ankles(skeleton)
+    pelvis, chest, head = _trunk(skeleton, pos, wrists, ankles, tol)
+    body = chest is not None or pelvis is not None
+    hidden: set[int] = set()
+    spine: list[int] = []
+    arms: dict[str, tuple[int, int, int, int]] = {}
+    legs: dict[str, tuple[int, ...]] = {}
+    if body:
+        hidden, spine = _hidden_and_spine(skeleton, pelvis, chest, head)
+        if chest is not None:
+            arms = _arms(skeleton, pos, chest, wrists, tol)
+        legs = _legs(skeleton, pos, pelvis, ankles, tol)
+    hands = _hands(skeleton, pos, wrists, arms, body, tol)
+
+    if roles is None:
+        try:
+            from engine.model.roles import find_roles
+
+            roles = find_roles(skeleton, side_hint=side_hint)
+        except HandSpliceError:
+            roles = None
+    if roles is not None:
+        _merge_roles(skeleton, pos, roles, hands, arms, body, tol)
+
+    up, left, forward = _body_frame(skeleton, pos, pelvis, head, chest, arms, legs, hands, body)
+    hand_length = _hand_length(skeleton, pos, hands, rotations)
+    height = _height(skeleton, pos, spine, legs, head, hand_length, body)
+    if not np.isfinite(hand_length) or hand_length <= 0:
+        hand_length = 0.108 * height
+    return Anatomy(
+        kind="body" if body else "hand",
+        pelvis=pelvis if body else None,
+        chest=chest,
+        head=head,
+        spine=tuple(spine),
+        arms=arms,
+        legs=legs,
+        hands=hands,
+        hidden=frozenset(hidden),
+        up=up,
+        left=left,
+        forward=forward,
+        height=float(height),
+        hand_length=float(hand_length),
+    )
+
+
+def _wrists_and_ankles(skeleton: Skeleton) -> tuple[dict[str, int], dict[str, int]]:
+    """The most proximal hand-named and ankle-named joint per side, by joint names; a
+    wrist below another wrist is none (CMU: LeftWrist -> lhand)."""
+    names, n = skeleton.names, skeleton.n_joints
 
     def most_proximal(cands: list[int]) -> dict[str, int]:
         found: dict[str, int] = {}
@@ -249,14 +300,22 @@ def find_anatomy(
 
     wrists = most_proximal([j for j in range(n) if _is_hand_name(names[j])])
     ankles = most_proximal([j for j in range(n) if _is_ankle_name(names[j])])
-    # a wrist must not be below another wrist (CMU: LeftWrist -> lhand)
     for side in list(wrists):
         if any(
             a in wrists.values() and a != wrists[side]
             for a in skeleton.chain_to_root(wrists[side])[1:]
         ):
             del wrists[side]
+    return wrists, ankles
 
+
+def _trunk(
+    skeleton: Skeleton, pos: np.ndarray, wrists: dict, ankles: dict, tol: float
+) -> tuple[int | None, int | None, int | None]:
+    """``(pelvis, chest, head)`` joints (None where absent): the chest joins the wrists, the
+    pelvis the ankles; an upper body's pelvis is the root of its trunk. No chest and no
+    pelvis: a hand take."""
+    names, n = skeleton.names, skeleton.n_joints
     chest = _lca(skeleton, wrists["left"], wrists["right"]) if len(wrists) == 2 else None
     pelvis = _lca(skeleton, ankles["left"], ankles["right"]) if len(ankles) == 2 else None
     if chest is not None and chest in wrists.values():
@@ -273,8 +332,7 @@ def find_anatomy(
     )
     if chest is None and head is not None and pelvis is not None:
         chest = skeleton.parents[head] if skeleton.parents[head] >= 0 else None
-    body = chest is not None or pelvis is not None
-    if body and pelvis is None:
+    if (chest is not None or pelvis is not None) and pelvis is None:
         top = chest if chest is not None else head
         pelvis = skeleton.chain_to_root(top)[-1]
         if chest is not None:  # an upper body: the root of the trunk
@@ -282,41 +340,66 @@ def find_anatomy(
                 if np.linalg.norm(pos[j] - pos[chest]) > tol:
                     pelvis = j
                     break
+    return pelvis, chest, head
 
-    hidden: set[int] = set()
-    spine: list[int] = []
-    arms: dict[str, tuple[int, int, int, int]] = {}
-    legs: dict[str, tuple[int, ...]] = {}
-    if body:
-        hidden.update(skeleton.chain_to_root(pelvis)[1:])
-        top = head if head is not None else chest
-        if top is not None and pelvis in skeleton.chain_to_root(top):
-            spine = list(reversed(skeleton.chain_to_root(top)))
-            spine = spine[spine.index(pelvis) :]
-        else:
-            spine = [pelvis]
-        if head is not None:
-            hidden.update(d for d in skeleton.descendants(head) if d != head)
-        if chest is not None:
-            for side, w in wrists.items():
-                chain = skeleton.chain_to_root(w)
-                if chest not in chain:
-                    continue
-                chain = list(reversed(chain[: chain.index(chest)]))
-                chain = _distinct_chain(chain, pos, tol)
-                if len(chain) >= 3:
-                    clav = chain[-4] if len(chain) >= 4 else -1
-                    arms[side] = (clav, chain[-3], chain[-2], chain[-1])
-        for side, a in ankles.items():
-            chain = skeleton.chain_to_root(a)
-            if pelvis not in chain:
-                continue
-            chain = _distinct_chain(list(reversed(chain[: chain.index(pelvis)])), pos, tol)
-            if len(chain) >= 3:
-                toes = [d for d in skeleton.descendants(a) if d != a]
-                legs[side] = (chain[-3], chain[-2], chain[-1], *toes)
 
-    # hands: wrists of a body, or the one hand of a hand take
+def _hidden_and_spine(
+    skeleton: Skeleton, pelvis: int, chest: int | None, head: int | None
+) -> tuple[set[int], list[int]]:
+    """Joints the mannequin does not draw (above the pelvis, below the head) and the spine
+    from the pelvis up to the head (or chest)."""
+    hidden = set(skeleton.chain_to_root(pelvis)[1:])
+    top = head if head is not None else chest
+    if top is not None and pelvis in skeleton.chain_to_root(top):
+        spine = list(reversed(skeleton.chain_to_root(top)))
+        spine = spine[spine.index(pelvis) :]
+    else:
+        spine = [pelvis]
+    if head is not None:
+        hidden.update(d for d in skeleton.descendants(head) if d != head)
+    return hidden, spine
+
+
+def _arms(
+    skeleton: Skeleton, pos: np.ndarray, chest: int, wrists: dict, tol: float
+) -> dict[str, tuple[int, int, int, int]]:
+    """``{side: (clavicle or -1, shoulder, elbow, wrist)}`` from the chest down to each
+    wrist (joints in one place counted once)."""
+    arms = {}
+    for side, w in wrists.items():
+        chain = skeleton.chain_to_root(w)
+        if chest not in chain:
+            continue
+        chain = list(reversed(chain[: chain.index(chest)]))
+        chain = _distinct_chain(chain, pos, tol)
+        if len(chain) >= 3:
+            clav = chain[-4] if len(chain) >= 4 else -1
+            arms[side] = (clav, chain[-3], chain[-2], chain[-1])
+    return arms
+
+
+def _legs(
+    skeleton: Skeleton, pos: np.ndarray, pelvis: int, ankles: dict, tol: float
+) -> dict[str, tuple[int, ...]]:
+    """``{side: (hip, knee, ankle, *toes)}`` from the pelvis down to each ankle."""
+    legs = {}
+    for side, a in ankles.items():
+        chain = skeleton.chain_to_root(a)
+        if pelvis not in chain:
+            continue
+        chain = _distinct_chain(list(reversed(chain[: chain.index(pelvis)])), pos, tol)
+        if len(chain) >= 3:
+            toes = [d for d in skeleton.descendants(a) if d != a]
+            legs[side] = (chain[-3], chain[-2], chain[-1], *toes)
+    return legs
+
+
+def _hands(
+    skeleton: Skeleton, pos: np.ndarray, wrists: dict, arms: dict, body: bool, tol: float
+) -> dict[str, HandParts]:
+    """The hands: at the wrists of a body, or the one hand of a hand take; each with its
+    finger chains by name, its other joints and its elbow."""
+    names, n = skeleton.names, skeleton.n_joints
     hands: dict[str, HandParts] = {}
     hand_roots = dict(wrists)
     if not body:
@@ -353,38 +436,7 @@ def find_anatomy(
         hands[side] = HandParts(
             side, w, elbow, {f: tuple(fingers[f]) for f in FINGERS if f in fingers}, tuple(other)
         )
-
-    if roles is None:
-        try:
-            from engine.model.roles import find_roles
-
-            roles = find_roles(skeleton, side_hint=side_hint)
-        except HandSpliceError:
-            roles = None
-    if roles is not None:
-        _merge_roles(skeleton, pos, roles, hands, arms, body, tol)
-
-    up, left, forward = _body_frame(skeleton, pos, pelvis, head, chest, arms, legs, hands, body)
-    hand_length = _hand_length(skeleton, pos, hands, rotations)
-    height = _height(skeleton, pos, spine, legs, head, hand_length, body)
-    if not np.isfinite(hand_length) or hand_length <= 0:
-        hand_length = 0.108 * height
-    return Anatomy(
-        kind="body" if body else "hand",
-        pelvis=pelvis if body else None,
-        chest=chest,
-        head=head,
-        spine=tuple(spine),
-        arms=arms,
-        legs=legs,
-        hands=hands,
-        hidden=frozenset(hidden),
-        up=up,
-        left=left,
-        forward=forward,
-        height=float(height),
-        hand_length=float(hand_length),
-    )
+    return hands
 
 
 def _merge_roles(

@@ -292,36 +292,15 @@ def build_mannequin(
         raise ValueError(
             f"build_mannequin: a skeleton needs at least 2 joints, got {skeleton.n_joints}"
         )
-    if pose is None:
-        pos, rots = rest_positions(skeleton), None
-    else:
-        pos = np.asarray(pose[0], dtype=float)
-        rots = np.asarray(pose[1], dtype=float)
-        if pos.shape != (skeleton.n_joints, 3) or rots.shape != (skeleton.n_joints, 4):
-            raise ValueError(
-                f"build_mannequin: pose must be ({skeleton.n_joints}, 3) positions "
-                f"and ({skeleton.n_joints}, 4) rotations, got {pos.shape}, "
-                f"{rots.shape}"
-            )
+    pos, rots = _bind_pose(skeleton, pose)
     anatomy = anatomy or find_anatomy(skeleton, pos, rots)
     bones, bone_of, canon = skeleton_bones(skeleton, anatomy, pos, rots)
 
     def tip_of(chain, fraction: float = 0.8) -> np.ndarray:
         return chain_tip(skeleton, pos, chain, fraction, rotations=rots)
 
-    extra_start, extra_end, extra_joint, extra_head = [], [], [], []
-
-    def virtual_bone(p0, p1, joint) -> int:
-        """A bone that is not in the skeleton (a palm), moved by ``joint``."""
-        extra_start.append(p0)
-        extra_end.append(p1)
-        extra_joint.append(joint)
-        extra_head.append(canon[joint])
-        return bones.n_bones + len(extra_start) - 1
-
-    h = anatomy.height
-    up, _left, fwd = anatomy.up, anatomy.left, anatomy.forward
-    nar = max(6, int(round(12 * detail)))
+    extra = _ExtraBones(bones.n_bones, canon)
+    nar = max(6, int(round(12 * detail)))  # vertices around a limb
     b = _Builder()
     drawn: set[int] = set()  # bone indices already covered by a piece
 
@@ -331,49 +310,115 @@ def build_mannequin(
         for side, leg in anatomy.legs.items():
             _leg(b, skeleton, anatomy, pos, bone_of, drawn, side, leg, nar, tip_of)
         for side, arm in anatomy.arms.items():
-            clav, upper, elbow, wrist = arm
-            col = _limb_color(side)
-            if clav >= 0:
-                for j0, j1 in _path_bones(skeleton, clav, upper):
-                    if (j0, j1) in bone_of:
-                        k = bone_of[(j0, j1)]
-                        b.capsule(
-                            pos[j0],
-                            pos[j1],
-                            0.032 * h,
-                            0.034 * h,
-                            fwd,
-                            col,
-                            "body",
-                            owner=k,
-                            n_around=nar,
-                        )
-                        drawn.add(k)
-            for (j0, j1), (r0, r1) in (
-                ((upper, elbow), (0.033, 0.026)),
-                ((elbow, wrist), (0.025, 0.019)),
-            ):
-                for a0, a1 in _path_bones(skeleton, j0, j1):
-                    if (a0, a1) in bone_of:
-                        k = bone_of[(a0, a1)]
-                        b.capsule(
-                            pos[a0],
-                            pos[a1],
-                            r0 * h,
-                            r1 * h,
-                            fwd,
-                            col,
-                            "body",
-                            owner=k,
-                            n_around=nar,
-                            n_along=4,
-                        )
-                        drawn.add(k)
+            _arm(b, skeleton, anatomy, pos, bone_of, drawn, side, arm, nar)
     for hand in anatomy.hands.values():
-        _hand(b, skeleton, anatomy, pos, bones, bone_of, drawn, hand, nar, virtual_bone, tip_of)
+        _hand(b, skeleton, anatomy, pos, bones, bone_of, drawn, hand, nar, extra.add, tip_of)
+    _leftover_segments(b, skeleton, anatomy, pos, bones, bone_of, drawn, nar)
 
-    # anything left (extra joints, unusual skeletons): plain thin segments
-    radius = 0.018 * h if anatomy.kind == "body" else 0.05 * anatomy.hand_length
+    if not b.verts:
+        raise ValueError("build_mannequin: found nothing to draw in this skeleton")
+    return _skinned(b, extra.joined(bones), skeleton, pos, rots)
+
+
+def _bind_pose(skeleton: Skeleton, pose) -> tuple[np.ndarray, np.ndarray | None]:
+    """``(positions (J, 3), rotations (J, 4) or None)`` of the bind pose: ``pose``, checked,
+    or the rest pose (no rotations)."""
+    if pose is None:
+        return rest_positions(skeleton), None
+    pos = np.asarray(pose[0], dtype=float)
+    rots = np.asarray(pose[1], dtype=float)
+    if pos.shape != (skeleton.n_joints, 3) or rots.shape != (skeleton.n_joints, 4):
+        raise ValueError(
+            f"build_mannequin: pose must be ({skeleton.n_joints}, 3) positions "
+            f"and ({skeleton.n_joints}, 4) rotations, got {pos.shape}, "
+            f"{rots.shape}"
+        )
+    return pos, rots
+
+
+class _ExtraBones:
+    """Bones that are not in the skeleton (a palm), each moved by a joint; numbered after
+    the skeleton's ``n_bones`` bones."""
+
+    def __init__(self, n_bones: int, canon):
+        self.n_bones = n_bones
+        self.canon = canon
+        self.start: list = []
+        self.end: list = []
+        self.joint: list = []
+        self.head: list = []
+
+    def add(self, p0, p1, joint) -> int:
+        """A bone from ``p0`` to ``p1`` (file units) moved by ``joint``; its index."""
+        self.start.append(p0)
+        self.end.append(p1)
+        self.joint.append(joint)
+        self.head.append(self.canon[joint])
+        return self.n_bones + len(self.start) - 1
+
+    def joined(self, bones: Bones) -> Bones:
+        """``bones`` followed by these."""
+        if not self.start:
+            return bones
+        return bones.concat(
+            Bones(
+                np.reshape(self.start, (-1, 3)),
+                np.reshape(self.end, (-1, 3)),
+                self.joint,
+                self.head,
+                np.full(len(self.start), -1),
+            )
+        )
+
+
+def _arm(b: _Builder, skeleton, anatomy: Anatomy, pos, bone_of, drawn, side, arm, nar):
+    """Clavicle, upper arm and forearm capsules of one arm ``(clavicle or -1, shoulder,
+    elbow, wrist)``, sized by the body's height."""
+    h, fwd = anatomy.height, anatomy.forward
+    clav, upper, elbow, wrist = arm
+    col = _limb_color(side)
+    if clav >= 0:
+        for j0, j1 in _path_bones(skeleton, clav, upper):
+            if (j0, j1) in bone_of:
+                k = bone_of[(j0, j1)]
+                b.capsule(
+                    pos[j0],
+                    pos[j1],
+                    0.032 * h,
+                    0.034 * h,
+                    fwd,
+                    col,
+                    "body",
+                    owner=k,
+                    n_around=nar,
+                )
+                drawn.add(k)
+    for (j0, j1), (r0, r1) in (
+        ((upper, elbow), (0.033, 0.026)),
+        ((elbow, wrist), (0.025, 0.019)),
+    ):
+        for a0, a1 in _path_bones(skeleton, j0, j1):
+            if (a0, a1) in bone_of:
+                k = bone_of[(a0, a1)]
+                b.capsule(
+                    pos[a0],
+                    pos[a1],
+                    r0 * h,
+                    r1 * h,
+                    fwd,
+                    col,
+                    "body",
+                    owner=k,
+                    n_around=nar,
+                    n_along=4,
+                )
+                drawn.add(k)
+
+
+def _leftover_segments(b: _Builder, skeleton, anatomy: Anatomy, pos, bones, bone_of, drawn, nar):
+    """Plain thin segments for every bone no piece drew (extra joints, unusual skeletons),
+    except inside the hands."""
+    radius = 0.018 * anatomy.height if anatomy.kind == "body" else 0.05 * anatomy.hand_length
     hand_joints = set()
     for hand in anatomy.hands.values():
         hand_joints.update(skeleton.descendants(hand.wrist))
@@ -381,20 +426,13 @@ def build_mannequin(
         if k in drawn or j0 in hand_joints:
             continue
         p1 = pos[j1] if j1 >= 0 else bones.end[k]
-        b.capsule(pos[j0], p1, radius, radius * 0.9, up, BODY, "body", owner=k, n_around=nar)
-
-    if not b.verts:
-        raise ValueError("build_mannequin: found nothing to draw in this skeleton")
-    if extra_start:
-        bones = bones.concat(
-            Bones(
-                np.reshape(extra_start, (-1, 3)),
-                np.reshape(extra_end, (-1, 3)),
-                extra_joint,
-                extra_head,
-                np.full(len(extra_start), -1),
-            )
+        b.capsule(
+            pos[j0], p1, radius, radius * 0.9, anatomy.up, BODY, "body", owner=k, n_around=nar
         )
+
+
+def _skinned(b: _Builder, bones: Bones, skeleton: Skeleton, pos, rots) -> SkinnedMesh:
+    """The built pieces as one mesh with two-bone weights, bound in ``pos``/``rots``."""
     verts = np.vstack(b.verts)
     faces = np.vstack(b.faces)
     owner = np.concatenate(b.owner)

@@ -268,21 +268,7 @@ def prepare(
     rb = _roles_for(body, body_roles)
     rh = _roles_for(hand, hand_roles, side)
     body_name, hand_name = _take_name(body), _take_name(hand)
-    body_sides = _hand_sides(body, rb)
-    hand_sides = _hand_sides(hand, rh)
-    if isinstance(hand, Motion):  # a hand take without fingers cannot give any
-        with_fingers = [s for s in hand_sides if rh.side(s).has_fingers]
-        if not with_fingers:
-            undecided = undecided_message(hand_name, hand, rh)
-            if undecided:
-                raise RoleError(undecided)
-            raise RoleError(
-                f"{hand_name} has no finger joints (hands found: "
-                f"{', '.join(hand_sides) or 'none'}); the hand take must carry "
-                "the fingers to splice"
-            )
-        hand_sides = with_fingers
-    sides = resolve_sides(side, body_sides, hand_sides, body_name, hand_name)
+    sides = _sides_to_align(body, hand, rb, rh, side, body_name, hand_name)
     fps = float(body.fps)
     # the alignment grid: the hand take at the body's rate, bounded before anything is built
     limits.check_grid(hand_name, hand.n_frames, float(hand.fps), fps)
@@ -291,28 +277,8 @@ def prepare(
     side_notes: list[str] = []
     if isinstance(hand, Motion):  # a hand take written in left-handed axes: mirror it
         hand, side_notes = match_chirality(body, hand, rb, rh, sides)
-    # forward kinematics by blocks of frames (features.take_markers): the body keeps its
-    # world rotations for the transfer, the hand take keeps nothing
-    body_frames: dict[str, HandFrame] = {}
-    hand_frames: dict[str, HandFrame] = {}
-    body_fk = None
-    if isinstance(body, Motion):
-        body_frames = {s: hand_frame(body, rb, s) for s in sides}
-        bmk, body_yaw, body_rot = take_markers(body, rb, body_frames, keep_rotations=True)
-        body_fk = (None, body_rot)
-        bm = [bmk[s] for s in sides]
-    else:
-        bm = [marker_set_markers(body, s).markers for s in sides]
-        body_yaw = marker_set_yaw(body)
-    if isinstance(hand, Motion):
-        hand_frames = {s: hand_frame(hand, rh, s) for s in sides}
-        hmk, hand_yaw, _ = take_markers(hand, rh, hand_frames, fps=fps)
-        hm = [hmk[s] for s in sides]
-    else:
-        hm = [marker_set_markers(hand, s, fps=fps).markers for s in sides]
-        hand_yaw = marker_set_yaw(hand)
-    body_markers = np.concatenate(bm, axis=1)
-    hand_markers = np.concatenate(hm, axis=1)
+    mk = _arm_markers(body, hand, rb, rh, sides, fps)
+    body_markers, hand_markers = mk.body_markers, mk.hand_markers
     n, m = body_markers.shape[0], hand_markers.shape[0]
     if n < 2 or m < 2:
         raise ParameterError(
@@ -321,6 +287,7 @@ def prepare(
         )
 
     # trunk headings (radians about the vertical), where the takes have a trunk
+    body_yaw, hand_yaw = mk.body_yaw, mk.hand_yaw
     if hand_yaw is not None:
         from engine.align.features import resample_points
 
@@ -333,24 +300,22 @@ def prepare(
     timings["markers"] = time.perf_counter() - t0
 
     t1 = time.perf_counter()
-    bp = M.phase_features(body_markers, fps, yaw=body_yaw, window_s=smoothing_s, relative=dead_zone)
-    hp = M.phase_features(
+    bp, hp, rows1, yaw_offset = _pass1_features(
+        body_markers,
         hand_markers,
+        body_yaw,
+        hand_yaw,
         fps,
-        yaw=hand_yaw if hand_yaw is not None else np.zeros(m),
-        window_s=smoothing_s,
-        relative=dead_zone,
+        theta,
+        n_bins,
+        smoothing_s,
+        dead_zone,
+        step1,
     )
-    yaw_offset = 0.0
-    if theta == "trunk" and hand_yaw is None:
-        # a hand take without a trunk: constant heading, estimated near the diagonal
-        i = np.arange(n)
-        j = np.minimum(np.round(i * (m - 1) / max(n - 1, 1)).astype(np.int64), m - 1)
-        yaw_offset = -heading_offset(bp, hp, np.column_stack([i, j]))
-    rows1 = M.phase_rows(bp, hp, theta=theta, n_bins=n_bins, yaw_offset=yaw_offset, step=step1)
     timings["features"] = time.perf_counter() - t1
     progress("features", 1.0)
     M.register_metrics()
+    body_frames, hand_frames, body_fk = mk.body_frames, mk.hand_frames, mk.body_fk
     if hand_frames and all(not hand_frames[s].elbow_apart for s in sides):
         side_notes.append(
             "the hand take has no measured forearm: pass 2 compares how the hand "
@@ -392,6 +357,108 @@ def prepare(
         },
         timings=timings,
         notes=side_notes,
+    )
+
+
+def _pass1_features(
+    body_markers,
+    hand_markers,
+    body_yaw,
+    hand_yaw,
+    fps,
+    theta,
+    n_bins,
+    smoothing_s,
+    dead_zone,
+    step1,
+):
+    """``(body, hand PhaseFeatures, pass-1 rows, θ offset)``: the sign codes and headings of
+    both takes (eqs. 6-7) and the pass-1 cost rows; a hand take without a trunk gets a
+    constant heading offset for ``theta="trunk"``, estimated near the diagonal."""
+    n, m = body_markers.shape[0], hand_markers.shape[0]
+    bp = M.phase_features(body_markers, fps, yaw=body_yaw, window_s=smoothing_s, relative=dead_zone)
+    hp = M.phase_features(
+        hand_markers,
+        fps,
+        yaw=hand_yaw if hand_yaw is not None else np.zeros(m),
+        window_s=smoothing_s,
+        relative=dead_zone,
+    )
+    yaw_offset = 0.0
+    if theta == "trunk" and hand_yaw is None:
+        i = np.arange(n)
+        j = np.minimum(np.round(i * (m - 1) / max(n - 1, 1)).astype(np.int64), m - 1)
+        yaw_offset = -heading_offset(bp, hp, np.column_stack([i, j]))
+    rows1 = M.phase_rows(bp, hp, theta=theta, n_bins=n_bins, yaw_offset=yaw_offset, step=step1)
+    return bp, hp, rows1, yaw_offset
+
+
+def _sides_to_align(body, hand, rb, rh, side: str, body_name: str, hand_name: str) -> list:
+    """The hands to align (``resolve_sides``): of a BVH hand take, only hands with fingers
+    (RoleError when it has none, or when its side is undecided)."""
+    body_sides = _hand_sides(body, rb)
+    hand_sides = _hand_sides(hand, rh)
+    if isinstance(hand, Motion):  # a hand take without fingers cannot give any
+        with_fingers = [s for s in hand_sides if rh.side(s).has_fingers]
+        if not with_fingers:
+            undecided = undecided_message(hand_name, hand, rh)
+            if undecided:
+                raise RoleError(undecided)
+            raise RoleError(
+                f"{hand_name} has no finger joints (hands found: "
+                f"{', '.join(hand_sides) or 'none'}); the hand take must carry "
+                "the fingers to splice"
+            )
+        hand_sides = with_fingers
+    return resolve_sides(side, body_sides, hand_sides, body_name, hand_name)
+
+
+@dataclass(frozen=True)
+class _ArmMarkers:
+    """Both takes' virtual arm markers of ``sides`` side by side, ``(frames, markers, 3)``
+    (the hand take at the body's rate ``fps``), their trunk headings (radians, None without
+    a trunk; the hand's at its own rate) and the hand frames of BVH takes; ``body_fk`` keeps
+    the body's world rotations for the transfer."""
+
+    body_markers: np.ndarray
+    hand_markers: np.ndarray
+    body_yaw: np.ndarray | None
+    hand_yaw: np.ndarray | None
+    body_frames: dict
+    hand_frames: dict
+    body_fk: tuple | None
+
+
+def _arm_markers(body, hand, rb, rh, sides, fps: float) -> _ArmMarkers:
+    """Forward kinematics by blocks of frames (features.take_markers): the body keeps its
+    world rotations for the transfer, the hand take keeps nothing; marker sets give their
+    markers as they are."""
+    body_frames: dict[str, HandFrame] = {}
+    hand_frames: dict[str, HandFrame] = {}
+    body_fk = None
+    if isinstance(body, Motion):
+        body_frames = {s: hand_frame(body, rb, s) for s in sides}
+        bmk, body_yaw, body_rot = take_markers(body, rb, body_frames, keep_rotations=True)
+        body_fk = (None, body_rot)
+        bm = [bmk[s] for s in sides]
+    else:
+        bm = [marker_set_markers(body, s).markers for s in sides]
+        body_yaw = marker_set_yaw(body)
+    if isinstance(hand, Motion):
+        hand_frames = {s: hand_frame(hand, rh, s) for s in sides}
+        hmk, hand_yaw, _ = take_markers(hand, rh, hand_frames, fps=fps)
+        hm = [hmk[s] for s in sides]
+    else:
+        hm = [marker_set_markers(hand, s, fps=fps).markers for s in sides]
+        hand_yaw = marker_set_yaw(hand)
+    return _ArmMarkers(
+        np.concatenate(bm, axis=1),
+        np.concatenate(hm, axis=1),
+        body_yaw,
+        hand_yaw,
+        body_frames,
+        hand_frames,
+        body_fk,
     )
 
 

@@ -7,7 +7,7 @@ import panel as pn
 from bokeh.models import CustomJS
 
 from webapp import safe_text
-from webapp.state import Session, page_words
+from webapp.state import Session
 
 MATRIX_CHOICES = {
     "Pass 1": "pass1",
@@ -242,7 +242,7 @@ def error_alert(session: Session) -> pn.viewable.Viewable:
     )
 
     def update(*_):
-        alert.object = safe_text.markdown(page_words(session.error))
+        alert.object = safe_text.markdown(session.page_error())
         alert.visible = bool(session.error)
 
     session.param.watch(update, ["error"])

@@ -269,6 +269,30 @@ class CostMatrixView:
 
         self.x_range = Range1d(-0.5, n - 0.5, bounds=(-0.5, n - 0.5), name="hs-x-range")
         self.y_range = Range1d(lo, hi, bounds=(lo, hi), name="hs-y-range")
+        fig = self._matrix_figure(size)
+        image = self._add_image(fig)
+        self._add_band(fig, hi)
+        self._add_paths(fig)
+        points = self._add_points(fig)
+        self._add_hovers(fig, image, points)
+        self._add_color_bar(fig)
+        self.figure = fig
+        self.title = pn.pane.HTML(
+            "",
+            css_classes=["hs-matrix-title"],
+            margin=(0, 10, 0, 100),
+            styles={"font-size": "13px"},
+        )
+
+        self.body_figure, self.hand_figure = self._axis_figures(size)
+        self._edit_queue(fig)
+        self._watch(session, fig)
+        self._on_inputs()
+
+    # ------------------------------------------------------------ building the figures
+
+    def _matrix_figure(self, size: int):
+        """The matrix's figure (its axes are the signal strips'), on the shared ranges."""
         fig = figure(
             frame_width=size,
             frame_height=size,
@@ -287,6 +311,10 @@ class CostMatrixView:
         fig.yaxis.visible = False
         fig.grid.visible = False
         fig.background_fill_color = "#202020"
+        return fig
+
+    def _add_image(self, fig):
+        """The cost image (a view of the visible range: ``_update_image``), its colours."""
         self.mapper = LinearColorMapper(palette=Viridis256, nan_color="rgba(0,0,0,0)")
         self.image_source = ColumnDataSource(
             {
@@ -308,7 +336,10 @@ class CostMatrixView:
             color_mapper=self.mapper,
             level="image",
         )
-        # the band: cells outside it dimmed, its edges drawn
+        return image
+
+    def _add_band(self, fig, hi: float) -> None:
+        """The band: cells outside it dimmed, its edges drawn (``hi``: the hand axis's top)."""
         self.band_source = ColumnDataSource({"x": [], "lo": [], "hi": []}, name="hs-band-source")
         fig.varea(
             x="x",
@@ -344,6 +375,9 @@ class CostMatrixView:
             line_width=1.5,
             name="hs-band-hi",
         )
+
+    def _add_paths(self, fig) -> None:
+        """Open ends, both passes' paths, the points' tolerance bars, the frame marker."""
         # open ends: frames of either take outside the path's overlap, lightly shaded
         self.unmatched_source = ColumnDataSource(
             {"left": [], "right": [], "bottom": [], "top": []}, name="hs-unmatched-source"
@@ -395,6 +429,9 @@ class CostMatrixView:
             line_color="white",
             line_width=2,
         )
+
+    def _add_points(self, fig):
+        """The matching points and the tool that adds, drags and deletes them."""
         self.points_source = ColumnDataSource(
             {"x": [], "y": [], "tol": []}, name="hs-points-source"
         )
@@ -410,7 +447,7 @@ class CostMatrixView:
         )
         self.point_tool = PointDrawTool(
             renderers=[points],
-            add=True,
+            add=not self.session.pick,
             drag=True,
             default_overrides={"tol": float("nan")},
             name="hs-point-tool",
@@ -419,6 +456,10 @@ class CostMatrixView:
         fig.add_tools(self.point_tool)
         fig.toolbar.active_drag = self.point_tool
         fig.toolbar.active_tap = self.point_tool
+        return points
+
+    def _add_hovers(self, fig, image, points) -> None:
+        """Tooltips: a matching point's own, else the cell's (frames, times, cost, band)."""
         fig.add_tools(
             HoverTool(
                 renderers=[points],
@@ -459,6 +500,8 @@ class CostMatrixView:
                 },
             )
         )
+
+    def _add_color_bar(self, fig) -> None:
         fig.add_layout(
             ColorBar(
                 color_mapper=self.mapper,
@@ -472,15 +515,10 @@ class CostMatrixView:
             ),
             "right",
         )
-        self.figure = fig
-        self.title = pn.pane.HTML(
-            "",
-            css_classes=["hs-matrix-title"],
-            margin=(0, 10, 0, 100),
-            styles={"font-size": "13px"},
-        )
 
-        # signals along the axes: body below (shares x), hand at the left (shares y)
+    def _axis_figures(self, size: int):
+        """``(body strip, hand strip)``: the takes' wrist speed and gesture phases along the
+        matrix's axes (body below, sharing x; hand at the left, sharing y)."""
         self.body_signal_source = ColumnDataSource({"x": [], "y": []})
         self.hand_signal_source = ColumnDataSource({"x": [], "y": []})
         self.body_phase_source = ColumnDataSource(_phase_quads(None, {}))
@@ -538,8 +576,11 @@ class CostMatrixView:
             f.outline_line_color = None
         body.min_border_left, body.min_border_top, body.min_border_right = 10, 2, 60
         hand.min_border_top, hand.min_border_bottom, hand.min_border_right = 6, 6, 2
-        self.body_figure, self.hand_figure = body, hand
+        return body, hand
 
+    def _edit_queue(self, fig) -> None:
+        """The page's side of the matching-point edits (``_JS_SEND_EDIT``) and the server's
+        answer (``hs-server-points``): see the class docstring."""
         # the edit queue: the page numbers its edits and sends every unanswered one; the
         # session's points come back in ``server_points`` with the last edit they include
         self.edit_source = ColumnDataSource({"edits": ["[]"]}, name="hs-edit-queue")
@@ -566,6 +607,9 @@ class CostMatrixView:
         self.server_points.js_on_change("data", reconcile)
         self.server_points.js_on_change("tags", reconcile)
         self.edit_source.on_change("data", self._on_edits)
+
+    def _watch(self, session: Session, fig) -> None:
+        """Page events (visible range, clicks) and session changes this view follows."""
         fig.on_event(RangesUpdate, self._on_range)
         fig.on_event(Tap, self._on_tap)
         fig.on_event(DoubleTap, self._on_tap)
@@ -573,7 +617,7 @@ class CostMatrixView:
         session.param.watch(self._on_matrix, ["matrix"])
         session.param.watch(self._on_frame, ["frame"])
         session.param.watch(self._on_inputs, ["inputs_revision"])
-        self._on_inputs()
+        session.param.watch(lambda *_: self.set_pick_mode(self.session.pick), ["pick"])
 
     # ------------------------------------------------------------ session -> page
 

@@ -93,21 +93,27 @@ class PreviewView:
         self.play = pn.widgets.Toggle(
             label="▶ Play", value=False, width=90, css_classes=["hs-play"]
         )
-        self.camera = pn.widgets.Select(
-            label="Camera",
-            options=["three-quarter", "front", "side"],
-            value="three-quarter",
+        # the view state lives in the session (saved in its file and link): widgets of its
+        # parameters
+        self.camera = pn.widgets.Select.from_param(
+            session.param.camera,
+            name="Camera",
             width=130,
+            css_classes=["hs-camera"],
+            description=None,  # no tooltip from the parameter's doc (the page looks as before)
         )
-        self.trails = pn.widgets.Checkbox(label="Hand trails", value=False, width=110)
-        self.auto = pn.widgets.Checkbox(label="Follow edits", value=True, width=110)
+        self.trails = pn.widgets.Checkbox.from_param(
+            session.param.trails, name="Hand trails", width=110, css_classes=["hs-trails"]
+        )
+        self.auto = pn.widgets.Checkbox.from_param(
+            session.param.follow, name="Follow edits", width=110, css_classes=["hs-follow"]
+        )
         self.slider.param.watch(self._on_slider, "value")
         self.play.param.watch(self._on_play, "value")
         session.param.watch(self._on_frame, ["frame"])
         session.param.watch(self._on_inputs, ["inputs_revision"])
         session.param.watch(self._on_solution, ["revision"])
-        self.camera.param.watch(lambda e: self.render(), "value")
-        self.trails.param.watch(lambda e: self.render(), "value")
+        session.param.watch(lambda *_: self._render_soon(), ["camera", "trails"])
         self._rendered_key = None
         self._played = None
         self._inflight = False
@@ -138,7 +144,7 @@ class PreviewView:
         self._render_soon()
 
     def _on_solution(self, *_):
-        if self.auto.value and self._rendered_key is not None:
+        if self.session.follow and self._rendered_key is not None:
             self._render_soon()
 
     # ------------------------------------------------------------ playing
@@ -188,7 +194,7 @@ class PreviewView:
     def _key(self, frame: int | None = None) -> tuple:
         s = self.session
         frame = s.frame if frame is None else frame
-        return (s.revision, s.inputs_revision, frame, self.camera.value, self.trails.value)
+        return (s.revision, s.inputs_revision, frame, s.camera, s.trails)
 
     def render(self, frame: int | None = None) -> bool:
         """Render the current frame, or body frame ``frame`` (Play: the session steps to
@@ -206,7 +212,7 @@ class PreviewView:
         key = self._key(frame)
         if key == self._rendered_key:
             return True
-        job = (s.prepared, s.solution, key[2], self.camera.value, self.trails.value)
+        job = (s.prepared, s.solution, key[2], s.camera, s.trails)
         doc = pn.state.curdoc
         if doc is None or doc.session_context is None:
             if self._inflight:

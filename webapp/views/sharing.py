@@ -20,7 +20,7 @@ from concurrent.futures import ThreadPoolExecutor
 import panel as pn
 
 from webapp import backend, safe_text
-from webapp.state import Session
+from webapp.state import VIEW_STATE, Session
 
 #: exports of all sessions share these threads (renders take turns on the OpenGL lock)
 _EXPORTS = ThreadPoolExecutor(max_workers=2, thread_name_prefix="hs-export")
@@ -123,7 +123,9 @@ class SharingView:
                 "border-radius": "4px",
             },
         )
-        session.param.watch(self._update_link, ["revision", "inputs_revision", "matrix"])
+        session.param.watch(
+            self._update_link, ["revision", "inputs_revision", "matrix", *VIEW_STATE]
+        )
         self._update_link()
         doc = pn.state.curdoc
         if doc is not None and doc.session_context is not None:

@@ -1,0 +1,185 @@
+"""The page's view state (preview camera, hand trails, follow edits, pick mode) in real
+Chromium: set with the page's own controls, it travels in the link and the session file
+and comes back in a fresh page's controls."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import pytest
+
+from webapp.launch import PAGE_HELPERS, launch_chromium, running_server
+
+pytestmark = pytest.mark.browser
+
+
+@pytest.fixture(scope="module")
+def browser_and_url(tmp_path_factory):
+    sync_api = pytest.importorskip("playwright.sync_api")
+    uploads = tmp_path_factory.mktemp("uploads")
+    log_path = tmp_path_factory.mktemp("log") / "serve.log"
+    with (
+        log_path.open("w+") as log,
+        running_server("--upload-dir", str(uploads), log=log, timeout=400) as (url, _),
+        sync_api.sync_playwright() as p,
+    ):
+        browser = launch_chromium(p)
+        yield browser, url
+        browser.close()
+    assert "Traceback" not in log_path.read_text()
+
+
+def _open(browser, url: str):
+    context = browser.new_context(viewport={"width": 1300, "height": 1000}, accept_downloads=True)
+    page = context.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.goto(url, timeout=180_000)
+    page.wait_for_function(
+        "() => window.Bokeh && Bokeh.documents.length && "
+        "Bokeh.documents[0].get_model_by_name('hs-path-source')?.data.x?.length > 0",
+        timeout=90_000,
+    )
+    page.evaluate(PAGE_HELPERS)
+    page.locator(".hs-preview-image img").wait_for(timeout=90_000)
+    page.errors = errors
+    return page
+
+
+def _text(locator) -> str:
+    """Text of an element including its (open) shadow root, where Panel renders panes."""
+    return locator.evaluate(
+        "e => [...(e.shadowRoot ? e.shadowRoot.children : []), ...e.children]"
+        ".filter(c => c.tagName !== 'STYLE' && c.tagName !== 'LINK')"
+        ".map(c => c.innerText).join(' ')"
+    )
+
+
+def _preview_src(page) -> str:
+    return page.locator(".hs-preview-image img").get_attribute("src") or ""
+
+
+def _controls(page) -> dict:
+    """The view state as a person reads it off the page's controls."""
+    pick = page.locator(".hs-click-mode button", has_text="Pick frames")
+    return {
+        "camera": page.locator(".hs-camera select").input_value(),
+        "trails": page.locator(".hs-trails input[type=checkbox]").is_checked(),
+        "follow": page.locator(".hs-follow input[type=checkbox]").is_checked(),
+        "pick": "bk-active" in (pick.get_attribute("class") or ""),
+    }
+
+
+def _wait_controls(page, want: dict, timeout: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout
+    while (seen := _controls(page)) != want:
+        assert time.monotonic() < deadline, f"controls show {seen}, expected {want}"
+        page.wait_for_timeout(100)
+
+
+def test_view_state_set_in_the_page_comes_back_from_link_and_session_file(
+    browser_and_url, tmp_path
+):
+    browser, url = browser_and_url
+    page = _open(browser, url)
+    default = {"camera": "three-quarter", "trails": False, "follow": True, "pick": False}
+    assert _controls(page) == default
+    before = _preview_src(page)
+
+    # a person changes the view with the page's controls
+    page.locator(".hs-camera select").select_option("side")
+    page.locator(".hs-trails input[type=checkbox]").check()
+    page.locator(".hs-follow input[type=checkbox]").uncheck()
+    page.locator(".hs-click-mode button", has_text="Pick frames").click()
+    want = {"camera": "side", "trails": True, "follow": False, "pick": True}
+    _wait_controls(page, want)
+    page.wait_for_function("() => hs.model('hs-point-tool').add === false")
+    deadline = time.monotonic() + 90
+    while _preview_src(page) == before:  # the side camera with trails re-renders the preview
+        assert time.monotonic() < deadline, "the preview did not follow the camera"
+        page.wait_for_timeout(200)
+
+    link = page.locator(".hs-share-url input")
+    deadline = time.monotonic() + 30
+    while "pick=1" not in (shared := link.input_value()):
+        assert time.monotonic() < deadline, f"the link does not follow the view: {shared}"
+        page.wait_for_timeout(100)
+    assert all(f in shared for f in ("camera=side", "trails=1", "follow=0", "pick=1"))
+    assert page.url.endswith(shared[shared.index("?") :])  # the address bar carries it too
+
+    with page.expect_download(timeout=60_000) as info:
+        page.locator(".hs-download-session button").click()
+    saved = tmp_path / "view.json"
+    info.value.save_as(saved)
+    assert {k: json.loads(saved.read_text())["view"][k] for k in want} == want
+
+    # the link, opened in a fresh tab: its controls show the view, the matrix picks frames
+    other = _open(browser, shared)
+    try:
+        _wait_controls(other, want)
+        other.wait_for_function("() => hs.model('hs-point-tool').add === false")
+        npts = len(other.evaluate("hs.cols('hs-points-source', ['x'])")["x"])
+        path = other.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
+        k = len(path["x"]) // 2
+        other.mouse.click(*other.evaluate(f"hs.xy({path['x'][k]}, {path['y'][k]})"))
+        other.locator(f".hs-preview-info span[data-frame='{path['x'][k]}']").wait_for(
+            timeout=90_000
+        )
+        assert len(other.evaluate("hs.cols('hs-points-source', ['x'])")["x"]) == npts
+        other.locator(".hs-preview").screenshot(path=str(tmp_path / "restored_preview.png"))
+        assert not other.errors, other.errors
+    finally:
+        other.context.close()
+
+    # the session file, opened in a fresh tab through its file input
+    third = _open(browser, url)
+    try:
+        assert _controls(third) == default
+        third.locator(".hs-open-session input[type=file]").set_input_files(str(saved))
+        _wait_controls(third, want)
+        third.wait_for_function("() => hs.model('hs-point-tool').add === false")
+        third.locator(".hs-cost-matrix").first.screenshot(path=str(tmp_path / "third.png"))
+        assert not third.errors, third.errors
+    finally:
+        third.context.close()
+    assert not page.errors, page.errors
+    page.context.close()
+
+
+def test_a_link_with_a_bad_camera_opens_the_demo_and_says_why(browser_and_url):
+    browser, url = browser_and_url
+    page = _open(browser, url + "?sample=wave-ok&camera=%3Cb%3Etop%3C%2Fb%3E&trails=1")
+    try:
+        alert = page.locator(".hs-error")
+        alert.wait_for(state="visible", timeout=30_000)
+        text = _text(alert)
+        assert "shared link: URL: view.camera: expected one of three-quarter, front, side" in text
+        assert "<b>" in text  # shown as text, never as markup
+        assert _controls(page)["camera"] == "three-quarter"
+        assert not _controls(page)["trails"]  # nothing of the bad link was applied
+    finally:
+        page.context.close()
+
+
+def test_a_refused_click_is_worded_from_the_refusal(browser_and_url):
+    """Two clicks that cross: the second point is refused, and the alert names both points
+    the page's way (from the ConstraintError's fields)."""
+    browser, url = browser_and_url
+    page = _open(browser, url)
+    try:
+        page.mouse.click(*page.evaluate("hs.xy(40, 60)"))
+        page.wait_for_function("() => hs.cols('hs-server-points', ['x']).x.length === 1")
+        first = page.evaluate("hs.cols('hs-server-points', ['x', 'y'])")
+        b, h = round(first["x"][0]), round(first["y"][0])
+        page.mouse.click(*page.evaluate("hs.xy(80, 20)"))
+        alert = page.locator(".hs-error")
+        alert.wait_for(state="visible", timeout=60_000)
+        text = _text(alert)
+        assert "matching point (body 80, hand " in text and f"crosses (body {b}, hand {h})" in text
+        assert "not kept: it crosses" in text and "points[" not in text
+        page.wait_for_function("() => hs.cols('hs-points-source', ['x']).x.length === 1")
+        alert.screenshot(path="/tmp/rules_refusal.png")
+        assert not page.errors, page.errors
+    finally:
+        page.context.close()
