@@ -58,7 +58,11 @@ ROOT = Path(__file__).resolve().parents[1]
 APP_BASELINE = os.environ.get("HANDSPLICE_APP_BASELINE", "46e6d22")
 #: files of this checkout copied over the baseline (fixes without which a measure cannot run)
 CARRIED_FIXES = ("webapp/views/credits.py",)
-DRAG_PX = 4
+#: a drag moves the point this many screen pixels (Bokeh ignores a shorter one) on a view
+#: zoomed to ZOOM_FRACTION of the take around the point (as a user zooms in to place a
+#: point precisely: the whole 10-minute take is 128 frames a pixel)
+DRAG_PX = 12
+ZOOM_FRACTION = 0.05
 
 IMAGE_OF = """
 (n) => {
@@ -175,19 +179,29 @@ def _drag_once(page, x: int, a: float, b: float) -> float:
 
 def place_point(page) -> tuple[int, float, float]:
     """Add a matching point on the path at mid-take; (x, y, hand frames per pixel)."""
+    page.bring_to_front()  # animation frames (the latency watch) run in the front tab only
     page.evaluate(PAGE_HELPERS)
     page.evaluate(WATCH)
     path = page.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
     xs, ys = np.asarray(path["x"]), np.asarray(path["y"])
     x = int(xs[len(xs) // 2])
     y = float(round(ys[len(xs) // 2]))
+    page.evaluate("() => { window.hsChanged = null; }")
+    page.mouse.click(*page.evaluate("([x, y]) => hs.xy(x, y)", [x, y]))
+    page.wait_for_function("() => window.hsChanged !== null", timeout=600_000)
+    n = len(xs)
+    if n * ZOOM_FRACTION > 200:  # zoom in around the point (the figure's x and y ranges)
+        half = n * ZOOM_FRACTION / 2
+        page.evaluate(
+            "([x, y, h]) => { hs.model('hs-x-range').setv({start: x - h, end: x + h});"
+            " hs.model('hs-y-range').setv({start: y - h, end: y + h}); }",
+            [x, y, half],
+        )
+        page.wait_for_timeout(500)
     per_px = page.evaluate(
         "() => { const v = Bokeh.index.find_one(hs.model('hs-cost-figure'));"
         " return (hs.model('hs-y-range').end - hs.model('hs-y-range').start) / v.frame.bbox.height; }"
     )
-    page.evaluate("() => { window.hsChanged = null; }")
-    page.mouse.click(*page.evaluate("([x, y]) => hs.xy(x, y)", [x, y]))
-    page.wait_for_function("() => window.hsChanged !== null", timeout=600_000)
     return x, y, float(per_px)
 
 
@@ -215,6 +229,7 @@ def other_tab_while_opening(browser, url: str, demo: str, n: int) -> dict:
     other = _context(browser).new_page()
     t0 = time.monotonic()
     other.evaluate(f"location.href = {url!r}")
+    demo_page.bring_to_front()
     latencies, k = [], 0
     while True:
         a, b = (y, y + step) if k % 2 == 0 else (y + step, y)
@@ -282,8 +297,11 @@ def run_pair(browser, seconds: float, code: str, tree: Path | None, drags: int, 
         img2, path2, tab2 = open_times(browser, url, n)
         tab2.context.close()
         out.update(tab1=(img1, path1), tab2=(img2, path2))
+        print(code, seconds, "start, tab 1, tab 2:", started, out["tab1"], out["tab2"], flush=True)
         out["other"] = other_tab_while_opening(browser, url, demo, n)
+        print(code, seconds, "other tab:", out["other"], flush=True)
         out["drag"] = measure_drags(tab1, drags)
+        print(code, seconds, "drags:", out["drag"], flush=True)
         tab1.context.close()
     with serve(tree, "--upload-dir", str(up)) as (url, _):
         out["upload"] = by_upload(browser, url, body, hand, n)
@@ -311,6 +329,12 @@ def main(argv=None) -> int:
     parser.add_argument("--codes", nargs="+", default=["today", "now"])
     parser.add_argument("--drags", type=int, default=20)
     parser.add_argument("--no-write", action="store_true")
+    parser.add_argument(
+        "--keep",
+        type=Path,
+        default=None,
+        help="JSON file of rows: each run appends its rows, the table shows them all",
+    )
     args = parser.parse_args(argv)
     from playwright.sync_api import sync_playwright
 
@@ -322,6 +346,12 @@ def main(argv=None) -> int:
             for code in args.codes:
                 rows.append(run_pair(browser, seconds, code, trees[code], args.drags, Path(tmp)))
         browser.close()
+    if args.keep is not None:
+        import json
+
+        kept = json.loads(args.keep.read_text()) if args.keep.exists() else []
+        rows = kept + rows
+        args.keep.write_text(json.dumps(rows))
     head = (
         "| pair | code | server start (read, features, warm-up) | by path, tab 1: image / "
         "band+path | tab 2: image / band+path | upload: files in | upload: image / band+path "
