@@ -335,11 +335,16 @@ def main(argv=None) -> int:
         default=None,
         help="JSON file of rows: each run appends its rows, the table shows them all",
     )
+    parser.add_argument(
+        "--table-only", action="store_true", help="measure nothing: the table of --keep's rows"
+    )
     args = parser.parse_args(argv)
     from playwright.sync_api import sync_playwright
 
     trees = {"now": None, "today": baseline_app()}
     rows = []
+    if args.table_only:
+        args.pairs = []
     with tempfile.TemporaryDirectory() as tmp, sync_playwright() as p:
         browser = launch_chromium(p)
         for seconds in args.pairs:
@@ -351,7 +356,8 @@ def main(argv=None) -> int:
 
         kept = json.loads(args.keep.read_text()) if args.keep.exists() else []
         rows = kept + rows
-        args.keep.write_text(json.dumps(rows))
+        if not args.table_only:
+            args.keep.write_text(json.dumps(rows))
     head = (
         "| pair | code | server start (read, features, warm-up) | by path, tab 1: image / "
         "band+path | tab 2: image / band+path | upload: files in | upload: image / band+path "
