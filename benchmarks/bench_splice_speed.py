@@ -21,6 +21,13 @@ Run: ``.venv/bin/python -m benchmarks.bench_splice_speed [--quick] [--no-10min]`
   of ±4 s (refine ±4/3 s, the paper's ratio), or wider when the pair's true drift
   needs it. Peak = VmHWM of the child (whole process: interpreter, libraries, both
   takes, warm-up). Accuracy: median |warp − truth| in hand frames.
+* ``--engine``: only the 2- and 10-minute pairs with default bands, beside
+  :data:`ENGINE_BASE` (the chunked BVH reader and the blend in seconds), with the peak
+  while reading and while splicing apart (section ``splice_speed_engine``).
+* ``--stages``: CPU time of every engine stage of the 2-minute (and 10-minute) splice,
+  warm (median of :data:`STAGE_SPLICES` splices per child process, children of both codes
+  alternately), beside :data:`STAGE_BASE`; the spliced take's bytes and the pass-1 and
+  pass-2 paths compared (section ``splice_speed_stages``).
 """
 
 from __future__ import annotations
@@ -43,6 +50,42 @@ PAPER_569_S = 10.95
 TIME_BAND_S = 4.0
 #: the code before the pass-2 row kernel (main when that work began): ``--pass2``'s "before"
 PASS2_BASE = os.environ.get("HANDSPLICE_PASS2_BASE", "3539261")
+#: main when issue 13's reader and merge work began: ``--engine``'s "before"
+ENGINE_BASE = os.environ.get("HANDSPLICE_ENGINE_BASE", "46e6d22")
+#: main when the prepare-stage work began: ``--stages``' "before"
+STAGE_BASE = os.environ.get("HANDSPLICE_STAGE_BASE", "efbcb40")
+#: timed splices per child process in ``--stages`` (the first warm one included)
+STAGE_SPLICES = 3
+
+#: ``--stages`` child: the pipeline's stage clocks read CPU time (``time.process_time``,
+#: the process's threads together) instead of wall time: the module's ``time`` is
+#: swapped for a namespace whose ``perf_counter`` is ``process_time``
+CHILD_STAGES = r"""
+import hashlib, json, statistics, sys, time, types
+import numpy as np
+from engine.io.bvh import read_bvh, format_bvh
+from engine.splice import pipeline as P
+P.time = types.SimpleNamespace(perf_counter=time.process_time)
+body_p, hand_p, reps = sys.argv[1], sys.argv[2], int(sys.argv[3])
+body, hand = read_bvh(body_p), read_bvh(hand_p)
+P.splice(body.frames(0, 600), hand.frames(0, 600))
+runs = []
+for _ in range(reps):
+    c0 = time.process_time()
+    r = P.splice(body, hand)
+    cpu = time.process_time() - c0
+    runs.append(dict(r.timings, cpu=cpu))
+keys = ["cpu", "prepare", "prepare.markers", "prepare.features", "pass1", "pass2", "merge",
+        "transfer"]
+a = r.alignment
+digest = lambda x: hashlib.sha256(np.ascontiguousarray(x).tobytes()).hexdigest()[:16]
+print(json.dumps({"frames": [body.n_frames, hand.n_frames], "reps": reps,
+                  "stages": {k: statistics.median(x[k] for x in runs) for k in keys},
+                  "all": [x["cpu"] for x in runs],
+                  "path1": digest(a.pass1.path), "path2": digest(a.pass2.path),
+                  "map": digest(np.asarray(a.map)),
+                  "bvh": hashlib.sha256(format_bvh(r.motion).encode()).hexdigest()[:16]}))
+"""
 
 CHILD = r"""
 import json, sys, time
@@ -332,6 +375,142 @@ def report_pass2(kernel, longs) -> str:
     return "\n".join(lines)
 
 
+def report_engine(longs, load) -> str:
+    """The ``--engine`` section: whole splices beside :data:`ENGINE_BASE`."""
+    lines = [
+        "## Splice speed and memory: the chunked BVH reader and the blend in seconds (issue 13)",
+        "",
+        f"*before* = the engine at `{ENGINE_BASE}` (main when this work began), *now* = this "
+        "branch, alternately in the same run (`bench_splice_speed --engine`), default bands "
+        "(pass 1 W1 = 1.5 s x sqrt(T) capped to the cell limit, pass 2 W2 = 2 s). Each run "
+        "is a fresh child process: read both BVH files, a 600-frame warm-up splice, then one "
+        "timed `pipeline.splice` (prepare + passes + merge + transfer). Peak = VmHWM of the "
+        "process; *reading* = its peak after reading both files and the warm-up, "
+        "*splicing* = the peak counter reset (`/proc/self/clear_refs`) before the timed "
+        "splice. Timing error: |map - truth| in hand frames.",
+        "",
+        "| pair | code | read (wall) | splice wall | splice CPU | prepare / pass 1 / pass 2 / "
+        "merge / transfer (wall, s) | pass-1 / pass-2 cells | peak reading | peak splicing | "
+        "peak | timing error median / p95 (frames) |",
+        "|---|---|---:|---:|---:|---|---|---:|---:|---:|---|",
+    ]
+    for lg in longs:
+        for r in lg["runs"]:
+            st = r["stages"]
+            lines.append(
+                f"| {lg['seconds'] / 60:g} min ({r['frames'][0]:,} x {r['frames'][1]:,}) | "
+                f"{r['code']} | {r['read_s']:.1f} s | {r['wall_s']:.2f} s | {r['cpu_s']:.2f} s | "
+                f"{st['prepare']:.2f} / {st['pass1']:.2f} / {st['pass2']:.2f} / "
+                f"{st['merge']:.2f} / {st['transfer']:.2f} | "
+                f"{r['cells'][0] / 1e6:.1f} M / {r['cells'][1] / 1e6:.1f} M | "
+                f"{r['peak_read_mb']:.0f} MB | {r['peak_splice_mb']:.0f} MB | "
+                f"**{r['peak_mb']:.0f} MB** | {r['err_median']:.2f} / {r['err_p95']:.2f} |"
+            )
+    lines.append("")
+    for lg in longs:
+        by = {c: [r for r in lg["runs"] if r["code"] == c] for c in ("before", "now")}
+        if by["before"] and by["now"]:
+            ratio = {
+                k: statistics.median(n[k] / b[k] for b, n in zip(by["before"], by["now"]))
+                for k in ("cpu_s", "read_s", "peak_mb", "peak_read_mb")
+            }
+            lines.append(
+                f"- {lg['seconds'] / 60:g} min, now / before: process peak **{ratio['peak_mb']:.2f}**, "
+                f"peak while reading {ratio['peak_read_mb']:.2f}, reading time "
+                f"{ratio['read_s']:.2f}, splice CPU time {ratio['cpu_s']:.2f}."
+            )
+    lines += [
+        "",
+        f"Load average (1 min) {load[0]:.1f} at the start, {load[1]:.1f} at the end, on 2 cores "
+        "shared by five sessions and a fresh-machine check: wall times are several times the "
+        "CPU times; read the ratios and the CPU times.",
+        "",
+        "Goals (issue 13): 2-minute pair ≤ 1.0 s warm, peak ≤ 600 MB, median timing error ≤ 1 "
+        "frame; 10-minute pair ≤ 10 s, peak ≤ 1.5 GB.",
+    ]
+    return "\n".join(lines)
+
+
+STAGE_KEYS = ("prepare.markers", "prepare.features", "pass1", "pass2", "merge", "transfer")
+
+
+def bench_stages(seconds: float, fps: float, before, children: int) -> dict:
+    """CPU time per stage of the ``seconds`` pair, default bands: ``children`` child
+    processes of each code, alternately, :data:`STAGE_SPLICES` warm splices in each."""
+    body_p, hand_p, _ = LP.pair_files(seconds, fps)
+    out = {"seconds": seconds, "runs": []}
+    for _ in range(children):
+        for code, tree in (("before", before), ("now", None)):
+            r = LP.run_child(CHILD_STAGES, str(body_p), str(hand_p), str(STAGE_SPLICES), tree=tree)
+            r.update(code=code)
+            print(json.dumps(r), flush=True)
+            out["runs"].append(r)
+    return out
+
+
+def report_stages(longs, load) -> str:
+    """The ``--stages`` section: CPU time per stage beside :data:`STAGE_BASE`."""
+    lines = [
+        "## Splice speed: CPU time per engine stage (issue 13)",
+        "",
+        f"*before* = the engine at `{STAGE_BASE}` (main when this work began), *now* = this "
+        "branch, child processes of both codes alternately (`bench_splice_speed --stages`), "
+        "default bands. Each child reads both BVH files, splices a 600-frame crop (JIT), then "
+        f"times {STAGE_SPLICES} whole splices; the figures are the median of those warm "
+        "splices, then the median over the children of one code. CPU time "
+        "(`time.process_time`, all threads; the pipeline's stage clocks switched to it in the "
+        "child): the machine is shared, wall time is noise. *prepare* = markers (FK, virtual "
+        "markers, hand-side vote, resampling) + features (derivatives, dead zones, sign codes "
+        "for every θ bin, pass-1 rows).",
+        "",
+        "| pair | code | children | splice CPU | markers | features | pass 1 | pass 2 | merge | "
+        "transfer | same paths and output |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|",
+    ]
+    for lg in longs:
+        by = {c: [r for r in lg["runs"] if r["code"] == c] for c in ("before", "now")}
+        ref = by["before"][0] if by["before"] else None
+        for code, runs in by.items():
+            if not runs:
+                continue
+            med = {
+                k: statistics.median(r["stages"][k] for r in runs) for k in ("cpu", *STAGE_KEYS)
+            }
+            same = all(
+                ref is not None and all(r[k] == ref[k] for k in ("path1", "path2", "map", "bvh"))
+                for r in runs
+            )
+            r0 = runs[0]
+            lines.append(
+                f"| {lg['seconds'] / 60:g} min ({r0['frames'][0]:,} x {r0['frames'][1]:,}) | "
+                f"{code} | {len(runs)} | **{med['cpu']:.3f} s** | "
+                + " | ".join(f"{med[k]:.3f}" for k in STAGE_KEYS)
+                + f" | {'yes' if same else 'NO'} (bvh {r0['bvh']}) |"
+            )
+        if by["before"] and by["now"]:
+            ratio = {
+                k: statistics.median(n["stages"][k] / b["stages"][k]
+                                     for b, n in zip(by["before"], by["now"]))
+                for k in ("cpu", *STAGE_KEYS)
+            }
+            lines.append(
+                f"| | now / before | | **{ratio['cpu']:.2f}** | "
+                + " | ".join(f"{ratio[k]:.2f}" for k in STAGE_KEYS)
+                + " | |"
+            )
+    lines += [
+        "",
+        "*Same* = the pass-1 and pass-2 paths, the merged map and the spliced BVH text "
+        "(`format_bvh`) hash the same as the before code's.",
+        "",
+        f"Load average (1 min) {load[0]:.1f} at the start, {load[1]:.1f} at the end (2 cores, "
+        "shared).",
+        "",
+        "Goals (issue 13): 2-minute pair ≤ 1.0 s warm; 10-minute pair ≤ 10 s.",
+    ]
+    return "\n".join(lines)
+
+
 def long_run(files, band, refine, tree=None) -> dict:
     body_p, hand_p, truth_p = files
     return LP.run_child(
@@ -439,8 +618,40 @@ def main(argv=None) -> int:
         "(section splice_speed_pass2)",
     )
     ap.add_argument("--long-reps", type=int, default=1, help="--pass2: runs of each code")
+    ap.add_argument(
+        "--engine",
+        action="store_true",
+        help="only default-band splices of the long pairs beside ENGINE_BASE "
+        "(section splice_speed_engine)",
+    )
+    ap.add_argument(
+        "--stages",
+        action="store_true",
+        help="only CPU time per engine stage of the long splices beside STAGE_BASE "
+        "(section splice_speed_stages)",
+    )
     args = ap.parse_args(argv)
     fps = 120.0
+    if args.stages:
+        load0 = os.getloadavg()[0]
+        before = LP.baseline_tree(STAGE_BASE)
+        longs = [bench_stages(120.0, fps, before, max(args.long_reps, 2))]
+        if not args.no_10min:
+            longs.append(bench_stages(600.0, fps, before, 1))
+        text = report_stages(longs, (load0, os.getloadavg()[0]))
+        print(text)
+        write_section("splice_speed_stages", text)
+        return 0
+    if args.engine:
+        load0 = os.getloadavg()[0]
+        before = LP.baseline_tree(ENGINE_BASE)
+        longs = [bench_long_default(120.0, fps, before, args.long_reps)]
+        if not args.no_10min:
+            longs.append(bench_long_default(600.0, fps, before, 1))
+        text = report_engine(longs, (load0, os.getloadavg()[0]))
+        print(text)
+        write_section("splice_speed_engine", text)
+        return 0
     if args.pass2:
         files = LP.pair_files(120.0, fps)
         kernel2 = bench_pass2_kernel(files[0], files[1], max(args.reps, 1))

@@ -56,9 +56,32 @@ def _concatenate(parts):
     return Motion(sk, np.concatenate(rots), np.concatenate(trans), first.fps, first.meta)
 
 
-def make_long_pair(seconds: float, fps: float = 120.0, seed: int = 0):
+def trunk_tilt(motion) -> np.ndarray:
+    """``(F,)`` degrees between the hips-to-neck (else head) vector and the up axis."""
+    from engine.model.kinematics import forward_kinematics
+
+    names = [n.lower() for n in motion.skeleton.names]
+    top = next(j for j, n in enumerate(names) if n in ("neck", "head"))
+    hips = int(np.flatnonzero(motion.skeleton.parents < 0)[0])
+    pos = forward_kinematics(motion)[0]
+    v = pos[:, top] - pos[:, hips]
+    up = 2 if motion.meta.up_axis == "z" else 1
+    cos = v[:, up] / np.maximum(np.linalg.norm(v, axis=1), 1e-12)
+    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+
+
+def typical_frame(motion) -> int:
+    """The frame whose trunk tilt is nearest the take's median tilt (the performer's
+    usual posture)."""
+    tilt = trunk_tilt(motion)
+    return int(np.argmin(np.abs(tilt - np.median(tilt))))
+
+
+def make_long_pair(seconds: float, fps: float = 120.0, seed: int = 0, still: str = "middle"):
     """(body, hand, truth): takes of ``seconds`` at ``fps`` and the true hand frame
-    ``(n,)`` of every body frame (see the module docstring)."""
+    ``(n,)`` of every body frame (see the module docstring). ``still``: the hand take's
+    trunk and legs hold the middle frame's pose (``"middle"``, the split bench's rule) or
+    the :func:`typical_frame`'s (``"typical"``)."""
     from engine.io.bvh import read_bvh
     from engine.model.kinematics import resample
     from engine.model.roles import find_roles
@@ -96,6 +119,7 @@ def make_long_pair(seconds: float, fps: float = 120.0, seed: int = 0):
         yaw_deg=20.0,
         noise_deg=0.5,
         roles=roles,
+        still_frame=None if still == "middle" else typical_frame(full),
     )
     body_t = np.arange(body.n_frames) / body.fps
     truth = np.interp(body_t, orig_t, hand_t) * hand.fps

@@ -311,8 +311,12 @@ def make_hand_take(
     roles=None,
     warp=None,
     perf_to_orig=None,
+    still_frame: int | None = None,
 ) -> tuple[Motion, np.ndarray, np.ndarray]:
     """The hand take from a full take; returns (hand, hand times s, original times s).
+
+    ``still_frame``: the frame whose trunk and legs the hand take holds (default the
+    middle one).
 
     ``warp``: (hand times, performance times) to use instead of a new random
     :func:`smooth_warp`; ``perf_to_orig``: maps performance times to times of ``full``
@@ -323,7 +327,7 @@ def make_hand_take(
     shrink_set, free = arm_joints(full, roles)
     rots = full.rotations.copy()
     trans = full.translations.copy()
-    mid = full.n_frames // 2
+    mid = full.n_frames // 2 if still_frame is None else int(still_frame)
     for j in range(sk.n_joints):
         if j in free:
             continue

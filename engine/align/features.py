@@ -158,6 +158,14 @@ def up_vector(up_axis: str) -> np.ndarray:
 SPIKE_SIGMAS = 5.0
 
 
+def median3(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Elementwise median of three arrays: ``np.median(np.stack([a, b, c]), axis=0)``
+    bit for bit (NaN where any is NaN), without sorting a stacked copy."""
+    lo = np.minimum(a, b)
+    hi = np.maximum(a, b)
+    return np.maximum(lo, np.minimum(hi, c))
+
+
 def despike(points: np.ndarray) -> np.ndarray:
     """Single-frame spikes removed from trajectories ``(F, K, 3)`` (or ``(F, D)``).
 
@@ -171,10 +179,9 @@ def despike(points: np.ndarray) -> np.ndarray:
     if p.shape[0] < 3:
         return p.copy()
     flat = p.reshape(p.shape[0], -1, p.shape[-1]) if p.ndim >= 3 else p[:, :, None]
-    stack = np.stack(
-        [np.concatenate([flat[:1], flat[:-1]]), flat, np.concatenate([flat[1:], flat[-1:]])]
-    )
-    med = np.median(stack, axis=0)
+    before = np.concatenate([flat[:1], flat[:-1]])
+    after = np.concatenate([flat[1:], flat[-1:]])
+    med = median3(before, flat, after)
     r = np.linalg.norm(flat - med, axis=-1)  # (F, K), >= 0
     with np.errstate(invalid="ignore"):
         # scale of r (half-normal-like): 1.4826 x median, or q90 / 1.645 where most r are 0

@@ -234,10 +234,16 @@ def dead_zone(
     accel = accel[np.isfinite(accel)]
     ev = relative * float(np.quantile(speed, quantile)) if speed.size else 0.0
     ea = relative * float(np.quantile(accel, quantile)) if accel.size else 0.0
-    # never below the take's own noise floor: jitter then does not flip a held hand's signs
-    ev = max(ev, NOISE_SIGMAS * float(noise[0]))
-    ea = max(ea, NOISE_SIGMAS * float(noise[1]))
-    return DeadZone(velocity=ev, acceleration=ea)
+    return above_noise(DeadZone(velocity=ev, acceleration=ea), noise)
+
+
+def above_noise(zone: DeadZone, noise: tuple[float, float]) -> DeadZone:
+    """``zone`` raised to ``NOISE_SIGMAS`` times the take's noise (:func:`noise_floor`)
+    where lower: jitter then does not flip a held hand's signs."""
+    return DeadZone(
+        velocity=max(zone.velocity, NOISE_SIGMAS * float(noise[0])),
+        acceleration=max(zone.acceleration, NOISE_SIGMAS * float(noise[1])),
+    )
 
 
 def sign_dead_zone(x: np.ndarray, eps: float) -> np.ndarray:
@@ -269,9 +275,6 @@ class PhaseFeatures:
     zone : DeadZone
     codes : (F, K * 6) int8
         ``sgn_ε`` of velocity (x, y, z) then acceleration (x, y, z) per marker.
-    window : (F, 2 * THETA_WINDOW * K) float32
-        The eq.-7 window of each frame, centred: horizontal coordinates ``x``
-        then ``z`` of frames ``f-2..f+2`` minus the window's centroid.
     yaw : (F,) float radians or None
         Trunk heading about the vertical axis (for ``theta="trunk"``).
     fps : float
@@ -284,7 +287,6 @@ class PhaseFeatures:
     acceleration: np.ndarray
     zone: DeadZone
     codes: np.ndarray
-    window: np.ndarray
     yaw: np.ndarray | None
     fps: float
     arms: int
@@ -338,7 +340,6 @@ def phase_features(
         acceleration=a,
         zone=zone,
         codes=np.ascontiguousarray(codes.reshape(m.shape[0], -1)),
-        window=_theta_windows(m),
         yaw=yaw,
         fps=float(fps),
         arms=m.shape[1] // 4,
@@ -363,22 +364,28 @@ def _filtered_derivatives(m: np.ndarray, fps: float, window_s: float, relative: 
         v, a = derivatives(m, fps, w)
         noise = noise_floor(m, fps, w)
         plain = dead_zone(v, a, relative)
-        best = (v, a, dead_zone(v, a, relative, noise=noise))
+        best = (v, a, above_noise(plain, noise))
         if NOISE_SIGMAS * noise[0] <= plain.velocity:
             break
     return best
 
 
-def _theta_windows(markers: np.ndarray) -> np.ndarray:
-    """(F, 2*W*K) float32: centred x then z of the W-frame window around each frame."""
+def _theta_windows(markers: np.ndarray, frames) -> np.ndarray:
+    """``(..., 2*W*K)`` float32: the eq.-7 window of each frame in ``frames`` (an int
+    array of any shape), centred: horizontal ``x`` then ``z`` of frames ``f-2..f+2``
+    (clipped at the ends) minus the window's centroid.
+
+    Built for the asked frames only (the splice's pass 1 does not use these: its row
+    kernel works from :func:`_raw_windows`; the per-cell θ of views and reports does)."""
     f, k, _ = markers.shape
     half = THETA_WINDOW // 2
-    idx = np.clip(np.arange(f)[:, None] + np.arange(-half, half + 1)[None, :], 0, f - 1)
-    x = markers[idx, :, 0].reshape(f, -1)  # (F, W*K)
-    z = markers[idx, :, 2].reshape(f, -1)
-    x = x - x.mean(axis=1, keepdims=True)
-    z = z - z.mean(axis=1, keepdims=True)
-    return np.ascontiguousarray(np.concatenate([x, z], axis=1), dtype=np.float32)
+    frames = np.asarray(frames, dtype=np.int64)
+    idx = np.clip(frames[..., None] + np.arange(-half, half + 1), 0, f - 1)
+    x = markers[idx, :, 0].reshape(frames.shape + (-1,))  # (..., W*K)
+    z = markers[idx, :, 2].reshape(frames.shape + (-1,))
+    x = x - x.mean(axis=-1, keepdims=True)
+    z = z - z.mean(axis=-1, keepdims=True)
+    return np.ascontiguousarray(np.concatenate([x, z], axis=-1), dtype=np.float32)
 
 
 def _raw_windows(markers: np.ndarray, out: np.ndarray) -> None:
@@ -405,8 +412,8 @@ def window_theta(body: PhaseFeatures, hand: PhaseFeatures, i: int, j: int) -> fl
     the hand markers best aligns their window with the body's (least squares
     after removing the horizontal centroid; Kovar, Gleicher & Pighin 2002).
     """
-    b = body.window[i].astype(float)
-    h = hand.window[j].astype(float)
+    b = _theta_windows(body.markers, i).astype(float)
+    h = _theta_windows(hand.markers, j).astype(float)
     n = b.size // 2
     bx, bz = b[:n], b[n:]
     hx, hz = h[:n], h[n:]
@@ -419,8 +426,8 @@ def cell_theta_window(
     body: PhaseFeatures, hand: PhaseFeatures, i: np.ndarray, j: np.ndarray
 ) -> np.ndarray:
     """Exact eq.-7 θ (radians) at cells ``(i, j)`` (vectorised :func:`window_theta`)."""
-    b = body.window[np.asarray(i, dtype=np.int64)].astype(float)
-    h = hand.window[np.asarray(j, dtype=np.int64)].astype(float)
+    b = _theta_windows(body.markers, i).astype(float)
+    h = _theta_windows(hand.markers, j).astype(float)
     k = b.shape[-1] // 2
     num = np.sum(b[..., :k] * h[..., k:] - h[..., :k] * b[..., k:], axis=-1)
     den = np.sum(b[..., :k] * h[..., :k] + b[..., k:] * h[..., k:], axis=-1)
@@ -583,32 +590,50 @@ def rotated_packed_codes(
     return p, q
 
 
+@numba.njit(cache=True, inline="always")
+def _sign_bits(val, eps, bit):
+    """``(P, Q)`` bits of one component: ``bit`` in P where ``sgn_ε(val) = +1``, in Q
+    where it is −1 (:func:`sign_dead_zone`'s rule; selects only, so bin loops vectorise)."""
+    ok = eps > 0 or val != 0  # no dead zone: exact zeros still read 0
+    up = val >= eps and ok
+    down = (not up) and val <= -eps and ok
+    zero = np.uint64(0)
+    return (bit if up else zero), (bit if down else zero)
+
+
 @numba.njit(cache=True)
 def _rotated_packed_kernel(vel, acc, ev, ea, cos_t, sin_t, out_p, out_q):
+    """Masks of every frame and θ bin: bins innermost (one frame's components turned
+    by every θ at once, a loop that vectorises); the vertical component does not turn,
+    so its bit is set once for all bins."""
     frames, markers = vel.shape[0], vel.shape[1]
     nb = cos_t.shape[0]
+    pos = np.zeros(nb, np.uint64)
+    neg = np.zeros(nb, np.uint64)
     for f in range(frames):
         for b in range(nb):
-            c = cos_t[b]
-            s = sin_t[b]
-            pos = np.uint64(0)
-            neg = np.uint64(0)
-            for k in range(markers):
-                for d in range(2):
-                    if d == 0:
-                        x, y, z, eps = vel[f, k, 0], vel[f, k, 1], vel[f, k, 2], ev
-                    else:
-                        x, y, z, eps = acc[f, k, 0], acc[f, k, 1], acc[f, k, 2], ea
-                    vals = (x * c + z * s, y, -x * s + z * c)
-                    for comp in range(3):
-                        bit = np.uint64(1) << np.uint64(k * 6 + d * 3 + comp)
-                        val = vals[comp]
-                        if val >= eps and not (eps <= 0 and val == 0):
-                            pos |= bit
-                        elif val <= -eps and not (eps <= 0 and val == 0):
-                            neg |= bit
-            out_p[f, b] = float(pos)
-            out_q[f, b] = float(neg)
+            pos[b] = 0
+            neg[b] = 0
+        for k in range(markers):
+            for d in range(2):
+                if d == 0:
+                    x, y, z, eps = vel[f, k, 0], vel[f, k, 1], vel[f, k, 2], ev
+                else:
+                    x, y, z, eps = acc[f, k, 0], acc[f, k, 1], acc[f, k, 2], ea
+                bx = np.uint64(1) << np.uint64(k * 6 + d * 3)
+                by = bx << np.uint64(1)
+                bz = bx << np.uint64(2)
+                py, qy = _sign_bits(y, eps, by)
+                for b in range(nb):
+                    c = cos_t[b]
+                    s = sin_t[b]
+                    px, qx = _sign_bits(x * c + z * s, eps, bx)
+                    pz, qz = _sign_bits(-x * s + z * c, eps, bz)
+                    pos[b] |= (px | py) | pz
+                    neg[b] |= (qx | qy) | qz
+        for b in range(nb):
+            out_p[f, b] = float(pos[b])
+            out_q[f, b] = float(neg[b])
 
 
 @numba.njit(cache=True)

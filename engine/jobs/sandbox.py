@@ -12,13 +12,18 @@ raises ``MemoryError`` there at once) and the parent reading the child's residen
 (``/proc/PID/status``) every ``POLL_S`` seconds. The child is forked, not spawned, so it
 starts in milliseconds with whatever the parent has imported, and it is kept for the
 next call, so what numba compiles in it is compiled once (a child stopped at a limit is
-replaced by a fresh one).
+replaced by a fresh one). A kept child ends when its input pipe closes: when the
+parent closes it (``shutdown``, a limit) or exits; an ``atexit`` hook closes every live
+child's pipe first, because a child that holds an inherited descriptor (Python 3.13's
+resource tracker pipe, say) would otherwise keep the exiting parent waiting on it. Each
+new child closes the pipes of the others, so no child keeps a sibling alive.
 
 Where ``os.fork`` does not exist, ``fn`` runs in this process without limits.
 """
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import os
 import pickle
@@ -131,12 +136,19 @@ class _Runner:
         self.memory_mb = memory_mb
         to_child, self._in = os.pipe()  # parent writes self._in
         self._out, from_child = os.pipe()  # parent reads self._out
-        pid = os.fork()
+        with _LIVE_LOCK:
+            pid = os.fork()
+            if pid != 0:
+                _LIVE.add(self)
         if pid == 0:  # the child: serves until its input closes, never returns
             code = 0
             try:
                 os.close(self._in)
                 os.close(self._out)
+                for other in _LIVE:  # a sibling's pipes: its child must see EOF, not us
+                    for fd in (other._in, other._out):
+                        with contextlib.suppress(OSError):
+                            os.close(fd)
                 _serve(to_child, from_child, memory_mb, first)
             except BaseException:  # Terminated, KeyboardInterrupt: the parent reports it
                 code = 1
@@ -174,6 +186,8 @@ class _Runner:
 
     def close(self, stop: bool = False) -> int:
         """Close the pipes (the child ends); ``stop``: SIGTERM/SIGKILL it first. Reaps it."""
+        with _LIVE_LOCK:
+            _LIVE.discard(self)
         for fd in (self._in, self._out):
             with contextlib.suppress(OSError):
                 os.close(fd)
@@ -187,6 +201,29 @@ class _Died(Exception):
 
 
 _RUNNERS = threading.local()
+#: every kept child of this process (any thread's), closed at exit
+_LIVE: set[_Runner] = set()
+_LIVE_LOCK = threading.Lock()
+
+
+@atexit.register
+def _close_all() -> None:
+    """At exit: close every kept child's pipes and reap it (``GRACE_S``, then stopped)."""
+    with _LIVE_LOCK:
+        runners = list(_LIVE)
+    for runner in runners:
+        for fd in (runner._in, runner._out):
+            with contextlib.suppress(OSError):
+                os.close(fd)
+        end = time.monotonic() + GRACE_S
+        while time.monotonic() < end and _alive(runner.pid):
+            time.sleep(0.02)
+        if _alive(runner.pid):
+            with contextlib.suppress(ProcessLookupError, ChildProcessError):
+                os.kill(runner.pid, signal.SIGKILL)
+                os.waitpid(runner.pid, 0)
+    with _LIVE_LOCK:
+        _LIVE.clear()
 
 
 def run_limited(

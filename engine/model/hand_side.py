@@ -26,7 +26,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from engine.model.kinematics import forward_kinematics
+from engine.model.fastkin import forward_kinematics
 from engine.model.motion import Motion, Skeleton
 
 #: frames sampled (evenly) to measure the cues

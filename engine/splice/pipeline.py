@@ -746,7 +746,7 @@ def align_passes(
     metrics: Sequence[str] = DEFAULT_METRICS,
     points: Sequence = (),
     previous: SpliceAlignment | None = None,
-    blend: float = MG.BLEND_FRAMES,
+    blend: float | None = None,
     incremental: bool | None = None,
     progress: Progress | None = None,
     ends: str = ENDS,
@@ -763,7 +763,8 @@ def align_passes(
         (grid units; tol in grid frames). Carried over to pass 2.
     previous : the last result for the same ``features`` (reuses DTW rows that the
         edit cannot change)
-    blend : merge smoothing (Gaussian σ, body frames)
+    blend : merge smoothing (Gaussian σ, body frames); default ``MG.blend_frames(fps)``
+        (0.1 s: 3 frames at 30 fps, 12 at 120 fps)
     (a hand take without a forearm: pass 2 compares the hand's turning over pass 1's band,
     ``engine.splice.spin``, whatever ``metrics[1]`` says)
     incremental : keep ``Aligner`` solvers (γ for cumulative-cost views, partial
@@ -778,6 +779,8 @@ def align_passes(
     """
     progress = progress or _noop
     n, m = features.n, features.m
+    if blend is None:
+        blend = MG.blend_frames(features.fps)
     pts = C.point_triples(points)
     metric1, metric2 = check_metrics(metrics)
     kind, max_unmatched_s = check_ends_option(ends, max_unmatched_s)
@@ -969,7 +972,7 @@ def splice(
     theta: str = "window",
     body_roles=None,
     hand_roles=None,
-    blend: float = MG.BLEND_FRAMES,
+    blend: float | None = None,
     smoothing_s: float = SMOOTHING_S,
     dead_zone: float = DEAD_ZONE,
     n_bins: int = M.THETA_BINS,
