@@ -473,9 +473,7 @@ def report_stages(longs, load) -> str:
         for code, runs in by.items():
             if not runs:
                 continue
-            med = {
-                k: statistics.median(r["stages"][k] for r in runs) for k in ("cpu", *STAGE_KEYS)
-            }
+            med = {k: statistics.median(r["stages"][k] for r in runs) for k in ("cpu", *STAGE_KEYS)}
             same = all(
                 ref is not None and all(r[k] == ref[k] for k in ("path1", "path2", "map", "bvh"))
                 for r in runs
@@ -489,8 +487,9 @@ def report_stages(longs, load) -> str:
             )
         if by["before"] and by["now"]:
             ratio = {
-                k: statistics.median(n["stages"][k] / b["stages"][k]
-                                     for b, n in zip(by["before"], by["now"]))
+                k: statistics.median(
+                    n["stages"][k] / b["stages"][k] for b, n in zip(by["before"], by["now"])
+                )
                 for k in ("cpu", *STAGE_KEYS)
             }
             lines.append(

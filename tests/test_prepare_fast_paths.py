@@ -80,9 +80,7 @@ def test_theta_windows_of_asked_frames_equal_the_whole_takes():
     assert np.allclose(vec, one, rtol=0, atol=1e-12)
 
 
-@pytest.mark.parametrize(
-    "path", ["beat/1_wayne_0_1_1.bvh", "gestification/indexical.bvh"]
-)
+@pytest.mark.parametrize("path", ["beat/1_wayne_0_1_1.bvh", "gestification/indexical.bvh"])
 def test_hand_side_vote_is_the_same_with_numba_kinematics(path):
     take = read_bvh(MOCAP / path)
     roles = find_roles(take.skeleton)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import panel as pn
 
-from webapp import config
+from webapp import backend, config
 from webapp.backend import one_line
 from webapp.state import Session
 
@@ -77,6 +77,13 @@ SHARE_KEYS = (
 )
 
 
+def _link_args() -> dict[str, str]:
+    """The page address's query (a shared link), decoded."""
+    if not pn.state.session_args:
+        return {}
+    return {k: v[0].decode("utf-8", "replace") for k, v in pn.state.session_args.items() if v}
+
+
 def _initial_state(session: Session, args: dict[str, str] | None = None) -> None:
     """Open the default sample pair, then restore the URL query's session over it.
 
@@ -85,18 +92,34 @@ def _initial_state(session: Session, args: dict[str, str] | None = None) -> None
     that is open, not the link's values.
     """
     if args is None:
-        args = {}
-        if pn.state.session_args:
-            args = {
-                k: v[0].decode("utf-8", "replace") for k, v in pn.state.session_args.items() if v
-            }
+        args = _link_args()
     cfg = session.config
-    if cfg.default_sample:
-        try:
-            session.load_sample(cfg.default_sample)
-        except Exception as exc:
-            session.refuse(exc)
-    if any(k in args for k in SHARE_KEYS):
+
+    def open_default():
+        if cfg.default_sample:
+            try:
+                session.load_sample(cfg.default_sample)
+            except Exception as exc:
+                session.refuse(exc)
+
+    def link_refused(exc):  # nothing of the link was applied: the default pair opens
+        session.keep_error(f"shared link: {one_line(exc)}", exc)
+        if session.prepared is None:
+            open_default()
+
+    linked = any(k in args for k in SHARE_KEYS)
+    if session.runner is not None:  # off the loop: the link's opening supersedes the default
+        if linked:
+            try:
+                session.from_query(args, failed=link_refused)
+                return
+            except Exception as exc:  # the link itself is unreadable
+                link_refused(exc)
+                return
+        open_default()
+        return
+    open_default()
+    if linked:
         try:
             session.from_query(args)
         except Exception as exc:  # nothing was applied: the reason is shown
@@ -108,11 +131,20 @@ def create_app() -> pn.viewable.Viewable:
     from webapp.views import controls, credits
     from webapp.views.cost_matrix import CostMatrixView
     from webapp.views.inputs import InputsView
+    from webapp.views.progress import BusyLine
     from webapp.views.sharing import SharingView
     from webapp.views.trust import TrustView
 
     session = Session(config.get())
-    _initial_state(session)
+    doc = pn.state.curdoc
+    args = _link_args()
+    if doc is not None and doc.session_context is not None:
+        # opening and solving never hold the event loop; they start once the page is up
+        # (a page fetched but never shown, e.g. a readiness probe, computes nothing)
+        session.compute_off_loop(doc)
+        pn.state.onload(lambda: _initial_state(session, args))
+    else:
+        _initial_state(session, args)
     inputs = InputsView(session)
     matrix = CostMatrixView(session)
     trust = TrustView(session, matrix)
@@ -161,6 +193,7 @@ def create_app() -> pn.viewable.Viewable:
         "2 · Alignment",
         ALIGN_TEXT,
         controls.status_line(session),
+        BusyLine(session).panel(),
         controls.error_alert(session),
         pn.FlexBox(*work, flex_wrap="wrap", align_items="flex-start", sizing_mode="stretch_width"),
     )
@@ -200,5 +233,6 @@ def warm_up(cfg: config.AppConfig) -> None:
         session.load_sample(cfg.default_sample)
         if session.solution is not None:
             session.cost_view((0, session.n, 0, session.m), 600)
+            backend.offer(session.prepared, session.solution)  # the first page's alignment
     except Exception as exc:  # the page will show the same problem; the server still starts
         print(f"warm-up of sample {cfg.default_sample!r} failed: {one_line(exc)}", flush=True)

@@ -246,10 +246,13 @@ def _phases(features) -> tuple[np.ndarray | None, np.ndarray | None]:
         return None, None
 
 
-def solve(prepared: Prepared, band, refine_band, points, previous=None) -> Solution:
+def solve(prepared: Prepared, band, refine_band, points, previous=None, progress=None) -> Solution:
     """Pass 1 and pass 2 for band widths ``band``/``refine_band`` (``constraints.Width``,
     fractions of n or ``"10s"``) and matching points ``[(body, hand, tol), ...]``;
-    ValueError/HandSpliceError if infeasible (the checks are engine.dtw.constraints')."""
+    ValueError/HandSpliceError if infeasible (the checks are engine.dtw.constraints').
+
+    ``progress(stage, fraction)``: the engine's stages (pass 1, pass 2, merge) as they
+    start and end. Safe on a worker thread (the app runs long solves there)."""
     from engine.splice import pipeline
 
     t0 = time.perf_counter()
@@ -264,6 +267,7 @@ def solve(prepared: Prepared, band, refine_band, points, previous=None) -> Solut
             refine_band=refine_band,
             points=list(points),
             previous=earlier,
+            progress=progress,
         )
     p1, p2 = result.pass1, result.pass2
     sol = Solution(
@@ -277,6 +281,33 @@ def solve(prepared: Prepared, band, refine_band, points, previous=None) -> Solut
     )
     sol.cache["engine"] = result
     return sol
+
+
+#: solutions computed before any page asked (``handsplice serve``'s warm-up of the pair it
+#: opens first), handed whole to the first session that asks for the same alignment (a
+#: solution's incremental solvers belong to one session: it is never shared)
+_SPARE: dict[int, tuple[tuple, Solution]] = {}
+
+
+def _spare_key(band, refine_band, points) -> tuple:
+    return (repr(band), repr(refine_band), tuple(tuple(p) for p in points))
+
+
+def offer(prepared: Prepared, solution: Solution) -> None:
+    """Keep ``solution`` (of ``prepared``, nobody else holds it) for :func:`adopt`."""
+    key = _spare_key(solution.band, solution.refine_band, solution.points)
+    with _PREPARE_LOCK:
+        _SPARE[id(prepared)] = (key, solution)
+
+
+def adopt(prepared: Prepared, band, refine_band, points) -> Solution | None:
+    """The offered solution of exactly this alignment, once (then it is the caller's)."""
+    with _PREPARE_LOCK:
+        spare = _SPARE.get(id(prepared))
+        if spare is None or spare[0] != _spare_key(band, refine_band, points):
+            return None
+        del _SPARE[id(prepared)]
+    return spare[1]
 
 
 @dataclass

@@ -61,9 +61,12 @@ def free_port(address: str = "127.0.0.1") -> int:
 
 @contextmanager
 def running_server(
-    *serve_args: str, log: IO, timeout: float = 120.0
+    *serve_args: str, log: IO, timeout: float = 120.0, env: dict | None = None, cwd=None
 ) -> Iterator[tuple[str, float]]:
     """``handsplice serve --port FREE *serve_args`` in a child process, output to ``log``.
+
+    ``env``, ``cwd``: the child's environment and folder (default: this one's, the
+    repository root); benchmarks run another version of the code this way.
 
     Yields ``(url, seconds until it answered)``; the server is stopped on exit.
     Raises ``RuntimeError`` (with the end of the log) if it exits or does not answer
@@ -74,7 +77,8 @@ def running_server(
     t0 = time.monotonic()
     proc = subprocess.Popen(
         [str(exe), "serve", "--port", str(port), *serve_args],
-        cwd=ROOT,
+        cwd=cwd or ROOT,
+        env=env,
         stdout=log,
         stderr=subprocess.STDOUT,
     )

@@ -9,6 +9,11 @@ path at once (the matrix is small enough, and the engine re-solves incrementally
 an edit the engine rejects (points that leave no feasible path, say) is undone on
 the spot and ``error`` says why. Every accepted edit can be undone and redone.
 
+In a server session (:meth:`Session.compute_off_loop`) opening takes and solving run on
+a worker thread (:mod:`webapp.solves`): the edit's values are set at once, band and
+path follow when solved (``busy`` says what is running), a newer edit supersedes an
+older one, and a refused solve puts back the values of the path on screen.
+
 The same data is the CLI's session JSON (:mod:`engine.io.session`) and a shareable
 URL query (``?sample=demo&band=0.3&pts=120:98:2,...``).
 """
@@ -27,6 +32,7 @@ from engine.dtw import constraints as C
 from engine.io import session as session_io
 from engine.io.session import MatchPoint, SessionSpec, TakeRef
 from webapp import backend, config
+from webapp.solves import Job, SolveRunner
 
 EDIT_PARAMS = ("band", "band_s", "refine_band", "refine_band_s", "tolerance", "points")
 INPUT_PARAMS = ("sample", "body_sha256", "hand_sha256", "side", "roles")
@@ -188,6 +194,9 @@ class Session(param.Parameterized):
     compute_ms = param.Number(default=0.0, doc="wall time of the last recompute, ms")
     error = param.String(default="", doc="why the last edit or input was rejected")
     revision = param.Integer(default=0, doc="bumped after every recompute")
+    busy = param.String(
+        default="", doc="what runs off the event loop now (opening takes, aligning), or empty"
+    )
     inputs_revision = param.Integer(default=0, doc="bumped after the takes change")
     can_undo = param.Boolean(default=False)
     can_redo = param.Boolean(default=False)
@@ -200,6 +209,12 @@ class Session(param.Parameterized):
         self._slider_run: tuple[str, float] | None = None
         self._refused: tuple[str, C.ConstraintError | None] = ("", None)
         self.prepared: backend.Prepared | None = None
+        #: off-loop computing (None: at once, as in tests); see compute_off_loop
+        self.runner: SolveRunner | None = None
+        self._chain = None  # the last solution computed (its solvers serve the next edit)
+        self._accepted: dict | None = None  # edit values of the solution shown
+        self._accepted_undo = 0  # undo steps then
+        self._carry_error = ""  # shown on after the next solve (a link that failed)
         super().__init__(**params)
         self.param.watch(self._on_edit, list(EDIT_PARAMS))
         self.param.watch(self._on_inputs, list(INPUT_PARAMS))
@@ -224,6 +239,11 @@ class Session(param.Parameterized):
         """``error`` in the page's words (:func:`page_words`)."""
         return page_words(self.error, self.refusal())
 
+    def compute_off_loop(self, doc) -> None:
+        """Open takes and solve on a worker thread from now on, applying results in
+        ``doc``'s next-tick callbacks (a Bokeh server session's document)."""
+        self.runner = SolveRunner(doc, on_busy=lambda label: setattr(self, "busy", label))
+
     # ------------------------------------------------------------ inputs
 
     @property
@@ -247,10 +267,14 @@ class Session(param.Parameterized):
             )
         return None
 
-    def load_sample(self, name: str) -> None:
-        """Open a bundled pair (KeyError naming the known pairs when unknown)."""
+    def load_sample(self, name: str, then=None) -> None:
+        """Open a bundled pair (KeyError naming the known pairs when unknown).
+
+        ``then(opened: bool)``: called once the takes are open (or refused); off the
+        event loop that is later, before the alignment is solved."""
         pair = self._cfg.sample(name)
         self._set_inputs(
+            then=then,
             sample=name,
             body_sha256=None,
             hand_sha256=None,
@@ -260,10 +284,16 @@ class Session(param.Parameterized):
         )
 
     def load_uploads(
-        self, body_sha256: str, hand_sha256: str, body_name: str = "", hand_name: str = ""
+        self,
+        body_sha256: str,
+        hand_sha256: str,
+        body_name: str = "",
+        hand_name: str = "",
+        then=None,
     ) -> None:
-        """Open two uploaded takes by content hash."""
+        """Open two uploaded takes by content hash (``then``: as for :meth:`load_sample`)."""
         self._set_inputs(
+            then=then,
             sample=None,
             body_sha256=body_sha256,
             hand_sha256=hand_sha256,
@@ -281,27 +311,63 @@ class Session(param.Parameterized):
         self.roles = spec.roles
         return not self.error
 
-    def _set_inputs(self, **values) -> None:
+    def _set_inputs(self, then=None, **values) -> None:
         old = self._current(values)
         self._apply(values)
-        self._on_inputs(*[_Change(k, old[k]) for k in values])
+        self._on_inputs(*[_Change(k, old[k]) for k in values], then=then)
 
-    def _on_inputs(self, *events) -> None:
+    def _on_inputs(self, *events, then=None) -> None:
         if self._applying:
             return
         if not (self.sample or (self.body_sha256 and self.hand_sha256)):
             return
         t0 = time.perf_counter()
+        old = {e.name: e.old for e in events if e.name in INPUT_PARAMS}
+        then = then or (lambda opened: None)
         try:
             paths = self.take_paths()
-            prepared = backend.prepare(paths[0], paths[1], self.side, self.roles)
+            side, roles = self.side, dict(self.roles)
+            if self.runner is None:
+                prepared = backend.prepare(paths[0], paths[1], side, roles)
         except (HandSpliceError, ValueError, KeyError, OSError) as exc:
-            message = backend.one_line(exc)
-            if self.prepared is not None:  # keep what worked: inputs back to their old values
-                self._apply({e.name: e.old for e in events if e.name in INPUT_PARAMS})
-            self.refuse(exc, message)
+            self._open_failed(exc, old, then)
             return
+        if self.runner is None:
+            self._opened(prepared, t0, then)
+            return
+        self.runner.submit(
+            Job(
+                "inputs",
+                "opening the takes",
+                lambda progress: backend.prepare(paths[0], paths[1], side, roles),
+                done=lambda prepared: self._opened(prepared, t0, then),
+                failed=lambda exc: self._open_failed(exc, old, then),
+                dropped=lambda: then(False),
+            )
+        )
+
+    def keep_error(self, text: str, exc: BaseException | None = None) -> None:
+        """Show ``text`` now and keep it shown after the next solve (a shared link that
+        could not be restored, while the default pair opens off the loop); ``exc``: the
+        refusal behind it (:meth:`refusal`)."""
+        self._carry_error = text
+        if exc is None:
+            self.error = text
+        else:
+            self.refuse(exc, text)
+
+    def _open_failed(self, exc: BaseException, old: dict, then) -> None:
+        message = backend.one_line(exc)
+        if self.prepared is not None:  # keep what worked: inputs back to their old values
+            self._apply(old)
+        self.refuse(exc, message)
+        then(False)
+
+    def _opened(self, prepared, t0: float, then) -> None:
+        """The takes are open: show them (matrix, axes), then solve."""
         self.prepared = prepared
+        self._chain = None
+        self.param.update(solution=None, trust=None)
         self._undo.clear()
         self._redo.clear()
         self._set_sizes(prepared)
@@ -315,9 +381,11 @@ class Session(param.Parameterized):
             )
         finally:
             self._applying = False
+        self._accepted, self._accepted_undo = self._current(EDIT_PARAMS), 0
         self.inputs_revision += 1
         self._solve(t0=t0)
         self._update_history_flags()
+        then(True)
 
     def _long_take_widths(self, prepared) -> dict:
         """Time widths for a long take when the fractions are still the defaults (the
@@ -579,21 +647,69 @@ class Session(param.Parameterized):
         try:
             self._check_points()
             band, refine = self.widths()
-            sol = backend.solve(
-                self.prepared,
-                band=band,
-                refine_band=refine,
-                points=self.constraint_points(),
-                previous=self.solution,
-            )
+            points = self.constraint_points()
+            if self.runner is None:
+                sol = backend.solve(
+                    self.prepared,
+                    band=band,
+                    refine_band=refine,
+                    points=points,
+                    previous=self.solution,
+                )
         except (HandSpliceError, ValueError) as exc:
             self.refuse(exc)
             return False
+        if self.runner is None:
+            self._solved(sol, t0)
+            return True
+        prepared, values = self.prepared, self._current(EDIT_PARAMS)
+        spare = None if self._chain is not None else backend.adopt(prepared, band, refine, points)
+        if spare is not None:  # the server's warm-up solved exactly this: it is ours now
+            self._chain = spare
+            self._solved(spare, t0, values)
+            return True
+
+        def work(progress):  # on the worker: solves run one at a time per session
+            sol = backend.solve(
+                prepared,
+                band=band,
+                refine_band=refine,
+                points=points,
+                previous=self._chain,
+                progress=progress,
+            )
+            self._chain = sol
+            return sol
+
+        self.runner.submit(
+            Job(
+                "solve",
+                "aligning",
+                work,
+                done=lambda sol: self._solved(sol, t0, values),
+                failed=self._solve_failed,
+            )
+        )
+        return True  # refused later: _solve_failed
+
+    def _solved(self, sol, t0: float, values: dict | None = None) -> None:
+        error, self._carry_error = self._carry_error, ""
         self.param.update(
-            solution=sol, trust=None, compute_ms=(time.perf_counter() - t0) * 1000.0, error=""
+            solution=sol, trust=None, compute_ms=(time.perf_counter() - t0) * 1000.0, error=error
         )
         self.revision += 1
-        return True
+        self._accepted = self._current(EDIT_PARAMS) if values is None else values
+        self._accepted_undo = len(self._undo)
+
+    def _solve_failed(self, exc: BaseException) -> None:
+        """The newest solve was refused (off the loop): its reason is shown and the edit
+        values go back to those of the path on screen (the undo steps since go too)."""
+        self.refuse(exc)
+        if self._accepted is not None:
+            self._apply(self._accepted)
+            del self._undo[self._accepted_undo :]
+            self._slider_run = None
+            self._update_history_flags()
 
     def assess(self):
         """Trust in the current solution (uncertainty per body frame, strokes, suggestions),
@@ -672,6 +788,8 @@ class Session(param.Parameterized):
         e.g. a cumulative view too large to hold: the reason goes to ``error``)."""
         if self.prepared is None:
             return None
+        if self.matrix.startswith("cumulative") and self.runner is not None and self.runner.busy:
+            return None  # its γ is being recomputed: drawn when the solve is shown
         try:
             return backend.cost_view(self.prepared, self.solution, self.matrix, ranges, max_pixels)
         except HandSpliceError as exc:
@@ -715,8 +833,11 @@ class Session(param.Parameterized):
             view={"matrix": self.matrix, "frame": self.frame, **self._current(VIEW_STATE)},
         )
 
-    def apply_spec(self, spec: SessionSpec) -> None:
+    def apply_spec(self, spec: SessionSpec, failed=None) -> None:
         """Restore inputs, parameters and points (one recompute; clears undo history).
+
+        Off the event loop (:meth:`compute_off_loop`) the work runs on the worker and a
+        refusal goes to ``failed(exc)`` (default: ``error``) instead of raising.
 
         All or nothing: the takes are resolved and opened, the points checked and both
         passes solved before anything in the session changes, so a bad session file or
@@ -725,11 +846,26 @@ class Session(param.Parameterized):
         the working session exactly as it was. A spec without inputs keeps the current
         takes.
         """
-        staged = self._stage(spec)
-        self._commit(staged)
+        if self.runner is None:
+            self._commit(self._stage(spec))
+            return
 
-    def _stage(self, spec: SessionSpec) -> dict:
-        """Everything ``spec`` needs, computed without touching the session."""
+        def refused(exc):
+            self.refuse(exc)
+
+        self.runner.submit(
+            Job(
+                "inputs",
+                "opening the session",
+                lambda progress: self._stage(spec, progress),
+                done=self._commit,
+                failed=failed or refused,
+            )
+        )
+
+    def _stage(self, spec: SessionSpec, progress=None) -> dict:
+        """Everything ``spec`` needs, computed without touching the session (safe on a
+        worker thread)."""
         t0 = time.perf_counter()
         if spec.side not in ("right", "left"):
             raise session_io.SessionError(None, "side", "the app aligns one side: right or left")
@@ -780,7 +916,7 @@ class Session(param.Parameterized):
         prepared = backend.prepare(paths[0], paths[1], spec.side, roles)
         points = tuple(spec.points)  # checked by engine.dtw.constraints when the spec was made
         if spec.hand_frames == "grid":  # an old file or link: hand frames on the grid
-            points = self._normalise(
+            points = C.sort_points(
                 backend.grid_points_to_hand(
                     prepared, [(p.body, p.hand, p.tolerance) for p in points]
                 )
@@ -795,7 +931,9 @@ class Session(param.Parameterized):
         band = spec.band or C.BAND.default_for(prepared.n, fps)
         refine = spec.refine_band or C.REFINE_BAND.default_for(prepared.n, fps)
         grid = backend.points_to_grid(prepared, [p.resolved(spec.tolerance) for p in points])
-        solution = backend.solve(prepared, band=band, refine_band=refine, points=grid)
+        solution = backend.solve(
+            prepared, band=band, refine_band=refine, points=grid, progress=progress
+        )
         widths = {}
         for name, width in (("band", band), ("refine_band", refine)):
             if width.unit == C.SECONDS:
@@ -830,8 +968,10 @@ class Session(param.Parameterized):
         self._apply(staged["values"])
         self._undo.clear()
         self._redo.clear()
+        self._chain = staged["solution"]
+        self._accepted, self._accepted_undo = self._current(EDIT_PARAMS), 0
         self.inputs_revision += 1
-        self.error = ""
+        self.error, self._carry_error = self._carry_error, ""
         self.revision += 1
         self._update_history_flags()
 
@@ -848,8 +988,8 @@ class Session(param.Parameterized):
     def to_json(self) -> str:
         return session_io.format_session(self.to_spec())
 
-    def from_json(self, text: str | bytes, source: str | None = None) -> None:
-        self.apply_spec(session_io.parse_session(text, source))
+    def from_json(self, text: str | bytes, source: str | None = None, failed=None) -> None:
+        self.apply_spec(session_io.parse_session(text, source), failed)
 
     def to_query(self) -> dict[str, str]:
         return session_io.to_query(self.to_spec())
@@ -857,5 +997,5 @@ class Session(param.Parameterized):
     def share_url(self, base: str = "") -> str:
         return f"{base}?{urlencode(self.to_query(), safe=':,')}"
 
-    def from_query(self, query: dict) -> None:
-        self.apply_spec(session_io.from_query(query))
+    def from_query(self, query: dict, failed=None) -> None:
+        self.apply_spec(session_io.from_query(query), failed)

@@ -614,6 +614,9 @@ class CostMatrixView:
         fig.on_event(Tap, self._on_tap)
         fig.on_event(DoubleTap, self._on_tap)
         session.param.watch(self._on_result, ["revision"])
+        # points set by the session (an edit solved off the loop, or put back when its solve
+        # was refused) show at once; the path follows with the next revision
+        session.param.watch(lambda *_: self._sync_points(), ["points", "tolerance"])
         session.param.watch(self._on_matrix, ["matrix"])
         session.param.watch(self._on_frame, ["frame"])
         session.param.watch(self._on_inputs, ["inputs_revision"])

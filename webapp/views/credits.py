@@ -32,6 +32,12 @@ def credits_html(session: Session) -> str:
         pair = cfg.sample(session.sample)
     except KeyError:
         return ""
+    if pair.extra.get("local"):  # ``handsplice serve BODY HAND``: the user's own files
+        return (
+            "<div class='hs-credits' style='font-size:12px;color:#444'>Your own takes, "
+            f"opened from disk: {html.escape(pair.body.name)} and "
+            f"{html.escape(pair.hand.name)}.</div>"
+        )
     files = config.file_credits(cfg.sample_dir)
     rows = []
     for role, path in (("body", pair.body), ("hand", pair.hand)):

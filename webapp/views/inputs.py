@@ -304,13 +304,19 @@ class InputsView:
         # the engine's cache holds the takes now: this view keeps only their names
         self._pending = {k: dataclasses.replace(v, take=None) for k, v in self._pending.items()}
         before = s.error
-        # the alignment is solved next, on this page's turn of the event loop (seconds on
-        # a long pair): the line says so before it starts (the text goes out first)
-        self.uploaded.object = line + " <span class='hs-opening'>solving the alignment…</span>"
-        await asyncio.sleep(0.05)
+        # the session opens the pair (found in the engine's cache) and then solves the
+        # alignment off the event loop (seconds on a long pair; the page's "aligning…"
+        # line says so); without a server it is all done within load_uploads
+        opened = loop.create_future()
+
+        def then(ok: bool) -> None:
+            if not opened.done():
+                opened.set_result(ok)
+
         self._opening = True
         try:
-            s.load_uploads(body.digest, hand.digest, body.name, hand.name)
+            s.load_uploads(body.digest, hand.digest, body.name, hand.name, then=then)
+            await opened
         finally:
             self._opening = False
             self._inputs_key = self._session_key()

@@ -144,7 +144,9 @@ class PreviewView:
         self._render_soon()
 
     def _on_solution(self, *_):
-        if self.session.follow and self._rendered_key is not None:
+        # the first solution of a pair opened off the loop arrives after the takes: its
+        # first frame is rendered then, later ones only when following edits
+        if self._rendered_key is None or self.session.follow:
             self._render_soon()
 
     # ------------------------------------------------------------ playing

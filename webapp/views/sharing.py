@@ -242,13 +242,16 @@ class SharingView:
         if data is None:
             return
         name = self.open_session.filename or "session.json"
-        try:
-            self.session.from_json(data, source=name)
-        except Exception as exc:  # nothing was applied; never a traceback
+
+        def refused(exc):  # nothing was applied; never a traceback
             self.message.object = safe_text.markdown(f"session file: {backend.one_line(exc)}")
             self.message.visible = True
-            return
+
         self.message.visible = False
+        try:  # off the event loop the file's takes are opened and solved on the worker
+            self.session.from_json(data, source=name, failed=refused)
+        except Exception as exc:
+            refused(exc)
 
     # ---------------------------------------------------------------- link
 

@@ -1,0 +1,89 @@
+"""The page's "aligning…" line: what the session computes off the event loop, and for how long.
+
+Shown while :attr:`webapp.state.Session.busy` is set (takes being opened, an
+alignment being solved on the worker: :mod:`webapp.solves`): a moving progress bar,
+the engine's stage (pass 1, pass 2, merge) and the seconds since it started, updated
+twice a second; hidden when the path on screen is the current one. The rest of the
+page stays usable meanwhile (edits made then are solved next, the newest wins).
+"""
+
+from __future__ import annotations
+
+import time
+
+import panel as pn
+
+from webapp import safe_text
+from webapp.state import Session
+
+#: how often the line's stage and seconds are refreshed while busy, ms
+TICK_MS = 250
+#: work shorter than this shows no line (a drag's re-solve on a short pair): no flicker,
+#: and no page update that the new path would wait behind
+SHOW_AFTER_S = 0.3
+#: the line keeps its height when empty, so showing it never lays the page out again
+HEIGHT_PX = 24
+
+
+class BusyLine:
+    """An indeterminate progress bar and a line of text while ``session.busy``."""
+
+    def __init__(self, session: Session):
+        self.session = session
+        self.pane = pn.pane.HTML(
+            "",
+            css_classes=["hs-busy-line"],
+            height=HEIGHT_PX,
+            margin=(2, 10),
+            sizing_mode="stretch_width",
+            styles={"font-family": "monospace", "font-size": "13px", "color": "#1d3557"},
+        )
+        self._timer = None
+        self._shown = False
+        session.param.watch(self._on_busy, ["busy"])
+        self._on_busy()
+
+    def _line(self) -> str:
+        s = self.session
+        runner = s.runner
+        stage = (runner.stage if runner is not None and runner.stage else s.busy) or "working"
+        seconds = time.monotonic() - runner.started if runner is not None else 0.0
+        size = f" · {s.n:,} × {s.m:,} frames" if s.n and s.m and stage.startswith("align") else ""
+        return (
+            f'<div class="hs-busy" data-busy="{safe_text.html(s.busy)}" '
+            'style="display:flex;gap:10px;align-items:center">'
+            '<progress style="width:140px;height:12px"></progress>'
+            f"<span>{safe_text.html(stage)}… {seconds:.0f} s{size} · the page stays usable; "
+            "edits made now are solved next</span></div>"
+        )
+
+    def _show(self, text: str) -> None:
+        self._shown = bool(text)
+        self.pane.object = text
+
+    def _on_busy(self, *_):
+        busy = bool(self.session.busy)
+        doc = pn.state.curdoc
+        if doc is None or doc.session_context is None:  # no server: shown as it is
+            self._show(self._line() if busy else "")
+            return
+        if busy and self._timer is None:
+            if not self.session.busy.startswith("align"):  # opening takes: say so at once
+                self._show(self._line())
+            self._timer = pn.state.add_periodic_callback(self._tick, period=TICK_MS)
+        elif not busy:
+            if self._timer is not None:
+                self._timer.stop()
+                self._timer = None
+            if self._shown:
+                self._show("")
+
+    def _tick(self):
+        runner = self.session.runner
+        if not self.session.busy or runner is None:
+            return
+        if self._shown or time.monotonic() - runner.started >= SHOW_AFTER_S:
+            self._show(self._line())
+
+    def panel(self) -> pn.viewable.Viewable:
+        return self.pane
