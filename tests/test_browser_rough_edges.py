@@ -193,8 +193,11 @@ def test_play_moves_slider_caption_and_image_together(page):
     assert len(set(frames)) >= 4, f"Play showed {sorted(set(frames))}"
     # the slider used to run one render ahead of the caption and image (about half the
     # time on a fast machine, all the time on a slow one)
+    # (the image and caption, then the slider, reach the page in two messages: a 20 ms
+    # sample now and then falls between them, one played step apart; the old bug was
+    # apart in about half the samples or all of them)
     apart = [s for s in seen if s[0] != s[1]]
-    assert len(apart) <= 0.05 * len(seen), apart[:10]
+    assert len(apart) <= 0.1 * len(seen), apart[:10]
     page.locator(".hs-play button", has_text="Play").wait_for(timeout=10_000)
 
 
