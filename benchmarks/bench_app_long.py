@@ -38,9 +38,7 @@ import argparse
 import os
 import re
 import shutil
-import subprocess
 import sys
-import tarfile
 import tempfile
 import time
 from contextlib import contextmanager
@@ -50,7 +48,7 @@ import numpy as np
 
 from benchmarks._results import write_section
 from benchmarks.bench_app import WATCH
-from benchmarks.long_pairs import CACHE, pair_files
+from benchmarks.long_pairs import baseline_tree, pair_files
 from webapp.launch import PAGE_HELPERS, launch_chromium, running_server
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -90,23 +88,7 @@ def _pct(values, q) -> float:
 
 def baseline_app(ref: str = APP_BASELINE) -> Path:
     """``engine``, ``webapp`` and ``sample_data`` as at ``ref`` (plus CARRIED_FIXES)."""
-    sha = subprocess.run(
-        ["git", "rev-parse", "--short", ref], cwd=ROOT, capture_output=True, text=True, check=True
-    ).stdout.strip()
-    folder = CACHE / f"app-baseline-{sha}"
-    if not (folder / "webapp" / "app.py").exists():
-        folder.mkdir(parents=True, exist_ok=True)
-        tar = subprocess.run(
-            ["git", "archive", "--format=tar", sha, "engine", "webapp", "sample_data"],
-            cwd=ROOT,
-            capture_output=True,
-            check=True,
-        ).stdout
-        with tempfile.TemporaryFile() as fh:
-            fh.write(tar)
-            fh.seek(0)
-            with tarfile.open(fileobj=fh) as tf:
-                tf.extractall(folder, filter="data")
+    folder = baseline_tree(ref, ("engine", "webapp", "sample_data"), name="app-baseline")
     for rel in CARRIED_FIXES:
         shutil.copyfile(ROOT / rel, folder / rel)
     return folder

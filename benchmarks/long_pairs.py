@@ -168,16 +168,18 @@ def drift_seconds(truth: np.ndarray, m: int, fps: float) -> float:
     return float(np.max(np.abs(truth - centre)) / fps)
 
 
-def baseline_tree(ref: str = BASELINE) -> Path:
-    """A folder holding ``engine/`` and ``benchmarks/`` as at ``ref`` (made once)."""
+def baseline_tree(
+    ref: str = BASELINE, parts: tuple[str, ...] = ("engine", "benchmarks"), name: str = "baseline"
+) -> Path:
+    """A folder ``CACHE/NAME-SHA`` holding the folders ``parts`` as at ``ref`` (made once)."""
     sha = subprocess.run(
         ["git", "rev-parse", "--short", ref], cwd=ROOT, capture_output=True, text=True, check=True
     ).stdout.strip()
-    folder = CACHE / f"baseline-{sha}"
-    if not (folder / "engine" / "__init__.py").exists():
+    folder = CACHE / f"{name}-{sha}"
+    if not all((folder / part).is_dir() for part in parts):
         folder.mkdir(parents=True, exist_ok=True)
         tar = subprocess.run(
-            ["git", "archive", "--format=tar", sha, "engine", "benchmarks"],
+            ["git", "archive", "--format=tar", sha, *parts],
             cwd=ROOT,
             capture_output=True,
             check=True,
