@@ -393,26 +393,8 @@ def _arm(b: _Builder, skeleton, anatomy: Anatomy, pos, bone_of, drawn, side, arm
                     n_around=nar,
                 )
                 drawn.add(k)
-    for (j0, j1), (r0, r1) in (
-        ((upper, elbow), (0.033, 0.026)),
-        ((elbow, wrist), (0.025, 0.019)),
-    ):
-        for a0, a1 in _path_bones(skeleton, j0, j1):
-            if (a0, a1) in bone_of:
-                k = bone_of[(a0, a1)]
-                b.capsule(
-                    pos[a0],
-                    pos[a1],
-                    r0 * h,
-                    r1 * h,
-                    fwd,
-                    col,
-                    "body",
-                    owner=k,
-                    n_around=nar,
-                    n_along=4,
-                )
-                drawn.add(k)
+    segments = (((upper, elbow), (0.033, 0.026)), ((elbow, wrist), (0.025, 0.019)))
+    _limb_capsules(b, skeleton, pos, bone_of, segments, h, fwd, col, nar, drawn)
 
 
 def _leftover_segments(b: _Builder, skeleton, anatomy: Anatomy, pos, bones, bone_of, drawn, nar):
@@ -463,6 +445,28 @@ def mannequin_for(motion: Motion, frame: int = 0, detail: float = 1.0) -> Skinne
     frame %= motion.n_frames
     pos, rots = forward_kinematics(motion, frame, frame + 1)
     return build_mannequin(motion.skeleton, detail=detail, pose=(pos[0], rots[0]))
+
+
+def _limb_capsules(b, skeleton, pos, bone_of, segments, h, fwd, col, nar, drawn) -> None:
+    """A capsule on every bone between each segment's joints ``((j0, j1), (r0, r1))``,
+    radii ``r0``/``r1`` in units of the body height ``h``; the bones drawn go in ``drawn``."""
+    for (j0, j1), (r0, r1) in segments:
+        for a0, a1 in _path_bones(skeleton, j0, j1):
+            if (a0, a1) in bone_of:
+                k = bone_of[(a0, a1)]
+                b.capsule(
+                    pos[a0],
+                    pos[a1],
+                    r0 * h,
+                    r1 * h,
+                    fwd,
+                    col,
+                    "body",
+                    owner=k,
+                    n_around=nar,
+                    n_along=4,
+                )
+                drawn.add(k)
 
 
 def _path_bones(skeleton: Skeleton, top: int, bottom: int) -> list[tuple[int, int]]:
@@ -625,23 +629,8 @@ def _leg(b: _Builder, skeleton, anatomy: Anatomy, pos, bone_of, drawn, side, leg
     hip, knee, ankle = leg[:3]
     col = _limb_color(side)
     left, up, fwd = anatomy.left, anatomy.up, anatomy.forward
-    for (j0, j1), (r0, r1) in (((hip, knee), (0.05, 0.036)), ((knee, ankle), (0.034, 0.023))):
-        for a0, a1 in _path_bones(skeleton, j0, j1):
-            if (a0, a1) in bone_of:
-                k = bone_of[(a0, a1)]
-                b.capsule(
-                    pos[a0],
-                    pos[a1],
-                    r0 * h,
-                    r1 * h,
-                    fwd,
-                    col,
-                    "body",
-                    owner=k,
-                    n_around=nar,
-                    n_along=4,
-                )
-                drawn.add(k)
+    segments = (((hip, knee), (0.05, 0.036)), ((knee, ankle), (0.034, 0.023)))
+    _limb_capsules(b, skeleton, pos, bone_of, segments, h, fwd, col, nar, drawn)
     # foot: ankle -> toes -> tip, flattened, a little heel behind the ankle
     toes = [t for t in leg[3:] if skeleton.parents[t] in (ankle, *leg[3:])]
     chain = [ankle] + toes
