@@ -75,8 +75,11 @@ PATH_OF = """
 (n) => {
   if (!window.Bokeh || !Bokeh.documents.length) return false;
   const d = Bokeh.documents[0];
+  // the band's last vertex is the take's last body frame (its vertices may be thinned to
+  // the screen's columns: their count is no frame count)
   const band = d.get_model_by_name('hs-band-source'), path = d.get_model_by_name('hs-path-source');
-  return !!(band && band.data.x && band.data.x.length === n && path && path.data.x
+  return !!(band && band.data.x && band.data.x.length > 0
+            && band.data.x[band.data.x.length - 1] === n - 1 && path && path.data.x
             && path.data.x.length > 0);
 }
 """
@@ -172,7 +175,7 @@ def place_point(page) -> tuple[int, float, float]:
     page.evaluate("() => { window.hsChanged = null; }")
     page.mouse.click(*page.evaluate("([x, y]) => hs.xy(x, y)", [x, y]))
     page.wait_for_function("() => window.hsChanged !== null", timeout=600_000)
-    n = len(xs)
+    n = page.evaluate("() => hs.model('hs-x-range').bounds[1] + 0.5")  # body frames
     if n * ZOOM_FRACTION > 200:  # zoom in around the point (the figure's x and y ranges)
         half = n * ZOOM_FRACTION / 2
         page.evaluate(
@@ -239,8 +242,9 @@ def demo_n(page) -> int:
         None,
     )
     for _ in range(600):
-        n = page.evaluate(
-            "() => Bokeh.documents[0].get_model_by_name('hs-band-source').data.x.length"
+        n = page.evaluate(  # the band's last vertex is the last body frame
+            "() => { const x = Bokeh.documents[0].get_model_by_name('hs-band-source').data.x;"
+            " return x.length ? x[x.length - 1] + 1 : 0; }"
         )
         if n:
             return int(n)

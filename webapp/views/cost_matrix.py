@@ -47,6 +47,7 @@ from bokeh.palettes import Viridis256
 from bokeh.plotting import figure
 
 from webapp.state import MATRIX_LABELS, Session
+from webapp.views import decimate
 from webapp.views._dispatch import with_document_lock
 
 PATH_COLOR = "#ff3b30"
@@ -189,10 +190,20 @@ const h = Math.round(value);
 return `${h} · ${(h / rates.data.hand_fps[0]).toFixed(2)} s`;
 """
 _JS_IN_BAND = """
+// the band's vertices are thinned to the screen's columns: its edges at x are
+// interpolated between the nearest two (exact where the view shows every frame)
 const x = Math.round(special_vars.x), y = special_vars.y;
-const k = band.data.x.indexOf(x);
-if (k < 0) return "outside (no band)";
-return (band.data.lo[k] <= y && y <= band.data.hi[k]) ? "inside (searched)" : "outside (never searched)";
+const xs = band.data.x, n = xs.length;
+if (n === 0 || x < xs[0] || x > xs[n - 1]) return "outside (no band)";
+let a = 0, b = n - 1;
+while (b - a > 1) { const c = (a + b) >> 1; if (xs[c] <= x) a = c; else b = c; }
+if (xs[b] === x) a = b;
+const at = (col) => {
+  const v = band.data[col];
+  if (xs[a] === x || b === a) return v[a];
+  return v[a] + (v[b] - v[a]) * (x - xs[a]) / (xs[b] - xs[a]);
+};
+return (at("lo") <= y && y <= at("hi")) ? "inside (searched)" : "outside (never searched)";
 """
 #: the cell hover's filter: false (no cell tooltip) within ``radius`` pixels of a matching
 #: point, where the point's own tooltip shows
@@ -258,6 +269,9 @@ class CostMatrixView:
         self._pending_range: tuple[float, float, float, float] | None = None
         self._range_timer = False
         self._image_key = None
+        #: the lines drawn thinned to the screen (``show_line``): source name -> (source,
+        #: x, {column: values}) at full resolution, thinned again when the view moves
+        self._lines: dict[str, tuple] = {}
         self._colors = _phase_colors()
         n = max(session.n, 1)
         lo, hi = self._hand_extent()
@@ -658,9 +672,10 @@ class CostMatrixView:
         sol = s.solution
         self._sync_points()
         if sol is None:
-            self.band_source.data = {"x": [], "lo": [], "hi": []}
-            self.path_source.data = {"x": [], "y": []}
-            self.other_path_source.data = {"x": [], "y": []}
+            for source in (self.band_source, self.path_source, self.other_path_source):
+                self.show_line(
+                    source, np.zeros(0, np.int32), {k: [] for k in source.data if k != "x"}
+                )
             self.unmatched_source.data = _unmatched_quads(None, 0, 0)
             return
         shown, other = (
@@ -669,21 +684,24 @@ class CostMatrixView:
             else (sol.pass1, sol.pass2)
         )
         r = s.hand_scale  # grid columns -> hand-file frames
-        # the path first: it is what a drag is waiting for; compact dtypes keep messages small
-        self.path_source.data = {
-            "x": shown.path[:, 0].astype(np.int32),
-            "y": (shown.path[:, 1] * r).astype(np.float32),
-        }
+        # the path first: it is what a drag is waiting for; compact dtypes keep messages small,
+        # and every line is thinned to the screen's columns (``decimate``)
+        self.show_line(
+            self.path_source,
+            shown.path[:, 0].astype(np.int32),
+            {"y": (shown.path[:, 1] * r).astype(np.float32)},
+        )
         lo, hi = shown.band.lo, shown.band.hi
-        self.band_source.data = {
-            "x": np.arange(len(lo), dtype=np.int32),
-            "lo": ((lo - 0.5) * r).astype(np.float32),
-            "hi": ((hi + 0.5) * r).astype(np.float32),
-        }
-        self.other_path_source.data = {
-            "x": other.path[:, 0].astype(np.int32),
-            "y": (other.path[:, 1] * r).astype(np.float32),
-        }
+        self.show_line(
+            self.band_source,
+            np.arange(len(lo), dtype=np.int32),
+            {"lo": ((lo - 0.5) * r).astype(np.float32), "hi": ((hi + 0.5) * r).astype(np.float32)},
+        )
+        self.show_line(
+            self.other_path_source,
+            other.path[:, 0].astype(np.int32),
+            {"y": (other.path[:, 1] * r).astype(np.float32)},
+        )
         quads = _unmatched_quads(shown.path, len(lo), shown.band.m)
         quads["bottom"] = [v * r for v in quads["bottom"]]
         quads["top"] = [v * r for v in quads["top"]]
@@ -726,6 +744,31 @@ class CostMatrixView:
             "y0": [p.hand - t - 0.5 for p, t in zip(pts, tol)],
             "y1": [p.hand + t + 0.5 for p, t in zip(pts, tol)],
         }
+
+    @with_document_lock
+    def show_line(self, source: ColumnDataSource, x, ys: dict) -> None:
+        """Draw the polylines ``(x, ys[k])`` (``x`` non-decreasing body frames) in ``source``
+        thinned to the screen's columns of the visible range (``webapp.views.decimate``:
+        drawn the same); the view's moves thin them again (``_flush_range``)."""
+        x = np.asarray(x)
+        self._lines[source.name] = (source, x, ys)
+        source.data = self._thinned(x, ys)
+
+    def _thinned(self, x, ys: dict, visible: tuple[float, float] | None = None) -> dict:
+        if len(x) <= 2:
+            return {"x": x, **ys}
+        if visible is None:
+            visible = (self.x_range.start, self.x_range.end)
+        return decimate.thin(x, ys, visible, max(self.session.n, 1), self.figure.frame_width)
+
+    def _rethin(self, visible: tuple[float, float]) -> None:
+        """Thin the drawn lines again for the visible range (a zoom shows every frame once a
+        screen column is narrower than a frame); lines short enough to go whole stay."""
+        n = max(self.session.n, 1)
+        for source, x, ys in self._lines.values():
+            whole = len(x) <= 2 or len(self._thinned(x, ys, (-0.5, n - 0.5))["x"]) == len(x)
+            if not whole:
+                source.data = self._thinned(x, ys, visible)
 
     def _visible(self) -> tuple[float, float, float, float]:
         return (self.x_range.start, self.x_range.end, self.y_range.start, self.y_range.end)
@@ -824,6 +867,7 @@ class CostMatrixView:
         if self._pending_range is not None:
             ranges, self._pending_range = self._pending_range, None
             self._update_image(ranges)
+            self._rethin(ranges[:2])
 
     def _on_tap(self, event):
         if event.x is None or self.point_tool.add:

@@ -7,7 +7,9 @@ first frame is rendered when the page opens. One frame slider chooses the moment
 Play runs at the take's own frame rate, skipping frames when a render is slower
 than a frame. While playing, the slider, the caption, the matrix's frame marker and the
 image move together: a frame is rendered first and the page steps to it with its
-image (the slider never runs ahead of the picture). A click on the cost matrix
+image (the slider never runs ahead of the picture); when the picture waits on a slow
+render (a long take's first frame after an edit builds its meshes: seconds), a line
+under Play says so, with the frame and the seconds waited. A click on the cost matrix
 in "Pick frames" mode chooses the frame too. Rendering is offscreen (pyrender,
 EGL/OSMesa) on the server; each image is sent as a PNG.
 """
@@ -24,6 +26,8 @@ from webapp.state import Session
 
 #: how often the player looks at the clock, ms (each look shows the frame of that moment)
 PLAY_TICK_MS = 30
+#: a render this long (s) holds Play visibly: the page says it waits for it
+SLOW_RENDER_S = 0.5
 #: the worker that renders previews of all sessions (OpenGL calls take turns anyway:
 #: engine.render.backend.GL_LOCK), so the event loop never waits for a render
 _RENDERS = ThreadPoolExecutor(max_workers=1, thread_name_prefix="hs-preview")
@@ -93,6 +97,15 @@ class PreviewView:
         self.play = pn.widgets.Toggle(
             label="▶ Play", value=False, width=90, css_classes=["hs-play"]
         )
+        # Play waiting on a slow render: a line that is empty otherwise (its height is kept,
+        # so the page does not lay out again when it appears)
+        self.waiting = pn.pane.HTML(
+            "",
+            css_classes=["hs-play-wait"],
+            height=18,
+            margin=(0, 10),
+            styles={"font-size": "12px", "color": "#8a5a00"},
+        )
         # the view state lives in the session (saved in its file and link): widgets of its
         # parameters
         self.camera = pn.widgets.Select.from_param(
@@ -117,6 +130,7 @@ class PreviewView:
         self._rendered_key = None
         self._played = None
         self._inflight = False
+        self._since = 0.0  # when the render in flight was asked for (perf_counter s)
         self._again = False
         self._scheduled = False
         self._player = None
@@ -160,6 +174,7 @@ class PreviewView:
                 self._player = pn.state.add_periodic_callback(self._tick, period=PLAY_TICK_MS)
         else:
             self.play.label = "▶ Play"
+            self.waiting.object = ""
             if self._player is not None:
                 self._player.stop()
                 self._player = None
@@ -169,7 +184,16 @@ class PreviewView:
         by while the last render ran are skipped, so playback keeps real time. The
         session's frame (slider, caption, marker) steps when that frame's image is shown."""
         s = self.session
-        if s.n <= 1 or self._inflight or self._scheduled:
+        if self._inflight:
+            waited = time.perf_counter() - self._since
+            if waited >= SLOW_RENDER_S:  # the picture is held: say so (and for how long)
+                frame = self._played[2] if self._played is not None else s.frame
+                self.waiting.object = (
+                    f'<span data-waiting="{frame}">⏳ waiting for the render of body frame '
+                    f"{frame}… {waited:.1f} s</span>"
+                )
+            return
+        if s.n <= 1 or self._scheduled:
             return
         start, first = self._clock
         frame = (first + int((time.perf_counter() - start) * s.fps)) % s.n
@@ -232,6 +256,7 @@ class PreviewView:
                 self._again = True  # rendered when the one in flight is shown
             return True
         self._inflight = True
+        self._since = time.perf_counter()
         if frame is not None:
             self._played = key  # shown, it moves the session to its frame
         future = _RENDERS.submit(_render_images, *job, self.size, self.closeup_size)
@@ -248,6 +273,8 @@ class PreviewView:
     def _finish(self, key: tuple, future) -> None:
         """Show a worker's render (on the event loop, under the document lock)."""
         self._inflight = False
+        if self.waiting.object:
+            self.waiting.object = ""
         try:
             result = future.result()
         except Exception as exc:  # the worker's own failure: shown like any other
@@ -289,6 +316,7 @@ class PreviewView:
     def panel(self) -> pn.viewable.Viewable:
         controls = pn.Column(
             pn.Row(self.play, self.camera, margin=0),
+            self.waiting,
             self.slider,
             pn.Row(self.trails, self.auto, margin=0),
             self.info,

@@ -5,8 +5,10 @@ after every edit), so copying it shares the session; the field below shows it to
 
 GIF/MP4 exports take seconds: they render on a worker thread while the event loop
 goes on serving every session (this one included); a progress bar and a line of
-text follow the frames, and the file downloads when it is ready. An export that fails
-downloads nothing: its callback returns None and the page shows why.
+text follow the frames, and the file downloads when it is ready. The spliced BVH and
+GLB are made on a worker thread too (a long take's splice and its tens of megabytes of
+text take seconds), with a "preparing…" line and the seconds so far. A download that
+fails downloads nothing: its callback returns None and the page shows why.
 """
 
 from __future__ import annotations
@@ -24,6 +26,8 @@ from webapp.state import VIEW_STATE, Session
 
 #: exports of all sessions share these threads (renders take turns on the OpenGL lock)
 _EXPORTS = ThreadPoolExecutor(max_workers=2, thread_name_prefix="hs-export")
+#: the spliced BVH and GLB of all sessions are made on these threads (no OpenGL)
+_FILES = ThreadPoolExecutor(max_workers=2, thread_name_prefix="hs-download")
 #: how often the page's progress follows an export, seconds
 PROGRESS_INTERVAL = 0.25
 #: the name the page gives the downloaded session file (the command line refers to it)
@@ -103,6 +107,12 @@ class SharingView:
             css_classes=["hs-export-status"],
             styles={"font-size": "12px", "color": "#444"},
         )
+        self.prepare_text = pn.pane.HTML(
+            "",
+            visible=False,
+            css_classes=["hs-download-status"],
+            styles={"font-size": "12px", "color": "#444"},
+        )
         self._exporting = False
         self.open_session = pn.widgets.FileInput(
             accept=".json", css_classes=["hs-open-session"], width=260
@@ -145,19 +155,53 @@ class SharingView:
         self.message.visible = False
         return io.BytesIO(data)
 
-    def _bvh(self):
+    async def _bvh(self):
         s = self.session
         retimed = s.prepared is not None and backend.marker_body(s.prepared)
         # a marker body gives the hand take retimed to it (see the page's note)
         self.bvh.filename = f"{s.output_stem()}{'-hand-retimed' if retimed else ''}.bvh"
-        return self._guard(lambda: backend.bvh_bytes(s.spliced()), "spliced BVH")
+        return await self._off_loop(self.bvh, "spliced BVH", backend.bvh_bytes)
 
-    def _glb(self):
+    async def _glb(self):
         from engine.export.glb import glb_bytes
 
+        self.glb.filename = f"{self.session.output_stem()}.glb"
+        return await self._off_loop(self.glb, "spliced GLB", glb_bytes)
+
+    async def _off_loop(self, widget, what: str, encode) -> io.BytesIO | None:
+        """``encode(spliced motion)`` of the alignment shown now, made on a download thread
+        while the event loop serves every session; the page says what is being prepared
+        and for how long. None (nothing downloads) when it fails, with the reason shown."""
         s = self.session
-        self.glb.filename = f"{s.output_stem()}.glb"
-        return self._guard(lambda: glb_bytes(s.spliced()), "spliced GLB")
+        if s.prepared is None or s.solution is None:
+            return self._guard(s.spliced, what)  # says why (no takes loaded)
+        prepared, solution = s.prepared, s.solution  # this state, whatever is edited meanwhile
+        widget.disabled = True
+        self.prepare_text.object = f"{what}: preparing…"
+        self.prepare_text.visible = True
+        t0 = time.perf_counter()
+        job = asyncio.get_running_loop().run_in_executor(
+            _FILES, lambda: encode(backend.splice(prepared, solution))
+        )
+        try:
+            while True:
+                done, _ = await asyncio.wait({job}, timeout=PROGRESS_INTERVAL)
+                if done:
+                    break
+                self.prepare_text.object = f"{what}: preparing… {time.perf_counter() - t0:.1f} s"
+            data = job.result()
+        except Exception as exc:  # shown in the page, never a traceback
+            self.message.object = safe_text.markdown(f"{what}: {backend.one_line(exc)}")
+            self.message.visible = True
+            self.prepare_text.visible = False
+            return None
+        finally:
+            widget.disabled = False
+        self.message.visible = False
+        self.prepare_text.object = (
+            f"{what}: {len(data) / 1024:.0f} KiB in {time.perf_counter() - t0:.1f} s, downloading"
+        )
+        return io.BytesIO(data)
 
     def _session_json(self):
         return self._guard(lambda: self.session.to_json().encode("utf-8"), "session")
@@ -290,6 +334,7 @@ class SharingView:
             no_share_alert(self.session),
             pn.Row(self.bvh, self.glb, self.session_file, self.gif, self.mp4),
             pn.Row(self.progress, self.progress_text),
+            self.prepare_text,
             pn.Row(
                 pn.pane.Markdown("**Open a session file**", margin=(12, 10, 0, 10)),
                 self.open_session,

@@ -63,6 +63,7 @@ class TrustView:
         self.session = session
         self._verdict = verdict
         self._width = matrix.panel_width
+        self._matrix = matrix  # draws the region thinned to the screen (``show_line``)
         self._doc = pn.state.curdoc
         self._pending = False
         self._armed: int | None = None  # suggestion index whose moment is being shown
@@ -192,7 +193,7 @@ class TrustView:
     def _draw(self, trust):
         s = self.session
         if trust is None or s.solution is None:
-            self.region_source.data = {"x": [], "lo": [], "hi": []}
+            self._matrix.show_line(self.region_source, np.zeros(0, np.int32), {"lo": [], "hi": []})
             self.strip_source.data = _runs([])
             self.meter_source.data = {"start": [], "stop": [], "color": [], "verdict": [], "ms": []}
             # the old suggestions are greyed out, not hidden, until the new ones arrive:
@@ -210,11 +211,11 @@ class TrustView:
         warp = np.asarray(s.solution.warp, dtype=float) * r
         frames = unc.ms * unc.fps / 1000.0 * r  # ms -> grid columns -> hand-file frames
         x = np.arange(len(warp), dtype=np.int32)
-        self.region_source.data = {
-            "x": x,
-            "lo": (warp - frames).astype(np.float32),
-            "hi": (warp + frames).astype(np.float32),
-        }
+        self._matrix.show_line(
+            self.region_source,
+            x,
+            {"lo": (warp - frames).astype(np.float32), "hi": (warp + frames).astype(np.float32)},
+        )
         self.strip_source.data = _runs([self._verdict(v) for v in unc.ms])
         st = trust.strokes
         self.meter_source.data = {
