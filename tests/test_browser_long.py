@@ -1,14 +1,26 @@
-"""A long alignment runs off the server's event loop (issue 13): other tabs stay responsive.
+"""Long takes in the app (issue 13): a long alignment runs off the server's event loop,
+the lines sent to the page are thinned to the screen, downloads are made off the loop, and
+Play says when it waits on a slow render.
 
 ``handsplice serve BODY HAND`` on a two-minute body take (LAFAN1 ``multipleActions1``
 resampled to 120 fps: 14,400 frames) with ManipNet's mug hand take; a full solve of
-that pair takes a few seconds. Tab A opens it and shows the "aligning…" line while
-its first alignment runs; tab B opens the demo pair. Then A's pass-1 band width is
-typed in (a full re-solve) and, while A is still aligning, B adds a matching point
-with a click: B's new path must arrive before A's alignment ends (before, every
-session waited for A's solve). On a quiet machine A's solve may end first; each try
-widens A's band (a longer solve) until one outlasts B's round trip. Everything
-through the page's own controls.
+that pair takes a few seconds. One server and two tabs for the module: tab A opens the
+long pair and shows the "aligning…" line while its first alignment runs; tab B opens the
+demo pair.
+
+* A's pass-1 band width is typed in (a full re-solve) and, while A is still aligning, B
+  adds a matching point with a click: B's new path must arrive before A's alignment ends
+  (before, every session waited for A's solve). On a quiet machine A's solve may end
+  first; each try widens A's band (a longer solve) until one outlasts B's round trip.
+* A's band and path hold a few vertices per screen column (not one per frame), end on
+  the take's last frame, and a box zoom through the toolbar brings every frame of the
+  zoomed range.
+* A's "Spliced BVH" download (seconds on this take) is prepared while B's click is
+  answered; the file is the whole spliced take.
+* Play pressed right after an edit of A waits for the edit's first render (the meshes of
+  three 14,400-frame takes): the page says so, then plays.
+
+Everything through the page's own controls.
 """
 
 from __future__ import annotations
@@ -74,13 +86,16 @@ def _band_cells(page) -> int:
     return int(match.group(1).replace(",", ""))
 
 
-def test_second_tab_answers_while_first_tab_aligns_a_long_pair(long_pair, tmp_path):
+@pytest.fixture(scope="module")
+def tabs(long_pair, tmp_path_factory):
+    """``(tab A on the long pair, aligned; tab B on the demo pair, aligned; log path)``."""
     sync_api = pytest.importorskip("playwright.sync_api")
     from webapp.config import SAMPLE_DIR, demo_sample_name
 
     body, hand = long_pair
     demo = demo_sample_name(SAMPLE_DIR)
-    log_path = tmp_path / "serve.log"
+    folder = tmp_path_factory.mktemp("serve")
+    log_path = folder / "serve.log"
     with (
         log_path.open("w+") as log,
         running_server(
@@ -88,76 +103,218 @@ def test_second_tab_answers_while_first_tab_aligns_a_long_pair(long_pair, tmp_pa
             str(hand),
             "--no-warm",
             "--upload-dir",
-            str(tmp_path / "up"),
+            str(folder / "up"),
             log=log,
             timeout=SERVER_START_S,
         ) as (url, _),
         sync_api.sync_playwright() as p,
     ):
         browser = launch_chromium(p)
-        context = browser.new_context(viewport={"width": 1300, "height": 1000})
+        context = browser.new_context(
+            viewport={"width": 1300, "height": 1000}, accept_downloads=True
+        )
         # tab A: the long pair; its first alignment runs off the loop, the page says so
         a = _page(context, url)
         a.locator(".hs-busy").first.wait_for(timeout=60_000)
         assert "aligning" in _busy(a) or "opening" in _busy(a), _busy(a)
         a.wait_for_function(HAS_PATH, timeout=180_000)
         a.locator(".hs-busy").first.wait_for(state="detached", timeout=60_000)
-        n = len(a.evaluate("hs.cols('hs-band-source', ['x'])")["x"])
-        assert n == BODY_SECONDS * FPS
         # tab B: the demo pair, open and idle
         b = _page(context, url + f"?sample={demo}")
         b.wait_for_function(HAS_PATH, timeout=120_000)
         b.wait_for_timeout(500)
-        b_points = len(b.evaluate("hs.cols('hs-points-source', ['x'])")["x"])
-        nb = len(b.evaluate("hs.cols('hs-band-source', ['x'])")["x"])
-
-        # A: a wider pass-1 band in seconds (a full re-solve of the long pair); B, meanwhile,
-        # adds a matching point with one click. On a quiet machine A's re-solve can end
-        # before B's round trip does, which proves nothing either way, so each try widens
-        # A's band further (a longer solve). With A's solve on the loop, B's answer would
-        # always come after A's, and every try would fail.
-        width = a.locator(".hs-params input").nth(0)  # "W1 in seconds" (a long take has one)
-        tries: list[str] = []
-        for k, extra_s in enumerate((3, 15, 40, 90)):
-            a_rev, a_cells = _revision(a), _band_cells(a)
-            width.scroll_into_view_if_needed()
-            old = float(width.input_value())
-            width.fill(f"{old + extra_s:g}")
-            width.press("Enter")
-            a.locator(".hs-busy").first.wait_for(timeout=30_000)
-            t_a = time.monotonic()
-            b.bring_to_front()
-            b_rev = _revision(b)
-            bx, by = nb * (5 + k) // 10, nb * (5 + k) // 15  # each point after the last
-            xy = b.evaluate("([x, y]) => hs.xy(x, y)", [bx, by])
-            b.mouse.click(*xy)
-            deadline = time.monotonic() + 60
-            while _revision(b) <= b_rev:
-                assert time.monotonic() < deadline, "tab B got no new path within 60 s"
-                b.wait_for_timeout(20)
-            t_b = time.monotonic()
-            a_still_busy = bool(_busy(a)) and _revision(a) == a_rev
-            b_points += 1
-            assert len(b.evaluate("hs.cols('hs-points-source', ['x'])")["x"]) == b_points
-            # A's new alignment arrives in its turn, with the width typed
-            deadline = time.monotonic() + 120
-            while _revision(a) <= a_rev:
-                assert time.monotonic() < deadline, "tab A's re-solve never arrived"
-                a.wait_for_timeout(100)
-            a.locator(".hs-busy").first.wait_for(state="detached", timeout=30_000)
-            t_done = time.monotonic()
-            assert _band_cells(a) > a_cells  # the wider band was solved
-            tries.append(
-                f"W1 +{extra_s} s: B answered after {t_b - t_a:.2f} s, A after {t_done - t_a:.2f} s"
-            )
-            if a_still_busy:
-                break
-        assert a_still_busy, "tab A's re-solve always ended before tab B's edit was answered: " + (
-            "; ".join(tries)
-        )
-        a.locator(".hs-cost-matrix").first.scroll_into_view_if_needed()
-        a.screenshot(path=str(tmp_path / "long_a.png"))
-        assert not a.errors and not b.errors, a.errors + b.errors
+        yield a, b, log_path
+        errors = a.errors + b.errors
         browser.close()
+    assert not errors, errors
     text = log_path.read_text(errors="replace")
     assert "Traceback" not in text, text[text.find("Traceback") :][:3000]
+
+
+def _frames(page) -> int:
+    """Body frames of the open pair (the matrix's x extent)."""
+    return round(page.evaluate("hs.model('hs-x-range').bounds[1]") + 0.5)
+
+
+def _pane_text(locator) -> str:
+    """Text of a Panel pane (rendered into its open shadow root)."""
+    return locator.first.evaluate(
+        "e => [...(e.shadowRoot ? e.shadowRoot.children : []), ...e.children]"
+        ".filter(c => c.tagName !== 'STYLE' && c.tagName !== 'LINK')"
+        ".map(c => c.innerText).join(' ')"
+    )
+
+
+def _click_b(b, f: float) -> None:
+    """Tab B adds a matching point with a click at body frame ``f`` × its frames (every
+    point of B on one line: any order is feasible) and waits for the server's answer (a
+    new revision)."""
+    nb = _frames(b)
+    b.bring_to_front()
+    b_rev = _revision(b)
+    points = len(b.evaluate("hs.cols('hs-points-source', ['x'])")["x"])
+    bx, by = round(nb * f), round(nb * f * 2 / 3)
+    b.mouse.click(*b.evaluate("([x, y]) => hs.xy(x, y)", [bx, by]))
+    deadline = time.monotonic() + 60
+    while _revision(b) <= b_rev:
+        assert time.monotonic() < deadline, "tab B got no new path within 60 s"
+        b.wait_for_timeout(20)
+    assert len(b.evaluate("hs.cols('hs-points-source', ['x'])")["x"]) == points + 1
+
+
+def test_second_tab_answers_while_first_tab_aligns_a_long_pair(tabs, tmp_path):
+    a, b, _ = tabs
+    assert _frames(a) == BODY_SECONDS * FPS
+
+    # A: a wider pass-1 band in seconds (a full re-solve of the long pair); B, meanwhile,
+    # adds a matching point with one click. On a quiet machine A's re-solve can end
+    # before B's round trip does, which proves nothing either way, so each try widens
+    # A's band further (a longer solve). With A's solve on the loop, B's answer would
+    # always come after A's, and every try would fail.
+    width = a.locator(".hs-params input").nth(0)  # "W1 in seconds" (a long take has one)
+    tries: list[str] = []
+    for k, extra_s in enumerate((3, 15, 40, 90)):
+        a_rev, a_cells = _revision(a), _band_cells(a)
+        a.bring_to_front()
+        width.scroll_into_view_if_needed()
+        old = float(width.input_value())
+        width.fill(f"{old + extra_s:g}")
+        width.press("Enter")
+        a.locator(".hs-busy").first.wait_for(timeout=30_000)
+        t_a = time.monotonic()
+        _click_b(b, 0.5 + 0.1 * k)
+        t_b = time.monotonic()
+        a_still_busy = bool(_busy(a)) and _revision(a) == a_rev
+        # A's new alignment arrives in its turn, with the width typed
+        deadline = time.monotonic() + 120
+        while _revision(a) <= a_rev:
+            assert time.monotonic() < deadline, "tab A's re-solve never arrived"
+            a.wait_for_timeout(100)
+        a.locator(".hs-busy").first.wait_for(state="detached", timeout=30_000)
+        t_done = time.monotonic()
+        assert _band_cells(a) > a_cells  # the wider band was solved
+        tries.append(
+            f"W1 +{extra_s} s: B answered after {t_b - t_a:.2f} s, A after {t_done - t_a:.2f} s"
+        )
+        if a_still_busy:
+            break
+    assert a_still_busy, "tab A's re-solve always ended before tab B's edit was answered: " + (
+        "; ".join(tries)
+    )
+    a.locator(".hs-cost-matrix").first.scroll_into_view_if_needed()
+    a.screenshot(path=str(tmp_path / "long_a.png"))
+
+
+#: the matrix's plot width in screen pixels (``CostMatrixView``'s default size)
+PLOT_PX = 560
+
+
+def test_lines_are_thinned_to_the_screen_and_a_zoom_shows_every_frame(tabs, tmp_path):
+    a, _, _ = tabs
+    n = _frames(a)
+    a.bring_to_front()
+    band = a.evaluate("hs.cols('hs-band-source', ['x', 'lo', 'hi'])")
+    path = a.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
+    # a few vertices a screen column (two columns a pixel), not one per body frame
+    assert len(band["x"]) <= 4 * 2 * PLOT_PX < n, len(band["x"])
+    assert len(path["x"]) <= 4 * 2 * PLOT_PX, len(path["x"])
+    assert band["x"][0] == 0 and band["x"][-1] == n - 1  # the whole take, end to end
+    assert all(q >= p for p, q in zip(band["x"], band["x"][1:]))
+    assert all(lo <= hi for lo, hi in zip(band["lo"], band["hi"]))
+    a.locator(".hs-cost-matrix").first.scroll_into_view_if_needed()
+    a.screenshot(path=str(tmp_path / "whole.png"))
+    # box zoom from the toolbar onto 200 body frames around mid-take on the path
+    k = len(path["x"]) // 2
+    x0, y0 = path["x"][k], path["y"][k]
+    a.locator(".hs-cost-matrix .bk-tool-icon-box-zoom").first.click()
+    start = a.evaluate("([x, y]) => hs.xy(x, y)", [x0 - 100, y0 + 100])
+    end = a.evaluate("([x, y]) => hs.xy(x, y)", [x0 + 100, y0 - 100])
+    a.mouse.move(*start)
+    a.mouse.down()
+    a.mouse.move(*end, steps=5)
+    a.mouse.up()
+    a.wait_for_function(
+        "(x) => { const r = hs.model('hs-x-range'); return r.end - r.start < 400"
+        " && hs.cols('hs-band-source', ['x']).x.filter(v => v > r.start && v < r.end).length"
+        " >= Math.floor(r.end - r.start) - 1; }",
+        arg=x0,
+        timeout=30_000,
+    )
+    xs = a.evaluate("hs.cols('hs-path-source', ['x'])")["x"]
+    lo, hi = a.evaluate("[hs.model('hs-x-range').start, hs.model('hs-x-range').end]")
+    shown = sorted({v for v in xs if lo < v < hi})
+    assert shown == list(range(shown[0], shown[-1] + 1)), "the zoomed path skips frames"
+    a.screenshot(path=str(tmp_path / "zoomed.png"))
+    # back to the whole take (the toolbar's reset) and the point tool for the next tests
+    a.locator(".hs-cost-matrix .bk-tool-icon-reset").first.click()
+    a.locator(".hs-cost-matrix .bk-tool-icon-point-draw").first.click()
+    a.wait_for_function(
+        "(n) => hs.model('hs-x-range').end - hs.model('hs-x-range').start > n - 2", arg=n
+    )
+
+
+def test_a_long_take_download_leaves_the_other_tab_responsive(tabs, tmp_path):
+    """A's spliced BVH (seconds to splice and write 14,400 frames) is made off the loop:
+    B's click is answered while A's page still says "preparing"."""
+    a, b, _ = tabs
+    tries = []
+    for k, (name, ext) in enumerate((("bvh", "bvh"), ("glb", "glb"), ("bvh", "bvh"))):
+        a.bring_to_front()
+        button = a.locator(f".hs-download-{name} button")
+        button.scroll_into_view_if_needed()
+        status = a.locator(".hs-download-status")
+        with a.expect_download(timeout=300_000) as info:
+            button.click()
+            status.first.wait_for(state="visible", timeout=30_000)
+            t0 = time.monotonic()
+            assert "preparing" in _pane_text(status), _pane_text(status)
+            _click_b(b, 0.15 + 0.1 * k)
+            t_b = time.monotonic() - t0
+            preparing = "preparing" in _pane_text(status)
+        saved = tmp_path / f"spliced.{ext}"
+        info.value.save_as(saved)
+        tries.append(f"{name}: B answered after {t_b:.2f} s, preparing={preparing}")
+        if preparing:
+            break
+    assert preparing, "every download was ready before tab B's edit was answered: " + "; ".join(
+        tries
+    )
+    if ext == "bvh":
+        with saved.open() as fh:
+            head = fh.read(1 << 20)
+        assert head.startswith("HIERARCHY")
+        assert f"Frames: {BODY_SECONDS * int(FPS)}" in head
+    else:
+        assert saved.read_bytes()[:4] == b"glTF"
+
+
+def test_play_says_when_it_waits_on_a_slow_render(tabs, tmp_path):
+    """Right after an edit the preview's first render of the long pair builds the meshes of
+    three 14,400-frame takes (seconds): Play pressed then says it waits, then plays."""
+    a, _, _ = tabs
+    a.bring_to_front()
+    path = a.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
+    k = len(path["x"]) // 3
+    rev = _revision(a)
+    a.mouse.click(*a.evaluate("([x, y]) => hs.xy(x, y)", [path["x"][k], path["y"][k]]))
+    deadline = time.monotonic() + 120
+    while _revision(a) <= rev:
+        assert time.monotonic() < deadline, "no new alignment after the click"
+        a.wait_for_timeout(50)
+    play = a.locator(".hs-play button")
+    play.scroll_into_view_if_needed()
+    play.click()
+    wait = a.locator(".hs-play-wait span[data-waiting]")
+    wait.first.wait_for(timeout=30_000)
+    text = wait.first.inner_text()
+    assert "waiting for the render of body frame" in text, text
+    a.locator(".hs-preview").first.screenshot(path=str(tmp_path / "play_waiting.png"))
+    first = int(a.locator(".hs-preview-info span").get_attribute("data-frame") or -1)
+    # the render arrives: the line goes, and the frames move on
+    wait.first.wait_for(state="detached", timeout=120_000)
+    deadline = time.monotonic() + 60
+    while int(a.locator(".hs-preview-info span").get_attribute("data-frame")) == first:
+        assert time.monotonic() < deadline, "Play never moved on after the render"
+        a.wait_for_timeout(100)
+    play.click()  # pause
+    wait.first.wait_for(state="detached", timeout=30_000)

@@ -107,7 +107,11 @@ def test_the_matrix_view_sends_thinned_lines_and_zoom_refines_them(sample_dir, s
     path = view.path_source.data
     assert len(path["x"]) < len(session.solution.pass1.path) / 2
     assert list(path["x"][[0, -1]]) == list(session.solution.pass1.path[[0, -1], 0])
-    view._rethin((60.0, 60.0 + WIDTH))  # what a zoom sends (after RangesUpdate)
+    # the hand take's wrist-speed strip runs up the y axis: thinned along it
+    hand = view.hand_signal_source.data
+    assert len(hand["y"]) < len(session.axis_signals()[1]) / 2 and hand["y"][0] == 0
+    y0, y1 = view.y_range.start, view.y_range.end
+    view._rethin((60.0, 60.0 + WIDTH, y0, y1))  # what a zoom sends (after RangesUpdate)
     xs = set(view.band_source.data["x"].tolist())
     assert set(range(60, 60 + WIDTH)) <= xs
     k = int(np.searchsorted(view.band_source.data["x"], 66))  # a frame in view: its own values

@@ -533,8 +533,8 @@ class CostMatrixView:
     def _axis_figures(self, size: int):
         """``(body strip, hand strip)``: the takes' wrist speed and gesture phases along the
         matrix's axes (body below, sharing x; hand at the left, sharing y)."""
-        self.body_signal_source = ColumnDataSource({"x": [], "y": []})
-        self.hand_signal_source = ColumnDataSource({"x": [], "y": []})
+        self.body_signal_source = ColumnDataSource({"x": [], "y": []}, name="hs-body-signal-source")
+        self.hand_signal_source = ColumnDataSource({"x": [], "y": []}, name="hs-hand-signal-source")
         self.body_phase_source = ColumnDataSource(_phase_quads(None, {}))
         self.hand_phase_source = ColumnDataSource(_phase_quads(None, {}))
         body = figure(
@@ -654,8 +654,18 @@ class CostMatrixView:
         self.y_range.update(bounds=(lo, hi), start=lo, end=hi)
         self._above.glyph.y2 = hi
         body, hand = s.axis_signals()
-        self.body_signal_source.data = {"x": np.arange(len(body)), "y": body}
-        self.hand_signal_source.data = {"x": hand, "y": np.arange(len(hand)) * r}
+        # the wrist speeds: thinned to the strips' screen columns like the matrix's lines
+        self.show_line(
+            self.body_signal_source,
+            np.arange(len(body), dtype=np.int32),
+            {"y": np.asarray(body, dtype=np.float32)},
+        )
+        self.show_line(
+            self.hand_signal_source,
+            (np.arange(len(hand)) * r).astype(np.float32),
+            {"x": np.asarray(hand, dtype=np.float32)},
+            axis="y",
+        )
         body_phases, hand_phases = s.axis_phases()
         self.body_phase_source.data = _phase_quads(body_phases, self._colors)
         quads = _phase_quads(hand_phases, self._colors)
@@ -746,29 +756,41 @@ class CostMatrixView:
         }
 
     @with_document_lock
-    def show_line(self, source: ColumnDataSource, x, ys: dict) -> None:
-        """Draw the polylines ``(x, ys[k])`` (``x`` non-decreasing body frames) in ``source``
-        thinned to the screen's columns of the visible range (``webapp.views.decimate``:
-        drawn the same); the view's moves thin them again (``_flush_range``)."""
+    def show_line(self, source: ColumnDataSource, x, ys: dict, axis: str = "x") -> None:
+        """Draw the polylines ``(x, ys[k])`` in ``source`` thinned to the screen's columns
+        of the visible range (``webapp.views.decimate``: drawn the same); the view's moves
+        thin them again (``_flush_range``).
+
+        ``x``: the non-decreasing coordinate along ``axis``: body frames along the matrix's
+        x axis (``"x"``), or hand-file frames along its y axis (``"y"``: the hand take's
+        strip, whose line runs up the page; ``source`` then holds ``x`` as its ``y``)."""
         x = np.asarray(x)
-        self._lines[source.name] = (source, x, ys)
-        source.data = self._thinned(x, ys)
+        self._lines[source.name] = (source, x, ys, axis)
+        source.data = self._thinned(x, ys, axis)
 
-    def _thinned(self, x, ys: dict, visible: tuple[float, float] | None = None) -> dict:
-        if len(x) <= 2:
-            return {"x": x, **ys}
-        if visible is None:
-            visible = (self.x_range.start, self.x_range.end)
-        return decimate.thin(x, ys, visible, max(self.session.n, 1), self.figure.frame_width)
+    def _thinned(self, x, ys: dict, axis: str, visible=None) -> dict:
+        along = "x" if axis == "x" else "y"
+        if len(x) > 2:
+            rng = self.x_range if axis == "x" else self.y_range
+            if visible is None:
+                visible = (rng.start, rng.end)
+            lo, hi = rng.bounds
+            pixels = self.figure.frame_width if axis == "x" else self.figure.frame_height
+            keep = decimate.kept(x, list(ys.values()), visible, hi - lo, pixels)
+            x, ys = x[keep], {k: np.asarray(v)[keep] for k, v in ys.items()}
+        return {along: x, **ys}
 
-    def _rethin(self, visible: tuple[float, float]) -> None:
-        """Thin the drawn lines again for the visible range (a zoom shows every frame once a
-        screen column is narrower than a frame); lines short enough to go whole stay."""
-        n = max(self.session.n, 1)
-        for source, x, ys in self._lines.values():
-            whole = len(x) <= 2 or len(self._thinned(x, ys, (-0.5, n - 0.5))["x"]) == len(x)
+    def _rethin(self, ranges: tuple[float, float, float, float]) -> None:
+        """Thin the drawn lines again for the visible ``ranges`` (x0, x1, y0, y1): a zoom
+        shows every frame once a screen column is narrower than a frame; lines that go
+        whole at the whole take's resolution are left as they are."""
+        for source, x, ys, axis in self._lines.values():
+            rng = self.x_range if axis == "x" else self.y_range
+            along = "x" if axis == "x" else "y"
+            whole = len(x) <= 2 or len(self._thinned(x, ys, axis, rng.bounds)[along]) == len(x)
             if not whole:
-                source.data = self._thinned(x, ys, visible)
+                visible = ranges[:2] if axis == "x" else ranges[2:]
+                source.data = self._thinned(x, ys, axis, visible)
 
     def _visible(self) -> tuple[float, float, float, float]:
         return (self.x_range.start, self.x_range.end, self.y_range.start, self.y_range.end)
@@ -867,7 +889,7 @@ class CostMatrixView:
         if self._pending_range is not None:
             ranges, self._pending_range = self._pending_range, None
             self._update_image(ranges)
-            self._rethin(ranges[:2])
+            self._rethin(ranges)
 
     def _on_tap(self, event):
         if event.x is None or self.point_tool.add:

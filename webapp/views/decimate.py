@@ -80,5 +80,10 @@ def thin(
     """``{"x": x[k], **{name: y[k]}}`` for the kept vertices ``k`` of the polylines
     ``(x, y)`` that share ``x`` (see the module docstring); dtypes are kept."""
     x = np.asarray(x)
-    keep = m4_indices(column_ids(x, visible, extent, pixels), *ys.values())
+    keep = kept(x, list(ys.values()), visible, extent, pixels)
     return {"x": x[keep], **{k: np.asarray(v)[keep] for k, v in ys.items()}}
+
+
+def kept(x, values: list, visible: tuple[float, float], extent: float, pixels: int):
+    """``(K,)`` indices of the vertices :func:`thin` keeps."""
+    return m4_indices(column_ids(x, visible, extent, pixels), *values)
