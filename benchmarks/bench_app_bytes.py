@@ -7,11 +7,12 @@ For each pair (``benchmarks.long_pairs.pair_files``: 2 or 10 minutes at 120 fps)
 code, each on its own ``handsplice serve BODY HAND`` in the same run: *today* (the app at
 ``BYTES_BASELINE``, where this work began) and *now* (this checkout). Chromium opens the
 pair; a matching point is placed on the path at mid-take and dragged ``--drags`` times by
-±12 screen pixels on the whole-take view. Per edit (mouse release until the page has been
-quiet for 1.5 s: path, band, trust layers and preview all arrived):
+±12 screen pixels on the whole-take view, each drag once the last one's path is drawn:
 
-* **websocket bytes**: every frame the page received (Chromium's DevTools protocol via
-  Playwright), all messages: lines, tables, status, the preview's PNGs;
+* **websocket bytes per edit**: every frame the page received (Chromium's DevTools
+  protocol via Playwright) from the first release until the page has been quiet for 5 s
+  (paths, band, trust layers and previews of every edit arrived), divided by the edits:
+  all messages (lines, tables, status, the preview's PNGs);
 * **line bytes**: the bytes of the arrays the page then holds in the band, both paths and
   the uncertain region (``hs-band-source``, ``hs-path-source``, ``hs-other-path``,
   ``hs-uncertain-region-source``): what those sources cost each edit, and their vertices.
@@ -38,7 +39,7 @@ from webapp.launch import PAGE_HELPERS, launch_chromium, running_server
 BYTES_BASELINE = os.environ.get("HANDSPLICE_BYTES_BASELINE", "6b1b359")
 LINES = ("hs-band-source", "hs-path-source", "hs-other-path", "hs-uncertain-region-source")
 DRAG_PX = 12
-QUIET_S = 1.5
+QUIET_S = 5.0
 
 LINE_BYTES = """
 (names) => {
@@ -102,7 +103,13 @@ def measure(browser, url: str, n: int, drags: int) -> dict:
     path = page.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
     k = len(path["x"]) // 2
     x, y = int(path["x"][k]), float(round(path["y"][k]))
+    rev = _revision(page)
     page.mouse.click(*page.evaluate("([x, y]) => hs.xy(x, y)", [x, y]))
+    deadline = time.monotonic() + 600
+    while _revision(page) <= rev:
+        if time.monotonic() > deadline:
+            raise TimeoutError("no new path after the click")
+        time.sleep(0.05)
     _quiet(counter, time.monotonic())
     per_px = page.evaluate(
         "() => { const v = Bokeh.index.find_one(hs.model('hs-cost-figure'));"
@@ -110,23 +117,35 @@ def measure(browser, url: str, n: int, drags: int) -> dict:
         " / v.frame.bbox.height; }"
     )
     step = max(1.0, round(DRAG_PX * per_px))
-    ws_bytes, line_bytes, vertices = [], [], []
+    line_bytes, vertices = [], []
+    before = counter["bytes"]
     for k in range(drags):
         a, b = (y, y + step) if k % 2 == 0 else (y + step, y)
         start = page.evaluate("([x, y]) => hs.xy(x, y)", [x, a])
         end = page.evaluate("([x, y]) => hs.xy(x, y)", [x, b])
-        before = counter["bytes"]
+        rev = _revision(page)
         page.mouse.move(*start)
         page.mouse.down()
         page.mouse.move(*end, steps=4)
         page.mouse.up()
-        _quiet(counter, time.monotonic())
-        ws_bytes.append(counter["bytes"] - before)
+        deadline = time.monotonic() + 600
+        while _revision(page) <= rev:  # each edit solved and drawn before the next
+            if time.monotonic() > deadline:
+                raise TimeoutError("no new path after a drag")
+            time.sleep(0.05)
         lb, nv = page.evaluate(LINE_BYTES, list(LINES))
         line_bytes.append(lb)
         vertices.append(nv)
+    # the trust layers and previews of the last edits arrive after their paths: everything
+    # received until the page is quiet, shared by the edits
+    _quiet(counter, time.monotonic())
+    ws = (counter["bytes"] - before) / drags
     context.close()
-    return {"ws": ws_bytes, "lines": line_bytes, "vertices": vertices}
+    return {"ws": [ws], "lines": line_bytes, "vertices": vertices}
+
+
+def _revision(page) -> int:
+    return int(page.locator(".hs-status span").get_attribute("data-revision"))
 
 
 def run(browser, seconds: float, code: str, tree: Path | None, drags: int, tmp: Path) -> dict:
@@ -201,8 +220,8 @@ def main(argv=None) -> int:
         f"*today* = the app at `{BYTES_BASELINE}`, *now* = this checkout, each on its own "
         "`handsplice serve BODY HAND` in the same run, Chromium headless 1400×1100, the "
         f"whole-take view; one matching point dragged ±{DRAG_PX} screen pixels per edit; "
-        "websocket bytes: every frame received from release until 1.5 s of quiet (lines, "
-        "status, tables, trust layers, the preview's PNGs)." + ratio
+        "websocket bytes: every frame received from the first release until 5 s of quiet, "
+        "divided by the edits (lines, status, tables, trust layers, the preview's PNGs)." + ratio
     )
     print(md)
     if not args.no_write:

@@ -179,7 +179,7 @@ def test_app_loads_with_matrix_path_band_status(page):
 
 
 def test_add_and_drag_matching_point_changes_band_path_status(page):
-    n = len(page.evaluate("hs.cols('hs-band-source', ['x'])")["x"])
+    n = page.evaluate("hs.frames()")
     path0 = page.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
     # a point off the current path: the path must move to pass through it
     x = n // 2
@@ -267,7 +267,7 @@ def test_click_on_the_path_in_pick_mode_shows_that_frame_pair(page):
     assert f"body frame {x}" in page.locator(".hs-preview-info span").inner_text()
     frame = page.evaluate("hs.cols('hs-frame-source', ['x', 'y'])")
     # the marker sits on the merged pass-2 path, which stays within W2 (0.1 n) of pass 1's
-    n = len(page.evaluate("hs.cols('hs-band-source', ['x'])")["x"])
+    n = page.evaluate("hs.frames()")
     assert frame["x"] == [x] and abs(frame["y"][0] - y) <= max(3, round(0.1 * n))
     assert len(page.evaluate("hs.cols('hs-points-source', ['x'])")["x"]) == npts  # no new point
     page.locator(".hs-click-mode button", has_text="Edit points").click()
@@ -529,7 +529,7 @@ def test_quick_clicks_and_a_drag_all_reach_the_session(browser, server, tmp_path
             rev = _revision(other)
             _wait_revision(other, rev)  # the other session is solving
         path = page.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
-        n = len(page.evaluate("hs.cols('hs-band-source', ['x'])")["x"])
+        n = page.evaluate("hs.frames()")
         xs = [n * k // 6 for k in range(1, 6)]
         cells = [(x, round(path["y"][path["x"].index(x)])) for x in xs]
         screen = [page.evaluate(f"hs.xy({x}, {y})") for x, y in cells]  # before any click

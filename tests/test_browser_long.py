@@ -58,7 +58,7 @@ def _page(context, url: str):
     page = context.new_page()
     errors: list[str] = []
     page.on("pageerror", lambda e: errors.append(f"pageerror: {e}"))
-    page.goto(url)
+    page.goto(url, timeout=180_000)  # a loaded machine builds a page slowly
     page.locator(".hs-cost-matrix").first.wait_for(timeout=120_000)
     page.wait_for_function("() => window.Bokeh && Bokeh.documents.length", timeout=60_000)
     page.evaluate(PAGE_HELPERS)
@@ -251,6 +251,10 @@ def test_lines_are_thinned_to_the_screen_and_a_zoom_shows_every_frame(tabs, tmp_
     a.wait_for_function(
         "(n) => hs.model('hs-x-range').end - hs.model('hs-x-range').start > n - 2", arg=n
     )
+    a.wait_for_function(  # the whole take's resolution again
+        "(n) => hs.cols('hs-band-source', ['x']).x.length < n / 2", arg=n
+    )
+    a.screenshot(path=str(tmp_path / "reset.png"))
 
 
 def test_a_long_take_download_leaves_the_other_tab_responsive(tabs, tmp_path):

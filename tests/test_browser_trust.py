@@ -44,7 +44,7 @@ def page(tmp_path_factory):
 
 def test_strip_region_and_meter_follow_the_alignment(page):
     strip = page.evaluate("hs.cols('hs-confidence-source', ['start', 'stop', 'color'])")
-    n = page.evaluate("hs.cols('hs-band-source', ['x']).x.length")  # body frames
+    n = page.evaluate("hs.frames()")  # body frames
     # the strip's runs tile the body axis, each coloured by a verdict
     assert strip["start"][0] == -0.5 and strip["stop"][-1] == n - 0.5
     assert set(strip["color"]) <= {"#2e7d32", "#f9a825", "#c62828"}

@@ -31,7 +31,8 @@ CHROMIUM_ARGS = [
 
 #: page-side helpers (``page.evaluate(PAGE_HELPERS)`` once the document is up):
 #: ``hs.model(name)``, ``hs.xy(body_frame, hand_frame)`` -> screen pixels of a matrix
-#: cell (scrolling the matrix into view first), ``hs.cols(source, keys)``.
+#: cell (scrolling the matrix into view first), ``hs.cols(source, keys)``, ``hs.frames()``
+#: (body frames of the open pair).
 PAGE_HELPERS = """
 window.hs = {
   model(name) { return Bokeh.documents[0].get_model_by_name(name); },
@@ -43,6 +44,10 @@ window.hs = {
       r = v.canvas_view.el.getBoundingClientRect();
     }
     return [r.left + v.frame.x_scale.compute(x), r.top + v.frame.y_scale.compute(y)];
+  },
+  frames() {  // body frames of the open pair (the matrix's x extent; the band's and the
+    // path's vertices are thinned to the screen, so their count is no frame count)
+    return Math.round(this.model('hs-x-range').bounds[1] + 0.5);
   },
   cols(name, keys) {
     const d = this.model(name).data;

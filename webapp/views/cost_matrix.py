@@ -650,8 +650,12 @@ class CostMatrixView:
         r = s.hand_scale
         lo, hi = self._hand_extent()
         self.rates.data = {"fps": [s.fps], "hand_fps": [s.hand_fps], "tol": [s.tolerance]}
-        self.x_range.update(bounds=(-0.5, n - 0.5), start=-0.5, end=n - 0.5)
-        self.y_range.update(bounds=(lo, hi), start=lo, end=hi)
+        # the toolbar's reset shows the whole matrix of these takes (not the empty one the
+        # page began with when the pair was opened off the loop)
+        self.x_range.update(
+            bounds=(-0.5, n - 0.5), start=-0.5, end=n - 0.5, reset_start=-0.5, reset_end=n - 0.5
+        )
+        self.y_range.update(bounds=(lo, hi), start=lo, end=hi, reset_start=lo, reset_end=hi)
         self._above.glyph.y2 = hi
         body, hand = s.axis_signals()
         # the wrist speeds: thinned to the strips' screen columns like the matrix's lines
