@@ -200,7 +200,7 @@ def main(argv=None) -> int:
     for r in rows:
         lines.append(
             f"| {r['pair']} | {r['code']} | {_mb(r['ws'])} | {_mb(r['lines'])} "
-            f"| {int(np.median(r['vertices'])):,} | {len(r['ws'])} |"
+            f"| {int(np.median(r['vertices'])):,} | {len(r['lines'])} |"
         )
     ratio = ""
     for pair in {r["pair"] for r in rows}:
@@ -213,7 +213,7 @@ def main(argv=None) -> int:
             )
     md = (
         "### Bytes per edit on long pairs (`benchmarks/bench_app_bytes.py`, issue 13)\n\n"
-        "| pair | code | websocket bytes per edit (median) | band, paths, region arrays "
+        "| pair | code | websocket bytes per edit (all, mean) | band, paths, region arrays per edit "
         "| their vertices | edits |\n|---|---|---|---|---|---|\n"
         + "\n".join(lines)
         + "\n\n"
