@@ -251,8 +251,11 @@ def test_lines_are_thinned_to_the_screen_and_a_zoom_shows_every_frame(tabs, tmp_
     a.wait_for_function(
         "(n) => hs.model('hs-x-range').end - hs.model('hs-x-range').start > n - 2", arg=n
     )
-    a.wait_for_function(  # the whole take's resolution again
-        "(n) => hs.cols('hs-band-source', ['x']).x.length < n / 2", arg=n
+    a.wait_for_function(  # the whole take's resolution again, the whole matrix's image
+        "(n) => hs.cols('hs-band-source', ['x']).x.length < n / 2"
+        " && hs.cols('hs-image-source', ['dw']).dw[0] > n / 2",
+        arg=n,
+        timeout=60_000,
     )
     a.screenshot(path=str(tmp_path / "reset.png"))
 

@@ -28,6 +28,13 @@ from webapp.state import Session
 PLAY_TICK_MS = 30
 #: a render this long (s) holds Play visibly: the page says it waits for it
 SLOW_RENDER_S = 0.5
+#: a turning ring before that line (drawn by CSS: no emoji font needed)
+_SPINNER = (
+    "<style>@keyframes hs-spin{to{transform:rotate(360deg)}}</style>"
+    '<span style="display:inline-block;width:9px;height:9px;margin-right:4px;'
+    "border:2px solid #8a5a00;border-top-color:transparent;border-radius:50%;"
+    'animation:hs-spin 0.8s linear infinite;vertical-align:-1px"></span>'
+)
 #: the worker that renders previews of all sessions (OpenGL calls take turns anyway:
 #: engine.render.backend.GL_LOCK), so the event loop never waits for a render
 _RENDERS = ThreadPoolExecutor(max_workers=1, thread_name_prefix="hs-preview")
@@ -189,8 +196,8 @@ class PreviewView:
             if waited >= SLOW_RENDER_S:  # the picture is held: say so (and for how long)
                 frame = self._played[2] if self._played is not None else s.frame
                 self.waiting.object = (
-                    f'<span data-waiting="{frame}">⏳ waiting for the render of body frame '
-                    f"{frame}… {waited:.1f} s</span>"
+                    f'<span data-waiting="{frame}">{_SPINNER} waiting for the render of body '
+                    f"frame {frame}… {waited:.1f} s</span>"
                 )
             return
         if s.n <= 1 or self._scheduled:
