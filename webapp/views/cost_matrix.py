@@ -794,6 +794,8 @@ class CostMatrixView:
             whole = len(x) <= 2 or len(self._thinned(x, ys, axis, rng.bounds)[along]) == len(x)
             if not whole:
                 visible = ranges[:2] if axis == "x" else ranges[2:]
+                if any(v is None for v in visible):  # the event lacks it: the model's
+                    visible = (rng.start, rng.end)
                 source.data = self._thinned(x, ys, axis, visible)
 
     def _visible(self) -> tuple[float, float, float, float]:
