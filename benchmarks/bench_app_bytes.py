@@ -214,9 +214,7 @@ def main(argv=None) -> int:
     md = (
         "### Bytes per edit on long pairs (`benchmarks/bench_app_bytes.py`, issue 13)\n\n"
         "| pair | code | websocket bytes per edit (all, mean) | band, paths, region arrays per edit "
-        "| their vertices | edits |\n|---|---|---|---|---|---|\n"
-        + "\n".join(lines)
-        + "\n\n"
+        "| their vertices | edits |\n|---|---|---|---|---|---|\n" + "\n".join(lines) + "\n\n"
         f"*today* = the app at `{BYTES_BASELINE}`, *now* = this checkout, each on its own "
         "`handsplice serve BODY HAND` in the same run, Chromium headless 1400×1100, the "
         f"whole-take view; one matching point dragged ±{DRAG_PX} screen pixels per edit; "

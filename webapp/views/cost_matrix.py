@@ -22,7 +22,10 @@ sources change, so the page does not re-render the figure.
 Large matrices: the image is a view of at most ``max_pixels`` cells per axis of the
 visible range, fetched again (throttled) when the visible range changes, so a
 10,000 x 10,000 matrix costs the page no more than a small one and zooming in shows
-full detail.
+full detail. So are the lines (band edges, both paths, the uncertain region, the
+wrist-speed strips): thinned to the plot's screen columns of the visible range
+(``webapp.views.decimate``, drawn the same), so an edit of a 10-minute take sends a few
+thousand vertices, not one per frame, and a zoom brings every frame in view.
 """
 
 from __future__ import annotations
@@ -270,7 +273,7 @@ class CostMatrixView:
         self._range_timer = False
         self._image_key = None
         #: the lines drawn thinned to the screen (``show_line``): source name -> (source,
-        #: x, {column: values}) at full resolution, thinned again when the view moves
+        #: x, {column: values}, axis) at full resolution, thinned again when the view moves
         self._lines: dict[str, tuple] = {}
         self._colors = _phase_colors()
         n = max(session.n, 1)
