@@ -17,7 +17,9 @@ pair; a matching point is placed on the path at mid-take and dragged ``--drags``
   the uncertain region (``hs-band-source``, ``hs-path-source``, ``hs-other-path``,
   ``hs-uncertain-region-source``): what those sources cost each edit, and their vertices.
 
-Writes the ``app_bytes`` section of benchmarks/RESULTS.md.
+Writes the ``app_bytes`` section of benchmarks/RESULTS.md. ``--offline`` measures only
+the band and paths' arrays of one edit, without a browser or server (the 10-minute pair's
+figure: today's app there needs minutes per edit on a loaded machine).
 """
 
 from __future__ import annotations
@@ -34,6 +36,8 @@ import numpy as np
 from benchmarks._results import write_section
 from benchmarks.long_pairs import baseline_tree, pair_files
 from webapp.launch import PAGE_HELPERS, launch_chromium, running_server
+
+ROOT = Path(__file__).resolve().parents[1]
 
 #: the app before the band and path were thinned (this work's starting commit)
 BYTES_BASELINE = os.environ.get("HANDSPLICE_BYTES_BASELINE", "6b1b359")
@@ -171,6 +175,33 @@ def run(browser, seconds: float, code: str, tree: Path | None, drags: int, tmp: 
     return out
 
 
+def offline(seconds: float) -> dict:
+    """Without a browser: the band and both paths' arrays an edit of the ``seconds`` pair
+    sends now (``CostMatrixView`` on the whole-take view) and one vertex per frame or path
+    step (as before thinning, same dtypes)."""
+    from webapp import config
+    from webapp.state import Session
+    from webapp.views.cost_matrix import CostMatrixView
+
+    body, hand, _ = pair_files(seconds)
+    local = config.local_pair(body, hand, "right")
+    with tempfile.TemporaryDirectory() as up:
+        cfg = config.AppConfig(
+            sample_dir=ROOT / "sample_data",
+            upload_dir=Path(up),
+            default_sample=local.name,
+            local=local,
+        )
+        s = Session(cfg)
+        s.load_sample(local.name)
+        view = CostMatrixView(s)
+    sol = s.solution
+    sources = (view.band_source, view.path_source, view.other_path_source)
+    now = sum(np.asarray(v).nbytes for src in sources for v in src.data.values())
+    before = sol.pass1.band.n * 12 + (len(sol.pass1.path) + len(sol.pass2.path)) * 8
+    return {"pair": f"{seconds / 60:g} min", "now": now, "before": before, "n": s.n}
+
+
 def _mb(v) -> str:
     return f"{np.median(v) / 1e6:.3f} MB"
 
@@ -181,7 +212,22 @@ def main(argv=None) -> int:
     parser.add_argument("--codes", nargs="+", default=["today", "now"])
     parser.add_argument("--drags", type=int, default=6)
     parser.add_argument("--no-write", action="store_true")
+    parser.add_argument(
+        "--offline",
+        action="store_true",
+        help="no browser: print the band and paths' bytes per edit of each pair, now and "
+        "one vertex per frame",
+    )
     args = parser.parse_args(argv)
+    if args.offline:
+        for seconds in args.pairs:
+            r = offline(seconds)
+            print(
+                f"{r['pair']} ({r['n']:,} body frames): band and paths {r['now'] / 1e6:.3f} MB "
+                f"per edit, one vertex per frame {r['before'] / 1e6:.3f} MB "
+                f"(×{r['now'] / r['before']:.3f})"
+            )
+        return 0
     from playwright.sync_api import sync_playwright
 
     trees = {"now": None}
