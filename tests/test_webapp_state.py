@@ -853,3 +853,12 @@ def test_a_new_pair_drops_the_old_pairs_matching_points(cfg, session):
     session.load_uploads(body, hand, "body.bvh", "hand.bvh")
     assert session.error == "" and session.points == ()
     assert session.solution is not None
+
+
+def test_a_hand_take_uploaded_as_the_body_is_refused_and_the_pair_stays(cfg, session):
+    hand_bytes = cfg.sample(DEMO).hand.read_bytes()
+    hand, _ = uploads.store(cfg, "fingers.bvh", hand_bytes)
+    before = session.to_spec()
+    session.load_uploads(hand, hand, "fingers.bvh", "fingers.bvh")
+    assert "looks like a hand take" in session.error and "\n" not in session.error
+    assert session.to_spec() == before and session.solution is not None
