@@ -862,3 +862,28 @@ def test_a_hand_take_uploaded_as_the_body_is_refused_and_the_pair_stays(cfg, ses
     session.load_uploads(hand, hand, "fingers.bvh", "fingers.bvh")
     assert "looks like a hand take" in session.error and "\n" not in session.error
     assert session.to_spec() == before and session.solution is not None
+
+
+def test_the_explicit_flags_line_names_the_points_as_the_table_does_and_replays(session, tmp_path):
+    """The page's ``--match`` shows each point in the hand file's frames with the
+    tolerance typed in the table (a round trip through the alignment grid used to
+    show another hand frame), and the command still gives the page's spliced BVH."""
+    import html
+    import shlex
+
+    from engine.cli import main
+    from webapp.views import sharing
+
+    assert session.hand_fps != session.fps  # the demo's takes differ in rate (30 vs 40 fps)
+    session.add_point(40, 26, 4)  # through the grid and back: hand frame 27
+    view = sharing.SharingView(session)
+    flags = html.unescape(view.command.object.split("<br>")[-1].removeprefix("$ "))
+    argv = shlex.split(flags)
+    assert argv[argv.index("--match") + 1] == "40:26:4", flags
+    body, hand = session.take_paths()
+    argv = [str(body), str(hand)] + argv[4:]  # the page names the files; run on their paths
+    out = argv.index("-o") + 1
+    argv[out] = str(tmp_path / "cli.bvh")
+    assert main(["splice", *argv, "--quiet"]) == 0
+    app_bytes = backend.bvh_bytes(backend.splice(session.prepared, session.solution))
+    assert (tmp_path / "cli.bvh").read_bytes() == app_bytes
