@@ -92,7 +92,7 @@ def _batched(a, b, conj_a: bool) -> np.ndarray:
     shape = np.broadcast_shapes(a.shape, b.shape)
     a2 = np.ascontiguousarray(np.broadcast_to(a, shape)).reshape(-1, 4)
     b2 = np.ascontiguousarray(np.broadcast_to(b, shape)).reshape(-1, 4)
-    out = np.zeros(a2.shape)
+    out = np.empty(a2.shape)  # every entry written by the kernel
     _qmul_kernel(a2, b2, out, conj_a)
     return out.reshape(shape)
 
