@@ -192,27 +192,32 @@ def _unpack(rows, hand, nb, half):
 
 
 @numba.njit(cache=True, nogil=True)
-def _consecutive_windows(win, step):
-    """``(F + 4, 2, K)`` frames of the take when the windows ``win`` ``(F, 2, 5, K)`` are those
-    of consecutive frames (slot ``d`` of row ``r`` holds padded frame ``r + 2 + step (d − 2)``;
-    the frames beyond the ends come from the end rows' windows), else an empty array.
-    Values compared with ``==`` (a NaN never matches)."""
-    f, _, _, k = win.shape
+def _consecutive_windows(rows, half, step):
+    """``(F + 4, 2, K)`` frames of the take when the eq.-7 windows of ``rows`` (x of slots
+    0..4, then z, ``K`` markers each) are those of consecutive frames (slot ``d`` of row
+    ``r`` holds padded frame ``r + 2 + step (d − 2)``; the frames beyond the ends come from
+    the end rows' windows), else an empty array. Values compared with ``==`` (a NaN never
+    matches)."""
+    f = rows.shape[0]
+    k = half // WINDOW
     pad = np.empty((f + 4, 2, k))
+    for x in range(2):
+        for c in range(k):
+            for r in range(f):
+                pad[2 + r, x, c] = rows[r, HEADER + x * half + 2 * k + c]
+            for d in range(WINDOW):  # the frames beyond the ends, from the end rows
+                off = step * (d - 2)
+                if off < 0:
+                    pad[2 + off, x, c] = rows[0, HEADER + x * half + d * k + c]
+                elif off > 0:
+                    pad[f + 1 + off, x, c] = rows[f - 1, HEADER + x * half + d * k + c]
     for r in range(f):
-        pad[2 + r] = win[r, :, 2]
-    for d in range(WINDOW):  # the frames beyond the ends, from the end rows
-        off = step * (d - 2)
-        if off < 0:
-            pad[2 + off] = win[0, :, d]
-        elif off > 0:
-            pad[f + 1 + off] = win[f - 1, :, d]
-    for r in range(f):
-        for d in range(WINDOW):
-            p = 2 + step * (d - 2) + r
-            for x in range(2):
+        for x in range(2):
+            for d in range(WINDOW):
+                p = 2 + step * (d - 2) + r
+                col = HEADER + x * half + d * k
                 for c in range(k):
-                    if not (win[r, x, d, c] == pad[p, x, c]):
+                    if not (rows[r, col + c] == pad[p, x, c]):
                         return np.empty((0, 2, k))
     return pad
 
@@ -226,11 +231,9 @@ def _padded_coords(rows: np.ndarray, half: int):
     backward passes) qualify; any other selection of rows (e.g. every other frame) does
     not, and the caller falls back to the per-cell metric.
     """
-    f = rows.shape[0]
-    k = half // WINDOW
-    win = rows[:, HEADER : HEADER + 2 * half].reshape(f, 2, WINDOW, k)  # (F, x|z, slot, K)
+    rows = np.ascontiguousarray(rows, dtype=np.float64)
     for step in (1, -1):  # window slot d holds row r + step (d - 2)
-        pad = _consecutive_windows(win, step)
+        pad = _consecutive_windows(rows, half, step)
         if pad.shape[0]:
             return (
                 np.ascontiguousarray(pad[:, 0], np.float32),
