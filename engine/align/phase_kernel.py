@@ -201,10 +201,12 @@ def _consecutive_windows(rows, half, step):
     f = rows.shape[0]
     k = half // WINDOW
     pad = np.empty((f + 4, 2, k))
+    for r in range(f):  # row by row: each row's cache lines once
+        for x in range(2):
+            for c in range(k):
+                pad[2 + r, x, c] = rows[r, HEADER + x * half + 2 * k + c]
     for x in range(2):
         for c in range(k):
-            for r in range(f):
-                pad[2 + r, x, c] = rows[r, HEADER + x * half + 2 * k + c]
             for d in range(WINDOW):  # the frames beyond the ends, from the end rows
                 off = step * (d - 2)
                 if off < 0:
