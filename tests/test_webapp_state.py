@@ -832,3 +832,33 @@ def test_sample_credits_and_the_no_share_warning(session):
     assert not alert.visible
     session.load_sample("bye-hello")  # Bandai dataset-1: CC BY-NC-ND
     assert alert.visible and NO_SHARE_TEXT in credits_html(session)
+
+
+def test_a_new_pair_drops_the_old_pairs_matching_points(cfg, session):
+    """Points name frames of the takes they were placed on: another sample or an upload
+    starts without them; a refused upload or a side change keeps them."""
+    session.add_point(40, 20, 2)
+    session.side = "left" if session.side == "right" else "right"  # same takes: kept
+    assert [(p.body, p.hand) for p in session.points] == [(40, 20)]
+    session.side = cfg.sample(DEMO).side
+    bad, _ = uploads.store(cfg, "other.bvh", cfg.sample("wave-hello").hand.read_bytes())
+    session.load_uploads("0" * 64, bad, "missing.bvh", "other.bvh")  # refused: kept
+    assert session.error and [(p.body, p.hand) for p in session.points] == [(40, 20)]
+    session.load_sample("wave-hello")
+    assert session.error == "" and session.points == ()
+    session.add_point(30, 10, 2)
+    pair = cfg.sample(DEMO)
+    body, _ = uploads.store(cfg, "body.bvh", pair.body.read_bytes())
+    hand, _ = uploads.store(cfg, "hand.bvh", pair.hand.read_bytes())
+    session.load_uploads(body, hand, "body.bvh", "hand.bvh")
+    assert session.error == "" and session.points == ()
+    assert session.solution is not None
+
+
+def test_a_hand_take_uploaded_as_the_body_is_refused_and_the_pair_stays(cfg, session):
+    hand_bytes = cfg.sample(DEMO).hand.read_bytes()
+    hand, _ = uploads.store(cfg, "fingers.bvh", hand_bytes)
+    before = session.to_spec()
+    session.load_uploads(hand, hand, "fingers.bvh", "fingers.bvh")
+    assert "looks like a hand take" in session.error and "\n" not in session.error
+    assert session.to_spec() == before and session.solution is not None
