@@ -14,11 +14,13 @@ backward γ, 16 bytes per band cell).
 
 Per body frame, in milliseconds of the hand take (issue 17)::
 
-    u(i) = max over |k - i| <= σ of  (PASS1_WEIGHT·spread_1 + spread_2 + bend)(k) · (1 + c̃(k)) / 2
+    u(i) = max over |k - i| <= σ of  sqrt((W·spread_1)² + spread_2² + bend²)(k) · (1 + c̃(k)) / 2
 
-* the passes' spreads and the bend term (:func:`warp_bend`) add (pass 1 decides the
-  gesture phase, pass 2 the timing within it; pass 1's sign costs are coarse and its
-  spread counts half);
+* the passes' spreads and the bend term (:func:`warp_bend`) in quadrature (pass 1
+  decides the gesture phase, pass 2 the timing within it; pass 1's sign costs are
+  coarse and its spread counts ``W`` = :data:`PASS1_WEIGHT` = half); a plain sum ranks
+  the frames as well but doubles the share of frames over 100 ms (19 % -> 41 %, the
+  true error unchanged), which would turn the desync meter red;
 * ``c̃``: the local evidence, the aligning pass's own path cost on the frame's row
   against the take's median path cost (:func:`path_mismatch`, smoothed over σ): a row
   whose matched cells cost several times the take's typical match is a row the path
@@ -236,7 +238,8 @@ def alignment_uncertainty(features, alignment, bend_s: float = BEND_S) -> Uncert
     sigma = float(getattr(alignment, "blend", 0.0) or 0.0)
     final = p1 if aligned_by_pass1(features) else p2
     evidence = path_mismatch(final, n, sigma)
-    ms = blend_reach((PASS1_WEIGHT * ms1 + ms2 + bend) * 0.5 * (1.0 + evidence), sigma)
+    spread = np.sqrt((PASS1_WEIGHT * ms1) ** 2 + ms2**2 + bend**2)
+    ms = blend_reach(spread * 0.5 * (1.0 + evidence), sigma)
     return Uncertainty(
         ms=ms,
         pass1_ms=ms1,
