@@ -294,9 +294,14 @@ def test_a_bad_file_says_why_and_the_pair_stays(page, tmp_path):
     assert (main, sub) == ("Refused", "see below")
     tile = page.locator(".hs-upload-body .filepond--item").first
     assert "Upload complete" not in tile.inner_text()
-    red = tile.locator(".filepond--panel-center").evaluate(
-        "e => getComputedStyle(e).backgroundColor"
+    # FilePond fades the panel to its error red (a CSS transition): wait for the end colour
+    panel = tile.locator(".filepond--panel-center")
+    page.wait_for_function(
+        "e => getComputedStyle(e).backgroundColor === 'rgb(196, 78, 71)'",
+        arg=panel.element_handle(),
+        timeout=BUSY_S * 1000,
     )
+    red = panel.evaluate("e => getComputedStyle(e).backgroundColor")
     assert red == "rgb(196, 78, 71)", red
     page.wait_for_timeout(1500)  # nothing else arrives later
     assert _matrix_size(page) == size

@@ -126,6 +126,25 @@ def _initial_state(session: Session, args: dict[str, str] | None = None) -> None
             session.refuse(exc, f"shared link: {one_line(exc)}")
 
 
+def _local_stylesheets(doc) -> None:
+    """Give every component of ``doc`` the server's own stylesheet URLs from its birth.
+
+    Panel makes each component's stylesheets with its CDN's URLs unless the document
+    already names a local ``dist_url``, which it does only once the page's HTML is
+    rendered; at that moment it rewrites the URLs of the models then in the page. A model
+    made earlier but shown later (a widget built before a callback puts it on the page,
+    as under load) kept the CDN's URLs: an offline machine then drew the upload boxes
+    and the points table unstyled. The URL is the one Panel's page render computes for a
+    served page (its "server" resources: nothing leaves this machine).
+    """
+    from panel.io.resources import LOCAL_DIST
+    from panel.io.state import state
+
+    if doc is not None and doc.session_context is not None:
+        local = f"{state.rel_path}/{LOCAL_DIST}" if state.rel_path else LOCAL_DIST
+        doc._template_variables.setdefault("dist_url", local)
+
+
 def create_app() -> pn.viewable.Viewable:
     """Build the page for one browser session."""
     from webapp.views import controls, credits
@@ -137,6 +156,7 @@ def create_app() -> pn.viewable.Viewable:
 
     session = Session(config.get())
     doc = pn.state.curdoc
+    _local_stylesheets(doc)
     args = _link_args()
     if doc is not None and doc.session_context is not None:
         # opening and solving never hold the event loop; they start once the page is up

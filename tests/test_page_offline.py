@@ -1,0 +1,45 @@
+"""The page never asks the internet for its stylesheets (the README: nothing downloads).
+
+Panel gives a component its CDN's stylesheet URLs unless the document already names a
+local ``dist_url``; it rewrote them only for the models in the page when the page's HTML
+was rendered. Under load, widgets made before that moment but shown later (the upload
+boxes, the points table) kept the CDN's URLs and a user offline saw them unstyled.
+``webapp.app.create_app`` names the local URL first, so every model is born local.
+"""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import pytest
+from bokeh.document import Document
+from bokeh.models import ImportedStyleSheet
+
+pytest.importorskip("panel")
+
+
+def _served_doc() -> Document:
+    """A document as a Bokeh server session has it, before its page is rendered."""
+    doc = Document()
+    request = SimpleNamespace(
+        arguments={}, headers={}, cookies={}, uri="/", path="/", host="127.0.0.1", protocol="http"
+    )
+    doc._session_context = lambda: SimpleNamespace(id="t", server_context=None, request=request)
+    return doc
+
+
+def test_every_stylesheet_of_a_new_session_is_served_locally():
+    from panel.io.state import set_curdoc
+
+    from webapp import config
+    from webapp.app import create_app
+
+    config.configure()
+    doc = _served_doc()
+    with set_curdoc(doc):
+        root = create_app().get_root(doc)
+    urls = {str(m.url) for m in root.references() if isinstance(m, ImportedStyleSheet)}
+    assert any("filepond" in u for u in urls) and any("tabulator" in u for u in urls), urls
+    remote = sorted(u for u in urls if "://" in u)
+    assert not remote, remote
+    assert all(u.startswith("static/extensions/panel/") for u in urls), sorted(urls)
