@@ -185,3 +185,123 @@ def test_fast_sampling_and_normalising_match_the_numpy_ones(case):
     ref = rotations.normalize(q)
     normalize_inplace(q)
     assert np.allclose(q, ref, atol=1e-15)
+
+
+# --------------------------------------------------------------------------------------------
+# the row kernel's pieces (flat mask table, four-marker C sweeps, the window check) against
+# the per-cell metric on real rows
+# --------------------------------------------------------------------------------------------
+
+
+def _rows_with_markers(markers, p, q, n_bins, step, hand):
+    """``splice_phase`` rows (window mode) of real ``markers (F, K, 3)`` with the masks
+    ``p``, ``q`` (body: ``(F,)``; hand: ``(F, n_bins)``)."""
+    f, k, _ = markers.shape
+    half = PK.WINDOW * k
+    rows = np.zeros((f, PK.HEADER + 2 * half + 2 * n_bins))
+    rows[:, 0], rows[:, 1], rows[:, 4] = half, n_bins, step
+    M._raw_windows(markers, rows[:, PK.HEADER : PK.HEADER + 2 * half])
+    off = PK.HEADER + 2 * half
+    if hand:
+        rows[:, off : off + 2 * n_bins : 2] = p
+        rows[:, off + 1 : off + 2 * n_bins : 2] = q
+    else:
+        rows[:, off], rows[:, off + 1] = p, q
+    return rows
+
+
+@pytest.mark.parametrize("markers", [1, 2, 3, 4, 5, 6, 7, 8, 9])
+def test_row_kernel_costs_equal_the_per_cell_metric_for_any_marker_count(feats, markers):
+    """C rows are summed four markers per sweep, then one by one: every count from 1 to 9
+    (real marker tracks, the take's own masks) gives the per-cell costs exactly."""
+    bm, hm = feats.body_phase.markers, feats.hand_phase.markers
+    reps = -(-markers // bm.shape[1])
+    bm = np.concatenate([bm + 0.01 * r for r in range(reps)], axis=1)[:, :markers]
+    hm = np.concatenate([hm - 0.02 * r for r in range(reps)], axis=1)[:, :markers]
+    a0, b0 = feats.pass1_rows
+    nb, off = int(a0[0, 1]), PK.HEADER + 2 * int(a0[0, 0])
+    a = _rows_with_markers(bm, a0[:, off], a0[:, off + 1], nb, 0.25, hand=False)
+    b = _rows_with_markers(
+        hm, b0[:, off : off + 2 * nb : 2], b0[:, off + 1 : off + 2 * nb : 2], nb, 0.0, hand=True
+    )
+    state = PK.prepare(a, b)
+    assert not state.fallback
+    band = Band.from_constraints(feats.n, feats.m, 0.3, [])
+    rows = np.unique(np.r_[0, 1, np.arange(0, feats.n, 13), feats.n - 1])
+    got = PK.cost_rows(state, band.lo, band.hi, rows)
+    for (i, cols), row in zip(_band_cells(band, rows), got, strict=True):
+        ref = M.cost_grid(M.splice_phase, a, b, np.array([i]), cols)[0]
+        assert np.array_equal(row, ref), f"{markers} markers, row {i}"
+
+
+@pytest.mark.parametrize("reverse", [False, True])
+def test_forward_pass_equals_the_per_cell_forward_pass(feats, reverse):
+    """The whole forward pass (every band cell's backpointer, the last column, the last row
+    inside its band, the total) with open ends, constraints and rows of both orders (backward passes reverse
+    them) is the engine's per-cell forward pass with ``splice_phase``."""
+    from engine.dtw import Ends
+    from engine.dtw import kernels as KD
+
+    a, b = feats.pass1_rows
+    if reverse:
+        a, b = np.ascontiguousarray(a[::-1]), np.ascontiguousarray(b[::-1])
+    n, m = feats.n, feats.m
+    band = Band.from_constraints(n, m, 0.3, [(n // 3, m // 3, 4)], open_ends=True)
+    ends = Ends(n // 5, m // 5, 7.5).array()
+    state = PK.prepare(a, b)
+    assert not state.fallback
+    out = []
+    for kernel in ("rows", "cells"):
+        bp = np.full(band.area, 9, np.uint8)
+        last_col, last_row = np.empty(n), np.empty(m)
+        args = (band.lo, band.hi, band.start, 0, n, bp, np.empty(1), 0, ends, last_col, last_row)
+        if kernel == "rows":
+            res = PK.forward(state, *args)
+        else:
+            res = KD.forward_metric(M.splice_phase, a, b, *args)
+        out.append((res, bp, last_col, last_row[band.lo[-1] : band.hi[-1] + 1]))
+    (r1, *x1), (r2, *x2) = out
+    assert r1 == r2 and r1[0] == -1
+    for u, v in zip(x1, x2, strict=True):
+        assert np.array_equal(u, v)
+
+
+def _padded_coords_numpy(rows, half):
+    """The window check as numpy comparisons (the reference of the numba one)."""
+    f, k = rows.shape[0], half // PK.WINDOW
+    win = rows[:, PK.HEADER : PK.HEADER + 2 * half].reshape(f, 2, PK.WINDOW, k)
+    for step in (1, -1):
+        pad = np.empty((f + 4, 2, k))
+        pad[2 : f + 2] = win[:, :, 2]
+        for d in range(PK.WINDOW):
+            off = step * (d - 2)
+            if off < 0:
+                pad[2 + off] = win[0][:, d]
+            elif off > 0:
+                pad[f + 1 + off] = win[f - 1][:, d]
+        if all(
+            np.array_equal(win[:, :, d], pad[2 + step * (d - 2) : 2 + step * (d - 2) + f])
+            for d in range(PK.WINDOW)
+        ):
+            return pad[:, 0].astype(np.float32), pad[:, 1].astype(np.float32)
+    return None
+
+
+def test_window_check_accepts_takes_parts_and_reversals_only(feats):
+    a, _ = feats.pass1_rows
+    half = int(a[0, 0])
+    cases = {
+        "whole": a,
+        "reversed": a[::-1],
+        "part": a[40:170],
+        "reversed part": a[170:40:-1],
+        "every other": a[::2],
+        "shuffled": a[np.r_[1, 0, 2 : a.shape[0]]],
+    }
+    for name, rows in cases.items():
+        got, ref = PK._padded_coords(np.ascontiguousarray(rows), half), _padded_coords_numpy(
+            rows, half
+        )
+        assert (got is None) == (ref is None) == (name in ("every other", "shuffled")), name
+        if ref is not None:
+            assert all(np.array_equal(g, r) for g, r in zip(got, ref, strict=True)), name

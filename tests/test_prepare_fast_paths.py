@@ -102,3 +102,35 @@ def test_hand_side_vote_is_the_same_with_numba_kinematics(path):
                 assert a == pytest.approx(b, abs=1e-9)
         votes += fast.side is not None
     assert votes >= 1
+
+
+def test_marker_offsets_turned_by_numba_equal_the_numpy_rotation():
+    """``fastkin.rotate_offset`` (virtual markers) gives ``rotations.rotate``'s floats."""
+    from engine.model import rotations
+    from engine.model.fastkin import forward_kinematics, rotate_offset
+
+    take = read_bvh(MOCAP / "beat/1_wayne_0_1_1.bvh")
+    _, wrot = forward_kinematics(take)
+    offsets = np.r_[take.skeleton.offsets[1:], [[0.0, 0.0, 0.0], [1e-9, -3.5, 1e6]]]
+    for j, off in enumerate(offsets):
+        q = wrot[:, j % wrot.shape[1]]
+        assert np.array_equal(rotate_offset(q, off), rotations.rotate(q, off)), j
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_raw_windows_by_numba_equal_the_numpy_copy(dtype):
+    """The eq.-7 windows of the pass-1 rows (``metrics._raw_windows``, numba) are the numpy
+    slices they replaced, in the markers' dtype, frames clipped at both ends."""
+    mk, _ = _markers("beat/1_wayne_0_1_1.bvh")
+    mk = mk.astype(dtype)
+    f, k, _ = mk.shape
+    half, wk = M.THETA_WINDOW // 2, M.THETA_WINDOW * k
+    ref = np.zeros((f, 2 * wk))
+    cx, cz = float(np.mean(mk[:, :, 0])), float(np.mean(mk[:, :, 2]))
+    for w in range(M.THETA_WINDOW):
+        idx = np.clip(np.arange(f) + (w - half), 0, f - 1)
+        ref[:, w * k : (w + 1) * k] = mk[idx, :, 0] - cx
+        ref[:, wk + w * k : wk + (w + 1) * k] = mk[idx, :, 2] - cz
+    got = np.zeros((f, 2 * wk + 3))[:, 1:-2]  # a view into wider rows, as phase_rows passes
+    M._raw_windows(mk, got)
+    assert np.array_equal(got, ref)

@@ -102,6 +102,9 @@ def test_roles_file_maps_an_unusual_name(tmp_path):
         (["{body}", "{hand}", "--match", "40:30:1000"], "points[0].tolerance: expected"),
         (["{body}", "{hand}", "--preview", "x.txt"], "--preview"),
         (["{body}", "/nonexistent/take.bvh"], "take.bvh"),
+        # a hand take given as the body (Leap: forearm, hand, fingers; ManipNet: no forearm)
+        (["{hand}", "{hand}"], "no right shoulder or clavicle above the elbow"),
+        ([str(MOCAP / "manipnet/mug1_rightHand.bvh"), "{hand}"], "looks like a hand take"),
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, args, message):

@@ -832,3 +832,58 @@ def test_sample_credits_and_the_no_share_warning(session):
     assert not alert.visible
     session.load_sample("bye-hello")  # Bandai dataset-1: CC BY-NC-ND
     assert alert.visible and NO_SHARE_TEXT in credits_html(session)
+
+
+def test_a_new_pair_drops_the_old_pairs_matching_points(cfg, session):
+    """Points name frames of the takes they were placed on: another sample or an upload
+    starts without them; a refused upload or a side change keeps them."""
+    session.add_point(40, 20, 2)
+    session.side = "left" if session.side == "right" else "right"  # same takes: kept
+    assert [(p.body, p.hand) for p in session.points] == [(40, 20)]
+    session.side = cfg.sample(DEMO).side
+    bad, _ = uploads.store(cfg, "other.bvh", cfg.sample("wave-hello").hand.read_bytes())
+    session.load_uploads("0" * 64, bad, "missing.bvh", "other.bvh")  # refused: kept
+    assert session.error and [(p.body, p.hand) for p in session.points] == [(40, 20)]
+    session.load_sample("wave-hello")
+    assert session.error == "" and session.points == ()
+    session.add_point(30, 10, 2)
+    pair = cfg.sample(DEMO)
+    body, _ = uploads.store(cfg, "body.bvh", pair.body.read_bytes())
+    hand, _ = uploads.store(cfg, "hand.bvh", pair.hand.read_bytes())
+    session.load_uploads(body, hand, "body.bvh", "hand.bvh")
+    assert session.error == "" and session.points == ()
+    assert session.solution is not None
+
+
+def test_a_hand_take_uploaded_as_the_body_is_refused_and_the_pair_stays(cfg, session):
+    hand_bytes = cfg.sample(DEMO).hand.read_bytes()
+    hand, _ = uploads.store(cfg, "fingers.bvh", hand_bytes)
+    before = session.to_spec()
+    session.load_uploads(hand, hand, "fingers.bvh", "fingers.bvh")
+    assert "looks like a hand take" in session.error and "\n" not in session.error
+    assert session.to_spec() == before and session.solution is not None
+
+
+def test_the_explicit_flags_line_names_the_points_as_the_table_does_and_replays(session, tmp_path):
+    """The page's ``--match`` shows each point in the hand file's frames with the
+    tolerance typed in the table (a round trip through the alignment grid used to
+    show another hand frame), and the command still gives the page's spliced BVH."""
+    import html
+    import shlex
+
+    from engine.cli import main
+    from webapp.views import sharing
+
+    assert session.hand_fps != session.fps  # the demo's takes differ in rate (30 vs 40 fps)
+    session.add_point(40, 26, 4)  # through the grid and back: hand frame 27
+    view = sharing.SharingView(session)
+    flags = html.unescape(view.command.object.split("<br>")[-1].removeprefix("$ "))
+    argv = shlex.split(flags)
+    assert argv[argv.index("--match") + 1] == "40:26:4", flags
+    body, hand = session.take_paths()
+    argv = [str(body), str(hand)] + argv[4:]  # the page names the files; run on their paths
+    out = argv.index("-o") + 1
+    argv[out] = str(tmp_path / "cli.bvh")
+    assert main(["splice", *argv, "--quiet"]) == 0
+    app_bytes = backend.bvh_bytes(backend.splice(session.prepared, session.solution))
+    assert (tmp_path / "cli.bvh").read_bytes() == app_bytes

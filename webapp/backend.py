@@ -625,7 +625,6 @@ def preview_video(
 
 
 def cli_command(
-    prepared: Prepared,
     body: str,
     hand: str,
     side: str,
@@ -637,13 +636,14 @@ def cli_command(
     """The ``handsplice splice`` command line that reproduces this alignment.
 
     ``points``: ``[(body, hand, tol)]`` in each file's own frames (the page's and
-    ``--match``'s numbering), tolerance in hand frames.
+    ``--match``'s numbering), tolerance in hand frames: written as the page shows them;
+    the CLI puts them on the alignment grid with the same rule as the page
+    (``points_to_grid``), so the command gives the page's alignment.
     """
     import shlex
 
     from engine.dtw import constraints as C
 
-    feats = prepared.features
     parts = [
         "handsplice",
         "splice",
@@ -658,7 +658,7 @@ def cli_command(
         "--refine-band",
         C.REFINE_BAND.parse(refine_band).text(),
     ]
-    for x, h, tol in C.points_to_hand(points, feats.fps, feats.hand_fps, feats.m_hand):
+    for x, h, tol in points:
         parts += ["--match", C.MatchPoint(x, h, tol or None).text()]
     if roles:
         parts += ["--roles", "ROLES.json"]

@@ -275,6 +275,7 @@ class Session(param.Parameterized):
         pair = self._cfg.sample(name)
         self._set_inputs(
             then=then,
+            new_pair=True,
             sample=name,
             body_sha256=None,
             hand_sha256=None,
@@ -294,6 +295,7 @@ class Session(param.Parameterized):
         """Open two uploaded takes by content hash (``then``: as for :meth:`load_sample`)."""
         self._set_inputs(
             then=then,
+            new_pair=True,
             sample=None,
             body_sha256=body_sha256,
             hand_sha256=hand_sha256,
@@ -311,12 +313,15 @@ class Session(param.Parameterized):
         self.roles = spec.roles
         return not self.error
 
-    def _set_inputs(self, then=None, **values) -> None:
+    def _set_inputs(self, then=None, new_pair: bool = False, **values) -> None:
+        """``new_pair``: other takes than the open ones (a sample or uploads): once they
+        are open, the matching points go (they name frames of the old takes); a refused
+        pair leaves the open pair and its points as they were."""
         old = self._current(values)
         self._apply(values)
-        self._on_inputs(*[_Change(k, old[k]) for k in values], then=then)
+        self._on_inputs(*[_Change(k, old[k]) for k in values], then=then, new_pair=new_pair)
 
-    def _on_inputs(self, *events, then=None) -> None:
+    def _on_inputs(self, *events, then=None, new_pair: bool = False) -> None:
         if self._applying:
             return
         if not (self.sample or (self.body_sha256 and self.hand_sha256)):
@@ -333,14 +338,14 @@ class Session(param.Parameterized):
             self._open_failed(exc, old, then)
             return
         if self.runner is None:
-            self._opened(prepared, t0, then)
+            self._opened(prepared, t0, then, new_pair)
             return
         self.runner.submit(
             Job(
                 "inputs",
                 "opening the takes",
                 lambda progress: backend.prepare(paths[0], paths[1], side, roles),
-                done=lambda prepared: self._opened(prepared, t0, then),
+                done=lambda prepared: self._opened(prepared, t0, then, new_pair),
                 failed=lambda exc: self._open_failed(exc, old, then),
                 dropped=lambda: then(False),
             )
@@ -363,8 +368,9 @@ class Session(param.Parameterized):
         self.refuse(exc, message)
         then(False)
 
-    def _opened(self, prepared, t0: float, then) -> None:
-        """The takes are open: show them (matrix, axes), then solve."""
+    def _opened(self, prepared, t0: float, then, new_pair: bool = False) -> None:
+        """The takes are open: show them (matrix, axes), then solve. The matching points
+        stay where they still fit (a side or role change), none after a new pair."""
         self.prepared = prepared
         self._chain = None
         self.param.update(solution=None, trust=None)
@@ -373,7 +379,9 @@ class Session(param.Parameterized):
         self._set_sizes(prepared)
         self._applying = True
         try:
-            kept = tuple(p for p in self.points if p.body < self.n and p.hand < self.m_hand)
+            kept = tuple(
+                p for p in self.points if not new_pair and p.body < self.n and p.hand < self.m_hand
+            )
             self.param.update(
                 points=kept,
                 frame=min(self.frame, max(self.n - 1, 0)),

@@ -45,8 +45,7 @@ import numpy as np
 
 from engine.base.errors import ParameterError, RoleError
 from engine.base.limits import check_grid
-from engine.model import rotations as rot
-from engine.model.fastkin import forward_kinematics
+from engine.model.fastkin import forward_kinematics, rotate_offset
 from engine.model.kinematics import rest_positions
 from engine.model.motion import MarkerSet, Motion
 
@@ -427,7 +426,7 @@ def skeleton_markers(positions: np.ndarray, rotations: np.ndarray, frame: HandFr
     out = np.empty(positions.shape[:1] + (4, 3))
     for k in range(4):
         joint = frame.hand_joint if rides[k] else frame.forearm_joint
-        out[:, k] = wrist + rot.rotate(rotations[:, joint], offs[k])
+        out[:, k] = wrist + rotate_offset(rotations[:, joint], offs[k])
     return out
 
 

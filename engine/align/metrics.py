@@ -394,15 +394,25 @@ def _raw_windows(markers: np.ndarray, out: np.ndarray) -> None:
     which lets one product serve five cells; :mod:`engine.align.phase_kernel`) but shifted
     by the take's mean horizontal position (θ does not change; float32 sums stay
     accurate)."""
+    # the subtraction in the markers' own dtype, as numpy's ``markers - float(mean)``
+    cx = markers.dtype.type(float(np.mean(markers[:, :, 0])))
+    cz = markers.dtype.type(float(np.mean(markers[:, :, 2])))
+    _raw_windows_kernel(markers, cx, cz, THETA_WINDOW, out)
+
+
+@numba.njit(cache=True, nogil=True)
+def _raw_windows_kernel(markers, cx, cz, window, out):
+    """:func:`_raw_windows`' copy: slot ``w`` of row ``r`` holds frame ``r + w - window // 2``
+    (clipped to the take)."""
     f, k, _ = markers.shape
-    half = THETA_WINDOW // 2
-    wk = THETA_WINDOW * k
-    cx = float(np.mean(markers[:, :, 0]))
-    cz = float(np.mean(markers[:, :, 2]))
-    for w in range(THETA_WINDOW):
-        idx = np.clip(np.arange(f) + (w - half), 0, f - 1)
-        out[:, w * k : (w + 1) * k] = markers[idx, :, 0] - cx
-        out[:, wk + w * k : wk + (w + 1) * k] = markers[idx, :, 2] - cz
+    half = window // 2
+    wk = window * k
+    for r in range(f):
+        for w in range(window):
+            src = min(max(r + w - half, 0), f - 1)
+            for c in range(k):
+                out[r, w * k + c] = markers[src, c, 0] - cx
+                out[r, wk + w * k + c] = markers[src, c, 2] - cz
 
 
 def window_theta(body: PhaseFeatures, hand: PhaseFeatures, i: int, j: int) -> float:

@@ -191,6 +191,39 @@ def _unpack(rows, hand, nb, half):
     return mx, mz, pq, yaw, step
 
 
+@numba.njit(cache=True, nogil=True)
+def _consecutive_windows(rows, half, step):
+    """``(F + 4, 2, K)`` frames of the take when the eq.-7 windows of ``rows`` (x of slots
+    0..4, then z, ``K`` markers each) are those of consecutive frames (slot ``d`` of row
+    ``r`` holds padded frame ``r + 2 + step (d − 2)``; the frames beyond the ends come from
+    the end rows' windows), else an empty array. Values compared with ``==`` (a NaN never
+    matches)."""
+    f = rows.shape[0]
+    k = half // WINDOW
+    pad = np.empty((f + 4, 2, k))
+    for r in range(f):  # row by row: each row's cache lines once
+        for x in range(2):
+            for c in range(k):
+                pad[2 + r, x, c] = rows[r, HEADER + x * half + 2 * k + c]
+    for x in range(2):
+        for c in range(k):
+            for d in range(WINDOW):  # the frames beyond the ends, from the end rows
+                off = step * (d - 2)
+                if off < 0:
+                    pad[2 + off, x, c] = rows[0, HEADER + x * half + d * k + c]
+                elif off > 0:
+                    pad[f + 1 + off, x, c] = rows[f - 1, HEADER + x * half + d * k + c]
+    for r in range(f):
+        for x in range(2):
+            for d in range(WINDOW):
+                p = 2 + step * (d - 2) + r
+                col = HEADER + x * half + d * k
+                for c in range(k):
+                    if not (rows[r, col + c] == pad[p, x, c]):
+                        return np.empty((0, 2, k))
+    return pad
+
+
 def _padded_coords(rows: np.ndarray, half: int):
     """x and z ``(F + 4, K)`` float32 of the frames the rows' windows hold, in row order
     (padded index ``p`` = row ``p - 2``'s own frame; two frames beyond each end from the
@@ -200,23 +233,10 @@ def _padded_coords(rows: np.ndarray, half: int):
     backward passes) qualify; any other selection of rows (e.g. every other frame) does
     not, and the caller falls back to the per-cell metric.
     """
-    f = rows.shape[0]
-    k = half // WINDOW
-    win = rows[:, HEADER : HEADER + 2 * half].reshape(f, 2, WINDOW, k)  # (F, x|z, slot, K)
-    first, last = win[0], win[f - 1]
+    rows = np.ascontiguousarray(rows, dtype=np.float64)
     for step in (1, -1):  # window slot d holds row r + step (d - 2)
-        pad = np.empty((f + 4, 2, k))
-        pad[2 : f + 2] = win[:, :, 2]
-        for d in range(WINDOW):  # the frames beyond the ends, from the end rows
-            off = step * (d - 2)
-            if off < 0:
-                pad[2 + off] = first[:, d]
-            elif off > 0:
-                pad[f + 1 + off] = last[:, d]
-        if all(
-            np.array_equal(win[:, :, d], pad[2 + step * (d - 2) : 2 + step * (d - 2) + f])
-            for d in range(WINDOW)
-        ):
+        pad = _consecutive_windows(rows, half, step)
+        if pad.shape[0]:
             return (
                 np.ascontiguousarray(pad[:, 0], np.float32),
                 np.ascontiguousarray(pad[:, 1], np.float32),
@@ -253,7 +273,7 @@ class PhaseProblem:
         bp = np.ascontiguousarray(bpq[0, :, 0])
         bq = np.ascontiguousarray(bpq[0, :, 1])
         self.body = (bx, bz, bmx, bmz, bp, bq, byaw, bstep)
-        self.hand = (hx, hz, hmx, hmz, hpq, hyaw)
+        self.hand = (hx, hz, hmx, hmz, hpq.reshape(-1), hyaw)  # masks flat: (nb m 2,)
 
     def args(self) -> tuple:
         return (*self.body, *self.hand, self.mode, self.nb, self.half)
@@ -305,37 +325,62 @@ def cost_rows(state: PhaseProblem, lo, hi, rows) -> list[np.ndarray]:
     return out
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _c_sweep4(p, c, clo, w, bx, bz, hx, hz, re, im, first):
+    """Add markers ``c..c+3`` to ring row slices ``re``, ``im`` (from 0 when ``first``), one
+    after another (``_slot``'s order)."""
+    xa = bx[p, c]
+    za = bz[p, c]
+    xb = bx[p, c + 1]
+    zb = bz[p, c + 1]
+    xc = bx[p, c + 2]
+    zc = bz[p, c + 2]
+    xd = bx[p, c + 3]
+    zd = bz[p, c + 3]
+    hxa = hx[c, clo : clo + w]
+    hza = hz[c, clo : clo + w]
+    hxb = hx[c + 1, clo : clo + w]
+    hzb = hz[c + 1, clo : clo + w]
+    hxc = hx[c + 2, clo : clo + w]
+    hzc = hz[c + 2, clo : clo + w]
+    hxd = hx[c + 3, clo : clo + w]
+    hzd = hz[c + 3, clo : clo + w]
+    if first:
+        for q in range(w):
+            r = (_F0 + (xa * hxa[q] + za * hza[q])) + (xb * hxb[q] + zb * hzb[q])
+            re[q] = (r + (xc * hxc[q] + zc * hzc[q])) + (xd * hxd[q] + zd * hzd[q])
+            t = (_F0 + (xa * hza[q] - hxa[q] * za)) + (xb * hzb[q] - hxb[q] * zb)
+            im[q] = (t + (xc * hzc[q] - hxc[q] * zc)) + (xd * hzd[q] - hxd[q] * zd)
+    else:
+        for q in range(w):
+            r = (re[q] + (xa * hxa[q] + za * hza[q])) + (xb * hxb[q] + zb * hzb[q])
+            re[q] = (r + (xc * hxc[q] + zc * hzc[q])) + (xd * hxd[q] + zd * hzd[q])
+            t = (im[q] + (xa * hza[q] - hxa[q] * za)) + (xb * hzb[q] - hxb[q] * zb)
+            im[q] = (t + (xc * hzc[q] - hxc[q] * zc)) + (xd * hzd[q] - hxd[q] * zd)
+
+
 @numba.njit(cache=True, nogil=True)
 def _c_row(p, clo, chi, bx, bz, hx, hz, cre, cim):
     """Ring row ``p`` of C over padded hand columns ``clo..chi`` (float32).
 
-    Markers are added one after another (``_slot``'s order), two per sweep over the
-    columns; loops index slices from 0, so numba emits no negative-index wraparound
-    code and they vectorise.
+    Markers are added one after another (``_slot``'s order, from 0), four per sweep over
+    the columns (fewer passes over the ring row); loops index slices from 0, so numba
+    emits no negative-index wraparound code and they vectorise.
     """
     s = p & (_RING - 1)
     w = chi - clo + 1
     re = cre[s, clo : chi + 1]
     im = cim[s, clo : chi + 1]
-    for q in range(w):
-        re[q] = _F0
-        im[q] = _F0
     k = bx.shape[1]
     c = 0
-    while c + 1 < k:
-        xa = bx[p, c]
-        za = bz[p, c]
-        xb = bx[p, c + 1]
-        zb = bz[p, c + 1]
-        hxa = hx[c, clo : chi + 1]
-        hza = hz[c, clo : chi + 1]
-        hxb = hx[c + 1, clo : chi + 1]
-        hzb = hz[c + 1, clo : chi + 1]
+    while c + 3 < k:
+        _c_sweep4(p, c, clo, w, bx, bz, hx, hz, re, im, c == 0)
+        c += 4
+    if c == 0:
         for q in range(w):
-            re[q] = (re[q] + (xa * hxa[q] + za * hza[q])) + (xb * hxb[q] + zb * hzb[q])
-            im[q] = (im[q] + (xa * hza[q] - hxa[q] * za)) + (xb * hzb[q] - hxb[q] * zb)
-        c += 2
-    if c < k:
+            re[q] = _F0
+            im[q] = _F0
+    while c < k:
         xa = bx[p, c]
         za = bz[p, c]
         hxa = hx[c, clo : chi + 1]
@@ -343,6 +388,7 @@ def _c_row(p, clo, chi, bx, bz, hx, hz, cre, cim):
         for q in range(w):
             re[q] += xa * hxa[q] + za * hza[q]
             im[q] += xa * hza[q] - hxa[q] * za
+        c += 1
 
 
 @numba.njit(cache=True, nogil=True)
@@ -362,29 +408,9 @@ def _ensure_c(i, next_p, i0, i1, lo, hi, bx, bz, hx, hz, cre, cim):
 
 
 @numba.njit(cache=True, nogil=True)
-def _fill(
-    i,
-    lo_i,
-    hi_i,
-    bmx,
-    bmz,
-    bpp,
-    bqq,
-    byaw,
-    bstep,
-    hmx,
-    hmz,
-    hpq,
-    hyaw,
-    mode,
-    nb,
-    half,
-    cre,
-    cim,
-    bins,
-    crow,
-):
-    """``crow[lo_i..hi_i]`` = local costs of band row ``i`` (ring rows ``i..i+4`` ready)."""
+def _theta_bins(i, lo_i, hi_i, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, bins):
+    """``bins[lo_i..hi_i]`` = θ bins (int32) of band row ``i`` (ring rows ``i..i+4`` ready in
+    window mode). A loop of selects and float32 arithmetic only: it vectorises."""
     w = hi_i - lo_i + 1
     out = bins[lo_i : hi_i + 1]
     if mode == MODE_WINDOW:
@@ -415,19 +441,62 @@ def _fill(
         hy = hyaw[lo_i:]
         for k in range(w):
             out[k] = np.int32((yb - hy[k]) % nb)
-    p = bpp[i]
-    q = bqq[i]
-    st = bstep[i]
+
+
+@numba.njit(cache=True, nogil=True)
+def _code_costs(lo_i, hi_i, p, q, st, codes, m, bins, crow):
+    """``crow[lo_i..hi_i]`` = Σ (s − s')² + ``st`` of the body masks ``(p, q)`` against the
+    hand's masks of each cell's θ bin (``bins``).
+
+    ``codes``: the hand's masks flat, bin by bin (``2 (b m + j)``: P, ``+ 1``: Q), so
+    neighbouring cells, which mostly share a bin, read neighbouring words; unsigned
+    indices (no wraparound code) and no per-cell stride multiplications.
+    """
+    w = hi_i - lo_i + 1
+    bb = bins[lo_i : hi_i + 1]
     cost = crow[lo_i : hi_i + 1]
+    mu = np.uint64(m)
+    one = np.uint64(1)
+    j = np.uint64(lo_i)
     for k in range(w):
-        b = out[k]
-        c = cell_cost(p, q, hpq[b, lo_i + k, 0], hpq[b, lo_i + k, 1])
+        u = (np.uint64(bb[k]) * mu + j) << one
+        c = cell_cost(p, q, codes[u], codes[u + one])
         cost[k] = float(np.int64(c)) + st  # signed: one instruction (unsigned is several)
+        j += one
+
+
+@numba.njit(cache=True, nogil=True)
+def _fill(
+    i,
+    lo_i,
+    hi_i,
+    bmx,
+    bmz,
+    bpp,
+    bqq,
+    byaw,
+    bstep,
+    hmx,
+    hmz,
+    codes,
+    hyaw,
+    mode,
+    nb,
+    half,
+    cre,
+    cim,
+    bins,
+    crow,
+):
+    """``crow[lo_i..hi_i]`` = local costs of band row ``i`` (ring rows ``i..i+4`` ready):
+    the row's θ bins, then the popcount costs."""
+    _theta_bins(i, lo_i, hi_i, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, bins)
+    _code_costs(lo_i, hi_i, bpp[i], bqq[i], bstep[i], codes, hmx.shape[0], bins, crow)
 
 
 @numba.njit(cache=True, nogil=True)
 def _one_row(
-    bx, bz, bmx, bmz, bpp, bqq, byaw, bstep, hx, hz, hmx, hmz, hpq, hyaw, mode, nb, half, lo, hi, i
+    bx, bz, bmx, bmz, bpp, bqq, byaw, bstep, hx, hz, hmx, hmz, codes, hyaw, mode, nb, half, lo, hi, i
 ):
     m = hmx.shape[0]
     cre = np.zeros((_RING, m + 4), np.float32)
@@ -448,7 +517,7 @@ def _one_row(
         bstep,
         hmx,
         hmz,
-        hpq,
+        codes,
         hyaw,
         mode,
         nb,
@@ -475,7 +544,7 @@ def _forward(
     hz,
     hmx,
     hmz,
-    hpq,
+    codes,
     hyaw,
     mode,
     nb,
@@ -524,7 +593,7 @@ def _forward(
                 bstep,
                 hmx,
                 hmz,
-                hpq,
+                codes,
                 hyaw,
                 mode,
                 nb,
@@ -546,7 +615,7 @@ def _forward(
                 bstep,
                 hmx,
                 hmz,
-                hpq,
+                codes,
                 hyaw,
                 mode,
                 nb,
@@ -596,7 +665,7 @@ def _forward(
                 bstep,
                 hmx,
                 hmz,
-                hpq,
+                codes,
                 hyaw,
                 mode,
                 nb,

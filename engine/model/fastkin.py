@@ -92,9 +92,33 @@ def _batched(a, b, conj_a: bool) -> np.ndarray:
     shape = np.broadcast_shapes(a.shape, b.shape)
     a2 = np.ascontiguousarray(np.broadcast_to(a, shape)).reshape(-1, 4)
     b2 = np.ascontiguousarray(np.broadcast_to(b, shape)).reshape(-1, 4)
-    out = np.zeros(a2.shape)
+    out = np.empty(a2.shape)  # every entry written by the kernel
     _qmul_kernel(a2, b2, out, conj_a)
     return out.reshape(shape)
+
+
+@numba.njit(cache=True, nogil=True)
+def _rotate_offset_kernel(q, v, out):
+    """IEEE arithmetic (no fast-math) in :func:`engine.model.rotations.rotate`'s order."""
+    v0, v1, v2 = v[0], v[1], v[2]
+    for f in range(q.shape[0]):
+        w, u0, u1, u2 = q[f, 0], q[f, 1], q[f, 2], q[f, 3]
+        t0 = 2.0 * (u1 * v2 - u2 * v1)
+        t1 = 2.0 * (u2 * v0 - u0 * v2)
+        t2 = 2.0 * (u0 * v1 - u1 * v0)
+        out[f, 0] = (v0 + w * t0) + (u1 * t2 - u2 * t1)
+        out[f, 1] = (v1 + w * t1) + (u2 * t0 - u0 * t2)
+        out[f, 2] = (v2 + w * t2) + (u0 * t1 - u1 * t0)
+
+
+def rotate_offset(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """One offset ``v (3,)`` turned by every unit quaternion ``q (F, 4)``: ``(F, 3)``, the
+    same floats as ``engine.model.rotations.rotate(q, v)`` in one pass (no cross-product
+    temporaries)."""
+    q = np.ascontiguousarray(q, dtype=np.float64)
+    out = np.empty((q.shape[0], 3))
+    _rotate_offset_kernel(q, np.asarray(v, dtype=np.float64), out)
+    return out
 
 
 def qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -410,7 +410,26 @@ def _sides_to_align(body, hand, rb, rh, side: str, body_name: str, hand_name: st
                 "the fingers to splice"
             )
         hand_sides = with_fingers
-    return resolve_sides(side, body_sides, hand_sides, body_name, hand_name)
+    sides = resolve_sides(side, body_sides, hand_sides, body_name, hand_name)
+    if isinstance(body, Motion):
+        _check_body_arms(rb, sides, body_name)
+    return sides
+
+
+def _check_body_arms(rb, sides, body_name: str) -> None:
+    """RoleError when a spliced arm of the body take stops at the elbow: no shoulder or
+    clavicle above it, as in a hand take (a forearm, the hand and its fingers). Every
+    body rig we know names both shoulders; a hand take given as the body would otherwise
+    align and splice into a floating forearm."""
+    for s in sides:
+        arm = rb.side(s)
+        if arm.shoulder is None and arm.clavicle is None:
+            raise RoleError(
+                f"{body_name}: the body take has no {s} shoulder or clavicle above the elbow "
+                f"(it looks like a hand take); the body take must be a full- or "
+                f"upper-body skeleton, or name its shoulder with a role override "
+                f'(--roles MAP.json: {{"body": {{"{s}.shoulder": "JointName"}}}})'
+            )
 
 
 @dataclass(frozen=True)

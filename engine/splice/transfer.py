@@ -598,7 +598,8 @@ def _transfer_block(
     _, g_h = forward_kinematics(h_motion)
     body_rot = body.rotations[f0:f1]
     bi = np.arange(nb) if plan.body_index is None else np.asarray(plan.body_index)
-    rots[:] = rot.identity((n, sk_o.n_joints))
+    rots[:] = 0.0  # identity quaternions (rot.identity), in place
+    rots[..., 0] = 1.0
     trans[:] = sk_o.offsets
     rots[:, bi] = body_rot
     # a body joint below an inserted one keeps its motion less the inserted offset

@@ -275,7 +275,7 @@ class SharingView:
             hand = s.hand_name or paths[1].name
             session_cmd = backend.cli_session_command(body, hand, SESSION_FILENAME)
             flags_cmd = backend.cli_command(
-                s.prepared, body, hand, s.side, *s.widths(), s.constraint_points(), s.roles
+                body, hand, s.side, *s.widths(), s.user_points(), s.roles
             )
             self.command.object = (
                 "$ " + safe_text.html(session_cmd) + "<br>"
