@@ -1,6 +1,6 @@
 """Does the uncertainty predict the true timing error? (issue 17, "Trust the alignment")
 
-Run: ``.venv/bin/python -m benchmarks.bench_uncertainty [--quick] [--families a,b]``
+Run: ``.venv/bin/python -m benchmarks.bench_uncertainty [--quick] [--families a,b] [--jobs N]``
 
 For every family of :mod:`benchmarks.bench_splice_accuracy` (split real captures with
 known truth) each case is spliced with the defaults and assessed
@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 from scipy.stats import spearmanr
@@ -67,6 +68,12 @@ def run_case(case) -> dict:
     worst = _with_true_point(case, int(np.argmax(err)))
     out["err_oracle"] = err if worst is None else worst
     return out
+
+
+def _run_one(job: tuple[str, int]) -> dict:
+    """``run_case`` of family ``job[0]``, seed ``job[1]`` (a worker process's unit)."""
+    name, seed = job
+    return run_case(FAMILIES[name].make(seed))
 
 
 def _with_true_point(case, body: int) -> np.ndarray | None:
@@ -122,46 +129,45 @@ def _ratio(s: dict) -> str:
 
 
 #: what the table does not show by itself (measured when the method last changed, on
-#: the hard families' seeds 0-11 with /tmp scripts reading the same cases)
+#: every family's seeds 0-11 with /tmp scripts reading the same cases; tuning seeds:
+#: 200-202 and 300-302 of the hard families)
 NOTES = [
-    "Notes (2026-12-01, after the end-band merge, before the blend in seconds). Why one point moves a family's p95 "
-    "so little: the family's worst 5 % of frames are spread over several stretches per "
-    "take and over many takes; only 34-56 % of them lie within 0.5 s of their take's "
-    "worst frame (untrimmed 41 %, noisy 50 %, holds 56 %, fps 52 %, left 34 %, manipnet "
-    "34 %, leap 38 %), and a point there at its true hand frame halves the error of "
-    "53-96 % of those. So even a point at the worst frame (known only to the bench) "
-    "lowers the hard families' p95 by about 20 %, not 30 %. Tail frames within 0.5 s of "
-    "the take's ends: untrimmed 38 %, manipnet 43 %, leap 42 %, noisy and fps 16 %, "
-    "left 8 %, holds 0 %; on the forearm-less rigs most takes' maps start up to 7 hand "
-    "frames late and end up to 14 early (the alignment's end handling, not the uncertainty). "
-    "What changed: (1) the suggestion sits at the uncertainty's peak (before: ranked "
-    "toward moving moments, which put it at the edge of the slow stretches where the "
-    "largest errors are; chosen on the tuning seeds, -11 % against -7 %); (2) a point "
-    "is met by the map: the smoothing no longer pulls a point's row toward a jump beside "
-    "it (up to 500 ms off) and a point on a hold's first or last frame is no longer "
-    "replaced by the hold's boundary. Same 84 hard takes on the code before: top "
-    "suggestion -10 % (untrimmed -23 %, noisy -5 %, holds -1 %, fps -11 %, left -9 %, "
-    "manipnet -6 %, leap -7 %), a point at the worst frame -19 %. ρ fell from 0.58 (8 "
-    "seeds, before the spin pass and the end band: manipnet and leap p95 2754 and 1715 "
-    "ms, takes that are easy to rank) to 0.47; the constants still sit at the "
-    "tuning seeds' best (κ 0.25-4 and bend 0.1-0.5 s tried there: ρ 0.39-0.51, 0.50 at "
-    "κ = 1, 0.25 s).",
-    "",
-    "Before and after this change, the same 84 hard takes (seeds 0-11), both measured "
-    "before main's blend in seconds (the table above is after it, with this change), "
-    "change of the p95:",
-    "",
-    "| family | p95 | top suggestion, before | top suggestion, now | point at the worst "
-    "frame, before | now |",
-    "|---|---|---|---|---|---|",
-    "| untrimmed | 60 ms | -23 % | -27 % | -35 % | -36 % |",
-    "| noisy | 59 ms | -5 % | -9 % | -21 % | -21 % |",
-    "| holds | 94 ms | -1 % | -25 % | -36 % | -36 % |",
-    "| fps | 73 ms | -11 % | -11 % | -20 % | -20 % |",
-    "| left | 47 ms | -9 % | -10 % | -13 % | -13 % |",
-    "| manipnet | 39 ms | -6 % | -5 % | -9 % | -10 % |",
-    "| leap | 45 ms | -7 % | -7 % | -8 % | -9 % |",
-    "| hard families, pooled | 55 ms | -10 % | -12 % | -19 % | -20 % |",
+    'Notes (2026-12-02, issue 17 second pass). What changed: (1) the uncertainty adds '
+    "local evidence and the merge's reach: u = max over ±σ (the blend) of "
+    "sqrt((0.5·spread₁)² + spread₂² + bend²)·(1 + c̃)/2, with c̃ the aligning pass's path"
+    " cost on the row over the take's median (`engine.splice.uncertainty.path_mismatch`);"
+    ' before: sqrt(spread₁² + spread₂² + bend²). Pooled ρ, same takes: 0.47 -> 0.53 '
+    '(seeds 0-11); tuning seeds (3 per family: 100-102, 200-202, 300-302) 0.49 -> 0.58. '
+    'Each part, seeds 0-11 / tuning seeds: without the evidence 0.50 / 0.53, without the '
+    'max over ±σ 0.51 / 0.55, pass 1 at full weight 0.52 / 0.54. A plain sum of the three'
+    ' terms ranks as well (0.53) but flags 41 % of the frames over 100 ms instead of 19 '
+    '%. Per family (seeds 0-11, the table before -> now): beat 0.44 -> 0.48, bandai 0.62 '
+    '-> 0.66, lafan1 0.43 -> 0.54, untrimmed 0.49 -> 0.54, noisy 0.39 -> 0.52, holds 0.56'
+    ' -> 0.60, fps 0.52 -> 0.62, left 0.50 -> 0.56, manipnet 0.41 -> 0.40, leap 0.42 -> '
+    "0.46. (2) The ends bias of the forearm-less rigs: the spin signal's one-sided "
+    "Savitzky-Golay fit at each take's ends made corner cells cost several times a "
+    'matched one, so pass 2 cut 2-12 frames off co-extensive takes (maps started ~50 ms '
+    'late and ended 50-75 ms early on average). The spin rows are now tapered to zero '
+    'over that window (`engine.splice.spin.taper_edges`). Timing error of HandSplice, '
+    'same code otherwise, seeds 0-19: manipnet median 7.4 -> 7.3 ms, p95 34.5 -> 33.7 ms '
+    '(10 takes better, 4 worse); leap 7.3 -> 7.3 ms, 37.4 -> 35.3 ms (8 better, 3 worse);'
+    ' tuning seeds 300-303: manipnet 302 p95 122 -> 39 ms, leap 302 131 -> 72 ms, the '
+    'others unchanged or better. No other family uses the spin pass. (3) The suggestion '
+    'rule is unchanged (the peak of the least certain 1 s stretch). Top suggestion, seeds'
+    ' 0-11 of the hard families after the taper, change of the p95, old uncertainty -> '
+    'this table: untrimmed -27 -> -26 %, noisy -9 -> -7 %, holds -25 -> -21 %, fps -8 -> '
+    '-17 %, left -21 -> -18 %, manipnet -7 -> -9 %, leap -5 -> -4 %, pooled -13 -> -15 %.'
+    ' Tried (with the summed variant of (1)) and not better, pooled: the squared '
+    "uncertainty over the stretch -15 %, the stretch's centre instead of its peak -11 to "
+    "-14 %, the uncertainty without the bend term -14 %. Why one point moves a family's "
+    "p95 so little: each family's pooled p95 is set by one to three takes with errors of "
+    '0.2-1.5 s over long stretches (holds 7, untrimmed 4, fps 1 and 7); a point fixes '
+    'them only where it lands inside the wrong stretch, and the worst 5 % of frames also '
+    'spread over several stretches per take: even a point at the worst frame (known only '
+    "to the bench) lowers the hard families' p95 by about 24 %, not 30 %. Assess time: "
+    'the column is measured with three cases in parallel on 2 shared cores (load 9-15); '
+    'the new terms (one pass of path costs, two 1-D filters) cost 0.4-0.8 ms CPU of the '
+    'whole 25-243 ms (a holds and a lafan1 take, measured alone).'
 ]
 
 
@@ -247,14 +253,21 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="2 seeds per family, no RESULTS.md")
     ap.add_argument("--families", help="comma-separated subset")
     ap.add_argument("--seeds", type=int, default=SEEDS)
+    ap.add_argument("--jobs", type=int, default=1, help="worker processes (cases in parallel)")
     args = ap.parse_args(argv)
     names = args.families.split(",") if args.families else list(FAMILIES)
     seeds = 2 if args.quick else args.seeds
     table, every, hard, by_seed = {}, [], [], {}
+    jobs = [(name, seed) for name in names for seed in range(seeds)]
+    if args.jobs > 1:  # cases are independent: one worker process per case
+        with ProcessPoolExecutor(args.jobs) as pool:
+            done = dict(zip(jobs, pool.map(_run_one, jobs), strict=True))
+    else:
+        done = {}
     for name in names:
         rows = []
         for seed in range(seeds):
-            r = run_case(FAMILIES[name].make(seed))
+            r = done.get((name, seed)) or _run_one((name, seed))
             rows.append(r)
             if name not in CLEAN:
                 by_seed.setdefault(seed, []).append(r)

@@ -9,10 +9,29 @@ the fingers there may be mistimed. Per body frame ``i``::
 
 for pass ``p`` in {1, 2}, with the temperature ``τ_p`` = ``KAPPA`` × the pass's mean
 local cost per path step (the cost of a few frames' typical mismatch: scale-free
-across metrics and takes). The two passes are combined in quadrature (pass 1 decides
-the gesture phase, pass 2 the timing within it) and converted to milliseconds of the
-hand take. Costs: about two extra solves per pass (forward and backward γ, 16 bytes
-per band cell).
+across metrics and takes). Costs: about two extra solves per pass (forward and
+backward γ, 16 bytes per band cell).
+
+Per body frame, in milliseconds of the hand take (issue 17)::
+
+    u(i) = max over |k - i| <= σ of  sqrt((W·spread_1)² + spread_2² + bend²)(k) · (1 + c̃(k)) / 2
+
+* the passes' spreads and the bend term (:func:`warp_bend`) in quadrature (pass 1
+  decides the gesture phase, pass 2 the timing within it; pass 1's sign costs are
+  coarse and its spread counts ``W`` = :data:`PASS1_WEIGHT` = half); a plain sum ranks
+  the frames as well but doubles the share of frames over 100 ms (19 % -> 41 %, the
+  true error unchanged), which would turn the desync meter red;
+* ``c̃``: the local evidence, the aligning pass's own path cost on the frame's row
+  against the take's median path cost (:func:`path_mismatch`, smoothed over σ): a row
+  whose matched cells cost several times the take's typical match is a row the path
+  crosses without support, whatever the band's other cells cost (a typical row, c̃ = 1,
+  keeps its spread);
+* the maximum over the merge's blend window σ (``alignment.blend``): the smoothing
+  spreads a mistimed row's error over its neighbours.
+
+Against the true timing error of the accuracy bench's families (Spearman ρ pooled over
+every body frame, ``benchmarks/bench_uncertainty.py``): quadrature of the spreads and
+the bend alone 0.47; the terms above were checked on the tuning seeds.
 
 Strokes: the body take's stroke phases (:mod:`engine.gesture.phases`) each get the
 largest uncertainty inside them and a verdict against the 100 ms threshold at which
@@ -28,6 +47,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
 from engine.dtw.align import FIXED
 from engine.dtw.marginals import row_spread
@@ -46,6 +66,9 @@ SUGGESTIONS = 3
 #: path (whose step cost favours one rate) may cut the corner (see :func:`warp_bend`);
 #: chosen on the tuning seeds (0.1, 0.25, 0.5, 0.75, 1 s tried)
 BEND_S = 0.25
+#: weight of pass 1's spread beside pass 2's (its sign costs are coarse: chosen on the
+#: tuning seeds, 0.5 and 1 tried)
+PASS1_WEIGHT = 0.5
 
 
 @dataclass(frozen=True)
@@ -74,6 +97,8 @@ class Uncertainty:
     pass1_ms, pass2_ms : (n,) float, each pass's part
     fps : float, body frames per second
     bend_ms : (n,) float or None, the bend term's part (:func:`warp_bend`)
+    evidence : (n,) float or None, the path's cost on each row over the take's median
+        (:func:`path_mismatch`)
     """
 
     ms: np.ndarray
@@ -81,6 +106,7 @@ class Uncertainty:
     pass2_ms: np.ndarray
     fps: float
     bend_ms: np.ndarray | None = None
+    evidence: np.ndarray | None = None
 
     def suggestions(self, count: int = SUGGESTIONS, gap_s: float = SUGGEST_GAP_S) -> list[int]:
         """Body frames of the ``count`` least certain places, at least ``gap_s`` apart.
@@ -152,6 +178,44 @@ def warp_bend(warp: np.ndarray, half: int) -> np.ndarray:
     return np.abs(w[idx + h] - 2.0 * w + w[idx - h])
 
 
+def path_mismatch(result, n: int, sigma: float = 0.0) -> np.ndarray:
+    """(n,) float >= 0: each row's mean local cost on the pass's path over the take's
+    median (rows the path leaves unmatched: 1, a typical row), smoothed by a Gaussian of
+    ``sigma`` rows.
+
+    result : pipeline.PassResult (path (k, 2), rows, metric); n : rows of the body take
+    """
+    path = np.asarray(result.path)
+    cost = np.asarray(result.path_costs(), np.float64)
+    rows = path[:, 0]
+    total = np.bincount(rows, weights=cost, minlength=n)[:n]
+    count = np.bincount(rows, minlength=n)[:n]
+    mean = np.where(count > 0, total / np.maximum(count, 1), np.nan)
+    typical = float(np.nanmedian(mean)) if np.any(count > 0) else 0.0
+    if not (np.isfinite(typical) and typical > 0.0):
+        return np.zeros(n)
+    rel = np.where(count > 0, mean / typical, 1.0)
+    rel = np.where(np.isfinite(rel), rel, 1.0)
+    return gaussian_filter1d(rel, sigma, mode="nearest") if sigma > 0 else rel
+
+
+def aligned_by_pass1(features) -> bool:
+    """True when the map follows pass 1's path (a hand take without a forearm and no spin
+    signal: :func:`engine.splice.pipeline.align_passes`)."""
+    from engine.splice import pipeline as P  # the pipeline does not import this module
+
+    return P.hand_lacks_forearm(features) and not P.uses_spin(features)
+
+
+def blend_reach(values: np.ndarray, sigma: float) -> np.ndarray:
+    """(n,) the largest of ``values`` within ``±round(sigma)`` rows of each row (the merge's
+    Gaussian blend of σ rows carries a row's timing to its neighbours)."""
+    half = int(round(sigma))
+    if half < 1:
+        return np.asarray(values, np.float64).copy()
+    return maximum_filter1d(np.asarray(values, np.float64), 2 * half + 1, mode="nearest")
+
+
 def alignment_uncertainty(features, alignment, bend_s: float = BEND_S) -> Uncertainty:
     """Uncertainty per body frame of a :class:`~engine.splice.pipeline.SpliceAlignment`.
 
@@ -160,21 +224,29 @@ def alignment_uncertainty(features, alignment, bend_s: float = BEND_S) -> Uncert
     which is what such a take leaves unconfirmed (measured: on the forearm-less rig
     families pass 1's spread alone ranks their frames well within a take, but makes
     the whole take look far more certain than its errors are). ``bend_s``: half-window
-    (seconds) of the bend term (:func:`warp_bend`).
+    (seconds) of the bend term (:func:`warp_bend`). The local evidence is the path cost
+    of the pass whose path the map follows (:func:`aligned_by_pass1`).
     """
     warp = np.asarray(alignment.warp, np.float64)
     p1, p2 = alignment.pass1, alignment.pass2
+    n = len(warp)
     frame_ms = 1000.0 / float(features.fps)
     ms1 = pass_spread(p1, warp) * frame_ms
     ms2 = pass_spread(p2, warp) * frame_ms
     half = max(1, int(round(bend_s * float(features.fps))))
     bend = warp_bend(warp, half) * frame_ms
+    sigma = float(getattr(alignment, "blend", 0.0) or 0.0)
+    final = p1 if aligned_by_pass1(features) else p2
+    evidence = path_mismatch(final, n, sigma)
+    spread = np.sqrt((PASS1_WEIGHT * ms1) ** 2 + ms2**2 + bend**2)
+    ms = blend_reach(spread * 0.5 * (1.0 + evidence), sigma)
     return Uncertainty(
-        ms=np.sqrt(ms1**2 + ms2**2 + bend**2),
+        ms=ms,
         pass1_ms=ms1,
         pass2_ms=ms2,
         fps=float(features.fps),
         bend_ms=bend,
+        evidence=evidence,
     )
 
 
