@@ -132,42 +132,42 @@ def _ratio(s: dict) -> str:
 #: every family's seeds 0-11 with /tmp scripts reading the same cases; tuning seeds:
 #: 200-202 and 300-302 of the hard families)
 NOTES = [
-    'Notes (2026-12-02, issue 17 second pass). What changed: (1) the uncertainty adds '
+    "Notes (2026-12-02, issue 17 second pass). What changed: (1) the uncertainty adds "
     "local evidence and the merge's reach: u = max over ±σ (the blend) of "
     "sqrt((0.5·spread₁)² + spread₂² + bend²)·(1 + c̃)/2, with c̃ the aligning pass's path"
     " cost on the row over the take's median (`engine.splice.uncertainty.path_mismatch`);"
-    ' before: sqrt(spread₁² + spread₂² + bend²). Pooled ρ, same takes: 0.47 -> 0.53 '
-    '(seeds 0-11); tuning seeds (3 per family: 100-102, 200-202, 300-302) 0.49 -> 0.58. '
-    'Each part, seeds 0-11 / tuning seeds: without the evidence 0.50 / 0.53, without the '
-    'max over ±σ 0.51 / 0.55, pass 1 at full weight 0.52 / 0.54. A plain sum of the three'
-    ' terms ranks as well (0.53) but flags 41 % of the frames over 100 ms instead of 19 '
-    '%. Per family (seeds 0-11, the table before -> now): beat 0.44 -> 0.48, bandai 0.62 '
-    '-> 0.66, lafan1 0.43 -> 0.54, untrimmed 0.49 -> 0.54, noisy 0.39 -> 0.52, holds 0.56'
-    ' -> 0.60, fps 0.52 -> 0.62, left 0.50 -> 0.56, manipnet 0.41 -> 0.40, leap 0.42 -> '
+    " before: sqrt(spread₁² + spread₂² + bend²). Pooled ρ, same takes: 0.47 -> 0.53 "
+    "(seeds 0-11); tuning seeds (3 per family: 100-102, 200-202, 300-302) 0.49 -> 0.58. "
+    "Each part, seeds 0-11 / tuning seeds: without the evidence 0.50 / 0.53, without the "
+    "max over ±σ 0.51 / 0.55, pass 1 at full weight 0.52 / 0.54. A plain sum of the three"
+    " terms ranks as well (0.53) but flags 41 % of the frames over 100 ms instead of 19 "
+    "%. Per family (seeds 0-11, the table before -> now): beat 0.44 -> 0.48, bandai 0.62 "
+    "-> 0.66, lafan1 0.43 -> 0.54, untrimmed 0.49 -> 0.54, noisy 0.39 -> 0.52, holds 0.56"
+    " -> 0.60, fps 0.52 -> 0.62, left 0.50 -> 0.56, manipnet 0.41 -> 0.40, leap 0.42 -> "
     "0.46. (2) The ends bias of the forearm-less rigs: the spin signal's one-sided "
     "Savitzky-Golay fit at each take's ends made corner cells cost several times a "
-    'matched one, so pass 2 cut 2-12 frames off co-extensive takes (maps started ~50 ms '
-    'late and ended 50-75 ms early on average). The spin rows are now tapered to zero '
-    'over that window (`engine.splice.spin.taper_edges`). Timing error of HandSplice, '
-    'same code otherwise, seeds 0-19: manipnet median 7.4 -> 7.3 ms, p95 34.5 -> 33.7 ms '
-    '(10 takes better, 4 worse); leap 7.3 -> 7.3 ms, 37.4 -> 35.3 ms (8 better, 3 worse);'
-    ' tuning seeds 300-303: manipnet 302 p95 122 -> 39 ms, leap 302 131 -> 72 ms, the '
-    'others unchanged or better. No other family uses the spin pass. (3) The suggestion '
-    'rule is unchanged (the peak of the least certain 1 s stretch). Top suggestion, seeds'
-    ' 0-11 of the hard families after the taper, change of the p95, old uncertainty -> '
-    'this table: untrimmed -27 -> -26 %, noisy -9 -> -7 %, holds -25 -> -21 %, fps -8 -> '
-    '-17 %, left -21 -> -18 %, manipnet -7 -> -9 %, leap -5 -> -4 %, pooled -13 -> -15 %.'
-    ' Tried (with the summed variant of (1)) and not better, pooled: the squared '
+    "matched one, so pass 2 cut 2-12 frames off co-extensive takes (maps started ~50 ms "
+    "late and ended 50-75 ms early on average). The spin rows are now tapered to zero "
+    "over that window (`engine.splice.spin.taper_edges`). Timing error of HandSplice, "
+    "same code otherwise, seeds 0-19: manipnet median 7.4 -> 7.3 ms, p95 34.5 -> 33.7 ms "
+    "(10 takes better, 4 worse); leap 7.3 -> 7.3 ms, 37.4 -> 35.3 ms (8 better, 3 worse);"
+    " tuning seeds 300-303: manipnet 302 p95 122 -> 39 ms, leap 302 131 -> 72 ms, the "
+    "others unchanged or better. No other family uses the spin pass. (3) The suggestion "
+    "rule is unchanged (the peak of the least certain 1 s stretch). Top suggestion, seeds"
+    " 0-11 of the hard families after the taper, change of the p95, old uncertainty -> "
+    "this table: untrimmed -27 -> -26 %, noisy -9 -> -7 %, holds -25 -> -21 %, fps -8 -> "
+    "-17 %, left -21 -> -18 %, manipnet -7 -> -9 %, leap -5 -> -4 %, pooled -13 -> -15 %."
+    " Tried (with the summed variant of (1)) and not better, pooled: the squared "
     "uncertainty over the stretch -15 %, the stretch's centre instead of its peak -11 to "
     "-14 %, the uncertainty without the bend term -14 %. Why one point moves a family's "
     "p95 so little: each family's pooled p95 is set by one to three takes with errors of "
-    '0.2-1.5 s over long stretches (holds 7, untrimmed 4, fps 1 and 7); a point fixes '
-    'them only where it lands inside the wrong stretch, and the worst 5 % of frames also '
-    'spread over several stretches per take: even a point at the worst frame (known only '
+    "0.2-1.5 s over long stretches (holds 7, untrimmed 4, fps 1 and 7); a point fixes "
+    "them only where it lands inside the wrong stretch, and the worst 5 % of frames also "
+    "spread over several stretches per take: even a point at the worst frame (known only "
     "to the bench) lowers the hard families' p95 by about 24 %, not 30 %. Assess time: "
-    'the column is measured with three cases in parallel on 2 shared cores (load 9-15); '
-    'the new terms (one pass of path costs, two 1-D filters) cost 0.4-0.8 ms CPU of the '
-    'whole 25-243 ms (a holds and a lafan1 take, measured alone).'
+    "the column is measured with three cases in parallel on 2 shared cores (load 9-15); "
+    "the new terms (one pass of path costs, two 1-D filters) cost 0.4-0.8 ms CPU of the "
+    "whole 25-243 ms (a holds and a lafan1 take, measured alone)."
 ]
 
 

@@ -299,8 +299,9 @@ def test_window_check_accepts_takes_parts_and_reversals_only(feats):
         "shuffled": a[np.r_[1, 0, 2 : a.shape[0]]],
     }
     for name, rows in cases.items():
-        got, ref = PK._padded_coords(np.ascontiguousarray(rows), half), _padded_coords_numpy(
-            rows, half
+        got, ref = (
+            PK._padded_coords(np.ascontiguousarray(rows), half),
+            _padded_coords_numpy(rows, half),
         )
         assert (got is None) == (ref is None) == (name in ("every other", "shuffled")), name
         if ref is not None:

@@ -496,7 +496,26 @@ def _fill(
 
 @numba.njit(cache=True, nogil=True)
 def _one_row(
-    bx, bz, bmx, bmz, bpp, bqq, byaw, bstep, hx, hz, hmx, hmz, codes, hyaw, mode, nb, half, lo, hi, i
+    bx,
+    bz,
+    bmx,
+    bmz,
+    bpp,
+    bqq,
+    byaw,
+    bstep,
+    hx,
+    hz,
+    hmx,
+    hmz,
+    codes,
+    hyaw,
+    mode,
+    nb,
+    half,
+    lo,
+    hi,
+    i,
 ):
     m = hmx.shape[0]
     cre = np.zeros((_RING, m + 4), np.float32)
