@@ -9,6 +9,8 @@ renderer's mannequin.
 
 from __future__ import annotations
 
+import asyncio
+
 import json
 import subprocess
 from pathlib import Path
@@ -344,7 +346,7 @@ def test_app_glb_download_callback(tmp_path):
     session.load_sample("wave-ok")
     assert session.error == ""
     view = sharing.SharingView(session)
-    data = view._glb()
+    data = asyncio.run(view._glb())  # made on a download thread, awaited here
     assert data is not None and view.glb.filename == f"{session.output_stem()}.glb"
     doc = pygltflib.GLTF2.load_from_bytes(data.getvalue())
     motion = session.spliced()
