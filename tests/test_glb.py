@@ -10,7 +10,6 @@ renderer's mannequin.
 from __future__ import annotations
 
 import asyncio
-
 import json
 import subprocess
 from pathlib import Path
