@@ -64,6 +64,22 @@ READY = """
 """
 
 
+def drag_once(page, x: int, a: float, b: float, timeout_ms: int = 60_000) -> float:
+    """Drag the matching point at body frame ``x`` from hand frame ``a`` to ``b`` with the
+    mouse; the milliseconds from the mouse release to the new path in the page (``WATCH``)."""
+    page.evaluate("() => { window.hsChanged = null; window.hsUp = null; }")
+    start = page.evaluate("([x, y]) => hs.xy(x, y)", [x, a])
+    end = page.evaluate("([x, y]) => hs.xy(x, y)", [x, b])
+    page.mouse.move(*start)
+    page.mouse.down()
+    page.mouse.move(*end, steps=4)
+    page.mouse.up()
+    page.wait_for_function(
+        "() => window.hsChanged !== null && window.hsUp !== null", timeout=timeout_ms
+    )
+    return float(page.evaluate("() => window.hsChanged - window.hsUp"))
+
+
 @contextmanager
 def serve(*extra: str):
     """``handsplice serve`` on a free port; yields (url, seconds until it answered)."""
@@ -120,17 +136,7 @@ def measure_drags(browser, url: str, drags: int) -> dict:
     latencies, server_ms = [], []
     for k in range(drags):
         a, b = (y0, y1) if k % 2 == 0 else (y1, y0)
-        page.evaluate("() => { window.hsChanged = null; window.hsUp = null; }")
-        start = page.evaluate("([x, y]) => hs.xy(x, y)", [x, a])
-        end = page.evaluate("([x, y]) => hs.xy(x, y)", [x, b])
-        page.mouse.move(*start)
-        page.mouse.down()
-        page.mouse.move(*end, steps=4)
-        page.mouse.up()
-        page.wait_for_function(
-            "() => window.hsChanged !== null && window.hsUp !== null", timeout=60_000
-        )
-        latencies.append(page.evaluate("() => window.hsChanged - window.hsUp"))
+        latencies.append(drag_once(page, x, a, b))
         status = page.locator(".hs-status span").inner_text()
         found = re.search(r"([\d.]+) ms", status)
         if found:

@@ -47,7 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks._results import write_section
-from benchmarks.bench_app import WATCH
+from benchmarks.bench_app import WATCH, drag_once
 from benchmarks.long_pairs import baseline_tree, pair_files
 from webapp.launch import PAGE_HELPERS, launch_chromium, running_server
 
@@ -149,20 +149,6 @@ def open_times(browser, url: str, n: int) -> tuple[float, float, object]:
     return t_image, t_path, page
 
 
-def _drag_once(page, x: int, a: float, b: float) -> float:
-    page.evaluate("() => { window.hsChanged = null; window.hsUp = null; }")
-    start = page.evaluate("([x, y]) => hs.xy(x, y)", [x, a])
-    end = page.evaluate("([x, y]) => hs.xy(x, y)", [x, b])
-    page.mouse.move(*start)
-    page.mouse.down()
-    page.mouse.move(*end, steps=4)
-    page.mouse.up()
-    page.wait_for_function(
-        "() => window.hsChanged !== null && window.hsUp !== null", timeout=600_000
-    )
-    return float(page.evaluate("() => window.hsChanged - window.hsUp"))
-
-
 def place_point(page) -> tuple[int, float, float]:
     """Add a matching point on the path at mid-take; (x, y, hand frames per pixel)."""
     page.bring_to_front()  # animation frames (the latency watch) run in the front tab only
@@ -197,7 +183,7 @@ def measure_drags(page, drags: int) -> dict:
     latencies, server_ms = [], []
     for k in range(drags):
         a, b = (y, y + step) if k % 2 == 0 else (y + step, y)
-        latencies.append(_drag_once(page, x, a, b))
+        latencies.append(drag_once(page, x, a, b, timeout_ms=600_000))
         found = re.search(r"([\d.]+) ms", page.locator(".hs-status span").inner_text())
         if found:
             server_ms.append(float(found.group(1)))
@@ -219,7 +205,7 @@ def other_tab_while_opening(browser, url: str, demo: str, n: int) -> dict:
     latencies, k = [], 0
     while True:
         a, b = (y, y + step) if k % 2 == 0 else (y + step, y)
-        latencies.append(_drag_once(demo_page, x, a, b))
+        latencies.append(drag_once(demo_page, x, a, b, timeout_ms=600_000))
         k += 1
         try:
             if other.evaluate(PATH_OF, n):
