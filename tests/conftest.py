@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 from pathlib import Path
 
@@ -46,3 +47,28 @@ def bandai():
         return cache[name]
 
     return load
+
+
+@contextlib.contextmanager
+def served_chromium(tmp_path_factory, *serve_args: str):
+    """``(browser, url)``: ``handsplice serve`` (its own upload folder, ``serve_args``) and a
+    Chromium; on exit, the server's log must hold no traceback."""
+    sync_api = pytest.importorskip("playwright.sync_api")
+    from webapp.launch import launch_chromium, running_server
+
+    uploads = tmp_path_factory.mktemp("uploads")
+    log_path = tmp_path_factory.mktemp("log") / "serve.log"
+    with (
+        log_path.open("w+") as log,
+        running_server("--upload-dir", str(uploads), *serve_args, log=log, timeout=400) as (
+            url,
+            _,
+        ),
+        sync_api.sync_playwright() as p,
+    ):
+        browser = launch_chromium(p)
+        try:
+            yield browser, url
+        finally:
+            browser.close()
+    assert "Traceback" not in log_path.read_text()

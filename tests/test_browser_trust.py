@@ -7,8 +7,9 @@ import re
 from pathlib import Path
 
 import pytest
+from conftest import served_chromium
 
-from webapp.launch import PAGE_HELPERS, launch_chromium, running_server
+from webapp.launch import PAGE_HELPERS
 
 pytestmark = pytest.mark.browser
 FIGURES = Path(__file__).resolve().parents[1] / "benchmarks" / "figures"
@@ -16,15 +17,7 @@ FIGURES = Path(__file__).resolve().parents[1] / "benchmarks" / "figures"
 
 @pytest.fixture(scope="module")
 def page(tmp_path_factory):
-    sync_api = pytest.importorskip("playwright.sync_api")
-    uploads = tmp_path_factory.mktemp("uploads")
-    log_path = tmp_path_factory.mktemp("log") / "serve.log"
-    with (
-        log_path.open("w+") as log,
-        running_server("--upload-dir", str(uploads), log=log, timeout=400) as (url, _),
-        sync_api.sync_playwright() as p,
-    ):
-        browser = launch_chromium(p)
+    with served_chromium(tmp_path_factory) as (browser, url):
         context = browser.new_context(viewport={"width": 1300, "height": 1000})
         pg = context.new_page()
         errors: list[str] = []
@@ -38,8 +31,6 @@ def page(tmp_path_factory):
         pg.evaluate(PAGE_HELPERS)
         pg.errors = errors
         yield pg
-        browser.close()
-    assert "Traceback" not in log_path.read_text()
 
 
 def test_strip_region_and_meter_follow_the_alignment(page):

@@ -8,26 +8,17 @@ import json
 import time
 
 import pytest
+from conftest import served_chromium
 
-from webapp.launch import PAGE_HELPERS, launch_chromium, running_server
+from webapp.launch import PAGE_HELPERS
 
 pytestmark = pytest.mark.browser
 
 
 @pytest.fixture(scope="module")
 def browser_and_url(tmp_path_factory):
-    sync_api = pytest.importorskip("playwright.sync_api")
-    uploads = tmp_path_factory.mktemp("uploads")
-    log_path = tmp_path_factory.mktemp("log") / "serve.log"
-    with (
-        log_path.open("w+") as log,
-        running_server("--upload-dir", str(uploads), log=log, timeout=400) as (url, _),
-        sync_api.sync_playwright() as p,
-    ):
-        browser = launch_chromium(p)
-        yield browser, url
-        browser.close()
-    assert "Traceback" not in log_path.read_text()
+    with served_chromium(tmp_path_factory) as served:
+        yield served
 
 
 def _open(browser, url: str):
