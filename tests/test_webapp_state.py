@@ -779,8 +779,13 @@ def _regex_page_words(message: str) -> str:
         message,
     )
     text = re.sub(
-        r"^points\[\d+\] = \(x=(\d+), y=(\d+), tol=[\d.]+\) ",
+        r"^points\[\d+\] = \(body frame (\d+), hand frame (\d+), tolerance [\d.]+\) ",
         r"matching point (body \1, hand \2) not kept: it ",
+        text,
+    )
+    text = re.sub(
+        r"points\[\d+\] = \(body frame (\d+), hand frame (\d+), tolerance [\d.]+\)",
+        r"(body \1, hand \2)",
         text,
     )
     return re.sub(rf"\b{point}\b", r"(body \1, hand \2)", text)

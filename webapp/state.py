@@ -645,7 +645,13 @@ class Session(param.Parameterized):
         """Refuse points outside the takes or out of order: the rule and its text are
         ``engine.dtw.constraints``' (the page shows it in its own words from its structured
         fields: ``page_words``)."""
-        C.check_points(self.user_points(), self.n, self.m_hand, open_ends=C.DEFAULT_ENDS == "open")
+        C.check_points(
+            self.user_points(),
+            self.n,
+            self.m_hand,
+            open_ends=C.DEFAULT_ENDS == "open",
+            grid_scale=1.0 / self.hand_scale,
+        )
 
     def _solve(self, t0: float | None = None) -> bool:
         """Recompute band and path for the current state; False (and ``error``) if rejected."""
@@ -934,6 +940,7 @@ class Session(param.Parameterized):
             prepared.n,
             prepared.m_hand,
             open_ends=C.DEFAULT_ENDS == "open",
+            grid_scale=prepared.fps / prepared.hand_fps,
         )
         fps = prepared.features.fps
         band = spec.band or C.BAND.default_for(prepared.n, fps)

@@ -202,7 +202,13 @@ def run(args: argparse.Namespace) -> int:
     elif spec is not None and spec.roles:
         body_roles, hand_roles = split_roles(spec.roles, body, hand)
     if hand_points:  # in the files' own frames, before the long work
-        C.check_points(points, body.n_frames, hand.n_frames)
+        C.check_points(
+            points,
+            body.n_frames,
+            hand.n_frames,
+            open_ends=C.parse_ends(args.ends) == "open",
+            grid_scale=body.fps / hand.fps,
+        )
 
     from engine.splice.report import build_report, dumps
 
