@@ -35,6 +35,7 @@ CASES = {
     "body frames out of order": (None, None, [(80, 30, None), (40, 50, None)]),
     "point outside the takes": (None, None, [(40, 30, None), (5000, 60, None)]),
     "consecutive body frames too far apart": (None, None, [(40, 30, None), (41, 60, None)]),
+    "a point on the first body frame, off the corner (open ends)": (None, None, [(0, 30, None)]),
 }
 
 
@@ -45,7 +46,13 @@ def _expected(band, refine, points, n, m, grid_scale):
         C.BAND.parse(band)
         C.REFINE_BAND.parse(refine)
         pts = C.parse_points([p for p in points])
-        C.check_points([p.resolved(0.0) for p in pts], n, m, grid_scale=grid_scale)
+        C.check_points(
+            [p.resolved(0.0) for p in pts],
+            n,
+            m,
+            open_ends=C.DEFAULT_ENDS == "open",
+            grid_scale=grid_scale,
+        )
     except C.ConstraintError as exc:
         return exc
     return None
