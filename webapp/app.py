@@ -87,9 +87,10 @@ def _link_args() -> dict[str, str]:
 def _initial_state(session: Session, args: dict[str, str] | None = None) -> None:
     """Open the default sample pair, then restore the URL query's session over it.
 
-    A link that cannot be restored (unknown sample or upload, bad values) leaves the
-    default pair open and says why in the page; the address bar then shows the pair
-    that is open, not the link's values.
+    A bad value of a link (``band=99``) is left out and said in the page; the rest of the
+    link (its takes above all) opens. A link whose takes cannot be opened (unknown sample
+    or upload, points outside the matrix) leaves the default pair open and says why in
+    the page; the address bar then shows the pair that is open, not the link's values.
     """
     if args is None:
         args = _link_args()
@@ -102,7 +103,7 @@ def _initial_state(session: Session, args: dict[str, str] | None = None) -> None
             except Exception as exc:
                 session.refuse(exc)
 
-    def link_refused(exc):  # nothing of the link was applied: the default pair opens
+    def link_refused(exc):  # the link's takes cannot be opened: the default pair opens
         session.keep_error(f"shared link: {one_line(exc)}", exc)
         if session.prepared is None:
             open_default()
@@ -111,7 +112,7 @@ def _initial_state(session: Session, args: dict[str, str] | None = None) -> None
     if session.runner is not None:  # off the loop: the link's opening supersedes the default
         if linked:
             try:
-                session.from_query(args, failed=link_refused)
+                session.open_link(args, failed=link_refused)
                 return
             except Exception as exc:  # the link itself is unreadable
                 link_refused(exc)
@@ -121,7 +122,7 @@ def _initial_state(session: Session, args: dict[str, str] | None = None) -> None
     open_default()
     if linked:
         try:
-            session.from_query(args)
+            session.open_link(args)
         except Exception as exc:  # nothing was applied: the reason is shown
             session.refuse(exc, f"shared link: {one_line(exc)}")
 

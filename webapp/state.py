@@ -1013,4 +1013,17 @@ class Session(param.Parameterized):
         return f"{base}?{urlencode(self.to_query(), safe=':,')}"
 
     def from_query(self, query: dict, failed=None) -> None:
+        """Restore a link whole or not at all (a bad value raises SessionError)."""
         self.apply_spec(session_io.from_query(query), failed)
+
+    def open_link(self, query: dict, failed=None) -> None:
+        """Restore a shared link's good values (the takes above all) and leave out each bad
+        one (``band=99``, ``pts=abc:1``): ``error`` says why in one line, shown on after the
+        link's solve (:func:`engine.io.session.read_query`). What cannot be opened at all
+        (unknown takes, points outside the matrix) goes to ``failed`` as in
+        :meth:`apply_spec`."""
+        spec, problems = session_io.read_query(query)
+        if problems:
+            text = "; ".join(backend.one_line(p) for p in problems)
+            self.keep_error(f"shared link: {text}", problems[0])
+        self.apply_spec(spec, failed)

@@ -446,7 +446,8 @@ def write_session(spec: SessionSpec, path: str | Path) -> None:
 def to_query(spec: SessionSpec) -> dict[str, str]:
     """Short URL query parameters restoring ``spec`` (for sharing a link to the app).
 
-    ``sample=NAME`` or ``body=SHA256&hand=SHA256``, ``side``, ``band``, ``refine``, ``tol``,
+    ``sample=NAME`` or ``body=SHA256&hand=SHA256`` (with ``bname`` and ``hname``, the
+    uploaded files' original names, where known), ``side``, ``band``, ``refine``, ``tol``,
     ``pts=B:H[:T],...``, ``roles`` (JSON), ``view``, ``frame``, and ``frames=hand`` when the
     hand frames are the hand file's own (links made before have grid frames); the view
     state ``camera``, ``trails``, ``follow`` and ``pick`` (``1`` or ``0``) only where it is
@@ -459,6 +460,8 @@ def to_query(spec: SessionSpec) -> dict[str, str]:
         for key, take in (("body", spec.body), ("hand", spec.hand)):
             if take is not None and take.sha256:
                 q[key] = take.sha256
+                if take.name:
+                    q[QUERY_NAMES[key]] = take.name
     q["side"] = spec.side
     if spec.band is not None:
         q["band"] = spec.band.text()
@@ -482,45 +485,107 @@ def to_query(spec: SessionSpec) -> dict[str, str]:
     return q
 
 
+#: the link keys of the uploaded takes' original names
+QUERY_NAMES = {"body": "bname", "hand": "hname"}
+
+
 def from_query(query: dict[str, str]) -> SessionSpec:
-    """Inverse of :func:`to_query`; unknown keys are ignored, bad values raise SessionError."""
+    """Inverse of :func:`to_query`; unknown keys are ignored, bad values raise SessionError
+    (the first one; :func:`read_query` keeps the good values of a link with bad ones)."""
+    spec, problems = read_query(query)
+    if problems:
+        raise problems[0]
+    return spec
+
+
+def read_query(query: dict[str, str]) -> tuple[SessionSpec, tuple[SessionError, ...]]:
+    """A link's good values and a refusal for each bad one.
+
+    Each parameter is read alone with the session file's rules (:func:`from_dict`, the
+    widths, tolerances and points of :mod:`engine.dtw.constraints`): a bad one (``band=99``,
+    ``pts=abc:1``, an unknown ``view``) is left out, with its one-line :class:`SessionError`,
+    and the rest (the takes above all) is kept. A bad file name (``bname``, ``hname``)
+    loses only the name, not its take.
+    """
     source = "URL"
     q = {k: (v[0] if isinstance(v, list | tuple) and v else v) for k, v in query.items()}
-    data: dict[str, Any] = {"version": 2 if q.get("frames") == "hand" else 1}
+    version = 2 if q.get("frames") == "hand" else 1
+    problems: list[SessionError] = []
+
+    def checked(part: dict) -> bool:
+        """Whether ``part`` (a few top-level fields) passes the session rules alone."""
+        try:
+            from_dict({"version": version, **part}, source)
+        except SessionError as exc:
+            problems.append(exc)
+            return False
+        return True
+
+    def constraint(key: str, read):
+        """``read()`` with engine.dtw.constraints' refusal kept as a problem (None then)."""
+        try:
+            return read()
+        except C.ConstraintError as exc:
+            problems.append(SessionError(source, exc.field, exc.detail, exc))
+        except SessionError as exc:
+            problems.append(exc)
+        return None
+
+    data: dict[str, Any] = {"version": version}
     if q.get("sample"):
-        data["inputs"] = {"sample": q["sample"]}
+        if checked({"inputs": {"sample": q["sample"]}}):
+            data["inputs"] = {"sample": q["sample"]}
     elif q.get("body") or q.get("hand"):
-        data["inputs"] = {k: {"sha256": str(q[k]).lower()} for k in ("body", "hand") if q.get(k)}
-    if "side" in q:
+        inputs = {}
+        for key in ("body", "hand"):
+            if not q.get(key):
+                continue
+            take = {"sha256": str(q[key]).lower()}
+            name = q.get(QUERY_NAMES[key])
+            if name and checked({"inputs": {key: {**take, "name": name}}}):
+                take["name"] = name
+            if (name and "name" in take) or checked({"inputs": {key: take}}):
+                inputs[key] = take
+        if inputs:
+            data["inputs"] = inputs
+    if "side" in q and checked({"side": q["side"]}):
         data["side"] = q["side"]
-    try:  # the same parsers as every front (engine.dtw.constraints)
-        for key, rule in (("band", C.BAND), ("refine", C.REFINE_BAND)):
-            if key in q:
-                width = rule.parse(str(q[key]))
-                data[rule.name] = None if width is None else width.to_json()
-        if "tol" in q:
-            data["tolerance"] = C.parse_tolerance(str(q["tol"]))
-        if q.get("pts"):
-            data["points"] = [[p.body, p.hand, p.tolerance] for p in C.parse_points(str(q["pts"]))]
-    except C.ConstraintError as exc:
-        raise SessionError(source, exc.field, exc.detail, exc) from None
+    for key, rule in (("band", C.BAND), ("refine", C.REFINE_BAND)):  # every front's parsers
+        if key in q:
+            width = constraint(key, lambda rule=rule, key=key: rule.parse(str(q[key])))
+            if width is not None:
+                data[rule.name] = width.to_json()
+    if "tol" in q:
+        tolerance = constraint("tol", lambda: C.parse_tolerance(str(q["tol"])))
+        if tolerance is not None:
+            data["tolerance"] = tolerance
+    if q.get("pts"):
+        points = constraint("pts", lambda: C.parse_points(str(q["pts"])))
+        if points is not None:
+            data["points"] = [[p.body, p.hand, p.tolerance] for p in points]
     if q.get("roles"):
         try:
-            data["roles"] = json.loads(str(q["roles"]))
+            roles = json.loads(str(q["roles"]))
         except (json.JSONDecodeError, RecursionError):
-            raise SessionError(source, "roles", "expected a JSON object") from None
+            problems.append(SessionError(source, "roles", "expected a JSON object"))
+        else:
+            if checked({"roles": roles}):
+                data["roles"] = roles
     view: dict[str, Any] = {}
     if q.get("view"):
         view["matrix"] = q["view"]
     if q.get("frame"):
-        view["frame"] = _query_number(q["frame"], "frame", source)
+        frame = constraint("frame", lambda: _query_number(q["frame"], "frame", source))
+        if frame is not None:
+            view["frame"] = frame
     for key, default in VIEW_DEFAULTS.items():  # checked with the file's rules (from_dict)
         if key in q:
             flag = isinstance(default, bool)
             view[key] = _QUERY_FLAGS.get(str(q[key]).strip().lower(), q[key]) if flag else q[key]
+    view = {k: v for k, v in view.items() if checked({"view": {k: v}})}
     if view:
         data["view"] = view
-    return from_dict(data, source)
+    return from_dict(data, source), tuple(problems)
 
 
 #: a link's on/off values (anything else reaches from_dict as text, which refuses it)

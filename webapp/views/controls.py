@@ -96,6 +96,42 @@ def _points_frame(session: Session) -> pd.DataFrame:
     )
 
 
+#: the page side of :class:`PointsTabulator`: Panel's table view drops a change of its
+#: rows that arrives while Tabulator still builds the table (``setData`` returns at once
+#: while ``_initializing``), so the rows a shared link restores a moment after the page
+#: loads never showed. A dropped change is shown here once the table is ready.
+_JS_SHOW_LATE_ROWS = """
+const busy = v => v == null || v.tabulator == null || !v.tabulator.initialized
+  || v._initializing || v._building;
+if (!busy(Bokeh.index.find_one(table))) return;  // Panel's own handler shows the rows
+const serial = (table.__hs_rows = (table.__hs_rows ?? 0) + 1);
+let tries = 0;
+const again = () => {
+  if (table.__hs_rows !== serial) return;  // a newer change took over
+  const view = Bokeh.index.find_one(table);
+  if (view == null) return;  // drawn later from the source as it is then
+  if (busy(view)) {
+    if (++tries < 600) setTimeout(again, 100);
+    return;
+  }
+  void view.setData();
+};
+setTimeout(again, 100);
+"""
+
+
+class PointsTabulator(pn.widgets.Tabulator):
+    """Panel's Tabulator whose rows also show when they change while the page's table is
+    still being built (see ``_JS_SHOW_LATE_ROWS``)."""
+
+    def _get_model(self, doc, root=None, parent=None, comm=None):
+        model = super()._get_model(doc, root, parent, comm)
+        model.source.js_on_change(
+            "data", CustomJS(args={"table": model}, code=_JS_SHOW_LATE_ROWS)
+        )
+        return model
+
+
 class PointsTable:
     """Tabulator of the matching points: edit frames and per-point tolerance, delete rows.
 
@@ -105,7 +141,7 @@ class PointsTable:
     def __init__(self, session: Session):
         self.session = session
         self._syncing = False
-        self.table = pn.widgets.Tabulator(
+        self.table = PointsTabulator(
             _points_frame(session),
             show_index=False,
             sizing_mode="stretch_width",

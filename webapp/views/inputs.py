@@ -156,12 +156,29 @@ class InputsView:
             opened = (self._open.get("body"), self._open.get("hand"))
             if key[0] or None in opened or key[1:] != tuple(k.digest for k in opened):
                 self._forget_uploads()
+                self._show_kept_pair()
         options, value = self._sample_options(), self._sample_value()
         if list(self.sample.options) != options:
             self.sample.param.update(options=options, value=value)
         elif self.sample.value != value and value is not None:
             self.sample.value = value
         self._show_roles()
+
+    def _show_kept_pair(self):
+        """An uploaded pair opened by a link or a session file (not through these fields,
+        whose tiles stay empty): the "Uploaded …" line names its files, escaped."""
+        s = self.session
+        if s.sample or not (s.body_sha256 and s.hand_sha256) or self._pending:
+            return
+        parts = [
+            f"{which}: <b>{safe_text.html(name or f'{which} take (name unknown)')}</b>"
+            for which, name in (("body", s.body_name), ("hand", s.hand_name))
+        ]
+        self.uploaded.object = (
+            "<span class='hs-uploaded hs-kept-pair'>Open: "
+            + ", ".join(parts)
+            + " (kept on this server from an earlier upload).</span>"
+        )
 
     def _show_note(self, *_):
         prepared = self.session.prepared
