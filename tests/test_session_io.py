@@ -19,6 +19,7 @@ from engine.io.session import (
     from_query,
     parse_session,
     read_session,
+    read_query,
     to_dict,
     to_query,
     write_session,
@@ -254,3 +255,74 @@ def test_bad_view_state_in_a_link_names_the_field(query, field, words):
         from_query({"sample": "demo", **query})
     assert info.value.field == field and str(info.value).startswith(f"URL: {field}: ")
     assert words in str(info.value)
+
+
+def test_a_link_keeps_the_uploaded_files_names():
+    """A link of an uploaded pair carries the files' names (``bname``, ``hname``), so the
+    page, the CLI line, downloads and the session file name them as the sharer's did."""
+    up = _spec(
+        sample=None,
+        body=TakeRef(sha256=HASH, name="walk <b>1</b>.bvh"),
+        hand=TakeRef(sha256="cd" * 32, name="hand & co.bvh"),
+        view={},
+    )
+    q = to_query(up)
+    assert (q["bname"], q["hname"]) == ("walk <b>1</b>.bvh", "hand & co.bvh")
+    assert from_query(q) == up
+    # a bad name loses only the name: the take still opens by its hash
+    spec, problems = read_query({**q, "bname": "x\x00y"})
+    assert spec.body == TakeRef(sha256=HASH) and spec.hand == up.hand
+    assert [p.field for p in problems] == ["inputs.body.name"]
+
+
+@pytest.mark.parametrize(
+    ("bad", "field"),
+    [
+        ({"band": "99"}, "band"),
+        ({"refine": "-1"}, "refine_band"),
+        ({"tol": "x"}, "tolerance"),
+        ({"pts": "abc:1"}, "points[0].body"),
+        ({"view": "<b>"}, "view.matrix"),
+        ({"frame": "x"}, "frame"),
+        ({"camera": "top"}, "view.camera"),
+        ({"side": "middle"}, "side"),
+        ({"roles": "{not json"}, "roles"),
+    ],
+)
+def test_a_bad_link_value_is_left_out_and_the_rest_kept(bad, field):
+    """One bad parameter refuses only itself, with the strict reader's one-line error; the
+    takes and every good value are kept."""
+    good = {
+        "sample": "demo",
+        "side": "left",
+        "band": "0.4",
+        "refine": "2s",
+        "tol": "2",
+        "pts": "10:12,40:35:1",
+        "frames": "hand",
+        "view": "pass2",
+        "frame": "7",
+        "camera": "front",
+        "roles": '{"hand":{"right.wrist":"rHand"}}',
+    }
+    whole = from_query(good)
+    spec, problems = read_query({**good, **bad})
+    with pytest.raises(SessionError) as strict:
+        from_query({**good, **bad})
+    assert [str(p) for p in problems] == [str(strict.value)]
+    assert problems[0].field == field
+    assert spec.sample == "demo"
+    key = {"band": "band", "refine_band": "refine_band", "tolerance": "tolerance"}
+    kept = {
+        "side": spec.side != whole.side,
+        "band": spec.band != whole.band,
+        "refine_band": spec.refine_band != whole.refine_band,
+        "tolerance": spec.tolerance != whole.tolerance,
+        "points[0].body": spec.points != whole.points,
+        "view.matrix": spec.view.get("matrix") != whole.view["matrix"],
+        "frame": spec.view.get("frame") != whole.view["frame"],
+        "view.camera": spec.view.get("camera") != whole.view["camera"],
+        "roles": spec.roles != whole.roles,
+    }
+    # only the bad value differs from the good link's (it takes its default)
+    assert [k for k, differs in kept.items() if differs] == [key.get(field, field)]

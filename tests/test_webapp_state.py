@@ -892,3 +892,68 @@ def test_the_explicit_flags_line_names_the_points_as_the_table_does_and_replays(
     assert main(["splice", *argv, "--quiet"]) == 0
     app_bytes = backend.bvh_bytes(backend.splice(session.prepared, session.solution))
     assert (tmp_path / "cli.bvh").read_bytes() == app_bytes
+
+
+def test_a_link_of_an_uploaded_pair_keeps_the_file_names(cfg):
+    """The names travel in the link: the reopened session names its takes in downloads,
+    the session file and the CLI line as the sharer's did (not the server's hash files)."""
+    pair = cfg.sample(DEMO)
+    body, _ = uploads.store(cfg, "walk 1.bvh", pair.body.read_bytes())
+    hand, _ = uploads.store(cfg, "<b>hand</b>.bvh", pair.hand.read_bytes())
+    s = Session(cfg)
+    s.load_uploads(body, hand, "walk 1.bvh", "<b>hand</b>.bvh")
+    other = Session(cfg)
+    other.open_link(dict(parse_qsl(urlsplit(s.share_url("/")).query)))
+    assert not other.error
+    assert (other.body_name, other.hand_name) == ("walk 1.bvh", "<b>hand</b>.bvh")
+    assert other.output_stem() == "walk_1-spliced"
+    inputs = json.loads(other.to_json())["inputs"]
+    assert inputs["body"] == {"sha256": body, "name": "walk 1.bvh"}
+    assert inputs["hand"] == {"sha256": hand, "name": "<b>hand</b>.bvh"}
+
+
+@pytest.mark.parametrize(
+    ("bad", "words"),
+    [
+        ({"band": "99"}, "URL: band: expected a fraction of the body take from 0.02 to 1"),
+        ({"pts": "abc:1"}, "URL: points[0].body: expected a whole frame number"),
+    ],
+)
+def test_a_link_with_one_bad_value_opens_its_takes_and_good_values(cfg, bad, words):
+    """One bad parameter refuses only itself (the page's one-line error, shown after the
+    link's solve); the link's own takes open (not the default pair) with its good values."""
+    link = {
+        "sample": "bye-hello",
+        "side": "right",
+        "band": "0.4",
+        "refine": "0.1",
+        "tol": "0",
+        "pts": "30:20:3,60:50",
+        "frames": "hand",
+        "view": "pass2",
+        "frame": "40",
+    }
+    s = Session(cfg)
+    s.load_sample(DEMO)
+    s.open_link({**link, **bad})
+    assert s.sample == "bye-hello" and s.matrix == "pass2" and s.frame == 40
+    if "band" in bad:
+        assert s.band == pytest.approx(0.3)  # the default, not 99
+        assert [(p.body, p.hand, p.tolerance) for p in s.points] == [(30, 20, 3), (60, 50, None)]
+    else:
+        assert s.band == pytest.approx(0.4) and s.points == ()
+    assert s.error.startswith("shared link: " + words) and "\n" not in s.error
+    with pytest.raises(SessionError) as strict:  # the same words as a whole refusal
+        Session(cfg).from_query({**link, **bad})
+    assert s.error == f"shared link: {backend.one_line(strict.value)}"
+
+
+def test_a_link_with_points_outside_its_takes_opens_the_takes_without_them(cfg):
+    link = {"sample": "bye-hello", "band": "0.4", "pts": "30:20,900:50", "frames": "hand"}
+    s = Session(cfg)
+    s.load_sample(DEMO)
+    s.open_link(link)
+    assert s.sample == "bye-hello" and s.band == pytest.approx(0.4) and s.points == ()
+    assert s.solution is not None and "\n" not in s.error
+    assert s.error.startswith("shared link: points[1] = (body frame 900, hand frame 50")
+    assert s.refusal() is not None and s.refusal().field.startswith("points")

@@ -847,7 +847,7 @@ class Session(param.Parameterized):
             view={"matrix": self.matrix, "frame": self.frame, **self._current(VIEW_STATE)},
         )
 
-    def apply_spec(self, spec: SessionSpec, failed=None) -> None:
+    def apply_spec(self, spec: SessionSpec, failed=None, keep_takes: bool = False) -> None:
         """Restore inputs, parameters and points (one recompute; clears undo history).
 
         Off the event loop (:meth:`compute_off_loop`) the work runs on the worker and a
@@ -858,10 +858,11 @@ class Session(param.Parameterized):
         link (unknown sample or upload, points outside the matrix, infeasible points)
         raises (SessionError, KeyError, HandSpliceError, ValueError, OSError) and leaves
         the working session exactly as it was. A spec without inputs keeps the current
-        takes.
+        takes. ``keep_takes`` (a shared link): points that do not fit the takes are left
+        out, with their refusal in ``error``, and the rest opens.
         """
         if self.runner is None:
-            self._commit(self._stage(spec))
+            self._commit(self._stage(spec, keep_takes=keep_takes))
             return
 
         def refused(exc):
@@ -871,13 +872,13 @@ class Session(param.Parameterized):
             Job(
                 "inputs",
                 "opening the session",
-                lambda progress: self._stage(spec, progress),
+                lambda progress: self._stage(spec, progress, keep_takes),
                 done=self._commit,
                 failed=failed or refused,
             )
         )
 
-    def _stage(self, spec: SessionSpec, progress=None) -> dict:
+    def _stage(self, spec: SessionSpec, progress=None, keep_takes: bool = False) -> dict:
         """Everything ``spec`` needs, computed without touching the session (safe on a
         worker thread)."""
         t0 = time.perf_counter()
@@ -935,13 +936,19 @@ class Session(param.Parameterized):
                     prepared, [(p.body, p.hand, p.tolerance) for p in points]
                 )
             )
-        C.check_points(
-            [p.resolved(spec.tolerance) for p in points],
-            prepared.n,
-            prepared.m_hand,
-            open_ends=C.DEFAULT_ENDS == "open",
-            grid_scale=prepared.fps / prepared.hand_fps,
-        )
+        refused = None
+        try:
+            C.check_points(
+                [p.resolved(spec.tolerance) for p in points],
+                prepared.n,
+                prepared.m_hand,
+                open_ends=C.DEFAULT_ENDS == "open",
+                grid_scale=prepared.fps / prepared.hand_fps,
+            )
+        except C.ConstraintError as exc:
+            if not keep_takes:
+                raise
+            refused, points = exc, ()  # the link's takes and other values open without them
         fps = prepared.features.fps
         band = spec.band or C.BAND.default_for(prepared.n, fps)
         refine = spec.refine_band or C.REFINE_BAND.default_for(prepared.n, fps)
@@ -971,6 +978,7 @@ class Session(param.Parameterized):
             "prepared": prepared,
             "solution": solution,
             "compute_ms": (time.perf_counter() - t0) * 1000.0,
+            "refused": refused,
         }
 
     def _commit(self, staged: dict) -> None:
@@ -987,6 +995,9 @@ class Session(param.Parameterized):
         self._accepted, self._accepted_undo = self._current(EDIT_PARAMS), 0
         self.inputs_revision += 1
         self.error, self._carry_error = self._carry_error, ""
+        if staged.get("refused") is not None:  # a link's points left out: say why too
+            text = f"shared link: {backend.one_line(staged['refused'])}"
+            self.refuse(staged["refused"], "; ".join(t for t in (self.error, text) if t))
         self.revision += 1
         self._update_history_flags()
 
@@ -1026,4 +1037,4 @@ class Session(param.Parameterized):
         if problems:
             text = "; ".join(backend.one_line(p) for p in problems)
             self.keep_error(f"shared link: {text}", problems[0])
-        self.apply_spec(spec, failed)
+        self.apply_spec(spec, failed, keep_takes=True)
