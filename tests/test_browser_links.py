@@ -1,0 +1,190 @@
+"""Shared links in real Chromium, opened as a stranger opens them: the address in a fresh
+tab, then what the page shows (the points table, the takes' names, the error line, the
+CLI line, the downloads). Real captures; uploads go in through the page's file fields.
+
+Screenshots of each opened link go to the test's tmp folder (``links-*.png``).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from urllib.parse import parse_qsl, urlsplit
+
+import pytest
+from conftest import served_chromium
+
+from webapp.launch import PAGE_HELPERS
+
+pytestmark = [pytest.mark.browser, pytest.mark.timeout(1500)]
+
+ROOT = Path(__file__).resolve().parents[1]
+MOCAP = ROOT.parent / "shared" / "data" / "mocap"
+BODY_BVH = MOCAP / "bandai-namco" / "dataset-1_bye_normal_001.bvh"
+HAND_BVH = MOCAP / "gestification" / "hello-world.bvh"
+#: sets a flag when a page turns it into an element (as tests/test_browser_uploads.py)
+PAYLOAD = "<img src=x onerror=window.__hs_xss=1>"
+BUSY_S = 240.0
+POINTS_LINK = (
+    "?sample=wave-ok&side=right&band=0.3&refine=0.1&tol=0&pts=60:80:3,120:160"
+    "&frames=hand&view=pass1&frame=60"
+)
+
+
+@pytest.fixture(scope="module")
+def served(tmp_path_factory):
+    with served_chromium(tmp_path_factory) as browser_and_url:
+        yield browser_and_url
+
+
+def _open(browser, url: str):
+    context = browser.new_context(viewport={"width": 1300, "height": 1000}, accept_downloads=True)
+    page = context.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.goto(url, timeout=600_000)
+    page.wait_for_function(
+        "() => window.Bokeh && Bokeh.documents.length && "
+        "Bokeh.documents[0].get_model_by_name('hs-path-source')?.data.x?.length > 0",
+        timeout=600_000,
+    )
+    page.evaluate(PAGE_HELPERS)
+    page.errors = errors
+    return page
+
+
+def _text(locator) -> str:
+    """Text of an element including its (open) shadow root, where Panel renders panes."""
+    return locator.evaluate(
+        "e => [...(e.shadowRoot ? e.shadowRoot.children : []), ...e.children]"
+        ".filter(c => c.tagName !== 'STYLE' && c.tagName !== 'LINK')"
+        ".map(c => c.innerText).join(' ')"
+    )
+
+
+def _table_rows(page, want: int, timeout: float = 20.0) -> list[tuple[str, str, str]]:
+    """(body, hand, tolerance) of each row the "Matching points" table shows, once it
+    shows ``want`` rows (or ``timeout`` seconds passed: what it shows then)."""
+    rows = page.locator(".hs-points .tabulator-row")
+    deadline = time.monotonic() + timeout
+    while rows.count() != want and time.monotonic() < deadline:
+        page.wait_for_timeout(100)
+    return [
+        tuple(
+            row.locator(f".tabulator-cell[tabulator-field='{field}']").inner_text().strip()
+            for field in ("body frame", "hand frame", "tolerance")
+        )
+        for row in rows.all()
+    ]
+
+
+def _xss_ran(page) -> bool:
+    page.wait_for_timeout(500)  # an <img onerror> fires within a few ms of insertion
+    return bool(page.evaluate("window.__hs_xss === 1"))
+
+
+def test_a_link_with_points_fills_the_points_table(served, tmp_path):
+    """The stranger's link: the matrix draws its two points and the table lists them
+    without another edit (Panel's table dropped rows that came while it was built)."""
+    browser, url = served
+    page = _open(browser, url + POINTS_LINK)
+    try:
+        assert page.evaluate("hs.cols('hs-points-source', ['x']).x") == [60, 120]
+        rows = _table_rows(page, 2)
+        page.screenshot(path=str(tmp_path / "links-points.png"), full_page=True)
+        assert rows == [("60", "80", "3"), ("120", "160", "")]
+        assert "2 matching points" in _text(page.locator(".hs-status"))
+        assert not page.errors, page.errors
+    finally:
+        page.context.close()
+
+
+def test_one_bad_link_value_keeps_the_takes_and_the_good_values(served, tmp_path):
+    """``band=99`` refuses only the band (the page's one-line error); the link's own pair
+    (not the demo), its points, matrix view and frame open."""
+    browser, url = served
+    link = (
+        "?sample=bye-hello&side=right&band=99&refine=0.1&tol=0&pts=30:20:3,60:50"
+        "&frames=hand&view=pass2&frame=40"
+    )
+    page = _open(browser, url + link)
+    try:
+        alert = page.locator(".hs-error")
+        alert.wait_for(state="visible", timeout=BUSY_S * 1000)
+        assert page.locator(".hs-sample select").input_value() == "bye-hello"
+        rows = _table_rows(page, 2)
+        page.screenshot(path=str(tmp_path / "links-bad-band.png"), full_page=True)
+        assert rows == [("30", "20", "3"), ("60", "50", "")]
+        text = _text(alert)
+        assert "shared link: URL: band: expected a fraction of the body take" in text
+        assert "got 99" in text and "\n" not in text.strip()
+        # the address bar and the link box show what is open: the refused band is gone
+        page.wait_for_function("() => !location.search.includes('band=99')", timeout=30_000)
+        query = dict(parse_qsl(urlsplit(page.locator(".hs-share-url input").input_value()).query))
+        assert query["sample"] == "bye-hello" and query["pts"] == "30:20:3,60:50"
+        assert query["view"] == "pass2" and query["band"] != "99"
+        assert not page.errors, page.errors
+    finally:
+        page.context.close()
+
+    page = _open(browser, url + link.replace("band=99", "band=0.4").replace("pts=30", "pts=abc"))
+    try:
+        alert = page.locator(".hs-error")
+        alert.wait_for(state="visible", timeout=BUSY_S * 1000)
+        assert "shared link: URL: points[0].body: expected a whole frame number" in _text(alert)
+        assert page.locator(".hs-sample select").input_value() == "bye-hello"
+        assert _table_rows(page, 0, timeout=2.0) == []
+        query = dict(parse_qsl(urlsplit(page.locator(".hs-share-url input").input_value()).query))
+        assert query["band"] == "0.4" and "pts" not in query
+    finally:
+        page.context.close()
+
+
+def test_a_link_of_an_uploaded_pair_keeps_the_file_names(served, tmp_path):
+    """Upload a pair through the page (a hostile body file name), share its link, open it
+    in a fresh tab: the takes, the CLI line, the BVH download and the session file name
+    the files as uploaded, shown literally (no script runs)."""
+    browser, url = served
+    body_name, hand_name = f"{PAYLOAD}walk.bvh", "hello world.bvh"
+    page = _open(browser, url)
+    try:
+        for which, path, name in (("body", BODY_BVH, body_name), ("hand", HAND_BVH, hand_name)):
+            page.locator(f".hs-upload-{which} input[type=file]").set_input_files(
+                {"name": name, "mimeType": "application/octet-stream", "buffer": path.read_bytes()}
+            )
+            page.locator(f".hs-upload-{which} .filepond--item[data-hs-verdict='ok']").wait_for(
+                timeout=BUSY_S * 1000
+            )
+        box, deadline = page.locator(".hs-share-url input"), time.monotonic() + BUSY_S
+        while "hname=" not in (link := box.input_value()):  # the pair opens, then its link
+            assert time.monotonic() < deadline, link
+            page.wait_for_timeout(200)
+    finally:
+        page.context.close()
+
+    query = dict(parse_qsl(urlsplit(link).query))
+    assert (query["bname"], query["hname"]) == (body_name, hand_name)
+    page = _open(browser, link)
+    try:
+        credits = page.locator(".hs-credits")
+        credits.wait_for(timeout=BUSY_S * 1000)
+        assert credits.inner_text().strip() == f"Your own takes: {body_name} and {hand_name}."
+        line = _text(page.locator(".hs-upload-status"))
+        assert f"body: {body_name}" in line and f"hand: {hand_name}" in line
+        cli = _text(page.locator(".hs-cli"))
+        assert "walk.bvh" in cli and "hello world.bvh" in cli and query["body"] not in cli
+        page.screenshot(path=str(tmp_path / "links-uploaded.png"), full_page=True)
+        with page.expect_download(timeout=BUSY_S * 1000) as info:
+            page.locator(".hs-download-session button").click()
+        session = json.loads(Path(info.value.path()).read_text())
+        assert session["inputs"]["body"] == {"sha256": query["body"], "name": body_name}
+        assert session["inputs"]["hand"] == {"sha256": query["hand"], "name": hand_name}
+        with page.expect_download(timeout=BUSY_S * 1000) as info:
+            page.locator(".hs-download-bvh button").click()
+        assert info.value.suggested_filename.endswith("walk-spliced.bvh")
+        assert info.value.suggested_filename != "handsplice-spliced.bvh"
+        assert not _xss_ran(page)
+        assert not page.errors, page.errors
+    finally:
+        page.context.close()
