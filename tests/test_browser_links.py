@@ -39,6 +39,7 @@ def served(tmp_path_factory):
 
 
 def _open(browser, url: str):
+    """A fresh tab at ``url`` once its matrix shows a path."""
     context = browser.new_context(viewport={"width": 1300, "height": 1000}, accept_downloads=True)
     page = context.new_page()
     errors: list[str] = []
@@ -86,7 +87,8 @@ def _xss_ran(page) -> bool:
 
 def test_a_link_with_points_fills_the_points_table(served, tmp_path):
     """The stranger's link: the matrix draws its two points and the table lists them
-    without another edit (Panel's table dropped rows that came while it was built)."""
+    without another edit (Panel's table dropped rows that came while it was built: on a
+    loaded machine the server's solve is back before the tab has built the table)."""
     browser, url = served
     page = _open(browser, url + POINTS_LINK)
     try:
