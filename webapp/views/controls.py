@@ -8,6 +8,7 @@ from bokeh.models import CustomJS
 
 from webapp import safe_text
 from webapp.state import Session
+from webapp.views._dispatch import with_document_lock
 
 MATRIX_CHOICES = {
     "Pass 1": "pass1",
@@ -141,8 +142,17 @@ class PointsTable:
     def __init__(self, session: Session):
         self.session = session
         self._syncing = False
-        self.table = PointsTabulator(
-            _points_frame(session),
+        self.table = self._make_table()
+        #: a new pair (a link, a session file) gets a new table, drawn with its rows: a
+        #: change of rows that reaches the page while its table is still being built (a
+        #: link's solve back before a loaded tab drew the page) was lost
+        self._holder = pn.Column(self.table, margin=0, sizing_mode="stretch_width")
+        session.param.watch(self._refresh, ["points", "tolerance", "revision"])
+        session.param.watch(self._new_table, ["inputs_revision"])
+
+    def _make_table(self) -> pn.widgets.Tabulator:
+        table = PointsTabulator(
+            _points_frame(self.session),
             show_index=False,
             sizing_mode="stretch_width",
             height=180,
@@ -191,9 +201,14 @@ class PointsTable:
             layout="fit_data_table",
             configuration={"columnDefaults": {"headerSort": False}},
         )
-        self.table.on_edit(self._on_edit)
-        self.table.on_click(self._on_click)
-        session.param.watch(self._refresh, ["points", "tolerance", "revision"])
+        table.on_edit(self._on_edit)
+        table.on_click(self._on_click)
+        return table
+
+    @with_document_lock
+    def _new_table(self, *_):
+        self.table = self._make_table()
+        self._holder.objects = [self.table]
 
     def _refresh(self, *_):
         frame = _points_frame(self.session)
@@ -239,7 +254,7 @@ class PointsTable:
             self.session.delete_point(event.row)
 
     def panel(self) -> pn.viewable.Viewable:
-        return self.table
+        return self._holder
 
 
 def status_line(session: Session) -> pn.viewable.Viewable:
