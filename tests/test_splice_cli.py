@@ -124,6 +124,30 @@ def test_output_must_be_bvh(tmp_path, capsys):
     assert ".bvh" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["splice", str(BODY), str(HAND), "-o", "{missing}/o.bvh"],
+        ["splice", str(BODY), str(HAND), "-o", "{tmp}/o.bvh", "--report", "{missing}/r.json"],
+        ["splice", str(BODY), str(HAND), "-o", "{tmp}/o.bvh", "--preview", "{missing}/p.gif"],
+        ["render", str(BODY), "-o", "{missing}/o.png"],
+        ["synthesize", str(BODY), "-o", "{missing}/o.bvh"],
+        ["analyze", str(BODY), "--csv", "{missing}/o.csv"],
+    ],
+)
+def test_an_output_in_a_missing_folder_is_refused_at_once(tmp_path, capsys, argv):
+    """A typo in an output's folder is refused in one line (exit 2) before any work; no
+    folder is created and nothing is written."""
+    missing = tmp_path / "no-such-folder"
+    args = [a.format(missing=missing, tmp=tmp_path) for a in argv]
+    with pytest.raises(SystemExit) as info:
+        main(args)
+    assert info.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no-such-folder does not exist" in err[0], err
+    assert not missing.exists() and not (tmp_path / "o.bvh").exists()
+
+
 def test_preview_renders_the_spliced_take(tmp_path):
     png = tmp_path / "preview.png"
     code = main(

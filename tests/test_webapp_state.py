@@ -355,6 +355,25 @@ def test_upload_limit_has_one_source():
     assert int(args.max_upload_mb * 2**20) == MAX_UPLOAD_BYTES
 
 
+def test_the_printed_url_of_a_pair_opened_from_disk_opens_it(tmp_path):
+    """``serve BODY HAND --show-url`` prints a link whose ``sample`` is the pair's name
+    ("BODY + HAND", spaces and a plus sign) as the page reads it back."""
+    from urllib.parse import parse_qs
+
+    from conftest import MOCAP
+    from webapp import serve_cli as serve
+
+    pair = config.local_pair(
+        MOCAP / "bandai-namco" / "dataset-2_wave-right-hand_normal_001.bvh",
+        MOCAP / "gestification" / "fingers-ok.bvh",
+        "right",
+    )
+    assert " + " in pair.name
+    link = serve.sample_url("http://127.0.0.1:5006/", pair.name)
+    assert " " not in link
+    assert parse_qs(urlsplit(link).query)["sample"] == [pair.name]
+
+
 def test_session_on_uploaded_files(cfg):
     pair = cfg.sample(DEMO)
     body, _ = uploads.store(cfg, "body.bvh", pair.body.read_bytes())

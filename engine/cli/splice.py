@@ -38,6 +38,8 @@ import argparse
 import sys
 import time
 
+from engine.cli import output_file
+
 
 def add_parser(subparsers) -> None:
     p = subparsers.add_parser(
@@ -48,7 +50,9 @@ def add_parser(subparsers) -> None:
     )
     p.add_argument("body", help="body take (.bvh)")
     p.add_argument("hand", help="hand take with finger joints (.bvh)")
-    p.add_argument("-o", "--output", required=True, metavar="OUT.bvh", help="spliced take")
+    p.add_argument(
+        "-o", "--output", required=True, type=output_file, metavar="OUT.bvh", help="spliced take"
+    )
     p.add_argument(
         "--side",
         default=None,
@@ -75,8 +79,12 @@ def add_parser(subparsers) -> None:
         metavar="BODY:HAND[:TOL]",
         help="matching point: body frame, hand frame, tolerance in hand frames",
     )
-    p.add_argument("--report", metavar="REPORT.json", help="write the alignment report")
-    p.add_argument("--preview", metavar="OUT.gif", help="render a preview (.gif, .mp4, .png)")
+    p.add_argument(
+        "--report", type=output_file, metavar="REPORT.json", help="write the alignment report"
+    )
+    p.add_argument(
+        "--preview", type=output_file, metavar="OUT.gif", help="render a preview (.gif, .mp4, .png)"
+    )
     p.add_argument("--roles", metavar="MAP.json", help="joint-role overrides")
     p.add_argument(
         "--session",
