@@ -37,6 +37,11 @@ def test_splice_writes_bvh_report_and_progress(tmp_path, capsys):
     assert code == 0
     err = capsys.readouterr().err
     assert "pass 1" in err and "pass 2" in err and f"wrote {out}" in err
+    report = json.loads(rep.read_text())
+    from engine.splice.report import unmatched_summary
+
+    unmatched = unmatched_summary(report["unmatched_body"], 30.0)
+    assert (f"splice: {unmatched}\n" in err) == bool(unmatched)
     motion = read_bvh(out)
     assert motion.n_frames == read_bvh(BODY).n_frames
     assert find_roles(motion.skeleton).side("right").has_fingers

@@ -355,12 +355,25 @@ def test_upload_limit_has_one_source():
     assert int(args.max_upload_mb * 2**20) == MAX_UPLOAD_BYTES
 
 
+def test_the_status_names_body_frames_left_without_a_hand_match(session):
+    """Open ends leave the demo's first and last body frames unmatched (its hand take is
+    shorter than the wave): the status line says which, as the CLI does."""
+    from engine.splice.report import unmatched_summary
+
+    ranges = session.solution.cache["engine"].unmatched_body
+    assert ranges and ranges[0][0] == 0
+    text = unmatched_summary(ranges, session.fps)
+    assert text.startswith(f"body frames {ranges[0][0]}-{ranges[0][1]}")
+    assert text in session.status_text()
+
+
 def test_the_printed_url_of_a_pair_opened_from_disk_opens_it(tmp_path):
     """``serve BODY HAND --show-url`` prints a link whose ``sample`` is the pair's name
     ("BODY + HAND", spaces and a plus sign) as the page reads it back."""
     from urllib.parse import parse_qs
 
     from conftest import MOCAP
+
     from webapp import serve_cli as serve
 
     pair = config.local_pair(

@@ -765,13 +765,18 @@ class Session(param.Parameterized):
         sol = self.solution
         if sol is None:
             return self.error or "no takes loaded"
+        from engine.splice.report import unmatched_summary
+
         cells = sol.pass1.band_cells
         share = 100.0 * cells / max(self.n * self.m, 1)
-        return (
+        text = (
             f"pass 1 cost {sol.pass1.cost:.4g} · pass 2 cost {sol.pass2.cost:.4g} · "
             f"{self.compute_ms:.1f} ms · band {cells:,} cells ({share:.0f} %) · "
             f"{len(self.points)} matching point{'s' if len(self.points) != 1 else ''}"
         )
+        result = sol.cache.get("engine")
+        unmatched = unmatched_summary(getattr(result, "unmatched_body", ()), self.fps)
+        return text + (f" · {unmatched}" if unmatched else "")
 
     def axis_signals(self) -> tuple[np.ndarray, np.ndarray]:
         if self.prepared is None:
