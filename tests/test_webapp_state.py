@@ -355,6 +355,30 @@ def test_upload_limit_has_one_source():
     assert int(args.max_upload_mb * 2**20) == MAX_UPLOAD_BYTES
 
 
+def test_w2_is_greyed_out_where_pass_2_compares_the_hand_turning(cfg):
+    """A hand take without a forearm (the demo's Leap hand) is timed in pass 2 by how the
+    hand turns, inside the whole pass-1 band: W2 changes nothing there, so its controls are
+    disabled with the reason beside them and the pass-2 title names that metric. A hand
+    take with a forearm (BEAT) keeps W2 and D2."""
+    from webapp.state import MATRIX_LABELS, PASS2_SPIN_LABEL
+    from webapp.views.controls import parameter_widgets
+
+    s = Session(cfg)
+    s.load_sample(DEMO)
+    layout = parameter_widgets(s)
+    params, note = layout[0], layout[1]
+    s.matrix = "pass2"
+    assert s.pass2_turns_hand() and s.matrix_label() == PASS2_SPIN_LABEL
+    assert params._widgets["refine_band"].disabled and params._widgets["refine_band_s"].disabled
+    assert note.visible and "W2 is not used" in note.object
+    before = s.solution.warp.copy()
+    assert s.set_constraints(refine_band=0.5)
+    assert np.array_equal(s.solution.warp, before)  # what the note says: W2 changes nothing
+    s.load_sample("beat-self")
+    assert not s.pass2_turns_hand() and s.matrix_label() == MATRIX_LABELS["pass2"]
+    assert not params._widgets["refine_band"].disabled and not note.visible
+
+
 def test_the_status_names_body_frames_left_without_a_hand_match(session):
     """Open ends leave the demo's first and last body frames unmatched (its hand take is
     shorter than the wave): the status line says which, as the CLI does."""
