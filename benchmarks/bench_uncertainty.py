@@ -15,7 +15,12 @@ known truth) each case is spliced with the defaults and assessed
   error before and after, per family and pooled over the hard families (every family
   but the clean splits: the issue-12 takes and the other rigs);
 * for comparison, one point placed instead at the body frame with the largest true error
-  (which neither a user nor the uncertainty knows), at its true hand frame.
+  (which neither a user nor the uncertainty knows), at its true hand frame;
+* with ``--scan S``: the best single point per take of the hard families, chosen with the
+  truth among true points every ``S`` seconds of the body take (and the two above): the
+  one that leaves the fewest frames over the goal's p95 (the family's p95 before, less
+  30 %). What no rule for choosing the top suggestion can beat while a placed point acts
+  as it does today.
 
 The constants of the uncertainty (``KAPPA``, ``BEND_S``) were chosen on the families'
 tuning seeds (100-107, 200-207, 300-303); the table reports seeds ``0..N-1``.
@@ -45,7 +50,10 @@ CLEAN = ("beat", "bandai", "lafan1")
 P95_GOAL = 0.30
 
 
-def run_case(case) -> dict:
+def run_case(case, scan_s: float = 0.0) -> dict:
+    """Errors of one case: before, with the top suggestion, with a point at the worst
+    frame, and (``scan_s`` > 0) with a true point every ``scan_s`` seconds ("scan": a list
+    of (n,) errors in ms, refused points left out)."""
     res = P.splice(case.body, case.hand, transfer_fingers=False)
     t0 = time.perf_counter()
     a = assess_splice(res.features, res.alignment)
@@ -67,13 +75,31 @@ def run_case(case) -> dict:
             out["err_fixed"] = fixed
     worst = _with_true_point(case, int(np.argmax(err)))
     out["err_oracle"] = err if worst is None else worst
+    out["scan"] = [err, out["err_fixed"], out["err_oracle"]] if scan_s > 0 else []
+    if scan_s > 0:
+        n = len(err)
+        step = max(1, int(round(scan_s * float(case.body.fps))))
+        for body in sorted({*range(0, n, step), n - 1}):
+            fixed = _with_true_point(case, body)
+            if fixed is not None:
+                out["scan"].append(fixed)
     return out
 
 
-def _run_one(job: tuple[str, int]) -> dict:
-    """``run_case`` of family ``job[0]``, seed ``job[1]`` (a worker process's unit)."""
-    name, seed = job
-    return run_case(FAMILIES[name].make(seed))
+def _run_one(job: tuple) -> dict:
+    """``run_case`` of family ``job[0]``, seed ``job[1]``, scan step ``job[2]`` seconds (0:
+    no scan) (a worker process's unit)."""
+    name, seed, scan_s = job
+    return run_case(FAMILIES[name].make(seed), scan_s)
+
+
+def best_single_point(rows: list[dict], goal_ms: float) -> np.ndarray | None:
+    """Errors (all frames of ``rows``) with, per take, the scanned point that leaves the
+    fewest frames over ``goal_ms``; None when the rows were not scanned."""
+    if not rows or not all(r.get("scan") for r in rows):
+        return None
+    best = [min(r["scan"], key=lambda e: int(np.count_nonzero(e > goal_ms))) for r in rows]
+    return np.concatenate(best)
 
 
 def _with_true_point(case, body: int) -> np.ndarray | None:
@@ -104,7 +130,9 @@ def stats(rows: list[dict]) -> dict:
         if np.ptp(unc) > 0 and np.ptp(err) > 0
         else float("nan")
     )
+    best = best_single_point(rows, (1.0 - P95_GOAL) * float(np.percentile(err, 95)))
     return {
+        "p95_best": float(np.percentile(best, 95)) if best is not None else float("nan"),
         "cases": len(rows),
         "frames": int(err.size),
         "rho": rho,
@@ -176,9 +204,16 @@ def _row(name: str, s: dict) -> str:
         f"| {name} | {s['cases']} | {s['rho']:.2f} | {s['flagged'] * 100:.1f} % | "
         f"{s['p_flag']:.3f} | {s['p_unfl']:.4f} | {_ratio(s)} | {s['p95']:.0f} ms | "
         f"{s['p95_fixed']:.0f} ms | {_change(s) * 100:+.0f} % | {s['p95_oracle']:.0f} ms "
-        f"({_change(s, 'p95_oracle') * 100:+.0f} %) | {s['refused']} | "
+        f"({_change(s, 'p95_oracle') * 100:+.0f} %) | {_best(s)} | {s['refused']} | "
         f"{s['seconds'] * 1000:.0f} ms |"
     )
+
+
+def _best(s: dict) -> str:
+    """The p95 with the best single point per take (``--scan``), or a dash."""
+    if not np.isfinite(s.get("p95_best", np.nan)):
+        return "—"
+    return f"{s['p95_best']:.0f} ms ({_change(s, 'p95_best') * 100:+.0f} %)"
 
 
 def _change(s: dict, key: str = "p95_fixed") -> float:
@@ -205,6 +240,13 @@ def goals(table: dict, pooled: dict, hard: dict | None) -> list[str]:
             f"(pooled) | {'met' if ok else '**missed**'} | {hard['p95']:.0f} -> "
             f"{hard['p95_fixed']:.0f} ms ({_change(hard) * 100:+.0f} %) |"
         )
+        if np.isfinite(hard.get("p95_best", np.nan)):
+            out.append(
+                "| ... bound: the best single point per take, chosen with the truth (scan) | "
+                f"{'reachable' if _change(hard, 'p95_best') <= -P95_GOAL else 'not reachable'}"
+                f" | {hard['p95']:.0f} -> {hard['p95_best']:.0f} ms "
+                f"({_change(hard, 'p95_best') * 100:+.0f} %) |"
+            )
         for name, s in table.items():
             if name not in CLEAN:
                 ok = _change(s) <= -P95_GOAL
@@ -234,8 +276,8 @@ def markdown(
         "",
         "| family | cases | ρ | flagged | P(off \\| flagged) | P(off \\| not) | ratio | "
         "p95 before | p95 with the top suggestion | change | p95 with a point at the worst "
-        "frame | refused | assess time |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "frame | p95 with the best single point (scan) | refused | assess time |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for name, s in table.items():
         out.append(_row(name if name in CLEAN else f"{name} *", s))
@@ -254,11 +296,22 @@ def main(argv=None) -> int:
     ap.add_argument("--families", help="comma-separated subset")
     ap.add_argument("--seeds", type=int, default=SEEDS)
     ap.add_argument("--jobs", type=int, default=1, help="worker processes (cases in parallel)")
+    ap.add_argument(
+        "--scan",
+        type=float,
+        default=0.0,
+        help="also place a true point every SCAN seconds of each hard take (the best single "
+        "point per take: what no suggestion rule can beat); 0: off",
+    )
     args = ap.parse_args(argv)
     names = args.families.split(",") if args.families else list(FAMILIES)
     seeds = 2 if args.quick else args.seeds
     table, every, hard, by_seed = {}, [], [], {}
-    jobs = [(name, seed) for name in names for seed in range(seeds)]
+    jobs = [
+        (name, seed, 0.0 if name in CLEAN else args.scan)
+        for name in names
+        for seed in range(seeds)
+    ]
     if args.jobs > 1:  # cases are independent: one worker process per case
         with ProcessPoolExecutor(args.jobs) as pool:
             done = dict(zip(jobs, pool.map(_run_one, jobs), strict=True))
@@ -267,7 +320,8 @@ def main(argv=None) -> int:
     for name in names:
         rows = []
         for seed in range(seeds):
-            r = done.get((name, seed)) or _run_one((name, seed))
+            job = (name, seed, 0.0 if name in CLEAN else args.scan)
+            r = done.get(job) or _run_one(job)
             rows.append(r)
             if name not in CLEAN:
                 by_seed.setdefault(seed, []).append(r)
