@@ -104,6 +104,8 @@ class Prepared:
     body_phases: np.ndarray | None = None  # (n,) Phase codes
     hand_phases: np.ndarray | None = None  # (m,)
     pass1_cost: np.ndarray | None = None  # (n, m) D1 of every cell, when small enough
+    #: the preview's TakeViews of the body and hand takes (the same for every alignment)
+    views: dict = field(default_factory=dict, repr=False)
     lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     @property
@@ -422,10 +424,18 @@ def splice(prepared: Prepared, solution: Solution):
 
 
 def bvh_bytes(motion) -> bytes:
-    """``motion`` as BVH text (UTF-8)."""
-    from engine.io.bvh import format_bvh
+    """``motion`` as BVH text (UTF-8), the CLI's bytes, formatted in a child process (a
+    long take's text would hold the server's interpreter for seconds: ``webapp.downloads``)."""
+    from webapp.downloads import encode
 
-    return format_bvh(motion).encode("utf-8")
+    return encode("bvh", motion)
+
+
+def glb_bytes(motion) -> bytes:
+    """``motion`` as a GLB file (the skinned mannequin), made in a child process."""
+    from webapp.downloads import encode
+
+    return encode("glb", motion)
 
 
 # ---------------------------------------------------------------- previews
@@ -454,7 +464,12 @@ def preview_for(prepared: Prepared, solution: Solution):
             "previews need a skeletal hand take (BVH); a marker hand take has no fingers to show"
         )
     sides = tuple(getattr(prepared.features, "sides", ()) or (prepared.side,))
-    preview = Preview(takes, labels=labels, size=(960, 360), close_up_sides=sides)
+    # the input takes' views (world joints of every frame, mannequin, framing) are the same
+    # for every alignment: built once per pair, only the spliced take's after an edit
+    views = [prepared.views.get((label, sides)) for label in labels[:-1]] + [None]
+    preview = Preview(takes, labels=labels, size=(960, 360), close_up_sides=sides, views=views)
+    for label, view in zip(labels[:-1], preview.views[:-1], strict=True):
+        prepared.views.setdefault((label, sides), view)
     solution.cache["preview"] = preview
     with _PREVIEW_LOCK:  # close the previous solutions' OpenGL contexts of this pair
         old = _PREVIEWS.pop(id(prepared), None)

@@ -163,10 +163,8 @@ class SharingView:
         return await self._off_loop(self.bvh, "spliced BVH", backend.bvh_bytes)
 
     async def _glb(self):
-        from engine.export.glb import glb_bytes
-
         self.glb.filename = f"{self.session.output_stem()}.glb"
-        return await self._off_loop(self.glb, "spliced GLB", glb_bytes)
+        return await self._off_loop(self.glb, "spliced GLB", backend.glb_bytes)
 
     async def _off_loop(self, widget, what: str, encode) -> io.BytesIO | None:
         """``encode(spliced motion)`` of the alignment shown now, made on a download thread
