@@ -25,7 +25,7 @@ from engine.mesh.anatomy import Anatomy, find_anatomy
 from engine.mesh.mannequin import build_mannequin
 from engine.mesh.skinning import SkinnedMesh
 from engine.model import rotations as rot
-from engine.model.kinematics import forward_kinematics
+from engine.model.fastkin import forward_kinematics  # numba: every frame of a long take
 from engine.model.motion import Motion
 
 CAMERAS = ("front", "side", "three-quarter", "hands")
