@@ -570,6 +570,9 @@ def png_bytes(image: np.ndarray) -> bytes:
 #: most this many frames (10 s at 30 fps; a longer take gives the 10 s from a start frame)
 VIDEO_MAX_FPS = 30.0
 VIDEO_MAX_FRAMES = 300
+#: the preview videos' camera and size (pixels)
+VIDEO_CAMERA = "three-quarter"
+VIDEO_SIZE = (720, 272)
 
 
 def video_frames(
@@ -597,9 +600,9 @@ def preview_video(
     prepared: Prepared,
     solution: Solution,
     fmt: str,
-    camera: str = "three-quarter",
+    camera: str = VIDEO_CAMERA,
     max_frames: int = VIDEO_MAX_FRAMES,
-    size: tuple[int, int] = (720, 272),
+    size: tuple[int, int] = VIDEO_SIZE,
     progress=None,
     start: int = 0,
 ) -> bytes:
@@ -621,6 +624,12 @@ def preview_video(
         raise ValueError(f"format: expected gif or mp4, got {fmt!r}")
     indices, fps = video_frames(prepared.n, float(prepared.body.fps), start, max_frames=max_frames)
     total = len(indices) + 1  # + encoding
+    key = _video_key(camera, size, indices)
+    made = made_video(solution, fmt, key)
+    if made is not None:  # nothing changed since this file was made: the same file
+        if progress is not None:
+            progress(total, total)
+        return made
     frames = []
     for done, i in enumerate(indices, 1):
         frames.append(render_frame(prepared, solution, i, camera, False, size))
@@ -634,9 +643,28 @@ def preview_video(
             path = Path(folder) / "preview.mp4"
             write_mp4(frames, path, fps)
             data = path.read_bytes()
+    solution.cache[("video", fmt)] = (key, data)  # the latest of each format, per alignment
     if progress is not None:
         progress(total, total)
     return data
+
+
+def made_video(solution: Solution, fmt: str, key: tuple) -> bytes | None:
+    """The ``fmt`` video of ``solution`` made last, if it was made with ``key`` (camera,
+    size, body frames shown): an alignment's videos are kept with it (an edit makes a new
+    solution, so a kept file is never stale)."""
+    kept = solution.cache.get(("video", fmt))
+    return kept[1] if kept is not None and kept[0] == key else None
+
+
+def video_key(prepared: Prepared, start: int = 0) -> tuple:
+    """The key :func:`preview_video` keeps its file under (its defaults, from ``start``)."""
+    indices, _ = video_frames(prepared.n, float(prepared.body.fps), start)
+    return _video_key(VIDEO_CAMERA, VIDEO_SIZE, indices)
+
+
+def _video_key(camera: str, size: tuple[int, int], indices: range) -> tuple:
+    return (camera, tuple(size), indices.start, indices.stop, indices.step)
 
 
 def cli_command(
