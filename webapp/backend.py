@@ -467,9 +467,17 @@ def preview_for(prepared: Prepared, solution: Solution):
     # the input takes' views (world joints of every frame, mannequin, framing) are the same
     # for every alignment: built once per pair, only the spliced take's after an edit
     views = [prepared.views.get((label, sides)) for label in labels[:-1]] + [None]
-    preview = Preview(takes, labels=labels, size=(960, 360), close_up_sides=sides, views=views)
+    # the spliced take's skeleton is the same after every edit: its mannequin (bound in
+    # an earlier alignment's first frame; skinning carries it to any pose) is kept too
+    skeleton = _skeleton_key(spliced.skeleton)
+    kept = prepared.views.get(("spliced mesh", sides))
+    meshes = [None] * (len(takes) - 1) + [kept[1] if kept and kept[0] == skeleton else None]
+    preview = Preview(
+        takes, labels=labels, size=(960, 360), close_up_sides=sides, views=views, meshes=meshes
+    )
     for label, view in zip(labels[:-1], preview.views[:-1], strict=True):
         prepared.views.setdefault((label, sides), view)
+    prepared.views[("spliced mesh", sides)] = (skeleton, preview.views[-1].mesh)
     solution.cache["preview"] = preview
     with _PREVIEW_LOCK:  # close the previous solutions' OpenGL contexts of this pair
         old = _PREVIEWS.pop(id(prepared), None)
@@ -477,6 +485,16 @@ def preview_for(prepared: Prepared, solution: Solution):
     if old is not None and old is not preview:
         old.close()
     return preview
+
+
+def _skeleton_key(skeleton) -> tuple:
+    """What a mannequin depends on of a skeleton: names, parents and offsets."""
+    return (
+        tuple(skeleton.names),
+        np.asarray(skeleton.parents).tobytes(),
+        np.asarray(skeleton.offsets, dtype=float).tobytes(),
+        tuple((int(j), tuple(map(float, v))) for j, v in sorted(skeleton.end_sites.items())),
+    )
 
 
 def assess(prepared: Prepared, solution: Solution):
