@@ -10,7 +10,9 @@ Framing follows the character: the camera looks at the centre of the posed
 joints' bounding box, smoothed over +-0.4 s, from a fixed distance that fits the
 character's largest pose, and from a fixed direction relative to the take's
 median facing (pelvis rotation applied to the rest-pose facing), so a video does
-not zoom or swing.
+not zoom or swing. The hands' close-up follows the hands' joints the same way, drawn
+towards each frame's own hand wherever the average would let it leave the picture
+(the first and last frames, fast moves).
 """
 
 from __future__ import annotations
