@@ -6,8 +6,9 @@ in the server's own process it holds the interpreter lock for seconds, and every
 other tab's click waits that long for its answer (3.5 s on CI). Here the encoder runs
 in a child forked from the app's forkserver (:func:`webapp.uploads.child_context`: a
 small clean process with the readers imported, never a fork of the busy, threaded
-server). The server's download thread only pickles the motion into a pipe and reads
-the file's bytes back; both release the lock while the kernel copies.
+server). The server's download thread only writes the motion's arrays into a pipe
+(no copy: protocol 5's out-of-band buffers) and reads the file's bytes back; the
+kernel copies, without the interpreter lock.
 
 The child calls the very functions the command line calls (``engine.io.bvh.format_bvh``,
 ``engine.export.glb.glb_bytes``), so the bytes are the CLI's. An encoder's error comes
@@ -16,6 +17,8 @@ or outlasts ``seconds`` raises :class:`EncodeFailed`.
 """
 
 from __future__ import annotations
+
+import pickle
 
 from engine.base.errors import HandSpliceError
 
@@ -39,28 +42,46 @@ def encode(kind: str, motion, seconds: float = ENCODE_SECONDS) -> bytes:
     if kind not in ENCODERS:
         raise ValueError(f"download kind: expected one of {', '.join(ENCODERS)}, got {kind!r}")
     ctx = child_context()
-    receive, send = ctx.Pipe(duplex=False)
-    child = ctx.Process(
-        target=_child_encode, args=(kind, motion, send), daemon=True, name=f"hs-{kind}"
-    )
+    here, there = ctx.Pipe(duplex=True)
+    child = ctx.Process(target=_child_encode, args=(kind, there), daemon=True, name=f"hs-{kind}")
+    died = EncodeFailed(f"the {kind.upper()} file could not be made (its process died)")
     try:
         child.start()
-        send.close()
-        if not receive.poll(seconds):
-            raise EncodeFailed(f"the {kind.upper()} file took longer than {seconds:g} s")
+        there.close()
         try:
-            verdict, detail = receive.recv()
-            data = receive.recv_bytes() if verdict == "ok" else b""
+            _send_motion(here, motion)
+            if not here.poll(seconds):
+                raise EncodeFailed(f"the {kind.upper()} file took longer than {seconds:g} s")
+            verdict, detail = here.recv()
+            data = here.recv_bytes() if verdict == "ok" else b""
         except (EOFError, OSError):  # the child died: out of memory or worse
-            raise EncodeFailed(f"the {kind.upper()} file could not be made (its process died)") from None
+            raise died from None
     finally:
-        receive.close()
+        here.close()
         if child.is_alive():
             child.kill()
         child.join(5)
     if verdict != "ok":
         raise _KINDS.get(verdict, HandSpliceError)(detail)
     return data
+
+
+def _send_motion(conn, motion) -> None:
+    """``motion`` down ``conn``: a pickle whose arrays travel apart (protocol 5's
+    out-of-band buffers), written straight from their memory, so this interpreter copies
+    none of a long take's tens of megabytes (the kernel does, without the lock)."""
+    buffers: list[pickle.PickleBuffer] = []
+    head = pickle.dumps(motion, protocol=5, buffer_callback=buffers.append)
+    conn.send_bytes(head)
+    conn.send(len(buffers))
+    for buffer in buffers:
+        conn.send_bytes(buffer.raw())
+
+
+def _receive_motion(conn):
+    head = conn.recv_bytes()
+    buffers = [bytearray(conn.recv_bytes()) for _ in range(conn.recv())]  # writable arrays
+    return pickle.loads(head, buffers=buffers)
 
 
 def _bvh(motion) -> bytes:
@@ -79,9 +100,9 @@ def _glb(motion) -> bytes:
 ENCODERS = {"bvh": _bvh, "glb": _glb}
 
 
-def _child_encode(kind: str, motion, conn) -> None:  # runs in the child process
+def _child_encode(kind: str, conn) -> None:  # runs in the child process
     try:
-        data = ENCODERS[kind](motion)
+        data = ENCODERS[kind](_receive_motion(conn))
     except Exception as exc:  # noqa: BLE001 - the parent raises it with its one line
         text = str(exc).strip().splitlines()
         conn.send((type(exc).__name__, text[0] if text else type(exc).__name__))
