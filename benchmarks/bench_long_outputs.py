@@ -95,9 +95,9 @@ def loadavg() -> str:
 
 def trees(codes) -> dict:
     return {
-        code: None if code == "now" else baseline_tree(
-            BASELINE, ("engine", "webapp", "sample_data"), name="outputs-baseline"
-        )
+        code: None
+        if code == "now"
+        else baseline_tree(BASELINE, ("engine", "webapp", "sample_data"), name="outputs-baseline")
         for code in codes
     }
 
@@ -192,7 +192,9 @@ def browser_row(browser, seconds: float, code: str, tree: Path | None, tmp: Path
     demo = demo_sample_name(SAMPLE_DIR)
     row: dict = {"code": code, "load_before": loadavg()}
     with serve(tree, str(body), str(hand), "--upload-dir", str(tmp / f"up-{code}")) as (url, _):
-        context = browser.new_context(viewport={"width": 1300, "height": 1000}, accept_downloads=True)
+        context = browser.new_context(
+            viewport={"width": 1300, "height": 1000}, accept_downloads=True
+        )
         a = _page(context, url)
         b = _page(context, url + f"?sample={demo}")
         b.wait_for_timeout(1000)
@@ -235,7 +237,9 @@ def main(argv=None) -> int:
 
         with tempfile.TemporaryDirectory() as tmp, sync_playwright() as p:
             browser = launch_chromium(p)
-            clicks = [browser_row(browser, args.seconds, c, code_trees[c], Path(tmp)) for c in args.codes]
+            clicks = [
+                browser_row(browser, args.seconds, c, code_trees[c], Path(tmp)) for c in args.codes
+            ]
             browser.close()
     text = _markdown(args.seconds, rows, clicks)
     print(text)

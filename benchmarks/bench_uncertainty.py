@@ -234,7 +234,7 @@ NOTES = [
     "points, which the ±20 % cone shows must allow fast rate changes) or more "
     "points: the top two suggestions placed together give 51 -> 39 ms (-23 %; /tmp "
     "script, same cases). Aside for the merge's owners: `straighten_holds` raises noisy "
-    "seed 7's mean error 62 -> 75 ms (holds found in a take with none: jitter)."
+    "seed 7's mean error 62 -> 75 ms (holds found in a take with none: jitter).",
 ]
 
 
@@ -347,9 +347,7 @@ def main(argv=None) -> int:
     seeds = 2 if args.quick else args.seeds
     table, every, hard, by_seed = {}, [], [], {}
     jobs = [
-        (name, seed, 0.0 if name in CLEAN else args.scan)
-        for name in names
-        for seed in range(seeds)
+        (name, seed, 0.0 if name in CLEAN else args.scan) for name in names for seed in range(seeds)
     ]
     if args.jobs > 1:  # cases are independent: one worker process per case
         with ProcessPoolExecutor(args.jobs) as pool:

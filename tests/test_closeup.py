@@ -14,7 +14,10 @@ from engine.render.offscreen import Preview
 #: the app's close-up size (webapp.views.preview), pixels
 SIZE = (330, 300)
 PAIRS = {
-    "wave-ok": ("bandai-namco/dataset-2_wave-right-hand_normal_001.bvh", "gestification/fingers-ok.bvh"),
+    "wave-ok": (
+        "bandai-namco/dataset-2_wave-right-hand_normal_001.bvh",
+        "gestification/fingers-ok.bvh",
+    ),
     "bye-hello": ("bandai-namco/dataset-1_bye_normal_001.bvh", "gestification/gesture-swiping.bvh"),
 }
 
@@ -38,9 +41,13 @@ def test_the_closeup_keeps_the_hand_in_view_in_every_frame(spliced):
     for i in range(spliced.n_frames):
         px = preview.project(view.positions[i, hand], i, camera="hands", size=SIZE)
         # distance (pixels) the hand's joints reach outside the picture (<= 0: inside)
-        worst.append(max((-px[:, 0]).max(), (px[:, 0] - w).max(), (-px[:, 1]).max(), (px[:, 1] - h).max()))
+        worst.append(
+            max((-px[:, 0]).max(), (px[:, 0] - w).max(), (-px[:, 1]).max(), (px[:, 1] - h).max())
+        )
     worst = np.array(worst)
-    assert worst.max() < -4, f"frames {np.flatnonzero(worst >= -4)[:10]} cut the hand: {worst.max():.0f} px"
+    assert worst.max() < -4, (
+        f"frames {np.flatnonzero(worst >= -4)[:10]} cut the hand: {worst.max():.0f} px"
+    )
     # and the hand is not a speck: its joints span a good part of the picture at frame 0
     px = preview.project(view.positions[0, hand], 0, camera="hands", size=SIZE)
     assert np.ptp(px, axis=0).max() > 0.1 * min(SIZE)

@@ -259,7 +259,9 @@ def warm_up(cfg: config.AppConfig) -> None:
         return
     try:  # the preview's first frame: imports the renderer, opens its OpenGL context and
         # builds the pair's meshes (kept with the pair), so the first page's preview is quick
-        backend.render_frame(session.prepared, session.solution, session.frame, session.camera, False)
+        backend.render_frame(
+            session.prepared, session.solution, session.frame, session.camera, False
+        )
         backend.render_closeup(session.prepared, session.solution, session.frame)
     except Exception:  # noqa: BLE001 - the page's preview says what is wrong, if anything
         pass

@@ -252,12 +252,12 @@ class TakeView:
             hp = disp[:, hand_joints]
             h_lo, h_hi = hp.min(axis=1), hp.max(axis=1)
             h_half = 0.5 * np.linalg.norm(h_hi - h_lo, axis=1)
-            view.hand_radius = float(
-                np.percentile(h_half, 90) + 0.9 * anatomy.hand_length * scale
-            )
+            view.hand_radius = float(np.percentile(h_half, 90) + 0.9 * anatomy.hand_length * scale)
             view.hand_targets = _keep_in_view(
-                0.5 * (h_lo + h_hi), h_half + HAND_MESH_REACH * anatomy.hand_length * scale,
-                view.hand_radius, win,
+                0.5 * (h_lo + h_hi),
+                h_half + HAND_MESH_REACH * anatomy.hand_length * scale,
+                view.hand_radius,
+                win,
             )
         view.radius = float(max(radius - margin, np.percentile(radii, 95)) * 1.04)
         if anatomy.kind == "body":
