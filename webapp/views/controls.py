@@ -196,9 +196,7 @@ class PointsTabulator(pn.widgets.Tabulator):
 
     def _get_model(self, doc, root=None, parent=None, comm=None):
         model = super()._get_model(doc, root, parent, comm)
-        model.source.js_on_change(
-            "data", CustomJS(args={"table": model}, code=_JS_SHOW_LATE_ROWS)
-        )
+        model.source.js_on_change("data", CustomJS(args={"table": model}, code=_JS_SHOW_LATE_ROWS))
         return model
 
 
