@@ -40,6 +40,7 @@ import numba
 import numpy as np
 from llvmlite import ir
 from numba import types
+from numba.core import cgutils
 from numba.extending import intrinsic
 
 from engine.dtw import kernels as K
@@ -53,6 +54,8 @@ MODE_YAW = 1
 
 _TWO_PI = 2.0 * np.pi
 _RING = 8  # ring-buffer rows of C (five in use; a power of two)
+#: cells ahead whose hand masks the recurrence prefetches
+AHEAD = 24
 
 
 @intrinsic
@@ -65,6 +68,27 @@ def popcount(typingctx, x):
     def codegen(context, builder, signature, args):
         value = builder.zext(args[0], ir.IntType(64)) if args[0].type.width < 64 else args[0]
         return builder.ctpop(value)
+
+    return sig, codegen
+
+
+@intrinsic
+def prefetch(typingctx, arr, idx):
+    """Hint the CPU to bring ``arr[idx]``'s cache line in (``llvm.prefetch``, read, keep in
+    all levels). Never faults: any index is allowed (no bounds, no wraparound)."""
+    if not isinstance(arr, types.Array) or not isinstance(idx, types.Integer):
+        return None
+    sig = types.void(arr, idx)
+
+    def codegen(context, builder, signature, args):
+        ary = context.make_array(signature.args[0])(context, builder, args[0])
+        i8p = ir.IntType(8).as_pointer()
+        i32 = ir.IntType(32)
+        fnty = ir.FunctionType(ir.VoidType(), [i8p, i32, i32, i32])
+        fn = cgutils.get_or_insert_function(builder.module, fnty, "llvm.prefetch.p0")
+        ptr = builder.bitcast(builder.gep(ary.data, [args[1]]), i8p)
+        builder.call(fn, [ptr, i32(0), i32(3), i32(1)])
+        return context.get_dummy_value()
 
     return sig, codegen
 
@@ -443,6 +467,26 @@ def _theta_bins(i, lo_i, hi_i, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, c
             out[k] = np.int32((yb - hy[k]) % nb)
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _bin_cost(p, q, st, codes, mu, b, j):
+    """Local cost of body masks ``(p, q)`` (step cost ``st``) against hand column ``j``
+    (uint64) turned to θ bin ``b``: Σ (s − s')² + ``st``.
+
+    ``codes``: the hand's masks flat, bin by bin (``2 (b m + j)``: P, ``+ 1``: Q; ``mu`` =
+    ``m`` as uint64): unsigned indices, no wraparound code, no per-cell stride
+    multiplications. The only place a pass-1 cell's cost is formed from its bin.
+    """
+    u = (np.uint64(b) * mu + j) << np.uint64(1)
+    c = cell_cost(p, q, codes[u], codes[u + np.uint64(1)])
+    return float(np.int64(c)) + st  # signed: one instruction (unsigned is several)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _prefetch_bin(codes, mu, b, j):
+    """Prefetch the mask pair :func:`_bin_cost` reads for bin ``b``, column ``j``."""
+    prefetch(codes, (np.uint64(b) * mu + j) << np.uint64(1))
+
+
 @numba.njit(cache=True, nogil=True)
 def _code_costs(lo_i, hi_i, p, q, st, codes, m, bins, crow):
     """``crow[lo_i..hi_i]`` = Σ (s − s')² + ``st`` of the body masks ``(p, q)`` against the
@@ -456,13 +500,10 @@ def _code_costs(lo_i, hi_i, p, q, st, codes, m, bins, crow):
     bb = bins[lo_i : hi_i + 1]
     cost = crow[lo_i : hi_i + 1]
     mu = np.uint64(m)
-    one = np.uint64(1)
     j = np.uint64(lo_i)
     for k in range(w):
-        u = (np.uint64(bb[k]) * mu + j) << one
-        c = cell_cost(p, q, codes[u], codes[u + one])
-        cost[k] = float(np.int64(c)) + st  # signed: one instruction (unsigned is several)
-        j += one
+        cost[k] = _bin_cost(p, q, st, codes, mu, bb[k], j)
+        j += np.uint64(1)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -549,6 +590,161 @@ def _one_row(
     return crow
 
 
+# --------------------------------------------------------------------------------------------
+# the recurrence with the sign-code costs inline
+# --------------------------------------------------------------------------------------------
+# ``engine.dtw.kernels._dp_row`` / ``_dp_pair`` with each cell's local cost formed where it
+# is used (``_bin_cost`` from the row's θ bins) instead of read from a cost row: the
+# recurrence is one serial min/add chain per row, so the popcount work fills its idle
+# issue slots, and no cost row goes through the cache. Same operands, same order, same
+# floats and steps (tests compare with the cost-row kernels cell by cell).
+
+
+@numba.njit(cache=True, nogil=True)
+def _dp_row_codes(prev, cur, p, q, st, codes, mu, bins, lo, hi, bp_row, left0):
+    """``engine.dtw.kernels._dp_row`` with the costs of body masks ``(p, q)`` against the
+    hand columns at θ bins ``bins`` (by absolute column) formed inline."""
+    w = hi - lo + 1
+    pr = prev[lo : hi + 2]
+    out = cur[lo + 1 : hi + 2]
+    bb = bins[lo : hi + 1 + AHEAD]
+    left = left0
+    bad = False
+    j = np.uint64(lo)
+    ahead = np.uint64(AHEAD)
+    for k in range(w):
+        diag = pr[k]
+        up = pr[k + 1]
+        _prefetch_bin(codes, mu, bb[k + AHEAD], j + ahead)
+        c = _bin_cost(p, q, st, codes, mu, bb[k], j)
+        j += np.uint64(1)
+        du = min(diag, up)
+        step_du = K.VERTICAL if up < diag else K.DIAGONAL
+        step = K.HORIZONTAL if left < du else step_du
+        g = c + min(left, du)
+        bad |= not (c > K.NEG_INF)
+        out[k] = g
+        left = g
+        bp_row[k] = step
+    return bad
+
+
+@numba.njit(cache=True, nogil=True)
+def _dp_pair_codes(
+    prev,
+    mid,
+    cur,
+    pa_,
+    qa_,
+    sta,
+    pb_,
+    qb_,
+    stb,
+    codes,
+    mu,
+    bins_a,
+    bins_b,
+    lo_a,
+    hi_a,
+    lo_b,
+    hi_b,
+    bp_a,
+    bp_b,
+    left_a0,
+    left_b0,
+):
+    """``engine.dtw.kernels._dp_pair`` (rows ``i``, ``i + 1`` interleaved) with the costs
+    formed inline (row ``i``: masks ``pa_, qa_``, step ``sta``, bins ``bins_a``; row
+    ``i + 1``: ``pb_, qb_, stb, bins_b``)."""
+    # phase 1: row i alone, columns lo_a .. min(hi_a, lo_b)
+    end1 = min(hi_a, lo_b)
+    pa = prev[lo_a : hi_a + 2]
+    out_a = mid[lo_a + 1 : hi_a + 2]
+    ba = bins_a[lo_a : hi_a + 1 + AHEAD]
+    ahead = np.uint64(AHEAD)
+    left_a = left_a0
+    bad_a = False
+    ja = np.uint64(lo_a)
+    for k in range(end1 - lo_a + 1):
+        diag = pa[k]
+        up = pa[k + 1]
+        _prefetch_bin(codes, mu, ba[k + AHEAD], ja + ahead)
+        c = _bin_cost(pa_, qa_, sta, codes, mu, ba[k], ja)
+        ja += np.uint64(1)
+        du = min(diag, up)
+        step_du = K.VERTICAL if up < diag else K.DIAGONAL
+        bp_a[k] = K.HORIZONTAL if left_a < du else step_du
+        g = c + min(left_a, du)
+        bad_a |= not (c > K.NEG_INF)
+        out_a[k] = g
+        left_a = g
+    mid[lo_a] = left_a0
+    for q in range(hi_a + 2, hi_b + 2):
+        mid[q] = K.INF
+    # phase 2: row i at column t = lo_b+1 .. hi_a, row i+1 at column t-1
+    w_b = hi_b - lo_b + 1
+    bb = bins_b[lo_b : hi_b + 1 + AHEAD]
+    out_b = cur[lo_b + 1 : hi_b + 2]
+    left_b = left_b0
+    bad_b = False
+    done_b = 0
+    if hi_a >= lo_b + 1:
+        count = hi_a - lo_b
+        k_a = lo_b + 1 - lo_a
+        pa2 = prev[lo_b + 1 : hi_a + 2]
+        ba2 = bins_a[lo_b + 1 : hi_a + 1 + AHEAD]
+        out_a2 = mid[lo_b + 2 : hi_a + 2]
+        bp_a2 = bp_a[k_a : k_a + count]
+        a_diag = mid[lo_b]  # γ(i, t-2) for t = lo_b + 1
+        a_up = mid[lo_b + 1]  # γ(i, t-1)
+        ja = np.uint64(lo_b + 1)
+        jb = np.uint64(lo_b)
+        for k in range(count):
+            diag = pa2[k]
+            up = pa2[k + 1]
+            _prefetch_bin(codes, mu, ba2[k + AHEAD], ja + ahead)
+            c = _bin_cost(pa_, qa_, sta, codes, mu, ba2[k], ja)
+            ja += np.uint64(1)
+            du = min(diag, up)
+            step_du = K.VERTICAL if up < diag else K.DIAGONAL
+            bp_a2[k] = K.HORIZONTAL if left_a < du else step_du
+            g = c + min(left_a, du)
+            bad_a |= not (c > K.NEG_INF)
+            out_a2[k] = g
+            left_a = g
+            # row i+1 at column lo_b + k
+            _prefetch_bin(codes, mu, bb[k + AHEAD], jb + ahead)
+            c2 = _bin_cost(pb_, qb_, stb, codes, mu, bb[k], jb)
+            jb += np.uint64(1)
+            du2 = min(a_diag, a_up)
+            step_du2 = K.VERTICAL if a_up < a_diag else K.DIAGONAL
+            bp_b[k] = K.HORIZONTAL if left_b < du2 else step_du2
+            g2 = c2 + min(left_b, du2)
+            bad_b |= not (c2 > K.NEG_INF)
+            out_b[k] = g2
+            left_b = g2
+            a_diag = a_up
+            a_up = g
+        done_b = count
+    # phase 3: row i+1 alone, the remaining columns
+    pb = mid[lo_b + done_b : hi_b + 2]
+    jb = np.uint64(lo_b + done_b)
+    for k in range(w_b - done_b):
+        diag = pb[k]
+        up = pb[k + 1]
+        _prefetch_bin(codes, mu, bb[done_b + k + AHEAD], jb + ahead)
+        c = _bin_cost(pb_, qb_, stb, codes, mu, bb[done_b + k], jb)
+        jb += np.uint64(1)
+        du = min(diag, up)
+        step_du = K.VERTICAL if up < diag else K.DIAGONAL
+        bp_b[done_b + k] = K.HORIZONTAL if left_b < du else step_du
+        g = c + min(left_b, du)
+        bad_b |= not (c > K.NEG_INF)
+        out_b[done_b + k] = g
+        left_b = g
+    return (1 if bad_a else 0) | (2 if bad_b else 0)
+
+
 @numba.njit(cache=True, nogil=True)
 def _forward(
     bx,
@@ -580,15 +776,16 @@ def _forward(
     last_col,
     last_row,
 ):
-    """As ``engine.dtw.kernels.forward_builtin`` (open ends included), local costs from
-    :func:`_fill`."""
+    """As ``engine.dtw.kernels.forward_builtin`` (open ends included): a row's θ bins by
+    :func:`_theta_bins`, its costs formed inside the recurrence (:func:`_dp_pair_codes`,
+    :func:`_dp_row_codes`)."""
     m = hmx.shape[0]
     prev = np.empty(m + 1)
     mid = np.full(m + 1, K.INF)
     cur = np.full(m + 1, K.INF)
-    crow_a = np.zeros(m)
-    crow_b = np.zeros(m)
-    bins = np.zeros(m, np.int32)
+    bins_a = np.zeros(m + AHEAD, np.int32)  # AHEAD more: the prefetches read past a row
+    bins_b = np.zeros(m + AHEAD, np.int32)
+    mu = np.uint64(m)
     window = mode == MODE_WINDOW
     ring_w = m + 4 if window else 1
     cre = np.empty((_RING, ring_w), np.float32)
@@ -600,60 +797,32 @@ def _forward(
         if K._use_pair(lo, hi, i, i1):
             if window:
                 next_p = _ensure_c(i + 1, next_p, i0, i1, lo, hi, bx, bz, hx, hz, cre, cim)
-            _fill(
-                i,
-                lo[i],
-                hi[i],
-                bmx,
-                bmz,
-                bpp,
-                bqq,
-                byaw,
-                bstep,
-                hmx,
-                hmz,
-                codes,
-                hyaw,
-                mode,
-                nb,
-                half,
-                cre,
-                cim,
-                bins,
-                crow_a,
+            lo_a, hi_a = lo[i], hi[i]
+            lo_b, hi_b = lo[i + 1], hi[i + 1]
+            _theta_bins(
+                i, lo_a, hi_a, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, bins_a
             )
-            _fill(
-                i + 1,
-                lo[i + 1],
-                hi[i + 1],
-                bmx,
-                bmz,
-                bpp,
-                bqq,
-                byaw,
-                bstep,
-                hmx,
-                hmz,
-                codes,
-                hyaw,
-                mode,
-                nb,
-                half,
-                cre,
-                cim,
-                bins,
-                crow_b,
+            _theta_bins(
+                i + 1, lo_b, hi_b, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, bins_b
             )
-            bad = K._dp_pair(
+            bad = _dp_pair_codes(
                 prev,
                 mid,
                 cur,
-                crow_a,
-                crow_b,
-                lo[i],
-                hi[i],
-                lo[i + 1],
-                hi[i + 1],
+                bpp[i],
+                bqq[i],
+                bstep[i],
+                bpp[i + 1],
+                bqq[i + 1],
+                bstep[i + 1],
+                codes,
+                mu,
+                bins_a,
+                bins_b,
+                lo_a,
+                hi_a,
+                lo_b,
+                hi_b,
                 bp[start[i] : start[i + 1]],
                 bp[start[i + 1] : start[i + 2]],
                 K._left0(lo, i, ends),
@@ -672,30 +841,22 @@ def _forward(
         else:
             if window:
                 next_p = _ensure_c(i, next_p, i0, i1, lo, hi, bx, bz, hx, hz, cre, cim)
-            _fill(
-                i,
+            _theta_bins(
+                i, lo[i], hi[i], bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, bins_a
+            )
+            if _dp_row_codes(
+                prev,
+                cur,
+                bpp[i],
+                bqq[i],
+                bstep[i],
+                codes,
+                mu,
+                bins_a,
                 lo[i],
                 hi[i],
-                bmx,
-                bmz,
-                bpp,
-                bqq,
-                byaw,
-                bstep,
-                hmx,
-                hmz,
-                codes,
-                hyaw,
-                mode,
-                nb,
-                half,
-                cre,
-                cim,
-                bins,
-                crow_a,
-            )
-            if K._dp_row(
-                prev, cur, crow_a, lo[i], hi[i], bp[start[i] : start[i + 1]], K._left0(lo, i, ends)
+                bp[start[i] : start[i + 1]],
+                K._left0(lo, i, ends),
             ):
                 return i, np.nan
             K._row_done(cur, lo, hi, i, ends, last_col, m)
