@@ -55,7 +55,7 @@ MODE_YAW = 1
 _TWO_PI = 2.0 * np.pi
 _RING = 8  # ring-buffer rows of C (five in use; a power of two)
 #: cells ahead whose hand masks the recurrence prefetches
-AHEAD = 24
+AHEAD = 64
 
 
 @intrinsic
