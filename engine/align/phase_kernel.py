@@ -609,7 +609,7 @@ def _dp_row_codes(prev, cur, p, q, st, codes, mu, bins, lo, hi, bp_row, left0):
     out = cur[lo + 1 : hi + 2]
     bb = bins[lo : hi + 1 + AHEAD]
     left = left0
-    bad = False
+    bad = not (st > K.NEG_INF)  # a cost is NaN or -inf exactly when st is (masks: counts)
     j = np.uint64(lo)
     ahead = np.uint64(AHEAD)
     for k in range(w):
@@ -622,7 +622,6 @@ def _dp_row_codes(prev, cur, p, q, st, codes, mu, bins, lo, hi, bp_row, left0):
         step_du = K.VERTICAL if up < diag else K.DIAGONAL
         step = K.HORIZONTAL if left < du else step_du
         g = c + min(left, du)
-        bad |= not (c > K.NEG_INF)
         out[k] = g
         left = g
         bp_row[k] = step
@@ -663,7 +662,7 @@ def _dp_pair_codes(
     ba = bins_a[lo_a : hi_a + 1 + AHEAD]
     ahead = np.uint64(AHEAD)
     left_a = left_a0
-    bad_a = False
+    bad_a = not (sta > K.NEG_INF)  # as _dp_row_codes
     ja = np.uint64(lo_a)
     for k in range(end1 - lo_a + 1):
         diag = pa[k]
@@ -675,7 +674,6 @@ def _dp_pair_codes(
         step_du = K.VERTICAL if up < diag else K.DIAGONAL
         bp_a[k] = K.HORIZONTAL if left_a < du else step_du
         g = c + min(left_a, du)
-        bad_a |= not (c > K.NEG_INF)
         out_a[k] = g
         left_a = g
     mid[lo_a] = left_a0
@@ -686,7 +684,7 @@ def _dp_pair_codes(
     bb = bins_b[lo_b : hi_b + 1 + AHEAD]
     out_b = cur[lo_b + 1 : hi_b + 2]
     left_b = left_b0
-    bad_b = False
+    bad_b = not (stb > K.NEG_INF)
     done_b = 0
     if hi_a >= lo_b + 1:
         count = hi_a - lo_b
@@ -709,7 +707,6 @@ def _dp_pair_codes(
             step_du = K.VERTICAL if up < diag else K.DIAGONAL
             bp_a2[k] = K.HORIZONTAL if left_a < du else step_du
             g = c + min(left_a, du)
-            bad_a |= not (c > K.NEG_INF)
             out_a2[k] = g
             left_a = g
             # row i+1 at column lo_b + k
@@ -720,7 +717,6 @@ def _dp_pair_codes(
             step_du2 = K.VERTICAL if a_up < a_diag else K.DIAGONAL
             bp_b[k] = K.HORIZONTAL if left_b < du2 else step_du2
             g2 = c2 + min(left_b, du2)
-            bad_b |= not (c2 > K.NEG_INF)
             out_b[k] = g2
             left_b = g2
             a_diag = a_up
@@ -739,7 +735,6 @@ def _dp_pair_codes(
         step_du = K.VERTICAL if up < diag else K.DIAGONAL
         bp_b[done_b + k] = K.HORIZONTAL if left_b < du else step_du
         g = c + min(left_b, du)
-        bad_b |= not (c > K.NEG_INF)
         out_b[done_b + k] = g
         left_b = g
     return (1 if bad_a else 0) | (2 if bad_b else 0)
