@@ -281,6 +281,9 @@ class PhaseProblem:
         self.n, self.m = a.shape[0], b.shape[0]
         self.fallback = False
         k = half // WINDOW
+        if 2 * nb * self.m >= 2**31:  # a mask index (_mask_index) would not fit int32
+            self.fallback, self.a, self.b = True, a, b
+            return
         if mode == MODE_WINDOW:
             body_c = _padded_coords(a, half)
             hand_c = _padded_coords(b, half)
@@ -468,23 +471,36 @@ def _theta_bins(i, lo_i, hi_i, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, c
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _bin_cost(p, q, st, codes, mu, b, j):
-    """Local cost of body masks ``(p, q)`` (step cost ``st``) against hand column ``j``
-    (uint64) turned to θ bin ``b``: Σ (s − s')² + ``st``.
-
-    ``codes``: the hand's masks flat, bin by bin (``2 (b m + j)``: P, ``+ 1``: Q; ``mu`` =
-    ``m`` as uint64): unsigned indices, no wraparound code, no per-cell stride
-    multiplications. The only place a pass-1 cell's cost is formed from its bin.
-    """
-    u = (np.uint64(b) * mu + j) << np.uint64(1)
-    c = cell_cost(p, q, codes[u], codes[u + np.uint64(1)])
-    return float(np.int64(c)) + st  # signed: one instruction (unsigned is several)
+def _mask_index(b, j, m):
+    """Index in ``codes`` of hand column ``j``'s P mask turned to θ bin ``b`` (its Q mask
+    follows): ``2 (b m + j)``, int32 (:class:`PhaseProblem` checks that it fits)."""
+    return np.int32(2) * (np.int32(b) * np.int32(m) + np.int32(j))
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _prefetch_bin(codes, mu, b, j):
-    """Prefetch the mask pair :func:`_bin_cost` reads for bin ``b``, column ``j``."""
-    prefetch(codes, (np.uint64(b) * mu + j) << np.uint64(1))
+def _index_cost(p, q, st, codes, u):
+    """Local cost of body masks ``(p, q)`` (step cost ``st``) against the hand's masks at
+    ``codes[u], codes[u + 1]`` (``u`` from :func:`_mask_index`): Σ (s − s')² + ``st``.
+
+    ``codes``: the hand's masks flat, bin by bin, so neighbouring cells, which mostly share
+    a bin, read neighbouring words; unsigned indices (no wraparound code). The only place a
+    pass-1 cell's cost is formed.
+    """
+    v = np.uint64(u)
+    c = cell_cost(p, q, codes[v], codes[v + np.uint64(1)])
+    return float(np.int64(c)) + st  # signed: one instruction (unsigned is several)
+
+
+@numba.njit(cache=True, nogil=True)
+def _bins_to_cells(lo_i, hi_i, m, bins):
+    """``bins[lo_i..hi_i]`` (θ bins of a band row) turned, in place, into their cells'
+    :func:`_mask_index` (a loop that vectorises; the recurrence then reads masks
+    directly)."""
+    bb = bins[lo_i : hi_i + 1]
+    j = np.int32(lo_i)
+    for k in range(hi_i - lo_i + 1):
+        bb[k] = _mask_index(bb[k], j, m)
+        j += np.int32(1)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -499,11 +515,8 @@ def _code_costs(lo_i, hi_i, p, q, st, codes, m, bins, crow):
     w = hi_i - lo_i + 1
     bb = bins[lo_i : hi_i + 1]
     cost = crow[lo_i : hi_i + 1]
-    mu = np.uint64(m)
-    j = np.uint64(lo_i)
     for k in range(w):
-        cost[k] = _bin_cost(p, q, st, codes, mu, bb[k], j)
-        j += np.uint64(1)
+        cost[k] = _index_cost(p, q, st, codes, _mask_index(bb[k], lo_i + k, m))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -594,30 +607,30 @@ def _one_row(
 # the recurrence with the sign-code costs inline
 # --------------------------------------------------------------------------------------------
 # ``engine.dtw.kernels._dp_row`` / ``_dp_pair`` with each cell's local cost formed where it
-# is used (``_bin_cost`` from the row's θ bins) instead of read from a cost row: the
+# is used (``_index_cost`` at the cells of the row's θ bins) instead of read from a cost row: the
 # recurrence is one serial min/add chain per row, so the popcount work fills its idle
 # issue slots, and no cost row goes through the cache. Same operands, same order, same
 # floats and steps (tests compare with the cost-row kernels cell by cell).
 
 
 @numba.njit(cache=True, nogil=True)
-def _dp_row_codes(prev, cur, p, q, st, codes, mu, bins, lo, hi, bp_row, left0):
+def _dp_row_codes(prev, cur, p, q, st, codes, cells, lo, hi, bp_row, left0):
     """``engine.dtw.kernels._dp_row`` with the costs of body masks ``(p, q)`` against the
-    hand columns at θ bins ``bins`` (by absolute column) formed inline."""
+    hand's masks at ``cells`` (:func:`_mask_index` of each cell's θ bin, by absolute column,
+    :data:`AHEAD` entries past the row readable) formed inline; the masks :data:`AHEAD` cells
+    ahead are prefetched (θ drifts, so the reads wander over the table: the hardware
+    prefetchers miss them)."""
     w = hi - lo + 1
     pr = prev[lo : hi + 2]
     out = cur[lo + 1 : hi + 2]
-    bb = bins[lo : hi + 1 + AHEAD]
+    bb = cells[lo : hi + 1 + AHEAD]
     left = left0
     bad = not (st > K.NEG_INF)  # a cost is NaN or -inf exactly when st is (masks: counts)
-    j = np.uint64(lo)
-    ahead = np.uint64(AHEAD)
     for k in range(w):
         diag = pr[k]
         up = pr[k + 1]
-        _prefetch_bin(codes, mu, bb[k + AHEAD], j + ahead)
-        c = _bin_cost(p, q, st, codes, mu, bb[k], j)
-        j += np.uint64(1)
+        prefetch(codes, np.uint64(bb[k + AHEAD]))
+        c = _index_cost(p, q, st, codes, bb[k])
         du = min(diag, up)
         step_du = K.VERTICAL if up < diag else K.DIAGONAL
         step = K.HORIZONTAL if left < du else step_du
@@ -640,9 +653,8 @@ def _dp_pair_codes(
     qb_,
     stb,
     codes,
-    mu,
-    bins_a,
-    bins_b,
+    cells_a,
+    cells_b,
     lo_a,
     hi_a,
     lo_b,
@@ -653,23 +665,20 @@ def _dp_pair_codes(
     left_b0,
 ):
     """``engine.dtw.kernels._dp_pair`` (rows ``i``, ``i + 1`` interleaved) with the costs
-    formed inline (row ``i``: masks ``pa_, qa_``, step ``sta``, bins ``bins_a``; row
-    ``i + 1``: ``pb_, qb_, stb, bins_b``)."""
+    formed inline as in :func:`_dp_row_codes` (row ``i``: masks ``pa_, qa_``, step ``sta``,
+    cells ``cells_a``; row ``i + 1``: ``pb_, qb_, stb, cells_b``)."""
     # phase 1: row i alone, columns lo_a .. min(hi_a, lo_b)
     end1 = min(hi_a, lo_b)
     pa = prev[lo_a : hi_a + 2]
     out_a = mid[lo_a + 1 : hi_a + 2]
-    ba = bins_a[lo_a : hi_a + 1 + AHEAD]
-    ahead = np.uint64(AHEAD)
+    ba = cells_a[lo_a : hi_a + 1 + AHEAD]
     left_a = left_a0
     bad_a = not (sta > K.NEG_INF)  # as _dp_row_codes
-    ja = np.uint64(lo_a)
     for k in range(end1 - lo_a + 1):
         diag = pa[k]
         up = pa[k + 1]
-        _prefetch_bin(codes, mu, ba[k + AHEAD], ja + ahead)
-        c = _bin_cost(pa_, qa_, sta, codes, mu, ba[k], ja)
-        ja += np.uint64(1)
+        prefetch(codes, np.uint64(ba[k + AHEAD]))
+        c = _index_cost(pa_, qa_, sta, codes, ba[k])
         du = min(diag, up)
         step_du = K.VERTICAL if up < diag else K.DIAGONAL
         bp_a[k] = K.HORIZONTAL if left_a < du else step_du
@@ -681,7 +690,7 @@ def _dp_pair_codes(
         mid[q] = K.INF
     # phase 2: row i at column t = lo_b+1 .. hi_a, row i+1 at column t-1
     w_b = hi_b - lo_b + 1
-    bb = bins_b[lo_b : hi_b + 1 + AHEAD]
+    bb = cells_b[lo_b : hi_b + 1 + AHEAD]
     out_b = cur[lo_b + 1 : hi_b + 2]
     left_b = left_b0
     bad_b = not (stb > K.NEG_INF)
@@ -690,19 +699,16 @@ def _dp_pair_codes(
         count = hi_a - lo_b
         k_a = lo_b + 1 - lo_a
         pa2 = prev[lo_b + 1 : hi_a + 2]
-        ba2 = bins_a[lo_b + 1 : hi_a + 1 + AHEAD]
+        ba2 = cells_a[lo_b + 1 : hi_a + 1 + AHEAD]
         out_a2 = mid[lo_b + 2 : hi_a + 2]
         bp_a2 = bp_a[k_a : k_a + count]
         a_diag = mid[lo_b]  # γ(i, t-2) for t = lo_b + 1
         a_up = mid[lo_b + 1]  # γ(i, t-1)
-        ja = np.uint64(lo_b + 1)
-        jb = np.uint64(lo_b)
         for k in range(count):
             diag = pa2[k]
             up = pa2[k + 1]
-            _prefetch_bin(codes, mu, ba2[k + AHEAD], ja + ahead)
-            c = _bin_cost(pa_, qa_, sta, codes, mu, ba2[k], ja)
-            ja += np.uint64(1)
+            prefetch(codes, np.uint64(ba2[k + AHEAD]))
+            c = _index_cost(pa_, qa_, sta, codes, ba2[k])
             du = min(diag, up)
             step_du = K.VERTICAL if up < diag else K.DIAGONAL
             bp_a2[k] = K.HORIZONTAL if left_a < du else step_du
@@ -710,9 +716,8 @@ def _dp_pair_codes(
             out_a2[k] = g
             left_a = g
             # row i+1 at column lo_b + k
-            _prefetch_bin(codes, mu, bb[k + AHEAD], jb + ahead)
-            c2 = _bin_cost(pb_, qb_, stb, codes, mu, bb[k], jb)
-            jb += np.uint64(1)
+            prefetch(codes, np.uint64(bb[k + AHEAD]))
+            c2 = _index_cost(pb_, qb_, stb, codes, bb[k])
             du2 = min(a_diag, a_up)
             step_du2 = K.VERTICAL if a_up < a_diag else K.DIAGONAL
             bp_b[k] = K.HORIZONTAL if left_b < du2 else step_du2
@@ -724,13 +729,11 @@ def _dp_pair_codes(
         done_b = count
     # phase 3: row i+1 alone, the remaining columns
     pb = mid[lo_b + done_b : hi_b + 2]
-    jb = np.uint64(lo_b + done_b)
     for k in range(w_b - done_b):
         diag = pb[k]
         up = pb[k + 1]
-        _prefetch_bin(codes, mu, bb[done_b + k + AHEAD], jb + ahead)
-        c = _bin_cost(pb_, qb_, stb, codes, mu, bb[done_b + k], jb)
-        jb += np.uint64(1)
+        prefetch(codes, np.uint64(bb[done_b + k + AHEAD]))
+        c = _index_cost(pb_, qb_, stb, codes, bb[done_b + k])
         du = min(diag, up)
         step_du = K.VERTICAL if up < diag else K.DIAGONAL
         bp_b[done_b + k] = K.HORIZONTAL if left_b < du else step_du
@@ -772,7 +775,8 @@ def _forward(
     last_row,
 ):
     """As ``engine.dtw.kernels.forward_builtin`` (open ends included): a row's θ bins by
-    :func:`_theta_bins`, its costs formed inside the recurrence (:func:`_dp_pair_codes`,
+    :func:`_theta_bins` (then their mask indices, :func:`_bins_to_cells`), its costs formed
+    inside the recurrence (:func:`_dp_pair_codes`,
     :func:`_dp_row_codes`)."""
     m = hmx.shape[0]
     prev = np.empty(m + 1)
@@ -780,7 +784,6 @@ def _forward(
     cur = np.full(m + 1, K.INF)
     bins_a = np.zeros(m + AHEAD, np.int32)  # AHEAD more: the prefetches read past a row
     bins_b = np.zeros(m + AHEAD, np.int32)
-    mu = np.uint64(m)
     window = mode == MODE_WINDOW
     ring_w = m + 4 if window else 1
     cre = np.empty((_RING, ring_w), np.float32)
@@ -800,6 +803,8 @@ def _forward(
             _theta_bins(
                 i + 1, lo_b, hi_b, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, bins_b
             )
+            _bins_to_cells(lo_a, hi_a, m, bins_a)
+            _bins_to_cells(lo_b, hi_b, m, bins_b)
             bad = _dp_pair_codes(
                 prev,
                 mid,
@@ -811,7 +816,6 @@ def _forward(
                 bqq[i + 1],
                 bstep[i + 1],
                 codes,
-                mu,
                 bins_a,
                 bins_b,
                 lo_a,
@@ -839,6 +843,7 @@ def _forward(
             _theta_bins(
                 i, lo[i], hi[i], bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, bins_a
             )
+            _bins_to_cells(lo[i], hi[i], m, bins_a)
             if _dp_row_codes(
                 prev,
                 cur,
@@ -846,7 +851,6 @@ def _forward(
                 bqq[i],
                 bstep[i],
                 codes,
-                mu,
                 bins_a,
                 lo[i],
                 hi[i],
