@@ -622,6 +622,19 @@ def report_stages(longs, load) -> str:
         f"Load average (1 min) {load[0]:.1f} at the start, {load[1]:.1f} at the end (2 cores, "
         "shared).",
         "",
+        "**What changed in this step (pass1c)**: pass 1's row kernel only "
+        "(`engine/align/phase_kernel.py`: costs formed inside the recurrence, mask indices by "
+        "a vectorised loop, the hand's masks prefetched 64 cells ahead; section "
+        "`splice_speed_pass1`); the other stages' code is that of the before commit, so their "
+        "ratios show the run's noise. Checked the same: "
+        f"`benchmarks/splice_same_output.py --ref {STAGE_BASE}` (five real pairs: paths, "
+        "costs, merged map, notes, spliced BVH bytes) and the table's last column.",
+        "",
+        "**Earlier steps**: pass1b beside `6b1b359` (1.788 → 1.475 s CPU, 0.85: pass-1 masks "
+        "as one flat array, C rows four markers per sweep, `metrics._raw_windows` and "
+        "`fastkin.rotate_offset` in numba, transfer's quaternions in place); the prepare "
+        "stage beside `efbcb40` (2.252 → 1.976 s, 0.88).",
+        "",
         "Goals (issue 13): 2-minute pair ≤ 1.0 s warm; 10-minute pair ≤ 10 s.",
     ]
     return "\n".join(lines)
