@@ -190,7 +190,7 @@ def create_app() -> pn.viewable.Viewable:
     # matrix, its controls and the preview side by side on a wide screen (they wrap below
     # one another on a narrow one); the trust layers sit under the matrix
     work = [
-        pn.Column(matrix.panel(), trust.panel(), margin=0, sizing_mode="fixed", width=trust.width),
+        pn.Column(matrix.panel(), trust.panel(), margin=0, sizing_mode=None, width=trust.width),
         side_panel,
     ]
     try:

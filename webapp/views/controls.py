@@ -7,7 +7,7 @@ import panel as pn
 from bokeh.models import CustomJS
 
 from webapp import safe_text
-from webapp.state import Session
+from webapp.state import PASS2_SPIN_NOTE, Session
 
 MATRIX_CHOICES = {
     "Pass 1": "pass1",
@@ -68,8 +68,22 @@ def parameter_widgets(session: Session) -> pn.viewable.Viewable:
     )
     matrix.link(session, value="matrix")
     session.param.watch(lambda e: setattr(matrix, "value", e.new), ["matrix"])
+    # W2 greyed out, and why, when pass 2 does not use it (a hand take without a forearm)
+    unused = pn.pane.Markdown(
+        PASS2_SPIN_NOTE, css_classes=["hs-w2-unused"], visible=False, margin=(0, 10)
+    )
+
+    def w2_in_use(*_):
+        spin = session.pass2_turns_hand()
+        for name in ("refine_band", "refine_band_s"):
+            params._widgets[name].disabled = spin
+        unused.visible = spin
+
+    session.param.watch(w2_in_use, ["inputs_revision"])
+    w2_in_use()
     return pn.Column(
         params,
+        unused,
         pn.pane.Markdown("**Matrix shown**", margin=(0, 10)),
         matrix,
         sizing_mode="stretch_width",
