@@ -15,6 +15,11 @@ a band row at a time, with the same arithmetic, in about a tenth of the time:
   over columns that vectorises) and keeps the last five in a ring buffer.
 * **θ bins without libm**: a polynomial ``atan2`` (about 1e-5 rad) and a floor,
   written without branches so the column loop vectorises.
+* **Costs inside the recurrence.** A row's θ bins become indices into the hand's mask
+  table (one vectorised loop); the DTW recurrence (copies of ``engine.dtw``'s row and
+  pair kernels) forms each cell's cost where it uses it, its popcounts filling the idle
+  slots of the serial min/add chain, and prefetches the masks 64 cells ahead (θ drifts,
+  so the reads wander over the table where the hardware prefetchers miss them).
 * **Bit-parallel codes.** Each frame's 6K ternary sign codes are two bit masks
   (P: +1, Q: −1); the hand take's are precomputed for every θ bin and stored bin
   by bin (``(n_bins, m)``) so neighbouring cells, which mostly share a bin, read
@@ -75,7 +80,9 @@ def popcount(typingctx, x):
 @intrinsic
 def prefetch(typingctx, arr, idx):
     """Hint the CPU to bring ``arr[idx]``'s cache line in (``llvm.prefetch``, read, keep in
-    all levels). Never faults: any index is allowed (no bounds, no wraparound)."""
+    all levels). Never faults: any index is allowed (no bounds, no wraparound). Declared
+    unmangled: LLVM's auto-upgrade gives it the pointer type of its version (``p0`` or
+    ``p0i8``)."""
     if not isinstance(arr, types.Array) or not isinstance(idx, types.Integer):
         return None
     sig = types.void(arr, idx)
@@ -85,7 +92,7 @@ def prefetch(typingctx, arr, idx):
         i8p = ir.IntType(8).as_pointer()
         i32 = ir.IntType(32)
         fnty = ir.FunctionType(ir.VoidType(), [i8p, i32, i32, i32])
-        fn = cgutils.get_or_insert_function(builder.module, fnty, "llvm.prefetch.p0")
+        fn = cgutils.get_or_insert_function(builder.module, fnty, "llvm.prefetch")
         ptr = builder.bitcast(builder.gep(ary.data, [args[1]]), i8p)
         builder.call(fn, [ptr, i32(0), i32(3), i32(1)])
         return context.get_dummy_value()
