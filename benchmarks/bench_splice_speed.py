@@ -625,7 +625,8 @@ def report_stages(longs, load) -> str:
         "**What changed in this step (pass1c)**: pass 1's row kernel only "
         "(`engine/align/phase_kernel.py`: costs formed inside the recurrence, mask indices by "
         "a vectorised loop, the hand's masks prefetched 64 cells ahead; section "
-        "`splice_speed_pass1`); the other stages' code is that of the before commit, so their "
+        "`splice_speed_pass1`); the other stages' code is that of the before commit (with "
+        "main's later merge: point constraints only, not on a default splice's path), so their "
         "ratios show the run's noise. Checked the same: "
         f"`benchmarks/splice_same_output.py --ref {STAGE_BASE}` (five real pairs: paths, "
         "costs, merged map, notes, spliced BVH bytes) and the table's last column.",
