@@ -366,17 +366,38 @@ def test_w2_is_greyed_out_where_pass_2_compares_the_hand_turning(cfg):
     s = Session(cfg)
     s.load_sample(DEMO)
     layout = parameter_widgets(s)
-    params, note = layout[0], layout[1]
+    (w1, w1_s, w2, w2_s, _), note = layout[0], layout[1]
     s.matrix = "pass2"
     assert s.pass2_turns_hand() and s.matrix_label() == PASS2_SPIN_LABEL
-    assert params._widgets["refine_band"].disabled and params._widgets["refine_band_s"].disabled
+    assert w2.disabled and w2_s.disabled and not w1.disabled and not w1_s.disabled
     assert note.visible and "W2 is not used" in note.object
     before = s.solution.warp.copy()
     assert s.set_constraints(refine_band=0.5)
     assert np.array_equal(s.solution.warp, before)  # what the note says: W2 changes nothing
     s.load_sample("beat-self")
     assert not s.pass2_turns_hand() and s.matrix_label() == MATRIX_LABELS["pass2"]
-    assert not params._widgets["refine_band"].disabled and not note.visible
+    assert not w2.disabled and not w2_s.disabled and not note.visible
+
+
+def test_widths_typed_in_seconds_are_checked_edits(session):
+    """The seconds fields go through the session's rules: a value out of range (or not a
+    number) is refused in one line and the field shows the width in force again; a value in
+    range greys out its fraction slider; emptied, the fraction is in force again."""
+    from webapp.views.controls import parameter_widgets
+
+    (w1, w1_s, *_), *_ = parameter_widgets(session)
+    before = session.to_spec()
+    w1_s.value = "1e9"
+    assert "band" in session.error and "seconds" in session.error
+    assert w1_s.value == "" and session.band_s is None and session.to_spec() == before
+    w1_s.value = "abc"
+    assert "band" in session.error and w1_s.value == "" and session.band_s is None
+    w1_s.value = "2"
+    assert session.error == "" and session.band_s == 2.0 and w1.disabled
+    w1_s.value = "2.50s"
+    assert session.band_s == 2.5 and w1_s.value == "2.5"
+    w1_s.value = ""
+    assert session.band_s is None and not w1.disabled and session.band == before.band
 
 
 def test_the_status_names_body_frames_left_without_a_hand_match(session):

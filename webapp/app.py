@@ -256,3 +256,12 @@ def warm_up(cfg: config.AppConfig) -> None:
             backend.offer(session.prepared, session.solution)  # the first page's alignment
     except Exception as exc:  # the page will show the same problem; the server still starts
         print(f"warm-up of sample {cfg.default_sample!r} failed: {one_line(exc)}", flush=True)
+        return
+    try:  # the preview's first frame: imports the renderer, opens its OpenGL context and
+        # builds the pair's meshes (kept with the pair), so the first page's preview is quick
+        backend.render_frame(
+            session.prepared, session.solution, session.frame, session.camera, False
+        )
+        backend.render_closeup(session.prepared, session.solution, session.frame)
+    except Exception:  # noqa: BLE001 - the page's preview says what is wrong, if anything
+        pass

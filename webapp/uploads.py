@@ -262,10 +262,11 @@ def _file_sha256(path: Path) -> str:
 _CONTEXT = None
 
 
-def _context():
+def child_context():
     """A forkserver context: children fork from a small clean process that has the
     readers imported (fast, and never a copy of the busy, threaded server; which is why
-    this is not ``engine.jobs.sandbox.run_limited``, whose child is a fork of its caller)."""
+    this is not ``engine.jobs.sandbox.run_limited``, whose child is a fork of its caller).
+    The downloads' encoders (``webapp.downloads``) start their children from it too."""
     global _CONTEXT
     if _CONTEXT is None:
         ctx = multiprocessing.get_context("forkserver")
@@ -275,7 +276,7 @@ def _context():
 
 
 def _read_in_child(staged: Staged, seconds: float, memory: int) -> dict:
-    ctx = _context()
+    ctx = child_context()
     receive, send = ctx.Pipe(duplex=False)
     child = ctx.Process(
         target=_child_read,
