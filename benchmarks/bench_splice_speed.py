@@ -56,9 +56,9 @@ TIME_BAND_S = 4.0
 PASS2_BASE = os.environ.get("HANDSPLICE_PASS2_BASE", "3539261")
 #: main when issue 13's reader and merge work began: ``--engine``'s "before"
 ENGINE_BASE = os.environ.get("HANDSPLICE_ENGINE_BASE", "46e6d22")
-#: main when the pass-1 kernel and stage work (pass1b) began: ``--stages``' and ``--pass1``'s
-#: "before" (the prepare-stage work before it compared with ``efbcb40``)
-STAGE_BASE = os.environ.get("HANDSPLICE_STAGE_BASE", "6b1b359")
+#: main when the last pass-1 kernel work (pass1c) began: ``--stages``' and ``--pass1``'s
+#: "before" (earlier steps compared with ``6b1b359`` and ``efbcb40``)
+STAGE_BASE = os.environ.get("HANDSPLICE_STAGE_BASE", "d94916c")
 #: timed splices per child process in ``--stages`` (the first warm one included)
 STAGE_SPLICES = 3
 
@@ -315,7 +315,7 @@ def report_pass1(k, load) -> str:
     """The ``--pass1`` section."""
     return "\n".join(
         [
-            "## Splice speed: the pass-1 row kernel, before and after pass1b (issue 13)",
+            "## Splice speed: the pass-1 row kernel (issue 13)",
             "",
             f"*before* = `engine/align/phase_kernel.py` at `{STAGE_BASE}`, *now* = this "
             "checkout's, both in this process (`bench_splice_speed --pass1`), on the 2-minute "
@@ -335,26 +335,27 @@ def report_pass1(k, load) -> str:
             f"Load average (1 min) {load[0]:.1f} at the start, {load[1]:.1f} at the end "
             "(2 cores, shared). Target (issue 13): ≤ 5 ns per band cell.",
             "",
-            "**What changed** (`engine/align/phase_kernel.py`, same arithmetic): the hand's "
-            "masks for every θ bin are one flat array read with unsigned indices (the old "
-            "`(bins, m, 2)` reads multiplied strides and checked for negative indices per "
-            "cell); θ bins and popcount costs are two loops (the first vectorises); C rows add "
-            "four markers per sweep (half the passes over the ring row); the check that the "
-            "rows hold consecutive frames' windows runs in numba.",
+            "**What changed (pass1c)** (`engine/align/phase_kernel.py`, same operands in the "
+            "same order): the sign-code costs are formed inside the recurrence "
+            "(`_dp_pair_codes`, `_dp_row_codes`: copies of `engine/dtw`'s row and pair "
+            "recurrences that compute each cell's cost where they use it) instead of written "
+            "to a cost row and read back; a row's θ bins become mask indices in one "
+            "vectorised loop (`_bins_to_cells`), and the recurrence prefetches the hand's "
+            "masks 64 cells ahead (`prefetch`, `llvm.prefetch`); a row's NaN/-inf check is "
+            "made once per row (a cost is NaN or -inf exactly when the row's step cost is).",
             "",
-            "**Where the time goes** (microbenchmarks in this session on the same band, CPU ns "
-            "per band cell at load 10-14, each part alone): C rows (eq.-7 products, 8 "
-            "markers) 1.8; θ bins 1.5; the sign-code costs (one 16-byte mask pair per cell "
-            "from the 72-bin table, three popcounts) 6-7 with the real bins but 2.2 when "
-            "every cell reads bin 0 (same instructions: the difference is where the reads "
-            "land; θ drifts along rows and columns, so the reads spread over the table's "
-            "16.6 MB); the recurrence with backpointers 1.8-2.6. Together 13-16: the parts "
-            "share a per-row working set of about 450 KB, near the 512 KB L2. Tried and not "
-            "kept: the table in blocks of 4-64 columns, 8-byte entries, huge pages (no "
-            "measurable change); the recurrence without its NaN checks (1.8 → 1.55 ns, a "
-            "copy of `engine/dtw`'s kernel for 2 %). Reaching ≤ 5 ns needs a different "
-            "order of work (tiles of rows so a column's masks and C rows are reused while in "
-            "cache), not more of the same.",
+            "**Where the time went** (microbenchmarks on this band, load 8-12): C rows 1.8 ns "
+            "per cell, θ bins 1.6-2, and the costs plus recurrence 6-10, of which 3-5 were "
+            "the mask reads: with every cell at bin 0 the costs take 2.5-3.5 ns, with the "
+            "real bins 6.6, yet the real bins are smooth (87 % of cells share the left "
+            "neighbour's bin, 78 % the upper neighbour's). Repeating one row keeps real and "
+            "bin-0 equal (3.4 vs 3.3 ns); cycling over 512 rows doubles the real one (6.7 vs "
+            "3.5): the mask lines a row needs were evicted since the rows that last used them "
+            "and come from L3 or memory, at addresses the hardware prefetchers do not "
+            "predict. Software prefetch hides that latency. Tried and not kept: tiles of 16 "
+            "rows whose costs are made in blocks of 64 columns with the rows inner (same "
+            "floats, 15.0 → 14.4 ns: the tile's cost rows push the rest out of L2); the "
+            "masks column by column (`(m, nb)`: no change).",
         ]
     )
 
@@ -620,6 +621,20 @@ def report_stages(longs, load) -> str:
         "",
         f"Load average (1 min) {load[0]:.1f} at the start, {load[1]:.1f} at the end (2 cores, "
         "shared).",
+        "",
+        "**What changed in this step (pass1c)**: pass 1's row kernel only "
+        "(`engine/align/phase_kernel.py`: costs formed inside the recurrence, mask indices by "
+        "a vectorised loop, the hand's masks prefetched 64 cells ahead; section "
+        "`splice_speed_pass1`); the other stages' code is that of the before commit (with "
+        "main's later merge: point constraints only, not on a default splice's path), so their "
+        "ratios show the run's noise. Checked the same: "
+        f"`benchmarks/splice_same_output.py --ref {STAGE_BASE}` (five real pairs: paths, "
+        "costs, merged map, notes, spliced BVH bytes) and the table's last column.",
+        "",
+        "**Earlier steps**: pass1b beside `6b1b359` (1.788 → 1.475 s CPU, 0.85: pass-1 masks "
+        "as one flat array, C rows four markers per sweep, `metrics._raw_windows` and "
+        "`fastkin.rotate_offset` in numba, transfer's quaternions in place); the prepare "
+        "stage beside `efbcb40` (2.252 → 1.976 s, 0.88).",
         "",
         "Goals (issue 13): 2-minute pair ≤ 1.0 s warm; 10-minute pair ≤ 10 s.",
     ]

@@ -306,3 +306,33 @@ def test_window_check_accepts_takes_parts_and_reversals_only(feats):
         assert (got is None) == (ref is None) == (name in ("every other", "shuffled")), name
         if ref is not None:
             assert all(np.array_equal(g, r) for g, r in zip(got, ref, strict=True)), name
+
+
+@pytest.mark.parametrize("bad", [np.nan, -np.inf])
+def test_forward_pass_reports_the_first_row_with_a_bad_cost_as_the_per_cell_pass(feats, bad):
+    """A body row whose cost is NaN or -inf (its step cost) stops the row kernel at that row,
+    as the per-cell forward pass does, whether the row is done alone (narrow, at a
+    matching point) or interleaved with the next (wide); a row of +inf costs is allowed."""
+    from engine.dtw import Ends
+    from engine.dtw import kernels as KD
+
+    a0, b = feats.pass1_rows
+    n, m = feats.n, feats.m
+    band = Band.from_constraints(n, m, 0.3, [(n // 3, m // 3, 4)], open_ends=True)
+    ends = Ends(n // 5, m // 5, 7.5).array()
+    narrow = int(np.argmin(band.hi - band.lo))
+    assert band.hi[narrow] - band.lo[narrow] < 32 <= band.hi[n // 2 + 7] - band.lo[n // 2 + 7]
+    for row in (narrow, n // 2 + 7, n // 2 + 8, n - 1):
+        a = a0.copy()
+        a[n - 3, 4] = np.inf  # allowed: those cells are forbidden, not bad
+        a[row, 4] = bad
+        got = []
+        for kernel in ("rows", "cells"):
+            bp = np.zeros(band.area, np.uint8)
+            args = (band.lo, band.hi, band.start, 0, n, bp, np.empty(1), 0, ends)
+            last = (np.empty(n), np.empty(m))
+            if kernel == "rows":
+                got.append(PK.forward(PK.prepare(a, b), *args, *last)[0])
+            else:
+                got.append(KD.forward_metric(M.splice_phase, a, b, *args, *last)[0])
+        assert got == [row, row], (row, got)

@@ -15,6 +15,11 @@ a band row at a time, with the same arithmetic, in about a tenth of the time:
   over columns that vectorises) and keeps the last five in a ring buffer.
 * **θ bins without libm**: a polynomial ``atan2`` (about 1e-5 rad) and a floor,
   written without branches so the column loop vectorises.
+* **Costs inside the recurrence.** A row's θ bins become indices into the hand's mask
+  table (one vectorised loop); the DTW recurrence (copies of ``engine.dtw``'s row and
+  pair kernels) forms each cell's cost where it uses it, its popcounts filling the idle
+  slots of the serial min/add chain, and prefetches the masks 64 cells ahead (θ drifts,
+  so the reads wander over the table where the hardware prefetchers miss them).
 * **Bit-parallel codes.** Each frame's 6K ternary sign codes are two bit masks
   (P: +1, Q: −1); the hand take's are precomputed for every θ bin and stored bin
   by bin (``(n_bins, m)``) so neighbouring cells, which mostly share a bin, read
@@ -40,6 +45,7 @@ import numba
 import numpy as np
 from llvmlite import ir
 from numba import types
+from numba.core import cgutils
 from numba.extending import intrinsic
 
 from engine.dtw import kernels as K
@@ -53,6 +59,8 @@ MODE_YAW = 1
 
 _TWO_PI = 2.0 * np.pi
 _RING = 8  # ring-buffer rows of C (five in use; a power of two)
+#: cells ahead whose hand masks the recurrence prefetches
+AHEAD = 64
 
 
 @intrinsic
@@ -65,6 +73,29 @@ def popcount(typingctx, x):
     def codegen(context, builder, signature, args):
         value = builder.zext(args[0], ir.IntType(64)) if args[0].type.width < 64 else args[0]
         return builder.ctpop(value)
+
+    return sig, codegen
+
+
+@intrinsic
+def prefetch(typingctx, arr, idx):
+    """Hint the CPU to bring ``arr[idx]``'s cache line in (``llvm.prefetch``, read, keep in
+    all levels). Never faults: any index is allowed (no bounds, no wraparound). Declared
+    unmangled: LLVM's auto-upgrade gives it the pointer type of its version (``p0`` or
+    ``p0i8``)."""
+    if not isinstance(arr, types.Array) or not isinstance(idx, types.Integer):
+        return None
+    sig = types.void(arr, idx)
+
+    def codegen(context, builder, signature, args):
+        ary = context.make_array(signature.args[0])(context, builder, args[0])
+        i8p = ir.IntType(8).as_pointer()
+        i32 = ir.IntType(32)
+        fnty = ir.FunctionType(ir.VoidType(), [i8p, i32, i32, i32])
+        fn = cgutils.get_or_insert_function(builder.module, fnty, "llvm.prefetch")
+        ptr = builder.bitcast(builder.gep(ary.data, [args[1]]), i8p)
+        builder.call(fn, [ptr, i32(0), i32(3), i32(1)])
+        return context.get_dummy_value()
 
     return sig, codegen
 
@@ -257,6 +288,9 @@ class PhaseProblem:
         self.n, self.m = a.shape[0], b.shape[0]
         self.fallback = False
         k = half // WINDOW
+        if 2 * nb * self.m >= 2**31:  # a mask index (_mask_index) would not fit int32
+            self.fallback, self.a, self.b = True, a, b
+            return
         if mode == MODE_WINDOW:
             body_c = _padded_coords(a, half)
             hand_c = _padded_coords(b, half)
@@ -443,6 +477,39 @@ def _theta_bins(i, lo_i, hi_i, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, c
             out[k] = np.int32((yb - hy[k]) % nb)
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _mask_index(b, j, m):
+    """Index in ``codes`` of hand column ``j``'s P mask turned to θ bin ``b`` (its Q mask
+    follows): ``2 (b m + j)``, int32 (:class:`PhaseProblem` checks that it fits)."""
+    return np.int32(2) * (np.int32(b) * np.int32(m) + np.int32(j))
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _index_cost(p, q, st, codes, u):
+    """Local cost of body masks ``(p, q)`` (step cost ``st``) against the hand's masks at
+    ``codes[u], codes[u + 1]`` (``u`` from :func:`_mask_index`): Σ (s − s')² + ``st``.
+
+    ``codes``: the hand's masks flat, bin by bin, so neighbouring cells, which mostly share
+    a bin, read neighbouring words; unsigned indices (no wraparound code). The only place a
+    pass-1 cell's cost is formed.
+    """
+    v = np.uint64(u)
+    c = cell_cost(p, q, codes[v], codes[v + np.uint64(1)])
+    return float(np.int64(c)) + st  # signed: one instruction (unsigned is several)
+
+
+@numba.njit(cache=True, nogil=True)
+def _bins_to_cells(lo_i, hi_i, m, bins):
+    """``bins[lo_i..hi_i]`` (θ bins of a band row) turned, in place, into their cells'
+    :func:`_mask_index` (a loop that vectorises; the recurrence then reads masks
+    directly)."""
+    bb = bins[lo_i : hi_i + 1]
+    j = np.int32(lo_i)
+    for k in range(hi_i - lo_i + 1):
+        bb[k] = _mask_index(bb[k], j, m)
+        j += np.int32(1)
+
+
 @numba.njit(cache=True, nogil=True)
 def _code_costs(lo_i, hi_i, p, q, st, codes, m, bins, crow):
     """``crow[lo_i..hi_i]`` = Σ (s − s')² + ``st`` of the body masks ``(p, q)`` against the
@@ -455,14 +522,8 @@ def _code_costs(lo_i, hi_i, p, q, st, codes, m, bins, crow):
     w = hi_i - lo_i + 1
     bb = bins[lo_i : hi_i + 1]
     cost = crow[lo_i : hi_i + 1]
-    mu = np.uint64(m)
-    one = np.uint64(1)
-    j = np.uint64(lo_i)
     for k in range(w):
-        u = (np.uint64(bb[k]) * mu + j) << one
-        c = cell_cost(p, q, codes[u], codes[u + one])
-        cost[k] = float(np.int64(c)) + st  # signed: one instruction (unsigned is several)
-        j += one
+        cost[k] = _index_cost(p, q, st, codes, _mask_index(bb[k], lo_i + k, m))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -549,6 +610,146 @@ def _one_row(
     return crow
 
 
+# --------------------------------------------------------------------------------------------
+# the recurrence with the sign-code costs inline
+# --------------------------------------------------------------------------------------------
+# ``engine.dtw.kernels._dp_row`` / ``_dp_pair`` with each cell's local cost formed where it
+# is used (``_index_cost`` at the cells of the row's θ bins) instead of read from a cost row: the
+# recurrence is one serial min/add chain per row, so the popcount work fills its idle
+# issue slots, and no cost row goes through the cache. Same operands, same order, same
+# floats and steps (tests compare with the cost-row kernels cell by cell).
+
+
+@numba.njit(cache=True, nogil=True)
+def _dp_row_codes(prev, cur, p, q, st, codes, cells, lo, hi, bp_row, left0):
+    """``engine.dtw.kernels._dp_row`` with the costs of body masks ``(p, q)`` against the
+    hand's masks at ``cells`` (:func:`_mask_index` of each cell's θ bin, by absolute column,
+    :data:`AHEAD` entries past the row readable) formed inline; the masks :data:`AHEAD` cells
+    ahead are prefetched (θ drifts, so the reads wander over the table: the hardware
+    prefetchers miss them)."""
+    w = hi - lo + 1
+    pr = prev[lo : hi + 2]
+    out = cur[lo + 1 : hi + 2]
+    bb = cells[lo : hi + 1 + AHEAD]
+    left = left0
+    bad = not (st > K.NEG_INF)  # a cost is NaN or -inf exactly when st is (masks: counts)
+    for k in range(w):
+        diag = pr[k]
+        up = pr[k + 1]
+        prefetch(codes, np.uint64(bb[k + AHEAD]))
+        c = _index_cost(p, q, st, codes, bb[k])
+        du = min(diag, up)
+        step_du = K.VERTICAL if up < diag else K.DIAGONAL
+        step = K.HORIZONTAL if left < du else step_du
+        g = c + min(left, du)
+        out[k] = g
+        left = g
+        bp_row[k] = step
+    return bad
+
+
+@numba.njit(cache=True, nogil=True)
+def _dp_pair_codes(
+    prev,
+    mid,
+    cur,
+    pa_,
+    qa_,
+    sta,
+    pb_,
+    qb_,
+    stb,
+    codes,
+    cells_a,
+    cells_b,
+    lo_a,
+    hi_a,
+    lo_b,
+    hi_b,
+    bp_a,
+    bp_b,
+    left_a0,
+    left_b0,
+):
+    """``engine.dtw.kernels._dp_pair`` (rows ``i``, ``i + 1`` interleaved) with the costs
+    formed inline as in :func:`_dp_row_codes` (row ``i``: masks ``pa_, qa_``, step ``sta``,
+    cells ``cells_a``; row ``i + 1``: ``pb_, qb_, stb, cells_b``)."""
+    # phase 1: row i alone, columns lo_a .. min(hi_a, lo_b)
+    end1 = min(hi_a, lo_b)
+    pa = prev[lo_a : hi_a + 2]
+    out_a = mid[lo_a + 1 : hi_a + 2]
+    ba = cells_a[lo_a : hi_a + 1 + AHEAD]
+    left_a = left_a0
+    bad_a = not (sta > K.NEG_INF)  # as _dp_row_codes
+    for k in range(end1 - lo_a + 1):
+        diag = pa[k]
+        up = pa[k + 1]
+        prefetch(codes, np.uint64(ba[k + AHEAD]))
+        c = _index_cost(pa_, qa_, sta, codes, ba[k])
+        du = min(diag, up)
+        step_du = K.VERTICAL if up < diag else K.DIAGONAL
+        bp_a[k] = K.HORIZONTAL if left_a < du else step_du
+        g = c + min(left_a, du)
+        out_a[k] = g
+        left_a = g
+    mid[lo_a] = left_a0
+    for q in range(hi_a + 2, hi_b + 2):
+        mid[q] = K.INF
+    # phase 2: row i at column t = lo_b+1 .. hi_a, row i+1 at column t-1
+    w_b = hi_b - lo_b + 1
+    bb = cells_b[lo_b : hi_b + 1 + AHEAD]
+    out_b = cur[lo_b + 1 : hi_b + 2]
+    left_b = left_b0
+    bad_b = not (stb > K.NEG_INF)
+    done_b = 0
+    if hi_a >= lo_b + 1:
+        count = hi_a - lo_b
+        k_a = lo_b + 1 - lo_a
+        pa2 = prev[lo_b + 1 : hi_a + 2]
+        ba2 = cells_a[lo_b + 1 : hi_a + 1 + AHEAD]
+        out_a2 = mid[lo_b + 2 : hi_a + 2]
+        bp_a2 = bp_a[k_a : k_a + count]
+        a_diag = mid[lo_b]  # γ(i, t-2) for t = lo_b + 1
+        a_up = mid[lo_b + 1]  # γ(i, t-1)
+        for k in range(count):
+            diag = pa2[k]
+            up = pa2[k + 1]
+            prefetch(codes, np.uint64(ba2[k + AHEAD]))
+            c = _index_cost(pa_, qa_, sta, codes, ba2[k])
+            du = min(diag, up)
+            step_du = K.VERTICAL if up < diag else K.DIAGONAL
+            bp_a2[k] = K.HORIZONTAL if left_a < du else step_du
+            g = c + min(left_a, du)
+            out_a2[k] = g
+            left_a = g
+            # row i+1 at column lo_b + k
+            prefetch(codes, np.uint64(bb[k + AHEAD]))
+            c2 = _index_cost(pb_, qb_, stb, codes, bb[k])
+            du2 = min(a_diag, a_up)
+            step_du2 = K.VERTICAL if a_up < a_diag else K.DIAGONAL
+            bp_b[k] = K.HORIZONTAL if left_b < du2 else step_du2
+            g2 = c2 + min(left_b, du2)
+            out_b[k] = g2
+            left_b = g2
+            a_diag = a_up
+            a_up = g
+        done_b = count
+    # phase 3: row i+1 alone, the remaining columns
+    pb = mid[lo_b + done_b : hi_b + 2]
+    for k in range(w_b - done_b):
+        diag = pb[k]
+        up = pb[k + 1]
+        prefetch(codes, np.uint64(bb[done_b + k + AHEAD]))
+        c = _index_cost(pb_, qb_, stb, codes, bb[done_b + k])
+        du = min(diag, up)
+        step_du = K.VERTICAL if up < diag else K.DIAGONAL
+        bp_b[done_b + k] = K.HORIZONTAL if left_b < du else step_du
+        g = c + min(left_b, du)
+        out_b[done_b + k] = g
+        left_b = g
+    return (1 if bad_a else 0) | (2 if bad_b else 0)
+
+
 @numba.njit(cache=True, nogil=True)
 def _forward(
     bx,
@@ -580,15 +781,16 @@ def _forward(
     last_col,
     last_row,
 ):
-    """As ``engine.dtw.kernels.forward_builtin`` (open ends included), local costs from
-    :func:`_fill`."""
+    """As ``engine.dtw.kernels.forward_builtin`` (open ends included): a row's θ bins by
+    :func:`_theta_bins` (then their mask indices, :func:`_bins_to_cells`), its costs formed
+    inside the recurrence (:func:`_dp_pair_codes`,
+    :func:`_dp_row_codes`)."""
     m = hmx.shape[0]
     prev = np.empty(m + 1)
     mid = np.full(m + 1, K.INF)
     cur = np.full(m + 1, K.INF)
-    crow_a = np.zeros(m)
-    crow_b = np.zeros(m)
-    bins = np.zeros(m, np.int32)
+    bins_a = np.zeros(m + AHEAD, np.int32)  # AHEAD more: the prefetches read past a row
+    bins_b = np.zeros(m + AHEAD, np.int32)
     window = mode == MODE_WINDOW
     ring_w = m + 4 if window else 1
     cre = np.empty((_RING, ring_w), np.float32)
@@ -600,60 +802,33 @@ def _forward(
         if K._use_pair(lo, hi, i, i1):
             if window:
                 next_p = _ensure_c(i + 1, next_p, i0, i1, lo, hi, bx, bz, hx, hz, cre, cim)
-            _fill(
-                i,
-                lo[i],
-                hi[i],
-                bmx,
-                bmz,
-                bpp,
-                bqq,
-                byaw,
-                bstep,
-                hmx,
-                hmz,
-                codes,
-                hyaw,
-                mode,
-                nb,
-                half,
-                cre,
-                cim,
-                bins,
-                crow_a,
+            lo_a, hi_a = lo[i], hi[i]
+            lo_b, hi_b = lo[i + 1], hi[i + 1]
+            _theta_bins(
+                i, lo_a, hi_a, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, bins_a
             )
-            _fill(
-                i + 1,
-                lo[i + 1],
-                hi[i + 1],
-                bmx,
-                bmz,
-                bpp,
-                bqq,
-                byaw,
-                bstep,
-                hmx,
-                hmz,
-                codes,
-                hyaw,
-                mode,
-                nb,
-                half,
-                cre,
-                cim,
-                bins,
-                crow_b,
+            _theta_bins(
+                i + 1, lo_b, hi_b, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, bins_b
             )
-            bad = K._dp_pair(
+            _bins_to_cells(lo_a, hi_a, m, bins_a)
+            _bins_to_cells(lo_b, hi_b, m, bins_b)
+            bad = _dp_pair_codes(
                 prev,
                 mid,
                 cur,
-                crow_a,
-                crow_b,
-                lo[i],
-                hi[i],
-                lo[i + 1],
-                hi[i + 1],
+                bpp[i],
+                bqq[i],
+                bstep[i],
+                bpp[i + 1],
+                bqq[i + 1],
+                bstep[i + 1],
+                codes,
+                bins_a,
+                bins_b,
+                lo_a,
+                hi_a,
+                lo_b,
+                hi_b,
                 bp[start[i] : start[i + 1]],
                 bp[start[i + 1] : start[i + 2]],
                 K._left0(lo, i, ends),
@@ -672,30 +847,22 @@ def _forward(
         else:
             if window:
                 next_p = _ensure_c(i, next_p, i0, i1, lo, hi, bx, bz, hx, hz, cre, cim)
-            _fill(
-                i,
+            _theta_bins(
+                i, lo[i], hi[i], bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, bins_a
+            )
+            _bins_to_cells(lo[i], hi[i], m, bins_a)
+            if _dp_row_codes(
+                prev,
+                cur,
+                bpp[i],
+                bqq[i],
+                bstep[i],
+                codes,
+                bins_a,
                 lo[i],
                 hi[i],
-                bmx,
-                bmz,
-                bpp,
-                bqq,
-                byaw,
-                bstep,
-                hmx,
-                hmz,
-                codes,
-                hyaw,
-                mode,
-                nb,
-                half,
-                cre,
-                cim,
-                bins,
-                crow_a,
-            )
-            if K._dp_row(
-                prev, cur, crow_a, lo[i], hi[i], bp[start[i] : start[i + 1]], K._left0(lo, i, ends)
+                bp[start[i] : start[i + 1]],
+                K._left0(lo, i, ends),
             ):
                 return i, np.nan
             K._row_done(cur, lo, hi, i, ends, last_col, m)
