@@ -133,6 +133,8 @@ class PreviewView:
         session.param.watch(self._on_frame, ["frame"])
         session.param.watch(self._on_inputs, ["inputs_revision"])
         session.param.watch(self._on_solution, ["revision"])
+        session.param.watch(self._on_busy, ["busy"])
+        self._after_solve = False  # a solution came while solving: rendered when idle
         session.param.watch(lambda *_: self._render_soon(), ["camera", "trails"])
         self._rendered_key = None
         self._played = None
@@ -166,8 +168,18 @@ class PreviewView:
 
     def _on_solution(self, *_):
         # the first solution of a pair opened off the loop arrives after the takes: its
-        # first frame is rendered then, later ones only when following edits
+        # first frame is rendered then, later ones only when following edits, and once no
+        # newer edit is being solved (a render beside a solve slows the solve: the next
+        # path waits; the newest solution is rendered when the session is idle)
         if self._rendered_key is None or self.session.follow:
+            if self.session.busy and self._rendered_key is not None:
+                self._after_solve = True
+                return
+            self._render_soon()
+
+    def _on_busy(self, *_):
+        if not self.session.busy and self._after_solve:
+            self._after_solve = False
             self._render_soon()
 
     # ------------------------------------------------------------ playing
