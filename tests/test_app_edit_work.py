@@ -70,3 +70,81 @@ def test_a_changed_first_frame_builds_its_mesh_again(session):
     takes = [session.prepared.body, session.prepared.hand, moved]
     meshes = backend._kept_meshes(last, takes)
     assert meshes[:2] == [last.views[0].mesh, last.views[1].mesh] and meshes[2] is None
+
+
+class _LoopDoc:
+    """A served document's callbacks, run by the test as the event loop would run them."""
+
+    session_context = object()  # a served page: the trust view defers its assessments
+
+    def __init__(self):
+        self.callbacks: list = []
+
+    def add_timeout_callback(self, callback, ms):
+        self.callbacks.append(callback)
+
+    def add_next_tick_callback(self, callback):
+        self.callbacks.append(callback)
+
+    def run(self) -> None:
+        while self.callbacks:
+            todo, self.callbacks = self.callbacks, []
+            for callback in todo:
+                callback()
+
+
+class _AtOnce:
+    """A pool that runs each job when it is submitted (the test's thread is the worker)."""
+
+    @staticmethod
+    def submit(fn, *args):
+        from concurrent.futures import Future
+
+        future = Future()
+        future.set_result(fn(*args))
+        return future
+
+
+def _nudge(session) -> None:
+    """One edit: a matching point added near the path, or the first one moved."""
+    if not session.points:
+        x = session.n // 2
+        session.add_point(x, session.hand_frame_for(x), 2)
+    else:
+        p = session.points[0]
+        session.move_point(0, p.body, p.hand + 2)
+
+
+def test_trust_is_assessed_once_edits_pause_never_beside_a_solve(session, monkeypatch):
+    """An edit's assessment (about four solves) waits while the session solves and runs one
+    at a time per page, for the newest edit: assessments of every edit of a drag ran beside
+    its solves and slowed them (benchmarks/RESULTS.md, section app)."""
+    from webapp.views import trust as trust_view
+    from webapp.views.cost_matrix import CostMatrixView
+
+    monkeypatch.setattr(trust_view, "DEBOUNCE_MS", 0)
+    monkeypatch.setattr(trust_view, "_POOL", _AtOnce())
+    view = trust_view.TrustView(session, CostMatrixView(session))
+    doc = _LoopDoc()
+    view._doc = doc
+    assessed: list[int] = []
+    real = session.assess
+    monkeypatch.setattr(session, "assess", lambda: assessed.append(session.revision) or real())
+
+    session.busy = "aligning"  # the solve of a next edit is running
+    _nudge(session)
+    doc.run()
+    assert assessed == [] and session.trust is None  # nothing beside the solve
+    session.busy = ""  # solved and drawn: the newest edit is assessed, once
+    doc.run()
+    assert assessed == [session.revision] and session.trust is not None
+    # two edits while an assessment runs: no second one beside it, then one of the newest
+    view._running = True
+    _nudge(session)
+    _nudge(session)
+    doc.run()
+    assert len(assessed) == 1 and session.trust is None
+    view._running = False
+    view._schedule(0)
+    doc.run()
+    assert assessed[1:] == [session.revision] and session.trust is not None
