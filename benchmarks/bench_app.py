@@ -137,6 +137,26 @@ def _pct(values, q) -> float:
     return float(np.percentile(np.asarray(values, dtype=float), q))
 
 
+def server_cpu_s(url: str) -> float:
+    """CPU seconds (user + system, all threads) used so far by the ``handsplice serve``
+    process that listens at ``url`` (found by its ``--port``)."""
+    port = url.rstrip("/").rsplit(":", 1)[1]
+    for proc in Path("/proc").iterdir():
+        if not proc.name.isdigit():
+            continue
+        try:
+            args = (proc / "cmdline").read_bytes().split(b"\0")
+            if b"serve" not in args or b"--port" not in args:
+                continue
+            if args[args.index(b"--port") + 1].decode() != port:
+                continue
+            fields = (proc / "stat").read_text().rsplit(")", 1)[1].split()
+        except (OSError, IndexError, ValueError):
+            continue
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    return float("nan")
+
+
 def measure_drags(browser, url: str, drags: int) -> dict:
     page = browser.new_page(viewport={"width": 1400, "height": 1100})
     page.goto(url)
@@ -153,7 +173,9 @@ def measure_drags(browser, url: str, drags: int) -> dict:
     y1 = y0 + round(60 * scale)
     page.mouse.click(*page.evaluate("([x, y]) => hs.xy(x, y)", [x, y0]))
     page.wait_for_function("() => window.hsChanged !== null", timeout=60_000)
+    page.wait_for_timeout(3000)  # the click's follow-up work (trust, preview) settles
     latencies, server_ms = [], []
+    cpu0 = server_cpu_s(url)
     for k in range(drags):
         a, b = (y0, y1) if k % 2 == 0 else (y1, y0)
         latencies.append(drag_once(page, x, a, b))
@@ -161,8 +183,10 @@ def measure_drags(browser, url: str, drags: int) -> dict:
         found = re.search(r"([\d.]+) ms", status)
         if found:
             server_ms.append(float(found.group(1)))
+    page.wait_for_timeout(3000)  # the last drag's follow-up work is counted too
+    cpu = (server_cpu_s(url) - cpu0) / drags
     page.close()
-    return {"latency": latencies, "server": server_ms, "n": n}
+    return {"latency": latencies, "server": server_ms, "n": n, "cpu_per_drag": cpu}
 
 
 def measure_loads(browser, url: str, loads: int) -> list[float]:
@@ -237,6 +261,7 @@ def _row(r: dict) -> list[str]:
     return [
         f"{_pct(lat, 50):.0f} / **{_pct(lat, 95):.0f}** / {max(lat):.0f} ms",
         f"{_pct(srv, 50):.0f} / {_pct(srv, 95):.0f} ms" if srv else "n/a",
+        f"{1000 * r['drags']['cpu_per_drag']:.0f} ms",
         f"**{statistics.median(loads):.2f}** / {max(loads):.2f} s",
         f"{statistics.median(r['big_loads']):.2f} s",
         f"{r['start'][0]:.1f} / {r['start'][1]:.1f} s",
@@ -280,9 +305,10 @@ def main(argv=None) -> int:
     head = (
         "| code | drag -> new path in the page, p50 / **p95** / max (goal p95 < 150 ms) "
         "| server time per edit (edit to solution applied), p50 / p95 "
+        "| server CPU per drag (all threads, incl. trust and preview) "
         "| first page load, demo pair, warm server: **median** / max (goal < 5 s) "
         f"| first page load, {n} x {m} pair: median | server start (demo / {n}-frame pair) "
-        "| load average 1/5 min, before → after |\n|---|---|---|---|---|---|---|\n"
+        "| load average 1/5 min, before → after |\n|---|---|---|---|---|---|---|---|\n"
     )
     table = head + "\n".join(
         f"| {name} | " + " | ".join(_row(r)) + " |" for name, _ in codes for r in results[name]
@@ -300,7 +326,8 @@ def main(argv=None) -> int:
             f"{pooled(a, 'latency', 50) / pooled(b, 'latency', 50):.2f}, drag p95 "
             f"{pooled(a, 'latency', 95) / pooled(b, 'latency', 95):.2f}, server time per edit "
             f"p50 {pooled(a, 'server', 50) / max(pooled(b, 'server', 50), 1e-9):.2f}, demo page "
-            f"load median {med[1] / med[0]:.2f}."
+            f"load median {med[1] / med[0]:.2f}, server CPU per drag "
+            f"{sum(r['drags']['cpu_per_drag'] for r in a) / sum(r['drags']['cpu_per_drag'] for r in b):.2f}."
         )
     lat = [v for r in results["now"] for v in r["drags"]["latency"]]
     md = (
