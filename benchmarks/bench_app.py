@@ -159,7 +159,7 @@ def server_cpu_s(url: str) -> float:
 
 def measure_drags(browser, url: str, drags: int) -> dict:
     page = browser.new_page(viewport={"width": 1400, "height": 1100})
-    page.goto(url)
+    page.goto(url, timeout=180_000)
     page.wait_for_function(READY, timeout=120_000)
     page.evaluate(WATCH)
     page.evaluate(PAGE_HELPERS)
@@ -195,7 +195,7 @@ def measure_loads(browser, url: str, loads: int) -> list[float]:
         context = browser.new_context(viewport={"width": 1400, "height": 1100})
         page = context.new_page()
         t0 = time.perf_counter()
-        page.goto(url)
+        page.goto(url, timeout=180_000)
         page.wait_for_function(READY, timeout=120_000)
         times.append(time.perf_counter() - t0)
         context.close()
@@ -205,7 +205,7 @@ def measure_loads(browser, url: str, loads: int) -> list[float]:
 def screenshot(browser, url: str, path: Path) -> None:
     """The header, the alignment and the preview of the demo pair (one picture)."""
     page = browser.new_page(viewport={"width": 1360, "height": 1000})
-    page.goto(url)
+    page.goto(url, timeout=180_000)
     page.wait_for_function(READY, timeout=120_000)
     page.locator(".hs-preview-image img").wait_for(timeout=120_000)  # rendered on load
     page.wait_for_timeout(800)
