@@ -1,8 +1,9 @@
 """What an edit in the app recomputes besides its solve (issue 13: edits cost what they
-change). The preview after an edit keeps the mannequins of the pair's previous preview:
-rebuilding the body's and the hand take's meshes (and the spliced take's, bound in an
-unchanged first frame) took most of the server's CPU after each edit, beside the next
-edit's solve (benchmarks/RESULTS.md, section app)."""
+change). The preview after an edit keeps the views and mannequins of the pair's previous
+preview: rebuilding the body's and the hand take's (and the spliced take's mesh, bound in
+an unchanged first frame) took much of the server's CPU after each edit, beside the next
+edit's solve; an edit's trust assessment waits until the session's solves are done
+(benchmarks/RESULTS.md, section app)."""
 
 from __future__ import annotations
 
@@ -46,7 +47,10 @@ def test_an_edit_keeps_the_preview_meshes_it_does_not_change(session):
     session.add_point(session.n // 2, session.hand_frame_for(session.n // 2) + 3, 1)
     after = backend.preview_for(prepared, session.solution)
     assert after is not before and [v.motion for v in after.views[:2]] == [body, hand]
-    # the body and the hand take did not change: their meshes are not built again
+    # the body and the hand take did not change: their views (joints, meshes, framing) are
+    # not built again
+    assert all(a is b for a, b in zip(after.views[:2], before.views[:2], strict=True))
+    assert after.views[2] is not before.views[2]
     assert after.views[0].mesh is before.views[0].mesh
     assert after.views[1].mesh is before.views[1].mesh
     spliced = backend.splice(prepared, session.solution)

@@ -456,13 +456,22 @@ def preview_for(prepared: Prepared, solution: Solution):
     sides = tuple(getattr(prepared.features, "sides", ()) or (prepared.side,))
     with _PREVIEW_LOCK:
         last = _PREVIEWS.get(id(prepared))
+    # the views of takes an edit did not change are the last preview's (their joints,
+    # meshes and framing are the same); the others are built, keeping what they can
+    kept = _kept_views(last, takes)
+    if all(view is not None for view in kept):  # (a Preview is made of one take at least)
+        kept[-1] = None
+    fresh = [k for k, view in enumerate(kept) if view is None]
+    meshes = _kept_meshes(last, takes)
     preview = Preview(
-        takes,
-        labels=labels,
-        meshes=_kept_meshes(last, takes),
+        [takes[k] for k in fresh],
+        labels=[labels[k] for k in fresh],
+        meshes=None if meshes is None else [meshes[k] for k in fresh],
         size=(960, 360),
         close_up_sides=sides,
     )
+    built = iter(preview.views)
+    preview.views = [view if view is not None else next(built) for view in kept]
     solution.cache["preview"] = preview
     with _PREVIEW_LOCK:  # close the previous solutions' OpenGL contexts of this pair
         old = _PREVIEWS.pop(id(prepared), None)
@@ -470,6 +479,14 @@ def preview_for(prepared: Prepared, solution: Solution):
     if old is not None and old is not preview:
         old.close()
     return preview
+
+
+def _kept_views(last, takes) -> list:
+    """Per take, the view of ``last`` (the pair's previous preview) drawing that very take
+    (the body and the hand take: an edit changes neither), else None."""
+    if last is None or len(last.views) != len(takes):
+        return [None] * len(takes)
+    return [v if v.motion is t else None for v, t in zip(last.views, takes, strict=True)]
 
 
 def _kept_meshes(last, takes) -> list | None:
