@@ -38,8 +38,9 @@ VERDICT_WORDS = {
     "desync": "may look out of sync (> 100 ms)",
 }
 REGION_COLOR = "#ffffff"
-#: wait this long after an edit before assessing it (a drag sends many edits)
-DEBOUNCE_MS = 250
+#: assess once edits have paused this long (each drag is an edit; an assessment costs more
+#: CPU than a solve, and one started between two drags ran beside the next drag's solve)
+DEBOUNCE_MS = 1000
 _POOL = concurrent.futures.ThreadPoolExecutor(max_workers=2, thread_name_prefix="hs-trust")
 
 
