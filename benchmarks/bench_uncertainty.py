@@ -15,7 +15,12 @@ known truth) each case is spliced with the defaults and assessed
   error before and after, per family and pooled over the hard families (every family
   but the clean splits: the issue-12 takes and the other rigs);
 * for comparison, one point placed instead at the body frame with the largest true error
-  (which neither a user nor the uncertainty knows), at its true hand frame.
+  (which neither a user nor the uncertainty knows), at its true hand frame;
+* with ``--scan S``: the best single point per take of the hard families, chosen with the
+  truth among true points every ``S`` seconds of the body take (and the two above): the
+  one that leaves the fewest frames over the goal's p95 (the family's p95 before, less
+  30 %). What no rule for choosing the top suggestion can beat while a placed point acts
+  as it does today.
 
 The constants of the uncertainty (``KAPPA``, ``BEND_S``) were chosen on the families'
 tuning seeds (100-107, 200-207, 300-303); the table reports seeds ``0..N-1``.
@@ -45,7 +50,10 @@ CLEAN = ("beat", "bandai", "lafan1")
 P95_GOAL = 0.30
 
 
-def run_case(case) -> dict:
+def run_case(case, scan_s: float = 0.0) -> dict:
+    """Errors of one case: before, with the top suggestion, with a point at the worst
+    frame, and (``scan_s`` > 0) with a true point every ``scan_s`` seconds ("scan": a list
+    of (n,) errors in ms, refused points left out)."""
     res = P.splice(case.body, case.hand, transfer_fingers=False)
     t0 = time.perf_counter()
     a = assess_splice(res.features, res.alignment)
@@ -67,13 +75,31 @@ def run_case(case) -> dict:
             out["err_fixed"] = fixed
     worst = _with_true_point(case, int(np.argmax(err)))
     out["err_oracle"] = err if worst is None else worst
+    out["scan"] = [err, out["err_fixed"], out["err_oracle"]] if scan_s > 0 else []
+    if scan_s > 0:
+        n = len(err)
+        step = max(1, int(round(scan_s * float(case.body.fps))))
+        for body in sorted({*range(0, n, step), n - 1}):
+            fixed = _with_true_point(case, body)
+            if fixed is not None:
+                out["scan"].append(fixed)
     return out
 
 
-def _run_one(job: tuple[str, int]) -> dict:
-    """``run_case`` of family ``job[0]``, seed ``job[1]`` (a worker process's unit)."""
-    name, seed = job
-    return run_case(FAMILIES[name].make(seed))
+def _run_one(job: tuple) -> dict:
+    """``run_case`` of family ``job[0]``, seed ``job[1]``, scan step ``job[2]`` seconds (0:
+    no scan) (a worker process's unit)."""
+    name, seed, scan_s = job
+    return run_case(FAMILIES[name].make(seed), scan_s)
+
+
+def best_single_point(rows: list[dict], goal_ms: float) -> np.ndarray | None:
+    """Errors (all frames of ``rows``) with, per take, the scanned point that leaves the
+    fewest frames over ``goal_ms``; None when the rows were not scanned."""
+    if not rows or not all(r.get("scan") for r in rows):
+        return None
+    best = [min(r["scan"], key=lambda e: int(np.count_nonzero(e > goal_ms))) for r in rows]
+    return np.concatenate(best)
 
 
 def _with_true_point(case, body: int) -> np.ndarray | None:
@@ -104,7 +130,9 @@ def stats(rows: list[dict]) -> dict:
         if np.ptp(unc) > 0 and np.ptp(err) > 0
         else float("nan")
     )
+    best = best_single_point(rows, (1.0 - P95_GOAL) * float(np.percentile(err, 95)))
     return {
+        "p95_best": float(np.percentile(best, 95)) if best is not None else float("nan"),
         "cases": len(rows),
         "frames": int(err.size),
         "rho": rho,
@@ -167,7 +195,46 @@ NOTES = [
     "to the bench) lowers the hard families' p95 by about 24 %, not 30 %. Assess time: "
     "the column is measured with three cases in parallel on 2 shared cores (load 9-15); "
     "the new terms (one pass of path costs, two 1-D filters) cost 0.4-0.8 ms CPU of the "
-    "whole 25-243 ms (a holds and a lafan1 take, measured alone)."
+    "whole 25-243 ms (a holds and a lafan1 take, measured alone).",
+    "",
+    "Notes (2026-12-02, issue 17 third pass: the top suggestion's goal). Nothing in the "
+    "engine changed (main merged at 05:00, re-run with `--jobs 2 --scan 0.5`: every "
+    "earlier column is the last run's to the ms); this pass measured whether any choice "
+    "of the suggestion, or another action of a placed point, can reach -30 %. (1) The bound: the column 'best single "
+    "point' (`--scan 0.5`: per hard take, the true point among every 0.5 s, the top "
+    "suggestion and the worst frame that leaves the fewest frames over the goal's p95) "
+    "is what no rule for the top suggestion can beat while a point acts as today: "
+    "pooled 51 -> 37 ms (-27 %; per family -13 to -37 %, and 30 % is out of reach for "
+    "noisy, fps, left, manipnet and leap even with the truth). A finer scan (every 0.25 "
+    "s, the 45 hard takes with >= 10 frames over the pooled p95, the others keeping the "
+    "top suggestion, per take the point leaving the fewest frames over 39 ms; /tmp "
+    "scripts on the same cases) gives 51 -> 39 ms (-24 %). (2) Rules for the top "
+    "suggestion tried on those scans (pooled hard p95, today -15.3 %): the peak of the least certain "
+    "window of 0.25, 0.5, 1, 2 or 3 s -15.0 to -15.9 % (the window's centre -5 to -15 %);"
+    " the contiguous uncertain run (u over 0.3/0.5/0.7 of the take's peak, or over "
+    "2/3/4 times its median) scored by its sum or its excess, at its peak -14.5 to "
+    "-15.6 %, at its mass median -11 to -15 %; a pass's spread or the evidence alone, or "
+    "u times the evidence, -6 to -12 % (the bend alone -15.6 %); the suggestion kept 0.1-0.5 s off the "
+    "take's ends -12 to -15.6 % (17 of the 45 best points lie within 0.6 s of an end, "
+    "13 of the top suggestions do). Why: within a take, the rank correlation between "
+    "where a point is placed and how many frames it brings under the p95 is 0.34 for u "
+    "at that frame (median over the 45 takes) and only 0.51 for the true error itself. "
+    "(3) How a placed point acts, two changes tried (top suggestion / point at the worst "
+    "frame, pooled hard p95, today -15 % / -24 %): the band near a point clipped to a "
+    "cone around the take's mean rate (±50 % of the rate over ±1 s: -13 % / -23 %; ±20 %"
+    " over ±1.5 s: +95 % / +120 %, the true warps leave such a cone in holds and rate "
+    "changes); pass 2's band widened by a corridor around the point's rate line (the "
+    "pass-2 radius plus 30 % of the rate times the distance, over ±1 s): -15 % / -24 %, "
+    "no change. Noisy seed 7 shows why: with a true point at body frame 35 the widened "
+    "band holds the true path, yet pass 2's angle costs still choose a route 130-400 ms "
+    "off over the next second (before the point, pass 1 was 160-470 ms off there and "
+    "pass 2 wandered the other way): the costs, not the band, carry the error, and one "
+    "point fixes only the frames around it. What is left: a -30 % goal needs a point "
+    "whose information reaches past its stretch (a smoothness prior in the costs near "
+    "points, which the ±20 % cone shows must allow fast rate changes) or more "
+    "points: the top two suggestions placed together give 51 -> 39 ms (-23 %; /tmp "
+    "script, same cases). Aside for the merge's owners: `straighten_holds` raises noisy "
+    "seed 7's mean error 62 -> 75 ms (holds found in a take with none: jitter).",
 ]
 
 
@@ -176,9 +243,16 @@ def _row(name: str, s: dict) -> str:
         f"| {name} | {s['cases']} | {s['rho']:.2f} | {s['flagged'] * 100:.1f} % | "
         f"{s['p_flag']:.3f} | {s['p_unfl']:.4f} | {_ratio(s)} | {s['p95']:.0f} ms | "
         f"{s['p95_fixed']:.0f} ms | {_change(s) * 100:+.0f} % | {s['p95_oracle']:.0f} ms "
-        f"({_change(s, 'p95_oracle') * 100:+.0f} %) | {s['refused']} | "
+        f"({_change(s, 'p95_oracle') * 100:+.0f} %) | {_best(s)} | {s['refused']} | "
         f"{s['seconds'] * 1000:.0f} ms |"
     )
+
+
+def _best(s: dict) -> str:
+    """The p95 with the best single point per take (``--scan``), or a dash."""
+    if not np.isfinite(s.get("p95_best", np.nan)):
+        return "—"
+    return f"{s['p95_best']:.0f} ms ({_change(s, 'p95_best') * 100:+.0f} %)"
 
 
 def _change(s: dict, key: str = "p95_fixed") -> float:
@@ -205,6 +279,13 @@ def goals(table: dict, pooled: dict, hard: dict | None) -> list[str]:
             f"(pooled) | {'met' if ok else '**missed**'} | {hard['p95']:.0f} -> "
             f"{hard['p95_fixed']:.0f} ms ({_change(hard) * 100:+.0f} %) |"
         )
+        if np.isfinite(hard.get("p95_best", np.nan)):
+            out.append(
+                "| ... bound: the best single point per take, chosen with the truth (scan) | "
+                f"{'reachable' if _change(hard, 'p95_best') <= -P95_GOAL else 'not reachable'}"
+                f" | {hard['p95']:.0f} -> {hard['p95_best']:.0f} ms "
+                f"({_change(hard, 'p95_best') * 100:+.0f} %) |"
+            )
         for name, s in table.items():
             if name not in CLEAN:
                 ok = _change(s) <= -P95_GOAL
@@ -234,8 +315,8 @@ def markdown(
         "",
         "| family | cases | ρ | flagged | P(off \\| flagged) | P(off \\| not) | ratio | "
         "p95 before | p95 with the top suggestion | change | p95 with a point at the worst "
-        "frame | refused | assess time |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "frame | p95 with the best single point (scan) | refused | assess time |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for name, s in table.items():
         out.append(_row(name if name in CLEAN else f"{name} *", s))
@@ -254,11 +335,20 @@ def main(argv=None) -> int:
     ap.add_argument("--families", help="comma-separated subset")
     ap.add_argument("--seeds", type=int, default=SEEDS)
     ap.add_argument("--jobs", type=int, default=1, help="worker processes (cases in parallel)")
+    ap.add_argument(
+        "--scan",
+        type=float,
+        default=0.0,
+        help="also place a true point every SCAN seconds of each hard take (the best single "
+        "point per take: what no suggestion rule can beat); 0: off",
+    )
     args = ap.parse_args(argv)
     names = args.families.split(",") if args.families else list(FAMILIES)
     seeds = 2 if args.quick else args.seeds
     table, every, hard, by_seed = {}, [], [], {}
-    jobs = [(name, seed) for name in names for seed in range(seeds)]
+    jobs = [
+        (name, seed, 0.0 if name in CLEAN else args.scan) for name in names for seed in range(seeds)
+    ]
     if args.jobs > 1:  # cases are independent: one worker process per case
         with ProcessPoolExecutor(args.jobs) as pool:
             done = dict(zip(jobs, pool.map(_run_one, jobs), strict=True))
@@ -267,7 +357,8 @@ def main(argv=None) -> int:
     for name in names:
         rows = []
         for seed in range(seeds):
-            r = done.get((name, seed)) or _run_one((name, seed))
+            job = (name, seed, 0.0 if name in CLEAN else args.scan)
+            r = done.get(job) or _run_one(job)
             rows.append(r)
             if name not in CLEAN:
                 by_seed.setdefault(seed, []).append(r)

@@ -370,6 +370,13 @@ def test_download_preview_gif(page, browser, server, tmp_path):
 
     frames = iio.imread(path, index=None)
     assert frames.ndim == 4 and frames.shape[0] > 10 and frames.shape[3] in (3, 4)
+    # a second click with nothing changed: the same file at once, not a second render
+    status = page.locator(".hs-export-status")
+    with page.expect_download(timeout=60_000) as again:
+        page.locator(".hs-download-gif button").click()
+    assert "unchanged since it was made" in _text(status), _text(status)
+    again.value.save_as(tmp_path / "again.gif")
+    assert (tmp_path / "again.gif").read_bytes() == path.read_bytes()
 
 
 def test_shared_url_restores_the_session(page, browser):

@@ -273,11 +273,11 @@ def _watch(page, status, seen: list[str], what: str, part: str) -> None:
 
 def test_a_long_take_download_says_preparing_and_the_other_tab_still_answers(tabs, tmp_path):
     """A's spliced BVH and GLB (seconds to splice and write 14,400 frames) are made on a
-    download thread: A's page says "preparing… N s" while it takes longer than the line's
-    first tick, B's click is answered meanwhile or soon after (within 60 s), and the files
-    are whole. (Whether B is answered *before* A's file is ready depends on the machine's
-    load: the BVH text is formatted in Python, which shares the interpreter with the
-    event loop; on CI, B's answer came after a 3.5 s BVH. Not asserted.)"""
+    download thread, their bytes in a child process (``webapp.downloads``: the BVH text
+    no longer holds the server's interpreter): A's page says "preparing… N s" while it
+    takes longer than the line's first tick, B's click is answered meanwhile or soon
+    after (within 60 s), and the files are whole. (How long B waits meanwhile, before and
+    after the child process, is measured by ``benchmarks.bench_long_outputs``, not here.)"""
     a, b, _ = tabs
     for k, (name, ext) in enumerate((("bvh", "bvh"), ("glb", "glb"))):
         a.bring_to_front()
@@ -308,8 +308,9 @@ def test_a_long_take_download_says_preparing_and_the_other_tab_still_answers(tab
 
 
 def test_play_says_when_it_waits_on_a_slow_render(tabs, tmp_path):
-    """Right after an edit the preview's first render of the long pair builds the meshes of
-    three 14,400-frame takes (seconds): Play pressed then says it waits, then plays."""
+    """Right after an edit the preview's first render of the long pair splices the take and
+    builds its mesh and framing (seconds on a loaded machine): Play pressed then says it
+    waits, then plays (or, when that render is quick, plays at once)."""
     a, _, _ = tabs
     a.bring_to_front()
     path = a.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
@@ -322,13 +323,22 @@ def test_play_says_when_it_waits_on_a_slow_render(tabs, tmp_path):
         a.wait_for_timeout(50)
     play = a.locator(".hs-play button")
     play.scroll_into_view_if_needed()
+    first = int(a.locator(".hs-preview-info span").get_attribute("data-frame") or -1)
     play.click()
     wait = a.locator(".hs-play-wait span[data-waiting]")
-    wait.first.wait_for(timeout=30_000)
+    # the edit's first render builds the spliced take's mesh (the body and hand takes'
+    # are kept with the pair): on a quiet machine it may come before Play's line would
+    deadline = time.monotonic() + 30
+    info = a.locator(".hs-preview-info span")
+    while not wait.count() and int(info.get_attribute("data-frame")) == first:
+        assert time.monotonic() < deadline, "Play neither waited visibly nor moved on"
+        a.wait_for_timeout(20)
+    if not wait.count():  # the render came within Play's first half second: it plays
+        play.click()  # pause
+        return
     text = wait.first.inner_text()
     assert "waiting for the render of body frame" in text, text
     a.locator(".hs-preview").first.screenshot(path=str(tmp_path / "play_waiting.png"))
-    first = int(a.locator(".hs-preview-info span").get_attribute("data-frame") or -1)
     # the render arrives: the line goes, and the frames move on
     wait.first.wait_for(state="detached", timeout=120_000)
     deadline = time.monotonic() + 60

@@ -34,16 +34,25 @@ CASES = {
     "points crossing": (None, None, [(40, 30, None), (80, 20, None)]),
     "body frames out of order": (None, None, [(80, 30, None), (40, 50, None)]),
     "point outside the takes": (None, None, [(40, 30, None), (5000, 60, None)]),
+    "consecutive body frames too far apart": (None, None, [(40, 30, None), (41, 60, None)]),
+    "a point on the first body frame, off the corner (open ends)": (None, None, [(0, 30, None)]),
 }
 
 
-def _expected(band, refine, points, n, m):
-    """None (accepted) or the ConstraintError every front must show."""
+def _expected(band, refine, points, n, m, grid_scale):
+    """None (accepted) or the ConstraintError every front must show (points in the files'
+    own frames; ``grid_scale`` body fps / hand fps)."""
     try:
         C.BAND.parse(band)
         C.REFINE_BAND.parse(refine)
         pts = C.parse_points([p for p in points])
-        C.check_points([p.resolved(0.0) for p in pts], n, m)
+        C.check_points(
+            [p.resolved(0.0) for p in pts],
+            n,
+            m,
+            open_ends=C.DEFAULT_ENDS == "open",
+            grid_scale=grid_scale,
+        )
     except C.ConstraintError as exc:
         return exc
     return None
@@ -98,7 +107,7 @@ def _manifest(tmp, band, refine, points, capsys):
 def _session_file(tmp, band, refine, points, capsys):
     data = {
         "format": "handsplice-session",
-        "version": 1,
+        "version": 2,
         "side": "right",
         "points": [{"body": b, "hand": h, "tolerance": t} for b, h, t in points],
     }
@@ -180,7 +189,7 @@ def _fresh(app):
 def test_every_front_accepts_or_refuses_alike(case, tmp_path, capsys, app):
     band, refine, points = CASES[case]
     app = _fresh(app)
-    expected = _expected(band, refine, points, app.n, app.m)
+    expected = _expected(band, refine, points, app.n, app.m_hand, app.fps / app.hand_fps)
     results = {
         "cli": _cli(tmp_path, band, refine, points, capsys),
         "manifest": _manifest(tmp_path, band, refine, points, capsys),
@@ -326,3 +335,27 @@ def test_a_refusal_carries_field_value_and_expected():
     with pytest.raises(C.ConstraintError) as info:  # a malformed point is not "placed"
         C.check_points([(3.5, 5, 0)], 10, 20)
     assert info.value.point is None and info.value.reason_with(show) is None
+
+
+def test_consecutive_points_are_judged_at_the_takes_frame_rates():
+    """Two points on consecutive body frames: a 120 fps hand may advance 4 of its frames
+    per 30 fps body frame, a 30 fps hand not even one per 120 fps body frame; the refusal
+    names both points in the files' own frames, the other one as a structured point."""
+    C.check_points([(100, 2000), (101, 2004)], 200, 4000, grid_scale=30 / 120)
+    with pytest.raises(C.ConstraintError) as info:
+        C.check_points([(100, 2000), (101, 2010)], 200, 4000, grid_scale=30 / 120)
+    err = info.value
+    assert str(err) == (
+        "points[1] = (body frame 101, hand frame 2010, tolerance 0) and points[0] = "
+        "(body frame 100, hand frame 2000, tolerance 0) are on consecutive body frames, but "
+        "their hand frames 2000 and 2010 are more than one body frame's worth apart after "
+        "tolerances; increase a tolerance or move a point"
+    )
+    assert err.point == (101, 2010) and err.others == ((100, 2000, 0.0),)
+    assert err.reason_with(lambda b, h, t: f"<{b}|{h}>").startswith("and <100|2000> are on")
+    with pytest.raises(C.ConstraintError, match="one body frame's worth"):
+        C.check_points([(100, 50), (101, 51)], 400, 100, grid_scale=120 / 30)
+    # the same pair of points on one rate: one step apart is joinable
+    C.check_points([(100, 50), (101, 51)], 400, 100, grid_scale=1.0)
+    # a tolerance in hand frames widens the reach on the grid
+    C.check_points([(100, 2000), (101, 2010, 6)], 200, 4000, grid_scale=30 / 120)

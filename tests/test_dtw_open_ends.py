@@ -197,3 +197,39 @@ def test_bad_ends_are_one_line_errors():
     band = Band.from_constraints(30, 40, 0.2, [(0, 9, 0)], open_ends=True)
     with pytest.raises(ParameterError, match="at most 3 hand frames"):
         align(np.zeros((30, 40)), band, Ends(3, 3, 0.0))
+
+
+def test_incremental_open_ends_exact_when_points_sit_on_the_first_or_last_body_frame():
+    """A point on the first or last body frame narrows the band's edge row, where an open
+    path starts or ends. The solver that keeps its rows gives the reference path after
+    every such edit (it once joined stale rows there: a cheaper path that ended inside
+    the matrix, or an error)."""
+    rng = np.random.default_rng(7)
+    edits = 0
+    for trial in range(40):
+        n, m = int(rng.integers(20, 80)), int(rng.integers(20, 80))
+        a, b = rng.random((n, 3)), rng.random((m, 3))
+        cost = naive.local_cost_matrix(a.tolist(), b.tolist())
+        ends = Ends(n // 2, m // 2, float(rng.choice([0.1, 0.3])))
+        solver = Aligner(a, b)
+        solver.solve(Band.from_constraints(n, m, 0.3, [], open_ends=True), ends)
+        for _ in range(3):
+            x = int(rng.choice([0, n - 1]))
+            pts = [(x, int(rng.integers(0, m)), int(rng.integers(0, 3)))]
+            if rng.integers(0, 2):
+                pts = sorted(pts + [(int(rng.integers(1, n - 1)), int(rng.integers(0, m)), 2)])
+            try:
+                band = Band.from_constraints(n, m, 0.3, pts, open_ends=True)
+                check_ends(band, ends)
+            except ParameterError:
+                continue
+            total, _ = naive.dtw_banded_open(
+                cost, band.lo.tolist(), band.hi.tolist(), ends.skip, ends.body, ends.hand
+            )
+            if not np.isfinite(total):
+                continue
+            got = solver.solve(band, ends)
+            assert naive.is_open_path(got.path.tolist(), n, m, ends.body, ends.hand)
+            assert got.cost == pytest.approx(total, abs=1e-8), (trial, pts)
+            edits += 1
+    assert edits > 40

@@ -43,3 +43,21 @@ def test_every_stylesheet_of_a_new_session_is_served_locally():
     remote = sorted(u for u in urls if "://" in u)
     assert not remote, remote
     assert all(u.startswith("static/extensions/panel/") for u in urls), sorted(urls)
+
+
+def test_the_page_layout_passes_bokehs_own_checks():
+    """Bokeh validates every document it serves and logs what it finds (W-1005: a 'fixed'
+    column without a height); a page that passes its checks keeps the server log quiet."""
+    from bokeh.core.validation.check import check_integrity
+    from panel.io.state import set_curdoc
+
+    from webapp import config
+    from webapp.app import create_app
+
+    config.configure()
+    doc = _served_doc()
+    with set_curdoc(doc):
+        root = create_app().get_root(doc)
+    issues = check_integrity(list(root.references()))
+    found = [f"{w.code} {w.name}: {w.text}" for w in issues.warning + issues.error]
+    assert not found, found

@@ -37,6 +37,11 @@ def test_splice_writes_bvh_report_and_progress(tmp_path, capsys):
     assert code == 0
     err = capsys.readouterr().err
     assert "pass 1" in err and "pass 2" in err and f"wrote {out}" in err
+    report = json.loads(rep.read_text())
+    from engine.splice.report import unmatched_summary
+
+    unmatched = unmatched_summary(report["unmatched_body"], 30.0)
+    assert (f"splice: {unmatched}\n" in err) == bool(unmatched)
     motion = read_bvh(out)
     assert motion.n_frames == read_bvh(BODY).n_frames
     assert find_roles(motion.skeleton).side("right").has_fingers
@@ -122,6 +127,30 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, args, message):
 def test_output_must_be_bvh(tmp_path, capsys):
     assert main(["splice", str(BODY), str(HAND), "-o", str(tmp_path / "o.fbx")]) == 2
     assert ".bvh" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["splice", str(BODY), str(HAND), "-o", "{missing}/o.bvh"],
+        ["splice", str(BODY), str(HAND), "-o", "{tmp}/o.bvh", "--report", "{missing}/r.json"],
+        ["splice", str(BODY), str(HAND), "-o", "{tmp}/o.bvh", "--preview", "{missing}/p.gif"],
+        ["render", str(BODY), "-o", "{missing}/o.png"],
+        ["synthesize", str(BODY), "-o", "{missing}/o.bvh"],
+        ["analyze", str(BODY), "--csv", "{missing}/o.csv"],
+    ],
+)
+def test_an_output_in_a_missing_folder_is_refused_at_once(tmp_path, capsys, argv):
+    """A typo in an output's folder is refused in one line (exit 2) before any work; no
+    folder is created and nothing is written."""
+    missing = tmp_path / "no-such-folder"
+    args = [a.format(missing=missing, tmp=tmp_path) for a in argv]
+    with pytest.raises(SystemExit) as info:
+        main(args)
+    assert info.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no-such-folder does not exist" in err[0], err
+    assert not missing.exists() and not (tmp_path / "o.bvh").exists()
 
 
 def test_preview_renders_the_spliced_take(tmp_path):

@@ -263,3 +263,20 @@ def test_serve_body_hand_bad_arguments_exit_2(argv, needle, capsys):
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert needle in err and len(err.splitlines()) == 1, err
+
+
+def test_a_long_file_name_is_kept_whole_for_the_command_line():
+    """The page's command line names the user's file: a name as long as a file system
+    allows is kept whole (only the folder part of a client path is dropped)."""
+    import shlex
+
+    from webapp import backend
+
+    long = "take-" + "x" * 240 + ".bvh"  # 249 characters: a real file's name
+    assert uploads.display_name(long) == long
+    assert uploads.display_name("C:\\takes\\" + long) == long
+    cmd = backend.cli_command(long, "hand.bvh", "right", 0.3, 0.1, [])
+    assert shlex.split(cmd)[2] == long
+    absurd = "y" * 1000 + ".bvh"  # no file system holds such a name
+    shown = uploads.display_name(absurd)
+    assert len(shown) == uploads.MAX_NAME_CHARS and "…" in shown and shown.endswith(".bvh")

@@ -190,7 +190,7 @@ def create_app() -> pn.viewable.Viewable:
     # matrix, its controls and the preview side by side on a wide screen (they wrap below
     # one another on a narrow one); the trust layers sit under the matrix
     work = [
-        pn.Column(matrix.panel(), trust.panel(), margin=0, sizing_mode="fixed", width=trust.width),
+        pn.Column(matrix.panel(), trust.panel(), margin=0, sizing_mode=None, width=trust.width),
         side_panel,
     ]
     try:
@@ -256,3 +256,12 @@ def warm_up(cfg: config.AppConfig) -> None:
             backend.offer(session.prepared, session.solution)  # the first page's alignment
     except Exception as exc:  # the page will show the same problem; the server still starts
         print(f"warm-up of sample {cfg.default_sample!r} failed: {one_line(exc)}", flush=True)
+        return
+    try:  # the preview's first frame: imports the renderer, opens its OpenGL context and
+        # builds the pair's meshes (kept with the pair), so the first page's preview is quick
+        backend.render_frame(
+            session.prepared, session.solution, session.frame, session.camera, False
+        )
+        backend.render_closeup(session.prepared, session.solution, session.frame)
+    except Exception:  # noqa: BLE001 - the page's preview says what is wrong, if anything
+        pass

@@ -104,6 +104,8 @@ class Prepared:
     body_phases: np.ndarray | None = None  # (n,) Phase codes
     hand_phases: np.ndarray | None = None  # (m,)
     pass1_cost: np.ndarray | None = None  # (n, m) D1 of every cell, when small enough
+    #: the preview's TakeViews of the body and hand takes (the same for every alignment)
+    views: dict = field(default_factory=dict, repr=False)
     lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     @property
@@ -422,10 +424,18 @@ def splice(prepared: Prepared, solution: Solution):
 
 
 def bvh_bytes(motion) -> bytes:
-    """``motion`` as BVH text (UTF-8)."""
-    from engine.io.bvh import format_bvh
+    """``motion`` as BVH text (UTF-8), the CLI's bytes, formatted in a child process (a
+    long take's text would hold the server's interpreter for seconds: ``webapp.downloads``)."""
+    from webapp.downloads import encode
 
-    return format_bvh(motion).encode("utf-8")
+    return encode("bvh", motion)
+
+
+def glb_bytes(motion) -> bytes:
+    """``motion`` as a GLB file (the skinned mannequin), made in a child process."""
+    from webapp.downloads import encode
+
+    return encode("glb", motion)
 
 
 # ---------------------------------------------------------------- previews
@@ -454,24 +464,20 @@ def preview_for(prepared: Prepared, solution: Solution):
             "previews need a skeletal hand take (BVH); a marker hand take has no fingers to show"
         )
     sides = tuple(getattr(prepared.features, "sides", ()) or (prepared.side,))
-    with _PREVIEW_LOCK:
-        last = _PREVIEWS.get(id(prepared))
-    # the views of takes an edit did not change are the last preview's (their joints,
-    # meshes and framing are the same); the others are built, keeping what they can
-    kept = _kept_views(last, takes)
-    if all(view is not None for view in kept):  # (a Preview is made of one take at least)
-        kept[-1] = None
-    fresh = [k for k, view in enumerate(kept) if view is None]
-    meshes = _kept_meshes(last, takes)
+    # the input takes' views (world joints of every frame, mannequin, framing) are the same
+    # for every alignment: built once per pair, only the spliced take's after an edit
+    views = [prepared.views.get((label, sides)) for label in labels[:-1]] + [None]
+    # the spliced take's skeleton is the same after every edit: its mannequin (bound in
+    # an earlier alignment's first frame; skinning carries it to any pose) is kept too
+    skeleton = _skeleton_key(spliced.skeleton)
+    kept = prepared.views.get(("spliced mesh", sides))
+    meshes = [None] * (len(takes) - 1) + [kept[1] if kept and kept[0] == skeleton else None]
     preview = Preview(
-        [takes[k] for k in fresh],
-        labels=[labels[k] for k in fresh],
-        meshes=None if meshes is None else [meshes[k] for k in fresh],
-        size=(960, 360),
-        close_up_sides=sides,
+        takes, labels=labels, size=(960, 360), close_up_sides=sides, views=views, meshes=meshes
     )
-    built = iter(preview.views)
-    preview.views = [view if view is not None else next(built) for view in kept]
+    for label, view in zip(labels[:-1], preview.views[:-1], strict=True):
+        prepared.views.setdefault((label, sides), view)
+    prepared.views[("spliced mesh", sides)] = (skeleton, preview.views[-1].mesh)
     solution.cache["preview"] = preview
     with _PREVIEW_LOCK:  # close the previous solutions' OpenGL contexts of this pair
         old = _PREVIEWS.pop(id(prepared), None)
@@ -481,47 +487,13 @@ def preview_for(prepared: Prepared, solution: Solution):
     return preview
 
 
-def _kept_views(last, takes) -> list:
-    """Per take, the view of ``last`` (the pair's previous preview) drawing that very take
-    (the body and the hand take: an edit changes neither), else None."""
-    if last is None or len(last.views) != len(takes):
-        return [None] * len(takes)
-    return [v if v.motion is t else None for v, t in zip(last.views, takes, strict=True)]
-
-
-def _kept_meshes(last, takes) -> list | None:
-    """The mannequins of ``last`` (the pair's previous preview) that ``takes`` can keep.
-
-    An edit changes only the spliced take; rebuilding the body's and the hand take's
-    mannequins (and the spliced one's, bound in an unchanged first frame) cost most of a
-    preview after each edit (hundreds of ms of CPU beside the next edit's solve). A mesh
-    is kept when its take is the same object, or has an equal skeleton and first frame
-    (the bind pose): the mesh built again would be the same."""
-    if last is None or len(last.views) != len(takes):
-        return None
-    meshes = [view.mesh if _same_bind(view.motion, take) else None for view, take in zip(last.views, takes, strict=True)]
-    return meshes if any(m is not None for m in meshes) else None
-
-
-def _same_bind(a, b) -> bool:
-    """True when takes ``a`` and ``b`` bind the same mannequin: same skeleton, same frame 0."""
-    if a is b:
-        return True
-    sa, sb = a.skeleton, b.skeleton
-    if sa is not sb and not (
-        sa.names == sb.names
-        and sa.channels == sb.channels
-        and np.array_equal(sa.parents, sb.parents)
-        and np.array_equal(sa.offsets, sb.offsets)
-        and sa.end_sites.keys() == sb.end_sites.keys()
-        and all(np.array_equal(sa.end_sites[k], sb.end_sites[k]) for k in sa.end_sites)
-    ):
-        return False
+def _skeleton_key(skeleton) -> tuple:
+    """What a mannequin depends on of a skeleton: names, parents and offsets."""
     return (
-        a.n_frames > 0
-        and b.n_frames > 0
-        and np.array_equal(a.rotations[0], b.rotations[0])
-        and np.array_equal(a.translations[0], b.translations[0])
+        tuple(skeleton.names),
+        np.asarray(skeleton.parents).tobytes(),
+        np.asarray(skeleton.offsets, dtype=float).tobytes(),
+        tuple((int(j), tuple(map(float, v))) for j, v in sorted(skeleton.end_sites.items())),
     )
 
 
@@ -616,6 +588,9 @@ def png_bytes(image: np.ndarray) -> bytes:
 #: most this many frames (10 s at 30 fps; a longer take gives the 10 s from a start frame)
 VIDEO_MAX_FPS = 30.0
 VIDEO_MAX_FRAMES = 300
+#: the preview videos' camera and size (pixels)
+VIDEO_CAMERA = "three-quarter"
+VIDEO_SIZE = (720, 272)
 
 
 def video_frames(
@@ -643,9 +618,9 @@ def preview_video(
     prepared: Prepared,
     solution: Solution,
     fmt: str,
-    camera: str = "three-quarter",
+    camera: str = VIDEO_CAMERA,
     max_frames: int = VIDEO_MAX_FRAMES,
-    size: tuple[int, int] = (720, 272),
+    size: tuple[int, int] = VIDEO_SIZE,
     progress=None,
     start: int = 0,
 ) -> bytes:
@@ -667,6 +642,12 @@ def preview_video(
         raise ValueError(f"format: expected gif or mp4, got {fmt!r}")
     indices, fps = video_frames(prepared.n, float(prepared.body.fps), start, max_frames=max_frames)
     total = len(indices) + 1  # + encoding
+    key = _video_key(camera, size, indices)
+    made = made_video(solution, fmt, key)
+    if made is not None:  # nothing changed since this file was made: the same file
+        if progress is not None:
+            progress(total, total)
+        return made
     frames = []
     for done, i in enumerate(indices, 1):
         frames.append(render_frame(prepared, solution, i, camera, False, size))
@@ -680,9 +661,28 @@ def preview_video(
             path = Path(folder) / "preview.mp4"
             write_mp4(frames, path, fps)
             data = path.read_bytes()
+    solution.cache[("video", fmt)] = (key, data)  # the latest of each format, per alignment
     if progress is not None:
         progress(total, total)
     return data
+
+
+def made_video(solution: Solution, fmt: str, key: tuple) -> bytes | None:
+    """The ``fmt`` video of ``solution`` made last, if it was made with ``key`` (camera,
+    size, body frames shown): an alignment's videos are kept with it (an edit makes a new
+    solution, so a kept file is never stale)."""
+    kept = solution.cache.get(("video", fmt))
+    return kept[1] if kept is not None and kept[0] == key else None
+
+
+def video_key(prepared: Prepared, start: int = 0) -> tuple:
+    """The key :func:`preview_video` keeps its file under (its defaults, from ``start``)."""
+    indices, _ = video_frames(prepared.n, float(prepared.body.fps), start)
+    return _video_key(VIDEO_CAMERA, VIDEO_SIZE, indices)
+
+
+def _video_key(camera: str, size: tuple[int, int], indices: range) -> tuple:
+    return (camera, tuple(size), indices.start, indices.stop, indices.step)
 
 
 def cli_command(

@@ -160,6 +160,14 @@ def _open_local(pair) -> None:
     backend.prepare(pair.body, pair.hand, pair.side)
 
 
+def sample_url(url: str, sample: str) -> str:
+    """The page's URL opening ``sample``; a pair opened from disk is named "BODY + HAND",
+    whose spaces and "+" a query must escape."""
+    from urllib.parse import quote
+
+    return f"{url}?sample={quote(sample, safe='')}"
+
+
 def run(args: argparse.Namespace) -> int:
     _check_args(args)
     import panel as pn
@@ -182,6 +190,11 @@ def run(args: argparse.Namespace) -> int:
         local=local,
     )
     if not args.no_warm:
+        print(
+            "HandSplice: warming up (reading the takes, aligning, compiling; a minute or two "
+            "the first time) ...",
+            flush=True,
+        )
         warm_up(cfg)
 
     host = "127.0.0.1" if args.address in ("0.0.0.0", "::", "") else args.address
@@ -209,7 +222,7 @@ def run(args: argparse.Namespace) -> int:
     if local is not None:
         print(f"your pair:      {local.body} + {local.hand} ({local.side} hand)", flush=True)
     if args.show_url and cfg.default_sample:
-        print(f"demo pair:      {url}?sample={cfg.default_sample}", flush=True)
+        print(f"demo pair:      {sample_url(url, cfg.default_sample)}", flush=True)
     print("press Ctrl+C to stop", flush=True)
     try:
         server.start()

@@ -45,6 +45,13 @@ MATRIX_LABELS = {
     "cumulative1": "Pass 1 cumulative cost γ in the band",
     "cumulative2": "Pass 2 cumulative cost γ in the band",
 }
+#: the pass-2 view's title when the hand take has no forearm (engine.splice.spin)
+PASS2_SPIN_LABEL = "Pass 2 local cost (how the hand turns: the hand take has no forearm)"
+#: said under the W2 controls when pass 2 does not use them
+PASS2_SPIN_NOTE = (
+    "W2 is not used for this pair: the hand take has no forearm, so pass 2 compares how "
+    "the hand turns, inside the whole pass-1 band."
+)
 UNDO_LIMIT = 200
 #: changes of one slider that follow each other with less than this many idle seconds
 #: between them (a drag, a run of arrow-key steps) are one undo step
@@ -645,7 +652,13 @@ class Session(param.Parameterized):
         """Refuse points outside the takes or out of order: the rule and its text are
         ``engine.dtw.constraints``' (the page shows it in its own words from its structured
         fields: ``page_words``)."""
-        C.check_points(self.user_points(), self.n, self.m_hand, open_ends=C.DEFAULT_ENDS == "open")
+        C.check_points(
+            self.user_points(),
+            self.n,
+            self.m_hand,
+            open_ends=C.DEFAULT_ENDS == "open",
+            grid_scale=1.0 / self.hand_scale,
+        )
 
     def _solve(self, t0: float | None = None) -> bool:
         """Recompute band and path for the current state; False (and ``error``) if rejected."""
@@ -745,6 +758,21 @@ class Session(param.Parameterized):
             return self.user_points()
         return backend.points_to_grid(self.prepared, self.user_points())
 
+    def pass2_turns_hand(self) -> bool:
+        """True when pass 2 compares how the hand turns (a hand take without a forearm,
+        ``engine.splice.pipeline.uses_spin``) over the whole pass-1 band: W2 is unused."""
+        if self.prepared is None:
+            return False
+        from engine.splice.pipeline import uses_spin
+
+        return bool(uses_spin(self.prepared.features))
+
+    def matrix_label(self) -> str:
+        """The title of the matrix shown (``MATRIX_LABELS``; pass 2 says its metric)."""
+        if self.matrix == "pass2" and self.pass2_turns_hand():
+            return PASS2_SPIN_LABEL
+        return MATRIX_LABELS[self.matrix]
+
     @property
     def hand_scale(self) -> float:
         """Hand-file frames per alignment-grid column (hand fps / body fps)."""
@@ -759,13 +787,18 @@ class Session(param.Parameterized):
         sol = self.solution
         if sol is None:
             return self.error or "no takes loaded"
+        from engine.splice.report import unmatched_summary
+
         cells = sol.pass1.band_cells
         share = 100.0 * cells / max(self.n * self.m, 1)
-        return (
+        text = (
             f"pass 1 cost {sol.pass1.cost:.4g} · pass 2 cost {sol.pass2.cost:.4g} · "
             f"{self.compute_ms:.1f} ms · band {cells:,} cells ({share:.0f} %) · "
             f"{len(self.points)} matching point{'s' if len(self.points) != 1 else ''}"
         )
+        result = sol.cache.get("engine")
+        unmatched = unmatched_summary(getattr(result, "unmatched_body", ()), self.fps)
+        return text + (f" · {unmatched}" if unmatched else "")
 
     def axis_signals(self) -> tuple[np.ndarray, np.ndarray]:
         if self.prepared is None:
@@ -934,6 +967,7 @@ class Session(param.Parameterized):
             prepared.n,
             prepared.m_hand,
             open_ends=C.DEFAULT_ENDS == "open",
+            grid_scale=prepared.fps / prepared.hand_fps,
         )
         fps = prepared.features.fps
         band = spec.band or C.BAND.default_for(prepared.n, fps)

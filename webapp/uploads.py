@@ -73,10 +73,18 @@ def sha256(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
+#: longest file name kept whole: a file system's own limit (255 bytes on ext4, NTFS, APFS),
+#: so the page's command line names the user's file as it is; the page wraps long names
+MAX_NAME_CHARS = 255
+
+
 def display_name(filename: str | None) -> str:
-    """The last component of a client-side file name (never a path), at most 120 chars."""
+    """The last component of a client-side file name (never a path), whole up to
+    :data:`MAX_NAME_CHARS` (longer is no real file's name: shortened with "…")."""
     name = re.split(r"[\\/]", str(filename or ""))[-1].strip() or "upload"
-    return name if len(name) <= 120 else name[:100] + "…" + name[-19:]
+    if len(name) <= MAX_NAME_CHARS:
+        return name
+    return name[: MAX_NAME_CHARS - 20] + "…" + name[-19:]
 
 
 def _extension(name: str) -> str:
@@ -254,10 +262,11 @@ def _file_sha256(path: Path) -> str:
 _CONTEXT = None
 
 
-def _context():
+def child_context():
     """A forkserver context: children fork from a small clean process that has the
     readers imported (fast, and never a copy of the busy, threaded server; which is why
-    this is not ``engine.jobs.sandbox.run_limited``, whose child is a fork of its caller)."""
+    this is not ``engine.jobs.sandbox.run_limited``, whose child is a fork of its caller).
+    The downloads' encoders (``webapp.downloads``) start their children from it too."""
     global _CONTEXT
     if _CONTEXT is None:
         ctx = multiprocessing.get_context("forkserver")
@@ -267,7 +276,7 @@ def _context():
 
 
 def _read_in_child(staged: Staged, seconds: float, memory: int) -> dict:
-    ctx = _context()
+    ctx = child_context()
     receive, send = ctx.Pipe(duplex=False)
     child = ctx.Process(
         target=_child_read,

@@ -28,6 +28,19 @@ SUBCOMMANDS = ["info", "splice", "analyze", "synthesize", "render", "batch"]
 PLUGINS = {"serve": "webapp.serve_cli"}
 
 
+def output_file(text: str) -> str:
+    """An output file's argument (argparse ``type``): its folder must exist, so that a typo
+    in the folder is refused at once instead of silently creating a new folder."""
+    from pathlib import Path
+
+    folder = Path(text).expanduser().parent
+    if not folder.is_dir():
+        raise argparse.ArgumentTypeError(
+            f"{text}: the folder {folder} does not exist (create it first)"
+        )
+    return text
+
+
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # argparse's own exit status is already 2
         self.exit(2, f"{self.prog}: error: {message}\n")

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import argparse
 
+from engine.cli import output_file
+
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
@@ -17,8 +19,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "label each gesture phrase RH, LH or 2H, and find key poses (Jin & Hahn).",
     )
     p.add_argument("file", help="body take (.bvh)")
-    p.add_argument("--eaf", metavar="OUT.eaf", help="write ELAN tiers (phases, handedness)")
-    p.add_argument("--csv", metavar="OUT.csv", help="write the annotations as CSV")
+    p.add_argument(
+        "--eaf", type=output_file, metavar="OUT.eaf", help="write ELAN tiers (phases, handedness)"
+    )
+    p.add_argument(
+        "--csv", type=output_file, metavar="OUT.csv", help="write the annotations as CSV"
+    )
     p.add_argument("--json", action="store_true", help="print the full result as JSON")
     p.add_argument(
         "--threshold", type=float, default=0.12, help="handedness threshold in m/s (default 0.12)"

@@ -27,6 +27,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from engine.cli import output_file
+
 VIEW_CHOICES = ("single", "side-by-side", "overlay")
 
 
@@ -43,6 +45,7 @@ def add_parser(subparsers) -> None:
         "-o",
         "--output",
         required=True,
+        type=output_file,
         metavar="OUT",
         help="output file: .png (frame or contact sheet), .gif, .mp4 or .glb (3D)",
     )

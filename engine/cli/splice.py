@@ -38,6 +38,8 @@ import argparse
 import sys
 import time
 
+from engine.cli import output_file
+
 
 def add_parser(subparsers) -> None:
     p = subparsers.add_parser(
@@ -48,7 +50,9 @@ def add_parser(subparsers) -> None:
     )
     p.add_argument("body", help="body take (.bvh)")
     p.add_argument("hand", help="hand take with finger joints (.bvh)")
-    p.add_argument("-o", "--output", required=True, metavar="OUT.bvh", help="spliced take")
+    p.add_argument(
+        "-o", "--output", required=True, type=output_file, metavar="OUT.bvh", help="spliced take"
+    )
     p.add_argument(
         "--side",
         default=None,
@@ -75,8 +79,12 @@ def add_parser(subparsers) -> None:
         metavar="BODY:HAND[:TOL]",
         help="matching point: body frame, hand frame, tolerance in hand frames",
     )
-    p.add_argument("--report", metavar="REPORT.json", help="write the alignment report")
-    p.add_argument("--preview", metavar="OUT.gif", help="render a preview (.gif, .mp4, .png)")
+    p.add_argument(
+        "--report", type=output_file, metavar="REPORT.json", help="write the alignment report"
+    )
+    p.add_argument(
+        "--preview", type=output_file, metavar="OUT.gif", help="render a preview (.gif, .mp4, .png)"
+    )
     p.add_argument("--roles", metavar="MAP.json", help="joint-role overrides")
     p.add_argument(
         "--session",
@@ -176,6 +184,8 @@ def run(args: argparse.Namespace) -> int:
     args.side = args.side or (spec.side if spec else "auto")
     band = C.BAND.parse(args.band)
     refine_band = C.REFINE_BAND.parse(args.refine_band)
+    C.parse_ends(args.ends)  # refused before any file is read, as the widths are
+    C.parse_max_unmatched(args.max_unmatched)
     if spec is not None:
         band = band if band is not None else spec.band
         refine_band = refine_band if refine_band is not None else spec.refine_band
@@ -202,7 +212,13 @@ def run(args: argparse.Namespace) -> int:
     elif spec is not None and spec.roles:
         body_roles, hand_roles = split_roles(spec.roles, body, hand)
     if hand_points:  # in the files' own frames, before the long work
-        C.check_points(points, body.n_frames, hand.n_frames)
+        C.check_points(
+            points,
+            body.n_frames,
+            hand.n_frames,
+            open_ends=C.parse_ends(args.ends) == "open",
+            grid_scale=body.fps / hand.fps,
+        )
 
     from engine.splice.report import build_report, dumps
 
@@ -247,12 +263,18 @@ def run(args: argparse.Namespace) -> int:
         _preview(result.motion, args.preview, args.quiet)
     if not args.quiet:
         sides = " and ".join(result.features.sides)
+        from engine.splice.report import unmatched_summary
+
+        fps = result.features.fps
         print(
-            f"wrote {out} ({result.features.n} frames, {sides} hand"
-            f"{'s' if len(result.features.sides) > 1 else ''}, "
-            f"{result.timings['total']:.2f} s)",
+            f"wrote {out} ({result.features.n} frames = {result.features.n / fps:.2f} s at "
+            f"{fps:g} fps, {sides} hand{'s' if len(result.features.sides) > 1 else ''}; "
+            f"spliced in {result.timings['total']:.2f} s)",
             file=sys.stderr,
         )
+        unmatched = unmatched_summary(result.alignment.unmatched_body, fps)
+        if unmatched:
+            print(f"splice: {unmatched}", file=sys.stderr)
         print(f"splice: {trust.summary}", file=sys.stderr)
     return 0
 

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import argparse
 
+from engine.cli import output_file
+
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
@@ -22,7 +24,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "(relaxed, fist, open, point, ok, one..five) placed at frames.",
     )
     p.add_argument("body", help="body take with finger joints (.bvh)")
-    p.add_argument("-o", "--output", required=True, metavar="OUT.bvh", help="output BVH")
+    p.add_argument(
+        "-o", "--output", required=True, type=output_file, metavar="OUT.bvh", help="output BVH"
+    )
     src = p.add_mutually_exclusive_group()
     src.add_argument("--clip", metavar="HAND.bvh", help="hand clip to align to the body")
     src.add_argument(

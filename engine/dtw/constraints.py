@@ -604,28 +604,44 @@ def point_triples(points) -> list[tuple[int, int, float]]:
     ]
 
 
-def _point_text(k: int, x, y, tol) -> str:
+def _point_text(k: int, x, y, tol, takes: bool = False) -> str:
+    """``points[k] = (x=.., y=.., tol=..)`` on a matrix; in the takes' own frames (the
+    fronts) ``points[k] = (body frame .., hand frame .., tolerance ..)``."""
+    if takes:
+        return f"points[{k}] = (body frame {x:g}, hand frame {y:g}, tolerance {tol:g})"
     return f"points[{k}] = (x={x:g}, y={y:g}, tol={tol:g})"
 
 
-def _bad_point(k: int, value: tuple, where: str, detail: str) -> ConstraintError:
+def _bad_point(
+    k: int, value: tuple, where: str, detail: str, before: tuple | None = None, takes=False
+) -> ConstraintError:
     """``points[k] = (x=.., y=.., tol=..) DETAIL`` (field ``points[k]``, ``value`` the point's
     ``(x, y, tol)``). A refusal of the point as placed (``where`` without a colon: outside the
-    matrix, out of order, too far from its neighbour) keeps the point and the reason apart."""
+    matrix, out of order, too far from its neighbour) keeps the point and the reason apart;
+    ``before`` (the previous point's ``(x, y, tol)``) is the point it conflicts with, named
+    ``{0}`` in ``detail`` so that a front can write it its own way."""
     x, y, _ = value
     placed = not where.endswith(":") and x >= 0 and y >= 0 and x == int(x) and y == int(y)
+    others = () if before is None else (before,)
+    shown = detail.format(_point_text(k - 1, *before, takes)) if before else detail
     return ConstraintError(
         f"points[{k}]",
-        f"{where[len(f'points[{k}] = ') :]} {detail}",
-        text=f"{where} {detail}",
+        f"{where[len(f'points[{k}] = ') :]} {shown}",
+        text=f"{where} {shown}",
         value=value,
         point=(int(x), int(y)) if placed else None,
-        reason=detail if placed else None,
+        reason=(detail if before else shown) if placed else None,
+        others=others if placed else (),
     )
 
 
 def check_points(
-    points, n: int, m: int, order: bool = True, open_ends: bool = False
+    points,
+    n: int,
+    m: int,
+    order: bool = True,
+    open_ends: bool = False,
+    grid_scale: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Validated ``(xs, ys, tols)`` int64 arrays of matching points in an ``n x m`` matrix.
 
@@ -634,8 +650,18 @@ def check_points(
     matrix, and no pair of points (or a point and a corner) that no path can join
     (``order=False`` checks single points only). Tolerances are whole frames (rounded
     down, with ``EPS`` slack).
+
+    ``grid_scale``: alignment-grid columns per hand frame (body fps / hand fps) when the
+    points are in the files' own frames (the fronts; the text then names body and hand
+    frames, not the matrix's ``x``/``y``). Whether two points on
+    consecutive body frames can be joined is then decided where the path runs, on the
+    grid (:func:`points_to_grid`'s rounding), and said in the user's frames: a 120 fps
+    hand may move 4 frames per 30 fps body frame, a 30 fps hand not even one per 120 fps
+    body frame.
     """
-    xs, ys, tols = [], [], []
+    xs, ys, tols, raw_tols = [], [], [], []
+    takes = grid_scale is not None
+    scale = 1.0 if grid_scale is None else float(grid_scale)
     for k, p in enumerate(points or ()):
         if isinstance(p, MatchPoint):
             p = p.resolved()
@@ -659,7 +685,7 @@ def check_points(
             )
         x, y = vals[0], vals[1]
         tol = vals[2] if len(vals) == 3 else 0.0
-        where = _point_text(k, x, y, tol)
+        where = _point_text(k, x, y, tol, takes)
         if not all(math.isfinite(v) for v in (x, y, tol)):
             raise _bad_point(k, (x, y, tol), where + ":", "values must be finite")
         if x != round(x) or y != round(y):
@@ -673,48 +699,61 @@ def check_points(
                 k,
                 (x, y, tol),
                 where,
-                f"is outside the {n} x {m} matrix (x in 0..{n - 1}, y in 0..{m - 1})",
+                (
+                    f"is outside the takes (body frames 0..{n - 1}, hand frames 0..{m - 1})"
+                    if takes
+                    else f"is outside the {n} x {m} matrix (x in 0..{n - 1}, y in 0..{m - 1})"
+                ),
             )
         t = math.floor(tol + EPS)
         if xs and order:
-            px, py, pt = xs[-1], ys[-1], tols[-1]
-            before = _point_text(k - 1, px, py, pt)
+            px, py, pt = xs[-1], ys[-1], raw_tols[-1]
+            before = (px, py, pt)
             if x == px and y == py:
-                raise _bad_point(k, (x, y, tol), where, f"duplicates {before}")
+                raise _bad_point(k, (x, y, tol), where, "duplicates {0}", before, takes)
             if x == px:
                 raise _bad_point(
                     k,
                     (x, y, tol),
                     where,
-                    f"is on the same body frame as {before}; give one "
+                    "is on the same body frame as {0}; give one "
                     "point per body frame (a larger tolerance covers "
                     "a range of hand frames)",
+                    before,
+                    takes,
                 )
             if x < px:
                 raise _bad_point(
                     k,
                     (x, y, tol),
                     where,
-                    f"is out of order: body frames must increase (after {before})",
+                    "is out of order: body frames must increase (after {0})",
+                    before,
+                    takes,
                 )
             if y < py:
                 raise _bad_point(
                     k,
                     (x, y, tol),
                     where,
-                    f"crosses {before}: the hand frame goes back from "
+                    "crosses {0}: the hand frame goes back from "
                     f"{py:g} to {y:g} while the body frame advances, "
                     "and a path cannot go back in time",
+                    before,
+                    takes,
                 )
-            if x == px + 1 and y - t > py + pt + 1:
+            if x == px + 1 and _grid_gap(y, tol, py, pt, scale) > 1:
+                step = "one step" if scale == 1.0 else "one body frame's worth"
                 raise _bad_point(
                     k,
                     (x, y, tol),
                     where,
-                    f"and {before} are on consecutive body frames, but "
+                    "and {0} are on consecutive body frames, but "
                     f"their hand frames {py:g} and {y:g} are more than "
-                    "one step apart after tolerances; increase a "
+                    f"{step} apart after tolerances; increase a "
                     "tolerance or move a point",
+                    before,
+                    takes,
                 )
         if order and not open_ends and x == 0 and y - t > 0:
             raise _bad_point(
@@ -738,7 +777,29 @@ def check_points(
         xs.append(int(x))
         ys.append(int(y))
         tols.append(int(t))
+        raw_tols.append(tol)
     return (np.array(xs, np.int64), np.array(ys, np.int64), np.array(tols, np.int64))
+
+
+def _grid_column(y: float, scale: float) -> int:
+    """A hand frame's alignment-grid column (:func:`points_to_grid`'s rounding)."""
+    return int(round(float(y) * scale))
+
+
+def _grid_tolerance(tol: float, scale: float) -> int:
+    """A tolerance in hand frames -> whole grid columns, rounded up as
+    :func:`points_to_grid` does (then down with ``EPS`` slack, as the band does)."""
+    gt = float(math.ceil(float(tol) * scale - EPS)) if tol else 0.0
+    return math.floor(gt + EPS)
+
+
+def _grid_gap(y: float, tol: float, py: float, ptol: float, scale: float) -> int:
+    """Grid columns between a point's lowest reach and the previous point's highest
+    (1 = adjacent: one diagonal step joins them)."""
+    if scale == 1.0:
+        return int(y - math.floor(tol + EPS) - (py + math.floor(ptol + EPS)))
+    lo = _grid_column(y, scale) - _grid_tolerance(tol, scale)
+    return lo - (_grid_column(py, scale) + _grid_tolerance(ptol, scale))
 
 
 def points_to_grid(

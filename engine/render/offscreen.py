@@ -75,6 +75,9 @@ class Preview:
         ``{"left": array, "right": array}`` or a ``GesturePhases``
     roles : optional ``engine.model.roles.Roles`` per take (``None``: found from names)
     close_up_sides : the hands the ``hands`` camera frames, e.g. ``("right",)`` (default all)
+    views : optional ``TakeView`` per take (``None`` entries: built here) already built
+        for that take with these options: a take shown again (the app's body and hand
+        takes after each edit) is not prepared again (seconds for a long take)
     """
 
     def __init__(
@@ -86,6 +89,7 @@ class Preview:
         phases=None,
         roles: Sequence | None = None,
         close_up_sides: Sequence | None = None,
+        views: Sequence[TakeView | None] | None = None,
     ):
         takes = [takes] if isinstance(takes, Motion) else list(takes)
         if not takes:
@@ -104,9 +108,17 @@ class Preview:
         roles = list(roles) if roles is not None else [None] * len(takes)
         if len(roles) != len(takes):
             raise ValueError(f"Preview: {len(roles)} role sets for {len(takes)} takes")
+        given = list(views) if views is not None else [None] * len(takes)
+        if len(given) != len(takes):
+            raise ValueError(f"Preview: {len(given)} views for {len(takes)} takes")
+        for k, (t, v) in enumerate(zip(takes, given, strict=True)):
+            if v is not None and v.motion is not t:
+                raise ValueError(f"Preview: view {k} is not of take {k}")
         self.views = [
-            TakeView.from_motion(t, mesh=m, label=lab, roles=r, close_up_sides=close_up_sides)
-            for t, m, lab, r in zip(takes, meshes, labels, roles, strict=True)
+            v
+            if v is not None
+            else TakeView.from_motion(t, mesh=m, label=lab, roles=r, close_up_sides=close_up_sides)
+            for t, m, lab, r, v in zip(takes, meshes, labels, roles, given, strict=True)
         ]
         if phases is not None and not (
             isinstance(phases, Mapping) and all(isinstance(k, int) for k in phases)

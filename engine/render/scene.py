@@ -10,7 +10,9 @@ Framing follows the character: the camera looks at the centre of the posed
 joints' bounding box, smoothed over +-0.4 s, from a fixed distance that fits the
 character's largest pose, and from a fixed direction relative to the take's
 median facing (pelvis rotation applied to the rest-pose facing), so a video does
-not zoom or swing.
+not zoom or swing. The hands' close-up follows the hands' joints the same way, drawn
+towards each frame's own hand wherever the average would let it leave the picture
+(the first and last frames, fast moves).
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from engine.mesh.anatomy import Anatomy, find_anatomy
 from engine.mesh.mannequin import build_mannequin
 from engine.mesh.skinning import SkinnedMesh
 from engine.model import rotations as rot
-from engine.model.kinematics import forward_kinematics
+from engine.model.fastkin import forward_kinematics  # numba: every frame of a long take
 from engine.model.motion import Motion
 
 CAMERAS = ("front", "side", "three-quarter", "hands")
@@ -37,6 +39,9 @@ _CAMERA_ANGLES = {
     "three-quarter": (40.0, 14.0),
     "hands": (15.0, 18.0),
 }
+#: how far the hand's mesh reaches beyond its joints' box (fingertips past the last
+#: joint, the palm's thickness), in hand lengths: the close-up keeps this in view
+HAND_MESH_REACH = 0.25
 _Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
 
@@ -246,10 +251,13 @@ class TakeView:
         if anatomy.kind == "body" and hand_joints:
             hp = disp[:, hand_joints]
             h_lo, h_hi = hp.min(axis=1), hp.max(axis=1)
-            view.hand_targets = _moving_average(0.5 * (h_lo + h_hi), win)
-            view.hand_radius = float(
-                np.percentile(0.5 * np.linalg.norm(h_hi - h_lo, axis=1), 90)
-                + 0.9 * anatomy.hand_length * scale
+            h_half = 0.5 * np.linalg.norm(h_hi - h_lo, axis=1)
+            view.hand_radius = float(np.percentile(h_half, 90) + 0.9 * anatomy.hand_length * scale)
+            view.hand_targets = _keep_in_view(
+                0.5 * (h_lo + h_hi),
+                h_half + HAND_MESH_REACH * anatomy.hand_length * scale,
+                view.hand_radius,
+                win,
             )
         view.radius = float(max(radius - margin, np.percentile(radii, 95)) * 1.04)
         if anatomy.kind == "body":
@@ -297,6 +305,20 @@ class TakeView:
             radius, target = self.radius, self.targets[i]
         dist = radius / np.sin(half) * 1.02
         return look_at(target + dist * direction, target, self.view_up)
+
+
+def _keep_in_view(centres: np.ndarray, reach: np.ndarray, radius: float, half: int) -> np.ndarray:
+    """Look-at points ``(F, 3)`` that follow ``centres (F, 3)`` smoothly (a centred moving
+    average over ``2*half+1`` frames) but keep, in every frame, the ball of ``reach (F,)``
+    around that frame's centre inside the ball of ``radius`` the camera frames: where the
+    average strays further (a fast move, or the first and last frames, whose average
+    leans on one side), the point is drawn towards the frame's own centre just enough."""
+    smooth = _moving_average(centres, half)
+    off = centres - smooth
+    dist = np.linalg.norm(off, axis=1)
+    allowed = np.maximum(radius - reach, 0.0)
+    pull = np.where(dist > allowed, (dist - allowed) / np.where(dist > 0, dist, 1.0), 0.0)
+    return smooth + pull[:, None] * off
 
 
 def _moving_average(x: np.ndarray, half: int) -> np.ndarray:

@@ -1103,7 +1103,11 @@ def splice(
     if hand_points and pts:
         # check order and range in the user's own frame numbers first
         C.check_points(
-            pts, feats.n, feats.m_hand, open_ends=check_ends_option(ends, None)[0] == "open"
+            pts,
+            feats.n,
+            feats.m_hand,
+            open_ends=check_ends_option(ends, None)[0] == "open",
+            grid_scale=feats.fps / feats.hand_fps,
         )
         pts = hand_points_to_grid(feats, pts)
     result = align_passes(

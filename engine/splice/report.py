@@ -151,6 +151,22 @@ def build_report(
     return report
 
 
+def unmatched_summary(ranges, fps: float) -> str:
+    """One sentence on the body frames the alignment leaves without hand timing (open ends:
+    a take begins earlier or ends later than the other), or "" when every body frame is
+    matched. ``ranges``: ``[(first, last), ...]`` body frames (``unmatched_body``); ``fps``:
+    the body take's rate (frames per second)."""
+    ranges = [(int(a), int(b)) for a, b in ranges]
+    if not ranges:
+        return ""
+    frames = sum(b - a + 1 for a, b in ranges)
+    spans = ", ".join(f"{a}-{b}" if b > a else f"{a}" for a, b in ranges)
+    return (
+        f"body frames {spans} ({frames / float(fps):.1f} s) have no hand match: the fingers "
+        "hold the nearest matched pose there (--ends fixed matches every frame)"
+    )
+
+
 def dumps(report: dict) -> str:
     """JSON text with one top-level key per line (long arrays stay on their line)."""
     items = [

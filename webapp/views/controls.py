@@ -7,7 +7,7 @@ import panel as pn
 from bokeh.models import CustomJS
 
 from webapp import safe_text
-from webapp.state import Session
+from webapp.state import PASS2_SPIN_NOTE, Session
 
 MATRIX_CHOICES = {
     "Pass 1": "pass1",
@@ -18,10 +18,12 @@ MATRIX_CHOICES = {
 
 
 def parameter_widgets(session: Session) -> pn.viewable.Viewable:
-    """Band widths and global tolerance (recompute on release: throttled) and matrix choice."""
+    """Band widths (sliders for fractions, fields for seconds) and global tolerance (recompute
+    on release: throttled), the W2 note and the matrix choice. The first column holds the
+    five width and tolerance controls in page order."""
     params = pn.Param(
         session.param,
-        parameters=["band", "band_s", "refine_band", "refine_band_s", "tolerance"],
+        parameters=["band", "refine_band", "tolerance"],
         show_name=False,
         widgets={
             "band": {
@@ -30,23 +32,11 @@ def parameter_widgets(session: Session) -> pn.viewable.Viewable:
                 "label": "Pass-1 band width W1 (fraction of body frames)",
                 "step": 0.01,
             },
-            # a width in seconds wins over the fraction; empty = use the fraction (ranges:
-            # engine.dtw.constraints, as for links and session files)
-            "band_s": {
-                "type": pn.widgets.FloatInput,
-                "name": "W1 in seconds (empty: fraction)",
-                "step": 0.5,
-            },
             "refine_band": {
                 "type": pn.widgets.FloatSlider,
                 "throttled": True,
                 "label": "Pass-2 band width W2 around the pass-1 path",
                 "step": 0.01,
-            },
-            "refine_band_s": {
-                "type": pn.widgets.FloatInput,
-                "name": "W2 in seconds (empty: fraction)",
-                "step": 0.1,
             },
             "tolerance": {
                 "type": pn.widgets.FloatSlider,
@@ -57,8 +47,22 @@ def parameter_widgets(session: Session) -> pn.viewable.Viewable:
             },
         },
         sizing_mode="stretch_width",
-        css_classes=["hs-params"],
     )
+    # a width in seconds wins over the fraction; empty = use the fraction. Typed values go
+    # through Session.set_constraints (engine.dtw.constraints' ranges and one-line refusal,
+    # as for links and session files); a refused value gives way to the one in force
+    seconds = {
+        "band": _seconds_input(session, "band", "W1 in seconds (empty: fraction)"),
+        "refine_band": _seconds_input(session, "refine_band", "W2 in seconds (empty: fraction)"),
+    }
+
+    def fraction_in_force(*_):  # a slider whose width is overridden by seconds is greyed out
+        params._widgets["band"].disabled = session.band_s is not None
+        params._widgets["refine_band"].disabled = (
+            session.refine_band_s is not None or session.pass2_turns_hand()
+        )
+
+    session.param.watch(fraction_in_force, ["band_s", "refine_band_s", "inputs_revision"])
     matrix = pn.widgets.RadioButtonGroup(
         label="Matrix",
         options=MATRIX_CHOICES,
@@ -68,12 +72,77 @@ def parameter_widgets(session: Session) -> pn.viewable.Viewable:
     )
     matrix.link(session, value="matrix")
     session.param.watch(lambda e: setattr(matrix, "value", e.new), ["matrix"])
+    # W2 greyed out, and why, when pass 2 does not use it (a hand take without a forearm)
+    unused = pn.pane.Markdown(
+        PASS2_SPIN_NOTE, css_classes=["hs-w2-unused"], visible=False, margin=(0, 10)
+    )
+
+    def w2_in_use(*_):
+        spin = session.pass2_turns_hand()
+        seconds["refine_band"].disabled = spin
+        unused.visible = spin
+        fraction_in_force()
+
+    session.param.watch(w2_in_use, ["inputs_revision"])
+    w2_in_use()
+    widgets = params._widgets  # linked to the session by pn.Param; laid out here
     return pn.Column(
-        params,
+        pn.Column(
+            widgets["band"],
+            seconds["band"],
+            widgets["refine_band"],
+            seconds["refine_band"],
+            widgets["tolerance"],
+            sizing_mode="stretch_width",
+            css_classes=["hs-params"],
+        ),
+        unused,
         pn.pane.Markdown("**Matrix shown**", margin=(0, 10)),
         matrix,
         sizing_mode="stretch_width",
     )
+
+
+def _seconds_text(value: float | None) -> str:
+    return "" if value is None else f"{value:g}"
+
+
+def _seconds_input(session: Session, name: str, label: str) -> pn.widgets.TextInput:
+    """A band width in seconds for ``name`` ("band" or "refine_band"), kept in step with the
+    session both ways; what the person types (``2``, ``2s``, empty for the fraction) is an
+    edit the session checks (a text field: a number field shows "NaN" for what it cannot
+    read, and nothing at all for a value out of range)."""
+    field = f"{name}_s"
+    widget = pn.widgets.TextInput(
+        label=label,
+        value=_seconds_text(getattr(session, field)),
+        placeholder="empty: the fraction above",
+        css_classes=[f"hs-{name}-s"],
+    )
+    syncing = [False]
+
+    def show(*_):
+        syncing[0] = True
+        try:
+            widget.value = _seconds_text(getattr(session, field))
+        finally:
+            syncing[0] = False
+
+    def typed(event):
+        if syncing[0]:
+            return
+        text = str(event.new or "").strip()
+        if text == _seconds_text(getattr(session, field)):
+            return  # what is in force (the page echoing a value shown): no edit
+        if not text:  # emptied: the fraction is in force again
+            session.set_constraints(**{name: getattr(session, name)})
+        else:
+            session.set_constraints(**{name: text if text.endswith("s") else f"{text}s"})
+        show()  # refused (the error line says why) or normalised: show what is in force
+
+    widget.param.watch(typed, "value")
+    session.param.watch(show, [field])
+    return widget
 
 
 def _points_frame(session: Session) -> pd.DataFrame:

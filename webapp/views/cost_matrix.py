@@ -49,7 +49,7 @@ from bokeh.models import (
 from bokeh.palettes import Viridis256
 from bokeh.plotting import figure
 
-from webapp.state import MATRIX_LABELS, Session
+from webapp.state import Session
 from webapp.views import decimate
 from webapp.views._dispatch import with_document_lock
 
@@ -846,7 +846,7 @@ class CostMatrixView:
         }
         self.title.object = (
             "<b>"
-            + MATRIX_LABELS[s.matrix]
+            + s.matrix_label()
             + "</b>"
             + (
                 ""

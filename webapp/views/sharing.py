@@ -5,9 +5,12 @@ after every edit), so copying it shares the session; the field below shows it to
 
 GIF/MP4 exports take seconds: they render on a worker thread while the event loop
 goes on serving every session (this one included); a progress bar and a line of
-text follow the frames, and the file downloads when it is ready. The spliced BVH and
-GLB are made on a worker thread too (a long take's splice and its tens of megabytes of
-text take seconds), with a "preparing…" line and the seconds so far. A download that
+text follow the frames, and the file downloads when it is ready. A second click with
+nothing changed (same alignment, same frames) downloads the file made before at once. The spliced BVH and
+GLB are made on a worker thread too (a long take's splice takes seconds), their bytes
+in a child process (``webapp.downloads``: the tens of megabytes of BVH text would hold
+the interpreter, and every other tab, for seconds), with a "preparing…" line and the
+seconds so far. A download that
 fails downloads nothing: its callback returns None and the page shows why.
 """
 
@@ -163,10 +166,8 @@ class SharingView:
         return await self._off_loop(self.bvh, "spliced BVH", backend.bvh_bytes)
 
     async def _glb(self):
-        from engine.export.glb import glb_bytes
-
         self.glb.filename = f"{self.session.output_stem()}.glb"
-        return await self._off_loop(self.glb, "spliced GLB", glb_bytes)
+        return await self._off_loop(self.glb, "spliced GLB", backend.glb_bytes)
 
     async def _off_loop(self, widget, what: str, encode) -> io.BytesIO | None:
         """``encode(spliced motion)`` of the alignment shown now, made on a download thread
@@ -232,6 +233,16 @@ class SharingView:
             self.message.visible = True
             return None
         span = f"body frames {shown.start}–{shown[-1]} at {fps:.3g} fps"
+        made = backend.made_video(solution, fmt, backend.video_key(prepared, start))
+        if made is not None:  # nothing changed since it was made: the same file again
+            self.message.visible = False
+            self.progress.value = 100
+            self.progress.visible = self.progress_text.visible = True
+            self.progress_text.object = (
+                f"{what} ({span}): {len(made) / 1024:.0f} KiB, unchanged since it was made: "
+                "the same file, downloading"
+            )
+            return io.BytesIO(made)
         counts = {"done": 0, "total": 1}
         lock = threading.Lock()
 

@@ -325,7 +325,11 @@ class TrustView:
                 width=width - 20,
             ),
             self.summary,
-            pn.pane.HTML("<b>Least certain places:</b>", margin=(4, 10, 0, 10)),
+            pn.pane.HTML(
+                "<b>Least certain places</b> (most uncertainty around them first; ± is the "
+                "frame's own):",
+                margin=(4, 10, 0, 10),
+            ),
             *self.buttons,
             width=width,
             margin=0,

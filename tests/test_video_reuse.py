@@ -1,0 +1,67 @@
+"""A second click on the preview GIF with nothing changed downloads the file made before
+(no second render); an edit of the alignment renders a new one."""
+
+from __future__ import annotations
+
+import asyncio
+
+import numpy as np
+import pytest
+
+from webapp import backend, config
+from webapp.state import Session
+
+DEMO = "wave-ok"
+
+
+@pytest.fixture
+def session(sample_dir, tmp_path) -> Session:
+    cfg = config.AppConfig(
+        sample_dir=sample_dir.resolve(), upload_dir=tmp_path / "uploads", default_sample=DEMO
+    )
+    s = Session(cfg)
+    s.load_sample(DEMO)
+    assert s.error == ""
+    return s
+
+
+@pytest.fixture
+def renders(monkeypatch) -> list[int]:
+    """Body frames rendered by ``backend.render_frame`` (each gives a small image that
+    depends on the frame and the alignment's hand frame there, so files can be compared
+    without the minutes of real renders on a loaded machine)."""
+    seen: list[int] = []
+
+    def counted(prepared, solution, body_frame, camera, trails, size):
+        seen.append(body_frame)
+        hand = backend.frame_triplet(prepared, solution, body_frame)[1]
+        image = np.zeros((size[1], size[0], 3), np.uint8)
+        image[..., 0], image[..., 1] = body_frame % 256, hand % 256
+        return image
+
+    monkeypatch.setattr(backend, "render_frame", counted)
+    return seen
+
+
+def test_a_second_gif_click_reuses_the_file_until_an_edit(session, renders):
+    from webapp.views import sharing
+
+    view = sharing.SharingView(session)
+    first = asyncio.run(view._gif())
+    assert first is not None and renders, "the first click renders the frames"
+    shown, _ = backend.video_frames(session.prepared.n, float(session.prepared.body.fps))
+    assert renders == list(shown)
+    assert "unchanged" not in view.progress_text.object
+
+    renders.clear()
+    second = asyncio.run(view._gif())  # nothing changed: the same file, no render
+    assert renders == []
+    assert second.getvalue() == first.getvalue()
+    assert "unchanged since it was made" in view.progress_text.object
+    assert not view.message.visible and not view.gif.disabled
+
+    session.add_point(40, 26, 4)  # an edit: a new alignment, a new file
+    third = asyncio.run(view._gif())
+    assert renders == list(shown)
+    assert third.getvalue() != first.getvalue()
+    assert "unchanged" not in view.progress_text.object
