@@ -24,6 +24,9 @@ import panel as pn
 from webapp import backend, safe_text
 from webapp.state import Session
 
+#: a preview following edits is rendered once edits have paused this long, ms (a render
+#: started between two drags ran beside the next drag's solve)
+FOLLOW_PAUSE_MS = 400
 #: how often the player looks at the clock, ms (each look shows the frame of that moment)
 PLAY_TICK_MS = 30
 #: a render this long (s) holds Play visibly: the page says it waits for it
@@ -133,6 +136,10 @@ class PreviewView:
         session.param.watch(self._on_frame, ["frame"])
         session.param.watch(self._on_inputs, ["inputs_revision"])
         session.param.watch(self._on_solution, ["revision"])
+        session.param.watch(self._on_busy, ["busy"])
+        self._after_solve = False  # a solution to render once edits pause and solves end
+        self._follow_due = 0.0  # monotonic s of that pause's end
+        self._follow_timer = False
         session.param.watch(lambda *_: self._render_soon(), ["camera", "trails"])
         self._rendered_key = None
         self._played = None
@@ -166,9 +173,36 @@ class PreviewView:
 
     def _on_solution(self, *_):
         # the first solution of a pair opened off the loop arrives after the takes: its
-        # first frame is rendered then, later ones only when following edits
-        if self._rendered_key is None or self.session.follow:
+        # first frame is rendered then, later ones only when following edits, and once no
+        # newer edit is being solved (a render beside a solve slows the solve: the next
+        # path waits; the newest solution is rendered when the session is idle)
+        if self._rendered_key is None:
             self._render_soon()
+        elif self.session.follow:
+            self._follow_due = time.monotonic() + FOLLOW_PAUSE_MS / 1000.0
+            self._after_solve = True
+            self._follow_later(FOLLOW_PAUSE_MS)
+
+    def _follow_later(self, ms: float) -> None:
+        doc = pn.state.curdoc
+        if doc is None or doc.session_context is None:
+            self._after_solve = False
+            self._render_soon()
+        elif not self._follow_timer:
+            self._follow_timer = True
+            doc.add_timeout_callback(self._on_busy, max(ms, 0.0))
+
+    def _on_busy(self, *_):
+        """Render the newest solution once no solve runs and edits have paused."""
+        self._follow_timer = False
+        if not self._after_solve or self.session.busy:
+            return
+        wait = self._follow_due - time.monotonic()
+        if wait > 0.005:
+            self._follow_later(wait * 1000.0)
+            return
+        self._after_solve = False
+        self._render_soon()
 
     # ------------------------------------------------------------ playing
 

@@ -10,14 +10,19 @@ suggested matching points (issue 17; the numbers come from ``engine.splice.uncer
 * up to three suggested matching points: the first click shows that moment in the
   preview (body take and hand take side by side), the second places the point.
 
-The assessment costs about four solves, so it runs off the event loop a moment after
-each edit is drawn; a result for an older edit is dropped.
+The assessment costs about four solves (tens of solves' CPU on a long pair's band), so
+it runs off the event loop once edits pause: ``DEBOUNCE_MS`` after the last edit was
+drawn, never while the session is solving or opening takes, and one at a time per page
+(an edit made meanwhile is assessed when the running one ends; a result for an older edit
+is dropped). Assessments started during a drag competed with the drag's own solves for
+the CPU and the GIL (benchmarks/RESULTS.md, section app).
 """
 
 from __future__ import annotations
 
 import concurrent.futures
 import html
+import time
 
 import numpy as np
 import panel as pn
@@ -33,8 +38,9 @@ VERDICT_WORDS = {
     "desync": "may look out of sync (> 100 ms)",
 }
 REGION_COLOR = "#ffffff"
-#: wait this long after an edit before assessing it (a drag sends many edits)
-DEBOUNCE_MS = 250
+#: assess once edits have paused this long (each drag is an edit; an assessment costs more
+#: CPU than a solve, and one started between two drags ran beside the next drag's solve)
+DEBOUNCE_MS = 1000
 _POOL = concurrent.futures.ThreadPoolExecutor(max_workers=2, thread_name_prefix="hs-trust")
 
 
@@ -65,7 +71,10 @@ class TrustView:
         self._width = matrix.panel_width
         self._matrix = matrix  # draws the region thinned to the screen (``show_line``)
         self._doc = pn.state.curdoc
-        self._pending = False
+        self._pending = False  # a timeout callback to _start is waiting
+        self._due = 0.0  # monotonic s before which no assessment starts (edits still coming)
+        self._running = False  # an assessment of this page is on the pool
+        self._failed = -1  # the revision whose assessment failed (not tried again)
         self._armed: int | None = None  # suggestion index whose moment is being shown
         fig = matrix.figure
         self.region_source = ColumnDataSource(
@@ -151,6 +160,7 @@ class TrustView:
             b.on_click(lambda _e, k=k: self._on_suggestion(k))
         session.param.watch(self._on_revision, ["revision"])
         session.param.watch(self._on_trust, ["trust"])
+        session.param.watch(lambda *_: self._schedule(0), ["busy"])  # a solve ended
         self._on_revision()
 
     # ------------------------------------------------------------ computing
@@ -164,23 +174,62 @@ class TrustView:
         if doc is None or doc.session_context is None:  # tests without a server: at once
             self.session.update_trust()
             return
-        if not self._pending:
+        self._schedule(DEBOUNCE_MS)
+
+    def _wanted(self) -> bool:
+        """An assessment is due: a solution without one, no solve or opening running, none
+        of this page's assessments running."""
+        s = self.session
+        return (
+            s.solution is not None
+            and s.trust is None
+            and not s.busy
+            and not self._running
+            and s.revision != self._failed
+        )
+
+    def _schedule(self, delay_ms: float) -> None:
+        """Start an assessment ``delay_ms`` from now (later if edits keep coming)."""
+        doc = self._doc
+        if doc is None or doc.session_context is None:
+            return
+        now = time.monotonic()
+        self._due = max(self._due, now + delay_ms / 1000.0)
+        if not self._pending and self._wanted():
             self._pending = True
-            doc.add_timeout_callback(self._start, DEBOUNCE_MS)
+            doc.add_timeout_callback(self._start, max(self._due - now, 0.0) * 1000.0)
 
     def _start(self):
         self._pending = False
+        wait = self._due - time.monotonic()
+        if wait > 0.005:  # an edit since the timer was set: wait for the pause after it
+            self._schedule(0)
+            return
+        if not self._wanted():  # solving (assessed when it is drawn) or one is running
+            return
         s = self.session
         revision = s.revision
+        self._running = True
         future = _POOL.submit(s.assess)
         doc = self._doc
+
+        def finished(result):  # on the event loop
+            self._running = False
+            if result is None:
+                self._failed = revision
+            else:
+                s.update_trust(result, revision)
+            self._schedule(0)  # an edit drawn meanwhile is assessed now
 
         def done(f):
             try:
                 result = f.result()
             except Exception:  # an assessment that fails leaves the page as it is
-                return
-            doc.add_next_tick_callback(lambda: s.update_trust(result, revision))
+                result = None
+            try:
+                doc.add_next_tick_callback(lambda: finished(result))
+            except Exception:  # the page was closed meanwhile
+                pass
 
         future.add_done_callback(done)
 

@@ -1,0 +1,121 @@
+"""What an edit in the app recomputes besides its solve (issue 13: edits cost what they
+change). The preview after an edit keeps the views and mannequins of the pair's previous
+preview: rebuilding the body's and the hand take's (and the spliced take's mesh) took much
+of the server's CPU after each edit, beside the next edit's solve; an edit's trust assessment waits until the session's solves are done
+(benchmarks/RESULTS.md, section app)."""
+
+from __future__ import annotations
+
+import pytest
+
+from webapp import backend, config
+from webapp.state import Session
+
+DEMO = "wave-ok"
+
+
+@pytest.fixture(scope="module")
+def session(sample_dir, tmp_path_factory) -> Session:
+    cfg = config.AppConfig(
+        sample_dir=sample_dir.resolve(),
+        upload_dir=tmp_path_factory.mktemp("uploads"),
+        default_sample=DEMO,
+    )
+    s = Session(cfg)
+    s.load_sample(DEMO)
+    assert s.error == ""
+    return s
+
+
+def test_an_edit_keeps_the_preview_meshes_it_does_not_change(session):
+    prepared = session.prepared
+    before = backend.preview_for(prepared, session.solution)
+    body, hand = prepared.body, prepared.hand
+    session.add_point(session.n // 2, session.hand_frame_for(session.n // 2) + 3, 1)
+    after = backend.preview_for(prepared, session.solution)
+    assert after is not before and [v.motion for v in after.views[:2]] == [body, hand]
+    # the body and the hand take did not change: their views (joints, meshes, framing) are
+    # not built again
+    assert all(a is b for a, b in zip(after.views[:2], before.views[:2], strict=True))
+    spliced = backend.splice(prepared, session.solution)
+    assert after.views[2] is not before.views[2] and after.views[2].motion is spliced
+    # the spliced take changed, its skeleton did not: its mannequin is kept
+    assert after.views[2].mesh is before.views[2].mesh
+
+
+class _LoopDoc:
+    """A served document's callbacks, run by the test as the event loop would run them."""
+
+    session_context = object()  # a served page: the trust view defers its assessments
+
+    def __init__(self):
+        self.callbacks: list = []
+
+    def add_timeout_callback(self, callback, ms):
+        self.callbacks.append(callback)
+
+    def add_next_tick_callback(self, callback):
+        self.callbacks.append(callback)
+
+    def run(self) -> None:
+        while self.callbacks:
+            todo, self.callbacks = self.callbacks, []
+            for callback in todo:
+                callback()
+
+
+class _AtOnce:
+    """A pool that runs each job when it is submitted (the test's thread is the worker)."""
+
+    @staticmethod
+    def submit(fn, *args):
+        from concurrent.futures import Future
+
+        future = Future()
+        future.set_result(fn(*args))
+        return future
+
+
+def _nudge(session) -> None:
+    """One edit: a matching point added near the path, or the first one moved."""
+    if not session.points:
+        x = session.n // 2
+        session.add_point(x, session.hand_frame_for(x), 2)
+    else:
+        p = session.points[0]
+        session.move_point(0, p.body, p.hand + 2)
+
+
+def test_trust_is_assessed_once_edits_pause_never_beside_a_solve(session, monkeypatch):
+    """An edit's assessment (about four solves) waits while the session solves and runs one
+    at a time per page, for the newest edit: assessments of every edit of a drag ran beside
+    its solves and slowed them (benchmarks/RESULTS.md, section app)."""
+    from webapp.views import trust as trust_view
+    from webapp.views.cost_matrix import CostMatrixView
+
+    monkeypatch.setattr(trust_view, "DEBOUNCE_MS", 0)
+    monkeypatch.setattr(trust_view, "_POOL", _AtOnce())
+    view = trust_view.TrustView(session, CostMatrixView(session))
+    doc = _LoopDoc()
+    view._doc = doc
+    assessed: list[int] = []
+    real = session.assess
+    monkeypatch.setattr(session, "assess", lambda: assessed.append(session.revision) or real())
+
+    session.busy = "aligning"  # the solve of a next edit is running
+    _nudge(session)
+    doc.run()
+    assert assessed == [] and session.trust is None  # nothing beside the solve
+    session.busy = ""  # solved and drawn: the newest edit is assessed, once
+    doc.run()
+    assert assessed == [session.revision] and session.trust is not None
+    # two edits while an assessment runs: no second one beside it, then one of the newest
+    view._running = True
+    _nudge(session)
+    _nudge(session)
+    doc.run()
+    assert len(assessed) == 1 and session.trust is None
+    view._running = False
+    view._schedule(0)
+    doc.run()
+    assert assessed[1:] == [session.revision] and session.trust is not None
