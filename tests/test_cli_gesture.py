@@ -25,6 +25,7 @@ def test_analyze_summary_json_eaf_and_csv(tmp_path, capsys):
     from engine.io.eaf import read_csv, read_eaf
 
     eaf, csv = tmp_path / "wave.eaf", tmp_path / "out" / "wave.csv"
+    csv.parent.mkdir()  # an output's folder must exist (a typo is refused, not created)
     assert main(["analyze", str(WAVE), "--eaf", str(eaf), "--csv", str(csv)]) == 0
     text = capsys.readouterr().out
     assert "right phrases: PSR" in text and " RH: " in text
