@@ -391,6 +391,9 @@ def test_the_payload_runs_when_a_page_injects_it(page):
         "document.body.append(d); }",
         PAYLOAD,
     )
+    # the <img> asks this server for "x"; its 404 (and so the onerror) can take seconds
+    # while the server is still busy opening the page's pair
+    page.wait_for_function("window.__hs_xss === 1", timeout=30_000)
     assert _xss_ran(page)
 
 
