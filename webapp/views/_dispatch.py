@@ -32,7 +32,17 @@ def with_document_lock(method):
         doc = pn.state.curdoc
         if doc is None or _lock_held(doc):
             return method(*args, **kwargs)
-        doc.add_next_tick_callback(lambda: method(*args, **kwargs))
+
+        def later():
+            try:
+                method(*args, **kwargs)
+            except RuntimeError as exc:
+                # the tab closed between scheduling and running: its session has no
+                # pending writes any more and nobody will see this change
+                if "_pending_writes" not in str(exc):
+                    raise
+
+        doc.add_next_tick_callback(later)
         return None
 
     return wrapper
