@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 from pathlib import Path
 
 import pytest
@@ -49,21 +50,65 @@ def bandai():
     return load
 
 
+# --- browser tests (tests/test_browser*.py): one copy of each page helper -----------------
+
+#: the demo-sized pair the browser tests upload through the page's file fields
+BODY_BVH = MOCAP / "bandai-namco" / "dataset-1_bye_normal_001.bvh"
+HAND_BVH = MOCAP / "gestification" / "hello-world.bvh"
+#: sets a flag (``window.__hs_xss``) when a page turns it into an element
+XSS_PAYLOAD = "<img src=x onerror=window.__hs_xss=1>"
+#: a page condition: the matrix shows a path (the pair is open and aligned)
+HAS_PATH = (
+    "() => window.Bokeh && Bokeh.documents.length && "
+    "Bokeh.documents[0].get_model_by_name('hs-path-source')?.data.x?.length > 0"
+)
+
+
 @contextlib.contextmanager
-def served_chromium(tmp_path_factory, *serve_args: str):
-    """``(browser, url)``: ``handsplice serve`` (its own upload folder, ``serve_args``) and a
-    Chromium; on exit, the server's log must hold no traceback."""
-    sync_api = pytest.importorskip("playwright.sync_api")
-    from webapp.launch import launch_chromium, running_server
+def served_app(tmp_path_factory, *serve_args: str, timeout: float = 120.0):
+    """``(url, upload folder, log path)``: ``handsplice serve`` with its own upload folder
+    and ``serve_args``, its output in a log file; stopped on exit."""
+    from webapp.launch import running_server
 
     uploads = tmp_path_factory.mktemp("uploads")
     log_path = tmp_path_factory.mktemp("log") / "serve.log"
     with (
         log_path.open("w+") as log,
-        running_server("--upload-dir", str(uploads), *serve_args, log=log, timeout=400) as (
+        running_server("--upload-dir", str(uploads), *serve_args, log=log, timeout=timeout) as (
             url,
             _,
         ),
+    ):
+        yield url, uploads, log_path
+
+
+def assert_no_traceback(log_path: Path) -> None:
+    """The server's log holds no traceback (the first one is shown when it does)."""
+    text = log_path.read_text(errors="replace")
+    assert "Traceback" not in text, text[text.find("Traceback") :][:3000]
+
+
+@pytest.fixture(scope="module")
+def browser():
+    """A Chromium (Playwright) for the test module."""
+    sync_api = pytest.importorskip("playwright.sync_api")
+    from webapp.launch import launch_chromium
+
+    with sync_api.sync_playwright() as p:
+        b = launch_chromium(p)
+        yield b
+        b.close()
+
+
+@contextlib.contextmanager
+def served_chromium(tmp_path_factory, *serve_args: str):
+    """``(browser, url)``: ``handsplice serve`` (its own upload folder, ``serve_args``) and a
+    Chromium; on exit, the server's log must hold no traceback."""
+    sync_api = pytest.importorskip("playwright.sync_api")
+    from webapp.launch import launch_chromium
+
+    with (
+        served_app(tmp_path_factory, *serve_args, timeout=400) as (url, _, log_path),
         sync_api.sync_playwright() as p,
     ):
         browser = launch_chromium(p)
@@ -71,4 +116,77 @@ def served_chromium(tmp_path_factory, *serve_args: str):
             yield browser, url
         finally:
             browser.close()
-    assert "Traceback" not in log_path.read_text()
+    assert_no_traceback(log_path)
+
+
+def open_tab(
+    context,
+    url: str,
+    *,
+    timeout_s: float = 60.0,
+    ready: str = HAS_PATH,
+    matrix_timeout_s: float | None = None,
+    console: bool = False,
+):
+    """A new tab of the Playwright ``context`` at ``url``, once the page condition
+    ``ready`` holds (default: the matrix shows a path), with the page's ``hs`` helpers.
+
+    ``page.errors`` collects the tab's JavaScript errors (``console``: console errors
+    too). ``timeout_s`` bounds the load and the wait for ``ready``; ``matrix_timeout_s``
+    set: wait first for the cost matrix's element that long."""
+    from webapp.launch import PAGE_HELPERS
+
+    page = context.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda e: errors.append(f"pageerror: {e}"))
+    if console:
+        page.on(
+            "console", lambda m: errors.append(f"console: {m.text}") if m.type == "error" else None
+        )
+    page.goto(url, timeout=timeout_s * 1000)
+    if matrix_timeout_s is not None:
+        page.locator(".hs-cost-matrix").first.wait_for(timeout=matrix_timeout_s * 1000)
+    page.wait_for_function(ready, timeout=timeout_s * 1000)
+    page.evaluate(PAGE_HELPERS)
+    page.errors = errors
+    return page
+
+
+def open_page(browser, url: str, *, width: int = 1300, height: int = 1000, **wait):
+    """A tab in a fresh context (a ``width`` x ``height`` screen, downloads accepted) of
+    ``browser`` at ``url``: :func:`open_tab` with ``wait``'s options. Close it with
+    ``page.context.close()``."""
+    context = browser.new_context(viewport={"width": width, "height": height}, accept_downloads=True)
+    return open_tab(context, url, **wait)
+
+
+def pane_text(locator) -> str:
+    """Text of an element including its (open) shadow root, where Panel renders panes."""
+    return locator.evaluate(
+        "e => [...(e.shadowRoot ? e.shadowRoot.children : []), ...e.children]"
+        ".filter(c => c.tagName !== 'STYLE' && c.tagName !== 'LINK')"
+        ".map(c => c.innerText).join(' ')"
+    )
+
+
+def revision(page) -> int:
+    """The session's revision the status line carries (it grows with every recompute)."""
+    return int(page.locator(".hs-status span").get_attribute("data-revision"))
+
+
+def status_line(page) -> str:
+    """The status line's text ("pass 1 cost … · band N cells · …")."""
+    return page.locator(".hs-status span").inner_text()
+
+
+def band_cells(status: str) -> int:
+    """The band's cell count a status line names."""
+    match = re.search(r"band ([\d,]+) cells", status)
+    assert match, status
+    return int(match.group(1).replace(",", ""))
+
+
+def xss_ran(page) -> bool:
+    """Whether :data:`XSS_PAYLOAD`'s script ran in ``page``."""
+    page.wait_for_timeout(500)  # an <img onerror> fires within a few ms of insertion
+    return bool(page.evaluate("window.__hs_xss === 1"))

@@ -15,8 +15,15 @@ import re
 import time
 
 import pytest
-
-from webapp.launch import PAGE_HELPERS, launch_chromium, running_server
+from conftest import (
+    assert_no_traceback,
+    band_cells,
+    open_page,
+    pane_text,
+    revision,
+    served_app,
+    status_line,
+)
 
 pytestmark = pytest.mark.browser
 
@@ -29,65 +36,21 @@ def server(tmp_path_factory):
     if os.environ.get("HANDSPLICE_TEST_URL"):
         yield os.environ["HANDSPLICE_TEST_URL"].rstrip("/") + "/"
         return
-    uploads = tmp_path_factory.mktemp("uploads")
-    log_path = tmp_path_factory.mktemp("log") / "serve.log"
-    with (
-        log_path.open("w+") as log,
-        running_server("--upload-dir", str(uploads), log=log) as (url, _),
-    ):
+    with served_app(tmp_path_factory) as (url, _, log_path):
         SERVER_LOG["path"] = log_path
         yield url
 
 
-@pytest.fixture(scope="module")
-def browser():
-    sync_api = pytest.importorskip("playwright.sync_api")
-    with sync_api.sync_playwright() as p:
-        b = launch_chromium(p)
-        yield b
-        b.close()
-
-
 def _open(browser, url: str):
-    context = browser.new_context(viewport={"width": 1300, "height": 1000}, accept_downloads=True)
-    page = context.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda e: errors.append(f"pageerror: {e}"))
-    page.on("console", lambda m: errors.append(f"console: {m.text}") if m.type == "error" else None)
-    page.goto(url)
-    page.locator(".hs-cost-matrix").first.wait_for(timeout=60_000)
-    page.wait_for_function(
-        "() => window.Bokeh && Bokeh.documents.length && "
-        "Bokeh.documents[0].get_model_by_name('hs-path-source')?.data.x?.length > 0",
-        timeout=60_000,
-    )
-    page.evaluate(PAGE_HELPERS)
-    page.errors = errors
-    return page
-
-
-def _text(locator) -> str:
-    """Text of an element including its (open) shadow root, where Panel renders panes."""
-    return locator.evaluate(
-        "e => [...(e.shadowRoot ? e.shadowRoot.children : []), ...e.children]"
-        ".filter(c => c.tagName !== 'STYLE' && c.tagName !== 'LINK')"
-        ".map(c => c.innerText).join(' ')"
-    )
-
-
-def _status(page) -> str:
-    return page.locator(".hs-status span").inner_text()
-
-
-def _revision(page) -> int:
-    return int(page.locator(".hs-status span").get_attribute("data-revision"))
+    """A tab at ``url`` once its matrix shows a path; console errors count as page errors."""
+    return open_page(browser, url, matrix_timeout_s=60, console=True)
 
 
 def _wait_revision(page, after: int, timeout: float = 30.0) -> int:
     """Poll the status line until the session has recomputed (revision > ``after``)."""
     deadline = time.monotonic() + timeout
     while True:
-        rev = _revision(page)
+        rev = revision(page)
         if rev > after:
             return rev
         if time.monotonic() > deadline:
@@ -167,7 +130,7 @@ def no_page_errors(request):
 
 def test_app_loads_with_matrix_path_band_status(page):
     deadline = time.monotonic() + 30  # the status line may follow the path by a message
-    while "pass 1 cost" not in (status := _status(page)) and time.monotonic() < deadline:
+    while "pass 1 cost" not in (status := status_line(page)) and time.monotonic() < deadline:
         page.wait_for_timeout(50)
     assert "pass 1 cost" in status and "ms" in status
     band = page.evaluate("hs.cols('hs-band-source', ['lo', 'hi'])")
@@ -187,20 +150,20 @@ def test_add_and_drag_matching_point_changes_band_path_status(page):
     x = n // 2
     k = path0["x"].index(x)
     y_on_path = path0["y"][k]
-    rev = _revision(page)
+    rev = revision(page)
     xy = page.evaluate(f"hs.xy({x}, {y_on_path})")
     page.mouse.click(*xy)
     _wait_revision(page, rev)
     _wait_tolerances(page, [None])  # one point, using the global tolerance
     pts = page.evaluate("hs.cols('hs-points-source', ['x', 'y'])")
     assert len(pts["x"]) == 1 and abs(pts["x"][0] - x) <= 1
-    assert "1 matching point" in _status(page)
+    assert "1 matching point" in status_line(page)
 
     band0 = page.evaluate("hs.cols('hs-band-source', ['lo', 'hi'])")
-    status0 = _status(page)
+    status0 = status_line(page)
     path1 = page.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
     target = y_on_path + max(8, n // 12)
-    rev = _revision(page)
+    rev = revision(page)
     _drag(page, pts["x"][0], pts["y"][0], pts["x"][0], target)
     _wait_revision(page, rev)
     _wait_changed(page, "hs-path-source", ["x", "y"], path1)
@@ -217,7 +180,7 @@ def test_add_and_drag_matching_point_changes_band_path_status(page):
     scale = scale["hand_fps"][0] / scale["fps"][0]
     at = [y for x, y in zip(path2["x"], path2["y"]) if x == round(pts["x"][0])]
     assert at and min(abs(y - round(pts["y"][0])) for y in at) <= scale / 2 + 1e-3
-    assert _status(page) != status0
+    assert status_line(page) != status0
 
 
 def test_tolerance_edit_in_table_widens_the_band_at_the_point(page):
@@ -225,7 +188,7 @@ def test_tolerance_edit_in_table_widens_the_band_at_the_point(page):
     assert len(pts["x"]) == 1
     x = round(pts["x"][0])
     band0 = page.evaluate("hs.cols('hs-band-source', ['lo', 'hi'])")
-    rev = _revision(page)
+    rev = revision(page)
     editor = _edit_cell(page, "tolerance")
     editor.fill("6")
     editor.press("Enter")
@@ -338,7 +301,7 @@ def test_download_preview_gif(page, browser, server, tmp_path):
         # the same kind of edit with no export running: what this machine takes anyway
         baseline = []
         for x in (35, 45):
-            rev = _revision(other)
+            rev = revision(other)
             t0 = time.monotonic()
             other.mouse.click(*other.evaluate(f"hs.xy({x}, 30)"))
             _wait_revision(other, rev)
@@ -347,12 +310,12 @@ def test_download_preview_gif(page, browser, server, tmp_path):
         with page.expect_download(timeout=600_000) as info:
             page.locator(".hs-download-gif button").click()
             page.locator("progress.hs-export-progress").wait_for(state="visible", timeout=30_000)
-            rev = _revision(other)
+            rev = revision(other)
             t0 = time.monotonic()
             other.mouse.click(*other.evaluate("hs.xy(40, 30)"))  # an edit in the other tab
             _wait_revision(other, rev)
             elapsed = time.monotonic() - t0
-            busy = "rendering" in _text(page.locator(".hs-export-status"))
+            busy = "rendering" in pane_text(page.locator(".hs-export-status"))
         assert busy, "the export ended before the other session's edit: nothing was measured"
         # an export holding the event loop would hold this edit for the export's length
         # (minutes); an export beside it adds at most a frame's encoding (< 1.5 s)
@@ -374,7 +337,7 @@ def test_download_preview_gif(page, browser, server, tmp_path):
     status = page.locator(".hs-export-status")
     with page.expect_download(timeout=60_000) as again:
         page.locator(".hs-download-gif button").click()
-    assert "unchanged since it was made" in _text(status), _text(status)
+    assert "unchanged since it was made" in pane_text(status), pane_text(status)
     again.value.save_as(tmp_path / "again.gif")
     assert (tmp_path / "again.gif").read_bytes() == path.read_bytes()
 
@@ -390,12 +353,12 @@ def test_shared_url_restores_the_session(page, browser):
     while want not in (url := link.input_value()):  # the link follows every edit
         assert time.monotonic() < deadline, f"{want} not in {url}"
         page.wait_for_timeout(50)
-    status = _status(page)
+    status = status_line(page)
     other = _open(browser, url)
     try:
         assert other.evaluate("hs.cols('hs-points-source', ['x', 'y', 'tol'])") == pts
         cost = status.split("·")[0].strip()
-        assert _status(other).split("·")[0].strip() == cost
+        assert status_line(other).split("·")[0].strip() == cost
     finally:
         other.context.close()
 
@@ -405,21 +368,15 @@ def test_a_bad_link_opens_the_demo_and_says_why(browser, server):
     try:
         alert = other.locator(".hs-error")
         alert.wait_for(state="visible", timeout=30_000)
-        text = _text(alert)
+        text = pane_text(alert)
         assert "shared link" in text and "nope" in text
-        assert "pass 1 cost" in _status(other)  # the demo pair is open and solved
+        assert "pass 1 cost" in status_line(other)  # the demo pair is open and solved
         other.wait_for_function("() => !location.search.includes('nope')", timeout=30_000)
         assert "sample=nope" not in other.url and "band=0.5" not in other.url
         assert other.locator(".hs-share-url input").input_value().find("nope") < 0
         assert not other.errors, other.errors
     finally:
         other.context.close()
-
-
-def _band_cells(status: str) -> int:
-    match = re.search(r"band ([\d,]+) cells", status)
-    assert match, status
-    return int(match.group(1).replace(",", ""))
 
 
 def _nudge_slider(page, index: int, key: str, times: int) -> None:
@@ -436,39 +393,39 @@ def _settle(page, quiet: float = 1.0, timeout: float = 30.0) -> str:
     """Poll until the session's revision has not moved for ``quiet`` seconds (every step of a
     keyboard-driven slider recomputed), then return the status line."""
     deadline = time.monotonic() + timeout
-    rev, since = _revision(page), time.monotonic()
+    rev, since = revision(page), time.monotonic()
     while time.monotonic() - since < quiet:
         assert time.monotonic() < deadline, f"no quiet {quiet} s within {timeout} s"
         page.wait_for_timeout(100)
-        now = _revision(page)
+        now = revision(page)
         if now != rev:
             rev, since = now, time.monotonic()
-    return _status(page)
+    return status_line(page)
 
 
 def test_band_and_global_tolerance_sliders_change_the_band(browser, server):
     other = _open(browser, server)
     try:
-        cells0 = _band_cells(_settle(other))
-        rev = _revision(other)
+        cells0 = band_cells(_settle(other))
+        rev = revision(other)
         _nudge_slider(other, 0, "ArrowLeft", 5)  # W1 0.30 -> 0.25
         _wait_revision(other, rev)
-        cells1 = _band_cells(_settle(other))
+        cells1 = band_cells(_settle(other))
         assert cells1 < cells0
         # a matching point without its own tolerance follows the global one
         path = other.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
         k = len(path["x"]) // 2
-        rev = _revision(other)
+        rev = revision(other)
         other.mouse.click(*other.evaluate(f"hs.xy({path['x'][k]}, {path['y'][k]})"))
         _wait_revision(other, rev)
         _wait_tolerances(other, [None])
-        cells2 = _band_cells(_settle(other))
+        cells2 = band_cells(_settle(other))
         assert cells2 < cells1  # a point with T = 0 pins the band
-        rev = _revision(other)
+        rev = revision(other)
         _nudge_slider(other, 2, "ArrowRight", 6)  # T 0 -> 6 frames
         _wait_revision(other, rev)
         status = _settle(other)
-        assert _band_cells(status) > cells2, (
+        assert band_cells(status) > cells2, (
             status,
             other.evaluate("hs.cols('hs-tol-source', ['x', 'y0', 'y1'])"),
         )
@@ -493,7 +450,7 @@ def test_malformed_upload_is_rejected_with_a_message(page, tmp_path):
     page.locator(".hs-upload-body input[type=file]").set_input_files(str(bad))
     alert = page.locator(".hs-upload-error")
     alert.wait_for(state="visible", timeout=30_000)
-    text = _text(alert)
+    text = pane_text(alert)
     assert "broken.bvh" in text and "line" in text
     assert "Traceback" not in page.content()
 
@@ -535,14 +492,14 @@ def test_quick_clicks_and_a_drag_all_reach_the_session(browser, server, tmp_path
     try:
         if other is not None:
             _start_busy_session(other)
-            rev = _revision(other)
+            rev = revision(other)
             _wait_revision(other, rev)  # the other session is solving
         path = page.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
         n = page.evaluate("hs.frames()")
         xs = [n * k // 6 for k in range(1, 6)]
         cells = [(x, round(path["y"][path["x"].index(x)])) for x in xs]
         screen = [page.evaluate(f"hs.xy({x}, {y})") for x, y in cells]  # before any click
-        rev = _revision(page)
+        rev = revision(page)
         for xy in screen:
             page.mouse.click(*xy)
             page.wait_for_timeout(50)
@@ -550,7 +507,7 @@ def test_quick_clicks_and_a_drag_all_reach_the_session(browser, server, tmp_path
         x3, y3 = cells[2]
         target = y3 + 4
         _drag(page, x3, y3, x3, target)
-        assert _revision(page) < rev + 6, "the server answered all edits before the drag"
+        assert revision(page) < rev + 6, "the server answered all edits before the drag"
         want = sorted([*cells[:2], (x3, target), *cells[3:]])
         want = [tuple(c) for c in want]
         deadline = time.monotonic() + 60
@@ -566,13 +523,13 @@ def test_quick_clicks_and_a_drag_all_reach_the_session(browser, server, tmp_path
                 got,
                 want,
                 shown,
-                _status(page),
-                _text(page.locator(".hs-error")),
+                status_line(page),
+                pane_text(page.locator(".hs-error")),
             )
             page.wait_for_timeout(100)
         deadline = time.monotonic() + 30
-        while "5 matching points" not in _status(page) or _table_points(page) != want:
-            assert time.monotonic() < deadline, (_status(page), _table_points(page), want)
+        while "5 matching points" not in status_line(page) or _table_points(page) != want:
+            assert time.monotonic() < deadline, (status_line(page), _table_points(page), want)
             page.wait_for_timeout(100)
         with page.expect_download(timeout=30_000) as info:
             page.locator(".hs-download-session button").click()
@@ -593,20 +550,7 @@ FIGURES = __import__("pathlib").Path(__file__).resolve().parents[1] / "benchmark
 
 def _open_wide(browser, url: str):
     """A page on a wide screen (1920 x 1080), where matrix and preview sit side by side."""
-    context = browser.new_context(viewport={"width": 1920, "height": 1080}, accept_downloads=True)
-    page = context.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda e: errors.append(f"pageerror: {e}"))
-    page.on("console", lambda m: errors.append(f"console: {m.text}") if m.type == "error" else None)
-    page.goto(url, timeout=120_000)
-    page.wait_for_function(
-        "() => window.Bokeh && Bokeh.documents.length && "
-        "Bokeh.documents[0].get_model_by_name('hs-path-source')?.data.x?.length > 0",
-        timeout=120_000,
-    )
-    page.evaluate(PAGE_HELPERS)
-    page.errors = errors
-    return page
+    return open_page(browser, url, width=1920, height=1080, timeout_s=120, console=True)
 
 
 def _tooltip(page, needle: str) -> str:
@@ -679,7 +623,7 @@ def test_one_frame_numbering_from_hover_to_session_file(browser, server, tmp_pat
         path = page.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
         k = len(path["x"]) * 9 // 10
         x, y = path["x"][k], round(path["y"][k])
-        rev = _revision(page)
+        rev = revision(page)
         page.mouse.click(*page.evaluate(f"hs.xy({x}, {y})"))
         _wait_revision(page, rev)
         deadline = time.monotonic() + 30
@@ -701,7 +645,7 @@ def test_one_frame_numbering_from_hover_to_session_file(browser, server, tmp_pat
         assert "inside" in cell and "cost" in cell
         times = page.locator(".hs-points .tabulator-row [tabulator-field='seconds']").inner_text()
         assert f"{th / rates['hand_fps'][0]:.2f} s" in times
-        command = _text(page.locator(".hs-cli"))
+        command = pane_text(page.locator(".hs-cli"))
         assert f"--match {tb}:{th}" in command, command
         with page.expect_download(timeout=30_000) as info:
             page.locator(".hs-download-session button").click()
@@ -725,7 +669,7 @@ def test_one_frame_numbering_from_hover_to_session_file(browser, server, tmp_pat
         page.locator(".hs-click-mode button", has_text="Edit points").click()
         page.wait_for_function("() => hs.model('hs-point-tool').add === true")
         # drag it: the gallery's "a point dragged"
-        rev = _revision(page)
+        rev = revision(page)
         _drag(page, tb, th, tb - 12, th - 14)
         _wait_revision(page, rev)
         page.wait_for_timeout(1500)
@@ -738,7 +682,7 @@ def test_one_frame_numbering_from_hover_to_session_file(browser, server, tmp_pat
 def test_legends_and_hand_closeup(browser, server):
     page = _open_wide(browser, server + "?frame=75")  # mid-wave: the hand is up
     try:
-        legend = _text(page.locator(".hs-legends"))
+        legend = pane_text(page.locator(".hs-legends"))
         for words in (
             "P preparation",
             "S stroke",
@@ -793,7 +737,7 @@ def test_lesson_steps_by_cell_and_by_row(browser, server):
         equation = page.locator(".hs-teach-equation")
 
         def shown_step() -> int:
-            return int(re.search(r"Step (\d+) of", _text(equation)).group(1))
+            return int(re.search(r"Step (\d+) of", pane_text(equation)).group(1))
 
         for want in (1, 2):
             step.click()
@@ -808,7 +752,7 @@ def test_lesson_steps_by_cell_and_by_row(browser, server):
             while shown_step() != want:
                 assert time.monotonic() < deadline, (shown_step(), want)
                 page.wait_for_timeout(100)
-        assert f"γ(1, {mdl.order[want - 1][1]})" in _text(equation)
+        assert f"γ(1, {mdl.order[want - 1][1]})" in pane_text(equation)
         # value mode: every number fits its cell (at most 4 characters)
         page.locator(".hs-teaching .bk-btn", has_text="value").first.click()
         page.locator(".hs-teaching button", has_text="Finish").click()
@@ -843,12 +787,12 @@ def test_keyboard_undo_redo_and_one_step_per_slider_run(browser, server):
 
         path = page.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
         k = len(path["x"]) // 2
-        rev = _revision(page)
+        rev = revision(page)
         page.mouse.click(*page.evaluate(f"hs.xy({path['x'][k]}, {path['y'][k]})"))
         _wait_revision(page, rev)
-        wait(lambda: count() == 1 and "1 matching point" in _status(page), "added")
+        wait(lambda: count() == 1 and "1 matching point" in status_line(page), "added")
         page.keyboard.press("Control+z")
-        wait(lambda: count() == 0 and "0 matching points" in _status(page), "Ctrl+Z")
+        wait(lambda: count() == 0 and "0 matching points" in status_line(page), "Ctrl+Z")
         page.keyboard.press("Control+Shift+z")
         wait(lambda: count() == 1, "Ctrl+Shift+Z")
         page.keyboard.press("Control+z")
@@ -864,7 +808,7 @@ def test_keyboard_undo_redo_and_one_step_per_slider_run(browser, server):
         def tol():
             return page.evaluate("hs.cols('hs-rates', ['tol'])")["tol"]
 
-        wait(lambda: tol() == [0], lambda: f"T back: {tol()}, {_status(page)}")
+        wait(lambda: tol() == [0], lambda: f"T back: {tol()}, {status_line(page)}")
         assert count() == 1  # the point stays: only the slider run was undone
         assert not page.errors, page.errors
     finally:
@@ -876,5 +820,4 @@ def test_server_log_has_no_tracebacks(page):
     path = SERVER_LOG.get("path")
     if path is None:
         pytest.skip("server not started by this test module")
-    text = path.read_text(errors="replace")
-    assert "Traceback" not in text, text[text.find("Traceback") :][:3000]
+    assert_no_traceback(path)

@@ -13,18 +13,10 @@ from pathlib import Path
 from urllib.parse import parse_qsl, urlsplit
 
 import pytest
-from conftest import served_chromium
-
-from webapp.launch import PAGE_HELPERS
+from conftest import BODY_BVH, HAND_BVH, XSS_PAYLOAD, open_page, pane_text, served_chromium, xss_ran
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(1500)]
 
-ROOT = Path(__file__).resolve().parents[1]
-MOCAP = ROOT.parent / "shared" / "data" / "mocap"
-BODY_BVH = MOCAP / "bandai-namco" / "dataset-1_bye_normal_001.bvh"
-HAND_BVH = MOCAP / "gestification" / "hello-world.bvh"
-#: sets a flag when a page turns it into an element (as tests/test_browser_uploads.py)
-PAYLOAD = "<img src=x onerror=window.__hs_xss=1>"
 BUSY_S = 240.0
 POINTS_LINK = (
     "?sample=wave-ok&side=right&band=0.3&refine=0.1&tol=0&pts=60:80:3,120:160"
@@ -40,28 +32,7 @@ def served(tmp_path_factory):
 
 def _open(browser, url: str):
     """A fresh tab at ``url`` once its matrix shows a path."""
-    context = browser.new_context(viewport={"width": 1300, "height": 1000}, accept_downloads=True)
-    page = context.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda e: errors.append(str(e)))
-    page.goto(url, timeout=600_000)
-    page.wait_for_function(
-        "() => window.Bokeh && Bokeh.documents.length && "
-        "Bokeh.documents[0].get_model_by_name('hs-path-source')?.data.x?.length > 0",
-        timeout=600_000,
-    )
-    page.evaluate(PAGE_HELPERS)
-    page.errors = errors
-    return page
-
-
-def _text(locator) -> str:
-    """Text of an element including its (open) shadow root, where Panel renders panes."""
-    return locator.evaluate(
-        "e => [...(e.shadowRoot ? e.shadowRoot.children : []), ...e.children]"
-        ".filter(c => c.tagName !== 'STYLE' && c.tagName !== 'LINK')"
-        ".map(c => c.innerText).join(' ')"
-    )
+    return open_page(browser, url, timeout_s=600)
 
 
 def _table_rows(page, want: int, timeout: float = 20.0) -> list[tuple[str, str, str]]:
@@ -80,11 +51,6 @@ def _table_rows(page, want: int, timeout: float = 20.0) -> list[tuple[str, str, 
     ]
 
 
-def _xss_ran(page) -> bool:
-    page.wait_for_timeout(500)  # an <img onerror> fires within a few ms of insertion
-    return bool(page.evaluate("window.__hs_xss === 1"))
-
-
 def test_a_link_with_points_fills_the_points_table(served, tmp_path):
     """The stranger's link: the matrix draws its two points and the table lists them
     without another edit (Panel's table dropped rows that came while it was built: on a
@@ -96,7 +62,7 @@ def test_a_link_with_points_fills_the_points_table(served, tmp_path):
         rows = _table_rows(page, 2)
         page.screenshot(path=str(tmp_path / "links-points.png"), full_page=True)
         assert rows == [("60", "80", "3"), ("120", "160", "")]
-        assert "2 matching points" in _text(page.locator(".hs-status"))
+        assert "2 matching points" in pane_text(page.locator(".hs-status"))
         assert not page.errors, page.errors
     finally:
         page.context.close()
@@ -118,7 +84,7 @@ def test_one_bad_link_value_keeps_the_takes_and_the_good_values(served, tmp_path
         rows = _table_rows(page, 2)
         page.screenshot(path=str(tmp_path / "links-bad-band.png"), full_page=True)
         assert rows == [("30", "20", "3"), ("60", "50", "")]
-        text = _text(alert)
+        text = pane_text(alert)
         assert "shared link: URL: band: expected a fraction of the body take" in text
         assert "got 99" in text and "\n" not in text.strip()
         # the address bar and the link box show what is open: the refused band is gone
@@ -134,7 +100,7 @@ def test_one_bad_link_value_keeps_the_takes_and_the_good_values(served, tmp_path
     try:
         alert = page.locator(".hs-error")
         alert.wait_for(state="visible", timeout=BUSY_S * 1000)
-        assert "shared link: URL: points[0].body: expected a whole frame number" in _text(alert)
+        assert "shared link: URL: points[0].body: expected a whole frame number" in pane_text(alert)
         assert page.locator(".hs-sample select").input_value() == "bye-hello"
         assert _table_rows(page, 0, timeout=2.0) == []
         query = dict(parse_qsl(urlsplit(page.locator(".hs-share-url input").input_value()).query))
@@ -148,7 +114,7 @@ def test_a_link_of_an_uploaded_pair_keeps_the_file_names(served, tmp_path):
     in a fresh tab: the takes, the CLI line, the BVH download and the session file name
     the files as uploaded, shown literally (no script runs)."""
     browser, url = served
-    body_name, hand_name = f"{PAYLOAD}walk.bvh", "hello world.bvh"
+    body_name, hand_name = f"{XSS_PAYLOAD}walk.bvh", "hello world.bvh"
     page = _open(browser, url)
     try:
         for which, path, name in (("body", BODY_BVH, body_name), ("hand", HAND_BVH, hand_name)):
@@ -172,9 +138,9 @@ def test_a_link_of_an_uploaded_pair_keeps_the_file_names(served, tmp_path):
         credits = page.locator(".hs-credits")
         credits.wait_for(timeout=BUSY_S * 1000)
         assert credits.inner_text().strip() == f"Your own takes: {body_name} and {hand_name}."
-        line = _text(page.locator(".hs-upload-status"))
+        line = pane_text(page.locator(".hs-upload-status"))
         assert f"body: {body_name}" in line and f"hand: {hand_name}" in line
-        cli = _text(page.locator(".hs-cli"))
+        cli = pane_text(page.locator(".hs-cli"))
         assert "walk.bvh" in cli and "hello world.bvh" in cli and query["body"] not in cli
         page.screenshot(path=str(tmp_path / "links-uploaded.png"), full_page=True)
         with page.expect_download(timeout=BUSY_S * 1000) as info:
@@ -186,7 +152,7 @@ def test_a_link_of_an_uploaded_pair_keeps_the_file_names(served, tmp_path):
             page.locator(".hs-download-bvh button").click()
         assert info.value.suggested_filename.endswith("walk-spliced.bvh")
         assert info.value.suggested_filename != "handsplice-spliced.bvh"
-        assert not _xss_ran(page)
+        assert not xss_ran(page)
         assert not page.errors, page.errors
     finally:
         page.context.close()

@@ -30,12 +30,22 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import (
+    HAS_PATH,
+    MOCAP,
+    assert_no_traceback,
+    band_cells,
+    open_tab,
+    pane_text,
+    revision,
+    served_app,
+    status_line,
+)
 
-from webapp.launch import PAGE_HELPERS, launch_chromium, running_server
+from webapp.launch import launch_chromium
 
 pytestmark = pytest.mark.browser
 
-MOCAP = Path(__file__).resolve().parents[2] / "shared" / "data" / "mocap"
 BODY_SECONDS = 120
 FPS = 120.0
 SERVER_START_S = 400
@@ -55,35 +65,22 @@ def long_pair(tmp_path_factory) -> tuple[Path, Path]:
 
 
 def _page(context, url: str):
-    page = context.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda e: errors.append(f"pageerror: {e}"))
-    page.goto(url, timeout=180_000)  # a loaded machine builds a page slowly
-    page.locator(".hs-cost-matrix").first.wait_for(timeout=120_000)
-    page.wait_for_function("() => window.Bokeh && Bokeh.documents.length", timeout=60_000)
-    page.evaluate(PAGE_HELPERS)
-    page.errors = errors
-    return page
-
-
-HAS_PATH = "() => Bokeh.documents[0].get_model_by_name('hs-path-source')?.data.x?.length > 0"
+    """A tab of ``context`` at ``url`` once the page's document is up (the path may
+    still be on its way: a long pair aligns for seconds)."""
+    # a loaded machine builds a page slowly
+    return open_tab(
+        context,
+        url,
+        timeout_s=180,
+        matrix_timeout_s=120,
+        ready="() => window.Bokeh && Bokeh.documents.length",
+    )
 
 
 def _busy(page) -> str:
     """The "aligning…" line's text ('' when nothing runs)."""
     line = page.locator(".hs-busy")
     return line.first.inner_text() if line.count() else ""
-
-
-def _revision(page) -> int:
-    return int(page.locator(".hs-status span").get_attribute("data-revision"))
-
-
-def _band_cells(page) -> int:
-    status = page.locator(".hs-status span").inner_text()
-    match = re.search(r"band ([\d,]+) cells", status)
-    assert match, status
-    return int(match.group(1).replace(",", ""))
 
 
 @pytest.fixture(scope="module")
@@ -94,19 +91,10 @@ def tabs(long_pair, tmp_path_factory):
 
     body, hand = long_pair
     demo = demo_sample_name(SAMPLE_DIR)
-    folder = tmp_path_factory.mktemp("serve")
-    log_path = folder / "serve.log"
     with (
-        log_path.open("w+") as log,
-        running_server(
-            str(body),
-            str(hand),
-            "--no-warm",
-            "--upload-dir",
-            str(folder / "up"),
-            log=log,
-            timeout=SERVER_START_S,
-        ) as (url, _),
+        served_app(
+            tmp_path_factory, str(body), str(hand), "--no-warm", timeout=SERVER_START_S
+        ) as (url, _, log_path),
         sync_api.sync_playwright() as p,
     ):
         browser = launch_chromium(p)
@@ -127,22 +115,12 @@ def tabs(long_pair, tmp_path_factory):
         errors = a.errors + b.errors
         browser.close()
     assert not errors, errors
-    text = log_path.read_text(errors="replace")
-    assert "Traceback" not in text, text[text.find("Traceback") :][:3000]
+    assert_no_traceback(log_path)
 
 
 def _frames(page) -> int:
     """Body frames of the open pair (the matrix's x extent)."""
     return round(page.evaluate("hs.model('hs-x-range').bounds[1]") + 0.5)
-
-
-def _pane_text(locator) -> str:
-    """Text of a Panel pane (rendered into its open shadow root)."""
-    return locator.first.evaluate(
-        "e => [...(e.shadowRoot ? e.shadowRoot.children : []), ...e.children]"
-        ".filter(c => c.tagName !== 'STYLE' && c.tagName !== 'LINK')"
-        ".map(c => c.innerText).join(' ')"
-    )
 
 
 def _click_b(b, f: float) -> None:
@@ -151,12 +129,12 @@ def _click_b(b, f: float) -> None:
     new revision)."""
     nb = _frames(b)
     b.bring_to_front()
-    b_rev = _revision(b)
+    b_rev = revision(b)
     points = len(b.evaluate("hs.cols('hs-points-source', ['x'])")["x"])
     bx, by = round(nb * f), round(nb * f * 2 / 3)
     b.mouse.click(*b.evaluate("([x, y]) => hs.xy(x, y)", [bx, by]))
     deadline = time.monotonic() + 60
-    while _revision(b) <= b_rev:
+    while revision(b) <= b_rev:
         assert time.monotonic() < deadline, "tab B got no new path within 60 s"
         b.wait_for_timeout(20)
     assert len(b.evaluate("hs.cols('hs-points-source', ['x'])")["x"]) == points + 1
@@ -174,7 +152,7 @@ def test_second_tab_answers_while_first_tab_aligns_a_long_pair(tabs, tmp_path):
     width = a.locator(".hs-params input").nth(0)  # "W1 in seconds" (a long take has one)
     tries: list[str] = []
     for k, extra_s in enumerate((3, 15, 40, 90)):
-        a_rev, a_cells = _revision(a), _band_cells(a)
+        a_rev, a_cells = revision(a), band_cells(status_line(a))
         a.bring_to_front()
         width.scroll_into_view_if_needed()
         old = float(width.input_value())
@@ -184,15 +162,15 @@ def test_second_tab_answers_while_first_tab_aligns_a_long_pair(tabs, tmp_path):
         t_a = time.monotonic()
         _click_b(b, 0.5 + 0.1 * k)
         t_b = time.monotonic()
-        a_still_busy = bool(_busy(a)) and _revision(a) == a_rev
+        a_still_busy = bool(_busy(a)) and revision(a) == a_rev
         # A's new alignment arrives in its turn, with the width typed
         deadline = time.monotonic() + 120
-        while _revision(a) <= a_rev:
+        while revision(a) <= a_rev:
             assert time.monotonic() < deadline, "tab A's re-solve never arrived"
             a.wait_for_timeout(100)
         a.locator(".hs-busy").first.wait_for(state="detached", timeout=30_000)
         t_done = time.monotonic()
-        assert _band_cells(a) > a_cells  # the wider band was solved
+        assert band_cells(status_line(a)) > a_cells  # the wider band was solved
         tries.append(
             f"W1 +{extra_s} s: B answered after {t_b - t_a:.2f} s, A after {t_done - t_a:.2f} s"
         )
@@ -267,7 +245,7 @@ def _watch(page, status, seen: list[str], what: str, part: str) -> None:
     while not any(t.startswith(what) and part in t for t in seen):
         assert time.monotonic() < deadline, f"no line {what!r} with {part!r}: {seen}"
         if status.count() and status.first.is_visible():
-            seen.append(_pane_text(status).strip())
+            seen.append(pane_text(status.first).strip())
         page.wait_for_timeout(20)
 
 
@@ -315,10 +293,10 @@ def test_play_says_when_it_waits_on_a_slow_render(tabs, tmp_path):
     a.bring_to_front()
     path = a.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
     k = len(path["x"]) // 3
-    rev = _revision(a)
+    rev = revision(a)
     a.mouse.click(*a.evaluate("([x, y]) => hs.xy(x, y)", [path["x"][k], path["y"][k]]))
     deadline = time.monotonic() + 120
-    while _revision(a) <= rev:
+    while revision(a) <= rev:
         assert time.monotonic() < deadline, "no new alignment after the click"
         a.wait_for_timeout(50)
     play = a.locator(".hs-play button")

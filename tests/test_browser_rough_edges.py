@@ -12,8 +12,7 @@ from __future__ import annotations
 import time
 
 import pytest
-
-from webapp.launch import PAGE_HELPERS, launch_chromium, running_server
+from conftest import assert_no_traceback, open_page, revision, served_app
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(1500)]
 
@@ -38,46 +37,17 @@ _JS_TOOLTIPS = """() => {
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
-    uploads = tmp_path_factory.mktemp("uploads")
-    log_path = tmp_path_factory.mktemp("log") / "serve.log"
-    with (
-        log_path.open("w+") as log,
-        running_server("--upload-dir", str(uploads), log=log, timeout=SERVER_START_S) as (url, _),
-    ):
+    with served_app(tmp_path_factory, timeout=SERVER_START_S) as (url, _, log_path):
         yield url
-    text = log_path.read_text(errors="replace")
-    assert "Traceback" not in text, text[text.find("Traceback") :][:3000]
-
-
-@pytest.fixture(scope="module")
-def browser():
-    sync_api = pytest.importorskip("playwright.sync_api")
-    with sync_api.sync_playwright() as p:
-        b = launch_chromium(p)
-        yield b
-        b.close()
+    assert_no_traceback(log_path)
 
 
 @pytest.fixture()
 def page(browser, server):
-    context = browser.new_context(viewport={"width": 1300, "height": 1000}, accept_downloads=True)
-    page = context.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda e: errors.append(f"pageerror: {e}"))
-    page.goto(server)
-    page.wait_for_function(
-        "() => window.Bokeh && Bokeh.documents.length && "
-        "Bokeh.documents[0].get_model_by_name('hs-path-source')?.data.x?.length > 0",
-        timeout=SERVER_START_S * 1000,
-    )
-    page.evaluate(PAGE_HELPERS)
+    page = open_page(browser, server, timeout_s=SERVER_START_S)
     yield page
-    context.close()
-    assert not errors, errors
-
-
-def _revision(page) -> int:
-    return int(page.locator(".hs-status span").get_attribute("data-revision"))
+    page.context.close()
+    assert not page.errors, page.errors
 
 
 def _add_point(page) -> tuple[int, int]:
@@ -85,10 +55,10 @@ def _add_point(page) -> tuple[int, int]:
     path = page.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
     k = len(path["x"]) // 2
     body, hand = path["x"][k], round(path["y"][k]) + 4
-    rev = _revision(page)
+    rev = revision(page)
     page.mouse.click(*page.evaluate("([a, b]) => hs.xy(a, b)", [body, hand]))
     deadline = time.monotonic() + BUSY_S
-    while _revision(page) <= rev or page.locator(".hs-points .tabulator-row").count() != 1:
+    while revision(page) <= rev or page.locator(".hs-points .tabulator-row").count() != 1:
         assert time.monotonic() < deadline, "the click's point was not solved"
         page.wait_for_timeout(50)
     pts = page.evaluate("hs.cols('hs-points-source', ['x', 'y'])")
@@ -143,11 +113,11 @@ def test_points_table_shows_every_column(page, tmp_path):
         clip={"x": box["x"] - 10, "y": box["y"] - 10, "width": box["width"] + 20, "height": 90},
     )
     # the delete button is there to click
-    rev = _revision(page)
+    rev = revision(page)
     delete.click()
     deadline = time.monotonic() + BUSY_S
     while page.locator(".hs-points .tabulator-row").count():
-        assert time.monotonic() < deadline and _revision(page) >= rev
+        assert time.monotonic() < deadline and revision(page) >= rev
         page.wait_for_timeout(50)
 
 

@@ -7,9 +7,7 @@ import re
 from pathlib import Path
 
 import pytest
-from conftest import served_chromium
-
-from webapp.launch import PAGE_HELPERS
+from conftest import open_page, served_chromium
 
 pytestmark = pytest.mark.browser
 FIGURES = Path(__file__).resolve().parents[1] / "benchmarks" / "figures"
@@ -18,19 +16,13 @@ FIGURES = Path(__file__).resolve().parents[1] / "benchmarks" / "figures"
 @pytest.fixture(scope="module")
 def page(tmp_path_factory):
     with served_chromium(tmp_path_factory) as (browser, url):
-        context = browser.new_context(viewport={"width": 1300, "height": 1000})
-        pg = context.new_page()
-        errors: list[str] = []
-        pg.on("pageerror", lambda e: errors.append(str(e)))
-        pg.goto(url)
-        pg.wait_for_function(
-            "() => window.Bokeh && Bokeh.documents.length && Bokeh.documents[0]"
+        yield open_page(
+            browser,
+            url,
+            timeout_s=90,
+            ready="() => window.Bokeh && Bokeh.documents.length && Bokeh.documents[0]"
             ".get_model_by_name('hs-confidence-source')?.data.start?.length > 0",
-            timeout=90_000,
         )
-        pg.evaluate(PAGE_HELPERS)
-        pg.errors = errors
-        yield pg
 
 
 def test_strip_region_and_meter_follow_the_alignment(page):

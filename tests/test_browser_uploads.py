@@ -20,21 +20,27 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import (
+    BODY_BVH,
+    HAND_BVH,
+    MOCAP,
+    ROOT,
+    XSS_PAYLOAD,
+    assert_no_traceback,
+    open_page,
+    pane_text,
+    revision,
+    served_app,
+    xss_ran,
+)
 
 from engine.io import load_take
 from engine.io.bvh import read_bvh
-from webapp.launch import PAGE_HELPERS, launch_chromium, running_server
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(1500)]
 
-ROOT = Path(__file__).resolve().parents[1]
-MOCAP = ROOT.parent / "shared" / "data" / "mocap"
-BODY_BVH = MOCAP / "bandai-namco" / "dataset-1_bye_normal_001.bvh"
-HAND_BVH = MOCAP / "gestification" / "hello-world.bvh"
 BODY_C3D = MOCAP / "pyomeca" / "markers_analogs.c3d"
 BODY_TRC = MOCAP / "pyomeca" / "markers.trc"
-#: sets a flag when a page turns it into an element
-PAYLOAD = "<img src=x onerror=window.__hs_xss=1>"
 MAX_UPLOAD_MB = 3
 #: a shared two-core machine can take minutes to warm the demo pair, and the first
 #: edit of a new pair compiles kernels (40 s seen under a load of 19)
@@ -46,45 +52,14 @@ FIGURE = ROOT / "benchmarks" / "figures" / "gallery_upload.png"
 @pytest.fixture(scope="module")
 def served(tmp_path_factory):
     """(URL, upload folder, log path) of a server with a 3 MiB upload limit."""
-    uploads = tmp_path_factory.mktemp("uploads")
-    log_path = tmp_path_factory.mktemp("log") / "serve.log"
-    with (
-        log_path.open("w+") as log,
-        running_server(
-            "--upload-dir",
-            str(uploads),
-            "--max-upload-mb",
-            str(MAX_UPLOAD_MB),
-            log=log,
-            timeout=SERVER_START_S,
-        ) as (url, _),
-    ):
-        yield url, uploads, log_path
-
-
-@pytest.fixture(scope="module")
-def browser():
-    sync_api = pytest.importorskip("playwright.sync_api")
-    with sync_api.sync_playwright() as p:
-        b = launch_chromium(p)
-        yield b
-        b.close()
+    with served_app(
+        tmp_path_factory, "--max-upload-mb", str(MAX_UPLOAD_MB), timeout=SERVER_START_S
+    ) as served:
+        yield served
 
 
 def _open(browser, url: str):
-    context = browser.new_context(viewport={"width": 1300, "height": 1000}, accept_downloads=True)
-    page = context.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda e: errors.append(f"pageerror: {e}"))
-    page.goto(url)
-    page.wait_for_function(
-        "() => window.Bokeh && Bokeh.documents.length && "
-        "Bokeh.documents[0].get_model_by_name('hs-path-source')?.data.x?.length > 0",
-        timeout=SERVER_START_S * 1000,
-    )
-    page.evaluate(PAGE_HELPERS)
-    page.errors = errors
-    return page
+    return open_page(browser, url, timeout_s=SERVER_START_S)
 
 
 @pytest.fixture()
@@ -92,15 +67,6 @@ def page(browser, served):
     page = _open(browser, served[0])
     yield page
     page.context.close()
-
-
-def _text(locator) -> str:
-    """Text of an element including its (open) shadow root, where Panel renders panes."""
-    return locator.evaluate(
-        "e => [...(e.shadowRoot ? e.shadowRoot.children : []), ...e.children]"
-        ".filter(c => c.tagName !== 'STYLE' && c.tagName !== 'LINK')"
-        ".map(c => c.innerText).join(' ')"
-    )
 
 
 def _matrix_size(page) -> tuple[int, int]:
@@ -120,12 +86,12 @@ def _wait_uploaded(page, pattern: str, timeout: float = BUSY_S) -> str:
     deadline = time.monotonic() + timeout
     while True:
         status = page.locator(".hs-upload-status")
-        text = _text(status) if status.count() else ""
+        text = pane_text(status) if status.count() else ""
         if re.search(pattern, text):
             return text
         alert = page.locator(".hs-upload-error")
         if alert.count() and alert.is_visible():
-            raise AssertionError(f"upload refused: {_text(alert)}")
+            raise AssertionError(f"upload refused: {pane_text(alert)}")
         if time.monotonic() > deadline:
             raise AssertionError(f"no {pattern!r} within {timeout} s: {text!r}")
         page.wait_for_timeout(100)
@@ -155,10 +121,6 @@ def _upload_pair(page, body, hand) -> str:
     return text
 
 
-def _revision(page) -> int:
-    return int(page.locator(".hs-status span").get_attribute("data-revision"))
-
-
 def _add_point(page, body: int, hand: int | None = None) -> None:
     """Click a matrix cell (adds a matching point) and wait for the new path; ``hand``
     None: a few cells off the current path at ``body``."""
@@ -166,18 +128,18 @@ def _add_point(page, body: int, hand: int | None = None) -> None:
         path = page.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
         hand = path["y"][path["x"].index(body)] + 3
     before = page.evaluate("hs.cols('hs-points-source', ['x']).x.length")
-    rev = _revision(page)
+    rev = revision(page)
     x, y = page.evaluate("([a, b]) => hs.xy(a, b)", [body, hand])
     page.mouse.click(x, y)
     page.wait_for_function(
         "n => hs.cols('hs-points-source', ['x']).x.length > n", arg=before, timeout=BUSY_S * 1000
     )
     deadline = time.monotonic() + BUSY_S
-    while _revision(page) <= rev:
+    while revision(page) <= rev:
         assert time.monotonic() < deadline, (
             "no recompute after the click",
-            _text(page.locator(".hs-status")),
-            _text(page.locator(".hs-error")),
+            pane_text(page.locator(".hs-status")),
+            pane_text(page.locator(".hs-error")),
         )
         page.wait_for_timeout(50)
 
@@ -250,7 +212,7 @@ def test_upload_a_marker_body_with_a_bvh_hand(page, tmp_path):
     )
     note = page.locator(".hs-marker-note")
     note.wait_for(state="visible", timeout=BUSY_S * 1000)
-    assert "no skeleton to receive fingers" in _text(note)
+    assert "no skeleton to receive fingers" in pane_text(note)
 
     n, m = _matrix_size(page)
     _add_point(page, n // 3)
@@ -286,7 +248,7 @@ def test_a_bad_file_says_why_and_the_pair_stays(page, tmp_path):
     _upload(page, "body", bad)
     alert = page.locator(".hs-upload-error")
     alert.wait_for(state="visible", timeout=BUSY_S * 1000)
-    text = _text(alert).strip()
+    text = pane_text(alert).strip()
     assert text.startswith("broken.bvh line") and "\n" not in text, text
     assert "Traceback" not in page.content()
     # the refused file's tile says so (it said "Upload complete"), in FilePond's error red
@@ -307,7 +269,7 @@ def test_a_bad_file_says_why_and_the_pair_stays(page, tmp_path):
     assert _matrix_size(page) == size
     assert "uploaded pair" in page.locator(".hs-sample select").input_value()
     # the line names the pair that is still open, not a half pair
-    line = _text(page.locator(".hs-upload-status"))
+    line = pane_text(page.locator(".hs-upload-status"))
     assert re.search(rf"Uploaded body: {BODY_BVH.name} .*hand: {HAND_BVH.name} .*open\.", line)
     page.locator(".hs-upload-body").first.scroll_into_view_if_needed()
     page.screenshot(path=str(tmp_path / "refused.png"))
@@ -333,8 +295,8 @@ def test_opening_a_sample_clears_the_uploads(page, tmp_path):
     select.select_option(sample)
     page.locator(".hs-upload-error").wait_for(state="hidden", timeout=BUSY_S * 1000)
     deadline = time.monotonic() + BUSY_S
-    while _text(page.locator(".hs-upload-status")).strip():
-        assert time.monotonic() < deadline, _text(page.locator(".hs-upload-status"))
+    while pane_text(page.locator(".hs-upload-status")).strip():
+        assert time.monotonic() < deadline, pane_text(page.locator(".hs-upload-status"))
         page.wait_for_timeout(100)
     for which in ("body", "hand"):  # FilePond removes a tile after a short animation
         page.locator(f".hs-upload-{which} .filepond--item").first.wait_for(
@@ -356,16 +318,11 @@ def test_a_file_over_the_limit_is_refused_by_the_browser(page, served):
     page.get_by_text("File is too large").first.wait_for(timeout=BUSY_S * 1000)
     page.wait_for_timeout(1000)
     assert sorted(p.name for p in uploads.iterdir()) == before  # nothing was sent
-    assert "receiving" not in _text(page.locator(".hs-upload-status"))
+    assert "receiving" not in pane_text(page.locator(".hs-upload-status"))
 
 
-def test_connection_lost_shows_a_notice_with_reload(browser, tmp_path):
-    with (
-        (tmp_path / "serve.log").open("w+") as log,
-        running_server(
-            "--upload-dir", str(tmp_path / "up"), "--no-warm", log=log, timeout=SERVER_START_S
-        ) as (url, _),
-    ):
+def test_connection_lost_shows_a_notice_with_reload(browser, tmp_path_factory):
+    with served_app(tmp_path_factory, "--no-warm", timeout=SERVER_START_S) as (url, _, _):
         page = _open(browser, url)
     # the server is stopped now
     notice = page.locator("#hs-connection-lost")
@@ -378,46 +335,41 @@ def test_connection_lost_shows_a_notice_with_reload(browser, tmp_path):
 # ---------------------------------------------------------------- script injection
 
 
-def _xss_ran(page) -> bool:
-    page.wait_for_timeout(500)  # an <img onerror> fires within a few ms of insertion
-    return bool(page.evaluate("window.__hs_xss === 1"))
-
-
 def test_the_payload_runs_when_a_page_injects_it(page):
     """Control: the payload does set the flag when inserted as HTML (the tests below can
     fail)."""
     page.evaluate(
         "p => { const d = document.createElement('div'); d.innerHTML = p; "
         "document.body.append(d); }",
-        PAYLOAD,
+        XSS_PAYLOAD,
     )
     # the <img> asks this server for "x"; its 404 (and so the onerror) can take seconds
     # while the server is still busy opening the page's pair
     page.wait_for_function("window.__hs_xss === 1", timeout=30_000)
-    assert _xss_ran(page)
+    assert xss_ran(page)
 
 
 def test_a_session_file_with_html_in_sample_runs_no_script(page, tmp_path):
     session = tmp_path / "session.json"
     session.write_text(
-        json.dumps({"format": "handsplice-session", "version": 1, "inputs": {"sample": PAYLOAD}})
+        json.dumps({"format": "handsplice-session", "version": 1, "inputs": {"sample": XSS_PAYLOAD}})
     )
     page.locator(".hs-open-session input[type=file]").set_input_files(str(session))
     alert = page.locator(".hs-share-error")
     alert.wait_for(state="visible", timeout=BUSY_S * 1000)
-    assert PAYLOAD in _text(alert)  # shown literally
-    assert not _xss_ran(page)
+    assert XSS_PAYLOAD in pane_text(alert)  # shown literally
+    assert not xss_ran(page)
 
 
 def test_a_link_with_html_in_sample_runs_no_script(browser, served):
     from urllib.parse import quote
 
-    page = _open(browser, served[0] + "?sample=" + quote(PAYLOAD))
+    page = _open(browser, served[0] + "?sample=" + quote(XSS_PAYLOAD))
     try:
         alert = page.locator(".hs-error")
         alert.wait_for(state="visible", timeout=BUSY_S * 1000)
-        assert PAYLOAD in _text(alert)
-        assert not _xss_ran(page)
+        assert XSS_PAYLOAD in pane_text(alert)
+        assert not xss_ran(page)
     finally:
         page.context.close()
 
@@ -425,8 +377,8 @@ def test_a_link_with_html_in_sample_runs_no_script(browser, served):
 def test_a_duplicate_joint_name_in_html_runs_no_script(page):
     text = HAND_BVH.read_text()
     joints = re.findall(r"^\s*JOINT (\S+)", text, flags=re.M)
-    hostile = text.replace(f"JOINT {joints[0]}", f"JOINT {PAYLOAD}", 1)
-    hostile = hostile.replace(f"JOINT {joints[1]}", f"JOINT {PAYLOAD}", 1)
+    hostile = text.replace(f"JOINT {joints[0]}", f"JOINT {XSS_PAYLOAD}", 1)
+    hostile = hostile.replace(f"JOINT {joints[1]}", f"JOINT {XSS_PAYLOAD}", 1)
     _upload(
         page,
         "hand",
@@ -434,13 +386,13 @@ def test_a_duplicate_joint_name_in_html_runs_no_script(page):
     )
     alert = page.locator(".hs-upload-error")
     alert.wait_for(state="visible", timeout=BUSY_S * 1000)
-    message = _text(alert)
-    assert "duplicate joint name" in message and PAYLOAD in message
-    assert not _xss_ran(page)
+    message = pane_text(alert)
+    assert "duplicate joint name" in message and XSS_PAYLOAD in message
+    assert not xss_ran(page)
 
 
 def test_a_file_named_like_html_runs_no_script(page):
-    name = f"{PAYLOAD}.bvh"
+    name = f"{XSS_PAYLOAD}.bvh"
     _upload(
         page,
         "body",
@@ -448,7 +400,7 @@ def test_a_file_named_like_html_runs_no_script(page):
     )
     text = _wait_uploaded(page, r"Uploaded body:.*now the other take")
     assert name in text  # the name is shown literally
-    assert not _xss_ran(page)
+    assert not xss_ran(page)
     # the same name on a file the reader refuses: the error shows it literally too
     _upload(
         page,
@@ -457,10 +409,9 @@ def test_a_file_named_like_html_runs_no_script(page):
     )
     alert = page.locator(".hs-upload-error")
     alert.wait_for(state="visible", timeout=BUSY_S * 1000)
-    assert name in _text(alert)
-    assert not _xss_ran(page)
+    assert name in pane_text(alert)
+    assert not xss_ran(page)
 
 
 def test_server_log_has_no_tracebacks(served):
-    text = served[2].read_text(errors="replace")
-    assert "Traceback" not in text, text[text.find("Traceback") :][:3000]
+    assert_no_traceback(served[2])

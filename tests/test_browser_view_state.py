@@ -8,9 +8,7 @@ import json
 import time
 
 import pytest
-from conftest import served_chromium
-
-from webapp.launch import PAGE_HELPERS
+from conftest import open_page, pane_text, served_chromium
 
 pytestmark = pytest.mark.browser
 
@@ -22,29 +20,10 @@ def browser_and_url(tmp_path_factory):
 
 
 def _open(browser, url: str):
-    context = browser.new_context(viewport={"width": 1300, "height": 1000}, accept_downloads=True)
-    page = context.new_page()
-    errors: list[str] = []
-    page.on("pageerror", lambda e: errors.append(str(e)))
-    page.goto(url, timeout=180_000)
-    page.wait_for_function(
-        "() => window.Bokeh && Bokeh.documents.length && "
-        "Bokeh.documents[0].get_model_by_name('hs-path-source')?.data.x?.length > 0",
-        timeout=90_000,
-    )
-    page.evaluate(PAGE_HELPERS)
+    """A fresh tab at ``url`` once its matrix shows a path and its preview an image."""
+    page = open_page(browser, url, timeout_s=180)
     page.locator(".hs-preview-image img").wait_for(timeout=90_000)
-    page.errors = errors
     return page
-
-
-def _text(locator) -> str:
-    """Text of an element including its (open) shadow root, where Panel renders panes."""
-    return locator.evaluate(
-        "e => [...(e.shadowRoot ? e.shadowRoot.children : []), ...e.children]"
-        ".filter(c => c.tagName !== 'STYLE' && c.tagName !== 'LINK')"
-        ".map(c => c.innerText).join(' ')"
-    )
 
 
 def _preview_src(page) -> str:
@@ -144,7 +123,7 @@ def test_a_link_with_a_bad_camera_keeps_the_rest_and_says_why(browser_and_url):
     try:
         alert = page.locator(".hs-error")
         alert.wait_for(state="visible", timeout=30_000)
-        text = _text(alert)
+        text = pane_text(alert)
         assert "shared link: URL: view.camera: expected one of three-quarter, front, side" in text
         assert "<b>" in text  # shown as text, never as markup
         assert _controls(page)["camera"] == "three-quarter"
@@ -170,7 +149,7 @@ def test_a_refused_click_is_worded_from_the_refusal(browser_and_url):
         page.mouse.click(*page.evaluate("hs.xy(80, 20)"))
         alert = page.locator(".hs-error")
         alert.wait_for(state="visible", timeout=60_000)
-        text = _text(alert)
+        text = pane_text(alert)
         assert "matching point (body 80, hand " in text and f"crosses (body {b}, hand {h})" in text
         assert "not kept: it crosses" in text and "points[" not in text
         page.wait_for_function("() => hs.cols('hs-points-source', ['x']).x.length === 1")
