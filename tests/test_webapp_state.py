@@ -604,37 +604,71 @@ def test_matrix_view_refetches_the_visible_range_at_full_detail(session):
     assert len(view.path_source.data["x"]) == len(session.solution.pass2.path)
 
 
+def _served_document(*roots):
+    """A Bokeh document holding ``roots``, served by a real (connection-less) server
+    session."""
+    import weakref
+
+    from bokeh.document import Document
+    from bokeh.server.contexts import BokehSessionContext
+    from bokeh.server.session import ServerSession
+
+    doc = Document()
+    for root in roots:
+        doc.add_root(root)
+    session = ServerSession("s", doc, io_loop=None)
+    context = BokehSessionContext("s", None, doc)
+    context._set_session(session)
+    doc._session_context = weakref.ref(context)
+    doc._hs_context = context  # kept alive with the document
+    return doc, session
+
+
 def test_model_changes_wait_for_the_document_lock(monkeypatch):
     """Outside Bokeh's document lock (a Panel widget callback run on the event loop) a view's
-    model change is deferred to a next-tick callback instead of raising RuntimeError."""
+    model change is deferred to a next-tick callback of the view's own document (not of the
+    document whose callback is running: another tab's) and runs under that document's lock;
+    once that tab's session is discarded the change is dropped. Inside the lock it runs at
+    once."""
+    import asyncio
+
     import panel as pn
+    from bokeh.models import ColumnDataSource
 
     from webapp.views._dispatch import with_document_lock
 
-    class Session:
-        _pending_writes = None
+    class View:
+        def __init__(self):
+            self.source = ColumnDataSource({"x": [0]})
 
-    class Context:
-        _session = Session()
+        @with_document_lock
+        def draw(self, x):
+            self.source.data = {"x": [x]}
 
-    class Doc:
-        session_context = Context()
-        scheduled: list = []
+    view = View()
+    tab, tab_session = _served_document(view.source)  # the view's tab
+    other, _ = _served_document()  # the tab whose callback is running
+    scheduled = {id(tab): [], id(other): []}
+    for d in (tab, other):
+        monkeypatch.setattr(d, "add_next_tick_callback", scheduled[id(d)].append)
+    monkeypatch.setattr(type(pn.state), "curdoc", property(lambda self: other))
 
-        def add_next_tick_callback(self, fn):
-            self.scheduled.append(fn)
+    view.draw(1)  # no lock held: deferred to the view's document
+    assert view.source.data["x"] == [0] and not scheduled[id(other)]
+    (later,) = scheduled[id(tab)]
+    asyncio.run(tab_session.with_document_locked(later))  # as bokeh runs a next tick
+    assert view.source.data["x"] == [1]
 
-    calls = []
-    changed = with_document_lock(lambda x: calls.append(x))
-    doc = Doc()
-    monkeypatch.setattr(type(pn.state), "curdoc", property(lambda self: doc))
-    changed(1)  # no lock: deferred
-    assert calls == [] and len(doc.scheduled) == 1
-    doc.scheduled.pop()()
-    assert calls == [1]
-    Session._pending_writes = []  # lock held: at once
-    changed(2)
-    assert calls == [1, 2] and not doc.scheduled
+    async def draw_locked():
+        await tab_session.with_document_locked(view.draw, 2)
+
+    asyncio.run(draw_locked())  # lock held: at once
+    assert view.source.data["x"] == [2] and len(scheduled[id(tab)]) == 1
+
+    view.draw(3)  # deferred; then the tab closes before the next tick
+    later = scheduled[id(tab)][-1]
+    tab_session.destroy()
+    later()  # dropped without an error: nobody is there to see it
 
 
 def test_teaching_example_steps_through_the_recurrence():
