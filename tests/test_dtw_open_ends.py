@@ -8,6 +8,7 @@ import pytest
 
 from engine.base.errors import ParameterError
 from engine.dtw import Aligner, Band, align, align_features
+from engine.dtw import kernels as K
 from engine.dtw.align import Ends, check_ends
 
 
@@ -148,6 +149,27 @@ def test_forced_ends_equal_the_fixed_result():
         np.testing.assert_array_equal(got_t.path, fixed_t.path)
 
 
+def _solves_as_the_reference(solver, cost, band, ends) -> bool:
+    """``solver.solve(band, ends)`` gives the reference's cost and an open path of that
+    cost (its cells plus ``skip`` per unmatched frame); False (nothing solved) when the
+    reference finds no path in ``band``."""
+    n, m = len(cost), len(cost[0])
+    total, _ = naive.dtw_banded_open(
+        cost, band.lo.tolist(), band.hi.tolist(), ends.skip, ends.body, ends.hand
+    )
+    if not np.isfinite(total):
+        return False
+    got = solver.solve(band, ends)
+    p = got.path
+    assert naive.is_open_path(p.tolist(), n, m, ends.body, ends.hand)
+    unmatched = int(p[0].sum()) + (n - 1 - int(p[-1, 0])) + (m - 1 - int(p[-1, 1]))
+    assert got.cost == pytest.approx(total, abs=1e-8)
+    assert naive.path_cost(cost, p.tolist()) + ends.skip * unmatched == pytest.approx(
+        total, abs=1e-8
+    )
+    return True
+
+
 def test_incremental_open_ends_exact_across_edits():
     rng = np.random.default_rng(2)
     for trial in range(12):
@@ -171,19 +193,7 @@ def test_incremental_open_ends_exact_across_edits():
                 check_ends(band, ends)
             except ParameterError:
                 continue
-            total, _ = naive.dtw_banded_open(
-                cost, band.lo.tolist(), band.hi.tolist(), ends.skip, ends.body, ends.hand
-            )
-            if not np.isfinite(total):
-                continue
-            got = solver.solve(band, ends)
-            p = got.path
-            assert naive.is_open_path(p.tolist(), n, m, ends.body, ends.hand)
-            unmatched = int(p[0].sum()) + (n - 1 - int(p[-1, 0])) + (m - 1 - int(p[-1, 1]))
-            assert got.cost == pytest.approx(total, abs=1e-8)
-            assert naive.path_cost(cost, p.tolist()) + ends.skip * unmatched == pytest.approx(
-                total, abs=1e-8
-            )
+            _solves_as_the_reference(solver, cost, band, ends)
         # switching back to fixed ends recomputes: the fixed result again
         band = Band.sakoe_chiba(n, m, 0.5)
         assert solver.solve(band).cost == pytest.approx(align_features(a, b, band).cost)
@@ -206,7 +216,7 @@ def test_incremental_open_ends_exact_when_points_sit_on_the_first_or_last_body_f
     the matrix, or an error)."""
     rng = np.random.default_rng(7)
     edits = 0
-    for trial in range(40):
+    for _ in range(40):
         n, m = int(rng.integers(20, 80)), int(rng.integers(20, 80))
         a, b = rng.random((n, 3)), rng.random((m, 3))
         cost = naive.local_cost_matrix(a.tolist(), b.tolist())
@@ -223,13 +233,63 @@ def test_incremental_open_ends_exact_when_points_sit_on_the_first_or_last_body_f
                 check_ends(band, ends)
             except ParameterError:
                 continue
-            total, _ = naive.dtw_banded_open(
-                cost, band.lo.tolist(), band.hi.tolist(), ends.skip, ends.body, ends.hand
-            )
-            if not np.isfinite(total):
-                continue
-            got = solver.solve(band, ends)
-            assert naive.is_open_path(got.path.tolist(), n, m, ends.body, ends.hand)
-            assert got.cost == pytest.approx(total, abs=1e-8), (trial, pts)
-            edits += 1
+            edits += _solves_as_the_reference(solver, cost, band, ends)
     assert edits > 40
+
+
+def _forward_rows(cost, band, ends):
+    """``(backpointers, γ of every band cell, γ(i, m-1) by row)`` of a forward pass over
+    every row of ``band`` (``kernels.forward_matrix``)."""
+    n, m = cost.shape
+    bp = np.empty(band.area, np.uint8)
+    gamma = np.empty(band.area)
+    last_col = np.full(n, np.inf)
+    bad, _ = K.forward_matrix(
+        cost, band.lo, band.hi, band.start, 0, n, bp, gamma, 1, ends.array(), last_col,
+        np.full(m, np.inf),
+    )  # fmt: skip
+    assert bad == -1
+    return bp, gamma, last_col
+
+
+def test_join_at_every_row_when_the_first_body_frame_starts_off_column_0():
+    """``kernels.join_path`` joins forward rows ``0..J`` and backward rows ``J+1..n-1`` of an
+    open-ends band whose first row does not reach column 0 (a matching point on the first
+    body frame) at every junction row ``J``, row 0 included: the reference's total and an
+    open path of that cost. (It took the matrix width from the reversed band's last row,
+    which is row 0: ``lo[0]`` columns short, so it read β of the wrong cells and returned
+    paths cheaper than the optimum that ended inside the matrix.)"""
+    rng = np.random.default_rng(13)
+    checked = 0
+    for _ in range(30):
+        n, m = int(rng.integers(3, 30)), int(rng.integers(4, 30))
+        cost = _random_case(rng, n, m, ties=bool(rng.integers(0, 2)))
+        ends = Ends(n // 2, m // 2, float(rng.choice([0.0, 0.1, 0.3])))
+        try:
+            band = Band.from_constraints(
+                n, m, float(rng.uniform(0.2, 1.0)), [(0, int(rng.integers(1, m // 2 + 1)), 0)],
+                open_ends=True,
+            )  # fmt: skip
+            check_ends(band, ends)
+        except ParameterError:
+            continue
+        assert band.lo[0] > 0
+        total, _ = _naive(cost, band, ends)
+        if not np.isfinite(total):
+            continue
+        rband = band.reversed()
+        bp, gamma, fcol = _forward_rows(cost, band, ends)
+        rbp, rgamma, rcol = _forward_rows(np.ascontiguousarray(cost[::-1, ::-1]), rband, ends)
+        for J in range(n - 1):
+            got, path = K.join_path(
+                gamma, bp, band.lo, band.hi, band.start,
+                rgamma, rbp, rband.lo, rband.hi, rband.start, J, ends.array(), fcol, rcol,
+            )  # fmt: skip
+            assert got == pytest.approx(total, abs=1e-9), J
+            assert naive.is_open_path(path.tolist(), n, m, ends.body, ends.hand), J
+            unmatched = int(path[0].sum()) + (n - 1 - int(path[-1, 0])) + (m - 1 - int(path[-1, 1]))
+            assert naive.path_cost(cost, path.tolist()) + ends.skip * unmatched == pytest.approx(
+                total, abs=1e-9
+            )
+            checked += 1
+    assert checked > 100

@@ -275,12 +275,6 @@ class Aligner:
         fwd, bwd = self._fwd, self._bwd
         # stored rows keep their flat offsets: widths before r0 (forward) and
         # after r1 (backward, counted from the end) did not change
-        if not self._ends.fixed and r0 == 0 and r0 <= r1:
-            # an edit of the first row under open ends (a point on the first body frame,
-            # where an open path starts) is solved whole: joining there, at row 0, gave
-            # paths cheaper than the optimum that ended inside the matrix (or an error);
-            # tests/test_dtw_open_ends.py checks these edits against the reference
-            r1 = n - 1
         fwd.valid = min(fwd.valid, r0)
         bwd.valid = min(bwd.valid, n - 1 - r1)
         f_valid, b_valid = fwd.valid, n - bwd.valid

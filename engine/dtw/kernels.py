@@ -558,7 +558,10 @@ def join_path(gamma, bp, lo, hi, start, rgamma, rbp, rlo, rhi, rstart, J, ends, 
     Returns (total, path (k, 2) int64).
     """
     n = lo.shape[0]
-    m = rhi[n - 1] + 1
+    # reversed row n-1 is row 0 mirrored (columns m-1-hi[0] .. m-1-lo[0]); with open
+    # ends row 0 need not reach column 0 (a point on the first body frame), so m is
+    # not rhi[n-1] + 1
+    m = rhi[n - 1] + lo[0] + 1
     r = n - 2 - J  # reversed index of row J + 1
     lo_n, hi_n = lo[J + 1], hi[J + 1]
     best = INF
