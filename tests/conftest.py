@@ -50,6 +50,25 @@ def bandai():
     return load
 
 
+#: the sample pair the app opens first
+DEMO_SAMPLE = "wave-ok"
+
+
+def open_demo_session(upload_dir: Path, sample: str = DEMO_SAMPLE):
+    """A ``webapp.state.Session`` on ``sample`` from sample_data, opened and aligned (its
+    uploads would go to ``upload_dir``)."""
+    from webapp import config
+    from webapp.state import Session
+
+    cfg = config.AppConfig(
+        sample_dir=SAMPLE_DATA.resolve(), upload_dir=upload_dir, default_sample=sample
+    )
+    session = Session(cfg)
+    session.load_sample(sample)
+    assert session.error == "", session.error
+    return session
+
+
 # --- browser tests (tests/test_browser*.py): one copy of each page helper -----------------
 
 #: the demo-sized pair the browser tests upload through the page's file fields

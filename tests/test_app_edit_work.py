@@ -7,24 +7,15 @@ of the server's CPU after each edit, beside the next edit's solve; an edit's tru
 from __future__ import annotations
 
 import pytest
+from conftest import open_demo_session
 
-from webapp import backend, config
+from webapp import backend
 from webapp.state import Session
-
-DEMO = "wave-ok"
 
 
 @pytest.fixture(scope="module")
-def session(sample_dir, tmp_path_factory) -> Session:
-    cfg = config.AppConfig(
-        sample_dir=sample_dir.resolve(),
-        upload_dir=tmp_path_factory.mktemp("uploads"),
-        default_sample=DEMO,
-    )
-    s = Session(cfg)
-    s.load_sample(DEMO)
-    assert s.error == ""
-    return s
+def session(tmp_path_factory) -> Session:
+    return open_demo_session(tmp_path_factory.mktemp("uploads"))
 
 
 def test_an_edit_keeps_the_preview_meshes_it_does_not_change(session):

@@ -10,28 +10,21 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import open_demo_session
 from PIL import Image, ImageDraw
 
-from webapp import config
 from webapp.state import Session
 from webapp.views import decimate
 
-DEMO = "wave-ok"
 #: a plot this many pixels wide gives the demo take (187 frames) about 8 frames a screen
 #: column (with OVERSAMPLE 2), as 560 pixels give a 2-minute 120 fps take 13
 WIDTH = 12
 
 
 @pytest.fixture(scope="module")
-def session(sample_dir, tmp_path_factory) -> Session:
-    cfg = config.AppConfig(
-        sample_dir=sample_dir.resolve(),
-        upload_dir=tmp_path_factory.mktemp("uploads"),
-        default_sample=DEMO,
-    )
-    s = Session(cfg)
-    s.load_sample(DEMO)
-    assert s.error == "" and s.n > 3 * WIDTH
+def session(tmp_path_factory) -> Session:
+    s = open_demo_session(tmp_path_factory.mktemp("uploads"))
+    assert s.n > 3 * WIDTH
     return s
 
 

@@ -7,14 +7,13 @@ from __future__ import annotations
 import io
 
 import pytest
-from conftest import ROOT, SAMPLE_DATA
+from conftest import ROOT, open_demo_session
 from PIL import Image
 
 from engine.cli import main
 from engine.io.bvh import read_bvh
 from engine.render.video import GIF_MIN_DELAY_CS, gif_schedule
-from webapp import backend, config
-from webapp.state import Session
+from webapp import backend
 
 BVH = ROOT / "sample_data" / "bandai-namco" / "dataset-2_wave-right-hand_normal_001.bvh"
 
@@ -53,12 +52,7 @@ def test_cli_gif_plays_at_the_takes_rate(tmp_path):
 
 
 def test_app_gif_plays_at_the_takes_rate(tmp_path):
-    cfg = config.AppConfig(
-        sample_dir=SAMPLE_DATA.resolve(), upload_dir=tmp_path / "uploads", default_sample="wave-ok"
-    )
-    session = Session(cfg)
-    session.load_sample("wave-ok")
-    assert session.error == ""
+    session = open_demo_session(tmp_path / "uploads")
     prepared, solution = session.prepared, session.solution
     assert prepared.body.fps == 30 and prepared.n > 20
     data = backend.preview_video(prepared, solution, "gif", max_frames=20, size=(96, 72))

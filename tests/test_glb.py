@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import ROOT, SAMPLE_DATA, mocap_files
+from conftest import ROOT, SAMPLE_DATA, mocap_files, open_demo_session
 
 from engine.cli import main
 from engine.io.bvh import read_bvh
@@ -334,16 +334,9 @@ def test_app_glb_download_callback(tmp_path):
     """The sharing view's GLB button returns the session's spliced take as GLB bytes."""
     import pygltflib
 
-    from webapp import config
-    from webapp.state import Session
     from webapp.views import sharing
 
-    cfg = config.AppConfig(
-        sample_dir=SAMPLE_DATA.resolve(), upload_dir=tmp_path / "uploads", default_sample="wave-ok"
-    )
-    session = Session(cfg)
-    session.load_sample("wave-ok")
-    assert session.error == ""
+    session = open_demo_session(tmp_path / "uploads")
     view = sharing.SharingView(session)
     data = asyncio.run(view._glb())  # made on a download thread, awaited here
     assert data is not None and view.glb.filename == f"{session.output_stem()}.glb"

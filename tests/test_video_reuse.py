@@ -7,22 +7,15 @@ import asyncio
 
 import numpy as np
 import pytest
+from conftest import open_demo_session
 
-from webapp import backend, config
+from webapp import backend
 from webapp.state import Session
-
-DEMO = "wave-ok"
 
 
 @pytest.fixture
-def session(sample_dir, tmp_path) -> Session:
-    cfg = config.AppConfig(
-        sample_dir=sample_dir.resolve(), upload_dir=tmp_path / "uploads", default_sample=DEMO
-    )
-    s = Session(cfg)
-    s.load_sample(DEMO)
-    assert s.error == ""
-    return s
+def session(tmp_path) -> Session:
+    return open_demo_session(tmp_path / "uploads")
 
 
 @pytest.fixture
