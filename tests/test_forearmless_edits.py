@@ -111,3 +111,23 @@ def test_headings_from_remembered_cell_thetas_equal_the_fresh_ones(prepared):
     assert len(np.intersect1d(kept, path[:, 0] * feats.m + path[:, 1])) > 0
     want = P.M.cell_theta_window(feats.body_phase, feats.hand_phase, path[:, 0], path[:, 1])
     assert np.array_equal(P._cells_theta(feats, path), want)
+
+
+def test_trust_reads_the_apps_pass1_table_and_gives_the_same_assessment(prepared, monkeypatch):
+    """The app's assessment of an edit (pass-1 spread over the tabulated costs) equals the
+    CLI's (the sign metric per cell), without one metric call per band row (about 0.3 s CPU
+    per assessment at 2,000 x 2,000, beside the next edit's solve)."""
+    from engine.dtw.align import Problem
+    from engine.trust import assess_splice
+
+    points = _drag(prepared)[1]
+    sol = backend.solve(prepared, None, None, points)
+    cli = assess_splice(prepared.features, sol.cache["engine"], body_phases=prepared.body_phases)
+    rows = []
+    real = Problem.cost_row
+    monkeypatch.setattr(Problem, "cost_row", lambda self, *a: rows.append(self.kind) or real(self, *a))
+    app = backend.assess(prepared, sol)
+    assert "metric" not in rows  # no per-row pass-1 metric calls
+    assert np.array_equal(app.uncertainty.ms, cli.uncertainty.ms)
+    assert np.array_equal(app.uncertainty.pass1_ms, cli.uncertainty.pass1_ms)
+    assert app.suggestions == cli.suggestions

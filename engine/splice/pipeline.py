@@ -567,6 +567,8 @@ class PassResult:
     seconds : float
     probe : engine.dtw.Aligner or None: pass 2's first open-ends solve (the one that sizes
         ``ends.skip``, :func:`_solve_pass2`), kept for incremental re-solves
+    cost_table : (n, m) float64 ``metric(a[i], b[j])`` of every cell, or None: the app's
+        tabulated pass-1 costs, which the trust assessment reads instead of the metric
     """
 
     path: np.ndarray
@@ -578,6 +580,7 @@ class PassResult:
     seconds: float = 0.0
     ends: Ends = field(default_factory=Ends)
     probe: object = None
+    cost_table: np.ndarray | None = field(default=None, repr=False)
 
     def local_costs(self, rows_idx=None, cols_idx=None) -> np.ndarray:
         """Local costs on a grid of cells (all cells by default: small takes only)."""
