@@ -507,10 +507,26 @@ def assess(prepared: Prepared, solution: Solution):
         from engine.trust import assess_splice
 
         cached = assess_splice(
-            prepared.features, solution.cache["engine"], body_phases=prepared.body_phases
+            prepared.features, _with_cost_table(prepared, solution.cache["engine"]),
+            body_phases=prepared.body_phases,
         )
         solution.cache["trust"] = cached
     return cached
+
+
+def _with_cost_table(prepared: Prepared, result):
+    """``result`` (a ``SpliceAlignment``) whose pass 1 reads the pair's tabulated pass-1
+    costs (:data:`DENSE_PASS1_MAX_CELLS`), when there is a table of its metric: the trust
+    assessment's pass-1 spread then costs a table read per cell instead of the sign metric
+    with its θ (about 0.3 s CPU at 2,000 x 2,000, beside the next edit's solve)."""
+    from dataclasses import replace
+
+    from engine.splice import pipeline
+
+    table = prepared.pass1_cost
+    if table is None or result.pass1.metric != pipeline.DEFAULT_METRICS[0]:
+        return result
+    return replace(result, pass1=replace(result.pass1, cost_table=table))
 
 
 def frame_triplet(prepared: Prepared, solution: Solution, body_frame: int) -> tuple[int, int, int]:

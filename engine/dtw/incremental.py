@@ -221,11 +221,17 @@ class Aligner:
         """Band of the last solve."""
         return self._band
 
-    def solve(self, band: Band, ends: Ends | None = None) -> Alignment:
+    def solve(self, band: Band, ends: Ends | None = None, forward_only: bool = False) -> Alignment:
         """Optimal path in ``band``, reusing every row the edit cannot change.
 
         ``ends`` (``engine.dtw.Ends``, default fixed): open ends; a change of ends
-        recomputes every row (the virtual start row and column change)."""
+        recomputes every row (the virtual start row and column change).
+
+        ``forward_only``: the path a full forward solve (``align_features``) gives, ties
+        included: forward rows are recomputed from the first edited row to the last row
+        and the path is traced back from the end (no backward rows, no junction, whose
+        crossing may break exact ties another way). An edit then costs the band's cells
+        from its first edited row on, not only its two segments."""
         check_band(band, self._problem)
         ends = as_ends(ends)
         check_ends(band, ends)
@@ -235,7 +241,7 @@ class Aligner:
                 self.reset()
                 self._every = every
                 self._ends = ends
-            return self._solve(band)
+            return self._solve(band, forward_only)
 
     def cumulative_cost(self) -> BandValues:
         """Forward cumulative cost γ of every cell of the current band.
@@ -258,7 +264,7 @@ class Aligner:
             return BandValues(band, fwd.gamma[: band.area].copy())
 
     # -- internals -----------------------------------------------------------
-    def _solve(self, band: Band) -> Alignment:
+    def _solve(self, band: Band, forward_only: bool = False) -> Alignment:
         t0 = time.perf_counter()
         n = self.n
         old = self._band
@@ -283,7 +289,7 @@ class Aligner:
 
         split = self._split_row(band)
         full = f_valid == 0 and b_valid >= n  # nothing reusable: forward over every row
-        if full:
+        if full or forward_only:
             junction = n - 1
         else:
             # any J with J + 1 between f_valid and b_valid needs the same rows;
@@ -311,7 +317,7 @@ class Aligner:
             backward = (junction + 1, self._last_backward_end)
             total, path = self._join(band, rband, junction)
         check_total(total)
-        if full and split < n - 1:
+        if full and split < n - 1 and not forward_only:
             # backward rows of the last third, for cheap first edits there
             cells += self._backward(rband, split + 1)
             backward = (split + 1, n)

@@ -108,8 +108,24 @@ def _row_spread(
         reach[i] = far
 
 
+@njit_cached()
+def _subtract_band(values, cost, lo, hi, start):
+    """``values`` (flat band cells) minus the cost matrix's cells, in place."""
+    for i in range(lo.shape[0]):
+        for j in range(lo[i], hi[i] + 1):
+            values[start[i] + j - lo[i]] -= cost[i, j]
+
+
 def row_spread(
-    a, b, band: Band, metric, centre, temperature: float, margin: float, ends: Ends = FIXED
+    a,
+    b,
+    band: Band,
+    metric,
+    centre,
+    temperature: float,
+    margin: float,
+    ends: Ends = FIXED,
+    costs=None,
 ) -> RowSpread:
     """Per-row spread of the cheap cells around ``centre`` for features ``a``, ``b``.
 
@@ -120,15 +136,26 @@ def row_spread(
     margin : float >= 0, cost units; ``reach`` counts cells with ``extra <= margin``
     ends : engine.dtw.Ends, the open ends of the pass (the same limits hold at both ends,
         so the backward pass on the reversed problem uses them as they are)
+    costs : (n, m) float64 ``metric(a[i], b[j])`` of every cell when already tabulated (the
+        app's pass-1 table), read instead of evaluating the metric: the same values, without
+        a metric call per cell and a Python call per row
     """
-    problem = Problem.from_features(a, b, metric)
+    if costs is not None:
+        problem = Problem.from_cost(costs)
+        if (problem.n, problem.m) != (len(a), len(b)):
+            raise ValueError(f"costs: expected {(len(a), len(b))}, got {(problem.n, problem.m)}")
+    else:
+        problem = Problem.from_features(a, b, metric)
     band.check_fits((problem.n, problem.m), problem.what)
     gf, total = _gamma(problem, band, ends)
     # γf - D: subtract each cell's local cost once, row by row (no n x m array)
-    for i in range(band.n):
-        lo, hi = int(band.lo[i]), int(band.hi[i])
-        s = int(band.start[i])
-        gf[s : s + hi - lo + 1] -= problem.cost_row(i, lo, hi)
+    if problem.kind == "matrix":
+        _subtract_band(gf, problem.cost, band.lo, band.hi, band.start)
+    else:
+        for i in range(band.n):
+            lo, hi = int(band.lo[i]), int(band.hi[i])
+            s = int(band.start[i])
+            gf[s : s + hi - lo + 1] -= problem.cost_row(i, lo, hi)
     rband = band.reversed()
     gb, _ = _gamma(problem.reversed(), rband, ends)
     n, m = band.n, band.m

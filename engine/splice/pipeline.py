@@ -481,7 +481,9 @@ def _arm_markers(body, hand, rb, rh, sides, fps: float) -> _ArmMarkers:
     )
 
 
-def heading_offset(body: M.PhaseFeatures, hand: M.PhaseFeatures, cells: np.ndarray) -> float:
+def heading_offset(
+    body: M.PhaseFeatures, hand: M.PhaseFeatures, cells: np.ndarray, theta=None
+) -> float:
     """Constant heading (radians) of a hand take without a trunk.
 
     For cells ``(i, j)`` believed to match (a path, or the diagonal), eq. 7 gives
@@ -489,11 +491,11 @@ def heading_offset(body: M.PhaseFeatures, hand: M.PhaseFeatures, cells: np.ndarr
     or posed differently, so the estimate is the *mode* of ``yaw_body - θ`` weighted
     by how much both wrists move (5° bins, circular smoothing), refined by the
     weighted circular mean within 20° of the mode. Without a body trunk the body's
-    yaw counts as 0.
+    yaw counts as 0. ``theta``: ``θ`` at ``cells`` when known (:func:`_cells_theta`).
     """
     cells = np.asarray(cells, dtype=np.int64).reshape(-1, 2)
     i, j = cells[:, 0], cells[:, 1]
-    th = M.cell_theta_window(body, hand, i, j)
+    th = M.cell_theta_window(body, hand, i, j) if theta is None else theta
     yb = body.yaw[i] if body.yaw is not None else 0.0
     v = np.angle(np.exp(1j * (yb - th)))
     w = _wrist_speed(body)[i] * _wrist_speed(hand)[j] + 1e-12
@@ -506,6 +508,39 @@ def heading_offset(body: M.PhaseFeatures, hand: M.PhaseFeatures, cells: np.ndarr
     if not near.any():
         return float(mode)
     return float(np.angle(np.sum(w[near] * np.exp(1j * v[near]))))
+
+
+#: cells whose θ a pair keeps for the next edits' headings (about 24 bytes each)
+THETA_CELLS_KEPT = 200_000
+
+
+def _cells_theta(features: SpliceFeatures, cells: np.ndarray) -> np.ndarray:
+    """``(k,)`` eq.-7 θ at ``cells (k, 2)`` (body frame, grid hand frame), remembered per pair.
+
+    An edit's pass-1 path shares most of its cells with the last one, so only the new
+    cells' θ are computed (each cell's θ is its own: :func:`engine.align.metrics.
+    cell_theta_window` per cell gives the same values as over the whole path)."""
+    cells = np.asarray(cells, dtype=np.int64).reshape(-1, 2)
+    keys = cells[:, 0] * features.m + cells[:, 1]
+    known_keys, known = features.params.get("_theta_cells", (np.empty(0, np.int64), np.empty(0)))
+    th = np.empty(len(keys))
+    at = np.minimum(np.searchsorted(known_keys, keys), max(len(known_keys) - 1, 0))
+    hit = known_keys[at] == keys if len(known_keys) else np.zeros(len(keys), bool)
+    th[hit] = known[at[hit]]
+    miss = ~hit
+    if miss.any():
+        th[miss] = M.cell_theta_window(
+            features.body_phase, features.hand_phase, cells[miss, 0], cells[miss, 1]
+        )
+        if len(known_keys) + int(miss.sum()) > THETA_CELLS_KEPT:  # keep this path's only
+            known_keys, known = np.empty(0, np.int64), np.empty(0)
+            miss = np.ones(len(keys), bool)
+        merged_keys, first = np.unique(
+            np.concatenate([known_keys, keys[miss]]), return_index=True
+        )
+        merged = np.concatenate([known, th[miss]])[first]
+        features.params["_theta_cells"] = (merged_keys, merged)
+    return th
 
 
 def _wrist_speed(ph: M.PhaseFeatures) -> np.ndarray:
@@ -532,6 +567,8 @@ class PassResult:
     seconds : float
     probe : engine.dtw.Aligner or None: pass 2's first open-ends solve (the one that sizes
         ``ends.skip``, :func:`_solve_pass2`), kept for incremental re-solves
+    cost_table : (n, m) float64 ``metric(a[i], b[j])`` of every cell, or None: the app's
+        tabulated pass-1 costs, which the trust assessment reads instead of the metric
     """
 
     path: np.ndarray
@@ -543,6 +580,7 @@ class PassResult:
     seconds: float = 0.0
     ends: Ends = field(default_factory=Ends)
     probe: object = None
+    cost_table: np.ndarray | None = field(default=None, repr=False)
 
     def local_costs(self, rows_idx=None, cols_idx=None) -> np.ndarray:
         """Local costs on a grid of cells (all cells by default: small takes only)."""
@@ -653,15 +691,24 @@ def straighten_holds(features: SpliceFeatures, warp: np.ndarray, points=()) -> n
 
 
 def _solve(
-    rows, metric: str, band: Band, solver=None, incremental: bool = False, ends: Ends | None = None
+    rows,
+    metric: str,
+    band: Band,
+    solver=None,
+    incremental: bool = False,
+    ends: Ends | None = None,
+    exact: bool = False,
 ):
-    """Solve one pass; returns (Alignment, solver or None)."""
+    """Solve one pass; returns (Alignment, solver or None).
+
+    ``exact``: a re-solve by ``solver`` gives a fresh solve's path, ties included
+    (``Aligner.solve(forward_only=True)``)."""
     a, b = rows
     if solver is not None:
-        return solver.solve(band, ends), solver
+        return solver.solve(band, ends, forward_only=exact), solver
     if incremental:
         solver = Aligner(a, b, metric=metric)
-        return solver.solve(band, ends), solver
+        return solver.solve(band, ends, forward_only=exact), solver
     return align_features(a, b, band, metric=metric, ends=ends), None
 
 
@@ -744,6 +791,7 @@ def _solve_pass2(
     pass1: Ends,
     metric: str = DEFAULT_METRICS[1],
     probe=None,
+    exact: bool = False,
 ):
     """Pass 2 with open ends (when ``pass1`` is open): returns (Alignment, solver, Ends,
     probe solver).
@@ -759,14 +807,14 @@ def _solve_pass2(
 
     Incremental (the app): both solves keep an ``Aligner`` (``probe`` for the first), so
     an edit recomputes only the rows its band change touches in each, as long as the
-    rounded skip stays the same.
+    rounded skip stays the same (``exact``: as :func:`_solve`).
     """
     if pass1.fixed:
-        al, solver = _solve(rows, metric, band, solver, incremental, Ends())
+        al, solver = _solve(rows, metric, band, solver, incremental, Ends(), exact)
         return al, solver, Ends(), None
     n, m = len(rows[0]), len(rows[1])
     first = Ends(pass1.body, pass1.hand, 0.5 * chance_cost(rows, metric))
-    al, probe = _solve(rows, metric, band, probe, incremental, first)
+    al, probe = _solve(rows, metric, band, probe, incremental, first, exact)
     matched = al.cost - first.skip * unmatched_frames(al.path, n, m)
     typical = skip_step(max(matched, 0.0) / len(al.path))
     ends = Ends(pass1.body, pass1.hand, min(first.skip, typical))
@@ -774,7 +822,7 @@ def _solve_pass2(
         return al, probe, ends, probe
     if solver is probe:
         solver = None
-    al, solver = _solve(rows, metric, band, solver, incremental, ends)
+    al, solver = _solve(rows, metric, band, solver, incremental, ends, exact)
     return al, solver, ends, probe
 
 
@@ -805,7 +853,7 @@ def pass2_headings(features: SpliceFeatures, path1: np.ndarray) -> tuple[np.ndar
     body = bp.yaw if bp.yaw is not None else np.zeros(n)
     if features.hand_has_yaw:
         return body, hp.yaw
-    c = heading_offset(bp, hp, path1)
+    c = heading_offset(bp, hp, path1, _cells_theta(features, path1))
     c = np.round(c / np.radians(5.0)) * np.radians(5.0)  # stable across small path edits
     return body, np.full(m, c)
 
@@ -883,16 +931,16 @@ def align_passes(
     limits.check_band("pass 1", band1.area)
     if incremental is None:
         incremental = band1.area <= INCREMENTAL_MAX_CELLS
-    # a forearm-less hand take is aligned by pass 1, whose sign costs tie often: solve it
-    # afresh (re-solves after edits may break ties otherwise), so the app and the CLI agree
-    same = (
-        previous is not None
-        and previous.features_id == id(features)
-        and not hand_lacks_forearm(features)
-    )
+    same = previous is not None and previous.features_id == id(features)
+    # a forearm-less hand take's alignment rests on pass 1, whose sign costs tie often: its
+    # re-solves (both passes) give a fresh solve's path, ties included, so the app and the
+    # CLI agree; they recompute the rows from the first edited one on
+    exact = hand_lacks_forearm(features)
     solver1 = previous.pass1.solver if same else None
     ends1 = pass1_ends(features, kind, max_unmatched_s)
-    al1, solver1 = _solve(features.pass1_rows, metric1, band1, solver1, incremental, ends1)
+    al1, solver1 = _solve(
+        features.pass1_rows, metric1, band1, solver1, incremental, ends1, exact
+    )
     t1 = time.perf_counter()
     timings["pass1"] = t1 - t0
     progress("pass 1", 1.0)
@@ -920,7 +968,7 @@ def align_passes(
     if prev2 is not None and prev2.rows[1] is not None and np.array_equal(prev2.rows[1], hand2):
         solver2, probe2 = prev2.solver, getattr(prev2, "probe", None)
     al2, solver2, ends2, probe2 = _solve_pass2(
-        (body2, hand2), band2, solver2, incremental, ends1, metric2, probe2
+        (body2, hand2), band2, solver2, incremental, ends1, metric2, probe2, exact
     )
     t2 = time.perf_counter()
     timings["pass2"] = t2 - t1

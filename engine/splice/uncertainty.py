@@ -154,8 +154,9 @@ def pass_spread(result, warp: np.ndarray, kappa: float = KAPPA) -> np.ndarray:
     a, b = result.rows
     temperature = kappa * max(float(result.cost) / max(len(result.path), 1), TEMPERATURE_FLOOR)
     ends = getattr(result, "ends", None) or FIXED
+    costs = getattr(result, "cost_table", None)  # the app's tabulated pass-1 costs
     return row_spread(
-        a, b, result.band, result.metric, warp, temperature, margin=0.0, ends=ends
+        a, b, result.band, result.metric, warp, temperature, margin=0.0, ends=ends, costs=costs
     ).spread
 
 
