@@ -41,7 +41,8 @@ from engine.model.fastkin import (
     normalize_inplace,
     qmul,
     qmul_conj,
-    sample,
+    sample_rotations,
+    world_rotations,
 )
 from engine.model.kinematics import rest_positions
 from engine.model.motion import Motion, Skeleton
@@ -575,6 +576,24 @@ def apply_transfer(
     return Motion(plan.skeleton, rots, trans, body.fps, replace(body.meta, format="derived"))
 
 
+def hand_joints_read(plan: TransferPlan, hand_skeleton: Skeleton) -> np.ndarray:
+    """Hand-take joints whose rotations :func:`apply_transfer` reads (local or world), with
+    every ancestor (world rotations need them), ascending (parents first)."""
+    wanted: set[int] = set()
+    for sp in plan.sides:
+        fh = sp.hand_frame
+        if sp.wrist:
+            wanted |= {fh.forearm_joint, fh.hand_joint}
+        for fm in sp.mapped:
+            wanted |= {fm.hand_parent, fm.hand}
+        if sp.grafted:
+            wanted |= {fh.hand_joint} | {g[1] for g in sp.grafted}
+    used: set[int] = set()
+    for j in wanted:
+        used.update(hand_skeleton.chain_to_root(j))
+    return np.array(sorted(used), dtype=np.int64)
+
+
 def _transfer_block(
     plan: TransferPlan,
     body: Motion,
@@ -593,9 +612,13 @@ def _transfer_block(
     chains sit between body joints)."""
     n = f1 - f0
     sk_o = plan.skeleton
-    h_local, h_trans = sample(hand, t)
-    h_motion = replace(hand, rotations=h_local, translations=h_trans, fps=body.fps)
-    _, g_h = forward_kinematics(h_motion)
+    # only the hand joints read below (and their ancestors): rotations, no positions
+    used = hand_joints_read(plan, hand.skeleton)
+    col = np.full(hand.skeleton.n_joints, -1, dtype=np.int64)
+    col[used] = np.arange(used.size)
+    parents = np.asarray(hand.skeleton.parents)[used]
+    h_local = sample_rotations(hand, t, used)
+    g_h = world_rotations(h_local, np.where(parents >= 0, col[np.maximum(parents, 0)], -1))
     body_rot = body.rotations[f0:f1]
     bi = np.arange(nb) if plan.body_index is None else np.asarray(plan.body_index)
     rots[:] = 0.0  # identity quaternions (rot.identity), in place
@@ -609,7 +632,7 @@ def _transfer_block(
         fb, fh = sp.body_frame, sp.hand_frame
         u = sp.u_hand
         if sp.wrist:
-            r_rel = qmul_conj(g_h[:, fh.forearm_joint], g_h[:, fh.hand_joint])
+            r_rel = qmul_conj(g_h[:, col[fh.forearm_joint]], g_h[:, col[fh.hand_joint]])
             desired = qmul(g_b[:, fb.forearm_joint], _conj_u(u, r_rel, u))
             parent = sk_b.parents[fb.wrist]
             local = qmul_conj(g_b[:, parent], desired) if parent >= 0 else desired
@@ -622,8 +645,8 @@ def _transfer_block(
                 local = qmul(local, rot.conjugate(between))
             rots[:, bi[fb.wrist]] = local
         if sp.mapped:
-            hp = [fm.hand_parent for fm in sp.mapped]
-            hj = [fm.hand for fm in sp.mapped]
+            hp = col[[fm.hand_parent for fm in sp.mapped]]
+            hj = col[[fm.hand for fm in sp.mapped]]
             r_rel = qmul_conj(g_h[:, hp], g_h[:, hj])
             u_p = np.stack([fm.u_parent for fm in sp.mapped])
             u_c = np.stack([fm.u_child for fm in sp.mapped])
@@ -638,10 +661,10 @@ def _transfer_block(
                 )
         if sp.grafted:
             new = np.array([g[0] for g in sp.grafted])
-            src = np.array([g[1] for g in sp.grafted])
+            src = col[np.array([g[1] for g in sp.grafted])]
             top = sk_o.parents[new] == bi[fb.hand_joint]
             r_rel = h_local[:, src].copy()
             if top.any():
-                r_rel[:, top] = qmul_conj(g_h[:, [fh.hand_joint]], g_h[:, src[top]])
+                r_rel[:, top] = qmul_conj(g_h[:, [col[fh.hand_joint]]], g_h[:, src[top]])
             rots[:, new] = _conj_u(u, r_rel, u)
     normalize_inplace(rots)  # rots is a contiguous block of frames of the output
