@@ -145,9 +145,11 @@ def continuous(q: np.ndarray) -> np.ndarray:
 
 @numba.njit(cache=True, nogil=True)
 def _continuous_kernel(q):
+    """Frame by frame (each frame's joints after the previous frame's: memory order; a
+    joint's frames are still corrected in order, so the flips are the same)."""
     frames, joints = q.shape[0], q.shape[1]
-    for j in range(joints):
-        for f in range(1, frames):
+    for f in range(1, frames):
+        for j in range(joints):
             d = (
                 q[f, j, 0] * q[f - 1, j, 0]
                 + q[f, j, 1] * q[f - 1, j, 1]

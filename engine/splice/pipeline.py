@@ -47,6 +47,7 @@ from engine.base import limits
 from engine.base import tolerances as T
 from engine.base.errors import HandSpliceError, ParameterError, RoleError
 from engine.dtw import Aligner, Band, Ends, align_features
+from engine.dtw.align import SharedCosts
 from engine.dtw import constraints as C
 from engine.dtw.kernels import get_metric, metric_names
 from engine.model.hand_side import match_chirality, undecided_message
@@ -766,16 +767,20 @@ def _solve_pass2(
         return al, solver, Ends(), None
     n, m = len(rows[0]), len(rows[1])
     first = Ends(pass1.body, pass1.hand, 0.5 * chance_cost(rows, metric))
-    al, probe = _solve(rows, metric, band, probe, incremental, first)
+    # one-shot (the CLI): both solves share one computation of the band's costs
+    shared = None if incremental else SharedCosts(*rows, metric=metric)
+    al, probe = _solve(rows, metric, band, probe or shared, incremental, first)
     matched = al.cost - first.skip * unmatched_frames(al.path, n, m)
     typical = skip_step(max(matched, 0.0) / len(al.path))
     ends = Ends(pass1.body, pass1.hand, min(first.skip, typical))
+    if shared is not None:
+        probe = None
     if ends == first:
         return al, probe, ends, probe
     if solver is probe:
         solver = None
-    al, solver = _solve(rows, metric, band, solver, incremental, ends)
-    return al, solver, ends, probe
+    al, solver = _solve(rows, metric, band, solver or shared, incremental, ends)
+    return al, (None if shared is not None else solver), ends, probe
 
 
 def _same_headings(previous, body_heading: np.ndarray, hand_heading: np.ndarray) -> bool:
