@@ -47,8 +47,8 @@ from engine.base import limits
 from engine.base import tolerances as T
 from engine.base.errors import HandSpliceError, ParameterError, RoleError
 from engine.dtw import Aligner, Band, Ends, align_features
-from engine.dtw.align import SharedCosts
 from engine.dtw import constraints as C
+from engine.dtw.align import SharedCosts
 from engine.dtw.kernels import get_metric, metric_names
 from engine.model.hand_side import match_chirality, undecided_message
 from engine.model.motion import MarkerSet, Motion
