@@ -266,6 +266,40 @@ def sample_rotations(motion: Motion, times: np.ndarray, joints: np.ndarray) -> n
     return out_r
 
 
+@numba.njit(cache=True, nogil=True)
+def _place_body_kernel(rots, trans, body_rot, body_trans, offsets, delta, index):
+    for f in range(rots.shape[0]):
+        for j in range(rots.shape[1]):
+            rots[f, j, 0] = 1.0
+            for c in range(1, 4):
+                rots[f, j, c] = 0.0
+            for c in range(3):
+                trans[f, j, c] = offsets[j, c]
+        for k in range(index.shape[0]):
+            o = index[k]
+            for c in range(4):
+                rots[f, o, c] = body_rot[f, k, c]
+            for c in range(3):
+                trans[f, o, c] = body_trans[f, k, c] + delta[k, c]
+
+
+def place_body(rots, trans, body_rot, body_trans, offsets, delta, index) -> None:
+    """Frames of an output take with more joints than the body, in place (one pass):
+    every joint at the identity rotation and its rest ``offsets (J, 3)``, then body joint
+    ``k`` at output joint ``index[k]`` with the body's rotation and translation plus
+    ``delta[k]`` (``rots (F, J, 4)``, ``trans (F, J, 3)`` C-contiguous float64;
+    ``body_rot (F, K, 4)``, ``body_trans (F, K, 3)``)."""
+    _place_body_kernel(
+        rots,
+        trans,
+        np.ascontiguousarray(body_rot, dtype=np.float64),
+        np.ascontiguousarray(body_trans, dtype=np.float64),
+        np.ascontiguousarray(offsets, dtype=np.float64),
+        np.ascontiguousarray(delta, dtype=np.float64),
+        np.ascontiguousarray(index, dtype=np.int64),
+    )
+
+
 @numba.njit(cache=True, fastmath=_FASTMATH)
 def _world_rotations_kernel(rot, parents, wrot):
     """:func:`_fk_kernel`'s rotations alone."""

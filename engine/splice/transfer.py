@@ -39,6 +39,7 @@ from engine.model.fastkin import (
     continuous_inplace,
     forward_kinematics,
     normalize_inplace,
+    place_body,
     qmul,
     qmul_conj,
     sample_rotations,
@@ -565,13 +566,16 @@ def apply_transfer(
     nb = plan.n_body_joints
     rots = np.empty((n, jn, 4))
     trans = np.empty((n, jn, 3))
+    used = hand_joints_read(plan, hand.skeleton)
     for f0 in range(0, n, TRANSFER_CHUNK):
         f1 = min(n, f0 + TRANSFER_CHUNK)
         if g_b is None:
             gb = forward_kinematics(body.frames(f0, f1))[1]
         else:
             gb = g_b[f0:f1]
-        _transfer_block(plan, body, hand, t[f0:f1], gb, f0, f1, rots[f0:f1], trans[f0:f1], nb)
+        _transfer_block(
+            plan, body, hand, t[f0:f1], gb, f0, f1, rots[f0:f1], trans[f0:f1], nb, used
+        )
     continuous_inplace(rots)
     return Motion(plan.skeleton, rots, trans, body.fps, replace(body.meta, format="derived"))
 
@@ -605,15 +609,15 @@ def _transfer_block(
     rots: np.ndarray,
     trans: np.ndarray,
     nb: int,
+    used: np.ndarray,
 ) -> None:
     """Body frames ``f0..f1-1`` of :func:`apply_transfer` into ``rots``/``trans`` (views).
 
     Body joint ``j`` is output joint ``plan.body_index[j]`` (joints inserted in finger
-    chains sit between body joints)."""
+    chains sit between body joints). ``used``: :func:`hand_joints_read` (only those hand
+    joints are sampled and chained: rotations, no positions)."""
     n = f1 - f0
     sk_o = plan.skeleton
-    # only the hand joints read below (and their ancestors): rotations, no positions
-    used = hand_joints_read(plan, hand.skeleton)
     col = np.full(hand.skeleton.n_joints, -1, dtype=np.int64)
     col[used] = np.arange(used.size)
     parents = np.asarray(hand.skeleton.parents)[used]
@@ -621,12 +625,10 @@ def _transfer_block(
     g_h = world_rotations(h_local, np.where(parents >= 0, col[np.maximum(parents, 0)], -1))
     body_rot = body.rotations[f0:f1]
     bi = np.arange(nb) if plan.body_index is None else np.asarray(plan.body_index)
-    rots[:] = 0.0  # identity quaternions (rot.identity), in place
-    rots[..., 0] = 1.0
-    trans[:] = sk_o.offsets
-    rots[:, bi] = body_rot
-    # a body joint below an inserted one keeps its motion less the inserted offset
-    trans[:, bi] = body.translations[f0:f1] + (sk_o.offsets[bi] - body.skeleton.offsets)
+    # identity quaternions and rest offsets, then the body's joints; a body joint below an
+    # inserted one keeps its motion less the inserted offset
+    delta = sk_o.offsets[bi] - body.skeleton.offsets
+    place_body(rots, trans, body_rot, body.translations[f0:f1], sk_o.offsets, delta, bi)
     sk_b = body.skeleton
     for sp in plan.sides:
         fb, fh = sp.body_frame, sp.hand_frame
