@@ -631,7 +631,9 @@ def report_stages(longs, load) -> str:
         "*Same* = the pass-1 and pass-2 paths, the merged map and the spliced BVH text "
         "(`format_bvh`) hash the same as the before code's. *Peak splicing* = VmHWM of the "
         "child with the counter reset (`/proc/self/clear_refs`) after reading and the "
-        "warm-up: the timed splices' own peak (largest over the children).",
+        "warm-up: the timed splices' peak, with both takes loaded and the previous splice's "
+        "result still held while the next one runs (largest over the children; compare "
+        "codes, not with the `--engine` section's single splice).",
         "",
         f"Load average (1 min) {load[0]:.1f} at the start, {load[1]:.1f} at the end (2 cores, "
         "shared).",
@@ -649,6 +651,17 @@ def report_stages(longs, load) -> str:
         "noise. Checked the same: "
         f"`benchmarks/splice_same_output.py --ref {STAGE_BASE}` (five real pairs: paths, "
         "costs, merged map, notes, spliced BVH bytes) and the table's last column.",
+        "",
+        "**Pass 1 (pass1d, not changed)**: on a quiet machine (load 1) its forward pass "
+        "takes 6.5-7.2 ns per band cell (`--pass1` reads 10.8 at load 6): C rows 1.4-1.7, "
+        "θ bins 1.8-2.1 (both loops vectorise 8 wide: `vmulps`, `vdivps` on `ymm`), the "
+        "recurrence with its inline costs the rest. Tried and not kept: the masks' turning "
+        "bits (x and z, 32 of 48) packed into one word per (θ bin, frame), the vertical bits "
+        "once per frame (half the table, 8 bytes a cell's bin reads; "
+        "`|w ⊕ w'| + 2 |w ∧ rot32 w'|`, the same counts): forward 7.66 → 7.44 ns median, "
+        "min 7.07 → 7.06, and 12 ms more to pack: after pass1c's prefetch the mask reads no "
+        "longer limit the pass. The CLI's pass 1 is one forward pass and a backtrack (no "
+        "backward rows: only the app's incremental `Aligner` computes those).",
         "",
         "**Earlier steps**: pass1c beside `d94916c` (1.405 → 1.307 s CPU, 0.93: pass 1's "
         "costs inside the recurrence, masks prefetched); pass1b beside `6b1b359` (1.788 → "
