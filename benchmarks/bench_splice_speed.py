@@ -56,9 +56,9 @@ TIME_BAND_S = 4.0
 PASS2_BASE = os.environ.get("HANDSPLICE_PASS2_BASE", "3539261")
 #: main when issue 13's reader and merge work began: ``--engine``'s "before"
 ENGINE_BASE = os.environ.get("HANDSPLICE_ENGINE_BASE", "46e6d22")
-#: main when the last pass-1 kernel work (pass1c) began: ``--stages``' and ``--pass1``'s
-#: "before" (earlier steps compared with ``6b1b359`` and ``efbcb40``)
-STAGE_BASE = os.environ.get("HANDSPLICE_STAGE_BASE", "d94916c")
+#: main when the last engine-stage work (pass1d) began: ``--stages``' and ``--pass1``'s
+#: "before" (earlier steps compared with ``d94916c``, ``6b1b359`` and ``efbcb40``)
+STAGE_BASE = os.environ.get("HANDSPLICE_STAGE_BASE", "b3485ff")
 #: timed splices per child process in ``--stages`` (the first warm one included)
 STAGE_SPLICES = 3
 
@@ -74,6 +74,12 @@ P.time = types.SimpleNamespace(perf_counter=time.process_time)
 body_p, hand_p, reps = sys.argv[1], sys.argv[2], int(sys.argv[3])
 body, hand = read_bvh(body_p), read_bvh(hand_p)
 P.splice(body.frames(0, 600), hand.frames(0, 600))
+def hwm_mb():
+    for line in open("/proc/self/status"):
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1]) / 1024
+with open("/proc/self/clear_refs", "w") as fh:
+    fh.write("5")  # the peak counter from here: the splices only
 runs = []
 for _ in range(reps):
     c0 = time.process_time()
@@ -86,7 +92,7 @@ a = r.alignment
 digest = lambda x: hashlib.sha256(np.ascontiguousarray(x).tobytes()).hexdigest()[:16]
 print(json.dumps({"frames": [body.n_frames, hand.n_frames], "reps": reps,
                   "stages": {k: statistics.median(x[k] for x in runs) for k in keys},
-                  "all": [x["cpu"] for x in runs],
+                  "all": [x["cpu"] for x in runs], "peak_splice_mb": hwm_mb(),
                   "path1": digest(a.pass1.path), "path2": digest(a.pass2.path),
                   "map": digest(np.asarray(a.map)),
                   "bvh": hashlib.sha256(format_bvh(r.motion).encode()).hexdigest()[:16]}))
@@ -565,6 +571,12 @@ def bench_stages(seconds: float, fps: float, before, children: int) -> dict:
     return out
 
 
+def _peak(runs) -> str:
+    """Largest VmHWM of the children while splicing (MB), or a dash (older children)."""
+    peaks = [r["peak_splice_mb"] for r in runs if "peak_splice_mb" in r]
+    return f"{max(peaks):.0f} MB" if peaks else "–"
+
+
 def report_stages(longs, load) -> str:
     """The ``--stages`` section: CPU time per stage beside :data:`STAGE_BASE`."""
     lines = [
@@ -581,8 +593,8 @@ def report_stages(longs, load) -> str:
         "for every θ bin, pass-1 rows).",
         "",
         "| pair | code | children | splice CPU | markers | features | pass 1 | pass 2 | merge | "
-        "transfer | same paths and output |",
-        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|",
+        "transfer | peak splicing | same paths and output |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|",
     ]
     for lg in longs:
         by = {c: [r for r in lg["runs"] if r["code"] == c] for c in ("before", "now")}
@@ -600,7 +612,7 @@ def report_stages(longs, load) -> str:
                 f"| {lg['seconds'] / 60:g} min ({r0['frames'][0]:,} x {r0['frames'][1]:,}) | "
                 f"{code} | {len(runs)} | **{med['cpu']:.3f} s** | "
                 + " | ".join(f"{med[k]:.3f}" for k in STAGE_KEYS)
-                + f" | {'yes' if same else 'NO'} (bvh {r0['bvh']}) |"
+                + f" | {_peak(runs)} | {'yes' if same else 'NO'} (bvh {r0['bvh']}) |"
             )
         if by["before"] and by["now"]:
             ratio = {
@@ -612,26 +624,48 @@ def report_stages(longs, load) -> str:
             lines.append(
                 f"| | now / before | | **{ratio['cpu']:.2f}** | "
                 + " | ".join(f"{ratio[k]:.2f}" for k in STAGE_KEYS)
-                + " | |"
+                + " | | |"
             )
     lines += [
         "",
         "*Same* = the pass-1 and pass-2 paths, the merged map and the spliced BVH text "
-        "(`format_bvh`) hash the same as the before code's.",
+        "(`format_bvh`) hash the same as the before code's. *Peak splicing* = VmHWM of the "
+        "child with the counter reset (`/proc/self/clear_refs`) after reading and the "
+        "warm-up: the timed splices' peak, with both takes loaded and the previous splice's "
+        "result still held while the next one runs (largest over the children; compare "
+        "codes, not with the `--engine` section's single splice).",
         "",
         f"Load average (1 min) {load[0]:.1f} at the start, {load[1]:.1f} at the end (2 cores, "
         "shared).",
         "",
-        "**What changed in this step (pass1c)**: pass 1's row kernel only "
-        "(`engine/align/phase_kernel.py`: costs formed inside the recurrence, mask indices by "
-        "a vectorised loop, the hand's masks prefetched 64 cells ahead; section "
-        "`splice_speed_pass1`); the other stages' code is that of the before commit (with "
-        "main's later merge: point constraints only, not on a default splice's path), so their "
-        "ratios show the run's noise. Checked the same: "
+        "**What changed in this step (pass1d)**: *pass 2*: the CLI's two open-end solves "
+        "(the probe with half the chance cost, then the typical matched cost) ran the angle "
+        "kernel over the same band twice; they now share one computation of the band's "
+        "local costs (`engine.dtw.align.SharedCosts`; the angle kernel keeps them, 8 bytes a "
+        "cell, for bands up to 8 M cells: 39 MB at 2 minutes; the app's incremental solvers "
+        "do not keep them). *Transfer*: the hand take is sampled and chained for the joints "
+        "the transfer reads and their ancestors only, rotations only "
+        "(`fastkin.sample_rotations`, `fastkin.world_rotations`; before: every joint, "
+        "positions too), and the quaternion sign continuity runs frame by frame (memory "
+        "order). Pass 1, markers and features: code unchanged, their ratios show the run's "
+        "noise. Checked the same: "
         f"`benchmarks/splice_same_output.py --ref {STAGE_BASE}` (five real pairs: paths, "
         "costs, merged map, notes, spliced BVH bytes) and the table's last column.",
         "",
-        "**Earlier steps**: pass1b beside `6b1b359` (1.788 → 1.475 s CPU, 0.85: pass-1 masks "
+        "**Pass 1 (pass1d, not changed)**: on a quiet machine (load 1) its forward pass "
+        "takes 6.5-7.2 ns per band cell (`--pass1` reads 10.8 at load 6): C rows 1.4-1.7, "
+        "θ bins 1.8-2.1 (both loops vectorise 8 wide: `vmulps`, `vdivps` on `ymm`), the "
+        "recurrence with its inline costs the rest. Tried and not kept: the masks' turning "
+        "bits (x and z, 32 of 48) packed into one word per (θ bin, frame), the vertical bits "
+        "once per frame (half the table, 8 bytes a cell's bin reads; "
+        "`|w ⊕ w'| + 2 |w ∧ rot32 w'|`, the same counts): forward 7.66 → 7.44 ns median, "
+        "min 7.07 → 7.06, and 12 ms more to pack: after pass1c's prefetch the mask reads no "
+        "longer limit the pass. The CLI's pass 1 is one forward pass and a backtrack (no "
+        "backward rows: only the app's incremental `Aligner` computes those).",
+        "",
+        "**Earlier steps**: pass1c beside `d94916c` (1.405 → 1.307 s CPU, 0.93: pass 1's "
+        "costs inside the recurrence, masks prefetched); pass1b beside `6b1b359` (1.788 → "
+        "1.475 s CPU, 0.85: pass-1 masks "
         "as one flat array, C rows four markers per sweep, `metrics._raw_windows` and "
         "`fastkin.rotate_offset` in numba, transfer's quaternions in place); the prepare "
         "stage beside `efbcb40` (2.252 → 1.976 s, 0.88).",

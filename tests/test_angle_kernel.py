@@ -128,3 +128,38 @@ def test_degenerate_vectors_cost_nothing_and_zero_forearms_compare_hands():
     zero = M.AngleFeatures(forearm=f, hand=np.zeros((4, 1, 3)))
     got = M.cost_grid(M.splice_angle, body.rows(), zero.rows(), np.arange(4), np.arange(4))
     assert np.array_equal(got, np.zeros((4, 4)))
+
+
+def test_shared_costs_solves_equal_one_shot_solves_and_compute_the_costs_once(pass2, monkeypatch):
+    """``SharedCosts`` (the CLI's two pass-2 solves): each solve is ``align_features``'s, bit
+    for bit, with other ends too; the second whole-band pass reads the kept costs (the
+    cost function is not called again), and another band is computed afresh."""
+    from engine.dtw.align import SharedCosts
+
+    a, b = pass2.rows
+    band = pass2.band
+    n, m = len(a), len(b)
+    shared = SharedCosts(a, b, metric="splice_angle")
+    ends = [Ends(n // 5, m // 5, 0.4), Ends(n // 5, m // 5, 0.1), Ends()]
+    first = shared.solve(band, ends[0])
+    state = shared.problem._rows_state
+    assert state.kept is not None and state.kept[2].shape == (band.area,)
+    calls = []
+    real = AK._forward
+
+    def counting(*args):
+        calls.append(args[-2])  # the mode: 0 compute, 1 compute and keep, 2 read kept
+        return real(*args)
+
+    monkeypatch.setattr(AK, "_forward", counting)
+    got = [first] + [shared.solve(band, e) for e in ends[1:]]
+    assert calls == [AK._READ, AK._READ]
+    for e, g in zip(ends, got, strict=True):
+        ref = align_features(a, b, band, metric="splice_angle", ends=e)
+        assert np.array_equal(g.path, ref.path) and g.cost == ref.cost
+    wider = Band.around_path(np.asarray(first.path), n, m, 6, open_ends=True)
+    calls.clear()
+    other = shared.solve(wider, ends[0])
+    assert calls == [AK._WRITE]
+    ref = align_features(a, b, wider, metric="splice_angle", ends=ends[0])
+    assert np.array_equal(other.path, ref.path) and other.cost == ref.cost

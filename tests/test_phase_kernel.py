@@ -159,6 +159,37 @@ def test_transfer_by_blocks_equals_one_block(case, feats, monkeypatch):
     assert np.array_equal(q, ref)
 
 
+def test_transfer_reads_only_the_hand_joints_it_needs_and_gives_the_same_take(
+    case, feats, monkeypatch
+):
+    """The transfer samples and chains only the hand joints it reads (and their ancestors),
+    rotations only: the spliced take is the one made from every joint, bit for bit, and
+    the rotations are :func:`sample`'s and :func:`forward_kinematics`' floats."""
+    from dataclasses import replace
+
+    from engine.model.fastkin import forward_kinematics, sample, sample_rotations, world_rotations
+
+    res = P.align_passes(feats)
+    plan = P.plan_for(feats)
+    hand = feats.hand
+    used = TR.hand_joints_read(plan, hand.skeleton)
+    assert 0 < used.size < hand.skeleton.n_joints  # the legs are not read
+    for j in used:
+        assert set(hand.skeleton.chain_to_root(int(j))) <= set(used.tolist())
+    part = P.transfer(feats, res)
+    every = np.arange(hand.skeleton.n_joints)
+    monkeypatch.setattr(TR, "hand_joints_read", lambda plan, sk: every)
+    whole = P.transfer(feats, res)
+    assert np.array_equal(part.rotations, whole.rotations)
+    assert np.array_equal(part.translations, whole.translations)
+    t = np.r_[-2.0, np.linspace(0, hand.n_frames - 1, 257) * 0.997, hand.n_frames + 1.5]
+    r_all, tr_all = sample(hand, t)
+    assert np.array_equal(sample_rotations(hand, t, used), r_all[:, used])
+    moved = replace(hand, rotations=r_all, translations=tr_all)
+    world = world_rotations(r_all, hand.skeleton.parents)
+    assert np.array_equal(world, forward_kinematics(moved)[1])
+
+
 def test_rows_of_every_other_frame_fall_back_to_the_per_cell_metric(feats):
     a, b = feats.pass1_rows
     a, b = np.ascontiguousarray(a[::2]), np.ascontiguousarray(b[::2])

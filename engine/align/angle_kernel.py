@@ -225,15 +225,27 @@ def _frame_rows_kernel(fore, hand, out):
 # --------------------------------------------------------------------------------------------
 
 
+#: most band cells whose costs a state keeps between solves (``keep_costs``; 64 MB)
+KEEP_MAX_CELLS = 8_000_000
+
+
 class AngleProblem:
     """The row kernel's arrays for one (body rows, hand rows) pair: the body rows as
-    they are, the hand rows component by component ``(16 A, m)``."""
+    they are, the hand rows component by component ``(16 A, m)``.
+
+    ``keep_costs`` (``engine.dtw.align.SharedCosts``): a whole-band forward pass keeps its
+    local costs (one float64 per band cell, bands up to :data:`KEEP_MAX_CELLS`) and the
+    next whole-band pass over the same band arrays reads them instead of computing them
+    (the same floats: pass 2's two open-end solves differ only in their ends).
+    """
 
     def __init__(self, a: np.ndarray, b: np.ndarray):
         arms = int(a[0, 0]) if len(a) else 0
         self.a = np.ascontiguousarray(a, dtype=np.float64)
         self.hand_t = np.ascontiguousarray(b[:, HEADER : HEADER + ARM * arms].T, dtype=np.float64)
         self.arms = arms
+        self.keep_costs = False
+        self.kept = None  # (lo, hi, costs (area,)) of the last whole-band pass
 
 
 def prepare(a: np.ndarray, b: np.ndarray) -> AngleProblem:
@@ -246,10 +258,40 @@ def forward(
 ):
     """Rows ``i0..i1-1`` of the DTW forward pass (as ``engine.dtw.kernels.forward_*``,
     open ends included)."""
-    return _forward(
+    mode, store = _NO_STORE, _EMPTY
+    whole = i0 == 0 and i1 == len(lo)
+    if state.keep_costs and whole:
+        kept = state.kept
+        if kept is not None and kept[0] is lo and kept[1] is hi:
+            mode, store = _READ, kept[2]
+        elif int(start[-1]) <= KEEP_MAX_CELLS:
+            mode, store = _WRITE, np.empty(int(start[-1]))
+    res = _forward(
         state.a, state.hand_t, lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col,
-        last_row,
+        last_row, mode, store,
     )  # fmt: skip
+    if mode == _WRITE:
+        # a bad cost stops the pass early: then the rows after it were not written
+        state.kept = (lo, hi, store) if res[0] < 0 else None
+    return res
+
+
+_NO_STORE, _WRITE, _READ = 0, 1, 2
+_EMPTY = np.empty(0)
+
+
+@numba.njit(cache=True, nogil=True)
+def _costs(a, ht, i, lo, hi, start, crow, mode, store):
+    """``crow[lo..hi]`` = the local costs of band row ``i``: computed (:func:`_fill`; kept in
+    ``store`` when ``mode`` is write) or read from ``store``."""
+    w = hi - lo + 1
+    s = store[start[i] : start[i] + w] if mode != _NO_STORE else store
+    if mode == _READ:
+        crow[lo : hi + 1] = s
+        return
+    _fill(a, ht, i, lo, hi, crow)
+    if mode == _WRITE:
+        s[:] = crow[lo : hi + 1]
 
 
 def cost_row(state: AngleProblem, i: int, lo: int, hi: int) -> np.ndarray:
@@ -299,9 +341,11 @@ def _fill(a, ht, i, lo, hi, crow):
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _forward(a, ht, lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col, last_row):
+def _forward(
+    a, ht, lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col, last_row, mode, store
+):
     """As ``engine.dtw.kernels.forward_builtin`` (open ends included), local costs from
-    :func:`_fill`."""
+    :func:`_costs`."""
     m = ht.shape[1]
     prev = np.empty(m + 1)
     mid = np.full(m + 1, K.INF)
@@ -312,8 +356,8 @@ def _forward(a, ht, lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col
     i = i0
     while i < i1:
         if K._use_pair(lo, hi, i, i1):
-            _fill(a, ht, i, lo[i], hi[i], crow_a)
-            _fill(a, ht, i + 1, lo[i + 1], hi[i + 1], crow_b)
+            _costs(a, ht, i, lo[i], hi[i], start, crow_a, mode, store)
+            _costs(a, ht, i + 1, lo[i + 1], hi[i + 1], start, crow_b, mode, store)
             bad = K._dp_pair(
                 prev,
                 mid,
@@ -340,7 +384,7 @@ def _forward(a, ht, lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col
             prev, mid, cur = cur, prev, mid
             i += 2
         else:
-            _fill(a, ht, i, lo[i], hi[i], crow_a)
+            _costs(a, ht, i, lo[i], hi[i], start, crow_a, mode, store)
             if K._dp_row(
                 prev, cur, crow_a, lo[i], hi[i], bp[start[i] : start[i + 1]], K._left0(lo, i, ends)
             ):

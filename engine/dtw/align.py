@@ -171,6 +171,21 @@ def align_features(
     return problem.solve(check_band(band, problem), as_ends(ends))
 
 
+class SharedCosts:
+    """One-shot solves of one feature pair over one band (ends may differ) that compute the
+    band's local costs once: a metric whose row state has ``keep_costs`` (the pass-2 angle
+    kernel) keeps them from the first whole-band forward pass and reads them in the next
+    ones. Same results as :func:`align_features` per solve; memory: 8 bytes per band cell
+    while the object lives (the metric caps it)."""
+
+    def __init__(self, a, b, metric: str | Dispatcher = "sqeuclidean"):
+        self.problem = Problem.from_features(a, b, metric)
+        self.problem.keep_costs = True
+
+    def solve(self, band: Band, ends: Ends | None = None) -> Alignment:
+        return self.problem.solve(check_band(band, self.problem), as_ends(ends))
+
+
 def check_band(band, problem: Problem) -> Band:
     if not isinstance(band, Band):
         raise TypeError(f"band must be an engine.dtw.Band, got {type(band).__name__}")
@@ -206,6 +221,7 @@ class Problem:
         self.bT = arrays.get("bT")
         self.metric: K.Metric | None = arrays.get("metric")
         self._rows_state = None  # a metric's row-kernel data (Metric.prepare), made once
+        self.keep_costs = False  # SharedCosts: the row state keeps whole-band costs
 
     @classmethod
     def from_cost(cls, cost) -> Problem:
@@ -292,6 +308,8 @@ class Problem:
         if self.metric.forward is not None:  # a metric with its own row kernel
             if self._rows_state is None:
                 self._rows_state = self.metric.prepare(self.a, self.b)
+                if self.keep_costs and hasattr(self._rows_state, "keep_costs"):
+                    self._rows_state.keep_costs = True
             return self.metric.forward(
                 self._rows_state,
                 lo,

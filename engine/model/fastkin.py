@@ -145,9 +145,11 @@ def continuous(q: np.ndarray) -> np.ndarray:
 
 @numba.njit(cache=True, nogil=True)
 def _continuous_kernel(q):
+    """Frame by frame (each frame's joints after the previous frame's: memory order; a
+    joint's frames are still corrected in order, so the flips are the same)."""
     frames, joints = q.shape[0], q.shape[1]
-    for j in range(joints):
-        for f in range(1, frames):
+    for f in range(1, frames):
+        for j in range(joints):
             d = (
                 q[f, j, 0] * q[f - 1, j, 0]
                 + q[f, j, 1] * q[f - 1, j, 1]
@@ -179,29 +181,39 @@ def _unit4(w, x, y, z):
     return 1.0, 0.0, 0.0, 0.0
 
 
+@numba.njit(cache=True, fastmath=_FASTMATH, inline="always")
+def _slerp(rot, i0, i1, w, j):
+    """Joint ``j``'s rotation at fraction ``w`` between frames ``i0`` and ``i1`` (unit)."""
+    aw, ax, ay, az = _unit4(rot[i0, j, 0], rot[i0, j, 1], rot[i0, j, 2], rot[i0, j, 3])
+    bw, bx, by, bz = _unit4(rot[i1, j, 0], rot[i1, j, 1], rot[i1, j, 2], rot[i1, j, 3])
+    dot = aw * bw + ax * bx + ay * by + az * bz
+    if dot < 0.0:
+        bw, bx, by, bz, dot = -bw, -bx, -by, -bz, -dot
+    theta = np.arccos(min(dot, 1.0))
+    s = np.sin(theta)
+    if s < 1e-6:
+        w0, w1 = 1.0 - w, w
+    else:
+        w0, w1 = np.sin((1.0 - w) * theta) / s, np.sin(w * theta) / s
+    return _unit4(w0 * aw + w1 * bw, w0 * ax + w1 * bx, w0 * ay + w1 * by, w0 * az + w1 * bz)
+
+
+@numba.njit(cache=True, fastmath=_FASTMATH, inline="always")
+def _frame_pair(tk, frames):
+    """Frames ``(i0, i1)`` around fractional frame ``tk`` (clipped to the take) and the
+    fraction between them."""
+    tk = min(max(tk, 0.0), frames - 1.0)
+    i0 = int(np.floor(tk))
+    return i0, min(i0 + 1, frames - 1), tk - i0
+
+
 @numba.njit(cache=True, fastmath=_FASTMATH, nogil=True)
 def _sample_kernel(rot, trans, t, out_r, out_t):
     frames = rot.shape[0]
     for k in range(t.shape[0]):
-        tk = min(max(t[k], 0.0), frames - 1.0)
-        i0 = int(np.floor(tk))
-        i1 = min(i0 + 1, frames - 1)
-        w = tk - i0
+        i0, i1, w = _frame_pair(t[k], frames)
         for j in range(rot.shape[1]):
-            aw, ax, ay, az = _unit4(rot[i0, j, 0], rot[i0, j, 1], rot[i0, j, 2], rot[i0, j, 3])
-            bw, bx, by, bz = _unit4(rot[i1, j, 0], rot[i1, j, 1], rot[i1, j, 2], rot[i1, j, 3])
-            dot = aw * bw + ax * bx + ay * by + az * bz
-            if dot < 0.0:
-                bw, bx, by, bz, dot = -bw, -bx, -by, -bz, -dot
-            theta = np.arccos(min(dot, 1.0))
-            s = np.sin(theta)
-            if s < 1e-6:
-                w0, w1 = 1.0 - w, w
-            else:
-                w0, w1 = np.sin((1.0 - w) * theta) / s, np.sin(w * theta) / s
-            qw, qx, qy, qz = _unit4(
-                w0 * aw + w1 * bw, w0 * ax + w1 * bx, w0 * ay + w1 * by, w0 * az + w1 * bz
-            )
+            qw, qx, qy, qz = _slerp(rot, i0, i1, w, j)
             out_r[k, j, 0] = qw
             out_r[k, j, 1] = qx
             out_r[k, j, 2] = qy
@@ -227,6 +239,101 @@ def sample(motion: Motion, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     out_t = np.empty((t.shape[0],) + trans.shape[1:])
     _sample_kernel(rot, trans, t, out_r, out_t)
     return out_r, out_t
+
+
+@numba.njit(cache=True, fastmath=_FASTMATH, nogil=True)
+def _sample_rotations_kernel(rot, t, joints, out_r):
+    frames = rot.shape[0]
+    for k in range(t.shape[0]):
+        i0, i1, w = _frame_pair(t[k], frames)
+        for a in range(joints.shape[0]):
+            qw, qx, qy, qz = _slerp(rot, i0, i1, w, joints[a])
+            out_r[k, a, 0] = qw
+            out_r[k, a, 1] = qx
+            out_r[k, a, 2] = qy
+            out_r[k, a, 3] = qz
+
+
+def sample_rotations(motion: Motion, times: np.ndarray, joints: np.ndarray) -> np.ndarray:
+    """:func:`sample`'s rotations of ``joints`` only: ``(T, len(joints), 4)``, the same floats
+    (no translations)."""
+    t = np.ascontiguousarray(times, dtype=np.float64)
+    if motion.n_frames == 0 or t.ndim != 1 or not np.isfinite(t).all():
+        return sample(motion, times)[0][:, joints]  # sample's errors
+    rot = np.ascontiguousarray(motion.rotations, dtype=np.float64)
+    out_r = np.empty((t.shape[0], len(joints), 4))
+    _sample_rotations_kernel(rot, t, np.ascontiguousarray(joints, dtype=np.int64), out_r)
+    return out_r
+
+
+@numba.njit(cache=True, nogil=True)
+def _place_body_kernel(rots, trans, body_rot, body_trans, offsets, delta, index):
+    for f in range(rots.shape[0]):
+        for j in range(rots.shape[1]):
+            rots[f, j, 0] = 1.0
+            for c in range(1, 4):
+                rots[f, j, c] = 0.0
+            for c in range(3):
+                trans[f, j, c] = offsets[j, c]
+        for k in range(index.shape[0]):
+            o = index[k]
+            for c in range(4):
+                rots[f, o, c] = body_rot[f, k, c]
+            for c in range(3):
+                trans[f, o, c] = body_trans[f, k, c] + delta[k, c]
+
+
+def place_body(rots, trans, body_rot, body_trans, offsets, delta, index) -> None:
+    """Frames of an output take with more joints than the body, in place (one pass):
+    every joint at the identity rotation and its rest ``offsets (J, 3)``, then body joint
+    ``k`` at output joint ``index[k]`` with the body's rotation and translation plus
+    ``delta[k]`` (``rots (F, J, 4)``, ``trans (F, J, 3)`` C-contiguous float64;
+    ``body_rot (F, K, 4)``, ``body_trans (F, K, 3)``)."""
+    _place_body_kernel(
+        rots,
+        trans,
+        np.ascontiguousarray(body_rot, dtype=np.float64),
+        np.ascontiguousarray(body_trans, dtype=np.float64),
+        np.ascontiguousarray(offsets, dtype=np.float64),
+        np.ascontiguousarray(delta, dtype=np.float64),
+        np.ascontiguousarray(index, dtype=np.int64),
+    )
+
+
+@numba.njit(cache=True, fastmath=_FASTMATH)
+def _world_rotations_kernel(rot, parents, wrot):
+    """:func:`_fk_kernel`'s rotations alone."""
+    for f in range(rot.shape[0]):
+        for j in range(rot.shape[1]):
+            p = parents[j]
+            if p < 0:
+                for c in range(4):
+                    wrot[f, j, c] = rot[f, j, c]
+                continue
+            w, x, y, z = _mul(
+                wrot[f, p, 0],
+                wrot[f, p, 1],
+                wrot[f, p, 2],
+                wrot[f, p, 3],
+                rot[f, j, 0],
+                rot[f, j, 1],
+                rot[f, j, 2],
+                rot[f, j, 3],
+            )
+            wrot[f, j, 0] = w
+            wrot[f, j, 1] = x
+            wrot[f, j, 2] = y
+            wrot[f, j, 3] = z
+
+
+def world_rotations(local: np.ndarray, parents: np.ndarray) -> np.ndarray:
+    """World rotations ``(F, J, 4)`` of local rotations ``(F, J, 4)`` (``parents (J,)``: each
+    parent before its children, -1 for a root): :func:`forward_kinematics`' rotations, the
+    same floats, without the positions."""
+    rot = np.ascontiguousarray(local, dtype=np.float64)
+    wrot = np.empty(rot.shape)
+    _world_rotations_kernel(rot, np.ascontiguousarray(parents, dtype=np.int64), wrot)
+    return wrot
 
 
 @numba.njit(cache=True, fastmath=_FASTMATH, nogil=True)

@@ -48,6 +48,7 @@ from engine.base import tolerances as T
 from engine.base.errors import HandSpliceError, ParameterError, RoleError
 from engine.dtw import Aligner, Band, Ends, align_features
 from engine.dtw import constraints as C
+from engine.dtw.align import SharedCosts
 from engine.dtw.kernels import get_metric, metric_names
 from engine.model.hand_side import match_chirality, undecided_message
 from engine.model.motion import MarkerSet, Motion
@@ -705,6 +706,8 @@ def _solve(
     (``Aligner.solve(forward_only=True)``)."""
     a, b = rows
     if solver is not None:
+        if isinstance(solver, SharedCosts):  # one-shot: a fresh solve by construction
+            return solver.solve(band, ends), solver
         return solver.solve(band, ends, forward_only=exact), solver
     if incremental:
         solver = Aligner(a, b, metric=metric)
@@ -814,16 +817,20 @@ def _solve_pass2(
         return al, solver, Ends(), None
     n, m = len(rows[0]), len(rows[1])
     first = Ends(pass1.body, pass1.hand, 0.5 * chance_cost(rows, metric))
-    al, probe = _solve(rows, metric, band, probe, incremental, first, exact)
+    # one-shot (the CLI): both solves share one computation of the band's costs
+    shared = None if incremental else SharedCosts(*rows, metric=metric)
+    al, probe = _solve(rows, metric, band, probe or shared, incremental, first, exact)
     matched = al.cost - first.skip * unmatched_frames(al.path, n, m)
     typical = skip_step(max(matched, 0.0) / len(al.path))
     ends = Ends(pass1.body, pass1.hand, min(first.skip, typical))
+    if shared is not None:
+        probe = None
     if ends == first:
         return al, probe, ends, probe
     if solver is probe:
         solver = None
-    al, solver = _solve(rows, metric, band, solver, incremental, ends, exact)
-    return al, solver, ends, probe
+    al, solver = _solve(rows, metric, band, solver or shared, incremental, ends, exact)
+    return al, (None if shared is not None else solver), ends, probe
 
 
 def _same_headings(previous, body_heading: np.ndarray, hand_heading: np.ndarray) -> bool:

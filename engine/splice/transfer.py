@@ -39,9 +39,11 @@ from engine.model.fastkin import (
     continuous_inplace,
     forward_kinematics,
     normalize_inplace,
+    place_body,
     qmul,
     qmul_conj,
-    sample,
+    sample_rotations,
+    world_rotations,
 )
 from engine.model.kinematics import rest_positions
 from engine.model.motion import Motion, Skeleton
@@ -564,15 +566,36 @@ def apply_transfer(
     nb = plan.n_body_joints
     rots = np.empty((n, jn, 4))
     trans = np.empty((n, jn, 3))
+    used = hand_joints_read(plan, hand.skeleton)
     for f0 in range(0, n, TRANSFER_CHUNK):
         f1 = min(n, f0 + TRANSFER_CHUNK)
         if g_b is None:
             gb = forward_kinematics(body.frames(f0, f1))[1]
         else:
             gb = g_b[f0:f1]
-        _transfer_block(plan, body, hand, t[f0:f1], gb, f0, f1, rots[f0:f1], trans[f0:f1], nb)
+        _transfer_block(
+            plan, body, hand, t[f0:f1], gb, f0, f1, rots[f0:f1], trans[f0:f1], nb, used
+        )
     continuous_inplace(rots)
     return Motion(plan.skeleton, rots, trans, body.fps, replace(body.meta, format="derived"))
+
+
+def hand_joints_read(plan: TransferPlan, hand_skeleton: Skeleton) -> np.ndarray:
+    """Hand-take joints whose rotations :func:`apply_transfer` reads (local or world), with
+    every ancestor (world rotations need them), ascending (parents first)."""
+    wanted: set[int] = set()
+    for sp in plan.sides:
+        fh = sp.hand_frame
+        if sp.wrist:
+            wanted |= {fh.forearm_joint, fh.hand_joint}
+        for fm in sp.mapped:
+            wanted |= {fm.hand_parent, fm.hand}
+        if sp.grafted:
+            wanted |= {fh.hand_joint} | {g[1] for g in sp.grafted}
+    used: set[int] = set()
+    for j in wanted:
+        used.update(hand_skeleton.chain_to_root(j))
+    return np.array(sorted(used), dtype=np.int64)
 
 
 def _transfer_block(
@@ -586,30 +609,32 @@ def _transfer_block(
     rots: np.ndarray,
     trans: np.ndarray,
     nb: int,
+    used: np.ndarray,
 ) -> None:
     """Body frames ``f0..f1-1`` of :func:`apply_transfer` into ``rots``/``trans`` (views).
 
     Body joint ``j`` is output joint ``plan.body_index[j]`` (joints inserted in finger
-    chains sit between body joints)."""
+    chains sit between body joints). ``used``: :func:`hand_joints_read` (only those hand
+    joints are sampled and chained: rotations, no positions)."""
     n = f1 - f0
     sk_o = plan.skeleton
-    h_local, h_trans = sample(hand, t)
-    h_motion = replace(hand, rotations=h_local, translations=h_trans, fps=body.fps)
-    _, g_h = forward_kinematics(h_motion)
+    col = np.full(hand.skeleton.n_joints, -1, dtype=np.int64)
+    col[used] = np.arange(used.size)
+    parents = np.asarray(hand.skeleton.parents)[used]
+    h_local = sample_rotations(hand, t, used)
+    g_h = world_rotations(h_local, np.where(parents >= 0, col[np.maximum(parents, 0)], -1))
     body_rot = body.rotations[f0:f1]
     bi = np.arange(nb) if plan.body_index is None else np.asarray(plan.body_index)
-    rots[:] = 0.0  # identity quaternions (rot.identity), in place
-    rots[..., 0] = 1.0
-    trans[:] = sk_o.offsets
-    rots[:, bi] = body_rot
-    # a body joint below an inserted one keeps its motion less the inserted offset
-    trans[:, bi] = body.translations[f0:f1] + (sk_o.offsets[bi] - body.skeleton.offsets)
+    # identity quaternions and rest offsets, then the body's joints; a body joint below an
+    # inserted one keeps its motion less the inserted offset
+    delta = sk_o.offsets[bi] - body.skeleton.offsets
+    place_body(rots, trans, body_rot, body.translations[f0:f1], sk_o.offsets, delta, bi)
     sk_b = body.skeleton
     for sp in plan.sides:
         fb, fh = sp.body_frame, sp.hand_frame
         u = sp.u_hand
         if sp.wrist:
-            r_rel = qmul_conj(g_h[:, fh.forearm_joint], g_h[:, fh.hand_joint])
+            r_rel = qmul_conj(g_h[:, col[fh.forearm_joint]], g_h[:, col[fh.hand_joint]])
             desired = qmul(g_b[:, fb.forearm_joint], _conj_u(u, r_rel, u))
             parent = sk_b.parents[fb.wrist]
             local = qmul_conj(g_b[:, parent], desired) if parent >= 0 else desired
@@ -622,8 +647,8 @@ def _transfer_block(
                 local = qmul(local, rot.conjugate(between))
             rots[:, bi[fb.wrist]] = local
         if sp.mapped:
-            hp = [fm.hand_parent for fm in sp.mapped]
-            hj = [fm.hand for fm in sp.mapped]
+            hp = col[[fm.hand_parent for fm in sp.mapped]]
+            hj = col[[fm.hand for fm in sp.mapped]]
             r_rel = qmul_conj(g_h[:, hp], g_h[:, hj])
             u_p = np.stack([fm.u_parent for fm in sp.mapped])
             u_c = np.stack([fm.u_child for fm in sp.mapped])
@@ -638,10 +663,10 @@ def _transfer_block(
                 )
         if sp.grafted:
             new = np.array([g[0] for g in sp.grafted])
-            src = np.array([g[1] for g in sp.grafted])
+            src = col[np.array([g[1] for g in sp.grafted])]
             top = sk_o.parents[new] == bi[fb.hand_joint]
             r_rel = h_local[:, src].copy()
             if top.any():
-                r_rel[:, top] = qmul_conj(g_h[:, [fh.hand_joint]], g_h[:, src[top]])
+                r_rel[:, top] = qmul_conj(g_h[:, [col[fh.hand_joint]]], g_h[:, src[top]])
             rots[:, new] = _conj_u(u, r_rel, u)
     normalize_inplace(rots)  # rots is a contiguous block of frames of the output
