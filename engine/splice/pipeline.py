@@ -53,6 +53,7 @@ from engine.dtw.kernels import get_metric, metric_names
 from engine.model.hand_side import match_chirality, undecided_message
 from engine.model.motion import MarkerSet, Motion
 from engine.splice import merge as MG
+from engine.splice import point_rate as PR
 from engine.splice import spin as SP
 from engine.splice import transfer as TR
 from engine.splice.end_band import open_end_band
@@ -983,8 +984,11 @@ def align_passes(
 
     progress("merge", 0.0)
     final = al1 if hand_lacks_forearm(features) and not spin else al2
+    warp = straighten_holds(features, MG.median_warp(final.path, n), pts)
+    if pts:  # near a point the hand runs at the local rate (engine.splice.point_rate)
+        warp = PR.rate_lines(warp, [p[0] for p in pts], features.fps, final.overlap[0])
     warp = MG.smooth_warp(
-        straighten_holds(features, MG.median_warp(final.path, n), pts),
+        warp,
         blend,
         m,
         anchors=[p[0] for p in pts],
