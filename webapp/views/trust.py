@@ -63,6 +63,14 @@ DEBOUNCE_MS = 1000
 _POOL = concurrent.futures.ThreadPoolExecutor(max_workers=2, thread_name_prefix="hs-trust")
 
 
+#: the legend under the matrix (static: one text for pinned pairs and pairs not pinned)
+LEGEND_WORDS = {
+    **VERDICT_WORDS,
+    "check": "check (50–100 ms; in a pair not pinned: 50–100 ms over its typical)",
+    "desync": "may look out of sync (> 100 ms; in a pair not pinned: > 100 ms over its typical)",
+}
+
+
 def _runs(values: list[str], words: dict = VERDICT_WORDS) -> dict:
     """Runs of equal verdicts as quads along the body axis."""
     if not values:
@@ -327,7 +335,7 @@ class TrustView:
         width = self._width
         legend = " ".join(
             f'<span style="display:inline-block;width:10px;height:10px;background:{c};'
-            f'margin:0 3px 0 10px"></span>{html.escape(VERDICT_WORDS[k])}'
+            f'margin:0 3px 0 10px"></span>{html.escape(LEGEND_WORDS[k])}'
             for k, c in VERDICT_COLORS.items()
         )
         for b in self.buttons:
