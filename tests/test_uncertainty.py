@@ -269,3 +269,82 @@ def test_a_forearm_less_rigs_map_starts_and_ends_on_the_true_frames():
     err = res.alignment.map - case.truth  # hand frames
     assert abs(err[0]) <= 1.0 and abs(err[-1]) <= 3.0
     assert np.percentile(np.abs(err), 95) * 1000.0 / case.hand.fps < 60.0
+
+
+def test_verdicts_count_what_a_place_adds_to_a_pair_the_motion_does_not_pin():
+    # pinned pairs (typical level <= 100 ms): the absolute thresholds, as before
+    assert [U.verdict(v, 40.0) for v in (30.0, 60.0, 150.0)] == ["ok", "check", "desync"]
+    # a pair whose typical uncertainty is 600 ms: what a frame adds to it
+    assert [U.verdict(v, 600.0) for v in (300.0, 640.0, 680.0, 720.0)] == [
+        "typical",
+        "typical",
+        "check",
+        "desync",
+    ]
+    s = int(Phase.STROKE)
+    ms = np.array([900, 900, 600, 600, 620, 600, 800, 600, 600, 600.0])
+    matched = np.array([False, False] + [True] * 8)
+    unc = U.Uncertainty(
+        ms=ms,
+        pass1_ms=ms,
+        pass2_ms=ms,
+        fps=30.0,
+        matched=matched,
+        typical_ms=U.typical_level(ms, matched),
+    )
+    assert unc.typical_ms == 600.0 and not unc.pinned
+    labels = np.array([s, s, 0, 0, s, s, s, 0, s, 0])
+    got = [(x.start, x.end, x.verdict) for x in U.strokes(unc, labels, s)]
+    # the open end's stroke is not timed; the worst of a stroke counts matched rows only
+    assert got == [(0, 1, "unmatched"), (4, 6, "desync"), (8, 8, "typical")]
+    assert unc.frame_verdicts()[:2] == ["unmatched", "unmatched"]
+    line = U.summary_line(U.strokes(unc, labels, s), unc.typical_ms)
+    assert line.count("do not pin the timing") == 1 and "±600 ms" in line
+    assert "1 of 3 strokes" in line and "body frames 4-6" in line
+
+
+@pytest.fixture(scope="module")
+def demo():
+    """The bundled demo pair: a Bandai body waving + a Leap hand making OK signs (two
+    different performances, so no alignment is pinned by the motion)."""
+    import json as _json
+    from pathlib import Path
+
+    from engine.io.bvh import read_bvh
+
+    root = Path(__file__).resolve().parents[1] / "sample_data"
+    spec = _json.loads((root / "samples.json").read_text())["demo"]
+    body, hand = read_bvh(root / spec["body"]), read_bvh(root / spec["hand"])
+    res = P.splice(body, hand, side=spec["side"], transfer_fingers=False)
+    return res, assess_splice(res.features, res.alignment)
+
+
+def test_the_demo_pair_is_reported_not_pinned_once_not_red_everywhere(demo):
+    # stranger2's report (item 3): every stroke of every real pair was "desync" and the
+    # strip red from end to end: the pair's own uncertainty is over 100 ms everywhere
+    res, a = demo
+    unc = a.uncertainty
+    assert not unc.pinned and unc.typical_ms > U.DESYNC_MS
+    verdicts = unc.frame_verdicts()
+    n = len(verdicts)
+    for first, last in res.alignment.unmatched_body:  # open ends: untimed, not red
+        assert set(verdicts[first : last + 1]) == {"unmatched"}
+    matched = [v for v in verdicts if v != "unmatched"]
+    assert 0 < matched.count("desync") < 0.5 * len(matched)
+    assert matched.count("typical") > 0.4 * len(matched)
+    assert len(verdicts) == n == res.features.n
+    fields = a.report_fields()["desync"]
+    assert fields["pinned"] is False and fields["typical_ms"] == pytest.approx(unc.typical_ms, abs=0.1)
+    assert fields["summary"].count("do not pin the timing") == 1
+    # the numbers themselves are not changed: the bench's ρ and flag ratio use them
+    assert np.array_equal(unc.ms, U.alignment_uncertainty(res.features, res.alignment).ms)
+
+
+def test_a_split_pair_is_pinned_and_keeps_the_absolute_verdicts(case):
+    res = P.splice(case.body, case.hand, transfer_fingers=False)
+    a = assess_splice(res.features, res.alignment)
+    unc = a.uncertainty
+    assert unc.pinned and unc.typical_ms <= U.DESYNC_MS
+    assert "do not pin" not in a.summary
+    for k in a.strokes:
+        assert k.verdict == U.verdict(k.uncertainty_ms) or k.verdict == "unmatched"

@@ -29,10 +29,15 @@ Keys (all frame numbers 0-based):
 ``uncertainty_ms``     for every body frame, how far (ms of the hand take) the matched hand
                        time could move at little extra cost (``engine.splice.uncertainty``)
 ``strokes``            the body take's gesture strokes: ``{"start", "end", "uncertainty_ms",
-                       "verdict"}`` (verdict ``ok`` < 50 ms, ``check`` <= 100 ms, ``desync``)
+                       "verdict"}`` (verdict ``ok`` < 50 ms, ``check`` <= 100 ms, ``desync``;
+                       in a pair not pinned: ``typical``/``check``/``desync`` for up to 50,
+                       up to 100, more ms above its typical level; ``unmatched``: outside
+                       the overlap)
 ``suggested_points``   ``[[body frame, hand frame], ...]``: the least certain places, with the
                        hand frame matched there now: where a matching point helps most
-``desync``             ``{"threshold_ms", "summary"}``: the one-line summary the CLI prints
+``desync``             ``{"threshold_ms", "typical_ms", "pinned", "summary"}``: the pair's
+                       typical uncertainty (median over matched frames), whether it is at
+                       most the threshold, and the one-line summary the CLI prints
 """
 
 from __future__ import annotations

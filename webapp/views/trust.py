@@ -3,7 +3,11 @@ suggested matching points (issue 17; the numbers come from ``engine.splice.uncer
 
 * a strip under the body take's phase track, one cell per body frame, green / amber /
   red for an uncertainty under 50 ms / up to 100 ms / above (viewers notice desync
-  above ~100 ms);
+  above ~100 ms); rows with no hand match (open ends) light grey. In a pair the motion
+  does not pin anywhere (its typical uncertainty is over 100 ms: two different
+  performances) the summary says so once, and the colours count what a place adds to
+  that typical level (grey: no worse than the rest of the pair; amber / red: 50 / 100 ms
+  more), so the places to check first still stand out;
 * a light region around the path on the matrix: ± the uncertainty, in hand frames;
 * the desync meter: a bar under each gesture stroke of the body take's phase track in
   its verdict's colour, and a one-line summary;
@@ -31,11 +35,26 @@ from bokeh.models import ColumnDataSource, HoverTool
 from webapp.state import Session
 from webapp.views._dispatch import with_document_lock
 
-VERDICT_COLORS = {"ok": "#2e7d32", "check": "#f9a825", "desync": "#c62828"}
+VERDICT_COLORS = {
+    "ok": "#2e7d32",
+    "check": "#f9a825",
+    "desync": "#c62828",
+    "typical": "#9e9e9e",
+    "unmatched": "#e0e0e0",
+}
 VERDICT_WORDS = {
     "ok": "in sync (< 50 ms)",
     "check": "check (50–100 ms)",
     "desync": "may look out of sync (> 100 ms)",
+    "typical": "not pinned, like the rest of this pair",
+    "unmatched": "no hand match (the fingers hold)",
+}
+#: the words of a pair the motion does not pin (``Uncertainty.pinned`` false): the
+#: verdicts then count what a place adds to the pair's typical uncertainty
+UNPINNED_WORDS = {
+    **VERDICT_WORDS,
+    "check": "less certain than the rest of this pair (+50–100 ms)",
+    "desync": "least certain: a matching point helps most here (+100 ms or more)",
 }
 REGION_COLOR = "#ffffff"
 #: assess once edits have paused this long (each drag is an edit; an assessment costs more
@@ -44,7 +63,15 @@ DEBOUNCE_MS = 1000
 _POOL = concurrent.futures.ThreadPoolExecutor(max_workers=2, thread_name_prefix="hs-trust")
 
 
-def _runs(values: list[str]) -> dict:
+#: the legend under the matrix (static: one text for pinned pairs and pairs not pinned)
+LEGEND_WORDS = {
+    **VERDICT_WORDS,
+    "check": "check (50–100 ms; in a pair not pinned: 50–100 ms over its typical)",
+    "desync": "may look out of sync (> 100 ms; in a pair not pinned: > 100 ms over its typical)",
+}
+
+
+def _runs(values: list[str], words: dict = VERDICT_WORDS) -> dict:
     """Runs of equal verdicts as quads along the body axis."""
     if not values:
         return {"start": [], "stop": [], "color": [], "verdict": []}
@@ -56,7 +83,7 @@ def _runs(values: list[str]) -> dict:
         "start": starts - 0.5,
         "stop": stops - 0.5,
         "color": [VERDICT_COLORS[x] for x in v[starts]],
-        "verdict": [VERDICT_WORDS[x] for x in v[starts]],
+        "verdict": [words[x] for x in v[starts]],
     }
 
 
@@ -64,10 +91,7 @@ class TrustView:
     """The trust layers of one session's cost matrix view."""
 
     def __init__(self, session: Session, matrix):
-        from engine.splice.uncertainty import verdict
-
         self.session = session
-        self._verdict = verdict
         self._width = matrix.panel_width
         self._matrix = matrix  # draws the region thinned to the screen (``show_line``)
         self._doc = pn.state.curdoc
@@ -265,13 +289,14 @@ class TrustView:
             x,
             {"lo": (warp - frames).astype(np.float32), "hi": (warp + frames).astype(np.float32)},
         )
-        self.strip_source.data = _runs([self._verdict(v) for v in unc.ms])
+        words = VERDICT_WORDS if unc.pinned else UNPINNED_WORDS
+        self.strip_source.data = _runs(unc.frame_verdicts(), words)
         st = trust.strokes
         self.meter_source.data = {
             "start": [k.start - 0.5 for k in st],
             "stop": [k.end + 0.5 for k in st],
             "color": [VERDICT_COLORS[k.verdict] for k in st],
-            "verdict": [VERDICT_WORDS[k.verdict] for k in st],
+            "verdict": [words[k.verdict] for k in st],
             "ms": [k.uncertainty_ms for k in st],
         }
         self.summary.object = "<b>Desync meter:</b> " + html.escape(trust.summary)
@@ -310,7 +335,7 @@ class TrustView:
         width = self._width
         legend = " ".join(
             f'<span style="display:inline-block;width:10px;height:10px;background:{c};'
-            f'margin:0 3px 0 10px"></span>{html.escape(VERDICT_WORDS[k])}'
+            f'margin:0 3px 0 10px"></span>{html.escape(LEGEND_WORDS[k])}'
             for k, c in VERDICT_COLORS.items()
         )
         for b in self.buttons:
