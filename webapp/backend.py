@@ -634,7 +634,7 @@ def preview_video(
     """
     import tempfile
 
-    from engine.render.video import gif_bytes, write_mp4
+    from engine.render.video import gif_bytes, gif_frame, write_mp4
 
     if prepared is None or solution is None:
         raise HandSpliceError("no takes loaded")
@@ -650,7 +650,8 @@ def preview_video(
         return made
     frames = []
     for done, i in enumerate(indices, 1):
-        frames.append(render_frame(prepared, solution, i, camera, False, size))
+        image = render_frame(prepared, solution, i, camera, False, size)
+        frames.append(gif_frame(image) if fmt == "gif" else image)  # quantised as it goes
         if progress is not None:
             progress(done, total)
     # one video encoder for the CLI and the app: engine.render.video

@@ -118,15 +118,28 @@ def gif_schedule(n: int, fps: float) -> tuple[list[int], list[int]]:
     return kept, delays
 
 
-def gif_bytes(frames: Sequence[np.ndarray], fps: float) -> bytes:
-    """A looping GIF of ``(H, W, 3) uint8`` frames playing at exactly ``fps`` (see
-    :func:`gif_schedule`); Pillow."""
+def gif_frame(image: np.ndarray):
+    """``image (H, W, 3) uint8`` as the palette image a GIF stores (a Pillow "P" image:
+    its own 256 colours by median cut, exactly what Pillow's GIF writer makes of an RGB
+    frame). Quantising each frame as it is rendered spreads the encoder's main cost
+    over the render, so a progress bar at its end means the file is nearly written."""
+    from PIL import Image
+
+    return Image.fromarray(_as_frame(image)).convert("P", palette=Image.Palette.ADAPTIVE)
+
+
+def gif_bytes(frames: Sequence, fps: float) -> bytes:
+    """A looping GIF of frames playing at exactly ``fps`` (see :func:`gif_schedule`);
+    Pillow. Each frame is an ``(H, W, 3) uint8`` array or a :func:`gif_frame` already."""
     import io
 
     from PIL import Image
 
     kept, delays = gif_schedule(len(frames), fps)
-    images = [Image.fromarray(_as_frame(frames[k], f"frame {k}")) for k in kept]
+    images = [
+        frames[k] if isinstance(frames[k], Image.Image) else gif_frame(_as_frame(frames[k], f"frame {k}"))
+        for k in kept
+    ]
     buf = io.BytesIO()
     images[0].save(
         buf,
@@ -148,12 +161,13 @@ def write_gif(
     progress: Progress | None = None,
     total: int | None = None,
 ) -> Path:
-    """Write frames as a looping GIF playing at exactly ``fps`` (:func:`gif_bytes`)."""
+    """Write frames as a looping GIF playing at exactly ``fps`` (:func:`gif_bytes`);
+    each frame is quantised as it arrives (:func:`gif_frame`), before ``progress``."""
     if not fps > 0:
         raise ParameterError(f"fps {fps}: must be positive")
     collected = []
     for k, frame in enumerate(frames):
-        collected.append(_as_frame(frame, f"frame {k}"))
+        collected.append(gif_frame(_as_frame(frame, f"frame {k}")))
         if progress:
             progress(k + 1, total or 0)
     if not collected:
