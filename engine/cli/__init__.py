@@ -41,6 +41,18 @@ def output_file(text: str) -> str:
     return text
 
 
+def load_take(path):
+    """``engine.io.load_take(path)`` for a command: the reader's notes (``meta.notes``,
+    e.g. a TRC whose header promises more frames than it holds) are printed on stderr,
+    one line each, ``handsplice: note: ...``; they are not errors (the command goes on)."""
+    from engine.io import load_take as read
+
+    take = read(path)
+    for note in take.meta.notes:
+        print(f"handsplice: note: {note}", file=sys.stderr)
+    return take
+
+
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # argparse's own exit status is already 2
         self.exit(2, f"{self.prog}: error: {message}\n")
