@@ -128,6 +128,37 @@ def gif_frame(image: np.ndarray):
     return Image.fromarray(_as_frame(image)).convert("P", palette=Image.Palette.ADAPTIVE)
 
 
+class GifFrames:
+    """Frames quantised for a GIF (:func:`gif_frame`) on a worker thread, in order, while
+    the caller renders the next one: Pillow's quantiser releases the interpreter lock, so
+    on two cores the median cut (a third of a GIF's time at 640x480) runs beside
+    the renderer instead of after it. Use as a context manager; :meth:`images` waits for
+    the last ones."""
+
+    def __init__(self):
+        from concurrent.futures import ThreadPoolExecutor
+
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="hs-gif")
+        self._jobs: list = []
+
+    def add(self, image: np.ndarray) -> None:
+        """Queue ``image (H, W, 3) uint8`` (not modified afterwards by the caller)."""
+        self._jobs.append(self._pool.submit(gif_frame, _as_frame(image, f"frame {len(self._jobs)}")))
+
+    def __len__(self) -> int:
+        return len(self._jobs)
+
+    def images(self) -> list:
+        """The palette images, in the order added."""
+        return [job.result() for job in self._jobs]
+
+    def __enter__(self) -> GifFrames:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._pool.shutdown(wait=True, cancel_futures=True)
+
+
 def gif_bytes(frames: Sequence, fps: float) -> bytes:
     """A looping GIF of frames playing at exactly ``fps`` (see :func:`gif_schedule`);
     Pillow. Each frame is an ``(H, W, 3) uint8`` array or a :func:`gif_frame` already."""
@@ -162,18 +193,19 @@ def write_gif(
     total: int | None = None,
 ) -> Path:
     """Write frames as a looping GIF playing at exactly ``fps`` (:func:`gif_bytes`);
-    each frame is quantised as it arrives (:func:`gif_frame`), before ``progress``."""
+    each frame is quantised beside the rendering of the next (:class:`GifFrames`)."""
     if not fps > 0:
         raise ParameterError(f"fps {fps}: must be positive")
-    collected = []
-    for k, frame in enumerate(frames):
-        collected.append(gif_frame(_as_frame(frame, f"frame {k}")))
-        if progress:
-            progress(k + 1, total or 0)
-    if not collected:
-        raise ValueError("write_gif: no frames")
+    with GifFrames() as collected:
+        for k, frame in enumerate(frames):
+            collected.add(frame)
+            if progress:
+                progress(k + 1, total or 0)
+        if not len(collected):
+            raise ValueError("write_gif: no frames")
+        images = collected.images()
     path = Path(path)
-    write_bytes(path, gif_bytes(collected, fps))
+    write_bytes(path, gif_bytes(images, fps))
     return path
 
 

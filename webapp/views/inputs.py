@@ -278,13 +278,13 @@ class InputsView:
         for which in ("body", "hand"):
             kept = self._pending.get(which)
             if kept is not None:
+                notes = "".join(
+                    f"; <span class='hs-reader-note'>note: {safe_text.html(n)}</span>"
+                    for n in _own_notes(kept)
+                )
                 parts.append(
                     f"{which}: <b>{safe_text.html(kept.name)}</b> "
-                    f"({safe_text.html(_describe(kept.summary))})"
-                    + "".join(
-                        f" <span class='hs-reader-note'>Note: {safe_text.html(n)}</span>"
-                        for n in kept.summary.get("notes", ())
-                    )
+                    f"({safe_text.html(_describe(kept.summary))}{notes})"
                 )
         if not parts:
             self.uploaded.object = ""
@@ -454,6 +454,12 @@ class InputsView:
             ),
             sizing_mode="stretch_width",
         )
+
+
+def _own_notes(kept: uploads.Kept) -> list[str]:
+    """An upload's reader notes without the file's name in front (the line names it)."""
+    prefix = f"{kept.name}: "
+    return [n[len(prefix) :] if n.startswith(prefix) else n for n in kept.summary.get("notes", ())]
 
 
 def _describe(summary: dict) -> str:
