@@ -349,6 +349,15 @@ def render_to_file(
     return writer(generate(), path, out_fps, progress=progress, total=len(picks))
 
 
+def remaining_text(spent: float, done: int, total: int) -> str:
+    """``"about 40 s left"`` from the seconds ``spent`` on ``done`` of ``total`` steps
+    (an even pace), or ``""`` before the second step or once done."""
+    if done < 2 or done >= total or spent <= 0:
+        return ""
+    left = spent / done * (total - done)
+    return f"about {left:.0f} s left" if left < 120 else f"about {left / 60:.0f} min left"
+
+
 def progress_printer(label: str = "rendering", stream=None, min_interval: float = 0.2) -> Progress:
     """A ``progress(done, total)`` that draws a one-line bar on ``stream`` (stderr)."""
     stream = stream or sys.stderr
@@ -364,7 +373,9 @@ def progress_printer(label: str = "rendering", stream=None, min_interval: float 
             width = 30
             fill = int(width * done / total)
             bar = "#" * fill + "-" * (width - fill)
-            msg = f"\r{label} [{bar}] {done}/{total} {now - state['start']:.1f}s"
+            spent = now - state["start"]
+            left = remaining_text(spent, done, total)
+            msg = f"\r{label} [{bar}] {done}/{total} {spent:.1f}s{left and ', ' + left}  "
         else:
             msg = f"\r{label} {done} frames {now - state['start']:.1f}s"
         stream.write(msg + ("\n" if final else ""))
