@@ -47,7 +47,11 @@ def load_take(path):
     one line each, ``handsplice: note: ...``; they are not errors (the command goes on)."""
     from engine.io import load_take as read
 
-    take = read(path)
+    return show_notes(read(path))
+
+
+def show_notes(take):
+    """Print ``take``'s reader notes on stderr (``handsplice: note: ...``); returns it."""
     for note in take.meta.notes:
         print(f"handsplice: note: {note}", file=sys.stderr)
     return take
