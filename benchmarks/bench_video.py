@@ -61,6 +61,32 @@ print(json.dumps({"wall": time.perf_counter() - w0, "cpu": cpu() - c0, "bytes": 
 """
 
 
+#: the profile behind the changes (cProfile with CPU time, b3485ff, 2026-12-02)
+WHERE_THE_TIME_GOES = """Where a render's time goes (cProfile, CPU time, b3485ff; per 640x480 frame of
+the CLI GIF, ~100 ms CPU): llvmpipe rasterising in `glReadPixels`'s wait ~50 ms (of which
+the floor patch ~25 ms: the largest surface, every pixel PBR-shaded with three lights, a
+third of its tiles fully transparent; the 4x MSAA ~30 ms of the whole, measured by
+patching pyrender's sample count: keeping it, as dropping it makes the edges jagged),
+pyrender's Python per frame (scene, nodes, uniforms, buffer upload) ~15 ms, the mannequin's
+skinning and normals ~2 ms, Pillow's median-cut quantisation for the GIF ~25-35 ms (after
+the last frame, with the progress bar already full), and starting the command (imports,
+pyrender, the FK kernel) ~5 s CPU once. The app's three panels (720x272) cost ~200 ms CPU
+a frame: raster ~60, pyrender's Python ~45 (three scenes), quantisation ~30.
+Changed, each giving the same pictures: the floor's fully transparent tiles are not drawn;
+the colour is read back without pyrender's depth readback and linearisation (the overlay
+still reads depth); GIF frames are quantised on a worker thread as they are rendered
+(Pillow releases the interpreter lock: the quantisation overlaps the rendering where a core
+is free, and the bar's end is the file's end; the same GIF bytes, tested); the app's MP4 is
+fed to ffmpeg frame by frame (it encoded after the last frame before). Wall times here
+are dominated by the machine's load (load average 11-15 during the run: a process got a
+fifth of a core); the CPU ratios are the figure to read. An in-process A/B of the app's
+GIF (40 frames, threaded against serial quantisation, 3 interleaved repeats) gave the same
+CPU (4.9 s each) and the same wall time at that load: the overlap only pays where a core
+is idle. Left as they were, since each would change the pictures: the MSAA, the size, the
+floor's shading.
+"""
+
+
 def _reference_tree(rev: str, folder: Path) -> Path:
     """``engine`` and ``webapp`` of ``rev`` under ``folder`` (git archive)."""
     archive = folder / "ref.tar"
@@ -176,7 +202,7 @@ def main(argv=None) -> None:
         f"{100 * changed:.4f} % of a frame on average, by at most {max_diff} levels of 255 "
         "(the floor's fully transparent tiles are no longer drawn; the rounding of the "
         "blend at their edge). One frame of each: `benchmarks/figures/video_before_after.png` "
-        f"(left {args.reference}, right this tree).\n"
+        f"(left {args.reference}, right this tree).\n\n" + WHERE_THE_TIME_GOES
     )
     print(text)
     if not args.quick:
