@@ -166,8 +166,7 @@ def _export_glb(args: argparse.Namespace, out) -> int:
 
 def _load(path: str):
     from engine.base.errors import ParameterError
-    from engine.cli import show_notes
-    from engine.io import load_take
+    from engine.cli import load_take
     from engine.model.motion import Motion
 
     take = load_take(path)
@@ -175,7 +174,7 @@ def _load(path: str):
         raise ParameterError(f"{path}: holds markers; render needs a skeletal take (.bvh)")
     if take.n_frames == 0:
         raise ParameterError(f"{path}: has no frames to render")
-    return show_notes(take)  # after the checks: a refused file gets its one error line only
+    return take
 
 
 def _roles(args, motion):
