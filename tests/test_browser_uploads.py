@@ -335,6 +335,33 @@ def test_connection_lost_shows_a_notice_with_reload(browser, tmp_path_factory):
 # ---------------------------------------------------------------- script injection
 
 
+def test_a_cut_trc_says_so_in_the_page_escaped(page, tmp_path):
+    """A TRC whose header says 652 frames but holds 40 rows: the upload line and the
+    takes' note say so, the file's name (HTML here) shown literally, never run."""
+    lines = BODY_TRC.read_text().splitlines(keepends=True)
+    data = [ln for ln in lines[5:] if ln.strip(",\t \r\n")]
+    name = f"{XSS_PAYLOAD}cut.trc"
+    body = {
+        "name": name,
+        "mimeType": "application/octet-stream",
+        "buffer": "".join(lines[:5] + data[:40]).encode(),
+    }
+    note = f"{name}: the header says 652 frames, 40 were read"
+    _upload(page, "body", body)
+    text = _wait_uploaded(page, r"Uploaded body:.*now the other take")
+    assert f"{name} (51 markers, 40 frames at 100 fps; note: the header says 652 frames, 40 were read)" in text
+    _upload(page, "hand", HAND_BVH)
+    _wait_uploaded(page, r"Uploaded body:.*hand:.*open\.")
+    shown = page.locator(".hs-marker-note")
+    shown.wait_for(state="visible", timeout=BUSY_S * 1000)
+    assert note in pane_text(shown)
+    assert "no skeleton to receive fingers" in pane_text(shown)  # the marker note stays
+    shown.scroll_into_view_if_needed()
+    page.screenshot(path=str(tmp_path / "trc_note.png"))
+    assert not xss_ran(page)
+    assert not page.errors, page.errors
+
+
 def test_the_payload_runs_when_a_page_injects_it(page):
     """Control: the payload does set the flag when inserted as HTML (the tests below can
     fail)."""

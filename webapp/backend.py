@@ -650,7 +650,7 @@ def preview_video(
     """
     import tempfile
 
-    from engine.render.video import gif_bytes, write_mp4
+    from engine.render.video import GifFrames, gif_bytes, write_mp4
 
     if prepared is None or solution is None:
         raise HandSpliceError("no takes loaded")
@@ -664,18 +664,25 @@ def preview_video(
         if progress is not None:
             progress(total, total)
         return made
-    frames = []
-    for done, i in enumerate(indices, 1):
-        frames.append(render_frame(prepared, solution, i, camera, False, size))
-        if progress is not None:
-            progress(done, total)
-    # one video encoder for the CLI and the app: engine.render.video
+
+    def rendered():
+        for done, i in enumerate(indices, 1):
+            yield render_frame(prepared, solution, i, camera, False, size)
+            if progress is not None:
+                progress(done, total)
+
+    # one video encoder for the CLI and the app: engine.render.video; either encodes
+    # beside the rendering (GIF: a quantiser thread; MP4: ffmpeg fed frame by frame)
     if fmt == "gif":
-        data = gif_bytes(frames, fps)  # exact timing: per-frame centisecond delays
+        with GifFrames() as frames:
+            for image in rendered():
+                frames.add(image)
+            images = frames.images()
+        data = gif_bytes(images, fps)  # exact timing: per-frame centisecond delays
     else:
         with tempfile.TemporaryDirectory(prefix="handsplice-video-") as folder:
             path = Path(folder) / "preview.mp4"
-            write_mp4(frames, path, fps)
+            write_mp4(rendered(), path, fps)
             data = path.read_bytes()
     solution.cache[("video", fmt)] = (key, data)  # the latest of each format, per alignment
     if progress is not None:

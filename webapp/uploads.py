@@ -238,7 +238,12 @@ def check(cfg: AppConfig, staged: Staged) -> Kept:
         _discard(staged.path)
     enforce_quota(cfg, keep={target.name})
     if take is not None and hasattr(take, "meta"):  # the kept file's name, as a read gives
-        take = dataclasses.replace(take, meta=dataclasses.replace(take.meta, source=str(target)))
+        # the reader's notes name the user's file, as its errors do (shown in the page)
+        notes = tuple(_bounded(_rename(n, staged.path, staged.name)) for n in take.meta.notes)
+        summary = {**summary, "notes": list(notes)}
+        take = dataclasses.replace(
+            take, meta=dataclasses.replace(take.meta, source=str(target), notes=notes)
+        )
     return Kept(digest, target, staged.name, summary, take)
 
 

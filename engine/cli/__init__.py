@@ -9,6 +9,10 @@ prints one line ``handsplice: error: ...`` with exit status 2, as do ``MemoryErr
 and ``RecursionError`` (input beyond what ``engine.base.limits`` refuses up front, one line,
 never a traceback); anything else is
 a bug, printed on one line with exit status 1 (``--debug`` shows the traceback).
+
+Notes: what a reader accepted but a user should know (``meta.notes``, e.g. a TRC cut
+short) is printed on stderr as ``handsplice: note: ...`` once the command has finished
+(:func:`load_take`); it does not change the exit status.
 """
 
 from __future__ import annotations
@@ -39,6 +43,29 @@ def output_file(text: str) -> str:
             f"{text}: the folder {folder} does not exist (create it first)"
         )
     return text
+
+
+#: reader notes of the takes this command read, printed once it has finished
+_NOTES: list[str] = []
+
+
+def load_take(path):
+    """``engine.io.load_take(path)`` for a command. The reader's notes (``meta.notes``,
+    e.g. a TRC whose header promises more frames than it holds) are printed on stderr,
+    one line each, ``handsplice: note: ...``, when the command finishes without an error
+    (a note is not an error: the exit status stays 0; a command that refuses the file
+    prints its one error line only)."""
+    from engine.io import load_take as read
+
+    take = read(path)
+    _NOTES.extend(n for n in take.meta.notes if n not in _NOTES)
+    return take
+
+
+def _print_notes() -> None:
+    for note in _NOTES:
+        print(f"handsplice: note: {note}", file=sys.stderr)
+    _NOTES.clear()
 
 
 class _Parser(argparse.ArgumentParser):
@@ -74,8 +101,11 @@ def main(argv: list[str] | None = None) -> int:
 
     if args.command != "serve":  # the server keeps its own signal handling (tornado)
         handle_termination()  # SIGTERM unwinds like Ctrl-C: temporary outputs are removed
+    _NOTES.clear()
     try:
-        return int(args.func(args) or 0)
+        code = int(args.func(args) or 0)
+        _print_notes()
+        return code
     except KeyboardInterrupt as exc:
         terminated = isinstance(exc, Terminated)
         print(f"handsplice: {'terminated' if terminated else 'interrupted'}", file=sys.stderr)

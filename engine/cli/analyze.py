@@ -62,11 +62,11 @@ def run(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
     from engine.base.errors import MotionFormatError
+    from engine.cli import load_take
     from engine.gesture.analysis import analyze_take, summary_lines
     from engine.gesture.body import find_arms
     from engine.gesture.handedness import HandednessParameters
     from engine.gesture.phases import PhaseParameters
-    from engine.io import load_take
     from engine.model.motion import Motion
 
     take = load_take(args.file)

@@ -45,7 +45,7 @@ def add_parser(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from engine.io import load_take
+    from engine.cli import load_take
     from engine.model.motion import MarkerSet
 
     overrides = None
@@ -86,6 +86,7 @@ def describe_motion(motion, path, overrides=None, side=None) -> dict:
         "duration_s": _number(motion.duration),
         "units": motion.meta.units,
         "up_axis": motion.meta.up_axis,
+        "notes": list(motion.meta.notes),  # also printed on stderr (engine.cli.load_take)
         "joints": {"count": motion.skeleton.n_joints, "names": list(motion.skeleton.names)},
         "roles": roles.to_dict(),
         "sides": roles.sides_found(),
@@ -115,6 +116,7 @@ def describe_markers(markers, path, side=None) -> dict:
         "duration_s": _number(markers.duration),
         "units": markers.meta.units,
         "up_axis": markers.meta.up_axis,
+        "notes": list(markers.meta.notes),  # also printed on stderr (engine.cli.load_take)
         "markers": {
             "count": len(markers.labels),
             "labels": list(markers.labels),

@@ -166,7 +166,7 @@ def _export_glb(args: argparse.Namespace, out) -> int:
 
 def _load(path: str):
     from engine.base.errors import ParameterError
-    from engine.io import load_take
+    from engine.cli import load_take
     from engine.model.motion import Motion
 
     take = load_take(path)

@@ -168,8 +168,8 @@ def run(args: argparse.Namespace) -> int:
 
     from engine.base.atomic import write_texts
     from engine.base.errors import ParameterError
+    from engine.cli import load_take
     from engine.dtw import constraints as C
-    from engine.io import load_take
     from engine.io.bvh import format_bvh
     from engine.splice import pipeline
 

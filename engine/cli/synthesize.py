@@ -63,8 +63,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from engine.base.errors import MotionFormatError, ParameterError
+    from engine.cli import load_take
     from engine.gesture.synthesis import synthesize_from_clip, synthesize_from_poses
-    from engine.io import load_take
     from engine.io.bvh import write_bvh
     from engine.model.motion import Motion
 

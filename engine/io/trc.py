@@ -16,7 +16,9 @@ Layout (tab-separated; comma-separated files such as pyomeca's are accepted too)
 - a data row must hold ``2 + 3 * markers`` fields (extra trailing empty fields
   are ignored); anything else is an error naming the line;
 - the number of data rows wins over ``NumFrames`` (exports cut short keep their
-  header; pyomeca's ``markers.trc`` declares 652 frames and holds 93);
+  header; pyomeca's ``markers.trc`` declares 652 frames and holds 93); when they
+  differ, ``meta.notes`` says so (``"markers.trc: the header says 652 frames, 93
+  were read"``), which the command line and the app show;
 - TRC does not record an up axis: ``up_axis`` defaults to ``"y"`` (OpenSim's
   convention); pass ``up_axis="z"`` for Vicon-style Z-up data.
 """
@@ -161,8 +163,23 @@ def parse_trc(data: bytes | str, source: str | Path = "<input>", up_axis: str = 
     limits.check_take(source, len(rows), fps, len(labels), 3 * len(labels), len(text))
     table = np.asarray(rows, dtype=float)
     points = table[:, 2:].reshape(len(rows), len(labels), 3)
-    meta = MotionMeta(units=units, up_axis=up_axis, source=str(source), format="trc")
+    notes = _frame_count_notes(header.get("NumFrames", ""), len(rows), source)
+    meta = MotionMeta(
+        units=units, up_axis=up_axis, source=str(source), format="trc", notes=notes
+    )
     return MarkerSet(labels=tuple(labels), points=points, fps=fps, meta=meta)
+
+
+def _frame_count_notes(declared: str, n_read: int, source) -> tuple[str, ...]:
+    """A note when the header's ``NumFrames`` is not the number of data rows read (a
+    file cut short, or a header never updated); none when the header gives no count."""
+    if not (is_number(declared) and float(declared).is_integer()):
+        return ()
+    n_declared = int(float(declared))
+    if n_declared == n_read:
+        return ()
+    name = Path(str(source)).name
+    return (f"{name}: the header says {n_declared} frames, {n_read} were read",)
 
 
 def _decode(data: bytes | str, source) -> str:

@@ -110,12 +110,16 @@ class MotionMeta:
     up_axis : ``"y"`` or ``"z"``
     source : path of the file read, or a description
     format : ``"bvh"``, ``"c3d"``, ``"trc"`` or ``"derived"``
+    notes : what the reader accepted but a user should know, one line each, naming
+        the file (``"walk.trc: the header says 652 frames, 93 were read"``); the
+        command line prints them on stderr, the app shows them with the open takes
     """
 
     units: str = "unknown"
     up_axis: str = "y"
     source: str = ""
     format: str = "bvh"
+    notes: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)

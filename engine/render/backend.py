@@ -284,6 +284,59 @@ def release_current(renderer) -> None:
         eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT)
 
 
+def render_color(renderer, scene, depth: bool = False):
+    """``(color (H, W, 3) uint8, depth (H, W) float32 metres or None)`` of ``scene``.
+
+    Call under :data:`GL_LOCK`. pyrender always resolves, reads back and linearises the
+    depth buffer too (a second full-frame blit, a float read and five whole-image numpy
+    passes); a picture that does not need it (every one but the overlay's) reads the
+    colour only: the same pixels, a few milliseconds less per panel."""
+    inner = getattr(renderer, "_renderer", None)
+    if depth or inner is None:
+        return renderer.render(scene)
+    _install_color_only_read()
+    inner._handsplice_color_only = True
+    try:
+        return renderer.render(scene)
+    finally:
+        inner._handsplice_color_only = False
+
+
+def _install_color_only_read() -> None:
+    """Teach pyrender's ``Renderer`` to skip the depth readback when a caller asks
+    (:func:`render_color`); every other caller gets pyrender's own read."""
+    from pyrender.renderer import Renderer
+
+    if getattr(Renderer, "_handsplice_read", None) is not None:
+        return
+    original = Renderer._read_main_framebuffer
+
+    def read(self, scene, flags):
+        if not getattr(self, "_handsplice_color_only", False):
+            return original(self, scene, flags)
+        return _read_color(self), None
+
+    Renderer._handsplice_read = original
+    Renderer._read_main_framebuffer = read
+
+
+def _read_color(inner):
+    """The resolved colour of pyrender's multisampled main framebuffer, (H, W, 3) uint8,
+    top row first (what ``_read_main_framebuffer`` returns as colour)."""
+    import numpy as np
+    from OpenGL import GL
+
+    width, height = inner._main_fb_dims
+    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, inner._main_fb_ms)
+    GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, inner._main_fb)
+    GL.glBlitFramebuffer(
+        0, 0, width, height, 0, 0, width, height, GL.GL_COLOR_BUFFER_BIT, GL.GL_LINEAR
+    )
+    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, inner._main_fb)
+    data = GL.glReadPixels(0, 0, width, height, GL.GL_RGB, GL.GL_UNSIGNED_BYTE)
+    return np.flip(np.frombuffer(data, dtype=np.uint8).reshape(height, width, 3), axis=0)
+
+
 def release_renderer() -> None:
     """Delete the shared renderer (its OpenGL context); the next render makes a new one."""
     global _SHARED

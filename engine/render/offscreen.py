@@ -32,7 +32,13 @@ from engine.base.errors import ParameterError
 from engine.mesh.skinning import SkinnedMesh
 from engine.model.motion import Motion
 from engine.render import trails as tr
-from engine.render.backend import GL_LOCK, ensure_platform, release_current, shared_renderer
+from engine.render.backend import (
+    GL_LOCK,
+    ensure_platform,
+    release_current,
+    render_color,
+    shared_renderer,
+)
 from engine.render.scene import CAMERAS, TakeView, floor_mesh_arrays, stick_arrays
 
 VIEWS = ("single", "side_by_side", "overlay")
@@ -428,7 +434,7 @@ class Preview:
                 )
             renderer = self._get_renderer(width, height)
             try:
-                color, depth = renderer.render(scene)
+                color, depth = render_color(renderer, scene, depth=stick is not None)
                 color = np.array(color[..., :3], dtype=np.uint8, copy=True)
                 if stick is not None:
                     color = self._overlay(renderer, scene, color, depth, stick, v)

@@ -339,6 +339,11 @@ def floor_mesh_arrays(
     (colour alpha) fades to zero towards ``radius``. Tiles are aligned to the world
     grid, so the pattern stays put while the patch follows the character.
 
+    A tile whose four corners are all transparent is left out: it would draw nothing
+    (alpha is interpolated between the corners) yet the rasteriser would shade every
+    pixel it covers (a third of the patch's tiles; the floor is the largest surface of
+    a frame).
+
     Returns vertices ``(V, 3)``, faces ``(T, 3)``, colours ``(V, 4)``.
     """
     n = int(np.ceil(radius / tile)) + 1
@@ -354,6 +359,8 @@ def floor_mesh_arrays(
     corners = np.array([[0, 0], [1, 0], [1, 1], [0, 1]])
     xs = (ii[:, None] + corners[None, :, 0]) * tile
     zs = (kk[:, None] + corners[None, :, 1]) * tile
+    seen = (np.hypot(xs - center[0], zs - center[2]) < radius).any(axis=1)  # alpha > 0 somewhere
+    ii, kk, xs, zs = ii[seen], kk[seen], xs[seen], zs[seen]
     verts = np.stack([xs, np.full_like(xs, y), zs], -1).reshape(-1, 3)
     base = 4 * np.arange(len(ii))
     faces = np.concatenate(

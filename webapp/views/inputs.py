@@ -18,6 +18,7 @@ import dataclasses
 import functools
 import time
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 
 import panel as pn
 
@@ -181,18 +182,36 @@ class InputsView:
         )
 
     def _show_note(self, *_):
+        """What the open takes cannot give (markers), and what their readers noted
+        (``meta.notes``: a TRC cut short ...), each note escaped."""
         prepared = self.session.prepared
         if prepared is None:
             self.note.visible = False
             return
+        parts = [f"Note: {safe_text.markdown(n)}" for n in self._reader_notes(prepared)]
         if backend.marker_body(prepared):
-            self.note.object = MARKER_BODY_NOTE
+            parts.append(MARKER_BODY_NOTE)
         elif not hasattr(prepared.hand, "skeleton"):
-            self.note.object = MARKER_HAND_NOTE
-        else:
+            parts.append(MARKER_HAND_NOTE)
+        if not parts:
             self.note.visible = False
             return
+        self.note.object = "\n\n".join(parts)
         self.note.visible = True
+
+    def _reader_notes(self, prepared) -> list[str]:
+        """The body and hand takes' reader notes, naming each file as the user knows it
+        (an upload's own name, not the name it is kept under)."""
+        s = self.session
+        notes = []
+        for take, shown in ((prepared.body, s.body_name), (prepared.hand, s.hand_name)):
+            meta = getattr(take, "meta", None)
+            kept = Path(meta.source).name if meta is not None and meta.source else ""
+            for note in getattr(meta, "notes", ()):
+                if shown and kept and note.startswith(f"{kept}: "):
+                    note = f"{shown}: {note[len(kept) + 2 :]}"
+                notes.append(note)
+        return notes
 
     # ------------------------------------------------------------ uploads
 
@@ -259,9 +278,13 @@ class InputsView:
         for which in ("body", "hand"):
             kept = self._pending.get(which)
             if kept is not None:
+                notes = "".join(
+                    f"; <span class='hs-reader-note'>note: {safe_text.html(n)}</span>"
+                    for n in _own_notes(kept)
+                )
                 parts.append(
                     f"{which}: <b>{safe_text.html(kept.name)}</b> "
-                    f"({safe_text.html(_describe(kept.summary))})"
+                    f"({safe_text.html(_describe(kept.summary))}{notes})"
                 )
         if not parts:
             self.uploaded.object = ""
@@ -431,6 +454,12 @@ class InputsView:
             ),
             sizing_mode="stretch_width",
         )
+
+
+def _own_notes(kept: uploads.Kept) -> list[str]:
+    """An upload's reader notes without the file's name in front (the line names it)."""
+    prefix = f"{kept.name}: "
+    return [n[len(prefix) :] if n.startswith(prefix) else n for n in kept.summary.get("notes", ())]
 
 
 def _describe(summary: dict) -> str:

@@ -24,6 +24,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import panel as pn
 
+from engine.render.video import remaining_text
 from webapp import backend, safe_text
 from webapp.state import VIEW_STATE, Session
 
@@ -254,8 +255,12 @@ class SharingView:
             with lock:
                 done, total = counts["done"], counts["total"]
             self.progress.value = int(100 * done / max(total, 1))
+            spent = time.perf_counter() - t0
+            left = remaining_text(spent, done, total - 1)
             step = "encoding" if done >= total - 1 else f"frame {done} of {total - 1}"
-            self.progress_text.object = f"{what} ({span}): rendering… {step}"
+            self.progress_text.object = (
+                f"{what} ({span}): rendering… {step}, {spent:.0f} s" + (f", {left}" if left else "")
+            )
 
         self._exporting = True
         self.gif.disabled = self.mp4.disabled = True
