@@ -1034,3 +1034,39 @@ def test_a_link_with_points_outside_its_takes_opens_the_takes_without_them(cfg):
     assert s.solution is not None and "\n" not in s.error
     assert s.error.startswith("shared link: points[1] = (body frame 900, hand frame 50")
     assert s.refusal() is not None and s.refusal().field.startswith("points")
+
+
+def test_points_table_refuses_a_fraction_of_a_frame_with_the_rules_one_text(session):
+    """A hand frame of 12.5 typed in the table (a slip while typing 125) was truncated to
+    12: it is refused, the point kept, with engine.dtw.constraints' text; the tolerance
+    cell's refusals ('abc', 1000) say one range in one wording, as every front does."""
+    from types import SimpleNamespace
+
+    from engine.dtw import constraints as C
+    from webapp.views.controls import PointsTable
+
+    table = PointsTable(session)
+    session.add_point(60, 80)
+    before = session.points
+
+    def edit(column, value):
+        table._on_edit(SimpleNamespace(row=0, column=column, value=value))
+        return session.error
+
+    for column, key in (("hand frame", "hand"), ("body frame", "body")):
+        text = edit(column, 12.5)
+        assert session.points == before, column
+        with pytest.raises(C.ConstraintError) as info:
+            C.parse_frame(12.5, f"points[0].{key}")
+        assert text == str(info.value) and "12.5" in text and "whole frame" in text
+    with pytest.raises(C.ConstraintError):
+        C.parse_point("40:12.5")
+    # the session's own point API refuses it too (never int() truncation)
+    session.move_point(0, 60, 12.5)
+    assert session.points == before and "whole frame" in session.error
+    tol_texts = [edit("tolerance", v) for v in ("abc", "1000", "-3")]
+    assert session.points == before
+    for text in tol_texts:
+        assert text.startswith("points[0].tolerance: expected a number of frames from 0 to 500")
+    edit("hand frame", "125")
+    assert session.points[0].hand == 125 and session.error == ""
