@@ -16,7 +16,11 @@ HAND = MOCAP / "gestification/hello-world.bvh"
 
 
 def test_splice_writes_bvh_report_and_progress(tmp_path, capsys):
+    import re
+    import time
+
     out, rep = tmp_path / "out.bvh", tmp_path / "r.json"
+    t0 = time.perf_counter()
     code = main(
         [
             "splice",
@@ -34,9 +38,19 @@ def test_splice_writes_bvh_report_and_progress(tmp_path, capsys):
             "0.15",
         ]
     )
+    wall = time.perf_counter() - t0
     assert code == 0
     err = capsys.readouterr().err
     assert "pass 1" in err and "pass 2" in err and f"wrote {out}" in err
+    # the time said is what the user waited for (it said 'spliced in 3.02 s' for a 14.8 s
+    # run: the trust stage and the reading were not counted), and names what it covers
+    said = re.search(r"(\d+\.\d+) s in all \(splice (\d+\.\d+) s; the rest: ", err)
+    assert said, err
+    in_all, splice_s = float(said.group(1)), float(said.group(2))
+    stages = sum(float(t) for t in re.findall(r"^splice: .* done \((\d+\.\d+) s\)$", err, re.M))
+    trust_s = float(re.search(r"^splice: trust done \((\d+\.\d+) s\)$", err, re.M).group(1))
+    assert splice_s + trust_s - 0.02 <= in_all <= wall + 0.01
+    assert stages - 0.05 <= in_all
     report = json.loads(rep.read_text())
     from engine.splice.report import unmatched_summary
 
@@ -264,3 +278,31 @@ def test_bad_session_file_is_one_line(tmp_path, capsys):
     )
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "s.json: points[0].hand: missing" in err[0]
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["splice", str(BODY), str(HAND), "-o", "/nonexistent/dir/o.bvh"],
+        ["splice", str(BODY), str(HAND)],
+        ["splice", "--band"],
+        ["info", "--no-such-flag"],
+        ["analyze", "--no-such-flag"],
+        ["synthesize", "--no-such-flag"],
+        ["render", "--no-such-flag"],
+        ["batch", "--no-such-flag"],
+        ["serve", "--no-such-flag"],
+        ["no-such-command"],
+    ],
+)
+def test_argument_errors_are_the_readmes_one_line_form(argv, capsys):
+    """Every subcommand's argument errors: 'handsplice: error: ...' on one line, exit 2
+    (argparse wrote 'handsplice splice: error: argument -o/--output: ...')."""
+    with pytest.raises(SystemExit) as info:
+        main(argv)
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("handsplice: error: "), err
+    assert "argument " not in err and "usage:" not in err, err
+    if "-o" in argv:
+        assert err.startswith("handsplice: error: -o/--output: /nonexistent/dir/o.bvh: the folder")
