@@ -814,7 +814,9 @@ class Session(param.Parameterized):
             f"{len(self.points)} matching point{'s' if len(self.points) != 1 else ''}"
         )
         result = sol.cache.get("engine")
-        unmatched = unmatched_summary(getattr(result, "unmatched_body", ()), self.fps)
+        limit = result.unmatched_limit(self.fps) if hasattr(result, "unmatched_limit") else None
+        given = getattr(result, "max_unmatched_s", None) is not None
+        unmatched = unmatched_summary(getattr(result, "unmatched_body", ()), self.fps, limit, given)
         return text + (f" · {unmatched}" if unmatched else "")
 
     def axis_signals(self) -> tuple[np.ndarray, np.ndarray]:

@@ -282,7 +282,10 @@ def run(args: argparse.Namespace) -> int:
             f"{_took(time.perf_counter() - started, result.timings['total'])})",
             file=sys.stderr,
         )
-        unmatched = unmatched_summary(result.alignment.unmatched_body, fps)
+        a = result.alignment
+        unmatched = unmatched_summary(
+            a.unmatched_body, fps, a.unmatched_limit(fps), a.max_unmatched_s is not None
+        )
         if unmatched:
             print(f"splice: {unmatched}", file=sys.stderr)
         print(f"splice: {trust.summary}", file=sys.stderr)
