@@ -55,7 +55,8 @@ def test_splice_writes_bvh_report_and_progress(tmp_path, capsys):
     from engine.splice.report import unmatched_summary
 
     unmatched = unmatched_summary(report["unmatched_body"], 30.0)
-    assert (f"splice: {unmatched}\n" in err) == bool(unmatched)
+    # (the sentence may go on to say an end was cut by the open-end limit)
+    assert (f"\nsplice: {unmatched}" in err) == bool(unmatched)
     motion = read_bvh(out)
     assert motion.n_frames == read_bvh(BODY).n_frames
     assert find_roles(motion.skeleton).side("right").has_fingers
@@ -306,3 +307,18 @@ def test_argument_errors_are_the_readmes_one_line_form(argv, capsys):
     assert "argument " not in err and "usage:" not in err, err
     if "-o" in argv:
         assert err.startswith("handsplice: error: -o/--output: /nonexistent/dir/o.bvh: the folder")
+
+
+def test_an_end_cut_by_max_unmatched_is_named_in_the_unmatched_sentence(tmp_path, capsys):
+    """The demo pair leaves 30 and 23 body frames unmatched with the default limit; with
+    --max-unmatched 0.5 (15 frames) both ends stop at the limit, and the sentence says the
+    limit, not the data, cut them."""
+    body = MOCAP / "bandai-namco/dataset-2_wave-right-hand_normal_001.bvh"
+    hand = MOCAP / "gestification/fingers-ok.bvh"
+    out = tmp_path / "o.bvh"
+    argv = ["splice", str(body), str(hand), "-o", str(out), "--side", "right"]
+    assert main(argv + ["--max-unmatched", "0.5"]) == 0
+    err = capsys.readouterr().err
+    line = next(x for x in err.splitlines() if "have no hand match" in x)
+    assert line.startswith("splice: body frames 0-14, 172-186 (1.0 s) have no hand match"), line
+    assert "15 frames (0.5 s) at an end is the open-end limit (--max-unmatched)" in line
