@@ -336,3 +336,25 @@ def test_scheduler_address_and_a_dying_worker(takes, tmp_path, capsys, one_worke
     # the pair's own process died (engine.jobs.sandbox); the worker lives on for the next pair
     assert "process died (exit status 3)" in status["dies"]["error"], status["dies"]
     assert status["first"]["status"] == status["last"]["status"] == "done"
+
+
+def test_a_missing_take_fails_its_pair_before_any_cluster_starts(tmp_path):
+    """A manifest naming a hand file that does not exist: the pair is failed with the
+    splice command's one line ('PATH: no such file', no Python class name), and no worker
+    cluster is started for it (the client is never touched)."""
+    from engine.jobs.batch import run_batch
+
+    missing = tmp_path / "missing.bvh"
+    manifest = tmp_path / "m.csv"
+    manifest.write_text(f"body,hand,side\n{MOCAP / BODIES[0]},{missing},right\n")
+
+    class NoCluster:
+        def __getattr__(self, name):
+            raise AssertionError(f"the cluster was used ({name}) for a pair with no take")
+
+    result = run_batch(manifest, tmp_path / "out", client=NoCluster(), thumbnails="none")
+    (rec,) = result.records
+    assert rec["status"] == "failed"
+    assert rec["error"] == f"{missing}: no such file"
+    rows = list(csv.DictReader((tmp_path / "out" / "summary.csv").open()))
+    assert rows[0]["error"] == f"{missing}: no such file"

@@ -36,6 +36,8 @@ CASES = {
     "point outside the takes": (None, None, [(40, 30, None), (5000, 60, None)]),
     "consecutive body frames too far apart": (None, None, [(40, 30, None), (41, 60, None)]),
     "a point on the first body frame, off the corner (open ends)": (None, None, [(0, 30, None)]),
+    "a hand frame that is not a whole number": (None, None, [(40, 12.5, None)]),
+    "a body frame that is not a whole number": (None, None, [(40.5, 30, None)]),
 }
 
 

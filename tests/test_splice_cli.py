@@ -16,7 +16,11 @@ HAND = MOCAP / "gestification/hello-world.bvh"
 
 
 def test_splice_writes_bvh_report_and_progress(tmp_path, capsys):
+    import re
+    import time
+
     out, rep = tmp_path / "out.bvh", tmp_path / "r.json"
+    t0 = time.perf_counter()
     code = main(
         [
             "splice",
@@ -34,14 +38,25 @@ def test_splice_writes_bvh_report_and_progress(tmp_path, capsys):
             "0.15",
         ]
     )
+    wall = time.perf_counter() - t0
     assert code == 0
     err = capsys.readouterr().err
     assert "pass 1" in err and "pass 2" in err and f"wrote {out}" in err
+    # the time said is what the user waited for (it said 'spliced in 3.02 s' for a 14.8 s
+    # run: the trust stage and the reading were not counted), and names what it covers
+    said = re.search(r"(\d+\.\d+) s in all \(splice (\d+\.\d+) s; the rest: ", err)
+    assert said, err
+    in_all, splice_s = float(said.group(1)), float(said.group(2))
+    stages = sum(float(t) for t in re.findall(r"^splice: .* done \((\d+\.\d+) s\)$", err, re.M))
+    trust_s = float(re.search(r"^splice: trust done \((\d+\.\d+) s\)$", err, re.M).group(1))
+    assert splice_s + trust_s - 0.02 <= in_all <= wall + 0.01
+    assert stages - 0.05 <= in_all
     report = json.loads(rep.read_text())
     from engine.splice.report import unmatched_summary
 
     unmatched = unmatched_summary(report["unmatched_body"], 30.0)
-    assert (f"splice: {unmatched}\n" in err) == bool(unmatched)
+    # (the sentence may go on to say an end was cut by the open-end limit)
+    assert (f"\nsplice: {unmatched}" in err) == bool(unmatched)
     motion = read_bvh(out)
     assert motion.n_frames == read_bvh(BODY).n_frames
     assert find_roles(motion.skeleton).side("right").has_fingers
@@ -268,3 +283,46 @@ def test_bad_session_file_is_one_line(tmp_path, capsys):
     )
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "s.json: points[0].hand: missing" in err[0]
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["splice", str(BODY), str(HAND), "-o", "/nonexistent/dir/o.bvh"],
+        ["splice", str(BODY), str(HAND)],
+        ["splice", "--band"],
+        ["info", "--no-such-flag"],
+        ["analyze", "--no-such-flag"],
+        ["synthesize", "--no-such-flag"],
+        ["render", "--no-such-flag"],
+        ["batch", "--no-such-flag"],
+        ["serve", "--no-such-flag"],
+        ["no-such-command"],
+    ],
+)
+def test_argument_errors_are_the_readmes_one_line_form(argv, capsys):
+    """Every subcommand's argument errors: 'handsplice: error: ...' on one line, exit 2
+    (argparse wrote 'handsplice splice: error: argument -o/--output: ...')."""
+    with pytest.raises(SystemExit) as info:
+        main(argv)
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("handsplice: error: "), err
+    assert "argument " not in err and "usage:" not in err, err
+    if "-o" in argv:
+        assert err.startswith("handsplice: error: -o/--output: /nonexistent/dir/o.bvh: the folder")
+
+
+def test_an_end_cut_by_max_unmatched_is_named_in_the_unmatched_sentence(tmp_path, capsys):
+    """The demo pair leaves 30 and 23 body frames unmatched with the default limit; with
+    --max-unmatched 0.5 (15 frames) both ends stop at the limit, and the sentence says the
+    limit, not the data, cut them."""
+    body = MOCAP / "bandai-namco/dataset-2_wave-right-hand_normal_001.bvh"
+    hand = MOCAP / "gestification/fingers-ok.bvh"
+    out = tmp_path / "o.bvh"
+    argv = ["splice", str(body), str(hand), "-o", str(out), "--side", "right"]
+    assert main(argv + ["--max-unmatched", "0.5"]) == 0
+    err = capsys.readouterr().err
+    line = next(x for x in err.splitlines() if "have no hand match" in x)
+    assert line.startswith("splice: body frames 0-14, 172-186 (1.0 s) have no hand match"), line
+    assert "15 frames (0.5 s) at an end is the open-end limit (--max-unmatched)" in line

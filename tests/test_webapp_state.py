@@ -410,6 +410,39 @@ def test_the_status_names_body_frames_left_without_a_hand_match(session):
     text = unmatched_summary(ranges, session.fps)
     assert text.startswith(f"body frames {ranges[0][0]}-{ranges[0][1]}")
     assert text in session.status_text()
+    # sample_data/README.md says what the demo does (it said the hand stays still on
+    # 'about 1 %' of body frames while 53 of 187 have no hand match)
+    import re
+
+    from conftest import ROOT
+
+    readme = (ROOT / "sample_data" / "README.md").read_text()
+    quoted = re.search(r"`(body frames [^`]* have no hand match)`", readme)
+    assert quoted and quoted.group(1) in session.status_text(), quoted
+    frames = sum(b - a + 1 for a, b in ranges)
+    share = re.search(r"\((\d+) of (\d+), [\d.]+ s, (\d+) %\)", readme)
+    assert share and (int(share.group(1)), int(share.group(2))) == (frames, session.n)
+    assert int(share.group(3)) == round(100 * frames / session.n)
+    # neither end reached the open-end limit (half the shorter take): the data cut them
+    limit = session.solution.cache["engine"].unmatched_limit(session.fps)
+    assert limit and all(b - a + 1 < limit for a, b in ranges)
+    assert "open-end limit" not in session.status_text()
+
+
+def test_an_unmatched_end_cut_by_the_open_end_limit_says_so():
+    """Exactly 500 frames at each end of a long pair was the default limit (half the
+    shorter take: a 33 s 120 fps hand is 1000 grid frames at 30 fps), not the data."""
+    from engine.splice.pipeline import unmatched_limits
+    from engine.splice.report import unmatched_summary
+
+    assert unmatched_limits(4587, 1000, 30.0, None) == (500, 500)
+    ranges = [(0, 499), (4087, 4586)]
+    text = unmatched_summary(ranges, 30.0, 500)
+    assert text.startswith("body frames 0-499, 4087-4586 (33.3 s) have no hand match")
+    assert "500 frames (16.7 s) at an end is the open-end limit (half the shorter take)" in text
+    assert "--max-unmatched SECONDS" in text
+    assert "limit" not in unmatched_summary([(0, 120)], 30.0, 500)
+    assert "(--max-unmatched)" in unmatched_summary([(0, 14)], 30.0, 15, limit_given=True)
 
 
 def test_the_printed_url_of_a_pair_opened_from_disk_opens_it(tmp_path):
@@ -1068,3 +1101,39 @@ def test_a_link_with_points_outside_its_takes_opens_the_takes_without_them(cfg):
     assert s.solution is not None and "\n" not in s.error
     assert s.error.startswith("shared link: points[1] = (body frame 900, hand frame 50")
     assert s.refusal() is not None and s.refusal().field.startswith("points")
+
+
+def test_points_table_refuses_a_fraction_of_a_frame_with_the_rules_one_text(session):
+    """A hand frame of 12.5 typed in the table (a slip while typing 125) was truncated to
+    12: it is refused, the point kept, with engine.dtw.constraints' text; the tolerance
+    cell's refusals ('abc', 1000) say one range in one wording, as every front does."""
+    from types import SimpleNamespace
+
+    from engine.dtw import constraints as C
+    from webapp.views.controls import PointsTable
+
+    table = PointsTable(session)
+    session.add_point(60, 80)
+    before = session.points
+
+    def edit(column, value):
+        table._on_edit(SimpleNamespace(row=0, column=column, value=value))
+        return session.error
+
+    for column, key in (("hand frame", "hand"), ("body frame", "body")):
+        text = edit(column, 12.5)
+        assert session.points == before, column
+        with pytest.raises(C.ConstraintError) as info:
+            C.parse_frame(12.5, f"points[0].{key}")
+        assert text == str(info.value) and "12.5" in text and "whole frame" in text
+    with pytest.raises(C.ConstraintError):
+        C.parse_point("40:12.5")
+    # the session's own point API refuses it too (never int() truncation)
+    session.move_point(0, 60, 12.5)
+    assert session.points == before and "whole frame" in session.error
+    tol_texts = [edit("tolerance", v) for v in ("abc", "1000", "-3")]
+    assert session.points == before
+    for text in tol_texts:
+        assert text.startswith("points[0].tolerance: expected a number of frames from 0 to 500")
+    edit("hand frame", "125")
+    assert session.points[0].hand == 125 and session.error == ""

@@ -519,12 +519,29 @@ class Session(param.Parameterized):
         """Replace all matching points: iterable of MatchPoint or (body, hand[, tol])."""
         self.points = self._normalise(points)
 
+    def _frames(self, index: int, body, hand) -> tuple[int, int] | None:
+        """``(body, hand)`` as whole frames (engine.dtw.constraints.parse_frame: 12.5 is
+        refused, never truncated); None, with the refusal shown, otherwise."""
+        try:
+            return (
+                C.parse_frame(body, f"points[{index}].body"),
+                C.parse_frame(hand, f"points[{index}].hand"),
+            )
+        except C.ConstraintError as exc:
+            self.refuse(exc, str(exc))
+            return None
+
     def add_point(self, body: int, hand: int, tolerance: float | None = None) -> None:
-        self.set_points([*self.points, MatchPoint(int(body), int(hand), tolerance)])
+        frames = self._frames(len(self.points), body, hand)
+        if frames is not None:
+            self.set_points([*self.points, MatchPoint(*frames, tolerance)])
 
     def move_point(self, index: int, body: int, hand: int) -> None:
+        frames = self._frames(index, body, hand)
+        if frames is None:
+            return
         pts = list(self.points)
-        pts[index] = MatchPoint(int(body), int(hand), pts[index].tolerance)
+        pts[index] = MatchPoint(*frames, pts[index].tolerance)
         self.set_points(pts)
 
     def delete_point(self, index: int) -> None:
@@ -797,7 +814,9 @@ class Session(param.Parameterized):
             f"{len(self.points)} matching point{'s' if len(self.points) != 1 else ''}"
         )
         result = sol.cache.get("engine")
-        unmatched = unmatched_summary(getattr(result, "unmatched_body", ()), self.fps)
+        limit = result.unmatched_limit(self.fps) if hasattr(result, "unmatched_limit") else None
+        given = getattr(result, "max_unmatched_s", None) is not None
+        unmatched = unmatched_summary(getattr(result, "unmatched_body", ()), self.fps, limit, given)
         return text + (f" · {unmatched}" if unmatched else "")
 
     def axis_signals(self) -> tuple[np.ndarray, np.ndarray]:

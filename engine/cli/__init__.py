@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import re
 import sys
 
 from engine import __version__
@@ -69,8 +70,13 @@ def _print_notes() -> None:
 
 
 class _Parser(argparse.ArgumentParser):
+    """Every subcommand's argument errors in the README's one-line form, exit status 2:
+    ``handsplice: error: -o/--output: o/x.bvh: the folder o does not exist ...`` (not
+    argparse's ``handsplice splice: error: argument -o/--output: ...``)."""
+
     def error(self, message: str) -> None:  # argparse's own exit status is already 2
-        self.exit(2, f"{self.prog}: error: {message}\n")
+        message = re.sub(r"^argument ([^:]+): ", r"\1: ", " ".join(message.split()))
+        self.exit(2, f"handsplice: error: {message}\n")
 
 
 def build_parser() -> argparse.ArgumentParser:

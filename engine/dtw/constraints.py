@@ -492,16 +492,22 @@ class MatchPoint:
 _POINT_EXPECTED = "BODY:HAND or BODY:HAND:TOL (frames >= 0, tolerance in frames)"
 
 
-def _frame(value, field: str) -> int:
+def parse_frame(value, field: str = "frame") -> int:
+    """A frame number (0-based) from a whole number or its text (``"125"``, ``125.0``);
+    a fraction (``12.5``: a slip while typing 125) is refused, never truncated or rounded.
+    Every front reads a matching point's frames through here (the app's table too)."""
     x = _number(value, field, "a whole frame number >= 0")
     if x != round(x) or not 0 <= x < _FRAME_LIMIT:
         raise ConstraintError(
             field,
-            f"expected a whole frame number >= 0, got {_show(value)}",
+            f"expected a whole frame number >= 0, got {x:g}",
             value=value,
             expected="a whole frame number >= 0",
         )
     return int(x)
+
+
+_frame = parse_frame
 
 
 def parse_point(value, field: str = "points[0]") -> MatchPoint:

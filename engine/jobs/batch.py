@@ -315,6 +315,15 @@ def marker_path(job: PairJob, outdir: Path) -> Path:
     return outdir / MARKER_DIR / f"{job.name}.json"
 
 
+def missing_input(job: PairJob) -> str | None:
+    """``PATH: no such file`` for the first of the pair's takes that is not a file (the
+    ``splice`` command's words), None when both are there."""
+    for path in (job.body, job.hand):
+        if not Path(path).is_file():
+            return f"{path}: no such file"
+    return None
+
+
 def is_done(job: PairJob, outdir: Path) -> dict | None:
     """The done marker of ``job`` if it is current (same inputs and options, outputs present)."""
     path = marker_path(job, outdir)
@@ -468,12 +477,15 @@ def splice_pair(body, hand, job: PairJob):
 
 
 def one_line(exc: BaseException) -> str:
+    """The error's first line, in the CLI's words: a file error is ``PATH: no such file``
+    (no Python class name); other non-HandSplice errors keep their class name."""
     text = str(exc).strip()
-    if isinstance(exc, OSError) and getattr(exc, "filename", None):
+    named_file = isinstance(exc, OSError) and getattr(exc, "filename", None)
+    if named_file:
         text = f"{exc.filename}: {exc.strerror or text}"
     first = text.splitlines()[0] if text else ""
     name = type(exc).__name__
-    if not isinstance(exc, HandSpliceError):
+    if not isinstance(exc, HandSpliceError) and not named_file:
         first = f"{name}: {first}" if first else name
     return first[:500]
 
@@ -639,6 +651,12 @@ def run_batch(
     records: dict[str, dict] = {}
     todo: list[PairJob] = []
     for job in jobs:
+        missing = missing_input(job)
+        if missing is not None:  # refused before any cluster starts, as `splice` says it
+            rec = {**_base_record(job), "status": "failed", "error": missing, "seconds": "0.00"}
+            records[job.name] = rec
+            show.update(rec)
+            continue
         marker = is_done(job, outdir)
         if marker is not None:
             rec = {

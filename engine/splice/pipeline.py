@@ -662,6 +662,15 @@ class SpliceAlignment:
             out.append((i1 + 1, n - 1))
         return out
 
+    def unmatched_limit(self, fps: float) -> int | None:
+        """Body frames each end may leave unmatched (open ends: :func:`unmatched_limits`);
+        None with fixed ends. An unmatched end this long was stopped by the limit, not by
+        the data (``engine.splice.report.unmatched_summary`` says so)."""
+        if self.ends != "open":
+            return None
+        n, m = len(self.warp), len(self.hand_heading)
+        return unmatched_limits(n, m, fps, self.max_unmatched_s)[0]
+
 
 #: a hold: every alignment marker slower than the take's velocity dead zone for at least
 #: this long (seconds); holds matched within HOLD_SLACK_S are straightened (merge)

@@ -156,20 +156,34 @@ def build_report(
     return report
 
 
-def unmatched_summary(ranges, fps: float) -> str:
+def unmatched_summary(
+    ranges, fps: float, limit: int | None = None, limit_given: bool = False
+) -> str:
     """One sentence on the body frames the alignment leaves without hand timing (open ends:
     a take begins earlier or ends later than the other), or "" when every body frame is
     matched. ``ranges``: ``[(first, last), ...]`` body frames (``unmatched_body``); ``fps``:
-    the body take's rate (frames per second)."""
+    the body take's rate (frames per second); ``limit``: the open-end limit, body frames
+    per end (``SpliceAlignment.unmatched_limit``; ``limit_given``: set by
+    ``--max-unmatched`` rather than the default, half the shorter take). An end as long
+    as the limit was cut there by the rule, not by the data, and the sentence says so."""
     ranges = [(int(a), int(b)) for a, b in ranges]
     if not ranges:
         return ""
     frames = sum(b - a + 1 for a, b in ranges)
     spans = ", ".join(f"{a}-{b}" if b > a else f"{a}" for a, b in ranges)
-    return (
+    text = (
         f"body frames {spans} ({frames / float(fps):.1f} s) have no hand match: the fingers "
         "hold the nearest matched pose there (--ends fixed matches every frame)"
     )
+    capped = limit is not None and limit > 0 and any(b - a + 1 >= limit for a, b in ranges)
+    if capped:
+        rule = "--max-unmatched" if limit_given else "half the shorter take"
+        text += (
+            f"; {limit} frames ({limit / float(fps):.1f} s) at an end is the open-end limit "
+            f"({rule}), so the takes may overlap less than this: --max-unmatched SECONDS "
+            "allows longer unmatched ends"
+        )
+    return text
 
 
 def dumps(report: dict) -> str:

@@ -6,6 +6,7 @@ import pandas as pd
 import panel as pn
 from bokeh.models import CustomJS
 
+from engine.dtw import constraints as C
 from webapp import safe_text
 from webapp.state import PASS2_SPIN_NOTE, Session
 from webapp.views._dispatch import with_document_lock
@@ -294,26 +295,24 @@ class PointsTable:
         s = self.session
         if not 0 <= k < len(s.points):
             return
+        # the rules and their one text are engine.dtw.constraints' (as for every front):
+        # a fraction of a frame (12.5) is refused, never truncated
         try:
             if column == "tolerance":
                 text = "" if value is None else str(value).strip()
-                tol = None if text in ("", "global", "nan") else float(text)
+                tol = None if text in ("", "global", "nan") else text
                 s.set_point_tolerance(k, tol)
             elif column in ("body frame", "hand frame"):
                 p = s.points[k]
-                frame = int(float(value))
+                key = "body" if column == "body frame" else "hand"
+                frame = C.parse_frame(value, f"points[{k}].{key}")
                 s.move_point(
                     k,
-                    frame if column == "body frame" else p.body,
-                    frame if column == "hand frame" else p.hand,
+                    frame if key == "body" else p.body,
+                    frame if key == "hand" else p.hand,
                 )
-        except (TypeError, ValueError):
-            what = (
-                "a number of hand frames ≥ 0, or empty for the global tolerance"
-                if column == "tolerance"
-                else "a whole frame number"
-            )
-            s.error = f"{column} of matching point {k + 1}: expected {what}, got {value!r}"
+        except C.ConstraintError as exc:
+            s.refuse(exc, str(exc))
         self._refresh()
 
     def _on_click(self, event):
