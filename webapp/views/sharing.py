@@ -48,6 +48,11 @@ class _Download(pn.widgets.FileDownload):
         super()._sync_data(fileobj)
 
 
+#: said once a file is made and handed to the browser (a finished step: the line is not
+#: left saying "downloading" after the browser has saved it)
+SENT = "handed to your browser (see its downloads)"
+
+
 class SharingView:
     TEXT = (
         "Download the spliced take (BVH, opens in Blender and MotionBuilder; or GLB: the "
@@ -200,7 +205,7 @@ class SharingView:
             widget.disabled = False
         self.message.visible = False
         self.prepare_text.object = (
-            f"{what}: {len(data) / 1024:.0f} KiB in {time.perf_counter() - t0:.1f} s, downloading"
+            f"{what}: {len(data) / 1024:.0f} KiB in {time.perf_counter() - t0:.1f} s, {SENT}"
         )
         return io.BytesIO(data)
 
@@ -240,7 +245,7 @@ class SharingView:
             self.progress.visible = self.progress_text.visible = True
             self.progress_text.object = (
                 f"{what} ({span}): {len(made) / 1024:.0f} KiB, unchanged since it was made: "
-                "the same file, downloading"
+                f"the same file, {SENT}"
             )
             return io.BytesIO(made)
         counts = {"done": 0, "total": 1}
@@ -287,7 +292,7 @@ class SharingView:
         self.progress.value = 100
         self.progress_text.object = (
             f"{what} ({span}): {len(data) / 1024:.0f} KiB in {time.perf_counter() - t0:.1f} s, "
-            "downloading"
+            f"{SENT}"
         )
         return io.BytesIO(data)
 
