@@ -123,7 +123,7 @@ class SharingView:
         )
         self._exporting = False
         self.open_session = pn.widgets.FileInput(
-            accept=".json", css_classes=["hs-open-session"], width=260
+            accept=".json", css_classes=["hs-open-session"], width=260, sizing_mode=None
         )
         self.open_session.param.watch(self._on_open_session, "value")
         self.link = pn.widgets.TextInput(
@@ -352,7 +352,9 @@ class SharingView:
             pn.Row(self.progress, self.progress_text),
             self.prepare_text,
             pn.Row(
-                pn.pane.Markdown("**Open a session file**", margin=(12, 10, 0, 10)),
+                pn.pane.Markdown(  # its own width: the chooser sits next to its label
+                    "**Open a session file**", margin=(12, 10, 0, 10), sizing_mode=None, width=160
+                ),
                 self.open_session,
             ),
             self.link,
