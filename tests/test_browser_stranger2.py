@@ -69,6 +69,21 @@ def page(served):
     assert not errors, errors
 
 
+def _busy(page) -> str:
+    line = page.locator(".hs-busy")
+    try:
+        return line.first.inner_text(timeout=1_000) if line.count() else ""
+    except Exception:  # noqa: BLE001 - the line went away meanwhile
+        return ""
+
+
+def _until(page, ok, seconds: float) -> None:
+    deadline = time.monotonic() + seconds
+    while not ok():
+        assert time.monotonic() < deadline, "timed out"
+        page.wait_for_timeout(200)
+
+
 def _points(page) -> int:
     return len(page.evaluate("hs.cols('hs-points-source', ['x'])")["x"])
 
@@ -84,14 +99,7 @@ def test_old_pair_is_inactive_while_a_new_upload_opens(page, tmp_path):
     page.locator(".hs-upload-body input[type=file]").set_input_files(str(LONG_BODY))
     page.locator(".hs-upload-hand input[type=file]").set_input_files(str(LONG_HAND))
     # the pair starts opening once both takes are checked: one progress line says so
-    page.wait_for_function(
-        "() => [...document.querySelectorAll('*')].some(e => e.shadowRoot && "
-        "[...e.shadowRoot.querySelectorAll('.hs-busy')].some(b => "
-        "b.innerText.includes('opening multipleActions1_subject1.bvh')))",
-        timeout=BUSY_S * 1000,
-    )
-    busy = page.locator(".hs-busy").first
-    assert "opening multipleActions1_subject1.bvh + mug1_rightHand.bvh" in busy.inner_text()
+    _until(page, lambda: "opening multipleActions1_subject1.bvh + mug1_rightHand.bvh" in _busy(page), BUSY_S)
     page.screenshot(path=str(tmp_path / "opening.png"))
     # the old pair's views: greyed, and a click on its matrix adds no point
     inactive = page.locator(".hs-inactive")
@@ -106,10 +114,10 @@ def test_old_pair_is_inactive_while_a_new_upload_opens(page, tmp_path):
     page.wait_for_timeout(1000)
     assert _points(page) == 0
     # one counter that keeps counting: seconds go up between two looks
-    first = busy.inner_text()
+    first = _busy(page)
     page.wait_for_timeout(2200)
-    if page.locator(".hs-busy").count() and "opening" in page.locator(".hs-busy").first.inner_text():
-        assert page.locator(".hs-busy").first.inner_text() != first
+    if "opening" in _busy(page):
+        assert _busy(page) != first
     # then the new pair is shown, active, and named
     page.wait_for_function(
         "() => Math.round(Bokeh.documents[0].get_model_by_name('hs-x-range').bounds[1] + 0.5)"
@@ -120,12 +128,7 @@ def test_old_pair_is_inactive_while_a_new_upload_opens(page, tmp_path):
     while page.locator(".hs-inactive").count() and time.monotonic() < deadline:
         page.wait_for_timeout(250)
     assert page.locator(".hs-inactive").count() == 0
-    page.wait_for_function(
-        "() => [...document.querySelectorAll('*')].some(e => e.shadowRoot && "
-        "[...e.shadowRoot.querySelectorAll('.hs-sample select, select')].some(s => "
-        "s.value.includes('uploaded')))",
-        timeout=30_000,
-    )
+    _until(page, lambda: "uploaded" in _sample_shown(page), 30)
     page.screenshot(path=str(tmp_path / "opened.png"))
     # a long take opens with W1 in seconds: the fraction slider is greyed and says why
     note = page.locator(".hs-band-fraction-unused").first
@@ -201,12 +204,7 @@ def test_matrix_legend_follows_the_view_and_a_download_ends_its_line(page, tmp_p
     legend = page.locator(".hs-matrix-colour").first
     assert "local cost" in legend.inner_text()
     page.locator(".hs-matrix-choice button", has_text="Cumulative 2").first.click()
-    page.wait_for_function(
-        "() => [...document.querySelectorAll('*')].some(e => e.shadowRoot && "
-        "[...e.shadowRoot.querySelectorAll('.hs-matrix-colour')].some(l => "
-        "l.dataset.matrix === 'cumulative2'))",
-        timeout=30_000,
-    )
+    _until(page, lambda: legend.get_attribute("data-matrix") == "cumulative2", 30)
     text = legend.inner_text()
     assert "cumulative cost" in text and "local cost" not in text, text
     page.locator(".hs-matrix-colour").first.scroll_into_view_if_needed()
