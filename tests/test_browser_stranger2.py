@@ -77,6 +77,15 @@ def _busy(page) -> str:
         return ""
 
 
+def _text(locator) -> str:
+    """Text of an element including its (open) shadow root, where Panel renders panes."""
+    return locator.evaluate(
+        "e => [...(e.shadowRoot ? e.shadowRoot.children : []), ...e.children]"
+        ".filter(c => c.tagName !== 'STYLE' && c.tagName !== 'LINK')"
+        ".map(c => c.innerText).join(' ')"
+    )
+
+
 def _until(page, ok, seconds: float) -> None:
     deadline = time.monotonic() + seconds
     while not ok():
@@ -107,7 +116,7 @@ def test_old_pair_is_inactive_while_a_new_upload_opens(page, tmp_path):
     opacities = [float(inactive.nth(k).evaluate("e => getComputedStyle(e).opacity")) for k in range(inactive.count())]
     assert all(o < 0.5 for o in opacities), opacities
     assert _sample_shown(page) == demo  # the label switches when the new pair is shown
-    uploaded = page.locator(".hs-upload-status").first.inner_text()
+    uploaded = _text(page.locator(".hs-upload-status").first)
     assert "aligning…" not in uploaded and " s" not in uploaded.split("opening")[-1], uploaded
     x, y = page.evaluate(f"hs.xy({n_demo // 2}, 20)")
     page.mouse.click(x, y)
@@ -128,14 +137,21 @@ def test_old_pair_is_inactive_while_a_new_upload_opens(page, tmp_path):
     while page.locator(".hs-inactive").count() and time.monotonic() < deadline:
         page.wait_for_timeout(250)
     assert page.locator(".hs-inactive").count() == 0
+    views = page.locator(".hs-cost-matrix").first
+    assert views.evaluate(
+        "e => { for (let n = e; n; n = n.parentNode || n.host) {"
+        " if (n.nodeType === 1 && getComputedStyle(n).opacity < 0.9) return false; }"
+        " return true; }"
+    )
     _until(page, lambda: "uploaded" in _sample_shown(page), 30)
     page.screenshot(path=str(tmp_path / "opened.png"))
     # a long take opens with W1 in seconds: the fraction slider is greyed and says why
     note = page.locator(".hs-band-fraction-unused").first
     note.wait_for(timeout=30_000)
-    assert "not used" in note.inner_text() and "s is in force" in note.inner_text()
+    assert "not used" in _text(note) and "s is in force" in _text(note)
     seconds = page.locator(".hs-band-s input").first.input_value()
-    assert seconds and f"W1 = {seconds} s" in note.inner_text()
+    assert seconds and f"W1 = {seconds} s" in _text(note)
+    assert page.locator(".hs-refine_band-fraction-unused").first.is_hidden()  # spin pass 2
     note.scroll_into_view_if_needed()
     page.screenshot(path=str(tmp_path / "w1_seconds.png"))
 
@@ -171,7 +187,7 @@ def _refusal_in_view(page, timeout: float = 30.0) -> str:
     assert alert.first.is_visible()
     box = alert.first.bounding_box()
     assert box is not None and 0 <= box["y"] and box["y"] + box["height"] <= 900, box
-    return alert.first.inner_text()
+    return _text(alert.first)
 
 
 def test_refused_table_edit_is_said_next_to_the_table(page, tmp_path):
@@ -213,11 +229,9 @@ def test_matrix_legend_follows_the_view_and_a_download_ends_its_line(page, tmp_p
     with page.expect_download(timeout=120_000):
         page.locator(".hs-download-bvh button, .hs-download-bvh a").first.click()
     status = page.locator(".hs-download-status").first
-    deadline = time.monotonic() + 30
-    while "browser" not in status.inner_text() and time.monotonic() < deadline:
-        page.wait_for_timeout(200)
-    assert "handed to your browser" in status.inner_text()
-    assert "downloading" not in status.inner_text()
+    _until(page, lambda: "browser" in _text(status), 30)
+    assert "handed to your browser" in _text(status)
+    assert "downloading" not in _text(status)
     # the session-file chooser sits next to its label
     label = page.get_by_text("Open a session file").first.bounding_box()
     chooser = page.locator(".hs-open-session").first.bounding_box()

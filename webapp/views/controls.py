@@ -75,10 +75,11 @@ def parameter_widgets(session: Session) -> pn.viewable.Viewable:
             off = value is not None or (name == "refine_band" and session.pass2_turns_hand())
             slider = params._widgets[name]
             slider.disabled = off
-            slider.styles = {"opacity": "0.4"} if off else {}
+            slider.styles = {"opacity": "0.4" if off else "1"}
             note = overridden[name]
-            note.visible = value is not None
-            if value is not None:
+            unused = name == "refine_band" and session.pass2_turns_hand()  # said below
+            note.visible = value is not None and not unused
+            if note.visible:
                 note.object = (
                     f"The fraction above is not used: {label} = {value:g} s is in force "
                     "(empty the seconds field to use the fraction)."
@@ -371,7 +372,8 @@ class PointsTable:
             self.session.delete_point(event.row)
 
     def panel(self) -> pn.viewable.Viewable:
-        return pn.Column(self._holder, self.refusal, margin=0, sizing_mode="stretch_width")
+        # the refusal above the rows: in view while a cell is edited
+        return pn.Column(self.refusal, self._holder, margin=0, sizing_mode="stretch_width")
 
 
 def status_line(session: Session) -> pn.viewable.Viewable:

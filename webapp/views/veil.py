@@ -15,6 +15,9 @@ from webapp.state import Session
 
 #: the look of a view of the previous pair while the new one opens
 INACTIVE = {"opacity": "0.35", "filter": "grayscale(0.8)", "pointer-events": "none"}
+#: and once the new pair is shown (explicit values: a style left out of a later update
+#: is not removed from the page's element)
+ACTIVE = {"opacity": "1", "filter": "none", "pointer-events": "auto"}
 
 
 class Veil:
@@ -30,7 +33,7 @@ class Veil:
     def _update(self, *_):
         opening = bool(self.session.opening)
         for view, styles in zip(self.views, self._styles, strict=True):
-            view.styles = {**styles, **INACTIVE} if opening else dict(styles)
+            view.styles = {**styles, **(INACTIVE if opening else ACTIVE)}
             view.css_classes = [c for c in view.css_classes if c != "hs-inactive"] + (
                 ["hs-inactive"] if opening else []
             )
