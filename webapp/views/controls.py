@@ -249,6 +249,12 @@ class PointsTable:
             sizing_mode="stretch_width",
             margin=(4, 10),
         )
+        # brought into view when shown (the rows below it may be at the screen's edge)
+        into_view = (
+            "setTimeout(() => { const v = Bokeh.index.find_one(source);"
+            " if (v && v.el && source.visible) v.el.scrollIntoView({block: 'center'}); }, 100)"
+        )
+        self.refusal.jscallback(object=into_view, visible=into_view)
         self._edited_at = -1e9
         session.param.watch(self._refresh, ["points", "tolerance", "revision"])
         session.param.watch(self._new_table, ["inputs_revision"])
