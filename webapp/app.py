@@ -154,6 +154,7 @@ def create_app() -> pn.viewable.Viewable:
     from webapp.views.progress import BusyLine
     from webapp.views.sharing import SharingView
     from webapp.views.trust import TrustView
+    from webapp.views.veil import Veil
 
     session = Session(config.get())
     doc = pn.state.curdoc
@@ -210,13 +211,18 @@ def create_app() -> pn.viewable.Viewable:
         )
     except ImportError:
         pass
+    status = controls.status_line(session)
+    views = pn.FlexBox(
+        *work, flex_wrap="wrap", align_items="flex-start", sizing_mode="stretch_width"
+    )
+    Veil(session, status, views)  # greyed, no input, while a new pair opens
     alignment = _section(
         "2 · Alignment",
         ALIGN_TEXT,
-        controls.status_line(session),
+        status,
         BusyLine(session).panel(),
         controls.error_alert(session),
-        pn.FlexBox(*work, flex_wrap="wrap", align_items="flex-start", sizing_mode="stretch_width"),
+        views,
     )
     sections = [
         pn.pane.HTML(HEADER, sizing_mode="stretch_width", margin=(10, 10, 0, 10)),

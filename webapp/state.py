@@ -205,6 +205,11 @@ class Session(param.Parameterized):
         default="", doc="what runs off the event loop now (opening takes, aligning), or empty"
     )
     inputs_revision = param.Integer(default=0, doc="bumped after the takes change")
+    opening = param.String(
+        default="",
+        doc="names of a new pair being opened (off the loop), or empty; meanwhile the "
+        "page's views show the previous pair, greyed, and edits are not taken",
+    )
     can_undo = param.Boolean(default=False)
     can_redo = param.Boolean(default=False)
 
@@ -222,6 +227,7 @@ class Session(param.Parameterized):
         self._accepted: dict | None = None  # edit values of the solution shown
         self._accepted_undo = 0  # undo steps then
         self._carry_error = ""  # shown on after the next solve (a link that failed)
+        self.opening_since = 0.0  # monotonic s when ``opening`` was set
         super().__init__(**params)
         self.param.watch(self._on_edit, list(EDIT_PARAMS))
         self.param.watch(self._on_inputs, list(INPUT_PARAMS))
@@ -245,6 +251,16 @@ class Session(param.Parameterized):
     def page_error(self) -> str:
         """``error`` in the page's words (:func:`page_words`)."""
         return page_words(self.error, self.refusal())
+
+    def begin_opening(self, name: str) -> None:
+        """A new pair named ``name`` is being opened off the loop: the views of the open
+        pair go inactive and edits are refused until :meth:`end_opening`."""
+        if not self.opening:
+            self.opening_since = time.monotonic()
+        self.opening = name or "the new takes"
+
+    def end_opening(self) -> None:
+        self.opening = ""
 
     def compute_off_loop(self, doc) -> None:
         """Open takes and solve on a worker thread from now on, applying results in
@@ -347,6 +363,9 @@ class Session(param.Parameterized):
         if self.runner is None:
             self._opened(prepared, t0, then, new_pair)
             return
+        if new_pair:
+            names = (self.body_name, self.hand_name)
+            self.begin_opening(self.sample or " + ".join(n for n in names if n))
         self.runner.submit(
             Job(
                 "inputs",
@@ -354,7 +373,7 @@ class Session(param.Parameterized):
                 lambda progress: backend.prepare(paths[0], paths[1], side, roles),
                 done=lambda prepared: self._opened(prepared, t0, then, new_pair),
                 failed=lambda exc: self._open_failed(exc, old, then),
-                dropped=lambda: then(False),
+                dropped=lambda: self._open_dropped(then),
             )
         )
 
@@ -368,7 +387,13 @@ class Session(param.Parameterized):
         else:
             self.refuse(exc, text)
 
+    def _open_dropped(self, then) -> None:
+        if self.runner is None or not self.runner.inputs_pending():
+            self.end_opening()
+        then(False)
+
     def _open_failed(self, exc: BaseException, old: dict, then) -> None:
+        self.end_opening()
         message = backend.one_line(exc)
         if self.prepared is not None:  # keep what worked: inputs back to their old values
             self._apply(old)
@@ -378,6 +403,7 @@ class Session(param.Parameterized):
     def _opened(self, prepared, t0: float, then, new_pair: bool = False) -> None:
         """The takes are open: show them (matrix, axes), then solve. The matching points
         stay where they still fit (a side or role change), none after a new pair."""
+        self.end_opening()
         self.prepared = prepared
         self._chain = None
         self.param.update(solution=None, trust=None)
@@ -431,6 +457,13 @@ class Session(param.Parameterized):
         old = {e.name: e.old for e in events if not _same(e.old, e.new)}
         if not old:
             return  # nothing changed (e.g. the same points set again): no recompute, no undo
+        if self.opening:  # the views show the previous pair: an edit there goes nowhere
+            self._apply(old)
+            self.error = (
+                f"not taken: {self.opening} is opening (the views show the previous pair "
+                "until it is shown)"
+            )
+            return
         started = time.monotonic()
         if not self._solve():
             self._apply(old)  # rejected: back to the values that worked
@@ -474,7 +507,7 @@ class Session(param.Parameterized):
         return self._step(self._redo, self._undo)
 
     def _step(self, source: list[Snapshot], target: list[Snapshot]) -> bool:
-        if not source:
+        if not source or self.opening:
             return False
         snap = source.pop()
         self._slider_run = None
@@ -912,15 +945,20 @@ class Session(param.Parameterized):
             return
 
         def refused(exc):
-            self.refuse(exc)
+            self.end_opening()
+            (failed or self.refuse)(exc)
 
+        if spec.sample is not None or spec.body is not None:
+            names = (spec.body.name, spec.hand.name) if spec.body is not None else ()
+            self.begin_opening(spec.sample or " + ".join(n for n in names if n))
         self.runner.submit(
             Job(
                 "inputs",
                 "opening the session",
                 lambda progress: self._stage(spec, progress, keep_takes),
                 done=self._commit,
-                failed=failed or refused,
+                failed=refused,
+                dropped=lambda: self._open_dropped(lambda opened: None),
             )
         )
 
@@ -1031,6 +1069,7 @@ class Session(param.Parameterized):
         """Install a staged state: results first, so watchers of the inputs see a consistent
         session (a frame of the new takes has a hand frame in the new solution)."""
         prepared = staged["prepared"]
+        self.end_opening()
         self.prepared = prepared
         self._set_sizes(prepared)
         self.param.update(solution=staged["solution"], trust=None, compute_ms=staged["compute_ms"])

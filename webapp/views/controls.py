@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import pandas as pd
 import panel as pn
 from bokeh.models import CustomJS
@@ -58,11 +60,31 @@ def parameter_widgets(session: Session) -> pn.viewable.Viewable:
         "refine_band": _seconds_input(session, "refine_band", "W2 in seconds (empty: fraction)"),
     }
 
-    def fraction_in_force(*_):  # a slider whose width is overridden by seconds is greyed out
-        params._widgets["band"].disabled = session.band_s is not None
-        params._widgets["refine_band"].disabled = (
-            session.refine_band_s is not None or session.pass2_turns_hand()
+    # a slider whose width is overridden by seconds is greyed out, and a line under it
+    # says why (a long take opens with a width in seconds: the slider's fraction is not used)
+    overridden = {
+        name: pn.pane.Markdown(
+            "", css_classes=[f"hs-{name}-fraction-unused"], visible=False, margin=(0, 10),
+            styles={"color": "#666", "font-size": "12px"},
         )
+        for name in ("band", "refine_band")
+    }
+
+    def fraction_in_force(*_):
+        for name, label in (("band", "W1"), ("refine_band", "W2")):
+            value = getattr(session, f"{name}_s")
+            off = value is not None or (name == "refine_band" and session.pass2_turns_hand())
+            slider = params._widgets[name]
+            slider.disabled = off
+            slider.styles = {"opacity": "0.4" if off else "1"}
+            note = overridden[name]
+            unused = name == "refine_band" and session.pass2_turns_hand()  # said below
+            note.visible = value is not None and not unused
+            if note.visible:
+                note.object = (
+                    f"The fraction above is not used: {label} = {value:g} s is in force "
+                    "(empty the seconds field to use the fraction)."
+                )
 
     session.param.watch(fraction_in_force, ["band_s", "refine_band_s", "inputs_revision"])
     matrix = pn.widgets.RadioButtonGroup(
@@ -87,12 +109,15 @@ def parameter_widgets(session: Session) -> pn.viewable.Viewable:
 
     session.param.watch(w2_in_use, ["inputs_revision"])
     w2_in_use()
+    fraction_in_force()
     widgets = params._widgets  # linked to the session by pn.Param; laid out here
     return pn.Column(
         pn.Column(
             widgets["band"],
+            overridden["band"],
             seconds["band"],
             widgets["refine_band"],
+            overridden["refine_band"],
             seconds["refine_band"],
             widgets["tolerance"],
             sizing_mode="stretch_width",
@@ -215,8 +240,26 @@ class PointsTable:
         #: change of rows that reaches the page while its table is still being built (a
         #: link's solve back before a loaded tab drew the page) was lost
         self._holder = pn.Column(self.table, margin=0, sizing_mode="stretch_width")
+        #: a refused edit of the table is said here, where it was typed (the page's error
+        #: line sits above the matrix, often scrolled out of view)
+        self.refusal = pn.pane.Alert(
+            "",
+            alert_type="danger",
+            visible=False,
+            css_classes=["hs-table-error"],
+            sizing_mode="stretch_width",
+            margin=(4, 10),
+        )
+        # brought into view when shown (the rows below it may be at the screen's edge)
+        into_view = (
+            "setTimeout(() => { const v = Bokeh.index.find_one(source);"
+            " if (v && v.el && source.visible) v.el.scrollIntoView({block: 'center'}); }, 100)"
+        )
+        self.refusal.jscallback(object=into_view, visible=into_view)
+        self._edited_at = -1e9
         session.param.watch(self._refresh, ["points", "tolerance", "revision"])
         session.param.watch(self._new_table, ["inputs_revision"])
+        session.param.watch(self._on_error, ["error"])
 
     def _make_table(self) -> pn.widgets.Tabulator:
         table = PointsTabulator(
@@ -297,6 +340,8 @@ class PointsTable:
             return
         # the rules and their one text are engine.dtw.constraints' (as for every front):
         # a fraction of a frame (12.5) is refused, never truncated
+        self._edited_at = time.monotonic()
+        s.error = ""  # a new edit: only its own refusal is shown
         try:
             if column == "tolerance":
                 text = "" if value is None else str(value).strip()
@@ -314,13 +359,26 @@ class PointsTable:
         except C.ConstraintError as exc:
             s.refuse(exc, str(exc))
         self._refresh()
+        self._on_error()
+
+    #: a refusal this long after a table edit (a solve off the loop) is the edit's own
+    REFUSAL_S = 30.0
+
+    def _on_error(self, *_):
+        s = self.session
+        if s.error and time.monotonic() - self._edited_at < self.REFUSAL_S:
+            self.refusal.object = safe_text.markdown(s.page_error())
+            self.refusal.visible = True
+        elif not s.error:
+            self.refusal.visible = False
 
     def _on_click(self, event):
         if getattr(event, "column", None) == "delete" and 0 <= event.row < len(self.session.points):
             self.session.delete_point(event.row)
 
     def panel(self) -> pn.viewable.Viewable:
-        return self._holder
+        # the refusal above the rows: in view while a cell is edited
+        return pn.Column(self.refusal, self._holder, margin=0, sizing_mode="stretch_width")
 
 
 def status_line(session: Session) -> pn.viewable.Viewable:

@@ -232,8 +232,20 @@ return `${tick}\n${(tick / fps).toFixed(1)} s`;
 """
 
 
-def phase_legend_html(colors: dict) -> str:
-    """The legend of the strips along the axes: wrist speed curves and phase colour bars."""
+#: what the matrix's colour is, per view shown (the legend follows the view)
+MATRIX_COLOUR = {
+    "pass1": "local cost D1 (colour bar at the right; dark = the two frames move alike)",
+    "pass2": "local cost D2 (colour bar at the right; dark = the two frames move alike)",
+    "cumulative1": "pass-1 cumulative cost γ, the cheapest path's cost from the first cell "
+    "(colour bar at the right; grows along the path)",
+    "cumulative2": "pass-2 cumulative cost γ, the cheapest path's cost from the first cell "
+    "(colour bar at the right; grows along the path)",
+}
+
+
+def phase_legend_html(colors: dict, matrix: str = "pass1") -> str:
+    """The legend of the strips along the axes (wrist speed curves, phase colour bars) and
+    of the matrix (its colour for the view ``matrix`` shown, band, path, points)."""
     names = [
         (1, "P", "preparation"),
         (2, "S", "stroke"),
@@ -255,8 +267,9 @@ def phase_legend_html(colors: dict) -> str:
         'vertical-align:3px;margin-right:4px"></span>wrist speed of each take along its '
         "axis (scaled to its fastest moment) · colour bars: gesture phases "
         f"{swatches}</div>"
-        "<div>Matrix colour: local cost (colour bar at the right; dark = the two frames "
-        'move alike) · <span style="color:#4fc3f7">■</span> band edges, outside dimmed · '
+        f'<div class="hs-matrix-colour" data-matrix="{matrix}">Matrix colour: '
+        f"{MATRIX_COLOUR.get(matrix, MATRIX_COLOUR['pass1'])} · "
+        '<span style="color:#4fc3f7">■</span> band edges, outside dimmed · '
         '<span style="color:#ff3b30">━</span> optimal path · '
         '<span style="color:#ffd60a">●</span> matching points</div></div>'
     )
@@ -635,6 +648,16 @@ class CostMatrixView:
         # was refused) show at once; the path follows with the next revision
         session.param.watch(lambda *_: self._sync_points(), ["points", "tolerance"])
         session.param.watch(self._on_matrix, ["matrix"])
+        self.legend = pn.pane.HTML(
+            phase_legend_html(self._colors, session.matrix),
+            css_classes=["hs-legends"],
+            width=400,  # set by panel()
+            margin=(4, 0),
+        )
+        session.param.watch(
+            lambda e: setattr(self.legend, "object", phase_legend_html(self._colors, e.new)),
+            ["matrix"],
+        )
         session.param.watch(self._on_frame, ["frame"])
         session.param.watch(self._on_inputs, ["inputs_revision"])
         session.param.watch(lambda *_: self.set_pick_mode(self.session.pick), ["pick"])
@@ -917,6 +940,7 @@ class CostMatrixView:
 
     def panel(self) -> pn.viewable.Viewable:
         size = self.panel_width - AXIS_SIGNAL_SIZE
+        self.legend.width = size + AXIS_SIGNAL_SIZE
         return pn.Column(
             self.title,
             pn.Row(
@@ -933,12 +957,7 @@ class CostMatrixView:
                 width=size + AXIS_SIGNAL_SIZE,
                 margin=0,
             ),
-            pn.pane.HTML(
-                phase_legend_html(self._colors),
-                css_classes=["hs-legends"],
-                width=size + AXIS_SIGNAL_SIZE,
-                margin=(4, 0),
-            ),
+            self.legend,
             sizing_mode=None,
             width=size + AXIS_SIGNAL_SIZE,
             margin=(0, 10),

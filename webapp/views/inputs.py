@@ -16,7 +16,6 @@ from __future__ import annotations
 import asyncio
 import dataclasses
 import functools
-import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -114,7 +113,7 @@ class InputsView:
         self.roles_apply.on_click(self._on_roles)
         self._show_roles()
         session.param.watch(
-            self._on_session_inputs, ["sample", "body_sha256", "hand_sha256", "roles"]
+            self._on_session_inputs, ["sample", "body_sha256", "hand_sha256", "roles", "opening"]
         )
         session.param.watch(self._show_note, ["inputs_revision"])
         self._show_note()
@@ -151,6 +150,8 @@ class InputsView:
         the selector shows the open sample, or "your uploaded pair" (never a sample that
         would then be loaded over the upload). Other takes opened (a sample, a session
         file, a link) clear the upload fields, the "Uploaded …" line and its message."""
+        if self.session.opening:  # the labels switch when the new pair is shown
+            return
         key = self._session_key()
         if key != self._inputs_key and not self._opening:
             self._inputs_key = key
@@ -315,8 +316,10 @@ class InputsView:
             self._show_uploaded(opened=True)
             return
         loop = asyncio.get_running_loop()
-        line = self.uploaded.object
-        self.uploaded.object = line + " <span class='hs-opening'>aligning…</span>"
+        # one progress line (the Alignment section's) counts the whole opening; the old
+        # pair's views go inactive at once
+        self.uploaded.object += " <span class='hs-opening'>— opening (progress below)</span>"
+        s.begin_opening(f"{body.name} + {hand.name}")
         job = loop.run_in_executor(
             _WORKERS,
             functools.partial(
@@ -328,16 +331,10 @@ class InputsView:
                 takes=(body.take, hand.take),
             ),
         )
-        t0 = time.monotonic()
         try:
-            while not (await asyncio.wait({job}, timeout=1.0))[0]:
-                # a long take takes a while: the line says it is still at work
-                self.uploaded.object = (
-                    line + f" <span class='hs-opening'>aligning… {time.monotonic() - t0:.0f} s"
-                    "</span>"
-                )
-            job.result()
+            await job
         except Exception as exc:  # the reason is shown; nothing changes
+            s.end_opening()
             self._show_uploaded(failed=True)
             self._show_error(f"{body.name} + {hand.name}: {one_line(exc)}")
             return

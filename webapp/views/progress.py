@@ -40,21 +40,26 @@ class BusyLine:
         )
         self._timer = None
         self._shown = False
-        session.param.watch(self._on_busy, ["busy"])
+        session.param.watch(self._on_busy, ["busy", "opening"])
         self._on_busy()
 
     def _line(self) -> str:
         s = self.session
         runner = s.runner
-        stage = (runner.stage if runner is not None and runner.stage else s.busy) or "working"
+        running = runner is not None and runner.busy
+        stage = (runner.stage if running and runner.stage else s.busy) or "working"
         seconds = time.monotonic() - runner.started if runner is not None else 0.0
         size = f" · {s.n:,} × {s.m:,} frames" if s.n and s.m and stage.startswith("align") else ""
+        tail = "the page stays usable; edits made now are solved next"
+        if s.opening:  # one line for the whole opening (checking, reading, first solve)
+            stage = f"opening {s.opening}" + (f": {stage}" if running else ": reading the takes")
+            seconds, size = time.monotonic() - s.opening_since, ""
+            tail = "the greyed views below still show the previous pair and take no edits"
         return (
-            f'<div class="hs-busy" data-busy="{safe_text.html(s.busy)}" '
+            f'<div class="hs-busy" data-busy="{safe_text.html(s.busy or "opening")}" '
             'style="display:flex;gap:10px;align-items:center">'
             '<progress style="width:140px;height:12px"></progress>'
-            f"<span>{safe_text.html(stage)}… {seconds:.0f} s{size} · the page stays usable; "
-            "edits made now are solved next</span></div>"
+            f"<span>{safe_text.html(stage)}… {seconds:.0f} s{size} · {tail}</span></div>"
         )
 
     def _show(self, text: str) -> None:
@@ -62,13 +67,13 @@ class BusyLine:
         self.pane.object = text
 
     def _on_busy(self, *_):
-        busy = bool(self.session.busy)
+        busy = bool(self.session.busy or self.session.opening)
         doc = pn.state.curdoc
         if doc is None or doc.session_context is None:  # no server: shown as it is
             self._show(self._line() if busy else "")
             return
         if busy and self._timer is None:
-            if not self.session.busy.startswith("align"):  # opening takes: say so at once
+            if self.session.opening or not self.session.busy.startswith("align"):  # at once
                 self._show(self._line())
             self._timer = pn.state.add_periodic_callback(self._tick, period=TICK_MS)
         elif not busy:
@@ -80,6 +85,9 @@ class BusyLine:
 
     def _tick(self):
         runner = self.session.runner
+        if self.session.opening:
+            self._show(self._line())
+            return
         if not self.session.busy or runner is None:
             return
         if self._shown or time.monotonic() - runner.started >= SHOW_AFTER_S:

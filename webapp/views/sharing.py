@@ -49,6 +49,11 @@ class _Download(pn.widgets.FileDownload):
         super()._sync_data(fileobj)
 
 
+#: said once a file is made and handed to the browser (a finished step: the line is not
+#: left saying "downloading" after the browser has saved it)
+SENT = "handed to your browser (see its downloads)"
+
+
 class SharingView:
     TEXT = (
         "Download the spliced take (BVH, opens in Blender and MotionBuilder; or GLB: the "
@@ -119,7 +124,7 @@ class SharingView:
         )
         self._exporting = False
         self.open_session = pn.widgets.FileInput(
-            accept=".json", css_classes=["hs-open-session"], width=260
+            accept=".json", css_classes=["hs-open-session"], width=260, sizing_mode=None
         )
         self.open_session.param.watch(self._on_open_session, "value")
         self.link = pn.widgets.TextInput(
@@ -201,7 +206,7 @@ class SharingView:
             widget.disabled = False
         self.message.visible = False
         self.prepare_text.object = (
-            f"{what}: {len(data) / 1024:.0f} KiB in {time.perf_counter() - t0:.1f} s, downloading"
+            f"{what}: {len(data) / 1024:.0f} KiB in {time.perf_counter() - t0:.1f} s, {SENT}"
         )
         return io.BytesIO(data)
 
@@ -241,7 +246,7 @@ class SharingView:
             self.progress.visible = self.progress_text.visible = True
             self.progress_text.object = (
                 f"{what} ({span}): {len(made) / 1024:.0f} KiB, unchanged since it was made: "
-                "the same file, downloading"
+                f"the same file, {SENT}"
             )
             return io.BytesIO(made)
         counts = {"done": 0, "total": 1}
@@ -292,7 +297,7 @@ class SharingView:
         self.progress.value = 100
         self.progress_text.object = (
             f"{what} ({span}): {len(data) / 1024:.0f} KiB in {time.perf_counter() - t0:.1f} s, "
-            "downloading"
+            f"{SENT}"
         )
         return io.BytesIO(data)
 
@@ -352,7 +357,9 @@ class SharingView:
             pn.Row(self.progress, self.progress_text),
             self.prepare_text,
             pn.Row(
-                pn.pane.Markdown("**Open a session file**", margin=(12, 10, 0, 10)),
+                pn.pane.Markdown(  # its own width: the chooser sits next to its label
+                    "**Open a session file**", margin=(12, 10, 0, 10), sizing_mode=None, width=160
+                ),
                 self.open_session,
             ),
             self.link,
