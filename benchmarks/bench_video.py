@@ -91,7 +91,9 @@ def _reference_tree(rev: str, folder: Path) -> Path:
     """``engine`` and ``webapp`` of ``rev`` under ``folder`` (git archive)."""
     archive = folder / "ref.tar"
     with archive.open("wb") as out:
-        subprocess.run(["git", "archive", rev, "engine", "webapp"], cwd=ROOT, stdout=out, check=True)
+        subprocess.run(
+            ["git", "archive", rev, "engine", "webapp"], cwd=ROOT, stdout=out, check=True
+        )
     with tarfile.open(archive) as tar:
         tar.extractall(folder / "tree", filter="data")
     return folder / "tree"
@@ -171,7 +173,9 @@ def main(argv=None) -> None:
         mid = len(ref) // 2
         from PIL import Image
 
-        pair = np.concatenate([ref[mid], np.full((ref[mid].shape[0], 8, 3), 255, np.uint8), new[mid]], 1)
+        pair = np.concatenate(
+            [ref[mid], np.full((ref[mid].shape[0], 8, 3), 255, np.uint8), new[mid]], 1
+        )
         if not args.quick:
             Image.fromarray(pair).save(FIGURE)
         else:

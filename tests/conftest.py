@@ -175,7 +175,9 @@ def open_page(browser, url: str, *, width: int = 1300, height: int = 1000, **wai
     """A tab in a fresh context (a ``width`` x ``height`` screen, downloads accepted) of
     ``browser`` at ``url``: :func:`open_tab` with ``wait``'s options. Close it with
     ``page.context.close()``."""
-    context = browser.new_context(viewport={"width": width, "height": height}, accept_downloads=True)
+    context = browser.new_context(
+        viewport={"width": width, "height": height}, accept_downloads=True
+    )
     return open_tab(context, url, **wait)
 
 

@@ -92,9 +92,11 @@ def tabs(long_pair, tmp_path_factory):
     body, hand = long_pair
     demo = demo_sample_name(SAMPLE_DIR)
     with (
-        served_app(
-            tmp_path_factory, str(body), str(hand), "--no-warm", timeout=SERVER_START_S
-        ) as (url, _, log_path),
+        served_app(tmp_path_factory, str(body), str(hand), "--no-warm", timeout=SERVER_START_S) as (
+            url,
+            _,
+            log_path,
+        ),
         sync_api.sync_playwright() as p,
     ):
         browser = launch_chromium(p)

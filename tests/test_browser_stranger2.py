@@ -36,9 +36,10 @@ def served(tmp_path_factory):
     log_path = folder / "serve.log"
     with (
         log_path.open("w+") as log,
-        running_server(
-            "--upload-dir", str(folder / "up"), log=log, timeout=SERVER_START_S
-        ) as (url, _),
+        running_server("--upload-dir", str(folder / "up"), log=log, timeout=SERVER_START_S) as (
+            url,
+            _,
+        ),
         sync_api.sync_playwright() as p,
     ):
         browser = launch_chromium(p)
@@ -108,12 +109,19 @@ def test_old_pair_is_inactive_while_a_new_upload_opens(page, tmp_path):
     page.locator(".hs-upload-body input[type=file]").set_input_files(str(LONG_BODY))
     page.locator(".hs-upload-hand input[type=file]").set_input_files(str(LONG_HAND))
     # the pair starts opening once both takes are checked: one progress line says so
-    _until(page, lambda: "opening multipleActions1_subject1.bvh + mug1_rightHand.bvh" in _busy(page), BUSY_S)
+    _until(
+        page,
+        lambda: "opening multipleActions1_subject1.bvh + mug1_rightHand.bvh" in _busy(page),
+        BUSY_S,
+    )
     page.screenshot(path=str(tmp_path / "opening.png"))
     # the old pair's views: greyed, and a click on its matrix adds no point
     inactive = page.locator(".hs-inactive")
     assert inactive.count() >= 2
-    opacities = [float(inactive.nth(k).evaluate("e => getComputedStyle(e).opacity")) for k in range(inactive.count())]
+    opacities = [
+        float(inactive.nth(k).evaluate("e => getComputedStyle(e).opacity"))
+        for k in range(inactive.count())
+    ]
     assert all(o < 0.5 for o in opacities), opacities
     assert _sample_shown(page) == demo  # the label switches when the new pair is shown
     uploaded = _text(page.locator(".hs-upload-status").first)

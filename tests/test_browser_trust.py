@@ -36,7 +36,9 @@ def test_strip_region_and_meter_follow_the_alignment(page):
     # timing nowhere, which the summary says once; the strip is not red from end to end
     # (it was, on every real pair: stranger2's report, item 3) but marks the open ends and
     # the places less certain than the rest of the pair
-    red = sum(b - a for a, b, c in zip(strip["start"], strip["stop"], strip["color"]) if c == "#c62828")
+    red = sum(
+        b - a for a, b, c in zip(strip["start"], strip["stop"], strip["color"]) if c == "#c62828"
+    )
     assert 0 < red < 0.5 * n
     assert "#9e9e9e" in strip["color"]  # grey: as uncertain as the rest of this pair
     region = page.evaluate("hs.cols('hs-uncertain-region-source', ['x', 'lo', 'hi'])")

@@ -349,7 +349,10 @@ def test_a_cut_trc_says_so_in_the_page_escaped(page, tmp_path):
     note = f"{name}: the header says 652 frames, 40 were read"
     _upload(page, "body", body)
     text = _wait_uploaded(page, r"Uploaded body:.*now the other take")
-    assert f"{name} (51 markers, 40 frames at 100 fps; note: the header says 652 frames, 40 were read)" in text
+    assert (
+        f"{name} (51 markers, 40 frames at 100 fps; note: the header says 652 frames, 40 were read)"
+        in text
+    )
     _upload(page, "hand", HAND_BVH)
     _wait_uploaded(page, r"Uploaded body:.*hand:.*open\.")
     shown = page.locator(".hs-marker-note")
@@ -379,7 +382,9 @@ def test_the_payload_runs_when_a_page_injects_it(page):
 def test_a_session_file_with_html_in_sample_runs_no_script(page, tmp_path):
     session = tmp_path / "session.json"
     session.write_text(
-        json.dumps({"format": "handsplice-session", "version": 1, "inputs": {"sample": XSS_PAYLOAD}})
+        json.dumps(
+            {"format": "handsplice-session", "version": 1, "inputs": {"sample": XSS_PAYLOAD}}
+        )
     )
     page.locator(".hs-open-session input[type=file]").set_input_files(str(session))
     alert = page.locator(".hs-share-error")

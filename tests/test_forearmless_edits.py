@@ -92,7 +92,10 @@ def test_app_edits_of_a_forearmless_pair_equal_fresh_solves_and_reuse_both_passe
         # re-solving forward only: never more than the band, no backward rows
         assert got.pass1.solver is before.pass1.solver
         assert got.pass2.solver is before.pass2.solver
-        for solver, band in ((got.pass1.solver, got.pass1.band), (got.pass2.solver, got.pass2.band)):
+        for solver, band in (
+            (got.pass1.solver, got.pass1.band),
+            (got.pass2.solver, got.pass2.band),
+        ):
             stats = solver.last_stats
             assert stats.cells_computed <= band.area
             assert stats.backward_rows[0] == stats.backward_rows[1]
@@ -125,7 +128,9 @@ def test_trust_reads_the_apps_pass1_table_and_gives_the_same_assessment(prepared
     cli = assess_splice(prepared.features, sol.cache["engine"], body_phases=prepared.body_phases)
     rows = []
     real = Problem.cost_row
-    monkeypatch.setattr(Problem, "cost_row", lambda self, *a: rows.append(self.kind) or real(self, *a))
+    monkeypatch.setattr(
+        Problem, "cost_row", lambda self, *a: rows.append(self.kind) or real(self, *a)
+    )
     app = backend.assess(prepared, sol)
     assert "metric" not in rows  # no per-row pass-1 metric calls
     assert np.array_equal(app.uncertainty.ms, cli.uncertainty.ms)

@@ -75,11 +75,12 @@ def test_splice_writes_bvh_report_and_progress(tmp_path, capsys):
     assert all(u >= 0 for u in report["uncertainty_ms"])
     # a pair the motion does not pin (typical uncertainty over 100 ms) is judged against
     # that typical level; strokes outside the overlap are not timed
-    words = ("ok", "check", "desync") if report["desync"]["pinned"] else ("typical", "check", "desync")
+    words = (
+        ("ok", "check", "desync") if report["desync"]["pinned"] else ("typical", "check", "desync")
+    )
     assert report["desync"]["pinned"] == (report["desync"]["typical_ms"] <= 100.0)
     assert all(
-        s["verdict"] in (*words, "unmatched") and s["start"] <= s["end"]
-        for s in report["strokes"]
+        s["verdict"] in (*words, "unmatched") and s["start"] <= s["end"] for s in report["strokes"]
     )
     assert report["desync"]["summary"] in err
     assert 1 <= len(report["suggested_points"]) <= 3

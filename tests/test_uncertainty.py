@@ -334,7 +334,9 @@ def test_the_demo_pair_is_reported_not_pinned_once_not_red_everywhere(demo):
     assert matched.count("typical") > 0.4 * len(matched)
     assert len(verdicts) == n == res.features.n
     fields = a.report_fields()["desync"]
-    assert fields["pinned"] is False and fields["typical_ms"] == pytest.approx(unc.typical_ms, abs=0.1)
+    assert fields["pinned"] is False and fields["typical_ms"] == pytest.approx(
+        unc.typical_ms, abs=0.1
+    )
     assert fields["summary"].count("do not pin the timing") == 1
     # the numbers themselves are not changed: the bench's ρ and flag ratio use them
     assert np.array_equal(unc.ms, U.alignment_uncertainty(res.features, res.alignment).ms)

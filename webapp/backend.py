@@ -507,7 +507,8 @@ def assess(prepared: Prepared, solution: Solution):
         from engine.trust import assess_splice
 
         cached = assess_splice(
-            prepared.features, _with_cost_table(prepared, solution.cache["engine"]),
+            prepared.features,
+            _with_cost_table(prepared, solution.cache["engine"]),
             body_phases=prepared.body_phases,
         )
         solution.cache["trust"] = cached

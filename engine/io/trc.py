@@ -164,9 +164,7 @@ def parse_trc(data: bytes | str, source: str | Path = "<input>", up_axis: str = 
     table = np.asarray(rows, dtype=float)
     points = table[:, 2:].reshape(len(rows), len(labels), 3)
     notes = _frame_count_notes(header.get("NumFrames", ""), len(rows), source)
-    meta = MotionMeta(
-        units=units, up_axis=up_axis, source=str(source), format="trc", notes=notes
-    )
+    meta = MotionMeta(units=units, up_axis=up_axis, source=str(source), format="trc", notes=notes)
     return MarkerSet(labels=tuple(labels), points=points, fps=fps, meta=meta)
 
 

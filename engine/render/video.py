@@ -143,7 +143,9 @@ class GifFrames:
 
     def add(self, image: np.ndarray) -> None:
         """Queue ``image (H, W, 3) uint8`` (not modified afterwards by the caller)."""
-        self._jobs.append(self._pool.submit(gif_frame, _as_frame(image, f"frame {len(self._jobs)}")))
+        self._jobs.append(
+            self._pool.submit(gif_frame, _as_frame(image, f"frame {len(self._jobs)}"))
+        )
 
     def __len__(self) -> int:
         return len(self._jobs)
@@ -168,7 +170,9 @@ def gif_bytes(frames: Sequence, fps: float) -> bytes:
 
     kept, delays = gif_schedule(len(frames), fps)
     images = [
-        frames[k] if isinstance(frames[k], Image.Image) else gif_frame(_as_frame(frames[k], f"frame {k}"))
+        frames[k]
+        if isinstance(frames[k], Image.Image)
+        else gif_frame(_as_frame(frames[k], f"frame {k}"))
         for k in kept
     ]
     buf = io.BytesIO()

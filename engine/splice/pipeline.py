@@ -537,9 +537,7 @@ def _cells_theta(features: SpliceFeatures, cells: np.ndarray) -> np.ndarray:
         if len(known_keys) + int(miss.sum()) > THETA_CELLS_KEPT:  # keep this path's only
             known_keys, known = np.empty(0, np.int64), np.empty(0)
             miss = np.ones(len(keys), bool)
-        merged_keys, first = np.unique(
-            np.concatenate([known_keys, keys[miss]]), return_index=True
-        )
+        merged_keys, first = np.unique(np.concatenate([known_keys, keys[miss]]), return_index=True)
         merged = np.concatenate([known, th[miss]])[first]
         features.params["_theta_cells"] = (merged_keys, merged)
     return th
@@ -955,9 +953,7 @@ def align_passes(
     exact = hand_lacks_forearm(features)
     solver1 = previous.pass1.solver if same else None
     ends1 = pass1_ends(features, kind, max_unmatched_s)
-    al1, solver1 = _solve(
-        features.pass1_rows, metric1, band1, solver1, incremental, ends1, exact
-    )
+    al1, solver1 = _solve(features.pass1_rows, metric1, band1, solver1, incremental, ends1, exact)
     t1 = time.perf_counter()
     timings["pass1"] = t1 - t0
     progress("pass 1", 1.0)

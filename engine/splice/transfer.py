@@ -573,9 +573,7 @@ def apply_transfer(
             gb = forward_kinematics(body.frames(f0, f1))[1]
         else:
             gb = g_b[f0:f1]
-        _transfer_block(
-            plan, body, hand, t[f0:f1], gb, f0, f1, rots[f0:f1], trans[f0:f1], nb, used
-        )
+        _transfer_block(plan, body, hand, t[f0:f1], gb, f0, f1, rots[f0:f1], trans[f0:f1], nb, used)
     continuous_inplace(rots)
     return Motion(plan.skeleton, rots, trans, body.fps, replace(body.meta, format="derived"))
 

@@ -368,9 +368,7 @@ def summary_line(stroke_list: list[Stroke], typical_ms: float = 0.0) -> str:
         )
         if not stroke_list:
             return head
-        where = ", ".join(f"{s.start}-{s.end}" for s in bad[:6]) + (
-            ", ..." if len(bad) > 6 else ""
-        )
+        where = ", ".join(f"{s.start}-{s.end}" for s in bad[:6]) + (", ..." if len(bad) > 6 else "")
         tail = (
             f"; {len(bad)} of {len(stroke_list)} strokes are {DESYNC_MS:.0f} ms less certain "
             f"still: body frames {where}"

@@ -64,7 +64,10 @@ def parameter_widgets(session: Session) -> pn.viewable.Viewable:
     # says why (a long take opens with a width in seconds: the slider's fraction is not used)
     overridden = {
         name: pn.pane.Markdown(
-            "", css_classes=[f"hs-{name}-fraction-unused"], visible=False, margin=(0, 10),
+            "",
+            css_classes=[f"hs-{name}-fraction-unused"],
+            visible=False,
+            margin=(0, 10),
             styles={"color": "#666", "font-size": "12px"},
         )
         for name in ("band", "refine_band")

@@ -263,8 +263,8 @@ class SharingView:
             spent = time.perf_counter() - t0
             left = remaining_text(spent, done, total - 1)
             step = "encoding" if done >= total - 1 else f"frame {done} of {total - 1}"
-            self.progress_text.object = (
-                f"{what} ({span}): rendering… {step}, {spent:.0f} s" + (f", {left}" if left else "")
+            self.progress_text.object = f"{what} ({span}): rendering… {step}, {spent:.0f} s" + (
+                f", {left}" if left else ""
             )
 
         self._exporting = True
