@@ -366,7 +366,7 @@ def test_w2_is_greyed_out_where_pass_2_compares_the_hand_turning(cfg):
     s = Session(cfg)
     s.load_sample(DEMO)
     layout = parameter_widgets(s)
-    (w1, w1_s, w2, w2_s, _), note = layout[0], layout[1]
+    (w1, _, w1_s, w2, _, w2_s, _), note = layout[0], layout[1]  # widths, their notes
     s.matrix = "pass2"
     assert s.pass2_turns_hand() and s.matrix_label() == PASS2_SPIN_LABEL
     assert w2.disabled and w2_s.disabled and not w1.disabled and not w1_s.disabled
@@ -385,7 +385,7 @@ def test_widths_typed_in_seconds_are_checked_edits(session):
     range greys out its fraction slider; emptied, the fraction is in force again."""
     from webapp.views.controls import parameter_widgets
 
-    (w1, w1_s, *_), *_ = parameter_widgets(session)
+    (w1, _, w1_s, *_), *_ = parameter_widgets(session)  # slider, its note, seconds
     before = session.to_spec()
     w1_s.value = "1e9"
     assert "band" in session.error and "seconds" in session.error

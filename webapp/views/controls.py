@@ -24,7 +24,8 @@ MATRIX_CHOICES = {
 def parameter_widgets(session: Session) -> pn.viewable.Viewable:
     """Band widths (sliders for fractions, fields for seconds) and global tolerance (recompute
     on release: throttled), the W2 note and the matrix choice. The first column holds the
-    five width and tolerance controls in page order."""
+    width and tolerance controls in page order, each fraction slider followed by its note
+    (shown when a width in seconds overrides it) and its seconds field."""
     params = pn.Param(
         session.param,
         parameters=["band", "refine_band", "tolerance"],

@@ -173,8 +173,8 @@ class TrustView:
             pn.widgets.Button(
                 label="",
                 visible=False,
-                button_type="primary",
-                button_style="outline",  # a button to press, not a line of text
+                color="primary",
+                variant="outline",  # a button to press, not a line of text
                 css_classes=["hs-suggestion"],
                 margin=(2, 4),
                 width=400,
