@@ -120,14 +120,14 @@ def browser():
 
 
 @contextlib.contextmanager
-def served_chromium(tmp_path_factory, *serve_args: str):
+def served_chromium(tmp_path_factory, *serve_args: str, timeout: float = 400.0):
     """``(browser, url)``: ``handsplice serve`` (its own upload folder, ``serve_args``) and a
     Chromium; on exit, the server's log must hold no traceback."""
     sync_api = pytest.importorskip("playwright.sync_api")
     from webapp.launch import launch_chromium
 
     with (
-        served_app(tmp_path_factory, *serve_args, timeout=400) as (url, _, log_path),
+        served_app(tmp_path_factory, *serve_args, timeout=timeout) as (url, _, log_path),
         sync_api.sync_playwright() as p,
     ):
         browser = launch_chromium(p)
