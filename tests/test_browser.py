@@ -605,6 +605,12 @@ def test_one_frame_numbering_from_hover_to_session_file(browser, server, tmp_pat
     try:
         page.locator(".hs-preview-image img").wait_for(timeout=120_000)  # rendered on load
         page.locator(".hs-closeup-image img").wait_for(timeout=120_000)
+        # a link of parameters only opens the default pair with them, refusing nothing
+        assert not page.locator(".hs-error").first.is_visible()
+        deadline = time.monotonic() + 60
+        while "body frame 75 " not in pane_text(page.locator(".hs-preview-info").first):
+            assert time.monotonic() < deadline, pane_text(page.locator(".hs-preview-info").first)
+            page.wait_for_timeout(200)
         # matrix and preview side by side on a wide screen
         matrix_box = page.locator(".hs-cost-matrix").first.bounding_box()
         preview_box = page.locator(".hs-preview-image").first.bounding_box()

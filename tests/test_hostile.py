@@ -335,8 +335,15 @@ _WRITER = textwrap.dedent("""
 def test_temporary_files_removed_on_signals(tmp_path, sig):
     (tmp_path / "out.bvh").write_text("old")
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    # a run started in the background by a script inherits SIGINT ignored (the shell's
+    # rule for background jobs), and Python then raises nothing on it: the writer gets
+    # SIGINT's default, as a command typed at a terminal has
     p = subprocess.Popen(
-        [PY, "-c", _WRITER, str(tmp_path)], stdout=subprocess.PIPE, text=True, env=env
+        [PY, "-c", _WRITER, str(tmp_path)],
+        stdout=subprocess.PIPE,
+        text=True,
+        env=env,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     assert p.stdout.readline().strip() == "writing"
     assert len(list(tmp_path.glob(".out.hstmp-*"))) == 2  # the partial files exist
