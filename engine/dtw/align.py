@@ -182,7 +182,9 @@ class SharedCosts:
         self.problem = Problem.from_features(a, b, metric)
         self.problem.keep_costs = True
 
-    def solve(self, band: Band, ends: Ends | None = None) -> Alignment:
+    def solve(self, band: Band, ends: Ends | None = None, forward_only: bool = False) -> Alignment:
+        """One solve as :func:`align_features`. ``forward_only`` is :class:`Aligner`'s: every
+        solve here is a fresh one, so it changes nothing (one interface for both solvers)."""
         return self.problem.solve(check_band(band, self.problem), as_ends(ends))
 
 

@@ -713,9 +713,7 @@ def _solve(
     ``exact``: a re-solve by ``solver`` gives a fresh solve's path, ties included
     (``Aligner.solve(forward_only=True)``)."""
     a, b = rows
-    if solver is not None:
-        if isinstance(solver, SharedCosts):  # one-shot: a fresh solve by construction
-            return solver.solve(band, ends), solver
+    if solver is not None:  # an Aligner, or SharedCosts (one-shot solves: always fresh)
         return solver.solve(band, ends, forward_only=exact), solver
     if incremental:
         solver = Aligner(a, b, metric=metric)
