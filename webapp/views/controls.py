@@ -12,6 +12,7 @@ from engine.dtw import constraints as C
 from webapp import safe_text
 from webapp.state import PASS2_SPIN_NOTE, Session
 from webapp.views._dispatch import with_document_lock
+from webapp.views.refusal import refusal_box
 
 MATRIX_CHOICES = {
     "Pass 1": "pass1",
@@ -246,14 +247,7 @@ class PointsTable:
         self._holder = pn.Column(self.table, margin=0, sizing_mode="stretch_width")
         #: a refused edit of the table is said here, where it was typed (the page's error
         #: line sits above the matrix, often scrolled out of view)
-        self.refusal = pn.pane.Alert(
-            "",
-            alert_type="danger",
-            visible=False,
-            css_classes=["hs-table-error"],
-            sizing_mode="stretch_width",
-            margin=(4, 10),
-        )
+        self.refusal = refusal_box("hs-table-error", sizing_mode="stretch_width", margin=(4, 10))
         # brought into view when shown (the rows below it may be at the screen's edge)
         into_view = (
             "setTimeout(() => { const v = Bokeh.index.find_one(source);"
@@ -412,13 +406,7 @@ def status_line(session: Session) -> pn.viewable.Viewable:
 
 def error_alert(session: Session) -> pn.viewable.Viewable:
     """A dismissible alert showing ``session.error`` (never a traceback)."""
-    alert = pn.pane.Alert(
-        "",
-        alert_type="danger",
-        visible=False,
-        css_classes=["hs-error"],
-        sizing_mode="stretch_width",
-    )
+    alert = refusal_box("hs-error", sizing_mode="stretch_width")
 
     def update(*_):
         alert.object = safe_text.markdown(session.page_error())

@@ -25,6 +25,7 @@ from webapp import backend, safe_text, uploads
 from webapp.backend import one_line
 from webapp.state import Session
 from webapp.views.dropper import TakeDropper
+from webapp.views.refusal import refusal_box
 
 #: upload checks and pair preparation of all sessions share these threads
 _WORKERS = ThreadPoolExecutor(max_workers=2, thread_name_prefix="hs-upload")
@@ -72,13 +73,7 @@ class InputsView:
         self.side = pn.widgets.RadioButtonGroup.from_param(
             session.param.side, css_classes=["hs-side"], width=180
         )
-        self.message = pn.pane.Alert(
-            "",
-            alert_type="danger",
-            visible=False,
-            css_classes=["hs-upload-error"],
-            sizing_mode="stretch_width",
-        )
+        self.message = refusal_box("hs-upload-error", sizing_mode="stretch_width")
         self.uploaded = pn.pane.HTML(
             "", css_classes=["hs-upload-status"], sizing_mode="stretch_width"
         )

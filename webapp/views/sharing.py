@@ -27,6 +27,7 @@ import panel as pn
 from engine.render.video import remaining_text
 from webapp import backend, safe_text
 from webapp.state import VIEW_STATE, Session
+from webapp.views.refusal import refusal_box
 
 #: exports of all sessions share these threads (renders take turns on the OpenGL lock)
 _EXPORTS = ThreadPoolExecutor(max_workers=2, thread_name_prefix="hs-export")
@@ -68,9 +69,7 @@ class SharingView:
 
     def __init__(self, session: Session):
         self.session = session
-        self.message = pn.pane.Alert(
-            "", alert_type="danger", visible=False, css_classes=["hs-share-error"]
-        )
+        self.message = refusal_box("hs-share-error")
         self.bvh = _Download(
             callback=self._bvh,
             filename="spliced.bvh",
