@@ -645,3 +645,53 @@ def finger_error(out: Motion, ref: Motion, pairs=None) -> float:
     a = out.rotations[:, [p[0] for p in pairs]]
     b = ref.rotations[:, [p[1] for p in pairs]]
     return float(np.mean(rot.angle_between(a, b)))
+
+
+def inside_case(
+    long_s: float,
+    short_s: float,
+    offset_s: float,
+    seed: int = 0,
+    hand_longer: bool = False,
+    hand_fps: float = 30.0,
+    path: str = LAFAN[0],
+    mocap: str | Path | None = None,
+) -> Case:
+    """A short take recorded during a long one, from one real LAFAN1 capture (30 fps).
+
+    The first ``long_s`` seconds of ``path`` get synthetic fingers (:func:`add_fingers`);
+    the long take is all of it, the short take its ``short_s`` seconds from ``offset_s``.
+    Body longer (default): the body take is the long one without fingers, the hand take
+    the short stretch re-timed by a mild smooth warp (rate 1, sigma 0.2) at ``hand_fps``,
+    trunk still, arms shrunk, turned 20°, 0.5° noise, as :func:`make_hand_take` makes
+    every hand take; ``truth`` is NaN on the body frames outside the stretch (they have
+    no hand match). ``hand_longer``: the body take is the short stretch and the hand
+    take all of it."""
+    root = Path(mocap) if mocap is not None else MOCAP
+    rng = np.random.default_rng(seed)
+    base = read_bvh(root / path)
+    fps = base.fps
+    base = base.frames(0, int(round(long_s * fps)))
+    full = add_fingers(base, rng)
+    roles = find_roles(full.skeleton)
+    first = int(round(offset_s * fps))
+    piece = full.frames(first, first + int(round(short_s * fps)))
+    body_full, hand_full = (piece, full) if hand_longer else (full, piece)
+    body = strip_fingers(body_full, roles)
+    body = replace(body, meta=replace(body.meta, source=f"{full.meta.source}#body"))
+    params = {
+        "fps": float(hand_fps),
+        "scale": 1.0,
+        "warp_sigma": 0.2,
+        "shrink": 0.6,
+        "yaw_deg": 20.0,
+        "noise_deg": 0.5,
+    }
+    hand, hand_t, orig_t = make_hand_take(hand_full, rng, roles=roles, **params)
+    # times of the hand take's source (orig_t) count from its own first frame
+    body_t = np.arange(body.n_frames) / fps + (first / fps if hand_longer else -first / fps)
+    truth = np.interp(body_t, orig_t, hand_t) * hand.fps
+    truth[(body_t < orig_t[0]) | (body_t > orig_t[-1])] = np.nan
+    params.update(long_s=long_s, short_s=short_s, offset_s=offset_s, hand_longer=hand_longer)
+    name = f"{Path(path).stem}[{first}:+{piece.n_frames}]{'<hand' if hand_longer else '<body'}"
+    return Case(name, "inside", seed, body, hand, truth, body_full, params)

@@ -28,7 +28,8 @@ Matching points
 Ends
     ``ends="fixed"`` (the path starts at (0, 0) and ends at (n-1, m-1)) or ``"open"``
     (either take may begin or finish with up to ``max_unmatched_s`` seconds that match
-    nothing; ``None`` = half of the shorter take).
+    nothing; ``None`` = :data:`UNMATCHED_DEFAULT`, per take: half of the shorter take,
+    plus the length difference for the longer one, see :func:`unmatched_limits`).
 """
 
 from __future__ import annotations
@@ -423,8 +424,10 @@ def parse_tolerance(value, field: str = "tolerance") -> float:
 
 ENDS = ("fixed", "open")
 DEFAULT_ENDS = "open"  # open-end DTW (issue 12); engine.splice.pipeline.ENDS is this
-#: the open-end limit, seconds (None = half of the shorter take)
+#: the open-end limit, seconds (None = the default, :func:`unmatched_limits`)
 MAX_UNMATCHED = Range("max_unmatched_s", 0.0, 0.0, 3600.0, "seconds")
+#: the default open-end limit in words (the CLI's help, the unmatched sentence, the docs)
+UNMATCHED_DEFAULT = "half the shorter take, plus the length difference for the longer one"
 
 
 def parse_ends(value) -> str:
@@ -449,12 +452,30 @@ def parse_max_unmatched(value) -> float | None:
     return MAX_UNMATCHED.parse(value)
 
 
-def max_unmatched_frames(max_unmatched_s: float | None, n: int, m: int, fps: float) -> int:
-    """The open-end limit in frames of the alignment grid (body rate): the given seconds,
-    or half of the shorter take."""
+def unmatched_limits(
+    n: int, m: int, fps: float, max_unmatched_s: float | None = None
+) -> tuple[int, int]:
+    """Frames of the body take (``n`` frames) and of the hand take (``m`` frames on the
+    alignment grid, the body's rate ``fps``) that may stay unmatched at each end (open
+    ends, ``engine.dtw.Ends``): ``max_unmatched_s`` seconds for both, or the default
+    (:data:`UNMATCHED_DEFAULT`), per take
+
+        limit = (its length - the other's length, if longer) + min(n, m) // 2
+
+    Why: the shorter take may lie anywhere inside the longer one (a 33 s hand take
+    recorded during a 2-minute body take), so each end of the longer take may stay
+    unmatched for up to the length difference; on top of that the takes may overlap
+    only in part, by as little as half the shorter take at either end. With equal
+    lengths this is half the take, as before; with half the shorter take for both
+    (the old rule) a 33 s hand had to span at least 2 min - 33 s of the body take.
+    Each limit is below its take's length."""
+    n, m = int(n), int(m)
     if max_unmatched_s is None:
-        return int(min(n, m) // 2)
-    return int(min(round(parse_max_unmatched(max_unmatched_s) * float(fps)), max(n, m) - 1))
+        half = min(n, m) // 2
+        body, hand = max(n - m, 0) + half, max(m - n, 0) + half
+    else:
+        body = hand = int(round(parse_max_unmatched(max_unmatched_s) * float(fps)))
+    return max(min(body, n - 1), 0), max(min(hand, m - 1), 0)
 
 
 # ---------------------------------------------------------------------------------------

@@ -17,6 +17,16 @@ short takes the pass-1 band grows by about half its area; on long takes ``E`` is
 :data:`MAX_ROOM_S` seconds and its taper at :data:`TAPER_WIDTHS` times ``E`` (about 10 %
 more cells on a 2-minute pair). Pass 2's band (around the pass-1 path) does not grow.
 Matching points keep their tolerance clips (the widened band is intersected with them).
+
+Takes of different lengths (:func:`inside_band`): the paper's strip assumes the hand
+take spans the body take at another tempo (slope ``m/n``). A shorter take recorded
+during a longer one (a 33 s hand take inside a 2-minute body take) runs at about the
+same rate (slope 1) from an unknown offset ``d = i - j`` anywhere in ``[0, n - m]``
+(``[n - m, 0]`` when the hand take is longer), and the strip around the corner-to-corner
+diagonal misses most of those paths. The band then also holds every cell within the
+slope-1 half-width ``Λ1 = W / √2`` (the paper's ``Λ`` for a segment of slope 1) of a
+placement whose ends the unmatched limits allow. Its cost: ``min(n, m) · (|n - m| + 2 Λ1)``
+cells; nothing when the takes last as long (the placements are the diagonal itself).
 """
 
 from __future__ import annotations
@@ -27,7 +37,7 @@ import numpy as np
 
 from engine.dtw import Band
 
-__all__ = ["open_end_band"]
+__all__ = ["inside_band", "open_end_band"]
 
 
 #: the widening at each end is at most this many seconds (real takes start and end a few
@@ -80,7 +90,40 @@ def open_end_band(
     down = np.round(e_body * start + e_hand * end).astype(np.int64)
     lo = np.maximum(band.lo - down, 0)
     hi = np.minimum(band.hi + up, m - 1)
+    inside = inside_band(n, m, width, limits)
+    if inside is not None:  # union row by row, on the rows the placements reach
+        rows = inside[0] <= inside[1]
+        lo = np.where(rows, np.minimum(lo, inside[0]), lo)
+        hi = np.where(rows, np.maximum(hi, inside[1]), hi)
     wide = Band(lo, hi, m, open_ends=True)
     if points:
         wide = wide.intersect(Band.from_constraints(n, m, None, points, open_ends=True))
     return wide
+
+
+def inside_band(
+    n: int, m: int, width: float, limits: tuple[int, int]
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(lo, hi)`` columns per row, ``(n,)`` int each, of the cells near a slope-1 path
+    that places the shorter take inside the longer one (module docstring), or None when
+    the takes last as long or the limits allow no such placement.
+
+    A slope-1 path with offset ``d`` (body frame minus hand frame) leaves ``max(d, 0)``
+    body and ``max(-d, 0)`` hand frames unmatched at the start and ``n - m - d`` (body, if
+    positive) or ``d - (n - m)`` (hand) at the end, so ``limits = (body, hand)`` allow
+    ``d`` in ``[-hand, body] ∩ [n - m - body, n - m + hand]``; of these, the offsets that
+    keep the shorter take inside, ``[min(0, n - m), max(0, n - m)]``, are covered, each
+    widened by ``Λ1 = width · n / √2`` columns (drift, as the paper's band allows)."""
+    diff = n - m
+    if diff == 0 or n < 2 or m < 2:
+        return None
+    body_lim, hand_lim = int(limits[0]), int(limits[1])
+    d_lo = max(min(0, diff), -hand_lim, diff - body_lim)
+    d_hi = min(max(0, diff), body_lim, diff + hand_lim)
+    if d_lo > d_hi:
+        return None
+    reach = width * n / math.sqrt(2.0)
+    i = np.arange(n, dtype=float)
+    lo = np.maximum(np.floor(i - d_hi - reach), 0.0).astype(np.int64)
+    hi = np.minimum(np.ceil(i - d_lo + reach), m - 1.0).astype(np.int64)
+    return lo, hi

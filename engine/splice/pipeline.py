@@ -73,8 +73,6 @@ STEP2 = 0.05
 #: where the alignment may start and end: "open" (either take may begin earlier or end
 #: later; up to ``MAX_UNMATCHED`` at each end) or "fixed" (the paper: corner to corner)
 ENDS = C.DEFAULT_ENDS
-#: default limit of unmatched frames at each end, as a share of the shorter take
-MAX_UNMATCHED_SHARE = 0.5
 #: frames (Gaussian σ, body frames) over which the fingers ease into the first matched hand
 #: pose / out of the last one at the ends of the overlap
 EASE_FRAMES = 3.0
@@ -731,12 +729,10 @@ def check_ends_option(ends: str, max_unmatched_s: float | None) -> tuple[str, fl
 
 def unmatched_limits(n: int, m: int, fps: float, max_unmatched_s: float | None) -> tuple[int, int]:
     """Frames of the body take and of the hand take (grid) that may stay unmatched at each
-    end: ``max_unmatched_s`` seconds, else :data:`MAX_UNMATCHED_SHARE` of the shorter take."""
-    if max_unmatched_s is None:
-        k = int(MAX_UNMATCHED_SHARE * min(n, m))
-        return min(k, n - 1), min(k, m - 1)
-    k = int(round(max_unmatched_s * fps))
-    return min(k, n - 1), min(k, m - 1)
+    end: ``max_unmatched_s`` seconds, else the default (``constraints.unmatched_limits``,
+    the one owner of the rule: half the shorter take, plus the length difference for the
+    longer one)."""
+    return C.unmatched_limits(n, m, fps, max_unmatched_s)
 
 
 def chance_cost(rows, metric: str, seed: int = 0) -> float:
@@ -919,8 +915,8 @@ def align_passes(
     ends : ``"open"`` (default: either take may start earlier or end later; the
         unmatched body frames hold the first / last matched hand pose, eased over
         :data:`EASE_FRAMES`) or ``"fixed"`` (the paper: first to last frames).
-    max_unmatched_s : limit of unmatched seconds of each take at each end (default half
-        of the shorter take).
+    max_unmatched_s : limit of unmatched seconds of each take at each end (default:
+        ``constraints.UNMATCHED_DEFAULT``, see ``constraints.unmatched_limits``).
 
     Raises ``ParameterError`` for infeasible bands or points (naming the point).
     """
