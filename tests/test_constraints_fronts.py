@@ -284,8 +284,8 @@ def test_ends_and_open_end_limit():
     ):
         C.parse_max_unmatched(-1)
     # default: half of the shorter take (alignment-grid frames)
-    assert C.max_unmatched_frames(None, 300, 200, 30.0) == 100
-    assert C.max_unmatched_frames(2.0, 300, 200, 30.0) == 60
+    assert C.unmatched_limits(300, 200, 30.0, None) == (200, 100)
+    assert C.unmatched_limits(300, 200, 30.0, 2.0) == (60, 60)
 
 
 def test_shared_command_line_replays_the_apps_tolerance_exactly():

@@ -10,12 +10,24 @@ import pytest
 from benchmarks.split import Realism, make_case
 from engine.dtw import Band
 from engine.splice import pipeline as P
-from engine.splice.end_band import open_end_band
+from engine.splice.end_band import inside_band, open_end_band
 
 
 def _inside(band: Band, path: np.ndarray) -> bool:
     i, j = path[:, 0], path[:, 1]
     return bool(np.all((band.lo[i] <= j) & (j <= band.hi[i])))
+
+
+def _with_placements(paper: Band, width: float, limits) -> Band:
+    """``paper`` and the slope-1 placements of the shorter take (``inside_band``): the band
+    the widening for unmatched ends starts from when the takes' lengths differ."""
+    inside = inside_band(paper.n, paper.m, width, limits)
+    if inside is None:
+        return paper
+    rows = inside[0] <= inside[1]
+    lo = np.where(rows, np.minimum(paper.lo, inside[0]), paper.lo)
+    hi = np.where(rows, np.maximum(paper.hi, inside[1]), paper.hi)
+    return Band(lo, hi, paper.m, open_ends=True)
 
 
 def _line(n, j0, j1):
@@ -39,9 +51,11 @@ def test_straight_paths_with_ends_up_to_twice_the_half_width_fit(n, m):
         path = _line(n, j0, j1)
         assert _inside(wide, path)
     assert not _inside(paper, _line(n, s, m - 1 - e))
-    # the middle row is not widened: the band grows by about half its area, not more
-    assert wide.lo[n // 2] == paper.lo[n // 2] and wide.hi[n // 2] == paper.hi[n // 2]
-    assert wide.area <= 1.6 * paper.area
+    # the middle row is not widened beyond the shorter take's slope-1 placements (none
+    # when the takes last as long): the band grows by about half its area, not more
+    base = _with_placements(paper, width, (n // 2, m // 2))
+    assert wide.lo[n // 2] == base.lo[n // 2] and wide.hi[n // 2] == base.hi[n // 2]
+    assert wide.area <= base.area + 0.6 * paper.area
 
 
 def test_the_widening_stays_within_the_unmatched_limits():
@@ -88,5 +102,6 @@ def test_long_takes_get_a_few_seconds_of_room_not_half_the_band():
     assert np.all(wide.hi - paper.hi <= 2 * room + 1)
     assert wide.hi[0] - paper.hi[0] >= room - 1
     middle = slice(int(TAPER_WIDTHS * room * n / m) + 2, n - int(TAPER_WIDTHS * room * n / m) - 2)
-    assert np.array_equal(wide.lo[middle], paper.lo[middle])
-    assert wide.area <= 1.15 * paper.area
+    base = _with_placements(paper, 0.3, (n // 2, m // 2))  # 100 frames longer: ~6 %
+    assert np.array_equal(wide.lo[middle], base.lo[middle])
+    assert wide.area <= base.area + 0.15 * paper.area

@@ -89,3 +89,15 @@ def test_a_short_real_take_inside_a_long_one_is_timed_within_frames(
         ranges = result.alignment.unmatched_body
         assert all(b - a + 1 < limit for a, b in ranges)
         assert "open-end limit" not in unmatched_summary(ranges, case.body.fps, limit)
+
+
+def test_the_cli_help_and_the_unmatched_sentence_name_the_default_rule(capsys):
+    from engine.cli import main
+
+    with pytest.raises(SystemExit):
+        main(["splice", "--help"])
+    help_text = " ".join(capsys.readouterr().out.split())
+    assert f"(default: {C.UNMATCHED_DEFAULT})" in help_text
+    text = unmatched_summary([(0, 3104)], 30.0, 3105)
+    assert f"open-end limit ({C.UNMATCHED_DEFAULT})" in text
+    assert "--max-unmatched SECONDS allows longer unmatched ends" in text

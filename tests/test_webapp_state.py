@@ -423,23 +423,27 @@ def test_the_status_names_body_frames_left_without_a_hand_match(session):
     share = re.search(r"\((\d+) of (\d+), [\d.]+ s, (\d+) %\)", readme)
     assert share and (int(share.group(1)), int(share.group(2))) == (frames, session.n)
     assert int(share.group(3)) == round(100 * frames / session.n)
-    # neither end reached the open-end limit (half the shorter take): the data cut them
+    # neither end reached the open-end limit: the data cut them
     limit = session.solution.cache["engine"].unmatched_limit(session.fps)
     assert limit and all(b - a + 1 < limit for a, b in ranges)
     assert "open-end limit" not in session.status_text()
 
 
 def test_an_unmatched_end_cut_by_the_open_end_limit_says_so():
-    """Exactly 500 frames at each end of a long pair was the default limit (half the
-    shorter take: a 33 s 120 fps hand is 1000 grid frames at 30 fps), not the data."""
+    """An end as long as the default limit (for the body take: the length difference
+    plus half the shorter take; a 33 s 120 fps hand is 1000 grid frames at 30 fps) was
+    cut by the limit, not the data, and the sentence names the rule."""
     from engine.splice.pipeline import unmatched_limits
     from engine.splice.report import unmatched_summary
 
-    assert unmatched_limits(4587, 1000, 30.0, None) == (500, 500)
+    assert unmatched_limits(4587, 1000, 30.0, None) == (4087, 500)
     ranges = [(0, 499), (4087, 4586)]
     text = unmatched_summary(ranges, 30.0, 500)
     assert text.startswith("body frames 0-499, 4087-4586 (33.3 s) have no hand match")
-    assert "500 frames (16.7 s) at an end is the open-end limit (half the shorter take)" in text
+    assert (
+        "500 frames (16.7 s) at an end is the open-end limit (half the shorter take, "
+        "plus the length difference for the longer one)" in text
+    )
     assert "--max-unmatched SECONDS" in text
     assert "limit" not in unmatched_summary([(0, 120)], 30.0, 500)
     assert "(--max-unmatched)" in unmatched_summary([(0, 14)], 30.0, 15, limit_given=True)

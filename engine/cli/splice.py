@@ -112,7 +112,9 @@ def add_parser(subparsers) -> None:
         default=None,
         metavar="SECONDS",
         help="open ends: seconds of each take that may stay unmatched at each end "
-        "(default: half of the shorter take)",
+        # constraints.UNMATCHED_DEFAULT, written out: the parser is built without
+        # importing engine.dtw (numba); tests/test_unmatched_default.py holds them equal
+        "(default: half the shorter take, plus the length difference for the longer one)",
     )
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     p.set_defaults(func=run)

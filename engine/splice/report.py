@@ -48,6 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from engine.base.atomic import write_text
+from engine.dtw import constraints as C
 
 VERSION = 1
 
@@ -164,7 +165,7 @@ def unmatched_summary(
     matched. ``ranges``: ``[(first, last), ...]`` body frames (``unmatched_body``); ``fps``:
     the body take's rate (frames per second); ``limit``: the open-end limit, body frames
     per end (``SpliceAlignment.unmatched_limit``; ``limit_given``: set by
-    ``--max-unmatched`` rather than the default, half the shorter take). An end as long
+    ``--max-unmatched`` rather than the default, ``constraints.UNMATCHED_DEFAULT``). An end as long
     as the limit was cut there by the rule, not by the data, and the sentence says so."""
     ranges = [(int(a), int(b)) for a, b in ranges]
     if not ranges:
@@ -177,7 +178,7 @@ def unmatched_summary(
     )
     capped = limit is not None and limit > 0 and any(b - a + 1 >= limit for a, b in ranges)
     if capped:
-        rule = "--max-unmatched" if limit_given else "half the shorter take"
+        rule = "--max-unmatched" if limit_given else C.UNMATCHED_DEFAULT
         text += (
             f"; {limit} frames ({limit / float(fps):.1f} s) at an end is the open-end limit "
             f"({rule}), so the takes may overlap less than this: --max-unmatched SECONDS "
