@@ -656,6 +656,7 @@ def inside_case(
     hand_fps: float = 30.0,
     path: str = LAFAN[0],
     mocap: str | Path | None = None,
+    fps: float | None = None,
 ) -> Case:
     """A short take recorded during a long one, from one real LAFAN1 capture (30 fps).
 
@@ -666,10 +667,14 @@ def inside_case(
     trunk still, arms shrunk, turned 20°, 0.5° noise, as :func:`make_hand_take` makes
     every hand take; ``truth`` is NaN on the body frames outside the stretch (they have
     no hand match). ``hand_longer``: the body take is the short stretch and the hand
-    take all of it."""
+    take all of it. ``fps``: the capture resampled to this rate first (the body take's)."""
+    from engine.model.kinematics import resample
+
     root = Path(mocap) if mocap is not None else MOCAP
     rng = np.random.default_rng(seed)
     base = read_bvh(root / path)
+    if fps is not None and fps != base.fps:
+        base = resample(base, fps)
     fps = base.fps
     base = base.frames(0, int(round(long_s * fps)))
     full = add_fingers(base, rng)

@@ -358,3 +358,63 @@ def test_a_missing_take_fails_its_pair_before_any_cluster_starts(tmp_path):
     assert rec["error"] == f"{missing}: no such file"
     rows = list(csv.DictReader((tmp_path / "out" / "summary.csv").open()))
     assert rows[0]["error"] == f"{missing}: no such file"
+
+
+# ---------------------------------------------------------------- reader notes
+
+
+def test_reader_notes_reach_the_pair_record_summary_page_and_progress(takes, tmp_path):
+    """pyomeca's TRC (its header says 652 frames, 93 rows follow) under a file name with
+    markup: the reader's note (which ``splice`` prints on stderr) is in the failed pair's
+    record, its summary.csv row, the progress lines and index.html, escaped there."""
+    import io
+    import shutil
+
+    from engine.jobs.batch import Progress, write_index_html, write_summary_csv
+
+    trc = tmp_path / "<b>cut&.trc"
+    shutil.copyfile(MOCAP / "pyomeca" / "markers.trc", trc)
+    job = PairJob(
+        line=2, name="cut", body=str(trc), hand=str(takes / "hands" / Path(HANDS[0]).name),
+        side="right",
+    )
+    rec = run_pair(job, tmp_path, thumbnails="none", seconds=None, memory_mb=None)
+    note = "<b>cut&.trc: the header says 652 frames, 93 were read"
+    assert rec["status"] == "failed" and rec["notes"] == note  # a marker take: refused
+    write_summary_csv([rec], tmp_path / "summary.csv")
+    assert _summary(tmp_path)["cut"]["notes"] == note
+    page = write_index_html([rec], tmp_path / "index.html", "m.csv", 1.0).read_text("utf-8")
+    assert "note: &lt;b&gt;cut&amp;.trc: the header says 652 frames, 93 were read" in page
+    assert "<b>cut&" not in page
+    stream = io.StringIO()
+    Progress(1, stream).update(rec)
+    assert f"handsplice batch: note: cut: {note}\n" in stream.getvalue()
+
+
+def test_a_done_pair_keeps_its_reader_notes_in_its_report(takes, tmp_path, monkeypatch):
+    """A pair that splices: the notes of both takes (each once) are in its report's
+    ``reader_notes`` and its record's ``notes``, and come back when the pair is skipped."""
+    from dataclasses import replace
+
+    import engine.io as io_pkg
+
+    read = io_pkg.load_take
+
+    def noting(path):  # a reader that notes something about every take it reads
+        take = read(path)
+        notes = ("a.bvh: 3 frames & more were cut", f"{Path(path).name}: read")
+        return replace(take, meta=replace(take.meta, notes=notes))
+
+    monkeypatch.setattr(io_pkg, "load_take", noting)
+    job = PairJob(
+        line=2, name="noted", body=str(takes / "bodies" / Path(BODIES[0]).name),
+        hand=str(takes / "hands" / Path(HANDS[0]).name), side="right",
+    )
+    rec = run_pair(job, tmp_path, thumbnails="none", seconds=None, memory_mb=None)
+    assert rec["status"] == "done", rec["error"]
+    body_name, hand_name = Path(BODIES[0]).name, Path(HANDS[0]).name
+    expected = ["a.bvh: 3 frames & more were cut", f"{body_name}: read", f"{hand_name}: read"]
+    assert rec["notes"].split(" | ") == expected
+    report = json.loads((tmp_path / rec["report"]).read_text("utf-8"))
+    assert report["reader_notes"] == expected
+    assert is_done(job, tmp_path)["record"]["notes"] == rec["notes"]

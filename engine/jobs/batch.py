@@ -93,6 +93,7 @@ SUMMARY_COLUMNS = (
     "thumbnail_kind",
     "worker",
     "error",
+    "notes",
 )
 THUMB_SIZE = (192, 144)
 _NAME_OK = re.compile(r"[^A-Za-z0-9_.+-]+")
@@ -399,12 +400,17 @@ def _run_pair_here(
 
         body = load_take(job.body)
         hand = load_take(job.hand)
+        notes = reader_notes(body, hand)
+        if notes:  # kept on a failed pair too: they may say why it failed
+            record["notes"] = NOTE_SEPARATOR.join(notes)
         motion, report = (splice or splice_pair)(body, hand, job)
         outs = outputs_of(job, outdir)
         from engine.io.bvh import format_bvh
 
         report = dict(report)
         report["output"] = outs["output"].name
+        if notes:
+            report["reader_notes"] = list(notes)
         report.setdefault(
             "batch",
             {
@@ -449,6 +455,24 @@ def _run_pair_here(
         if not isinstance(exc, HandSpliceError | ValueError | OSError | KeyError):
             record["error"] += " [" + _where(exc) + "]"
     return record
+
+
+#: between a pair's reader notes in its one summary cell
+NOTE_SEPARATOR = " | "
+
+
+def reader_notes(*takes) -> tuple[str, ...]:
+    """What the readers accepted but a user should know (``meta.notes``, e.g. ``"markers.trc:
+    the header says 652 frames, 93 were read"``), each once, as ``handsplice splice`` prints
+    them on stderr: the pair's report (``reader_notes``), its ``notes`` in summary.csv and
+    index.html (escaped), and a ``note:`` line in the progress carry them."""
+    out: list[str] = []
+    for take in takes:
+        for note in getattr(getattr(take, "meta", None), "notes", ()) or ():
+            text = " ".join(str(note).split())[:500]
+            if text and text not in out:
+                out.append(text)
+    return tuple(out)
 
 
 def splice_pair(body, hand, job: PairJob):
@@ -876,6 +900,8 @@ class Progress:
             file=self.stream,
             flush=True,
         )
+        for note in filter(None, str(rec.get("notes") or "").split(NOTE_SEPARATOR)):
+            print(f"handsplice batch: note: {rec['name']}: {note}", file=self.stream, flush=True)
 
     def finish(self, result: BatchResult) -> None:
         self.note(
@@ -933,6 +959,9 @@ def write_index_html(records: list[dict], path: Path, manifest_name: str, second
             detail = f"{esc(str(rec['spliced_frames']))} frames at {esc(str(rec['fps']))} fps"
             if rec.get("seconds"):
                 detail += f", {esc(str(rec['seconds']))} s"
+        if rec.get("notes"):  # the readers' notes name the user's files: escaped
+            notes = str(rec["notes"]).split(NOTE_SEPARATOR)
+            detail += "".join(f"<br><small>note: {esc(n)}</small>" for n in notes)
         rows.append(
             f"<tr><td>{img}</td><td><b>{esc(rec['name'])}</b><br><small>line {rec['line']}: "
             f"{esc(Path(rec['body']).name)} + {esc(Path(rec['hand']).name)}, "
