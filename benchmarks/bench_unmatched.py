@@ -82,12 +82,18 @@ def cases(seeds: int, with_120: bool) -> list[dict]:
     for hand_longer in (False, True):
         for k, offset in enumerate((10.0, 45.0, 80.0)):
             out.append(
-                {"kind": "inside", "offset": offset, "seed": k, "hand_longer": hand_longer,
-                 "fps": 30.0}
+                {
+                    "kind": "inside",
+                    "offset": offset,
+                    "seed": k,
+                    "hand_longer": hand_longer,
+                    "fps": 30.0,
+                }
             )
     if with_120:
-        out.append({"kind": "inside", "offset": 45.0, "seed": 0, "hand_longer": False,
-                    "fps": 120.0})
+        out.append(
+            {"kind": "inside", "offset": 45.0, "seed": 0, "hand_longer": False, "fps": 120.0}
+        )
         out.append({"kind": "long", "seconds": 120.0})
     for fam in ("beat", "lafan1", "untrimmed", "fps", "manipnet"):
         out.append({"kind": "split", "family": fam, "seeds": seeds})

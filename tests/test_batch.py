@@ -375,7 +375,10 @@ def test_reader_notes_reach_the_pair_record_summary_page_and_progress(takes, tmp
     trc = tmp_path / "<b>cut&.trc"
     shutil.copyfile(MOCAP / "pyomeca" / "markers.trc", trc)
     job = PairJob(
-        line=2, name="cut", body=str(trc), hand=str(takes / "hands" / Path(HANDS[0]).name),
+        line=2,
+        name="cut",
+        body=str(trc),
+        hand=str(takes / "hands" / Path(HANDS[0]).name),
         side="right",
     )
     rec = run_pair(job, tmp_path, thumbnails="none", seconds=None, memory_mb=None)
@@ -407,8 +410,11 @@ def test_a_done_pair_keeps_its_reader_notes_in_its_report(takes, tmp_path, monke
 
     monkeypatch.setattr(io_pkg, "load_take", noting)
     job = PairJob(
-        line=2, name="noted", body=str(takes / "bodies" / Path(BODIES[0]).name),
-        hand=str(takes / "hands" / Path(HANDS[0]).name), side="right",
+        line=2,
+        name="noted",
+        body=str(takes / "bodies" / Path(BODIES[0]).name),
+        hand=str(takes / "hands" / Path(HANDS[0]).name),
+        side="right",
     )
     rec = run_pair(job, tmp_path, thumbnails="none", seconds=None, memory_mb=None)
     assert rec["status"] == "done", rec["error"]
