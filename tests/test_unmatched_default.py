@@ -101,3 +101,18 @@ def test_the_cli_help_and_the_unmatched_sentence_name_the_default_rule(capsys):
     text = unmatched_summary([(0, 3104)], 30.0, 3105)
     assert f"open-end limit ({C.UNMATCHED_DEFAULT})" in text
     assert "--max-unmatched SECONDS allows longer unmatched ends" in text
+
+
+def test_a_band_over_the_cell_limit_names_max_unmatched(mocap_dir, monkeypatch):
+    """The placements cost min(n, m) x |n - m| cells: where that passes the cell limit the
+    refusal says why and which option narrows it, and --max-unmatched does."""
+    from engine.base import limits
+    from engine.base.errors import ParameterError
+
+    case = inside_case(120.0, 33.0, 45.0, seed=0, mocap=mocap_dir)
+    f = P.prepare(case.body, case.hand)
+    monkeypatch.setattr(limits, "MAX_BAND_CELLS", 2_500_000)
+    with pytest.raises(ParameterError, match=r"differ by 87\.0 s .* --max-unmatched SECONDS"):
+        P.align_passes(f)
+    a = P.align_passes(f, max_unmatched_s=5.0)
+    assert a.pass1.band.area <= 2_500_000

@@ -937,6 +937,13 @@ def align_passes(
     if is_open:  # room for the unmatched ends (engine.splice.end_band)
         limits1 = unmatched_limits(n, m, features.fps, max_unmatched_s)
         band1 = open_end_band(band1, float(band), limits1, pts, features.fps)
+        if band1.area > limits.MAX_BAND_CELLS and n != m:
+            raise ParameterError(
+                f"pass 1: the band has {band1.area:,} cells, more than "
+                f"{limits.MAX_BAND_CELLS:,}: the takes differ by {abs(n - m) / features.fps:.1f} s "
+                "and the band holds every place of the shorter take inside the longer one; "
+                "--max-unmatched SECONDS (how long an end may stay unmatched) narrows it"
+            )
     limits.check_band("pass 1", band1.area)
     if incremental is None:
         incremental = band1.area <= INCREMENTAL_MAX_CELLS
