@@ -77,7 +77,10 @@ print(json.dumps({"rows": rows, "peak_mb": peak}))
 """
 
 
-def cases(seeds: int, with_120: bool) -> list[dict]:
+SPLIT_FAMILIES = ("beat", "lafan1", "untrimmed", "fps", "manipnet")
+
+
+def cases(seeds: int, with_120: bool, families=SPLIT_FAMILIES) -> list[dict]:
     out = []
     for hand_longer in (False, True):
         for k, offset in enumerate((10.0, 45.0, 80.0)):
@@ -95,7 +98,7 @@ def cases(seeds: int, with_120: bool) -> list[dict]:
             {"kind": "inside", "offset": 45.0, "seed": 0, "hand_longer": False, "fps": 120.0}
         )
         out.append({"kind": "long", "seconds": 120.0})
-    for fam in ("beat", "lafan1", "untrimmed", "fps", "manipnet"):
+    for fam in families:
         out.append({"kind": "split", "family": fam, "seeds": seeds})
     return out
 
@@ -131,6 +134,7 @@ def main(argv=None) -> int:
     ap.add_argument("--no-120fps", action="store_true")
     ap.add_argument("--write", action="store_true")
     ap.add_argument("--start", type=int, default=0, help="skip the first START cases")
+    ap.add_argument("--families", default=",".join(SPLIT_FAMILIES), help="split families")
     args = ap.parse_args(argv)
     before = LP.baseline_tree(BEFORE, ("engine",), name="ends-before")
     load = os.getloadavg()
@@ -143,7 +147,7 @@ def main(argv=None) -> int:
         "peak MB before → after | timing median / p95 before → after |",
         "|---|---|---|---|---|",
     ]
-    for spec in cases(args.seeds, not args.no_120fps)[args.start :]:
+    for spec in cases(args.seeds, not args.no_120fps, args.families.split(","))[args.start :]:
         b = run(spec, before)
         a = run(spec, None)
         u = a["unit"]
