@@ -173,6 +173,11 @@ class Aligner:
     #: pass); a pass resumes from the nearest stored row, recomputing fewer
     #: than GAMMA_EVERY rows. ``cumulative_cost()`` switches to every row.
     GAMMA_EVERY = 8
+    #: forward and backward rows of one solve run on two threads at once (same rows, same
+    #: results: only the wall time changes); below PARALLEL_MIN_CELLS band cells a thread
+    #: costs more than it saves
+    PARALLEL_DIRECTIONS = True
+    PARALLEL_MIN_CELLS = 200_000
 
     def __init__(self, a, b, metric: str | Dispatcher = "sqeuclidean"):
         self._init(Problem.from_features(a, b, metric))
@@ -304,23 +309,28 @@ class Aligner:
             hi_j = max(f_valid, b_valid) - 1
             junction = max(0, min(max(pref, lo_j), hi_j))
         f0 = fwd.resume_row(min(f_valid, junction + 1))
-        cells = self._compute(self._problem, fwd, band, f0, junction + 1)
         forward = (f0, max(f0, junction + 1))
         backward = (junction + 1, junction + 1)
         if junction == n - 1:
+            # a full solve also computes the backward rows of the last third (cheap first
+            # edits there): they do not depend on the forward rows, so both run at once
+            suffix = full and split < n - 1 and not forward_only
+            cells, back = self._both_directions(
+                band, f0, junction + 1, rband, split + 1 if suffix else None
+            )
             total, i_end, j_end = K.best_end(
                 self._fwd_last_row(band), fwd.last_col, band.lo, band.hi, self._ends.array(), n - 1
             )
             path = K.backtrack(fwd.bp, band.lo, band.start, i_end, j_end)
+            if suffix:
+                cells += back
+                backward = (split + 1, n)
         else:
-            cells += self._backward(rband, junction + 1)
+            cells, back = self._both_directions(band, f0, junction + 1, rband, junction + 1)
+            cells += back
             backward = (junction + 1, self._last_backward_end)
             total, path = self._join(band, rband, junction)
         check_total(total)
-        if full and split < n - 1 and not forward_only:
-            # backward rows of the last third, for cheap first edits there
-            cells += self._backward(rband, split + 1)
-            backward = (split + 1, n)
         path.flags.writeable = False
         self._last = Alignment(path=path, cost=float(total), band=band, ends=self._ends)
         self.last_stats = SolveStats(
@@ -338,6 +348,46 @@ class Aligner:
         if self._reverse is None:
             self._reverse = self._problem.reversed()
         return self._reverse
+
+    def _both_directions(
+        self, band: Band, f0: int, f1: int, rband: Band, first_backward: int | None
+    ) -> tuple[int, int]:
+        """Forward rows ``[f0, f1)`` and, unless ``first_backward`` is None, backward rows
+        ``first_backward..n-1`` (``_backward``); (forward cells, backward cells).
+
+        The two directions share no data (their own ``_Side``, the reversed problem), and
+        the kernels release the GIL: with ``PARALLEL_DIRECTIONS`` and work on both sides
+        the backward rows run on a second thread meanwhile, so an edit whose rows lie on
+        both sides of the junction waits for the longer side only."""
+        if first_backward is None:
+            return self._compute(self._problem, self._fwd, band, f0, f1), 0
+        backward_rows = self.n - first_backward
+        if (
+            not self.PARALLEL_DIRECTIONS
+            or f1 <= f0
+            or self._bwd.valid >= backward_rows
+            or band.area < self.PARALLEL_MIN_CELLS
+        ):
+            cells = self._compute(self._problem, self._fwd, band, f0, f1)
+            return cells, self._backward(rband, first_backward)
+        self._reversed_problem()  # made here, not on both threads
+        result: dict = {}
+
+        def run_backward():
+            try:
+                result["cells"] = self._backward(rband, first_backward)
+            except BaseException as exc:  # re-raised on the calling thread
+                result["error"] = exc
+
+        worker = threading.Thread(target=run_backward, name="hs-dtw-backward", daemon=True)
+        worker.start()
+        try:
+            cells = self._compute(self._problem, self._fwd, band, f0, f1)
+        finally:
+            worker.join()
+        if "error" in result:
+            raise result["error"]
+        return cells, result["cells"]
 
     def _backward(self, rband: Band, first_row: int) -> int:
         """Make backward rows ``first_row..n-1`` valid with β of ``first_row`` stored."""
