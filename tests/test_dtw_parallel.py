@@ -1,6 +1,7 @@
 """``Aligner`` runs a solve's forward and backward rows on two threads at once
-(``PARALLEL_DIRECTIONS``): the same rows, so the same paths, costs, γ and statistics as
-one thread, and a failure on the backward thread reaches the caller."""
+(``PARALLEL_DIRECTIONS``), its edits joining them where each thread gets half the cells:
+the same paths, costs and γ as one thread, and a failure on the backward thread reaches
+the caller."""
 
 from __future__ import annotations
 
@@ -11,6 +12,8 @@ import pytest
 
 from engine.dtw import Aligner, Band, align_features
 from engine.dtw.align import Ends
+
+SLACK = 2 * Aligner.GAMMA_EVERY + 4  # rows a pass may redo to resume from a stored row
 
 
 def _pair(parallel: bool, make):
@@ -46,22 +49,33 @@ def test_two_threads_give_one_threads_results(source, ends):
     make = (lambda: Aligner(a, b)) if source == "features" else (lambda: Aligner.from_cost(cost))
     one, two = _pair(False, make), _pair(True, make)
     open_ends = ends is not None
+    balanced = 0
     for step, points in enumerate(_edits(n, m)):
         band = Band.from_constraints(n, m, 0.3, points, open_ends=open_ends)
         r1, r2 = one.solve(band, ends), two.solve(band, ends)
+        # random costs: no exact ties, so the junction (the only difference) cannot
+        # change the path; the totals add the same costs in another order
         assert r2.path.tolist() == r1.path.tolist(), step
-        assert r2.cost == r1.cost, step
+        assert r2.cost == pytest.approx(r1.cost, rel=1e-12), step
         s1, s2 = one.last_stats, two.last_stats
-        assert (s2.forward_rows, s2.backward_rows, s2.cells_computed, s2.junction_row) == (
-            s1.forward_rows,
-            s1.backward_rows,
-            s1.cells_computed,
-            s1.junction_row,
-        ), step
+        forward = int(band.start[s2.forward_rows[1]] - band.start[s2.forward_rows[0]])
+        backward = int(band.start[s2.backward_rows[1]] - band.start[s2.backward_rows[0]])
+        # the edit waits for the longer side only: never more cells than one thread's
+        # solve (the junction moves, so a later edit may compute more cells in all)
+        assert max(forward, backward) <= s1.cells_computed + SLACK * m, step
+        if 0 < step < 4 and s2.junction_row < n - 1:
+            # a lone point dragged: its rows (all but a few at the start) recomputed,
+            # half on each side of the junction
+            balanced += 1
+            assert abs(forward - backward) <= SLACK * m, (step, s2)
+            assert s1.junction_row != s2.junction_row  # one thread: J at the last third
         if source == "features" and ends is None:
             fresh = align_features(a, b, band)
             assert r2.cost == pytest.approx(fresh.cost, rel=1e-12)
-    np.testing.assert_array_equal(two.cumulative_cost().dense(), one.cumulative_cost().dense())
+    assert balanced >= (1 if open_ends else 0)  # fixed ends: a lone point moves row 0 too
+    np.testing.assert_allclose(
+        two.cumulative_cost().dense(), one.cumulative_cost().dense(), rtol=1e-12
+    )
 
 
 def _threads_of_backward(solver) -> list[str]:

@@ -42,6 +42,11 @@ cost of an edit does not depend on where ``J`` lies, but the next edit does.
   first part and then one in the last third costs, once, the forward rows
   between them (they depend on the earlier edit; no scheme can avoid that
   without recomputing them on every drag of the early point).
+* On bands of ``PARALLEL_MIN_CELLS`` or more (``PARALLEL_DIRECTIONS``) the forward
+  and the backward rows of a solve run on two threads at once, and an edit's ``J``
+  (still inside the edited rows) is the row that splits the rows to compute into
+  two halves of equal cells instead: a lone point's drag changes the band in every
+  row (its two segments are the whole take), and then waits for half of them.
 * γ (and β) are stored for every ``GAMMA_EVERY``-th row and the last row of
   each pass only; a pass resumes from the nearest stored row (fewer than
   ``GAMMA_EVERY`` rows recomputed). Backpointers are kept for every cell.
@@ -173,9 +178,10 @@ class Aligner:
     #: pass); a pass resumes from the nearest stored row, recomputing fewer
     #: than GAMMA_EVERY rows. ``cumulative_cost()`` switches to every row.
     GAMMA_EVERY = 8
-    #: forward and backward rows of one solve run on two threads at once (same rows, same
-    #: results: only the wall time changes); below PARALLEL_MIN_CELLS band cells a thread
-    #: costs more than it saves
+    #: forward and backward rows of one solve run on two threads at once (only the wall
+    #: time changes), and an edit's junction splits the rows to compute into halves of
+    #: equal cells (the junction only decides how exact ties break); below
+    #: PARALLEL_MIN_CELLS band cells a thread costs more than it saves
     PARALLEL_DIRECTIONS = True
     PARALLEL_MIN_CELLS = 200_000
 
@@ -303,6 +309,11 @@ class Aligner:
             # cumulative_cost() is in use, the end of the edited rows: γ is
             # needed up to the last row anyway)
             pref = split if self._every > 1 else n - 1
+            if self._every > 1 and f_valid < b_valid and self._parallel(band):
+                # rows on both sides of J are computed, on two threads at once: the J
+                # that gives each thread half the cells (an edit waits for the longer side)
+                mid = (int(band.start[f_valid]) + int(band.start[b_valid])) // 2
+                pref = int(np.searchsorted(band.start, mid, side="left")) - 1
             if r0 <= r1:
                 pref = min(max(pref, r0 - 1), r1)
             lo_j = min(f_valid, b_valid) - 1
@@ -349,6 +360,10 @@ class Aligner:
             self._reverse = self._problem.reversed()
         return self._reverse
 
+    def _parallel(self, band: Band) -> bool:
+        """Forward and backward rows of a solve of ``band`` run on two threads."""
+        return self.PARALLEL_DIRECTIONS and band.area >= self.PARALLEL_MIN_CELLS
+
     def _both_directions(
         self, band: Band, f0: int, f1: int, rband: Band, first_backward: int | None
     ) -> tuple[int, int]:
@@ -362,12 +377,7 @@ class Aligner:
         if first_backward is None:
             return self._compute(self._problem, self._fwd, band, f0, f1), 0
         backward_rows = self.n - first_backward
-        if (
-            not self.PARALLEL_DIRECTIONS
-            or f1 <= f0
-            or self._bwd.valid >= backward_rows
-            or band.area < self.PARALLEL_MIN_CELLS
-        ):
+        if not self._parallel(band) or f1 <= f0 or self._bwd.valid >= backward_rows:
             cells = self._compute(self._problem, self._fwd, band, f0, f1)
             return cells, self._backward(rband, first_backward)
         self._reversed_problem()  # made here, not on both threads
