@@ -76,6 +76,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba.core.dispatcher import Dispatcher
 
+from engine.base import tolerances as T
+
 from . import kernels as K
 from .align import FIXED, Alignment, Ends, Problem, as_ends, check_band, check_ends, check_total
 from .band import Band
@@ -181,9 +183,10 @@ class Aligner:
     #: forward and backward rows of one solve run on two threads at once (only the wall
     #: time changes), and an edit's junction splits the rows to compute into halves of
     #: equal cells (the junction only decides how exact ties break); below
-    #: PARALLEL_MIN_CELLS band cells a thread costs more than it saves
+    #: PARALLEL_MIN_CELLS band cells (``engine.base.tolerances``) a thread costs more
+    #: than it saves
     PARALLEL_DIRECTIONS = True
-    PARALLEL_MIN_CELLS = 200_000
+    PARALLEL_MIN_CELLS = T.PARALLEL_MIN_CELLS
 
     def __init__(self, a, b, metric: str | Dispatcher = "sqeuclidean"):
         self._init(Problem.from_features(a, b, metric))
