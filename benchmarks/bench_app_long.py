@@ -289,6 +289,61 @@ def run_pair(browser, seconds: float, code: str, tree: Path | None, drags: int, 
     return out
 
 
+def interleaved_drags(browser, seconds: float, codes: dict, drags: int, tmp: Path) -> dict:
+    """Drag latency of several codes on one pair, their drags interleaved in one run.
+
+    ``codes``: ``{name: tree or None}``. Each code's ``handsplice serve BODY HAND`` starts
+    at once beside the others; one tab each adopts its server's warm-up alignment and
+    places the matching point; then the codes' drags take turns (a, b, b, a, a, b, ...),
+    so a change of the machine's load falls on both alike."""
+    from contextlib import ExitStack
+
+    body, hand, _truth = pair_files(seconds)
+    n = int(round(seconds * 120))
+    out = {name: {"latency": [], "server": [], "load_before": loadavg()} for name in codes}
+    with ExitStack() as stack:
+        urls = {}
+        for name, tree in codes.items():
+            log = stack.enter_context((tmp / f"serve-{name}.log").open("w+"))
+            up = tmp / f"up-{name}-{seconds:g}"
+            urls[name] = stack.enter_context(
+                running_server(
+                    str(body),
+                    str(hand),
+                    "--upload-dir",
+                    str(up),
+                    log=log,
+                    timeout=1800,
+                    env=_env(tree),
+                    cwd=tree,
+                )  # fmt: skip
+            )
+        pages = {}
+        for name, (url, started) in urls.items():
+            out[name]["start_s"] = started
+            img, path, page = open_times(browser, url, n)
+            out[name]["tab1"] = (img, path)
+            x, y, per_px = place_point(page)
+            pages[name] = (page, x, y, max(1.0, round(DRAG_PX * per_px)))
+        names = list(codes)
+        for k in range(drags):
+            order = names if k % 2 == 0 else names[::-1]
+            for name in order:
+                page, x, y, step = pages[name]
+                page.bring_to_front()
+                a, b = (y, y + step) if k % 2 == 0 else (y + step, y)
+                out[name]["latency"].append(drag_once(page, x, a, b, timeout_ms=600_000))
+                found = re.search(r"([\d.]+) ms", page.locator(".hs-status span").inner_text())
+                if found:
+                    out[name]["server"].append(float(found.group(1)))
+            print(k, {c: round(out[c]["latency"][-1]) for c in names}, loadavg(), flush=True)
+        for page, *_ in pages.values():
+            page.context.close()
+    for name in codes:
+        out[name]["load_after"] = loadavg()
+    return out
+
+
 def _row(r: dict) -> str:
     d, o, u = r["drag"], r["other"], r["upload"]
     return (
@@ -317,10 +372,35 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--table-only", action="store_true", help="measure nothing: the table of --keep's rows"
     )
+    parser.add_argument(
+        "--interleaved",
+        action="store_true",
+        help="drag latency only: the codes' servers side by side, their drags taking turns "
+        "(each pair of --pairs; prints, writes nothing)",
+    )
     args = parser.parse_args(argv)
     from playwright.sync_api import sync_playwright
 
     trees = {"now": None, "today": baseline_app()}
+    if args.interleaved:
+        with tempfile.TemporaryDirectory() as tmp, sync_playwright() as p:
+            browser = launch_chromium(p)
+            for seconds in args.pairs:
+                res = interleaved_drags(
+                    browser, seconds, {c: trees[c] for c in args.codes}, args.drags, Path(tmp)
+                )
+                for code, r in res.items():
+                    lat, srv = r["latency"], r["server"]
+                    print(
+                        f"{seconds:g} s | {code} | start {r['start_s']:.0f} s | tab 1 "
+                        f"{r['tab1'][0]:.1f} / {r['tab1'][1]:.1f} s | drag p50 / p95 "
+                        f"{_pct(lat, 50):.0f} / {_pct(lat, 95):.0f} ms | server p50 / p95 "
+                        f"{_pct(srv, 50):.0f} / {_pct(srv, 95):.0f} ms | load "
+                        f"{r['load_before']} -> {r['load_after']}",
+                        flush=True,
+                    )
+            browser.close()
+        return 0
     rows = []
     if args.table_only:
         args.pairs = []

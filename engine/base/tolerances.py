@@ -16,6 +16,9 @@ Budgets (band cells; memory grows with them)
     refused above this many cells (about 18 bytes per cell, ~290 MB here).
     ``DENSE_PASS1_MAX_CELLS``: the app tabulates the pass-1 local costs of a pair once
     up to this many cells (8 bytes each), so a drag re-solves from the table.
+    ``PARALLEL_MIN_CELLS``: from this band area on, an incremental ``Aligner`` runs a
+    solve's forward and backward rows on two threads at once (below it a thread's start
+    costs more than it saves).
 """
 
 from __future__ import annotations
@@ -26,3 +29,4 @@ TINY = 1e-12
 INCREMENTAL_MAX_CELLS = 100_000_000
 CUMULATIVE_MAX_CELLS = 16_000_000
 DENSE_PASS1_MAX_CELLS = 6_000_000
+PARALLEL_MIN_CELLS = 200_000

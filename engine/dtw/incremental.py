@@ -42,6 +42,11 @@ cost of an edit does not depend on where ``J`` lies, but the next edit does.
   first part and then one in the last third costs, once, the forward rows
   between them (they depend on the earlier edit; no scheme can avoid that
   without recomputing them on every drag of the early point).
+* On bands of ``PARALLEL_MIN_CELLS`` or more (``PARALLEL_DIRECTIONS``) the forward
+  and the backward rows of a solve run on two threads at once, and an edit's ``J``
+  (still inside the edited rows) is the row that splits the rows to compute into
+  two halves of equal cells instead: a lone point's drag changes the band in every
+  row (its two segments are the whole take), and then waits for half of them.
 * γ (and β) are stored for every ``GAMMA_EVERY``-th row and the last row of
   each pass only; a pass resumes from the nearest stored row (fewer than
   ``GAMMA_EVERY`` rows recomputed). Backpointers are kept for every cell.
@@ -70,6 +75,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba.core.dispatcher import Dispatcher
+
+from engine.base import tolerances as T
 
 from . import kernels as K
 from .align import FIXED, Alignment, Ends, Problem, as_ends, check_band, check_ends, check_total
@@ -173,6 +180,13 @@ class Aligner:
     #: pass); a pass resumes from the nearest stored row, recomputing fewer
     #: than GAMMA_EVERY rows. ``cumulative_cost()`` switches to every row.
     GAMMA_EVERY = 8
+    #: forward and backward rows of one solve run on two threads at once (only the wall
+    #: time changes), and an edit's junction splits the rows to compute into halves of
+    #: equal cells (the junction only decides how exact ties break); below
+    #: PARALLEL_MIN_CELLS band cells (``engine.base.tolerances``) a thread costs more
+    #: than it saves
+    PARALLEL_DIRECTIONS = True
+    PARALLEL_MIN_CELLS = T.PARALLEL_MIN_CELLS
 
     def __init__(self, a, b, metric: str | Dispatcher = "sqeuclidean"):
         self._init(Problem.from_features(a, b, metric))
@@ -298,29 +312,39 @@ class Aligner:
             # cumulative_cost() is in use, the end of the edited rows: γ is
             # needed up to the last row anyway)
             pref = split if self._every > 1 else n - 1
+            if self._every > 1 and f_valid < b_valid and self._parallel(band):
+                # rows on both sides of J are computed, on two threads at once: the J
+                # that gives each thread half the cells (an edit waits for the longer side)
+                mid = (int(band.start[f_valid]) + int(band.start[b_valid])) // 2
+                pref = int(np.searchsorted(band.start, mid, side="left")) - 1
             if r0 <= r1:
                 pref = min(max(pref, r0 - 1), r1)
             lo_j = min(f_valid, b_valid) - 1
             hi_j = max(f_valid, b_valid) - 1
             junction = max(0, min(max(pref, lo_j), hi_j))
         f0 = fwd.resume_row(min(f_valid, junction + 1))
-        cells = self._compute(self._problem, fwd, band, f0, junction + 1)
         forward = (f0, max(f0, junction + 1))
         backward = (junction + 1, junction + 1)
         if junction == n - 1:
+            # a full solve also computes the backward rows of the last third (cheap first
+            # edits there): they do not depend on the forward rows, so both run at once
+            suffix = full and split < n - 1 and not forward_only
+            cells, back = self._both_directions(
+                band, f0, junction + 1, rband, split + 1 if suffix else None
+            )
             total, i_end, j_end = K.best_end(
                 self._fwd_last_row(band), fwd.last_col, band.lo, band.hi, self._ends.array(), n - 1
             )
             path = K.backtrack(fwd.bp, band.lo, band.start, i_end, j_end)
+            if suffix:
+                cells += back
+                backward = (split + 1, n)
         else:
-            cells += self._backward(rband, junction + 1)
+            cells, back = self._both_directions(band, f0, junction + 1, rband, junction + 1)
+            cells += back
             backward = (junction + 1, self._last_backward_end)
             total, path = self._join(band, rband, junction)
         check_total(total)
-        if full and split < n - 1 and not forward_only:
-            # backward rows of the last third, for cheap first edits there
-            cells += self._backward(rband, split + 1)
-            backward = (split + 1, n)
         path.flags.writeable = False
         self._last = Alignment(path=path, cost=float(total), band=band, ends=self._ends)
         self.last_stats = SolveStats(
@@ -338,6 +362,45 @@ class Aligner:
         if self._reverse is None:
             self._reverse = self._problem.reversed()
         return self._reverse
+
+    def _parallel(self, band: Band) -> bool:
+        """Forward and backward rows of a solve of ``band`` run on two threads."""
+        return self.PARALLEL_DIRECTIONS and band.area >= self.PARALLEL_MIN_CELLS
+
+    def _both_directions(
+        self, band: Band, f0: int, f1: int, rband: Band, first_backward: int | None
+    ) -> tuple[int, int]:
+        """Forward rows ``[f0, f1)`` and, unless ``first_backward`` is None, backward rows
+        ``first_backward..n-1`` (``_backward``); (forward cells, backward cells).
+
+        The two directions share no data (their own ``_Side``, the reversed problem), and
+        the kernels release the GIL: with ``PARALLEL_DIRECTIONS`` and work on both sides
+        the backward rows run on a second thread meanwhile, so an edit whose rows lie on
+        both sides of the junction waits for the longer side only."""
+        if first_backward is None:
+            return self._compute(self._problem, self._fwd, band, f0, f1), 0
+        backward_rows = self.n - first_backward
+        if not self._parallel(band) or f1 <= f0 or self._bwd.valid >= backward_rows:
+            cells = self._compute(self._problem, self._fwd, band, f0, f1)
+            return cells, self._backward(rband, first_backward)
+        self._reversed_problem()  # made here, not on both threads
+        result: dict = {}
+
+        def run_backward():
+            try:
+                result["cells"] = self._backward(rband, first_backward)
+            except BaseException as exc:  # re-raised on the calling thread
+                result["error"] = exc
+
+        worker = threading.Thread(target=run_backward, name="hs-dtw-backward", daemon=True)
+        worker.start()
+        try:
+            cells = self._compute(self._problem, self._fwd, band, f0, f1)
+        finally:
+            worker.join()
+        if "error" in result:
+            raise result["error"]
+        return cells, result["cells"]
 
     def _backward(self, rband: Band, first_row: int) -> int:
         """Make backward rows ``first_row..n-1`` valid with β of ``first_row`` stored."""
