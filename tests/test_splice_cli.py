@@ -116,7 +116,6 @@ def test_roles_file_maps_an_unusual_name(tmp_path):
     [
         (["{body}", str(MOCAP / "lafan1/dance1_subject1.bvh")], "no finger joints"),
         (["{body}", str(MOCAP / "pyomeca/markers.trc")], "holds markers"),
-        ([str(MOCAP / "pyomeca/markers_analogs.c3d"), str(HAND)], "holds markers"),
         (["{body}", "{hand}", "--side", "left"], "no left hand"),
         (["{body}", "{hand}", "--match", "12"], "points[0]: expected BODY:HAND or BODY:HAND:TOL"),
         (["{body}", "{hand}", "--match", "a:b"], "points[0].body: expected a whole frame number"),

@@ -7,6 +7,9 @@
         [--report REPORT.json] [--preview OUT.gif] [--roles MAP.json]
         [--session SESSION.json] [--theta window|trunk|none] [--quiet]
 
+* A marker body (C3D/TRC) has no skeleton to receive fingers: OUT is then the hand
+  take retimed to it (one frame per body frame at the body's rate,
+  :mod:`engine.splice.retime`), the app's "Spliced BVH" of such a pair, byte for byte.
 * ``--side``: ``auto`` (default) splices both hands, aligned jointly, when both takes
   have both, else the side they share; ``both``/``right``/``left`` insist.
 * ``--band``, ``--refine-band``: a fraction of the body take (``0.3``) or seconds
@@ -48,7 +51,11 @@ def add_parser(subparsers) -> None:
         description="Align a hand take to a body take with two-pass DTW (Majkowska et al. "
         "2006) and write the body take with the hand take's wrists and fingers.",
     )
-    p.add_argument("body", help="body take (.bvh)")
+    p.add_argument(
+        "body",
+        help="body take (.bvh); a marker take (.c3d/.trc) has no skeleton to receive "
+        "fingers: OUT is then the hand take retimed to it",
+    )
     p.add_argument("hand", help="hand take with finger joints (.bvh)")
     p.add_argument(
         "-o", "--output", required=True, type=output_file, metavar="OUT.bvh", help="spliced take"
@@ -214,7 +221,10 @@ def run(args: argparse.Namespace) -> int:
 
     body = load_take(args.body)
     hand = load_take(args.hand)
-    pipeline.require_skeletal(body, hand)
+    # a marker body (C3D/TRC) has no skeleton to receive fingers: OUT is then the hand take
+    # retimed to it (engine.splice.retime), as the app's download of such a pair
+    retimed = pipeline.marker_body(body)
+    pipeline.require_skeletal(body, hand, marker_body_ok=True)
     body_roles = hand_roles = None
     if args.roles:
         from engine.model.roles import read_roles_json
@@ -249,7 +259,12 @@ def run(args: argparse.Namespace) -> int:
         progress=progress,
         ends=args.ends,
         max_unmatched_s=args.max_unmatched,
+        transfer_fingers=not retimed,
     )
+    if retimed:
+        from engine.splice.retime import retimed_hand
+
+        result.motion = retimed_hand(hand, result.alignment.map, result.features.fps)
     from engine.trust import assess_splice
 
     progress("trust", 0.0)
@@ -278,9 +293,14 @@ def run(args: argparse.Namespace) -> int:
         from engine.splice.report import unmatched_summary
 
         fps = result.features.fps
+        what = (
+            f"the hand take retimed to the marker body, {sides} side"
+            if retimed
+            else f"{sides} hand{'s' if len(result.features.sides) > 1 else ''}"
+        )
         print(
             f"wrote {out} ({result.features.n} frames = {result.features.n / fps:.2f} s at "
-            f"{fps:g} fps, {sides} hand{'s' if len(result.features.sides) > 1 else ''}; "
+            f"{fps:g} fps, {what}; "
             f"{_took(time.perf_counter() - started, result.timings['total'])})",
             file=sys.stderr,
         )

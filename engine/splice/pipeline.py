@@ -155,11 +155,18 @@ def _take_name(take) -> str:
     return Path(src).name if src else "the take"
 
 
-def require_skeletal(body, hand) -> None:
+def marker_body(body) -> bool:
+    """True when ``body`` holds markers (C3D/TRC): no skeleton to receive fingers, so the
+    splice of such a pair is the hand take retimed to it (``engine.splice.retime``)."""
+    return isinstance(body, MarkerSet)
+
+
+def require_skeletal(body, hand, marker_body_ok: bool = False) -> None:
     """Raise ``HandSpliceError`` unless both takes are skeletal (``Motion``): marker takes
     (C3D/TRC) can be aligned, but have no skeleton to receive fingers (body) or no finger
-    rotations to give (hand). Call it before the passes to fail fast on long takes."""
-    if not isinstance(body, Motion):
+    rotations to give (hand). Call it before the passes to fail fast on long takes.
+    ``marker_body_ok``: a marker body is allowed (its output is the retimed hand)."""
+    if not isinstance(body, Motion) and not (marker_body_ok and marker_body(body)):
         raise HandSpliceError(
             f"{_take_name(body)}: holds markers; a marker take has no "
             "skeleton to receive fingers: the body take must be a skeletal "
