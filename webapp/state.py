@@ -174,7 +174,8 @@ class Session(param.Parameterized):
     )
     follow = param.Boolean(
         default=session_io.VIEW_DEFAULTS["follow"],
-        doc="the preview renders again after every edit (else only when its frame changes)",
+        doc="after every edit the preview renders again, at the body frame of the matching "
+        "point the edit placed (else only when its frame changes)",
     )
     pick = param.Boolean(
         default=session_io.VIEW_DEFAULTS["pick"],

@@ -137,6 +137,7 @@ class PreviewView:
         session.param.watch(self._on_inputs, ["inputs_revision"])
         session.param.watch(self._on_solution, ["revision"])
         session.param.watch(self._on_busy, ["busy"])
+        self._points_seen = session.points  # the points of the alignment last followed
         self._after_solve = False  # a solution to render once edits pause and solves end
         self._follow_due = 0.0  # monotonic s of that pause's end
         self._follow_timer = False
@@ -163,6 +164,7 @@ class PreviewView:
         end = max(self.session.n - 1, 1)
         self.slider.end = end
         self._rendered_key = None
+        self._points_seen = self.session.points  # a new pair: no edit to follow
         self._render_soon()
 
     def _on_frame(self, *_):
@@ -177,17 +179,20 @@ class PreviewView:
         # newer edit is being solved (a render beside a solve slows the solve: the next
         # path waits; the newest solution is rendered when the session is idle)
         if self._rendered_key is None:
+            self._points_seen = self.session.points
             self._render_soon()
         elif self.session.follow:
             self._follow_due = time.monotonic() + FOLLOW_PAUSE_MS / 1000.0
             self._after_solve = True
             self._follow_later(FOLLOW_PAUSE_MS)
+        else:
+            self._points_seen = self.session.points
 
     def _follow_later(self, ms: float) -> None:
         doc = pn.state.curdoc
         if doc is None or doc.session_context is None:
             self._after_solve = False
-            self._render_soon()
+            self._follow_edit()
         elif not self._follow_timer:
             self._follow_timer = True
             doc.add_timeout_callback(self._on_busy, max(ms, 0.0))
@@ -202,6 +207,22 @@ class PreviewView:
             self._follow_later(wait * 1000.0)
             return
         self._after_solve = False
+        self._follow_edit()
+
+    def _follow_edit(self) -> None:
+        """Following edits: the preview goes to the body frame of the point the edits placed
+        (added, moved, or brought back by undo; a band, tolerance or delete edit keeps the
+        frame) and shows it with the new alignment."""
+        s = self.session
+        old = {(p.body, p.hand) for p in self._points_seen or ()}
+        placed = [p.body for p in s.points or () if (p.body, p.hand) not in old]
+        self._points_seen = s.points
+        frame = placed[-1] if placed else None
+        if frame is not None and not self.play.value and s.n:
+            frame = int(min(max(frame, 0), s.n - 1))
+            if frame != s.frame:
+                s.frame = frame  # _on_frame renders it
+                return
         self._render_soon()
 
     # ------------------------------------------------------------ playing
