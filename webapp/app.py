@@ -8,6 +8,8 @@ shared between sessions except the read-only per-pair caches in
 
 from __future__ import annotations
 
+import time
+
 import panel as pn
 
 from webapp import backend, config
@@ -254,24 +256,99 @@ def create_app() -> pn.viewable.Viewable:
     return page
 
 
-def warm_up(cfg: config.AppConfig) -> None:
-    """Precompute the demo pair (features, JIT compilation) so the first page load is fast."""
+#: a warm-up stage running this long (s) says so again on the console, and again after
+#: as long (a long pair's first pass 1 compiles and runs for minutes on a busy machine)
+HEARTBEAT_S = 15.0
+#: the engine's stage names (``progress(stage, fraction)``) as the console says them
+_STAGE_WORDS = {
+    "features": "computing the takes' features (markers, phases; compiles the kernels "
+    "the first time)",
+    "pass 1": "aligning: pass 1 of 2",
+    "pass 2": "aligning: pass 2 of 2",
+    "merge": "aligning: merging the passes",
+}
+
+
+class ConsoleStages:
+    """``progress(stage, fraction)`` lines on the console while the server warms up:
+    ``HandSplice: aligning: pass 1 of 2 ...``, then ``... done (3.2 s)``, a percentage
+    for a fraction between 0 and 1 (where the engine reports one), and every
+    :data:`HEARTBEAT_S` of a stage still running ``... still aligning: pass 1 of 2
+    (45 s)``, so a long start shows it is alive."""
+
+    def __init__(self, out=None, heartbeat_s: float = HEARTBEAT_S):
+        import threading
+
+        self.out = out
+        self.heartbeat_s = heartbeat_s
+        self.started = time.perf_counter()
+        self._lock = threading.Lock()
+        self._running: dict[str, float] = {}
+        self._stop = threading.Event()
+        self._beat = threading.Thread(target=self._beats, daemon=True, name="hs-warm-up")
+        self._beat.start()
+
+    def say(self, text: str) -> None:
+        import sys
+
+        print(f"HandSplice: {text}", file=self.out or sys.stderr, flush=True)
+
+    def __call__(self, stage: str, fraction: float) -> None:
+        words = _STAGE_WORDS.get(stage, stage)
+        now = time.perf_counter()
+        with self._lock:
+            if fraction <= 0.0:
+                self._running[words] = (now, now + self.heartbeat_s)
+                self.say(f"{words} ...")
+            elif fraction >= 1.0:
+                began, _ = self._running.pop(words, (now, now))
+                self.say(f"{words} done ({now - began:.1f} s)")
+            else:
+                self.say(f"{words} {100.0 * fraction:.0f}%")
+
+    def _beats(self) -> None:
+        while not self._stop.wait(min(1.0, self.heartbeat_s / 3.0)):
+            now = time.perf_counter()
+            with self._lock:
+                for words, (began, due) in list(self._running.items()):
+                    if now >= due:
+                        self.say(f"... still {words} ({now - began:.0f} s)")
+                        self._running[words] = (began, now + self.heartbeat_s)
+
+    def close(self) -> None:
+        self._stop.set()
+        self._beat.join(timeout=1.0)
+        self.say(f"warm-up done in {time.perf_counter() - self.started:.1f} s")
+
+
+def warm_up(cfg: config.AppConfig, progress=None) -> None:
+    """Precompute the demo pair (features, JIT compilation) so the first page load is fast.
+
+    ``progress(stage, fraction)`` (:class:`ConsoleStages` on the server's console): the
+    stages as they start and end (reading, features, pass 1, pass 2, the matrix image,
+    the preview's first frame)."""
     if not cfg.default_sample:
         return
+    say = progress or (lambda stage, fraction: None)
     session = Session(cfg)
     try:
-        session.load_sample(cfg.default_sample)
+        with backend.stages_to(progress):
+            session.load_sample(cfg.default_sample)
         if session.solution is not None:
+            say("the cost matrix image", 0.0)
             session.cost_view((0, session.n, 0, session.m), 600)
+            say("the cost matrix image", 1.0)
             backend.offer(session.prepared, session.solution)  # the first page's alignment
     except Exception as exc:  # the page will show the same problem; the server still starts
         print(f"warm-up of sample {cfg.default_sample!r} failed: {one_line(exc)}", flush=True)
         return
     try:  # the preview's first frame: imports the renderer, opens its OpenGL context and
         # builds the pair's meshes (kept with the pair), so the first page's preview is quick
+        say("the preview's first frame (renderer, meshes)", 0.0)
         backend.render_frame(
             session.prepared, session.solution, session.frame, session.camera, False
         )
         backend.render_closeup(session.prepared, session.solution, session.frame)
+        say("the preview's first frame (renderer, meshes)", 1.0)
     except Exception:  # noqa: BLE001 - the page's preview says what is wrong, if anything
         pass

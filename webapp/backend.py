@@ -201,24 +201,34 @@ def _prepare(
     from engine.io import load_take
     from engine.splice import pipeline
 
+    progress = _STAGES  # the server's console during its warm-up, else None
     body, hand = takes or (None, None)
+    if progress is not None:
+        progress("reading the takes", 0.0)
     body = body if body is not None else load_take(body_path)
     hand = hand if hand is not None else load_take(hand_path)
+    if progress is not None:
+        progress("reading the takes", 1.0)
     features = pipeline.prepare(
         body,
         hand,
         side=side,
         body_roles=roles.get("body") or None,
         hand_roles=roles.get("hand") or None,
+        progress=progress,
     )
     body_speed, hand_speed = pipeline.wrist_speeds(features)
     body_phases, hand_phases = _phases(features)
     n, m = features.n, features.m
     pass1_cost = None
     if n * m <= DENSE_PASS1_MAX_CELLS:
+        if progress is not None:
+            progress(f"pass-1 local costs ({n:,} × {m:,} frames)", 0.0)
         pass1_cost = _local_costs(
             features.pass1_rows, pipeline.DEFAULT_METRICS[0], np.arange(n), np.arange(m)
         )
+        if progress is not None:
+            progress(f"pass-1 local costs ({n:,} × {m:,} frames)", 1.0)
     return Prepared(
         key=key,
         body=body,
@@ -248,6 +258,30 @@ def _phases(features) -> tuple[np.ndarray | None, np.ndarray | None]:
         return None, None
 
 
+#: ``progress(stage, fraction)`` of the server's warm-up (:func:`stages_to`), which runs
+#: before the server listens, on one thread: the console says what it is doing
+_STAGES = None
+
+
+class stages_to:
+    """``with stages_to(progress): ...``: the engine's stages of the pairs prepared and
+    solved inside (reading, features, pass 1, pass 2, ...) go to ``progress(stage,
+    fraction)``. For the warm-up only (one thread, before any page)."""
+
+    def __init__(self, progress):
+        self.progress = progress
+
+    def __enter__(self):
+        global _STAGES
+        _STAGES = self.progress
+        return self
+
+    def __exit__(self, *exc):
+        global _STAGES
+        _STAGES = None
+        return False
+
+
 def solve(prepared: Prepared, band, refine_band, points, previous=None, progress=None) -> Solution:
     """Pass 1 and pass 2 for band widths ``band``/``refine_band`` (``constraints.Width``,
     fractions of n or ``"10s"``) and matching points ``[(body, hand, tol), ...]``;
@@ -269,7 +303,7 @@ def solve(prepared: Prepared, band, refine_band, points, previous=None, progress
             refine_band=refine_band,
             points=list(points),
             previous=earlier,
-            progress=progress,
+            progress=progress or _STAGES,
         )
     p1, p2 = result.pass1, result.pass2
     sol = Solution(

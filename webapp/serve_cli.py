@@ -174,7 +174,7 @@ def run(args: argparse.Namespace) -> int:
     import panel as pn
 
     from webapp import config
-    from webapp.app import create_app, warm_up
+    from webapp.app import ConsoleStages, create_app, warm_up
     from webapp.launch import free_port
 
     if args.sample_dir is not None and not (args.sample_dir / "samples.json").is_file():
@@ -193,10 +193,14 @@ def run(args: argparse.Namespace) -> int:
     if not args.no_warm:
         print(
             "HandSplice: warming up (reading the takes, aligning, compiling; a minute or two "
-            "the first time) ...",
+            "the first time, longer for long takes; each stage is listed below) ...",
             flush=True,
         )
-        warm_up(cfg)
+        stages = ConsoleStages()
+        try:
+            warm_up(cfg, progress=stages)
+        finally:
+            stages.close()
 
     host = "127.0.0.1" if args.address in ("0.0.0.0", "::", "") else args.address
     if args.port == 0:  # pick the port now so the websocket origin check can name it

@@ -897,10 +897,16 @@ class Session(param.Parameterized):
         return backend.splice(self.prepared, self.solution)
 
     def output_stem(self) -> str:
-        """A file name stem for downloads: the sample name or the uploaded body take's."""
+        """A file name stem for downloads: the sample name, or the body take's file name
+        without its extension (an upload's, or ``serve BODY HAND``'s pair opened from disk:
+        one rule for the user's own takes, ``<body>-spliced``)."""
         import re
 
-        stem = self.sample or (self.body_name.rsplit(".", 1)[0] if self.body_name else "")
+        local = self._cfg.local if self.sample else None
+        if local is not None and local.name == self.sample:
+            stem = local.body.stem
+        else:
+            stem = self.sample or (self.body_name.rsplit(".", 1)[0] if self.body_name else "")
         stem = re.sub(r"[^A-Za-z0-9_.-]+", "_", stem).strip("._") or "handsplice"
         return f"{stem}-spliced"
 

@@ -1,0 +1,102 @@
+"""``handsplice serve BODY HAND``'s console while it warms up: each stage (reading the
+takes, features, pass 1 and 2, the matrix image, the preview) as it starts and ends, and
+a stage that runs long says so again, so a user sees the server is alive before it
+listens. Downloads of that pair are named ``<body>-spliced`` as an uploaded pair's."""
+
+from __future__ import annotations
+
+import io
+import os
+import re
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from conftest import MOCAP
+
+from webapp.launch import free_port
+
+ROOT = Path(__file__).resolve().parents[1]
+BODY = MOCAP / "bandai-namco" / "dataset-2_wave-right-hand_normal_001.bvh"
+HAND = MOCAP / "gestification" / "fingers-ok.bvh"
+
+
+def test_serve_body_hand_prints_its_warm_up_stages_on_stderr():
+    exe = Path(sys.executable).with_name("handsplice")
+    proc = subprocess.Popen(
+        [str(exe), "serve", str(BODY), str(HAND), "--port", str(free_port())],
+        cwd=ROOT,
+        env=os.environ.copy(),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    lines = []
+    try:
+        deadline = time.monotonic() + 900
+        while time.monotonic() < deadline:
+            line = proc.stderr.readline()
+            if not line:
+                break
+            lines.append(line.rstrip("\n"))
+            if "warm-up done in" in line:
+                break
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+    text = "\n".join(lines)
+    stages = [
+        "reading the takes",
+        "computing the takes' features",
+        "aligning: pass 1 of 2",
+        "aligning: pass 2 of 2",
+        "the cost matrix image",
+    ]
+    at = []
+    for stage in stages:  # each one starts, then ends with its time, in this order
+        start = text.find(f"HandSplice: {stage}")
+        assert start >= 0, f"no {stage!r} line in:\n{text}"
+        assert re.search(rf"HandSplice: {re.escape(stage)}.* done \(\d+\.\d s\)", text), text
+        at.append(start)
+    assert at == sorted(at), text
+    assert re.search(r"warm-up done in \d+\.\d s", text), text
+
+
+def test_a_long_stage_says_again_that_it_is_running():
+    from webapp.app import ConsoleStages
+
+    out = io.StringIO()
+    stages = ConsoleStages(out=out, heartbeat_s=0.3)
+    stages("pass 1", 0.0)
+    time.sleep(1.2)
+    stages("pass 1", 0.5)
+    stages("pass 1", 1.0)
+    stages.close()
+    text = out.getvalue()
+    assert "HandSplice: aligning: pass 1 of 2 ..." in text
+    assert re.search(r"\.\.\. still aligning: pass 1 of 2 \(\d+ s\)", text), text
+    assert "aligning: pass 1 of 2 50%" in text
+    assert re.search(r"aligning: pass 1 of 2 done \(1\.\d s\)", text), text
+
+
+def test_downloads_of_a_pair_opened_from_disk_are_named_after_the_body(tmp_path):
+    from webapp import config
+    from webapp.state import Session
+
+    pair = config.local_pair(BODY, HAND, "right")
+    cfg = config.AppConfig(
+        sample_dir=(ROOT / "sample_data").resolve(),
+        upload_dir=tmp_path,
+        default_sample=pair.name,
+        local=pair,
+    )
+    s = Session(cfg)
+    s.sample = pair.name  # no need to open the takes for the name
+    assert s.output_stem() == f"{BODY.stem}-spliced"  # was "<body>.bvh_<hand>.bvh-spliced"
+    s.sample = "wave-ok"
+    assert s.output_stem() == "wave-ok-spliced"
