@@ -315,10 +315,12 @@ class ConsoleStages:
                         self.say(f"... still {words} ({now - began:.0f} s)")
                         self._running[words] = (began, now + self.heartbeat_s)
 
-    def close(self) -> None:
+    def close(self, done: bool = True) -> None:
+        """Stop the heartbeat; ``done``: say how long the warm-up took."""
         self._stop.set()
         self._beat.join(timeout=1.0)
-        self.say(f"warm-up done in {time.perf_counter() - self.started:.1f} s")
+        if done:
+            self.say(f"warm-up done in {time.perf_counter() - self.started:.1f} s")
 
 
 def warm_up(cfg: config.AppConfig, progress=None) -> None:

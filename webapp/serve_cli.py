@@ -179,28 +179,37 @@ def run(args: argparse.Namespace) -> int:
 
     if args.sample_dir is not None and not (args.sample_dir / "samples.json").is_file():
         raise ValueError(f"--sample-dir: {args.sample_dir} has no samples.json")
-    local = None
-    if args.body is not None:
-        local = config.local_pair(args.body, args.hand, args.side)
-        _open_local(local)  # a take the engine refuses: one line, exit 2, no server
-    cfg = config.configure(
-        sample_dir=args.sample_dir,
-        default_sample=args.sample,
-        upload_dir=args.upload_dir,
-        max_upload_bytes=int(args.max_upload_mb * 1024 * 1024),
-        local=local,
-    )
+    stages = None
     if not args.no_warm:
         print(
             "HandSplice: warming up (reading the takes, aligning, compiling; a minute or two "
             "the first time, longer for long takes; each stage is listed below) ...",
             flush=True,
         )
-        stages = ConsoleStages()
-        try:
+        stages = ConsoleStages()  # stage lines on stderr until the server listens
+    try:
+        local = None
+        if args.body is not None:
+            from webapp import backend
+
+            local = config.local_pair(args.body, args.hand, args.side)
+            with backend.stages_to(stages):
+                _open_local(local)  # a take the engine refuses: one line, exit 2, no server
+        cfg = config.configure(
+            sample_dir=args.sample_dir,
+            default_sample=args.sample,
+            upload_dir=args.upload_dir,
+            max_upload_bytes=int(args.max_upload_mb * 1024 * 1024),
+            local=local,
+        )
+        if stages is not None:
             warm_up(cfg, progress=stages)
-        finally:
-            stages.close()
+    except BaseException:
+        if stages is not None:
+            stages.close(done=False)
+        raise
+    if stages is not None:
+        stages.close()
 
     host = "127.0.0.1" if args.address in ("0.0.0.0", "::", "") else args.address
     if args.port == 0:  # pick the port now so the websocket origin check can name it

@@ -221,6 +221,8 @@ class Session(param.Parameterized):
         self._applying = False
         self._slider_run: tuple[str, float] | None = None
         self._refused: tuple[str, C.ConstraintError | None] = ("", None)
+        #: the inputs (``side``, ``roles``, ...) whose change ``error`` refuses, if any
+        self.refused_inputs: tuple[str, ...] = ()
         self.prepared: backend.Prepared | None = None
         #: off-loop computing (None: at once, as in tests); see compute_off_loop
         self.runner: SolveRunner | None = None
@@ -235,12 +237,13 @@ class Session(param.Parameterized):
 
     # ------------------------------------------------------------ refusals
 
-    def refuse(self, exc: BaseException, text: str | None = None) -> None:
+    def refuse(self, exc: BaseException, text: str | None = None, inputs=()) -> None:
         """Say why an edit or input was refused: ``error`` is ``text`` (default: the
         exception's one line) and :meth:`refusal` the constraint behind it, if any."""
         text = backend.one_line(exc) if text is None else text
         cause = exc if isinstance(exc, C.ConstraintError) else getattr(exc, "constraint", None)
         self._refused = (text, cause)
+        self.refused_inputs = tuple(inputs)
         self.error = text
 
     def refusal(self) -> C.ConstraintError | None:
@@ -398,7 +401,9 @@ class Session(param.Parameterized):
         message = backend.one_line(exc)
         if self.prepared is not None:  # keep what worked: inputs back to their old values
             self._apply(old)
-        self.refuse(exc, message)
+        # the inputs whose change was refused (a side the takes lack): the page shows
+        # the refusal next to their controls
+        self.refuse(exc, message, inputs=tuple(old))
         then(False)
 
     def _opened(self, prepared, t0: float, then, new_pair: bool = False) -> None:
@@ -850,7 +855,13 @@ class Session(param.Parameterized):
         result = sol.cache.get("engine")
         limit = result.unmatched_limit(self.fps) if hasattr(result, "unmatched_limit") else None
         given = getattr(result, "max_unmatched_s", None) is not None
-        unmatched = unmatched_summary(getattr(result, "unmatched_body", ()), self.fps, limit, given)
+        unmatched = unmatched_summary(
+            getattr(result, "unmatched_body", ()),
+            self.fps,
+            limit,
+            given,
+            retimed=self.prepared is not None and backend.marker_body(self.prepared),
+        )
         return text + (f" · {unmatched}" if unmatched else "")
 
     def axis_signals(self) -> tuple[np.ndarray, np.ndarray]:

@@ -306,7 +306,11 @@ def run(args: argparse.Namespace) -> int:
         )
         a = result.alignment
         unmatched = unmatched_summary(
-            a.unmatched_body, fps, a.unmatched_limit(fps), a.max_unmatched_s is not None
+            a.unmatched_body,
+            fps,
+            a.unmatched_limit(fps),
+            a.max_unmatched_s is not None,
+            retimed=retimed,
         )
         if unmatched:
             print(f"splice: {unmatched}", file=sys.stderr)

@@ -158,7 +158,11 @@ def build_report(
 
 
 def unmatched_summary(
-    ranges, fps: float, limit: int | None = None, limit_given: bool = False
+    ranges,
+    fps: float,
+    limit: int | None = None,
+    limit_given: bool = False,
+    retimed: bool = False,
 ) -> str:
     """One sentence on the body frames the alignment leaves without hand timing (open ends:
     a take begins earlier or ends later than the other), or "" when every body frame is
@@ -166,15 +170,22 @@ def unmatched_summary(
     the body take's rate (frames per second); ``limit``: the open-end limit, body frames
     per end (``SpliceAlignment.unmatched_limit``; ``limit_given``: set by
     ``--max-unmatched`` rather than the default, ``constraints.UNMATCHED_DEFAULT``). An end as long
-    as the limit was cut there by the rule, not by the data, and the sentence says so."""
+    as the limit was cut there by the rule, not by the data, and the sentence says so.
+    ``retimed``: a marker body (no fingers of its own): the output is the hand take retimed
+    to it, which holds its nearest matched frame there."""
     ranges = [(int(a), int(b)) for a, b in ranges]
     if not ranges:
         return ""
     frames = sum(b - a + 1 for a, b in ranges)
     spans = ", ".join(f"{a}-{b}" if b > a else f"{a}" for a, b in ranges)
+    holds = (
+        "the retimed hand take holds its nearest matched frame there"
+        if retimed
+        else "the fingers hold the nearest matched pose there"
+    )
     text = (
-        f"body frames {spans} ({frames / float(fps):.1f} s) have no hand match: the fingers "
-        "hold the nearest matched pose there (--ends fixed matches every frame)"
+        f"body frames {spans} ({frames / float(fps):.1f} s) have no hand match: {holds} "
+        "(--ends fixed matches every frame)"
     )
     capped = limit is not None and limit > 0 and any(b - a + 1 >= limit for a, b in ranges)
     if capped:

@@ -167,10 +167,13 @@ def _seconds_input(session: Session, name: str, label: str) -> pn.widgets.TextIn
         if text == _seconds_text(getattr(session, field)):
             return  # what is in force (the page echoing a value shown): no edit
         if not text:  # emptied: the fraction is in force again
-            session.set_constraints(**{name: getattr(session, name)})
+            ok = session.set_constraints(**{name: getattr(session, name)})
         else:
-            session.set_constraints(**{name: text if text.endswith("s") else f"{text}s"})
-        show()  # refused (the error line says why) or normalised: show what is in force
+            ok = session.set_constraints(**{name: text if text.endswith("s") else f"{text}s"})
+        if ok:
+            show()  # normalised: show what is in force
+        # refused: the text stays as typed, to be corrected (the error line says why and
+        # the width in force is unchanged)
 
     widget.param.watch(typed, "value")
     session.param.watch(show, [field])
@@ -292,7 +295,8 @@ class PointsTable:
             formatters={
                 "body frame": {"type": "plaintext"},
                 "hand frame": {"type": "plaintext"},
-                "seconds": {"type": "plaintext"},
+                # wraps (not cut) when a long take's times do not fit: "152.87 s · 33.00 s"
+                "seconds": {"type": "textarea"},
                 "tolerance": {"type": "plaintext"},
                 "effective": {"type": "plaintext"},
             },
@@ -410,7 +414,8 @@ def error_alert(session: Session) -> pn.viewable.Viewable:
 
     def update(*_):
         alert.object = safe_text.markdown(session.page_error())
-        alert.visible = bool(session.error)
+        # a refused side is shown under the Side control (webapp.views.inputs)
+        alert.visible = bool(session.error) and "side" not in session.refused_inputs
 
     session.param.watch(update, ["error"])
     update()

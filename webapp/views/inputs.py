@@ -111,6 +111,10 @@ class InputsView:
             self._on_session_inputs, ["sample", "body_sha256", "hand_sha256", "roles", "opening"]
         )
         session.param.watch(self._show_note, ["inputs_revision"])
+        # a side the takes lack is refused here, under the Side control that asked for it
+        # (the page's error line is far below it)
+        self._side_refused = False
+        session.param.watch(self._on_error, ["error"])
         self._show_note()
         self.limit_note = pn.pane.Markdown(
             f"BVH, C3D or TRC, up to {limit} each (sent in chunks; the browser refuses larger "
@@ -404,6 +408,15 @@ class InputsView:
         else:
             self._show_error(self.session.error)
         self._show_roles()
+
+    def _on_error(self, *_):
+        s = self.session
+        if s.error and "side" in s.refused_inputs:
+            self._side_refused = True
+            self._show_error(s.page_error())
+        elif self._side_refused:  # that refusal is over (another edit, a new pair)
+            self._side_refused = False
+            self.message.visible = False
 
     def _show_error(self, text: str):
         self.message.object = safe_text.markdown(text)
