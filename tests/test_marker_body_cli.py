@@ -70,3 +70,17 @@ def test_a_marker_hand_is_still_refused(tmp_path, capsys):
     code = main(["splice", str(BODY_C3D), str(BODY_C3D), "-o", str(tmp_path / "o.bvh")])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "the hand take must be a skeletal take" in err[0]
+
+
+def test_a_marker_bodys_status_does_not_speak_of_its_fingers(marker_session):
+    """A marker body has no fingers: where it has no hand match, the status says what the
+    download does there (the retimed hand holds its nearest matched frame)."""
+    from engine.splice.report import unmatched_summary
+
+    text = unmatched_summary([(0, 29)], 100.0, retimed=True)
+    assert "the retimed hand take holds its nearest matched frame" in text
+    assert "fingers" not in text
+    assert "the fingers hold the nearest matched pose" in unmatched_summary([(0, 29)], 100.0)
+    status = marker_session.status_text()
+    assert "no hand match" in status, status  # this pair has an unmatched start
+    assert "retimed hand take holds" in status and "fingers hold" not in status, status
