@@ -120,7 +120,10 @@ def test_a_missing_side_is_refused_under_the_side_control(page):
     below = box.bounding_box()["y"] - (side.bounding_box()["y"] + side.bounding_box()["height"])
     assert 0 <= below < 200, below  # next to the control (it was ~640 px below)
     assert not page.locator(".hs-error").first.is_visible()  # said once, where it was asked
-    side.locator("button", has_text="right").click()  # a good side: the refusal goes
+    assert "active" in (side.locator("button", has_text="right").get_attribute("class") or "")
+    field = page.locator(".hs-band-s input").first  # the next edit: the refusal goes
+    field.fill("2")
+    field.press("Enter")
     box.wait_for(state="hidden", timeout=BUSY_S * 1000)
 
 
