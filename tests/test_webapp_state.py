@@ -381,17 +381,18 @@ def test_w2_is_greyed_out_where_pass_2_compares_the_hand_turning(cfg):
 
 def test_widths_typed_in_seconds_are_checked_edits(session):
     """The seconds fields go through the session's rules: a value out of range (or not a
-    number) is refused in one line and the field shows the width in force again; a value in
-    range greys out its fraction slider; emptied, the fraction is in force again."""
+    number) is refused in one line, the width in force stays and the field keeps what was
+    typed, to be corrected; a value in range greys out its fraction slider; emptied, the
+    fraction is in force again."""
     from webapp.views.controls import parameter_widgets
 
     (w1, _, w1_s, *_), *_ = parameter_widgets(session)  # slider, its note, seconds
     before = session.to_spec()
     w1_s.value = "1e9"
     assert "band" in session.error and "seconds" in session.error
-    assert w1_s.value == "" and session.band_s is None and session.to_spec() == before
+    assert w1_s.value == "1e9" and session.band_s is None and session.to_spec() == before
     w1_s.value = "abc"
-    assert "band" in session.error and w1_s.value == "" and session.band_s is None
+    assert "band" in session.error and w1_s.value == "abc" and session.band_s is None
     w1_s.value = "2"
     assert session.error == "" and session.band_s == 2.0 and w1.disabled
     w1_s.value = "2.50s"
