@@ -207,7 +207,8 @@ def cell_theta_sums(body_row, hand_row, half):
 @numba.njit(cache=True, nogil=True)
 def _unpack(rows, hand, nb, half):
     """Per-frame arrays of one take's rows: window centroids ``(F,)`` x and z
-    (float32), the masks P, Q (``(1 or nb, F, 2)``), the yaw bins and steps ``(F,)``."""
+    (float32), the masks Z = P ∨ Q and G = P (``(1 or nb, F, 2)``, see :func:`zg_cost`),
+    the yaw bins and steps ``(F,)``."""
     f = rows.shape[0]
     mx = np.zeros(f, np.float32)
     mz = np.zeros(f, np.float32)
@@ -225,8 +226,9 @@ def _unpack(rows, hand, nb, half):
         yaw[r] = int(row[3])
         step[r] = row[4]
         for b in range(width):
-            pq[b, r, 0] = np.uint64(row[off + 2 * b])
-            pq[b, r, 1] = np.uint64(row[off + 2 * b + 1])
+            p = np.uint64(row[off + 2 * b])
+            pq[b, r, 0] = p | np.uint64(row[off + 2 * b + 1])
+            pq[b, r, 1] = p
     return mx, mz, pq, yaw, step
 
 
@@ -312,11 +314,8 @@ class PhaseProblem:
             hx = hz = np.zeros((k, self.m + 4), np.float32)
         bmx, bmz, bpq, byaw, bstep = _unpack(a, False, nb, half)
         hmx, hmz, hpq, hyaw, _ = _unpack(b, True, nb, half)
-        bnz = np.ascontiguousarray(bpq[0, :, 0] | bpq[0, :, 1])  # Z: code ≠ 0
-        bpos = np.ascontiguousarray(bpq[0, :, 0])  # G: code = +1
-        hp = hpq[:, :, 0].copy()  # the hand's (P, Q) -> (Z, G) in place
-        hpq[:, :, 0] |= hpq[:, :, 1]
-        hpq[:, :, 1] = hp
+        bnz = np.ascontiguousarray(bpq[0, :, 0])  # Z: code ≠ 0
+        bpos = np.ascontiguousarray(bpq[0, :, 1])  # G: code = +1
         self.body = (bx, bz, bmx, bmz, bnz, bpos, byaw, bstep)
         self.hand = (hx, hz, hmx, hmz, hpq.reshape(-1), hyaw)  # (Z, G) flat: (nb m 2,)
 
