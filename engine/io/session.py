@@ -299,7 +299,7 @@ def from_dict(data: Any, source: str | None = None) -> SessionSpec:
             raise C.ConstraintError("points", f"expected a list, got {_show(raw_points)}")
         points = C.parse_points([_json_point(p) for p in raw_points])
     except C.ConstraintError as exc:
-        raise SessionError(source, exc.field, exc.detail, exc) from None
+        raise SessionError(source, exc.label, exc.detail, exc) from None
 
     roles = data.get("roles", {})
     if not isinstance(roles, dict):
@@ -526,7 +526,7 @@ def read_query(query: dict[str, str]) -> tuple[SessionSpec, tuple[SessionError, 
         try:
             return read()
         except C.ConstraintError as exc:
-            problems.append(SessionError(source, exc.field, exc.detail, exc))
+            problems.append(SessionError(source, exc.label, exc.detail, exc))
         except SessionError as exc:
             problems.append(exc)
         return None

@@ -348,7 +348,9 @@ class PointsTable:
             elif column in ("body frame", "hand frame"):
                 p = s.points[k]
                 key = "body" if column == "body frame" else "hand"
-                frame = C.parse_frame(value, f"points[{k}].{key}")
+                frame = C.parse_point_frame(
+                    value, k, key, *((value, p.hand) if key == "body" else (p.body, value))
+                )
                 s.move_point(
                     k,
                     frame if key == "body" else p.body,
@@ -365,7 +367,7 @@ class PointsTable:
     def _on_error(self, *_):
         s = self.session
         if s.error and time.monotonic() - self._edited_at < self.REFUSAL_S:
-            self.refusal.object = safe_text.markdown(s.page_error())
+            self.refusal.object = safe_text.markdown(s.error)
             self.refusal.visible = True
         elif not s.error:
             self.refusal.visible = False
@@ -409,7 +411,7 @@ def error_alert(session: Session) -> pn.viewable.Viewable:
     alert = refusal_box("hs-error", sizing_mode="stretch_width")
 
     def update(*_):
-        alert.object = safe_text.markdown(session.page_error())
+        alert.object = safe_text.markdown(session.error)
         alert.visible = bool(session.error)
 
     session.param.watch(update, ["error"])
