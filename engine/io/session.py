@@ -76,7 +76,9 @@ _HEX64 = re.compile(r"^[0-9a-f]{64}$")
 class SessionError(ParameterError):
     """A session file or dict is malformed; the message names the field. ``constraint`` is
     the :class:`~engine.dtw.constraints.ConstraintError` behind it, if any (its structured
-    fields: value, expected, the refused point)."""
+    fields: value, expected, the refused point); the message then names what it refuses in
+    its words (``demo.json: matching point 2 (body 80, hand 20): ...``), ``field`` stays
+    the field's name for code (``points[1]``)."""
 
     def __init__(
         self,
@@ -90,7 +92,8 @@ class SessionError(ParameterError):
         self.detail = message
         self.constraint = constraint
         where = f"{source}: " if source else ""
-        super().__init__(f"{where}{field_name}: {message}" if field_name else f"{where}{message}")
+        label = field_name if constraint is None else constraint.label
+        super().__init__(f"{where}{label}: {message}" if label else f"{where}{message}")
 
 
 @dataclass(frozen=True)
@@ -299,7 +302,7 @@ def from_dict(data: Any, source: str | None = None) -> SessionSpec:
             raise C.ConstraintError("points", f"expected a list, got {_show(raw_points)}")
         points = C.parse_points([_json_point(p) for p in raw_points])
     except C.ConstraintError as exc:
-        raise SessionError(source, exc.label, exc.detail, exc) from None
+        raise SessionError(source, exc.field, exc.detail, exc) from None
 
     roles = data.get("roles", {})
     if not isinstance(roles, dict):
@@ -526,7 +529,7 @@ def read_query(query: dict[str, str]) -> tuple[SessionSpec, tuple[SessionError, 
         try:
             return read()
         except C.ConstraintError as exc:
-            problems.append(SessionError(source, exc.label, exc.detail, exc))
+            problems.append(SessionError(source, exc.field, exc.detail, exc))
         except SessionError as exc:
             problems.append(exc)
         return None
