@@ -127,8 +127,8 @@ def test_roles_file_maps_an_unusual_name(tmp_path):
             "error: --match a:b: matching point 1: expected a whole body frame number >= 0, got 'a'",
         ),
         (
-            ["{body}", "{hand}", "--match", "40:30", "--match", "5000:3"],
-            "error: --match 5000:3: matching point 2 (body 5000, hand 3): outside the takes; "
+            ["{body}", "{hand}", "--match", "40:30", "--match", "5000:40"],
+            "error: --match 5000:40: matching point 2 (body 5000, hand 40): outside the takes; "
             "expected body frames 0 to ",
         ),
         (
