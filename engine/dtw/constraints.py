@@ -619,7 +619,14 @@ def _order_reason(k: int, x, y, px, py) -> str | None:
     """Why point ``k`` at ``(x, y)`` cannot follow point ``k - 1`` at ``(px, py)`` (the
     order rules every front shares), or None."""
     before = point_label(k - 1)
-    if x <= px:
+    if x == px and y == py:
+        return f"the same frames as {point_label(k - 1, px, py)}; give each point once"
+    if x == px:
+        return (
+            f"on the same body frame as {point_label(k - 1, px, py)}; expected one point per "
+            "body frame (a larger tolerance covers a range of hand frames)"
+        )
+    if x < px:
         return (
             f"body frame {x:g} is not after {before}'s body frame {px:g}; body frames must "
             "increase from one point to the next"
@@ -745,15 +752,7 @@ def check_points(
             px, py, pt = xs[-1], ys[-1], raw_tols[-1]
             before = (px, py, pt)
             other = point_label(k - 1, px, py)
-            if x == px and y == py:
-                reason = f"the same frames as {other}; give each point once"
-            elif x == px:
-                reason = (
-                    f"on the same body frame as {other}; expected one point per body frame "
-                    "(a larger tolerance covers a range of hand frames)"
-                )
-            else:
-                reason = _order_reason(k, x, y, px, py)
+            reason = _order_reason(k, x, y, px, py)
             if reason is None and x == px + 1 and _grid_gap(y, tol, py, pt, scale) > 1:
                 step = "one step" if scale == 1.0 else "one body frame's worth"
                 reason = (
