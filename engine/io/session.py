@@ -5,7 +5,7 @@ session tuned in the app can be replayed with ``handsplice splice``. The loader
 accepts any text and either returns a valid :class:`SessionSpec` or raises
 :class:`SessionError` naming the field and what was expected, e.g.::
 
-    demo.json: points[2].tolerance: expected a number >= 0, got -1
+    demo.json: matching point 3 (body 80, hand 40): expected a tolerance from 0 to 500 frames, got -1
 
 Schema (version 2)::
 
