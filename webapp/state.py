@@ -529,7 +529,7 @@ class Session(param.Parameterized):
         self.points = self._normalise(points)
 
     def _frames(self, index: int, body, hand) -> tuple[int, int] | None:
-        """``(body, hand)`` as whole frames (engine.dtw.constraints.parse_frame: 12.5 is
+        """``(body, hand)`` as whole frames (engine.dtw.constraints.parse_point_frame: 12.5 is
         refused, never truncated); None, with the refusal shown, otherwise."""
         try:
             return (

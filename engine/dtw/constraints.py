@@ -7,8 +7,8 @@ its message; nothing else re-validates or words a refusal. A refusal is a
 :class:`ConstraintError` (a ``ParameterError``) whose text is ``LABEL: what is wrong,
 what was expected``; ``LABEL`` is the field (``band: expected ..., got 5``) or, for a
 matching point, the point as a user counts and reads it: ``matching point 2 (body 80,
-hand 20): hand frame 20 is before matching point 1's (body 40, hand 30); ...`` (1-based,
-in the order the user gave the points). A front puts only its source in front
+hand 20): hand frame 20 is before matching point 1's hand frame 30; ...`` (1-based, in
+the order the user gave the points; :func:`point_label`). A front puts only its source in front
 (``demo.json: ...``, ``manifest.csv line 3, column match: ...``, ``--match 80:20: ...``).
 
 Band widths (docs/method.md §4, Majkowska et al. eqs. 4-5)
@@ -486,14 +486,9 @@ _POINT_EXPECTED = "BODY:HAND or BODY:HAND:TOL (frames >= 0, tolerance in frames)
 _WHOLE_FRAME = "a whole {}frame number >= 0"
 
 
-def parse_frame(value, field: str = "frame") -> int:
-    """A frame number (0-based) from a whole number or its text (``"125"``, ``125.0``);
-    a fraction (``12.5``: a slip while typing 125) is refused, never truncated or rounded.
-    A matching point's frames are read by :func:`parse_point_frame`."""
-    return _frame(value, field, _WHOLE_FRAME.format(""))
-
-
 def _frame(value, field: str, expected: str, **where) -> int:
+    """A frame number (0-based) from a whole number or its text (``"125"``, ``125.0``); a
+    fraction (``12.5``: a slip while typing 125) is refused, never truncated or rounded."""
     x = _number(value, field, expected, **where)
     if x != round(x) or not 0 <= x < _FRAME_LIMIT:
         raise ConstraintError(
@@ -504,7 +499,7 @@ def _frame(value, field: str, expected: str, **where) -> int:
 
 def parse_point_frame(value, index: int, which: str, body=None, hand=None) -> int:
     """The ``which`` (``"body"`` or ``"hand"``) frame of the matching point at 0-based
-    ``index``, read as :func:`parse_frame` reads a frame; the refusal names the point
+    ``index`` (:func:`_frame`: 12.5 is refused, never truncated); the refusal names the point
     (``matching point 3 (body 40, hand 12.5): expected a whole hand frame number >= 0, got
     12.5``; ``body``/``hand``: the point's frames as given, for its label). Every front
     reads a matching point's frames through here (the app's table too)."""
