@@ -185,12 +185,15 @@ def test_refused_table_edit_is_said_next_to_the_table(page, tmp_path):
     page.wait_for_timeout(800)
     _edit(page, "body frame", "9999")
     text = _refusal_in_view(page, "9999")
-    assert "9999" in text and "outside" in text, text
+    # the point as a user counts and reads it, what is wrong and what was expected
+    assert text.startswith("matching point 1 (body 9999, hand "), text
+    assert f"outside the takes; expected body frames 0 to {n - 1} and hand frames 0 to " in text
     page.screenshot(path=str(tmp_path / "refused_body.png"))
     assert _points(page) == 1
     _edit(page, "tolerance", "abc")
     text = _refusal_in_view(page, "abc")
-    assert "abc" in text, text
+    assert text.startswith("matching point 1 (body "), text
+    assert text.endswith("expected a tolerance from 0 to 500 frames, got 'abc'"), text
     page.screenshot(path=str(tmp_path / "refused_tol.png"))
     # an accepted edit clears the table's message
     _edit(page, "tolerance", "3")

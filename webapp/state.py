@@ -81,26 +81,6 @@ def _same(a, b) -> bool:
         return False
 
 
-def page_point(body: int, hand: int, tolerance: float | None = None) -> str:
-    """A matching point as the page writes it in messages: ``(body 60, hand 10)``."""
-    return f"(body {body}, hand {hand})"
-
-
-def page_words(message: str, refusal: C.ConstraintError | None = None) -> str:
-    """``message`` in the page's words, from the structured constraint refusal behind it
-    (``engine.dtw.constraints``' one text for every front; ``Session.refusal``): a refused
-    point ``points[1]: 60:10:0 crosses 40:20:0: ...`` becomes ``matching point (body 60,
-    hand 10) not kept: it crosses (body 40, hand 20): ...``; the refusal inside a longer
-    message (a shared link's) has its points written the page's way. Any other message is
-    shown as it is."""
-    if refusal is None or str(refusal) not in message:
-        return message
-    reason = refusal.reason_with(page_point)
-    if message == str(refusal) and reason is not None:
-        return f"matching point {page_point(*refusal.point)} not kept: it {reason}"
-    return message.replace(str(refusal), refusal.text_with(page_point))
-
-
 class Session(param.Parameterized):
     """State of one browser session (or one test)."""
 
@@ -247,10 +227,6 @@ class Session(param.Parameterized):
         behind the current ``error``; None when ``error`` is not a constraint's."""
         text, cause = self._refused
         return cause if self.error and text == self.error else None
-
-    def page_error(self) -> str:
-        """``error`` in the page's words (:func:`page_words`)."""
-        return page_words(self.error, self.refusal())
 
     def begin_opening(self, name: str) -> None:
         """A new pair named ``name`` is being opened off the loop: the views of the open
@@ -553,12 +529,12 @@ class Session(param.Parameterized):
         self.points = self._normalise(points)
 
     def _frames(self, index: int, body, hand) -> tuple[int, int] | None:
-        """``(body, hand)`` as whole frames (engine.dtw.constraints.parse_frame: 12.5 is
+        """``(body, hand)`` as whole frames (engine.dtw.constraints.parse_point_frame: 12.5 is
         refused, never truncated); None, with the refusal shown, otherwise."""
         try:
             return (
-                C.parse_frame(body, f"points[{index}].body"),
-                C.parse_frame(hand, f"points[{index}].hand"),
+                C.parse_point_frame(body, index, "body", body, hand),
+                C.parse_point_frame(hand, index, "hand", body, hand),
             )
         except C.ConstraintError as exc:
             self.refuse(exc, str(exc))
@@ -585,7 +561,8 @@ class Session(param.Parameterized):
     def set_point_tolerance(self, index: int, tolerance: float | None) -> None:
         if tolerance is not None:
             try:
-                tolerance = C.parse_tolerance(tolerance, f"points[{index}].tolerance")
+                p = self.points[index]
+                tolerance = C.parse_point_tolerance(tolerance, index, p.body, p.hand)
             except C.ConstraintError as exc:
                 self.refuse(exc, str(exc))
                 return
@@ -700,8 +677,8 @@ class Session(param.Parameterized):
 
     def _check_points(self) -> None:
         """Refuse points outside the takes or out of order: the rule and its text are
-        ``engine.dtw.constraints``' (the page shows it in its own words from its structured
-        fields: ``page_words``)."""
+        ``engine.dtw.constraints``' (``matching point 2 (body 80, hand 20): ...``, counted
+        as the table lists the points)."""
         C.check_points(
             self.user_points(),
             self.n,

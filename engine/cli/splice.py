@@ -174,6 +174,23 @@ def _took(wall_s: float, splice_s: float) -> str:
     )
 
 
+def _point_source(exc, args) -> Exception:
+    """A matching point's refusal (engine.dtw.constraints' text) with where the point came
+    from: ``--match 80:20: matching point 2 (body 80, hand 20): ...`` or the session file's
+    name; any other refusal as it is."""
+    from pathlib import Path
+
+    from engine.base.errors import ParameterError
+
+    if exc.index is None:
+        return exc
+    if args.match and exc.index < len(args.match):
+        return ParameterError(f"--match {str(args.match[exc.index])[:40]}: {exc}")
+    if getattr(args, "session", None):
+        return ParameterError(f"{Path(args.session).name}: {exc}")
+    return exc
+
+
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
@@ -205,7 +222,10 @@ def run(args: argparse.Namespace) -> int:
         suffix = Path(args.preview).suffix.lower()
         if suffix not in (".gif", ".mp4", ".png"):
             raise ParameterError(f"--preview {args.preview}: expected a .gif, .mp4 or .png file")
-    points = [p.resolved(0.0) for p in C.parse_points(list(args.match))]
+    try:
+        points = [p.resolved(0.0) for p in C.parse_points(list(args.match))]
+    except C.ConstraintError as exc:
+        raise _point_source(exc, args) from None
     # --match points are hand-file frames; so are a session file's since version 2 (version
     # 1 files hold alignment-grid frames)
     hand_points = bool(points) or spec is None or spec.hand_frames == "file"
@@ -224,13 +244,16 @@ def run(args: argparse.Namespace) -> int:
     elif spec is not None and spec.roles:
         body_roles, hand_roles = split_roles(spec.roles, body, hand)
     if hand_points:  # in the files' own frames, before the long work
-        C.check_points(
-            points,
-            body.n_frames,
-            hand.n_frames,
-            open_ends=C.parse_ends(args.ends) == "open",
-            grid_scale=body.fps / hand.fps,
-        )
+        try:
+            C.check_points(
+                points,
+                body.n_frames,
+                hand.n_frames,
+                open_ends=C.parse_ends(args.ends) == "open",
+                grid_scale=body.fps / hand.fps,
+            )
+        except C.ConstraintError as exc:
+            raise _point_source(exc, args) from None
 
     from engine.splice.report import build_report, dumps
 

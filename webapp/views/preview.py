@@ -103,6 +103,7 @@ class PreviewView:
             value=session.frame,
             css_classes=["hs-frame-slider"],
             width=330,
+            tooltips=False,  # the label says the frame; a tooltip would cover it
         )
         self.play = pn.widgets.Toggle(
             label="▶ Play", value=False, width=90, css_classes=["hs-play"]
