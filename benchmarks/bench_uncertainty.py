@@ -29,8 +29,11 @@ tuning seeds (100-107, 200-207, 300-303); the table reports seeds ``0..N-1``.
 from __future__ import annotations
 
 import argparse
+import hashlib
+import os
 import time
 from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
 
 import numpy as np
 from scipy.stats import spearmanr
@@ -50,10 +53,11 @@ CLEAN = ("beat", "bandai", "lafan1")
 P95_GOAL = 0.30
 
 
-def run_case(case, scan_s: float = 0.0) -> dict:
+def run_case(case, scan_s: float = 0.0, cache: Path | None = None) -> dict:
     """Errors of one case: before, with the top suggestion, with a point at the worst
     frame, and (``scan_s`` > 0) with a true point every ``scan_s`` seconds ("scan": a list
-    of (n,) errors in ms, refused points left out)."""
+    of (n,) errors in ms, refused points left out). ``cache``: an .npz file holding this
+    case's scan (read when it exists, else written: :func:`scan_cache`)."""
     res = P.splice(case.body, case.hand, transfer_fingers=False)
     t0 = time.perf_counter()
     a = assess_splice(res.features, res.alignment)
@@ -77,20 +81,57 @@ def run_case(case, scan_s: float = 0.0) -> dict:
     out["err_oracle"] = err if worst is None else worst
     out["scan"] = [err, out["err_fixed"], out["err_oracle"]] if scan_s > 0 else []
     if scan_s > 0:
-        n = len(err)
-        step = max(1, int(round(scan_s * float(case.body.fps))))
-        for body in sorted({*range(0, n, step), n - 1}):
-            fixed = _with_true_point(case, body)
-            if fixed is not None:
-                out["scan"].append(fixed)
+        out["scan"] += _scan(case, scan_s, cache)
     return out
+
+
+def _scan(case, scan_s: float, cache: Path | None) -> list[np.ndarray]:
+    """(n,) errors with one true point at every ``scan_s`` seconds of the body take (and
+    the last frame), points the band refuses left out; read from / written to ``cache``."""
+    if cache is not None and cache.exists():
+        with np.load(cache) as z:
+            return [e for e, ok in zip(z["errs"], z["ok"], strict=True) if ok]
+    n = case.body.n_frames
+    step = max(1, int(round(scan_s * float(case.body.fps))))
+    frames = sorted({*range(0, n, step), n - 1})
+    errs = [_with_true_point(case, body) for body in frames]
+    ok = [e is not None for e in errs]
+    if cache is not None:
+        cache.parent.mkdir(parents=True, exist_ok=True)
+        tmp = cache.with_suffix(f".{os.getpid()}.tmp.npz")
+        np.savez(
+            tmp,
+            cands=np.array(frames),
+            ok=np.array(ok),
+            errs=np.array([e if e is not None else np.full(n, np.nan) for e in errs]),
+        )
+        os.replace(tmp, cache)
+    return [e for e in errs if e is not None]
+
+
+def scan_cache(folder: str | None, name: str, seed: int, scan_s: float) -> Path | None:
+    """Where the scan of family ``name``, ``seed`` is kept under ``folder`` (None: not kept).
+
+    The file name carries a hash of the code a placed point's splice runs (``engine``
+    but the trust assessment, and the bench's cases): a changed engine scans again,
+    a changed suggestion rule (``engine/splice/uncertainty.py``) reuses the scan."""
+    if not folder or scan_s <= 0:
+        return None
+    root = Path(__file__).resolve().parents[1]
+    skip = {Path("engine/splice/uncertainty.py"), Path("engine/trust.py")}
+    files = sorted(p for p in (root / "engine").rglob("*.py") if p.relative_to(root) not in skip)
+    files += [root / "benchmarks" / f for f in ("bench_splice_accuracy.py", "split.py", "split_rigs.py")]
+    digest = hashlib.sha1()
+    for p in files:
+        digest.update(str(p.relative_to(root)).encode() + b"\0" + p.read_bytes())
+    return Path(folder) / f"{name}_{seed}_{scan_s:g}s_{digest.hexdigest()[:12]}.npz"
 
 
 def _run_one(job: tuple) -> dict:
     """``run_case`` of family ``job[0]``, seed ``job[1]``, scan step ``job[2]`` seconds (0:
-    no scan) (a worker process's unit)."""
-    name, seed, scan_s = job
-    return run_case(FAMILIES[name].make(seed), scan_s)
+    no scan), scan cache folder ``job[3]`` (None: none) (a worker process's unit)."""
+    name, seed, scan_s, folder = job
+    return run_case(FAMILIES[name].make(seed), scan_s, scan_cache(folder, name, seed, scan_s))
 
 
 def best_single_point(rows: list[dict], goal_ms: float) -> np.ndarray | None:
@@ -399,12 +440,19 @@ def main(argv=None) -> int:
         help="also place a true point every SCAN seconds of each hard take (the best single "
         "point per take: what no suggestion rule can beat); 0: off",
     )
+    ap.add_argument(
+        "--scan-cache",
+        metavar="DIR",
+        help="keep each take's scan in DIR and reuse it while the splice code is unchanged",
+    )
     args = ap.parse_args(argv)
     names = args.families.split(",") if args.families else list(FAMILIES)
     seeds = 2 if args.quick else args.seeds
     table, every, hard, by_seed = {}, [], [], {}
     jobs = [
-        (name, seed, 0.0 if name in CLEAN else args.scan) for name in names for seed in range(seeds)
+        (name, seed, 0.0 if name in CLEAN else args.scan, args.scan_cache)
+        for name in names
+        for seed in range(seeds)
     ]
     if args.jobs > 1:  # cases are independent: one worker process per case
         with ProcessPoolExecutor(args.jobs) as pool:
@@ -414,7 +462,7 @@ def main(argv=None) -> int:
     for name in names:
         rows = []
         for seed in range(seeds):
-            job = (name, seed, 0.0 if name in CLEAN else args.scan)
+            job = (name, seed, 0.0 if name in CLEAN else args.scan, args.scan_cache)
             r = done.get(job) or _run_one(job)
             rows.append(r)
             if name not in CLEAN:
