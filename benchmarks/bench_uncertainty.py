@@ -120,7 +120,9 @@ def scan_cache(folder: str | None, name: str, seed: int, scan_s: float) -> Path 
     root = Path(__file__).resolve().parents[1]
     skip = {Path("engine/splice/uncertainty.py"), Path("engine/trust.py")}
     files = sorted(p for p in (root / "engine").rglob("*.py") if p.relative_to(root) not in skip)
-    files += [root / "benchmarks" / f for f in ("bench_splice_accuracy.py", "split.py", "split_rigs.py")]
+    files += [
+        root / "benchmarks" / f for f in ("bench_splice_accuracy.py", "split.py", "split_rigs.py")
+    ]
     digest = hashlib.sha1()
     for p in files:
         digest.update(str(p.relative_to(root)).encode() + b"\0" + p.read_bytes())
