@@ -668,7 +668,7 @@ def test_model_changes_wait_for_the_document_lock(monkeypatch):
     import panel as pn
     from bokeh.models import ColumnDataSource
 
-    from webapp.views._dispatch import with_document_lock
+    from webapp.views._dispatch import next_tick, with_document_lock
 
     class View:
         def __init__(self):
@@ -692,16 +692,83 @@ def test_model_changes_wait_for_the_document_lock(monkeypatch):
     asyncio.run(tab_session.with_document_locked(later))  # as bokeh runs a next tick
     assert view.source.data["x"] == [1]
 
-    async def draw_locked():
-        await tab_session.with_document_locked(view.draw, 2)
-
-    asyncio.run(draw_locked())  # lock held: at once
-    assert view.source.data["x"] == [2] and len(scheduled[id(tab)]) == 1
+    next_tick(tab, lambda: view.draw(2))  # a callback the app scheduled on the tab
+    asyncio.run(tab_session.with_document_locked(scheduled[id(tab)][-1]))  # lock held: at once
+    assert view.source.data["x"] == [2] and len(scheduled[id(tab)]) == 2
 
     view.draw(3)  # deferred; then the tab closes before the next tick
     later = scheduled[id(tab)][-1]
     tab_session.destroy()
     later()  # dropped without an error: nobody is there to see it
+
+
+def test_only_code_that_holds_the_lock_changes_models_at_once(monkeypatch):
+    """The run-now-or-defer decision follows who holds the lock, not whether somebody does:
+    a worker thread, an asyncio task outliving the callback that started it and a callback
+    holding another tab's lock all defer the change (made at once there, Bokeh would send
+    it from outside the lock, or raise); the deferred change then runs under the tab's
+    lock, accepted by Bokeh's real session."""
+    import asyncio
+
+    from bokeh.models import ColumnDataSource
+
+    from webapp.views._dispatch import next_tick, with_document_lock
+
+    class View:
+        def __init__(self):
+            self.source = ColumnDataSource({"x": [0]})
+
+        @with_document_lock
+        def draw(self, x):
+            self.source.data = {"x": [x]}
+
+    view = View()
+    tab, tab_session = _served_document(view.source)
+    other, other_session = _served_document()
+    ticks = {id(tab): [], id(other): []}
+    for d in (tab, other):
+        monkeypatch.setattr(d, "add_next_tick_callback", ticks[id(d)].append)
+
+    def run_ticks(doc, session):  # as Bokeh runs next-tick callbacks: one by one, locked
+        while ticks[id(doc)]:
+            asyncio.run(session.with_document_locked(ticks[id(doc)].pop(0)))
+
+    # 1. a worker thread, while a callback on the loop holds the tab's lock and waits for it
+    async def holds_the_lock_meanwhile():
+        await asyncio.get_running_loop().run_in_executor(None, view.draw, 1)
+
+    asyncio.run(tab_session.with_document_locked(holds_the_lock_meanwhile))
+    assert view.source.data["x"] == [0] and len(ticks[id(tab)]) == 1
+    run_ticks(tab, tab_session)
+    assert view.source.data["x"] == [1]
+
+    # 2. a task started by a locked callback runs after it, when the lock is released
+    async def starts_a_task():
+        tasks = []
+
+        async def task():
+            view.draw(2)
+
+        next_tick(tab, lambda: tasks.append(asyncio.get_running_loop().create_task(task())))
+        await tab_session.with_document_locked(ticks[id(tab)].pop())
+        await tasks[0]
+
+    asyncio.run(starts_a_task())
+    assert view.source.data["x"] == [1] and len(ticks[id(tab)]) == 1
+    run_ticks(tab, tab_session)
+    assert view.source.data["x"] == [2]
+
+    # 3. a callback holding another tab's lock
+    next_tick(other, lambda: view.draw(3))
+    run_ticks(other, other_session)
+    assert view.source.data["x"] == [2] and len(ticks[id(tab)]) == 1
+    run_ticks(tab, tab_session)
+    assert view.source.data["x"] == [3]
+
+    # a callback holding the tab's own lock: at once (nothing deferred), accepted
+    next_tick(tab, lambda: view.draw(4))
+    asyncio.run(tab_session.with_document_locked(ticks[id(tab)].pop()))
+    assert view.source.data["x"] == [4] and not ticks[id(tab)]
 
 
 def test_teaching_example_steps_through_the_recurrence():
