@@ -551,6 +551,42 @@ def test_a_bad_link_opens_the_demo_and_says_why(cfg):
     assert old.points == (MatchPoint(30, 12, 2.469),) and not old.error
 
 
+def test_a_link_without_takes_means_one_thing_on_every_front(cfg):
+    """A link of parameters only (``?frame=75``) opens the default pair with them whether the
+    page opens it (app._initial_state) or a caller gives it to a fresh Session (open_link,
+    from_query) or a session file has no inputs; with takes open it applies to them; with
+    neither takes nor a default pair it is refused in one line."""
+    from dataclasses import replace
+
+    from engine.io.session import SessionSpec, format_session
+    from webapp import app
+
+    query = {"frame": "75", "band": "0.4", "pts": "30:10", "frames": "hand"}
+    page = Session(cfg)
+    app._initial_state(page, dict(query))
+    linked, parsed, filed = Session(cfg), Session(cfg), Session(cfg)
+    linked.open_link(dict(query))
+    parsed.from_query(dict(query))
+    filed.from_json(
+        format_session(SessionSpec(band=0.4, points=((30, 10),), view={"frame": 75})),
+        source="params.json",
+    )
+    for s in (page, linked, parsed, filed):
+        assert (s.sample, s.frame, s.band, s.points) == (DEMO, 75, 0.4, (MatchPoint(30, 10),))
+        assert not s.error and s.solution is not None
+        assert s.to_query() == page.to_query()
+    # takes already open: the link's values apply to them
+    other = Session(cfg)
+    other.load_sample("wave-hello")
+    other.open_link(dict(query))
+    assert (other.sample, other.frame, other.band) == ("wave-hello", 75, 0.4)
+    # no takes and no default pair: nothing to apply them to
+    bare = Session(replace(cfg, default_sample=None))
+    with pytest.raises(SessionError, match=r"^inputs: expected a sample .*none are open"):
+        bare.from_query(dict(query))
+    assert bare.solution is None and bare.sample is None
+
+
 def test_opening_a_bad_session_file_in_the_page_keeps_the_session(session, cfg):
     from webapp.views.inputs import InputsView
     from webapp.views.sharing import SharingView
