@@ -83,23 +83,6 @@ def test_tie_prefers_diagonal_then_vertical_then_horizontal():
     assert r.path.tolist() == [[0, 0], [0, 1], [0, 2], [1, 3], [2, 4]]
 
 
-def test_cell_step_is_eq2_with_the_reference_tie_order():
-    """The one copy of the recurrence (``kernels.cell_step``, inlined by every row kernel):
-    γ = c + the smallest neighbour, ties to the diagonal, then up, then left (as
-    ``naive.dtw_banded``), for every order of equal, finite and forbidden neighbours."""
-    names = {int(K.DIAGONAL): "diag", int(K.VERTICAL): "up", int(K.HORIZONTAL): "left"}
-    values = (0.0, 1.0, 2.0, math.inf)
-    for diag in values:
-        for up in values:
-            for left in values:
-                g, step = K.cell_step(diag, up, left, 0.5)
-                best, name = diag, "diag"  # naive.dtw_banded's scan: strictly smaller wins
-                for v, nm in ((up, "up"), (left, "left")):
-                    if v < best:
-                        best, name = v, nm
-                assert g == 0.5 + best and names[int(step)] == name, (diag, up, left)
-
-
 def test_forbidden_cells_are_avoided():
     cost = np.zeros((3, 3))
     cost[1, 1] = np.inf

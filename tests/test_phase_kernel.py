@@ -297,26 +297,6 @@ def test_forward_pass_equals_the_per_cell_forward_pass(feats, reverse):
         assert np.array_equal(u, v)
 
 
-def test_the_engine_has_one_copy_of_the_recurrence():
-    """Eq. 2's step choice is written once (``engine.dtw.kernels.cell_step``); the row and pair
-    kernels of engine.dtw and of this pass-1 kernel call it, so a change to it (the tie
-    order, say) reaches every pass."""
-    from pathlib import Path
-
-    import engine
-
-    root = Path(engine.__file__).parent
-    copies = [
-        (str(f.relative_to(root)), n)
-        for f in sorted(root.rglob("*.py"))
-        for n, line in enumerate(f.read_text(encoding="utf-8").splitlines(), 1)
-        if "VERTICAL if" in line
-    ]
-    assert [f for f, _ in copies] == ["dtw/kernels.py"], copies
-    src = Path(PK.__file__).read_text(encoding="utf-8")
-    assert "K.cell_step(" in src
-
-
 def _padded_coords_numpy(rows, half):
     """The window check as numpy comparisons (the reference of the numba one)."""
     f, k = rows.shape[0], half // PK.WINDOW

@@ -16,11 +16,10 @@ a band row at a time, with the same arithmetic, in about a tenth of the time:
 * **θ bins without libm**: a polynomial ``atan2`` (about 1e-5 rad) and a floor,
   written without branches so the column loop vectorises.
 * **Costs inside the recurrence.** A row's θ bins become indices into the hand's mask
-  table (one vectorised loop); the DTW recurrence (``engine.dtw``'s row and pair loops
-  around its one cell step, ``cell_step``) forms each cell's cost where it uses it, its
-  popcounts filling the idle slots of the serial min/add chain, and prefetches the masks
-  64 cells ahead (θ drifts, so the reads wander over the table where the hardware
-  prefetchers miss them).
+  table (one vectorised loop); the DTW recurrence (copies of ``engine.dtw``'s row and
+  pair kernels) forms each cell's cost where it uses it, its popcounts filling the idle
+  slots of the serial min/add chain, and prefetches the masks 64 cells ahead (θ drifts,
+  so the reads wander over the table where the hardware prefetchers miss them).
 * **Bit-parallel codes.** Each frame's 6K ternary sign codes are two bit masks
   (P: +1, Q: −1); the hand take's are precomputed for every θ bin and stored bin
   by bin (``(n_bins, m)``) so neighbouring cells, which mostly share a bin, read
@@ -617,9 +616,8 @@ def _one_row(
 # ``engine.dtw.kernels._dp_row`` / ``_dp_pair`` with each cell's local cost formed where it
 # is used (``_index_cost`` at the cells of the row's θ bins) instead of read from a cost row: the
 # recurrence is one serial min/add chain per row, so the popcount work fills its idle
-# issue slots, and no cost row goes through the cache. Each cell's step is engine.dtw's own
-# (``K.cell_step``, inlined): same operands, same order, same floats and steps (tests
-# compare with the cost-row kernels cell by cell).
+# issue slots, and no cost row goes through the cache. Same operands, same order, same
+# floats and steps (tests compare with the cost-row kernels cell by cell).
 
 
 @numba.njit(cache=True, nogil=True)
@@ -640,7 +638,10 @@ def _dp_row_codes(prev, cur, p, q, st, codes, cells, lo, hi, bp_row, left0):
         up = pr[k + 1]
         prefetch(codes, np.uint64(bb[k + AHEAD]))
         c = _index_cost(p, q, st, codes, bb[k])
-        g, step = K.cell_step(diag, up, left, c)
+        du = min(diag, up)
+        step_du = K.VERTICAL if up < diag else K.DIAGONAL
+        step = K.HORIZONTAL if left < du else step_du
+        g = c + min(left, du)
         out[k] = g
         left = g
         bp_row[k] = step
@@ -685,8 +686,10 @@ def _dp_pair_codes(
         up = pa[k + 1]
         prefetch(codes, np.uint64(ba[k + AHEAD]))
         c = _index_cost(pa_, qa_, sta, codes, ba[k])
-        g, step = K.cell_step(diag, up, left_a, c)
-        bp_a[k] = step
+        du = min(diag, up)
+        step_du = K.VERTICAL if up < diag else K.DIAGONAL
+        bp_a[k] = K.HORIZONTAL if left_a < du else step_du
+        g = c + min(left_a, du)
         out_a[k] = g
         left_a = g
     mid[lo_a] = left_a0
@@ -713,15 +716,19 @@ def _dp_pair_codes(
             up = pa2[k + 1]
             prefetch(codes, np.uint64(ba2[k + AHEAD]))
             c = _index_cost(pa_, qa_, sta, codes, ba2[k])
-            g, step = K.cell_step(diag, up, left_a, c)
-            bp_a2[k] = step
+            du = min(diag, up)
+            step_du = K.VERTICAL if up < diag else K.DIAGONAL
+            bp_a2[k] = K.HORIZONTAL if left_a < du else step_du
+            g = c + min(left_a, du)
             out_a2[k] = g
             left_a = g
             # row i+1 at column lo_b + k
             prefetch(codes, np.uint64(bb[k + AHEAD]))
             c2 = _index_cost(pb_, qb_, stb, codes, bb[k])
-            g2, step2 = K.cell_step(a_diag, a_up, left_b, c2)
-            bp_b[k] = step2
+            du2 = min(a_diag, a_up)
+            step_du2 = K.VERTICAL if a_up < a_diag else K.DIAGONAL
+            bp_b[k] = K.HORIZONTAL if left_b < du2 else step_du2
+            g2 = c2 + min(left_b, du2)
             out_b[k] = g2
             left_b = g2
             a_diag = a_up
@@ -734,8 +741,10 @@ def _dp_pair_codes(
         up = pb[k + 1]
         prefetch(codes, np.uint64(bb[done_b + k + AHEAD]))
         c = _index_cost(pb_, qb_, stb, codes, bb[done_b + k])
-        g, step = K.cell_step(diag, up, left_b, c)
-        bp_b[done_b + k] = step
+        du = min(diag, up)
+        step_du = K.VERTICAL if up < diag else K.DIAGONAL
+        bp_b[done_b + k] = K.HORIZONTAL if left_b < du else step_du
+        g = c + min(left_b, du)
         out_b[done_b + k] = g
         left_b = g
     return (1 if bad_a else 0) | (2 if bad_b else 0)

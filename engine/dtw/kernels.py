@@ -9,7 +9,7 @@ cumulative costs γ are kept only when asked for (the incremental ``Aligner``),
 otherwise two rows of ``m + 1`` doubles suffice. Memory therefore grows with
 the band area, never with ``n * m``.
 
-Recurrence (Majkowska et al. eqs. 1-2; :func:`cell_step` is its one copy)::
+Recurrence (Majkowska et al. eqs. 1-2)::
 
     γ(i, j) = D(i, j) + min(γ(i-1, j-1), γ(i-1, j), γ(i, j-1)),  γ = +inf outside the band
 
@@ -87,21 +87,6 @@ NEG_INF = -np.inf
 PAIR_MIN_WIDTH = 32  # rows narrower than this are done one at a time
 
 
-@njit_cached(inline="always")
-def cell_step(diag, up, left, c):
-    """One cell of eq. 2: ``(γ(i, j), step)`` from γ(i-1, j-1) ``diag``, γ(i-1, j) ``up``,
-    γ(i, j-1) ``left`` and the local cost ``c`` (ties: diagonal, vertical, horizontal).
-
-    The only copy of the recurrence: the row and pair kernels here and the pass-1 row kernel
-    (:mod:`engine.align.phase_kernel`) inline it (numba ``inline="always"``), so their loops
-    compile as if it were written in them.
-    """
-    du = min(diag, up)
-    step_du = VERTICAL if up < diag else DIAGONAL
-    step = HORIZONTAL if left < du else step_du
-    return c + min(left, du), step
-
-
 @njit_cached()
 def _dp_row(prev, cur, crow, lo, hi, bp_row, left0):
     """Row ``i`` of γ into ``cur`` from row ``i - 1`` in ``prev``.
@@ -118,8 +103,13 @@ def _dp_row(prev, cur, crow, lo, hi, bp_row, left0):
     left = left0
     bad = False
     for k in range(w):
+        diag = p[k]
+        up = p[k + 1]
         c = cost[k]
-        g, step = cell_step(p[k], p[k + 1], left, c)
+        du = min(diag, up)
+        step_du = VERTICAL if up < diag else DIAGONAL
+        step = HORIZONTAL if left < du else step_du
+        g = c + min(left, du)
         bad |= not (c > NEG_INF)
         out[k] = g
         left = g
@@ -144,9 +134,13 @@ def _dp_pair(prev, mid, cur, crow_a, crow_b, lo_a, hi_a, lo_b, hi_b, bp_a, bp_b,
     left_a = left_a0
     bad_a = False
     for k in range(end1 - lo_a + 1):
+        diag = pa[k]
+        up = pa[k + 1]
         c = cost_a[k]
-        g, step = cell_step(pa[k], pa[k + 1], left_a, c)
-        bp_a[k] = step
+        du = min(diag, up)
+        step_du = VERTICAL if up < diag else DIAGONAL
+        bp_a[k] = HORIZONTAL if left_a < du else step_du
+        g = c + min(left_a, du)
         bad_a |= not (c > NEG_INF)
         out_a[k] = g
         left_a = g
@@ -170,16 +164,22 @@ def _dp_pair(prev, mid, cur, crow_a, crow_b, lo_a, hi_a, lo_b, hi_b, bp_a, bp_b,
         a_diag = mid[lo_b]  # γ(i, t-2) for t = lo_b + 1
         a_up = mid[lo_b + 1]  # γ(i, t-1)
         for k in range(count):
+            diag = pa2[k]
+            up = pa2[k + 1]
             c = cost_a2[k]
-            g, step = cell_step(pa2[k], pa2[k + 1], left_a, c)
-            bp_a2[k] = step
+            du = min(diag, up)
+            step_du = VERTICAL if up < diag else DIAGONAL
+            bp_a2[k] = HORIZONTAL if left_a < du else step_du
+            g = c + min(left_a, du)
             bad_a |= not (c > NEG_INF)
             out_a2[k] = g
             left_a = g
             # row i+1 at column lo_b + k
             c2 = cost_b[k]
-            g2, step2 = cell_step(a_diag, a_up, left_b, c2)
-            bp_b[k] = step2
+            du2 = min(a_diag, a_up)
+            step_du2 = VERTICAL if a_up < a_diag else DIAGONAL
+            bp_b[k] = HORIZONTAL if left_b < du2 else step_du2
+            g2 = c2 + min(left_b, du2)
             bad_b |= not (c2 > NEG_INF)
             out_b[k] = g2
             left_b = g2
@@ -189,9 +189,13 @@ def _dp_pair(prev, mid, cur, crow_a, crow_b, lo_a, hi_a, lo_b, hi_b, bp_a, bp_b,
     # phase 3: row i+1 alone, the remaining columns
     pb = mid[lo_b + done_b : hi_b + 2]
     for k in range(w_b - done_b):
+        diag = pb[k]
+        up = pb[k + 1]
         c = cost_b[done_b + k]
-        g, step = cell_step(pb[k], pb[k + 1], left_b, c)
-        bp_b[done_b + k] = step
+        du = min(diag, up)
+        step_du = VERTICAL if up < diag else DIAGONAL
+        bp_b[done_b + k] = HORIZONTAL if left_b < du else step_du
+        g = c + min(left_b, du)
         bad_b |= not (c > NEG_INF)
         out_b[done_b + k] = g
         left_b = g
