@@ -564,6 +564,42 @@ def test_a_bad_link_opens_the_demo_and_says_why(cfg):
     assert old.points == (MatchPoint(30, 12, 2.469),) and not old.error
 
 
+def test_a_link_without_takes_means_one_thing_on_every_front(cfg):
+    """A link of parameters only (``?frame=75``) opens the default pair with them whether the
+    page opens it (app._initial_state) or a caller gives it to a fresh Session (open_link,
+    from_query) or a session file has no inputs; with takes open it applies to them; with
+    neither takes nor a default pair it is refused in one line."""
+    from dataclasses import replace
+
+    from engine.io.session import SessionSpec, format_session
+    from webapp import app
+
+    query = {"frame": "75", "band": "0.4", "pts": "30:10", "frames": "hand"}
+    page = Session(cfg)
+    app._initial_state(page, dict(query))
+    linked, parsed, filed = Session(cfg), Session(cfg), Session(cfg)
+    linked.open_link(dict(query))
+    parsed.from_query(dict(query))
+    filed.from_json(
+        format_session(SessionSpec(band=0.4, points=((30, 10),), view={"frame": 75})),
+        source="params.json",
+    )
+    for s in (page, linked, parsed, filed):
+        assert (s.sample, s.frame, s.band, s.points) == (DEMO, 75, 0.4, (MatchPoint(30, 10),))
+        assert not s.error and s.solution is not None
+        assert s.to_query() == page.to_query()
+    # takes already open: the link's values apply to them
+    other = Session(cfg)
+    other.load_sample("wave-hello")
+    other.open_link(dict(query))
+    assert (other.sample, other.frame, other.band) == ("wave-hello", 75, 0.4)
+    # no takes and no default pair: nothing to apply them to
+    bare = Session(replace(cfg, default_sample=None))
+    with pytest.raises(SessionError, match=r"^inputs: expected a sample .*none are open"):
+        bare.from_query(dict(query))
+    assert bare.solution is None and bare.sample is None
+
+
 def test_opening_a_bad_session_file_in_the_page_keeps_the_session(session, cfg):
     from webapp.views.inputs import InputsView
     from webapp.views.sharing import SharingView
@@ -681,7 +717,7 @@ def test_model_changes_wait_for_the_document_lock(monkeypatch):
     import panel as pn
     from bokeh.models import ColumnDataSource
 
-    from webapp.views._dispatch import with_document_lock
+    from webapp.views._dispatch import next_tick, with_document_lock
 
     class View:
         def __init__(self):
@@ -705,16 +741,83 @@ def test_model_changes_wait_for_the_document_lock(monkeypatch):
     asyncio.run(tab_session.with_document_locked(later))  # as bokeh runs a next tick
     assert view.source.data["x"] == [1]
 
-    async def draw_locked():
-        await tab_session.with_document_locked(view.draw, 2)
-
-    asyncio.run(draw_locked())  # lock held: at once
-    assert view.source.data["x"] == [2] and len(scheduled[id(tab)]) == 1
+    next_tick(tab, lambda: view.draw(2))  # a callback the app scheduled on the tab
+    asyncio.run(tab_session.with_document_locked(scheduled[id(tab)][-1]))  # lock held: at once
+    assert view.source.data["x"] == [2] and len(scheduled[id(tab)]) == 2
 
     view.draw(3)  # deferred; then the tab closes before the next tick
     later = scheduled[id(tab)][-1]
     tab_session.destroy()
     later()  # dropped without an error: nobody is there to see it
+
+
+def test_only_code_that_holds_the_lock_changes_models_at_once(monkeypatch):
+    """The run-now-or-defer decision follows who holds the lock, not whether somebody does:
+    a worker thread, an asyncio task outliving the callback that started it and a callback
+    holding another tab's lock all defer the change (made at once there, Bokeh would send
+    it from outside the lock, or raise); the deferred change then runs under the tab's
+    lock, accepted by Bokeh's real session."""
+    import asyncio
+
+    from bokeh.models import ColumnDataSource
+
+    from webapp.views._dispatch import next_tick, with_document_lock
+
+    class View:
+        def __init__(self):
+            self.source = ColumnDataSource({"x": [0]})
+
+        @with_document_lock
+        def draw(self, x):
+            self.source.data = {"x": [x]}
+
+    view = View()
+    tab, tab_session = _served_document(view.source)
+    other, other_session = _served_document()
+    ticks = {id(tab): [], id(other): []}
+    for d in (tab, other):
+        monkeypatch.setattr(d, "add_next_tick_callback", ticks[id(d)].append)
+
+    def run_ticks(doc, session):  # as Bokeh runs next-tick callbacks: one by one, locked
+        while ticks[id(doc)]:
+            asyncio.run(session.with_document_locked(ticks[id(doc)].pop(0)))
+
+    # 1. a worker thread, while a callback on the loop holds the tab's lock and waits for it
+    async def holds_the_lock_meanwhile():
+        await asyncio.get_running_loop().run_in_executor(None, view.draw, 1)
+
+    asyncio.run(tab_session.with_document_locked(holds_the_lock_meanwhile))
+    assert view.source.data["x"] == [0] and len(ticks[id(tab)]) == 1
+    run_ticks(tab, tab_session)
+    assert view.source.data["x"] == [1]
+
+    # 2. a task started by a locked callback runs after it, when the lock is released
+    async def starts_a_task():
+        tasks = []
+
+        async def task():
+            view.draw(2)
+
+        next_tick(tab, lambda: tasks.append(asyncio.get_running_loop().create_task(task())))
+        await tab_session.with_document_locked(ticks[id(tab)].pop())
+        await tasks[0]
+
+    asyncio.run(starts_a_task())
+    assert view.source.data["x"] == [1] and len(ticks[id(tab)]) == 1
+    run_ticks(tab, tab_session)
+    assert view.source.data["x"] == [2]
+
+    # 3. a callback holding another tab's lock
+    next_tick(other, lambda: view.draw(3))
+    run_ticks(other, other_session)
+    assert view.source.data["x"] == [2] and len(ticks[id(tab)]) == 1
+    run_ticks(tab, tab_session)
+    assert view.source.data["x"] == [3]
+
+    # a callback holding the tab's own lock: at once (nothing deferred), accepted
+    next_tick(tab, lambda: view.draw(4))
+    asyncio.run(tab_session.with_document_locked(ticks[id(tab)].pop()))
+    assert view.source.data["x"] == [4] and not ticks[id(tab)]
 
 
 def test_teaching_example_steps_through_the_recurrence():

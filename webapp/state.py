@@ -21,7 +21,7 @@ URL query (``?sample=demo&band=0.3&pts=120:98:2,...``).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from urllib.parse import urlencode
 
 import numpy as np
@@ -913,10 +913,13 @@ class Session(param.Parameterized):
         passes solved before anything in the session changes, so a bad session file or
         link (unknown sample or upload, points outside the matrix, infeasible points)
         raises (SessionError, KeyError, HandSpliceError, ValueError, OSError) and leaves
-        the working session exactly as it was. A spec without inputs keeps the current
-        takes. ``keep_takes`` (a shared link): points that do not fit the takes are left
-        out, with their refusal in ``error``, and the rest opens.
+        the working session exactly as it was. A spec without takes (a link such as
+        ``?frame=75``, a session file of parameters only) applies to the takes already
+        open, or to the default pair when none are (:meth:`_takes_for`). ``keep_takes`` (a
+        shared link): points that do not fit the takes are left out, with their refusal in
+        ``error``, and the rest opens.
         """
+        spec = self._takes_for(spec)
         if self.runner is None:
             self._commit(self._stage(spec, keep_takes=keep_takes))
             return
@@ -938,6 +941,16 @@ class Session(param.Parameterized):
                 dropped=lambda: self._open_dropped(lambda opened: None),
             )
         )
+
+    def _takes_for(self, spec: SessionSpec) -> SessionSpec:
+        """``spec`` with the takes it applies to: its own, else the takes already open, else
+        the server's default pair (the one rule for every front: a link, a session file, a
+        caller of :meth:`apply_spec`). Without any of them, :meth:`_stage` refuses."""
+        if spec.sample is not None or spec.body is not None or spec.hand is not None:
+            return spec
+        if self.take_paths() is not None or not self._cfg.default_sample:
+            return spec
+        return replace(spec, sample=self._cfg.default_sample)
 
     def _stage(self, spec: SessionSpec, progress=None, keep_takes: bool = False) -> dict:
         """Everything ``spec`` needs, computed without touching the session (safe on a
@@ -977,7 +990,7 @@ class Session(param.Parameterized):
                 uploads.path_for(self._cfg, spec.body.sha256),
                 uploads.path_for(self._cfg, spec.hand.sha256),
             )
-        else:  # parameters only: applied to the takes already open
+        else:  # parameters only: applied to the takes already open (see _takes_for)
             inputs = self._current(
                 ("sample", "body_sha256", "hand_sha256", "body_name", "hand_name")
             )
@@ -986,7 +999,8 @@ class Session(param.Parameterized):
                 raise session_io.SessionError(
                     None,
                     "inputs",
-                    "expected a sample or uploaded body and hand takes (none are open)",
+                    "expected a sample or uploaded body and hand takes (none are open and the "
+                    "server has no default pair)",
                 )
         roles = dict(spec.roles)
         prepared = backend.prepare(paths[0], paths[1], spec.side, roles)

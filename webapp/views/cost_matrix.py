@@ -51,7 +51,7 @@ from bokeh.plotting import figure
 
 from webapp.state import Session
 from webapp.views import decimate
-from webapp.views._dispatch import with_document_lock
+from webapp.views._dispatch import after, next_tick, with_document_lock
 
 PATH_COLOR = "#ff3b30"
 OTHER_PATH_COLOR = "#ffffff"
@@ -887,7 +887,7 @@ class CostMatrixView:
         if doc is None or doc.session_context is None:
             self._apply_edits()
         else:
-            doc.add_next_tick_callback(self._apply_edits)
+            next_tick(doc, self._apply_edits)
 
     def _apply_edits(self) -> None:
         try:
@@ -914,7 +914,7 @@ class CostMatrixView:
         if doc is None or doc.session_context is None:
             self._flush_range()
         else:
-            doc.add_timeout_callback(self._flush_range, 120)
+            after(doc, self._flush_range, 120)
 
     def _flush_range(self):
         self._range_timer = False
