@@ -1,5 +1,12 @@
-"""The matrix and the strips along its axes share their pixels (a new user's finding F2).
+"""A new user's page findings (the third stranger's report), through the page's controls.
 
+* F2: the matrix and the strips along its axes share their pixels.
+* While only one take of a new pair is uploaded, the status line says it waits for the
+  other (it showed the previous pair's numbers under a green "Checked" tile).
+* The status line names the unmatched ends' remedies as the command line's (the page has
+  no control for them).
+
+F2 in detail:
 The body frame axis, the wrist-speed curve and the phase bars below the matrix, and the
 hand strip at its left, are the only numbered axes of the matrix: a frame read off them
 must be the frame the matrix shows above (beside) it. The stranger saw the matrix's frame
@@ -16,7 +23,7 @@ import re
 import time
 
 import pytest
-from conftest import open_page, pane_text, served_chromium
+from conftest import BODY_BVH, open_page, pane_text, served_chromium, status_line
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(1500)]
 
@@ -113,3 +120,17 @@ def test_a_body_frame_is_the_same_pixel_in_the_matrix_and_in_the_strips(page):
         page.wait_for_timeout(200)
     page.wait_for_timeout(500)
     _assert_aligned(page)
+
+
+def test_one_uploaded_take_says_the_status_waits_for_the_other(page):
+    before = status_line(page)
+    assert "waiting" not in before
+    # open ends on the demo: the remedy is named as the command line's, not as a flag
+    assert "no hand match" in before and "(the command line's --ends fixed" in before, before
+    page.locator(".hs-upload-body input[type=file]").set_input_files(str(BODY_BVH))
+    deadline = time.monotonic() + 300
+    while "waiting for a hand take" not in (text := status_line(page)):
+        assert time.monotonic() < deadline, text
+        page.wait_for_timeout(300)
+    assert text.startswith(f"body {BODY_BVH.name} checked: waiting for a hand take"), text
+    assert "the views below still show the pair open before" in text
