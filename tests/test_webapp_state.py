@@ -416,7 +416,7 @@ def test_the_status_names_body_frames_left_without_a_hand_match(session):
 
     ranges = session.solution.cache["engine"].unmatched_body
     assert ranges and ranges[0][0] == 0
-    text = unmatched_summary(ranges, session.fps)
+    text = unmatched_summary(ranges, session.fps, front="page")
     assert text.startswith(f"body frames {ranges[0][0]}-{ranges[0][1]}")
     assert text in session.status_text()
     # sample_data/README.md says what the demo does (it said the hand stays still on

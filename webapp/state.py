@@ -190,6 +190,11 @@ class Session(param.Parameterized):
         doc="names of a new pair being opened (off the loop), or empty; meanwhile the "
         "page's views show the previous pair, greyed, and edits are not taken",
     )
+    waiting = param.String(
+        default="",
+        doc="an uploaded take that waits for its partner ('body walk.bvh checked: waiting "
+        "for a hand take'), or empty; meanwhile the views show the pair open before",
+    )
     can_undo = param.Boolean(default=False)
     can_redo = param.Boolean(default=False)
 
@@ -826,7 +831,9 @@ class Session(param.Parameterized):
         result = sol.cache.get("engine")
         limit = result.unmatched_limit(self.fps) if hasattr(result, "unmatched_limit") else None
         given = getattr(result, "max_unmatched_s", None) is not None
-        unmatched = unmatched_summary(getattr(result, "unmatched_body", ()), self.fps, limit, given)
+        unmatched = unmatched_summary(
+            getattr(result, "unmatched_body", ()), self.fps, limit, given, front="page"
+        )
         return text + (f" · {unmatched}" if unmatched else "")
 
     def axis_signals(self) -> tuple[np.ndarray, np.ndarray]:

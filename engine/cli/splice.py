@@ -10,8 +10,8 @@
 * ``--side``: ``auto`` (default) splices both hands, aligned jointly, when both takes
   have both, else the side they share; ``both``/``right``/``left`` insist.
 * ``--band``, ``--refine-band``: a fraction of the body take (``0.3``) or seconds
-  (``10s``); default the paper's 0.3 and 0.1, at most 10 s and 2 s on long takes
-  (ranges and defaults: :mod:`engine.dtw.constraints`).
+  (``10s``); default the paper's 0.3 and 0.1, or a time width when narrower on long
+  takes (``--help`` says which; ranges and defaults: :mod:`engine.dtw.constraints`).
 * ``--match B:H[:T]``: body frame ``B`` matches frame ``H`` of the hand take (as
   numbered in the hand file, 0-based) within ``T`` hand frames (default 0). Repeat
   for several points; body frames increase, hand frames never decrease.
@@ -41,6 +41,29 @@ import time
 from engine.cli import output_file
 
 
+class _WidthAction(argparse.Action):
+    """Stores a band width's text; its help ends with the default as
+    ``engine.dtw.constraints`` applies it (``WidthRule.default_text`` of ``rule``), read
+    only when the help is shown (the engine's import loads numba: not on every start)."""
+
+    def __init__(self, *args, rule: str, **kwargs):
+        self.rule = rule
+        super().__init__(*args, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        setattr(namespace, self.dest, values)
+
+    @property
+    def help(self) -> str:
+        from engine.dtw import constraints
+
+        return f"{self._help}; {getattr(constraints, self.rule).default_text}"
+
+    @help.setter
+    def help(self, text: str) -> None:
+        self._help = text
+
+
 def add_parser(subparsers) -> None:
     p = subparsers.add_parser(
         "splice",
@@ -63,14 +86,17 @@ def add_parser(subparsers) -> None:
         "--band",
         default=None,
         metavar="W1",
-        help="pass-1 band width: fraction of the body take (0.3) or seconds (10s); "
-        "default 0.3, at most 10s on long takes",
+        action=_WidthAction,
+        rule="BAND",
+        help="pass-1 band width: fraction of the body take (0.3) or seconds (10s)",
     )
     p.add_argument(
         "--refine-band",
         default=None,
         metavar="W2",
-        help="pass-2 band width around the pass-1 path, the same forms; default 0.1, at most 2s",
+        action=_WidthAction,
+        rule="REFINE_BAND",
+        help="pass-2 band width around the pass-1 path, the same forms",
     )
     p.add_argument(
         "--match",

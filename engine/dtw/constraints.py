@@ -251,6 +251,26 @@ class WidthRule:
             f"like 10s (from {self.lo_s:g} to {self.hi_s:g} s)"
         )
 
+    @property
+    def crossover_s(self) -> float:
+        """Seconds of body take from which the time width is the narrower (the default)."""
+        ratio = self.default_s / self.default
+        return ratio * ratio if self.grows else ratio
+
+    @property
+    def default_text(self) -> str:
+        """The default in words, as :meth:`default_for` applies it (help texts say this)."""
+        time = f"{self.default_s:g} s x sqrt(T / 1 s)" if self.grows else f"{self.default_s:g} s"
+        text = (
+            f"default {self.default:g} of the body take, or {time} when narrower "
+            f"(takes from {self.crossover_s:g} s on"
+        )
+        if self.grows:
+            text += "; T: the body take in seconds"
+        if self.max_cells is not None:
+            text += f"; capped so the band keeps within {self.max_cells:,} cells"
+        return text + ")"
+
     def parse(self, value) -> Width | None:
         """A :class:`Width` from a number (fraction), text (``"0.3"``, ``"10s"``) or a Width;
         ``None`` or empty text -> ``None`` (the default applies). ConstraintError if out

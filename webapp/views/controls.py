@@ -404,9 +404,11 @@ def status_line(session: Session) -> pn.viewable.Viewable:
 
     def update(*_):
         text = session.status_text()
+        if session.waiting:
+            text = f"{session.waiting} · the views below still show the pair open before: {text}"
         pane.object = f'<span data-revision="{session.revision}">{safe_text.html(text)}</span>'
 
-    session.param.watch(update, ["revision", "compute_ms", "error"])
+    session.param.watch(update, ["revision", "compute_ms", "error", "waiting"])
     update()
     return pane
 

@@ -55,6 +55,15 @@ class _Download(pn.widgets.FileDownload):
 SENT = "handed to your browser (see its downloads)"
 
 
+#: the command line's place for a marker body (C3D/TRC): ``handsplice splice`` refuses
+#: it (no skeleton to receive fingers), so no command that would fail is offered
+MARKER_BODY_COMMAND = (
+    "<span style='color:#777'># no command line for this pair: handsplice splice needs a "
+    "skeletal body take (.bvh) to put the fingers on and refuses a marker take; the "
+    "Spliced BVH above (the hand take retimed to this body) is made only here</span>"
+)
+
+
 class SharingView:
     TEXT = (
         "Download the spliced take (BVH, opens in Blender and MotionBuilder; or GLB: the "
@@ -337,6 +346,9 @@ class SharingView:
             paths = s.take_paths()
             body = s.body_name or paths[0].name
             hand = s.hand_name or paths[1].name
+            if backend.marker_body(s.prepared):
+                self.command.object = MARKER_BODY_COMMAND
+                return
             session_cmd = backend.cli_session_command(body, hand, SESSION_FILENAME)
             flags_cmd = backend.cli_command(
                 body, hand, s.side, *s.widths(), s.user_points(), s.roles
