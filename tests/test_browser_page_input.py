@@ -8,7 +8,7 @@ import re
 import time
 
 import pytest
-from conftest import MOCAP, open_page, pane_text, served_chromium
+from conftest import MOCAP, busy_line, open_page, pane_text, served_chromium
 
 LONG_BODY = MOCAP / "lafan1" / "multipleActions1_subject1.bvh"
 LONG_HAND = MOCAP / "manipnet" / "mug1_rightHand.bvh"
@@ -68,14 +68,6 @@ def test_a_dragged_slider_keeps_its_label_readable(browser_and_url, tmp_path, la
         page.context.close()
 
 
-def _busy(page) -> str:
-    line = page.locator(".hs-busy")
-    try:
-        return line.first.inner_text(timeout=1_000) if line.count() else ""
-    except Exception:  # noqa: BLE001 - the line went away meanwhile
-        return ""
-
-
 def _points(page) -> int:
     return len(page.evaluate("hs.cols('hs-points-source', ['x'])")["x"])
 
@@ -120,7 +112,7 @@ def test_keys_are_inert_on_the_old_pair_while_a_new_pair_opens(browser_and_url, 
         page.locator(".hs-upload-body input[type=file]").set_input_files(str(LONG_BODY))
         page.locator(".hs-upload-hand input[type=file]").set_input_files(str(LONG_HAND))
         deadline = time.monotonic() + 300
-        while "opening multipleActions1_subject1.bvh" not in _busy(page):
+        while "opening multipleActions1_subject1.bvh" not in busy_line(page):
             assert time.monotonic() < deadline, "the upload did not start opening"
             page.wait_for_timeout(200)
         assert page.locator(".hs-inactive").count() >= 2
@@ -131,7 +123,7 @@ def test_keys_are_inert_on_the_old_pair_while_a_new_pair_opens(browser_and_url, 
         page.keyboard.press("Control+y")
         page.keyboard.press("Delete")
         page.wait_for_timeout(2000)
-        still_opening = "opening" in _busy(page)
+        still_opening = "opening" in busy_line(page)
         # the page sent nothing: the slider's label never moved, no button was pressed, and
         # the server had no edit to refuse ("not taken: ... is opening")
         titles = page.evaluate("window.__hsTitles")

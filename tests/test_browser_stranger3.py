@@ -23,7 +23,7 @@ import re
 import time
 
 import pytest
-from conftest import BODY_BVH, open_page, pane_text, served_chromium, status_line
+from conftest import BODY_BVH, open_page, pane_text, served_chromium, status_line, visible_tooltips
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(1500)]
 
@@ -45,19 +45,6 @@ _JS_PIXELS = """([body, hand]) => {
     strip_y: box(h).top + h.frame.y_scale.compute(hand),
     matrix: edges(m), body: edges(b), hand: edges(h),
   };
-}"""
-
-_JS_TOOLTIPS = """() => {
-  const out = [];
-  const walk = (root) => {
-    for (const el of root.querySelectorAll('*')) {
-      if (el.classList && el.classList.contains('bk-tooltip-content') && el.offsetParent !== null)
-        out.push(el.innerText);
-      if (el.shadowRoot) walk(el.shadowRoot);
-    }
-  };
-  walk(document);
-  return out;
 }"""
 
 
@@ -83,7 +70,7 @@ def _hovered_body_frame(page, x: float, y: float) -> int:
     while True:
         page.mouse.move(x, y + nudge)
         page.wait_for_timeout(200)
-        for text in page.evaluate(_JS_TOOLTIPS):
+        for text in visible_tooltips(page):
             if found := re.search(r"body frame:?\s*(\d+)", text):
                 return int(found.group(1))
         assert time.monotonic() < deadline, f"no tooltip at ({x}, {y})"
