@@ -56,9 +56,9 @@ TIME_BAND_S = 4.0
 PASS2_BASE = os.environ.get("HANDSPLICE_PASS2_BASE", "3539261")
 #: main when issue 13's reader and merge work began: ``--engine``'s "before"
 ENGINE_BASE = os.environ.get("HANDSPLICE_ENGINE_BASE", "46e6d22")
-#: main when the last engine-stage work (pass1d) began: ``--stages``' and ``--pass1``'s
-#: "before" (earlier steps compared with ``d94916c``, ``6b1b359`` and ``efbcb40``)
-STAGE_BASE = os.environ.get("HANDSPLICE_STAGE_BASE", "b3485ff")
+#: main when the last engine-stage work (pass1e) began: ``--stages``' and ``--pass1``'s
+#: "before" (earlier steps compared with ``b3485ff``, ``d94916c``, ``6b1b359``, ``efbcb40``)
+STAGE_BASE = os.environ.get("HANDSPLICE_STAGE_BASE", "cbd2ea7")
 #: timed splices per child process in ``--stages`` (the first warm one included)
 STAGE_SPLICES = 3
 
@@ -341,27 +341,9 @@ def report_pass1(k, load) -> str:
             f"Load average (1 min) {load[0]:.1f} at the start, {load[1]:.1f} at the end "
             "(2 cores, shared). Target (issue 13): ≤ 5 ns per band cell.",
             "",
-            "**What changed (pass1c)** (`engine/align/phase_kernel.py`, same operands in the "
-            "same order): the sign-code costs are formed inside the recurrence "
-            "(`_dp_pair_codes`, `_dp_row_codes`: copies of `engine/dtw`'s row and pair "
-            "recurrences that compute each cell's cost where they use it) instead of written "
-            "to a cost row and read back; a row's θ bins become mask indices in one "
-            "vectorised loop (`_bins_to_cells`), and the recurrence prefetches the hand's "
-            "masks 64 cells ahead (`prefetch`, `llvm.prefetch`); a row's NaN/-inf check is "
-            "made once per row (a cost is NaN or -inf exactly when the row's step cost is).",
-            "",
-            "**Where the time went** (microbenchmarks on this band, load 8-12): C rows 1.8 ns "
-            "per cell, θ bins 1.6-2, and the costs plus recurrence 6-10, of which 3-5 were "
-            "the mask reads: with every cell at bin 0 the costs take 2.5-3.5 ns, with the "
-            "real bins 6.6, yet the real bins are smooth (87 % of cells share the left "
-            "neighbour's bin, 78 % the upper neighbour's). Repeating one row keeps real and "
-            "bin-0 equal (3.4 vs 3.3 ns); cycling over 512 rows doubles the real one (6.7 vs "
-            "3.5): the mask lines a row needs were evicted since the rows that last used them "
-            "and come from L3 or memory, at addresses the hardware prefetchers do not "
-            "predict. Software prefetch hides that latency. Tried and not kept: tiles of 16 "
-            "rows whose costs are made in blocks of 64 columns with the rows inner (same "
-            "floats, 15.0 → 14.4 ns: the tile's cost rows push the rest out of L2); the "
-            "masks column by column (`(m, nb)`: no change).",
+            "**What changed** (`engine/align/phase_kernel.py`, same operands in the same "
+            "order): written by hand under the figures (a re-run rewrites the whole section: "
+            "carry the notes over from `git log -p benchmarks/RESULTS.md`).",
         ]
     )
 
@@ -638,37 +620,11 @@ def report_stages(longs, load) -> str:
         f"Load average (1 min) {load[0]:.1f} at the start, {load[1]:.1f} at the end (2 cores, "
         "shared).",
         "",
-        "**What changed in this step (pass1d)**: *pass 2*: the CLI's two open-end solves "
-        "(the probe with half the chance cost, then the typical matched cost) ran the angle "
-        "kernel over the same band twice; they now share one computation of the band's "
-        "local costs (`engine.dtw.align.SharedCosts`; the angle kernel keeps them, 8 bytes a "
-        "cell, for bands up to 8 M cells: 39 MB at 2 minutes; the app's incremental solvers "
-        "do not keep them). *Transfer*: the hand take is sampled and chained for the joints "
-        "the transfer reads and their ancestors only, rotations only "
-        "(`fastkin.sample_rotations`, `fastkin.world_rotations`; before: every joint, "
-        "positions too), and the quaternion sign continuity runs frame by frame (memory "
-        "order). Pass 1, markers and features: code unchanged, their ratios show the run's "
-        "noise. Checked the same: "
+        "Checked the same: "
         f"`benchmarks/splice_same_output.py --ref {STAGE_BASE}` (five real pairs: paths, "
-        "costs, merged map, notes, spliced BVH bytes) and the table's last column.",
-        "",
-        "**Pass 1 (pass1d, not changed)**: on a quiet machine (load 1) its forward pass "
-        "takes 6.5-7.2 ns per band cell (`--pass1` reads 10.8 at load 6): C rows 1.4-1.7, "
-        "θ bins 1.8-2.1 (both loops vectorise 8 wide: `vmulps`, `vdivps` on `ymm`), the "
-        "recurrence with its inline costs the rest. Tried and not kept: the masks' turning "
-        "bits (x and z, 32 of 48) packed into one word per (θ bin, frame), the vertical bits "
-        "once per frame (half the table, 8 bytes a cell's bin reads; "
-        "`|w ⊕ w'| + 2 |w ∧ rot32 w'|`, the same counts): forward 7.66 → 7.44 ns median, "
-        "min 7.07 → 7.06, and 12 ms more to pack: after pass1c's prefetch the mask reads no "
-        "longer limit the pass. The CLI's pass 1 is one forward pass and a backtrack (no "
-        "backward rows: only the app's incremental `Aligner` computes those).",
-        "",
-        "**Earlier steps**: pass1c beside `d94916c` (1.405 → 1.307 s CPU, 0.93: pass 1's "
-        "costs inside the recurrence, masks prefetched); pass1b beside `6b1b359` (1.788 → "
-        "1.475 s CPU, 0.85: pass-1 masks "
-        "as one flat array, C rows four markers per sweep, `metrics._raw_windows` and "
-        "`fastkin.rotate_offset` in numba, transfer's quaternions in place); the prepare "
-        "stage beside `efbcb40` (2.252 → 1.976 s, 0.88).",
+        "costs, merged map, notes, spliced BVH bytes) and the table's last column. What "
+        "changed in each step: written by hand under the figures (a re-run rewrites the "
+        "whole section: carry the notes over from `git log -p benchmarks/RESULTS.md`).",
         "",
         "Goals (issue 13): 2-minute pair ≤ 1.0 s warm; 10-minute pair ≤ 10 s.",
     ]

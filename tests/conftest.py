@@ -207,6 +207,35 @@ def band_cells(status: str) -> int:
     return int(match.group(1).replace(",", ""))
 
 
+def busy_line(page) -> str:
+    """The "aligning…"/"opening…" line's text ('' when nothing runs, or it went away meanwhile)."""
+    line = page.locator(".hs-busy")
+    try:
+        return line.first.inner_text(timeout=1_000) if line.count() else ""
+    except Exception:  # noqa: BLE001 - the line went away meanwhile
+        return ""
+
+
+#: texts of the hover tooltips shown now (Bokeh draws them in shadow roots)
+_JS_TOOLTIPS = """() => {
+  const out = [];
+  const walk = (root) => {
+    for (const el of root.querySelectorAll('*')) {
+      if (el.classList && el.classList.contains('bk-tooltip-content') && el.offsetParent !== null)
+        out.push(el.innerText);
+      if (el.shadowRoot) walk(el.shadowRoot);
+    }
+  };
+  walk(document);
+  return out;
+}"""
+
+
+def visible_tooltips(page) -> list[str]:
+    """Texts of the hover tooltips the page shows now."""
+    return page.evaluate(_JS_TOOLTIPS)
+
+
 def xss_ran(page) -> bool:
     """Whether :data:`XSS_PAYLOAD`'s script ran in ``page``."""
     page.wait_for_timeout(500)  # an <img onerror> fires within a few ms of insertion

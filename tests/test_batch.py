@@ -196,14 +196,29 @@ def test_run_pair_records_errors_without_raising(takes, tmp_path):
         ),
         ("body,hand,side,band\na.bvh,b.bvh,right,nan\n", 2, "band"),
         ("body,hand,side,refine_band\na.bvh,b.bvh,right,x\n", 2, "refine_band"),
-        ("body,hand,side,match\na.bvh,b.bvh,right,12\n", 2, "match[0]: expected BODY:HAND"),
-        ("body,hand,side,match\na.bvh,b.bvh,right,10:5;8:9\n", 2, "match[1]: 8:9 is out of order"),
+        (
+            "body,hand,side,match\na.bvh,b.bvh,right,12\n",
+            2,
+            "m.csv line 2, column match: matching point 1: expected BODY:HAND",
+        ),
+        (
+            "body,hand,side,match\na.bvh,b.bvh,right,10:5;8:9\n",
+            2,
+            "m.csv line 2, column match: matching point 2 (body 8, hand 9): body frame 8 is "
+            "not after matching point 1's body frame 10;",
+        ),
         (
             "body,hand,side,match\na.bvh,b.bvh,right,1:x\n",
             2,
-            "match[0].hand: expected a whole frame number",
+            "m.csv line 2, column match: matching point 1 (body 1): expected a whole hand "
+            "frame number >= 0, got 'x'",
         ),
-        ("body,hand,side,match\na.bvh,b.bvh,right,1:2:-3\n", 2, "from 0 to 500"),
+        (
+            "body,hand,side,match\na.bvh,b.bvh,right,1:2:-3\n",
+            2,
+            "column match: matching point 1 (body 1, hand 2): expected a tolerance from 0 to "
+            "500 frames, got -3",
+        ),
         ("body,hand,side\n,b.bvh,right\n", 2, "body: empty"),
         ("body,hand,side,name\na.bvh,b.bvh,right,x\nc.bvh,d.bvh,left,x\n", 3, "already used"),
         ("body,hand,side,name\na.bvh,b.bvh,right,../../etc/x\n", 2, "name"),
@@ -218,8 +233,9 @@ def test_manifest_errors_name_the_line(tmp_path, text, line, words):
         parse_manifest(text, tmp_path / "m.csv")
     msg = str(info.value)
     assert words in msg, msg
-    if line is not None:
-        assert msg.startswith(f"m.csv line {line}: "), msg
+    assert "points[" not in msg and "match[" not in msg, msg
+    if line is not None:  # a matching point's cell: the line and the column
+        assert msg.startswith((f"m.csv line {line}: ", f"m.csv line {line}, column match: ")), msg
 
 
 def test_manifest_paths_defaults_and_names(tmp_path):

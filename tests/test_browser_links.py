@@ -100,7 +100,10 @@ def test_one_bad_link_value_keeps_the_takes_and_the_good_values(served, tmp_path
     try:
         alert = page.locator(".hs-error")
         alert.wait_for(state="visible", timeout=BUSY_S * 1000)
-        assert "shared link: URL: points[0].body: expected a whole frame number" in pane_text(alert)
+        assert (
+            "shared link: URL: matching point 1 (hand 20): expected a whole body frame number "
+            ">= 0, got 'abc'" in pane_text(alert)
+        )
         assert page.locator(".hs-sample select").input_value() == "bye-hello"
         assert _table_rows(page, 0, timeout=2.0) == []
         query = dict(parse_qsl(urlsplit(page.locator(".hs-share-url input").input_value()).query))

@@ -35,6 +35,7 @@ from conftest import (
     MOCAP,
     assert_no_traceback,
     band_cells,
+    busy_line,
     open_tab,
     pane_text,
     revision,
@@ -77,12 +78,6 @@ def _page(context, url: str):
     )
 
 
-def _busy(page) -> str:
-    """The "aligning…" line's text ('' when nothing runs)."""
-    line = page.locator(".hs-busy")
-    return line.first.inner_text() if line.count() else ""
-
-
 @pytest.fixture(scope="module")
 def tabs(long_pair, tmp_path_factory):
     """``(tab A on the long pair, aligned; tab B on the demo pair, aligned; log path)``."""
@@ -106,7 +101,7 @@ def tabs(long_pair, tmp_path_factory):
         # tab A: the long pair; its first alignment runs off the loop, the page says so
         a = _page(context, url)
         a.locator(".hs-busy").first.wait_for(timeout=60_000)
-        assert "aligning" in _busy(a) or "opening" in _busy(a), _busy(a)
+        assert "aligning" in busy_line(a) or "opening" in busy_line(a), busy_line(a)
         a.wait_for_function(HAS_PATH, timeout=180_000)
         a.locator(".hs-busy").first.wait_for(state="detached", timeout=60_000)
         # tab B: the demo pair, open and idle
@@ -162,16 +157,16 @@ def test_second_tab_answers_while_first_tab_aligns_a_long_pair(tabs, tmp_path):
         width.press("Enter")
         # A's busy line shows once its re-solve runs 0.3 s; a quicker one proves nothing
         deadline = time.monotonic() + 30
-        while not _busy(a) and revision(a) == a_rev:
+        while not busy_line(a) and revision(a) == a_rev:
             assert time.monotonic() < deadline, "tab A neither got busy nor re-solved"
             a.wait_for_timeout(20)
-        if not _busy(a):
+        if not busy_line(a):
             tries.append(f"W1 +{extra_s} s: A's re-solve ended before its busy line showed")
             continue
         t_a = time.monotonic()
         _click_b(b, 0.5 + 0.1 * k)
         t_b = time.monotonic()
-        a_still_busy = bool(_busy(a)) and revision(a) == a_rev
+        a_still_busy = bool(busy_line(a)) and revision(a) == a_rev
         # A's new alignment arrives in its turn, with the width typed
         deadline = time.monotonic() + 120
         while revision(a) <= a_rev:

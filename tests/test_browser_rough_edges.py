@@ -12,27 +12,13 @@ from __future__ import annotations
 import time
 
 import pytest
-from conftest import assert_no_traceback, open_page, revision, served_app
+from conftest import assert_no_traceback, open_page, revision, served_app, visible_tooltips
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(1500)]
 
 #: a shared two-core machine can take minutes to warm the demo pair
 SERVER_START_S = 600.0
 BUSY_S = 240.0
-
-#: texts of the hover tooltips shown now (Bokeh draws them in shadow roots)
-_JS_TOOLTIPS = """() => {
-  const out = [];
-  const walk = (root) => {
-    for (const el of root.querySelectorAll('*')) {
-      if (el.classList && el.classList.contains('bk-tooltip-content') && el.offsetParent !== null)
-        out.push(el.innerText);
-      if (el.shadowRoot) walk(el.shadowRoot);
-    }
-  };
-  walk(document);
-  return out;
-}"""
 
 
 @pytest.fixture(scope="module")
@@ -74,7 +60,7 @@ def _tooltips_at(page, body: float, hand: float, needle: str) -> list[str]:
         page.mouse.move(x + 30, y + 30)
         page.mouse.move(x, y, steps=4)
         page.wait_for_timeout(300)
-        shown = page.evaluate(_JS_TOOLTIPS)
+        shown = visible_tooltips(page)
         if any(needle in t for t in shown):
             return shown
         assert time.monotonic() < deadline, f"no tooltip with {needle!r}: {shown}"

@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import open_page, served_chromium
+from conftest import busy_line, open_page, served_chromium
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(1500)]
 
@@ -42,14 +42,6 @@ def page(served):
     yield page
     page.context.close()
     assert not page.errors, page.errors
-
-
-def _busy(page) -> str:
-    line = page.locator(".hs-busy")
-    try:
-        return line.first.inner_text(timeout=1_000) if line.count() else ""
-    except Exception:  # noqa: BLE001 - the line went away meanwhile
-        return ""
 
 
 def _text(locator) -> str:
@@ -85,7 +77,7 @@ def test_old_pair_is_inactive_while_a_new_upload_opens(page, tmp_path):
     # the pair starts opening once both takes are checked: one progress line says so
     _until(
         page,
-        lambda: "opening multipleActions1_subject1.bvh + mug1_rightHand.bvh" in _busy(page),
+        lambda: "opening multipleActions1_subject1.bvh + mug1_rightHand.bvh" in busy_line(page),
         BUSY_S,
     )
     page.screenshot(path=str(tmp_path / "opening.png"))
@@ -105,10 +97,10 @@ def test_old_pair_is_inactive_while_a_new_upload_opens(page, tmp_path):
     page.wait_for_timeout(1000)
     assert _points(page) == 0
     # one counter that keeps counting: seconds go up between two looks
-    first = _busy(page)
+    first = busy_line(page)
     page.wait_for_timeout(2200)
-    if "opening" in _busy(page):
-        assert _busy(page) != first
+    if "opening" in busy_line(page):
+        assert busy_line(page) != first
     # then the new pair is shown, active, and named
     page.wait_for_function(
         "() => Math.round(Bokeh.documents[0].get_model_by_name('hs-x-range').bounds[1] + 0.5)"
@@ -185,12 +177,15 @@ def test_refused_table_edit_is_said_next_to_the_table(page, tmp_path):
     page.wait_for_timeout(800)
     _edit(page, "body frame", "9999")
     text = _refusal_in_view(page, "9999")
-    assert "9999" in text and "outside" in text, text
+    # the point as a user counts and reads it, what is wrong and what was expected
+    assert text.startswith("matching point 1 (body 9999, hand "), text
+    assert f"outside the takes; expected body frames 0 to {n - 1} and hand frames 0 to " in text
     page.screenshot(path=str(tmp_path / "refused_body.png"))
     assert _points(page) == 1
     _edit(page, "tolerance", "abc")
     text = _refusal_in_view(page, "abc")
-    assert "abc" in text, text
+    assert text.startswith("matching point 1 (body "), text
+    assert text.endswith("expected a tolerance from 0 to 500 frames, got 'abc'"), text
     page.screenshot(path=str(tmp_path / "refused_tol.png"))
     # an accepted edit clears the table's message
     _edit(page, "tolerance", "3")

@@ -137,8 +137,8 @@ def test_a_link_with_a_bad_camera_keeps_the_rest_and_says_why(browser_and_url):
 
 
 def test_a_refused_click_is_worded_from_the_refusal(browser_and_url):
-    """Two clicks that cross: the second point is refused, and the alert names both points
-    the page's way (from the ConstraintError's fields)."""
+    """Two clicks that cross: the second point is refused, and the alert says which point
+    as a user counts them and where it is (engine.dtw.constraints' one text)."""
     browser, url = browser_and_url
     page = _open(browser, url)
     try:
@@ -150,8 +150,9 @@ def test_a_refused_click_is_worded_from_the_refusal(browser_and_url):
         alert = page.locator(".hs-error")
         alert.wait_for(state="visible", timeout=60_000)
         text = pane_text(alert)
-        assert "matching point (body 80, hand " in text and f"crosses (body {b}, hand {h})" in text
-        assert "not kept: it crosses" in text and "points[" not in text
+        assert text.startswith("matching point 2 (body 80, hand "), text
+        assert f"is before matching point 1's hand frame {h}; a path cannot go back" in text
+        assert b < 80 and "points[" not in text
         page.wait_for_function("() => hs.cols('hs-points-source', ['x']).x.length === 1")
         alert.screenshot(path="/tmp/rules_refusal.png")
         assert not page.errors, page.errors

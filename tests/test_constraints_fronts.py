@@ -1,7 +1,8 @@
 """One rule set for every front: the same band widths, tolerances and matching points fed
 to the CLI flags, the batch manifest, the session file, the app's link and the app's
 Session are accepted by all (with the same spliced BVH) or refused by all with the same
-one-line reason from engine.dtw.constraints.
+one-line text from engine.dtw.constraints, with only the front's source in front of it
+(``--match 80:20: matching point 2 (body 80, hand 20): ...``).
 
 The pair (Bandai wave body, BEAT hand) shares one frame rate (30 fps), so the hand file's
 frames and the app's alignment grid coincide and every front reads the same numbers.
@@ -32,6 +33,7 @@ CASES = {
     "seconds past the range": ("4000s", None, []),
     "tolerance past the range": (None, None, [(40, 30, 1000)]),
     "points crossing": (None, None, [(40, 30, None), (80, 20, None)]),
+    "the third point crosses the second": (None, None, [(20, 10, 1), (40, 30, None), (80, 20, 2)]),
     "body frames out of order": (None, None, [(80, 30, None), (40, 50, None)]),
     "point outside the takes": (None, None, [(40, 30, None), (5000, 60, None)]),
     "consecutive body frames too far apart": (None, None, [(40, 30, None), (41, 60, None)]),
@@ -42,12 +44,16 @@ CASES = {
 
 
 def _expected(band, refine, points, n, m, grid_scale):
-    """None (accepted) or the ConstraintError every front must show (points in the files'
-    own frames; ``grid_scale`` body fps / hand fps)."""
+    """None (accepted) or the ConstraintError every front must show and where it is found:
+    ``"read"`` (the values alone) or ``"takes"`` (the points against the takes; points in
+    the files' own frames, ``grid_scale`` body fps / hand fps)."""
     try:
         C.BAND.parse(band)
         C.REFINE_BAND.parse(refine)
         pts = C.parse_points([p for p in points])
+    except C.ConstraintError as exc:
+        return exc, "read"
+    try:
         C.check_points(
             [p.resolved(0.0) for p in pts],
             n,
@@ -56,8 +62,26 @@ def _expected(band, refine, points, n, m, grid_scale):
             grid_scale=grid_scale,
         )
     except C.ConstraintError as exc:
-        return exc
-    return None
+        return exc, "takes"
+    return None, None
+
+
+def _source(front, refusal, found, points) -> str:
+    """What ``front`` puts in front of engine.dtw.constraints' text: its source only (the
+    flag and the point as typed, the file, the manifest's line and column)."""
+    point = refusal.index is not None
+    if front == "cli":
+        typed = _point_text(points)[refusal.index] if point else ""
+        return "handsplice: error: " + (f"--match {typed}: " if point else "")
+    if front == "manifest":  # read with the manifest; against the takes when its pair runs
+        if not point:
+            return "m.csv line 2: "
+        return "m.csv line 2, column match: " if found == "read" else "line 2, column match: "
+    if front == "session file":
+        return "handsplice: error: s.json: "
+    if front == "link":  # the page says "shared link: " in front of this
+        return "URL: " if found == "read" else ""
+    return ""
 
 
 def _bvh_text(motion) -> str:
@@ -191,7 +215,7 @@ def _fresh(app):
 def test_every_front_accepts_or_refuses_alike(case, tmp_path, capsys, app):
     band, refine, points = CASES[case]
     app = _fresh(app)
-    expected = _expected(band, refine, points, app.n, app.m_hand, app.fps / app.hand_fps)
+    expected, found = _expected(band, refine, points, app.n, app.m_hand, app.fps / app.hand_fps)
     results = {
         "cli": _cli(tmp_path, band, refine, points, capsys),
         "manifest": _manifest(tmp_path, band, refine, points, capsys),
@@ -204,19 +228,18 @@ def test_every_front_accepts_or_refuses_alike(case, tmp_path, capsys, app):
         texts = {k: v[1] for k, v in results.items()}
         assert len(set(texts.values())) == 1, [k for k in texts if texts[k] != texts["cli"]]
     else:
+        text = str(expected)
+        if expected.index is not None:  # a point is named as a user counts and reads it
+            b, h = points[expected.index][:2]
+            assert text.startswith(
+                f"matching point {expected.index + 1} (body {b:g}, hand {h:g}): "
+            )
+            assert "points[" not in text
         for front, (status, message) in results.items():
             assert status == "refused", (front, message)
             assert "\n" not in message
-            # the same reason; only the source in front and the manifest's column name
-            # ("match" for the points) differ
-            assert message.endswith(expected.detail), (front, message, expected.detail)
-            fields = {expected.field}
-            if front == "manifest":  # checked when the manifest is read: its column name
-                fields.add(expected.field.replace("points", "match"))
-            assert any(f"{f}: " in message or f"{f} = " in message for f in fields), (
-                front,
-                message,
-            )
+            # the same text; only the source in front differs
+            assert message == _source(front, expected, found, points) + text, (front, message)
 
 
 def test_defaults_are_the_papers_fractions_on_short_takes_and_seconds_on_long():
@@ -304,39 +327,121 @@ def test_shared_command_line_replays_the_apps_tolerance_exactly():
 
 
 def test_a_refusal_carries_field_value_and_expected():
-    """A ConstraintError's structured fields: what a front needs to word it its own way."""
+    """A ConstraintError's structured fields (for code) and its one text (for people)."""
     with pytest.raises(C.ConstraintError) as info:
         C.BAND.parse("5")
     err = info.value
-    assert (err.field, err.value, err.expected) == ("band", 5.0, C.BAND.expected)
+    assert (err.field, err.value, err.expected, err.index) == ("band", 5.0, C.BAND.expected, None)
     assert str(err) == f"band: expected {C.BAND.expected}, got 5"
     with pytest.raises(C.ConstraintError) as info:
-        C.parse_tolerance(-2, "points[3].tolerance")
-    assert (info.value.field, info.value.value) == ("points[3].tolerance", -2.0)
+        C.parse_point_tolerance(-2, 3, 40, 30)
+    err = info.value
+    assert (err.field, err.value, err.index) == ("points[3].tolerance", -2.0, 3)
+    assert (
+        str(err)
+        == "matching point 4 (body 40, hand 30): expected a tolerance from 0 to 500 frames, got -2"
+    )
 
     with pytest.raises(C.ConstraintError) as info:
         C.parse_points("10:5:2 8:9")
     err = info.value
-    assert (err.field, err.value, err.point) == ("points[1]", C.MatchPoint(8, 9), (8, 9))
+    assert (err.field, err.value, err.point, err.index) == (
+        "points[1]",
+        C.MatchPoint(8, 9),
+        (8, 9),
+        1,
+    )
     assert err.others == (C.MatchPoint(10, 5, 2.0),) and err.expected is None
-    assert str(err) == "points[1]: 8:9 is out of order: body frames must increase (after 10:5:2)"
-
-    def show(body, hand, tolerance):
-        return f"<{body}|{hand}>"
-
-    assert err.text_with(show) == (
-        "points[1]: <8|9> is out of order: body frames must increase (after <10|5>)"
+    assert str(err) == (
+        "matching point 2 (body 8, hand 9): body frame 8 is not after matching point 1's body "
+        "frame 10; body frames must increase from one point to the next"
     )
 
-    with pytest.raises(C.ConstraintError) as info:  # check_points: its own text stays
+    with pytest.raises(C.ConstraintError) as info:  # against the matrix (the engine's calls)
         C.check_points([(3, 50, 0)], 10, 20)
     err = info.value
-    assert (err.point, err.value) == ((3, 50), (3.0, 50.0, 0.0))
-    assert err.reason.startswith("is outside the 10 x 20 matrix")
-    assert err.text_with(show) == str(err)
+    assert (err.point, err.value, err.index) == ((3, 50), (3.0, 50.0, 0.0), 0)
+    assert str(err) == (
+        "matching point 1 (body 3, hand 50): outside the 10 x 20 matrix; expected body frames "
+        "0 to 9 and hand frames 0 to 19"
+    )
     with pytest.raises(C.ConstraintError) as info:  # a malformed point is not "placed"
         C.check_points([(3.5, 5, 0)], 10, 20)
-    assert info.value.point is None and info.value.reason_with(show) is None
+    assert info.value.point is None and str(info.value) == (
+        "matching point 1 (body 3.5, hand 5): expected whole body and hand frame numbers"
+    )
+
+
+@pytest.mark.parametrize(
+    ("items", "text"),
+    [
+        (
+            "12",
+            "matching point 1: expected BODY:HAND or BODY:HAND:TOL (frames >= 0, tolerance "
+            "in frames), got '12'",
+        ),
+        ("40:30 a:b", "matching point 2: expected a whole body frame number >= 0, got 'a'"),
+        (
+            "40:30 80:12.5",
+            "matching point 2 (body 80, hand 12.5): expected a whole hand frame "
+            "number >= 0, got 12.5",
+        ),
+        ([{"hand": 2}], "matching point 1 (hand 2): expected a body frame, none was given"),
+        (
+            [{"body": 1, "hand": 2, "tol": 3}],
+            "matching point 1 (body 1, hand 2): unknown field 'tol' (known: body, hand, tolerance)",
+        ),
+        (
+            "20:10 40:30 80:20",
+            "matching point 3 (body 80, hand 20): hand frame 20 is before "
+            "matching point 2's hand frame 30; a path cannot go back in time, so hand frames must "
+            "not decrease while body frames increase",
+        ),
+    ],
+)
+def test_a_point_is_named_one_based_in_the_order_given(items, text):
+    """Every refusal of a matching point says which one as a user counts them (1-based, in
+    the order given) and where it is, never the programmer's ``points[0]``."""
+    with pytest.raises(C.ConstraintError) as info:
+        C.parse_points(items)
+    assert str(info.value) == text
+
+
+def test_a_refusal_against_the_takes_names_both_points():
+    """Same body frame, duplicate, fixed-end corners: the point and the one it meets."""
+    cases = [
+        (
+            [(40, 30), (40, 60)],
+            {},
+            "matching point 2 (body 40, hand 60): on the same body frame "
+            "as matching point 1 (body 40, hand 30); expected one point per body frame (a larger "
+            "tolerance covers a range of hand frames)",
+        ),
+        (
+            [(40, 30), (40, 30)],
+            {},
+            "matching point 2 (body 40, hand 30): the same frames as "
+            "matching point 1 (body 40, hand 30); give each point once",
+        ),
+        (
+            [(0, 30)],
+            {"open_ends": False},
+            "matching point 1 (body 0, hand 30): with fixed ends "
+            "every path starts at (0, 0), so on body frame 0 it covers hand frame 0; expected a "
+            "tolerance of at least 30",
+        ),
+        (
+            [(99, 30, 2)],
+            {"open_ends": False},
+            "matching point 1 (body 99, hand 30): with fixed "
+            "ends every path ends at (99, 199), so on body frame 99 it covers hand frame 199; "
+            "expected a tolerance of at least 169",
+        ),
+    ]
+    for points, options, text in cases:
+        with pytest.raises(C.ConstraintError) as info:
+            C.check_points(points, 100, 200, grid_scale=1.0, **options)
+        assert str(info.value) == text
 
 
 def test_consecutive_points_are_judged_at_the_takes_frame_rates():
@@ -348,13 +453,11 @@ def test_consecutive_points_are_judged_at_the_takes_frame_rates():
         C.check_points([(100, 2000), (101, 2010)], 200, 4000, grid_scale=30 / 120)
     err = info.value
     assert str(err) == (
-        "points[1] = (body frame 101, hand frame 2010, tolerance 0) and points[0] = "
-        "(body frame 100, hand frame 2000, tolerance 0) are on consecutive body frames, but "
-        "their hand frames 2000 and 2010 are more than one body frame's worth apart after "
-        "tolerances; increase a tolerance or move a point"
+        "matching point 2 (body 101, hand 2010): on the body frame after matching point 1 "
+        "(body 100, hand 2000), but their hand frames 2000 and 2010 are more than one body "
+        "frame's worth apart after tolerances (0 and 0); increase a tolerance or move a point"
     )
     assert err.point == (101, 2010) and err.others == ((100, 2000, 0.0),)
-    assert err.reason_with(lambda b, h, t: f"<{b}|{h}>").startswith("and <100|2000> are on")
     with pytest.raises(C.ConstraintError, match="one body frame's worth"):
         C.check_points([(100, 50), (101, 51)], 400, 100, grid_scale=120 / 30)
     # the same pair of points on one rate: one step apart is joinable

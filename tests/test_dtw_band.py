@@ -70,18 +70,38 @@ def test_width_none_gives_only_the_tolerance_clips():
 @pytest.mark.parametrize(
     "points,message",
     [
-        ([(5, 5), (3, 7)], r"points\[1\] = \(x=3, y=7, tol=0\) is out of order"),
-        ([(5, 5), (5, 5)], r"points\[1\] = \(x=5, y=5, tol=0\) duplicates points\[0\]"),
-        ([(5, 5), (5, 8)], r"points\[1\] .* same body frame as points\[0\]"),
-        ([(5, 9), (8, 4)], r"points\[1\] = \(x=8, y=4, tol=0\) crosses points\[0\]"),
-        ([(25, 3)], r"points\[0\] = \(x=25, y=3, tol=0\) is outside the 20 x 20 matrix"),
-        ([(3, -1)], r"outside"),
-        ([(3, 4, -1)], r"tolerance must be >= 0"),
-        ([(3.5, 4)], r"whole numbers"),
-        ([(0, 6, 2)], r"starts at \(0, 0\).*at least 6"),
-        ([(19, 10, 3)], r"ends at \(19, 19\).*at least 9"),
-        ([(5, 5), (6, 9)], r"consecutive body frames"),
-        ([(5,)], r"expected \(x, y\) or \(x, y, tol\)"),
+        (
+            [(5, 5), (3, 7)],
+            r"^matching point 2 \(body 3, hand 7\): body frame 3 is not after matching point "
+            r"1's body frame 5",
+        ),
+        (
+            [(5, 5), (5, 5)],
+            r"^matching point 2 \(body 5, hand 5\): the same frames as matching point 1 "
+            r"\(body 5, hand 5\)",
+        ),
+        ([(5, 5), (5, 8)], r"^matching point 2 .* same body frame as matching point 1 \(body 5,"),
+        (
+            [(5, 9), (8, 4)],
+            r"^matching point 2 \(body 8, hand 4\): hand frame 4 is before matching point 1's "
+            r"hand frame 9",
+        ),
+        (
+            [(25, 3)],
+            r"^matching point 1 \(body 25, hand 3\): outside the 20 x 20 matrix; expected body "
+            r"frames 0 to 19 and hand frames 0 to 19$",
+        ),
+        ([(3, -1)], r"^matching point 1 \(body 3, hand -1\): outside"),
+        ([(3, 4, -1)], r"^matching point 1 \(body 3, hand 4\): expected a tolerance of at least 0"),
+        ([(3.5, 4)], r"^matching point 1 \(body 3.5, hand 4\): expected whole body and hand"),
+        ([(0, 6, 2)], r"^matching point 1 \(body 0, hand 6\): .*starts at \(0, 0\).*at least 6$"),
+        ([(19, 10, 3)], r"ends at \(19, 19\).*at least 9$"),
+        (
+            [(5, 5), (6, 9)],
+            r"^matching point 2 \(body 6, hand 9\): on the body frame after matching point 1 "
+            r"\(body 5, hand 5\), but their hand frames 5 and 9 are more than one step apart",
+        ),
+        ([(5,)], r"^matching point 1: expected \(body, hand\) or \(body, hand, tolerance\)"),
     ],
 )
 def test_invalid_points_raise_naming_the_point(points, message):

@@ -367,3 +367,33 @@ def test_forward_pass_reports_the_first_row_with_a_bad_cost_as_the_per_cell_pass
             else:
                 got.append(KD.forward_metric(M.splice_phase, a, b, *args, *last)[0])
         assert got == [row, row], (row, got)
+
+
+def test_two_popcount_cost_and_cost_table_equal_the_sum_of_squared_differences():
+    """The row kernel's cost (Z, G masks, two popcounts, a per-row table of floats) is
+    Σ (s − s')² + step for any ternary codes, and ``cell_cost`` (P, Q masks) agrees."""
+    rng = np.random.default_rng(7)
+    s = rng.integers(-1, 2, size=(400, 48))
+    t = rng.integers(-1, 2, size=(400, 48))
+    s[:20] = 0  # holds: all zero
+    t[20:40] = -s[20:40]  # opposite signs everywhere: the largest cost
+    p, q = M.pack_codes(s)
+    p2, q2 = M.pack_codes(t)
+    tab = np.empty(PK._TABLE)
+    PK._cost_table(0.75, tab)
+    for k in range(s.shape[0]):
+        want = int(((s[k] - t[k]) ** 2).sum())
+        P, Q, P2, Q2 = (np.uint64(v[k]) for v in (p, q, p2, q2))
+        assert int(PK.cell_cost(P, Q, P2, Q2)) == want
+        codes = np.array([P2 | Q2, P2], np.uint64)  # the hand's (Z, G) at index 0
+        assert PK._index_cost(P | Q, P, tab, codes, 0) == float(want) + 0.75
+
+
+def test_phase_rows_write_the_same_hand_masks_as_rotated_packed_codes(feats):
+    """``phase_rows`` writes the rotated masks into its rows in place: the same values as
+    the (F, B) arrays of ``rotated_packed_codes``."""
+    _, b = M.phase_rows(feats.body_phase, feats.hand_phase, n_bins=feats.n_bins)
+    hp, hq = M.rotated_packed_codes(feats.hand_phase, feats.n_bins)
+    off = PK.HEADER + int(b[0, 0]) * 2
+    assert np.array_equal(b[:, off : off + 2 * feats.n_bins : 2], hp)
+    assert np.array_equal(b[:, off + 1 : off + 2 * feats.n_bins : 2], hq)

@@ -107,11 +107,24 @@ def test_defaults_from_empty_object():
         (
             {"points": [{"body": 1, "hand": 2}, {"body": 5, "hand": 9, "tolerance": -1}]},
             "points[1].tolerance",
-            "expected a number of frames from 0 to 500, got -1",
+            "matching point 2 (body 5, hand 9): expected a tolerance from 0 to 500 frames, got -1",
         ),
-        ({"points": [{"body": 10, "hand": 2}, {"body": 5, "hand": 9}]}, "points[1]", "after"),
-        ({"points": [{"body": 1.5, "hand": 2}]}, "points[0].body", "whole frame"),
-        ({"points": [{"hand": 2}]}, "points[0].body", "missing"),
+        (
+            {"points": [{"body": 10, "hand": 2}, {"body": 5, "hand": 9}]},
+            "points[1]",
+            "matching point 2 (body 5, hand 9): body frame 5 is not after matching point 1's "
+            "body frame 10;",
+        ),
+        (
+            {"points": [{"body": 1.5, "hand": 2}]},
+            "points[0].body",
+            "matching point 1 (body 1.5, hand 2): expected a whole body frame number >= 0, got 1.5",
+        ),
+        (
+            {"points": [{"hand": 2}]},
+            "points[0].body",
+            "matching point 1 (hand 2): expected a body frame, none was given",
+        ),
         ({"band": 0}, "band", "from 0.02 to 1"),
         ({"band": 0.01}, "band", "from 0.02 to 1"),
         ({"band": "wide"}, "band", "expected a fraction of the body take"),
@@ -143,7 +156,11 @@ def test_errors_name_the_field(data, field, words):
     with pytest.raises(SessionError) as info:
         from_dict(data, source="s.json")
     assert info.value.field == field
-    assert str(info.value).startswith(f"s.json: {field}: " if field else "s.json: ")
+    if field.startswith("points["):  # a matching point is named as a user counts it
+        assert str(info.value).startswith(f"s.json: {words}")
+        assert "points[" not in str(info.value)
+    else:
+        assert str(info.value).startswith(f"s.json: {field}: " if field else "s.json: ")
     assert words in str(info.value)
 
 
@@ -171,11 +188,11 @@ def test_query_round_trip():
 
 
 def test_query_errors():
-    with pytest.raises(SessionError, match=r"points\[0\]"):
+    with pytest.raises(SessionError, match=r"^URL: matching point 1: expected BODY:HAND or "):
         from_query({"pts": "1:2:3:4"})
     with pytest.raises(SessionError, match="band"):
         from_query({"band": "x"})
-    with pytest.raises(SessionError, match="points"):
+    with pytest.raises(SessionError, match=r"^URL: matching point 2 \(body 3, hand 9\): body"):
         from_query({"pts": "5:5,3:9"})
     with pytest.raises(SessionError, match="roles"):
         from_query({"roles": "{not json"})
@@ -311,6 +328,10 @@ def test_a_bad_link_value_is_left_out_and_the_rest_kept(bad, field):
         from_query({**good, **bad})
     assert [str(p) for p in problems] == [str(strict.value)]
     assert problems[0].field == field
+    if field == "points[0].body":
+        assert str(problems[0]) == (
+            "URL: matching point 1 (hand 1): expected a whole body frame number >= 0, got 'abc'"
+        )
     assert spec.sample == "demo"
     key = {"band": "band", "refine_band": "refine_band", "tolerance": "tolerance"}
     kept = {

@@ -131,3 +131,22 @@ def test_session_off_the_loop_opens_solves_and_keeps_only_the_newest_edit(cfg):
     ref.set_points(s.points)
     assert (ref.solution.pass1.path == s.solution.pass1.path).all()
     assert (ref.solution.pass2.path == s.solution.pass2.path).all()
+
+
+def test_a_link_without_takes_opens_the_default_pair_off_the_loop(cfg):
+    """The page's link of parameters only (``?frame=75``) opened off the loop: the page says
+    which pair opens (the default one) and ends with the session a caller's open_link of
+    the same link gives."""
+    from webapp import app
+
+    query = {"frame": "75", "band": "0.4", "pts": "30:10", "frames": "hand"}
+    doc = FakeDoc()
+    s = Session(cfg)
+    s.compute_off_loop(doc)
+    app._initial_state(s, dict(query))
+    assert s.opening == cfg.default_sample and s.solution is None
+    doc.pump(lambda: s.solution is not None and not s.busy)
+    ref = Session(cfg)
+    ref.open_link(dict(query))
+    assert not s.error and not s.opening and s.frame == 75
+    assert s.to_query() == ref.to_query() and s.sample == cfg.default_sample

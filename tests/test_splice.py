@@ -172,7 +172,11 @@ def test_a_matching_point_with_zero_tolerance_is_on_the_path(beat_case):
         set(res.pass2.path[res.pass2.path[:, 0] == 100, 1]) == {60}
         or res.pass2.path[res.pass2.path[:, 0] == 100, 1].min() == 60
     )
-    with pytest.raises(ParameterError, match="points"):
+    with pytest.raises(
+        ParameterError,
+        match=r"^matching point 2 \(body 90, hand 70\): body frame 90 is not after matching "
+        r"point 1's body frame 100; body frames must increase",
+    ):
         P.align_passes(feats, points=[(100, 60, 0), (90, 70, 0)])
 
 

@@ -110,10 +110,9 @@ def _initial_state(session: Session, args: dict[str, str] | None = None) -> None
         if session.prepared is None:
             open_default()
 
+    # a link of parameters only (``?frame=75``) opens the default pair with them: the
+    # session's rule for a spec without takes (Session.apply_spec)
     linked = any(k in args for k in SHARE_KEYS)
-    if linked and cfg.default_sample and not any(args.get(k) for k in ("sample", "body", "hand")):
-        # a link of parameters only (``?frame=75``) applies them to the default pair
-        args = {**args, "sample": cfg.default_sample}
     if session.runner is not None:  # off the loop: the link's opening supersedes the default
         if linked:
             try:

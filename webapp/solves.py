@@ -27,6 +27,8 @@ from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
+from webapp.views._dispatch import next_tick
+
 #: worker threads shared by every session (each session runs one job at a time); the
 #: engine's kernels release the GIL, so a solve leaves the event loop free
 _POOL = ThreadPoolExecutor(max_workers=4, thread_name_prefix="hs-solve")
@@ -120,7 +122,7 @@ class SolveRunner:
 
         def finished(f):
             try:
-                doc.add_next_tick_callback(lambda: self._finish(job, f))
+                next_tick(doc, lambda: self._finish(job, f))
             except Exception:  # the tab was closed meanwhile: nothing to show
                 pass
 

@@ -21,7 +21,7 @@ URL query (``?sample=demo&band=0.3&pts=120:98:2,...``).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from urllib.parse import urlencode
 
 import numpy as np
@@ -79,26 +79,6 @@ def _same(a, b) -> bool:
         return bool(a == b)
     except (TypeError, ValueError):
         return False
-
-
-def page_point(body: int, hand: int, tolerance: float | None = None) -> str:
-    """A matching point as the page writes it in messages: ``(body 60, hand 10)``."""
-    return f"(body {body}, hand {hand})"
-
-
-def page_words(message: str, refusal: C.ConstraintError | None = None) -> str:
-    """``message`` in the page's words, from the structured constraint refusal behind it
-    (``engine.dtw.constraints``' one text for every front; ``Session.refusal``): a refused
-    point ``points[1]: 60:10:0 crosses 40:20:0: ...`` becomes ``matching point (body 60,
-    hand 10) not kept: it crosses (body 40, hand 20): ...``; the refusal inside a longer
-    message (a shared link's) has its points written the page's way. Any other message is
-    shown as it is."""
-    if refusal is None or str(refusal) not in message:
-        return message
-    reason = refusal.reason_with(page_point)
-    if message == str(refusal) and reason is not None:
-        return f"matching point {page_point(*refusal.point)} not kept: it {reason}"
-    return message.replace(str(refusal), refusal.text_with(page_point))
 
 
 class Session(param.Parameterized):
@@ -211,6 +191,11 @@ class Session(param.Parameterized):
         doc="names of a new pair being opened (off the loop), or empty; meanwhile the "
         "page's views show the previous pair, greyed, and edits are not taken",
     )
+    waiting = param.String(
+        default="",
+        doc="an uploaded take that waits for its partner ('body walk.bvh checked: waiting "
+        "for a hand take'), or empty; meanwhile the views show the pair open before",
+    )
     can_undo = param.Boolean(default=False)
     can_redo = param.Boolean(default=False)
 
@@ -251,10 +236,6 @@ class Session(param.Parameterized):
         behind the current ``error``; None when ``error`` is not a constraint's."""
         text, cause = self._refused
         return cause if self.error and text == self.error else None
-
-    def page_error(self) -> str:
-        """``error`` in the page's words (:func:`page_words`)."""
-        return page_words(self.error, self.refusal())
 
     def begin_opening(self, name: str) -> None:
         """A new pair named ``name`` is being opened off the loop: the views of the open
@@ -559,12 +540,12 @@ class Session(param.Parameterized):
         self.points = self._normalise(points)
 
     def _frames(self, index: int, body, hand) -> tuple[int, int] | None:
-        """``(body, hand)`` as whole frames (engine.dtw.constraints.parse_frame: 12.5 is
+        """``(body, hand)`` as whole frames (engine.dtw.constraints.parse_point_frame: 12.5 is
         refused, never truncated); None, with the refusal shown, otherwise."""
         try:
             return (
-                C.parse_frame(body, f"points[{index}].body"),
-                C.parse_frame(hand, f"points[{index}].hand"),
+                C.parse_point_frame(body, index, "body", body, hand),
+                C.parse_point_frame(hand, index, "hand", body, hand),
             )
         except C.ConstraintError as exc:
             self.refuse(exc, str(exc))
@@ -591,7 +572,8 @@ class Session(param.Parameterized):
     def set_point_tolerance(self, index: int, tolerance: float | None) -> None:
         if tolerance is not None:
             try:
-                tolerance = C.parse_tolerance(tolerance, f"points[{index}].tolerance")
+                p = self.points[index]
+                tolerance = C.parse_point_tolerance(tolerance, index, p.body, p.hand)
             except C.ConstraintError as exc:
                 self.refuse(exc, str(exc))
                 return
@@ -706,8 +688,8 @@ class Session(param.Parameterized):
 
     def _check_points(self) -> None:
         """Refuse points outside the takes or out of order: the rule and its text are
-        ``engine.dtw.constraints``' (the page shows it in its own words from its structured
-        fields: ``page_words``)."""
+        ``engine.dtw.constraints``' (``matching point 2 (body 80, hand 20): ...``, counted
+        as the table lists the points)."""
         C.check_points(
             self.user_points(),
             self.n,
@@ -860,6 +842,7 @@ class Session(param.Parameterized):
             self.fps,
             limit,
             given,
+            front="page",
             retimed=self.prepared is not None and backend.marker_body(self.prepared),
         )
         return text + (f" · {unmatched}" if unmatched else "")
@@ -954,10 +937,13 @@ class Session(param.Parameterized):
         passes solved before anything in the session changes, so a bad session file or
         link (unknown sample or upload, points outside the matrix, infeasible points)
         raises (SessionError, KeyError, HandSpliceError, ValueError, OSError) and leaves
-        the working session exactly as it was. A spec without inputs keeps the current
-        takes. ``keep_takes`` (a shared link): points that do not fit the takes are left
-        out, with their refusal in ``error``, and the rest opens.
+        the working session exactly as it was. A spec without takes (a link such as
+        ``?frame=75``, a session file of parameters only) applies to the takes already
+        open, or to the default pair when none are (:meth:`_takes_for`). ``keep_takes`` (a
+        shared link): points that do not fit the takes are left out, with their refusal in
+        ``error``, and the rest opens.
         """
+        spec = self._takes_for(spec)
         if self.runner is None:
             self._commit(self._stage(spec, keep_takes=keep_takes))
             return
@@ -979,6 +965,16 @@ class Session(param.Parameterized):
                 dropped=lambda: self._open_dropped(lambda opened: None),
             )
         )
+
+    def _takes_for(self, spec: SessionSpec) -> SessionSpec:
+        """``spec`` with the takes it applies to: its own, else the takes already open, else
+        the server's default pair (the one rule for every front: a link, a session file, a
+        caller of :meth:`apply_spec`). Without any of them, :meth:`_stage` refuses."""
+        if spec.sample is not None or spec.body is not None or spec.hand is not None:
+            return spec
+        if self.take_paths() is not None or not self._cfg.default_sample:
+            return spec
+        return replace(spec, sample=self._cfg.default_sample)
 
     def _stage(self, spec: SessionSpec, progress=None, keep_takes: bool = False) -> dict:
         """Everything ``spec`` needs, computed without touching the session (safe on a
@@ -1018,7 +1014,7 @@ class Session(param.Parameterized):
                 uploads.path_for(self._cfg, spec.body.sha256),
                 uploads.path_for(self._cfg, spec.hand.sha256),
             )
-        else:  # parameters only: applied to the takes already open
+        else:  # parameters only: applied to the takes already open (see _takes_for)
             inputs = self._current(
                 ("sample", "body_sha256", "hand_sha256", "body_name", "hand_name")
             )
@@ -1027,7 +1023,8 @@ class Session(param.Parameterized):
                 raise session_io.SessionError(
                     None,
                     "inputs",
-                    "expected a sample or uploaded body and hand takes (none are open)",
+                    "expected a sample or uploaded body and hand takes (none are open and the "
+                    "server has no default pair)",
                 )
         roles = dict(spec.roles)
         prepared = backend.prepare(paths[0], paths[1], spec.side, roles)

@@ -570,23 +570,28 @@ def phase_rows(
         _raw_windows(hand.markers, b[:, _HEADER : _HEADER + 2 * half])
     off = _HEADER + 2 * half
     a[:, off], a[:, off + 1] = pack_codes(body.codes)
-    hp, hq = rotated_packed_codes(hand, n_bins)  # (m, B) each
-    b[:, off : off + 2 * n_bins : 2] = hp
-    b[:, off + 1 : off + 2 * n_bins : 2] = hq
+    # the hand's (p, q) pairs written in place (no (m, B) arrays and copies)
+    rotated_packed_codes(
+        hand, n_bins, out=(b[:, off : off + 2 * n_bins : 2], b[:, off + 1 : off + 2 * n_bins : 2])
+    )
     return a, b
 
 
 def rotated_packed_codes(
-    hand: PhaseFeatures, n_bins: int = THETA_BINS
+    hand: PhaseFeatures, n_bins: int = THETA_BINS, out=None
 ) -> tuple[np.ndarray, np.ndarray]:
     """``pack_codes(rotated_codes(hand, n_bins))`` without the ``(F, B, C)`` array:
-    ``(F, n_bins)`` float64 masks P and Q (numba)."""
+    ``(F, n_bins)`` float64 masks P and Q (numba), written to ``out`` (two such arrays,
+    e.g. strided views of :func:`phase_rows`' rows) when given."""
     f, k, _ = hand.velocity.shape
     if k * 6 > MAX_COMPONENTS:
         raise ParameterError(f"pack codes: at most {MAX_COMPONENTS} components, got {k * 6}")
     theta = 2.0 * np.pi * np.arange(n_bins) / n_bins
-    p = np.zeros((f, n_bins), dtype=np.float64)
-    q = np.zeros((f, n_bins), dtype=np.float64)
+    if out is None:
+        p = np.zeros((f, n_bins), dtype=np.float64)
+        q = np.zeros((f, n_bins), dtype=np.float64)
+    else:
+        p, q = out
     _rotated_packed_kernel(
         np.ascontiguousarray(hand.velocity, dtype=np.float64),
         np.ascontiguousarray(hand.acceleration, dtype=np.float64),

@@ -135,9 +135,17 @@ def theta_bin(num, den, nb):
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
+def zg_cost(z, g, z2, g2):
+    """Σ (s − s')² of ternary codes packed as masks Z (s ≠ 0) and G (s = +1) (uint64):
+    ``|Z ⊕ Z'| + 4 |(G ⊕ G') ∧ Z ∧ Z'|`` (one code zero: 1; opposite signs: 4)."""
+    return popcount(z ^ z2) + (popcount((g ^ g2) & z & z2) << np.uint64(2))
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
 def cell_cost(p, q, p2, q2):
-    """Σ (s − s')² of ternary codes packed as masks (P, Q) and (P', Q') (uint64)."""
-    return popcount(p ^ p2) + popcount(q ^ q2) + np.uint64(2) * popcount((p & q2) | (q & p2))
+    """Σ (s − s')² of ternary codes packed as masks (P, Q) and (P', Q') (uint64, P ∧ Q = 0):
+    :func:`zg_cost` of ``Z = P ∨ Q``, ``G = P`` (the row kernel's masks)."""
+    return zg_cost(p | q, p, p2 | q2, p2)
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -199,7 +207,8 @@ def cell_theta_sums(body_row, hand_row, half):
 @numba.njit(cache=True, nogil=True)
 def _unpack(rows, hand, nb, half):
     """Per-frame arrays of one take's rows: window centroids ``(F,)`` x and z
-    (float32), the masks P, Q (``(1 or nb, F, 2)``), the yaw bins and steps ``(F,)``."""
+    (float32), the masks Z = P ∨ Q and G = P (``(1 or nb, F, 2)``, see :func:`zg_cost`),
+    the yaw bins and steps ``(F,)``."""
     f = rows.shape[0]
     mx = np.zeros(f, np.float32)
     mz = np.zeros(f, np.float32)
@@ -217,8 +226,9 @@ def _unpack(rows, hand, nb, half):
         yaw[r] = int(row[3])
         step[r] = row[4]
         for b in range(width):
-            pq[b, r, 0] = np.uint64(row[off + 2 * b])
-            pq[b, r, 1] = np.uint64(row[off + 2 * b + 1])
+            p = np.uint64(row[off + 2 * b])
+            pq[b, r, 0] = p | np.uint64(row[off + 2 * b + 1])
+            pq[b, r, 1] = p
     return mx, mz, pq, yaw, step
 
 
@@ -304,10 +314,10 @@ class PhaseProblem:
             hx = hz = np.zeros((k, self.m + 4), np.float32)
         bmx, bmz, bpq, byaw, bstep = _unpack(a, False, nb, half)
         hmx, hmz, hpq, hyaw, _ = _unpack(b, True, nb, half)
-        bp = np.ascontiguousarray(bpq[0, :, 0])
-        bq = np.ascontiguousarray(bpq[0, :, 1])
-        self.body = (bx, bz, bmx, bmz, bp, bq, byaw, bstep)
-        self.hand = (hx, hz, hmx, hmz, hpq.reshape(-1), hyaw)  # masks flat: (nb m 2,)
+        bnz = np.ascontiguousarray(bpq[0, :, 0])  # Z: code ≠ 0
+        bpos = np.ascontiguousarray(bpq[0, :, 1])  # G: code = +1
+        self.body = (bx, bz, bmx, bmz, bnz, bpos, byaw, bstep)
+        self.hand = (hx, hz, hmx, hmz, hpq.reshape(-1), hyaw)  # (Z, G) flat: (nb m 2,)
 
     def args(self) -> tuple:
         return (*self.body, *self.hand, self.mode, self.nb, self.half)
@@ -441,12 +451,21 @@ def _ensure_c(i, next_p, i0, i1, lo, hi, bx, bz, hx, hz, cre, cim):
     return next_p
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _mask_index(b, j, m):
+    """Index in ``codes`` of hand column ``j``'s Z mask turned to θ bin ``b`` (its G mask
+    follows): ``2 (b m + j)``, int32 (:class:`PhaseProblem` checks that it fits)."""
+    return np.int32(2) * (np.int32(b) * np.int32(m) + np.int32(j))
+
+
 @numba.njit(cache=True, nogil=True)
-def _theta_bins(i, lo_i, hi_i, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, bins):
-    """``bins[lo_i..hi_i]`` = θ bins (int32) of band row ``i`` (ring rows ``i..i+4`` ready in
-    window mode). A loop of selects and float32 arithmetic only: it vectorises."""
+def _theta_cells(i, lo_i, hi_i, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, cells):
+    """``cells[lo_i..hi_i]`` = :func:`_mask_index` of each cell's θ bin in band row ``i``
+    (ring rows ``i..i+4`` ready in window mode). A loop of selects and float32 arithmetic
+    only: it vectorises."""
     w = hi_i - lo_i + 1
-    out = bins[lo_i : hi_i + 1]
+    out = cells[lo_i : hi_i + 1]
+    m = hmx.shape[0]
     if mode == MODE_WINDOW:
         # ring rows i..i+4 at columns j..j+4, as slices from lo_i (no wraparound code)
         r0 = cre[i & (_RING - 1), lo_i:]
@@ -475,55 +494,50 @@ def _theta_bins(i, lo_i, hi_i, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, c
         hy = hyaw[lo_i:]
         for k in range(w):
             out[k] = np.int32((yb - hy[k]) % nb)
-
-
-@numba.njit(cache=True, nogil=True, inline="always")
-def _mask_index(b, j, m):
-    """Index in ``codes`` of hand column ``j``'s P mask turned to θ bin ``b`` (its Q mask
-    follows): ``2 (b m + j)``, int32 (:class:`PhaseProblem` checks that it fits)."""
-    return np.int32(2) * (np.int32(b) * np.int32(m) + np.int32(j))
-
-
-@numba.njit(cache=True, nogil=True, inline="always")
-def _index_cost(p, q, st, codes, u):
-    """Local cost of body masks ``(p, q)`` (step cost ``st``) against the hand's masks at
-    ``codes[u], codes[u + 1]`` (``u`` from :func:`_mask_index`): Σ (s − s')² + ``st``.
-
-    ``codes``: the hand's masks flat, bin by bin, so neighbouring cells, which mostly share
-    a bin, read neighbouring words; unsigned indices (no wraparound code). The only place a
-    pass-1 cell's cost is formed.
-    """
-    v = np.uint64(u)
-    c = cell_cost(p, q, codes[v], codes[v + np.uint64(1)])
-    return float(np.int64(c)) + st  # signed: one instruction (unsigned is several)
-
-
-@numba.njit(cache=True, nogil=True)
-def _bins_to_cells(lo_i, hi_i, m, bins):
-    """``bins[lo_i..hi_i]`` (θ bins of a band row) turned, in place, into their cells'
-    :func:`_mask_index` (a loop that vectorises; the recurrence then reads masks
-    directly)."""
-    bb = bins[lo_i : hi_i + 1]
-    j = np.int32(lo_i)
-    for k in range(hi_i - lo_i + 1):
-        bb[k] = _mask_index(bb[k], j, m)
+    j = np.int32(lo_i)  # bins -> mask indices (a second loop: both vectorise)
+    for k in range(w):
+        out[k] = _mask_index(out[k], j, m)
         j += np.int32(1)
 
 
-@numba.njit(cache=True, nogil=True)
-def _code_costs(lo_i, hi_i, p, q, st, codes, m, bins, crow):
-    """``crow[lo_i..hi_i]`` = Σ (s − s')² + ``st`` of the body masks ``(p, q)`` against the
-    hand's masks of each cell's θ bin (``bins``).
+#: entries of a row's cost table: every value of :func:`zg_cost` (0..64 + 4·64)
+_TABLE = 64 + 4 * 64 + 1
 
-    ``codes``: the hand's masks flat, bin by bin (``2 (b m + j)``: P, ``+ 1``: Q), so
-    neighbouring cells, which mostly share a bin, read neighbouring words; unsigned
-    indices (no wraparound code) and no per-cell stride multiplications.
+
+@numba.njit(cache=True, nogil=True)
+def _cost_table(st, tab):
+    """``tab[c] = float(c) + st``: the local cost of a cell whose codes differ by ``c``
+    (Σ (s − s')²) in a body row with step cost ``st``; one read per cell instead of a
+    conversion and an addition (the same float)."""
+    for c in range(_TABLE):
+        tab[c] = float(np.int64(c)) + st
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _index_cost(z, g, tab, codes, u):
+    """Local cost of body masks ``(z, g)`` (cost table ``tab`` of the row's step cost, see
+    :func:`_cost_table`) against the hand's masks at ``codes[u], codes[u + 1]`` (``u`` from
+    :func:`_mask_index`): Σ (s − s')² + step cost.
+
+    ``codes``: the hand's (Z, G) masks flat, bin by bin, so neighbouring cells, which mostly
+    share a bin, read neighbouring words; unsigned indices (no wraparound code). The only
+    place a pass-1 cell's cost is formed.
     """
+    v = np.uint64(u)
+    return tab[zg_cost(z, g, codes[v], codes[v + np.uint64(1)])]
+
+
+@numba.njit(cache=True, nogil=True)
+def _code_costs(lo_i, hi_i, z, g, st, codes, cells, crow):
+    """``crow[lo_i..hi_i]`` = Σ (s − s')² + ``st`` of the body masks ``(z, g)`` against the
+    hand's masks at each cell's ``cells`` index."""
+    tab = np.empty(_TABLE)
+    _cost_table(st, tab)
     w = hi_i - lo_i + 1
-    bb = bins[lo_i : hi_i + 1]
+    bb = cells[lo_i : hi_i + 1]
     cost = crow[lo_i : hi_i + 1]
     for k in range(w):
-        cost[k] = _index_cost(p, q, st, codes, _mask_index(bb[k], lo_i + k, m))
+        cost[k] = _index_cost(z, g, tab, codes, bb[k])
 
 
 @numba.njit(cache=True, nogil=True)
@@ -533,8 +547,8 @@ def _fill(
     hi_i,
     bmx,
     bmz,
-    bpp,
-    bqq,
+    bnz,
+    bpos,
     byaw,
     bstep,
     hmx,
@@ -546,13 +560,13 @@ def _fill(
     half,
     cre,
     cim,
-    bins,
+    cells,
     crow,
 ):
     """``crow[lo_i..hi_i]`` = local costs of band row ``i`` (ring rows ``i..i+4`` ready):
-    the row's θ bins, then the popcount costs."""
-    _theta_bins(i, lo_i, hi_i, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, bins)
-    _code_costs(lo_i, hi_i, bpp[i], bqq[i], bstep[i], codes, hmx.shape[0], bins, crow)
+    the row's θ bins as mask indices, then the popcount costs."""
+    _theta_cells(i, lo_i, hi_i, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, cells)
+    _code_costs(lo_i, hi_i, bnz[i], bpos[i], bstep[i], codes, cells, crow)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -561,8 +575,8 @@ def _one_row(
     bz,
     bmx,
     bmz,
-    bpp,
-    bqq,
+    bnz,
+    bpos,
     byaw,
     bstep,
     hx,
@@ -581,7 +595,7 @@ def _one_row(
     m = hmx.shape[0]
     cre = np.zeros((_RING, m + 4), np.float32)
     cim = np.zeros((_RING, m + 4), np.float32)
-    bins = np.zeros(m, np.int32)
+    cells = np.zeros(m, np.int32)
     crow = np.zeros(m)
     if mode == MODE_WINDOW:
         _ensure_c(i, i, i, i + 1, lo, hi, bx, bz, hx, hz, cre, cim)
@@ -591,8 +605,8 @@ def _one_row(
         hi[i],
         bmx,
         bmz,
-        bpp,
-        bqq,
+        bnz,
+        bpos,
         byaw,
         bstep,
         hmx,
@@ -604,7 +618,7 @@ def _one_row(
         half,
         cre,
         cim,
-        bins,
+        cells,
         crow,
     )
     return crow
@@ -614,19 +628,39 @@ def _one_row(
 # the recurrence with the sign-code costs inline
 # --------------------------------------------------------------------------------------------
 # ``engine.dtw.kernels._dp_row`` / ``_dp_pair`` with each cell's local cost formed where it
-# is used (``_index_cost`` at the cells of the row's θ bins) instead of read from a cost row: the
-# recurrence is one serial min/add chain per row, so the popcount work fills its idle
+# is used (``_index_cost`` at the cells of the row's θ bins) instead of read from a cost row,
+# and the backpointers left to a vectorised pass over the finished rows (``_row_steps``):
+# the serial min/add chain carries only what it needs, the popcount work fills its idle
 # issue slots, and no cost row goes through the cache. Same operands, same order, same
 # floats and steps (tests compare with the cost-row kernels cell by cell).
 
 
 @numba.njit(cache=True, nogil=True)
-def _dp_row_codes(prev, cur, p, q, st, codes, cells, lo, hi, bp_row, left0):
-    """``engine.dtw.kernels._dp_row`` with the costs of body masks ``(p, q)`` against the
-    hand's masks at ``cells`` (:func:`_mask_index` of each cell's θ bin, by absolute column,
-    :data:`AHEAD` entries past the row readable) formed inline; the masks :data:`AHEAD` cells
-    ahead are prefetched (θ drifts, so the reads wander over the table: the hardware
-    prefetchers miss them)."""
+def _row_steps(prev, cur, lo, hi, bp_row):
+    """Backpointers of band row ``lo..hi`` from its finished γ rows: ``prev`` (row ``i - 1``)
+    and ``cur`` (row ``i``, with ``cur[lo]`` = γ(i, lo - 1), the row's ``left0``). The
+    recurrence's comparisons on the values it compared (``engine.dtw.kernels._dp_row``:
+    ties prefer the diagonal, then the vertical step); vectorises."""
+    w = hi - lo + 1
+    diag = prev[lo : hi + 1]
+    up = prev[lo + 1 : hi + 2]
+    left = cur[lo : hi + 1]
+    for k in range(w):
+        d = diag[k]
+        u = up[k]
+        du = min(d, u)
+        step_du = K.VERTICAL if u < d else K.DIAGONAL
+        bp_row[k] = K.HORIZONTAL if left[k] < du else step_du
+
+
+@numba.njit(cache=True, nogil=True)
+def _dp_row_codes(prev, cur, z, g, st, tab, codes, cells, lo, hi, bp_row, left0):
+    """``engine.dtw.kernels._dp_row`` with the costs of body masks ``(z, g)`` (cost table
+    ``tab`` of step cost ``st``) against the hand's masks at ``cells`` (:func:`_mask_index`
+    of each cell's θ bin, by absolute column, :data:`AHEAD` entries past the row readable)
+    formed inline; the masks :data:`AHEAD` cells ahead are prefetched (θ drifts, so the
+    reads wander over the table: the hardware prefetchers miss them). Backpointers by
+    :func:`_row_steps`; sets ``cur[lo] = left0``."""
     w = hi - lo + 1
     pr = prev[lo : hi + 2]
     out = cur[lo + 1 : hi + 2]
@@ -634,17 +668,13 @@ def _dp_row_codes(prev, cur, p, q, st, codes, cells, lo, hi, bp_row, left0):
     left = left0
     bad = not (st > K.NEG_INF)  # a cost is NaN or -inf exactly when st is (masks: counts)
     for k in range(w):
-        diag = pr[k]
-        up = pr[k + 1]
         prefetch(codes, np.uint64(bb[k + AHEAD]))
-        c = _index_cost(p, q, st, codes, bb[k])
-        du = min(diag, up)
-        step_du = K.VERTICAL if up < diag else K.DIAGONAL
-        step = K.HORIZONTAL if left < du else step_du
-        g = c + min(left, du)
-        out[k] = g
-        left = g
-        bp_row[k] = step
+        c = _index_cost(z, g, tab, codes, bb[k])
+        g_ = c + min(left, min(pr[k], pr[k + 1]))
+        out[k] = g_
+        left = g_
+    cur[lo] = left0
+    _row_steps(prev, cur, lo, hi, bp_row)
     return bad
 
 
@@ -653,12 +683,14 @@ def _dp_pair_codes(
     prev,
     mid,
     cur,
-    pa_,
-    qa_,
+    za,
+    ga,
     sta,
-    pb_,
-    qb_,
+    tab_a,
+    zb,
+    gb,
     stb,
+    tab_b,
     codes,
     cells_a,
     cells_b,
@@ -672,8 +704,9 @@ def _dp_pair_codes(
     left_b0,
 ):
     """``engine.dtw.kernels._dp_pair`` (rows ``i``, ``i + 1`` interleaved) with the costs
-    formed inline as in :func:`_dp_row_codes` (row ``i``: masks ``pa_, qa_``, step ``sta``,
-    cells ``cells_a``; row ``i + 1``: ``pb_, qb_, stb, cells_b``)."""
+    formed inline as in :func:`_dp_row_codes` (row ``i``: masks ``za, ga``, step ``sta``,
+    table ``tab_a``, cells ``cells_a``; row ``i + 1``: ``zb, gb, stb, tab_b, cells_b``);
+    backpointers of both rows by :func:`_row_steps` at the end; sets ``cur[lo_b] = left_b0``."""
     # phase 1: row i alone, columns lo_a .. min(hi_a, lo_b)
     end1 = min(hi_a, lo_b)
     pa = prev[lo_a : hi_a + 2]
@@ -682,14 +715,9 @@ def _dp_pair_codes(
     left_a = left_a0
     bad_a = not (sta > K.NEG_INF)  # as _dp_row_codes
     for k in range(end1 - lo_a + 1):
-        diag = pa[k]
-        up = pa[k + 1]
         prefetch(codes, np.uint64(ba[k + AHEAD]))
-        c = _index_cost(pa_, qa_, sta, codes, ba[k])
-        du = min(diag, up)
-        step_du = K.VERTICAL if up < diag else K.DIAGONAL
-        bp_a[k] = K.HORIZONTAL if left_a < du else step_du
-        g = c + min(left_a, du)
+        c = _index_cost(za, ga, tab_a, codes, ba[k])
+        g = c + min(left_a, min(pa[k], pa[k + 1]))
         out_a[k] = g
         left_a = g
     mid[lo_a] = left_a0
@@ -704,31 +732,21 @@ def _dp_pair_codes(
     done_b = 0
     if hi_a >= lo_b + 1:
         count = hi_a - lo_b
-        k_a = lo_b + 1 - lo_a
         pa2 = prev[lo_b + 1 : hi_a + 2]
         ba2 = cells_a[lo_b + 1 : hi_a + 1 + AHEAD]
         out_a2 = mid[lo_b + 2 : hi_a + 2]
-        bp_a2 = bp_a[k_a : k_a + count]
         a_diag = mid[lo_b]  # γ(i, t-2) for t = lo_b + 1
         a_up = mid[lo_b + 1]  # γ(i, t-1)
         for k in range(count):
-            diag = pa2[k]
-            up = pa2[k + 1]
             prefetch(codes, np.uint64(ba2[k + AHEAD]))
-            c = _index_cost(pa_, qa_, sta, codes, ba2[k])
-            du = min(diag, up)
-            step_du = K.VERTICAL if up < diag else K.DIAGONAL
-            bp_a2[k] = K.HORIZONTAL if left_a < du else step_du
-            g = c + min(left_a, du)
+            c = _index_cost(za, ga, tab_a, codes, ba2[k])
+            g = c + min(left_a, min(pa2[k], pa2[k + 1]))
             out_a2[k] = g
             left_a = g
             # row i+1 at column lo_b + k
             prefetch(codes, np.uint64(bb[k + AHEAD]))
-            c2 = _index_cost(pb_, qb_, stb, codes, bb[k])
-            du2 = min(a_diag, a_up)
-            step_du2 = K.VERTICAL if a_up < a_diag else K.DIAGONAL
-            bp_b[k] = K.HORIZONTAL if left_b < du2 else step_du2
-            g2 = c2 + min(left_b, du2)
+            c2 = _index_cost(zb, gb, tab_b, codes, bb[k])
+            g2 = c2 + min(left_b, min(a_diag, a_up))
             out_b[k] = g2
             left_b = g2
             a_diag = a_up
@@ -736,17 +754,17 @@ def _dp_pair_codes(
         done_b = count
     # phase 3: row i+1 alone, the remaining columns
     pb = mid[lo_b + done_b : hi_b + 2]
+    ob = out_b[done_b:]
+    b3 = bb[done_b:]
     for k in range(w_b - done_b):
-        diag = pb[k]
-        up = pb[k + 1]
-        prefetch(codes, np.uint64(bb[done_b + k + AHEAD]))
-        c = _index_cost(pb_, qb_, stb, codes, bb[done_b + k])
-        du = min(diag, up)
-        step_du = K.VERTICAL if up < diag else K.DIAGONAL
-        bp_b[done_b + k] = K.HORIZONTAL if left_b < du else step_du
-        g = c + min(left_b, du)
-        out_b[done_b + k] = g
+        prefetch(codes, np.uint64(b3[k + AHEAD]))
+        c = _index_cost(zb, gb, tab_b, codes, b3[k])
+        g = c + min(left_b, min(pb[k], pb[k + 1]))
+        ob[k] = g
         left_b = g
+    cur[lo_b] = left_b0
+    _row_steps(prev, mid, lo_a, hi_a, bp_a)
+    _row_steps(mid, cur, lo_b, hi_b, bp_b)
     return (1 if bad_a else 0) | (2 if bad_b else 0)
 
 
@@ -756,8 +774,8 @@ def _forward(
     bz,
     bmx,
     bmz,
-    bpp,
-    bqq,
+    bnz,
+    bpos,
     byaw,
     bstep,
     hx,
@@ -781,16 +799,17 @@ def _forward(
     last_col,
     last_row,
 ):
-    """As ``engine.dtw.kernels.forward_builtin`` (open ends included): a row's θ bins by
-    :func:`_theta_bins` (then their mask indices, :func:`_bins_to_cells`), its costs formed
-    inside the recurrence (:func:`_dp_pair_codes`,
-    :func:`_dp_row_codes`)."""
+    """As ``engine.dtw.kernels.forward_builtin`` (open ends included): a row's θ bins as
+    mask indices by :func:`_theta_cells`, its costs formed inside the recurrence
+    (:func:`_dp_pair_codes`, :func:`_dp_row_codes`)."""
     m = hmx.shape[0]
     prev = np.empty(m + 1)
     mid = np.full(m + 1, K.INF)
     cur = np.full(m + 1, K.INF)
-    bins_a = np.zeros(m + AHEAD, np.int32)  # AHEAD more: the prefetches read past a row
-    bins_b = np.zeros(m + AHEAD, np.int32)
+    cells_a = np.zeros(m + AHEAD, np.int32)  # AHEAD more: the prefetches read past a row
+    cells_b = np.zeros(m + AHEAD, np.int32)
+    tab_a = np.empty(_TABLE)
+    tab_b = np.empty(_TABLE)
     window = mode == MODE_WINDOW
     ring_w = m + 4 if window else 1
     cre = np.empty((_RING, ring_w), np.float32)
@@ -804,27 +823,29 @@ def _forward(
                 next_p = _ensure_c(i + 1, next_p, i0, i1, lo, hi, bx, bz, hx, hz, cre, cim)
             lo_a, hi_a = lo[i], hi[i]
             lo_b, hi_b = lo[i + 1], hi[i + 1]
-            _theta_bins(
-                i, lo_a, hi_a, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, bins_a
+            _theta_cells(
+                i, lo_a, hi_a, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, cells_a
             )
-            _theta_bins(
-                i + 1, lo_b, hi_b, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, bins_b
+            _theta_cells(
+                i + 1, lo_b, hi_b, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, cells_b
             )
-            _bins_to_cells(lo_a, hi_a, m, bins_a)
-            _bins_to_cells(lo_b, hi_b, m, bins_b)
+            _cost_table(bstep[i], tab_a)
+            _cost_table(bstep[i + 1], tab_b)
             bad = _dp_pair_codes(
                 prev,
                 mid,
                 cur,
-                bpp[i],
-                bqq[i],
+                bnz[i],
+                bpos[i],
                 bstep[i],
-                bpp[i + 1],
-                bqq[i + 1],
+                tab_a,
+                bnz[i + 1],
+                bpos[i + 1],
                 bstep[i + 1],
+                tab_b,
                 codes,
-                bins_a,
-                bins_b,
+                cells_a,
+                cells_b,
                 lo_a,
                 hi_a,
                 lo_b,
@@ -847,18 +868,19 @@ def _forward(
         else:
             if window:
                 next_p = _ensure_c(i, next_p, i0, i1, lo, hi, bx, bz, hx, hz, cre, cim)
-            _theta_bins(
-                i, lo[i], hi[i], bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, bins_a
+            _theta_cells(
+                i, lo[i], hi[i], bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, cells_a
             )
-            _bins_to_cells(lo[i], hi[i], m, bins_a)
+            _cost_table(bstep[i], tab_a)
             if _dp_row_codes(
                 prev,
                 cur,
-                bpp[i],
-                bqq[i],
+                bnz[i],
+                bpos[i],
                 bstep[i],
+                tab_a,
                 codes,
-                bins_a,
+                cells_a,
                 lo[i],
                 hi[i],
                 bp[start[i] : start[i + 1]],

@@ -13,8 +13,8 @@
 * ``--side``: ``auto`` (default) splices both hands, aligned jointly, when both takes
   have both, else the side they share; ``both``/``right``/``left`` insist.
 * ``--band``, ``--refine-band``: a fraction of the body take (``0.3``) or seconds
-  (``10s``); default the paper's 0.3 and 0.1, at most 10 s and 2 s on long takes
-  (ranges and defaults: :mod:`engine.dtw.constraints`).
+  (``10s``); default the paper's 0.3 and 0.1, or a time width when narrower on long
+  takes (``--help`` says which; ranges and defaults: :mod:`engine.dtw.constraints`).
 * ``--match B:H[:T]``: body frame ``B`` matches frame ``H`` of the hand take (as
   numbered in the hand file, 0-based) within ``T`` hand frames (default 0). Repeat
   for several points; body frames increase, hand frames never decrease.
@@ -44,6 +44,29 @@ import time
 from engine.cli import output_file
 
 
+class _WidthAction(argparse.Action):
+    """Stores a band width's text; its help ends with the default as
+    ``engine.dtw.constraints`` applies it (``WidthRule.default_text`` of ``rule``), read
+    only when the help is shown (the engine's import loads numba: not on every start)."""
+
+    def __init__(self, *args, rule: str, **kwargs):
+        self.rule = rule
+        super().__init__(*args, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        setattr(namespace, self.dest, values)
+
+    @property
+    def help(self) -> str:
+        from engine.dtw import constraints
+
+        return f"{self._help}; {getattr(constraints, self.rule).default_text}"
+
+    @help.setter
+    def help(self, text: str) -> None:
+        self._help = text
+
+
 def add_parser(subparsers) -> None:
     p = subparsers.add_parser(
         "splice",
@@ -70,14 +93,17 @@ def add_parser(subparsers) -> None:
         "--band",
         default=None,
         metavar="W1",
-        help="pass-1 band width: fraction of the body take (0.3) or seconds (10s); "
-        "default 0.3, at most 10s on long takes",
+        action=_WidthAction,
+        rule="BAND",
+        help="pass-1 band width: fraction of the body take (0.3) or seconds (10s)",
     )
     p.add_argument(
         "--refine-band",
         default=None,
         metavar="W2",
-        help="pass-2 band width around the pass-1 path, the same forms; default 0.1, at most 2s",
+        action=_WidthAction,
+        rule="REFINE_BAND",
+        help="pass-2 band width around the pass-1 path, the same forms",
     )
     p.add_argument(
         "--match",
@@ -181,6 +207,23 @@ def _took(wall_s: float, splice_s: float) -> str:
     )
 
 
+def _point_source(exc, args) -> Exception:
+    """A matching point's refusal (engine.dtw.constraints' text) with where the point came
+    from: ``--match 80:20: matching point 2 (body 80, hand 20): ...`` or the session file's
+    name; any other refusal as it is."""
+    from pathlib import Path
+
+    from engine.base.errors import ParameterError
+
+    if exc.index is None:
+        return exc
+    if args.match and exc.index < len(args.match):
+        return ParameterError(f"--match {str(args.match[exc.index])[:40]}: {exc}")
+    if getattr(args, "session", None):
+        return ParameterError(f"{Path(args.session).name}: {exc}")
+    return exc
+
+
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
@@ -212,7 +255,10 @@ def run(args: argparse.Namespace) -> int:
         suffix = Path(args.preview).suffix.lower()
         if suffix not in (".gif", ".mp4", ".png"):
             raise ParameterError(f"--preview {args.preview}: expected a .gif, .mp4 or .png file")
-    points = [p.resolved(0.0) for p in C.parse_points(list(args.match))]
+    try:
+        points = [p.resolved(0.0) for p in C.parse_points(list(args.match))]
+    except C.ConstraintError as exc:
+        raise _point_source(exc, args) from None
     # --match points are hand-file frames; so are a session file's since version 2 (version
     # 1 files hold alignment-grid frames)
     hand_points = bool(points) or spec is None or spec.hand_frames == "file"
@@ -234,13 +280,16 @@ def run(args: argparse.Namespace) -> int:
     elif spec is not None and spec.roles:
         body_roles, hand_roles = split_roles(spec.roles, body, hand)
     if hand_points:  # in the files' own frames, before the long work
-        C.check_points(
-            points,
-            body.n_frames,
-            hand.n_frames,
-            open_ends=C.parse_ends(args.ends) == "open",
-            grid_scale=body.fps / hand.fps,
-        )
+        try:
+            C.check_points(
+                points,
+                body.n_frames,
+                hand.n_frames,
+                open_ends=C.parse_ends(args.ends) == "open",
+                grid_scale=body.fps / hand.fps,
+            )
+        except C.ConstraintError as exc:
+            raise _point_source(exc, args) from None
 
     from engine.splice.report import build_report, dumps
 

@@ -3,10 +3,13 @@ tolerances and ends, with their defaults, ranges, parsing and error text.
 
 Every front (``handsplice splice`` flags, the batch manifest, the session file and
 the app's link, the app's ``Session`` and its backend) calls this module and shows
-its message; nothing else re-validates. A refusal is a :class:`ConstraintError`
-(a ``ParameterError``) whose text is ``FIELD: what was expected, got VALUE``; a
-front may put its source in front (``demo.json: band: ...``, ``manifest.csv line 3:
-band: ...``).
+its message; nothing else re-validates or words a refusal. A refusal is a
+:class:`ConstraintError` (a ``ParameterError``) whose text is ``LABEL: what is wrong,
+what was expected``; ``LABEL`` is the field (``band: expected ..., got 5``) or, for a
+matching point, the point as a user counts and reads it: ``matching point 2 (body 80,
+hand 20): hand frame 20 is before matching point 1's hand frame 30; ...`` (1-based, in
+the order the user gave the points; :func:`point_label`). A front puts only its source in front
+(``demo.json: ...``, ``manifest.csv line 3, column match: ...``, ``--match 80:20: ...``).
 
 Band widths (docs/method.md §4, Majkowska et al. eqs. 4-5)
     A width is a :class:`Width`: a fraction of the body take (the paper's ``W = w·n``
@@ -73,82 +76,67 @@ DRIFT_NOTE = (
 
 class ConstraintError(ParameterError):
     """A constraint a user can break is out of range, as structured fields: ``field``
-    names it (``points[2].tolerance``), ``value`` is what was given, ``expected`` what was
-    expected (None where the refusal is a conflict between points rather than a range);
-    ``detail`` is the sentence after the field and ``str(err)`` is ``"field: detail"`` (or
-    ``text``, check_points' ``points[k] = (x=.., y=.., tol=..) ...`` form).
+    names it for code (``band``, ``points[2].tolerance``: 0-based), ``value`` is what was
+    given, ``expected`` what was expected (None where the refusal is a conflict between
+    points rather than a range); ``detail`` is the sentence after the label and
+    ``str(err)`` is ``"label: detail"``, the one text every front shows.
 
-    A refusal of one matching point also keeps its parts apart, so that a front can write
-    the points its own way (:meth:`text_with`, the page's ``(body 60, hand 10)``):
-    ``point`` is the refused point ``(body, hand)``, ``reason`` what is wrong with it, with
-    ``{0}``, ``{1}`` ... where the points it conflicts with (``others``) are named."""
+    ``label`` is what a user reads: the field, or for a matching point
+    ``matching point K (body B, hand H)`` (:func:`point_label`: K 1-based, in the order
+    the points were given). A refusal of one matching point also keeps its parts:
+    ``index`` (0-based) of the refused point, ``point`` its ``(body, hand)`` when placed
+    (whole frames), ``others`` the points it conflicts with."""
 
     def __init__(
         self,
         field: str,
         detail: str,
-        text: str | None = None,
         *,
+        label: str | None = None,
         value=None,
         expected: str | None = None,
+        index: int | None = None,
         point: tuple[int, int] | None = None,
-        reason: str | None = None,
         others: tuple = (),
     ):
         self.field = field
+        self.label = field if label is None else label
         self.detail = detail
         self.value = value
         self.expected = expected
+        self.index = index
         self.point = point
-        self.reason = reason
         self.others = tuple(others)
-        self._own_text = text is not None
-        super().__init__(text or (f"{field}: {detail}" if field else detail))
-
-    def reason_with(self, show_point) -> str | None:
-        """``reason`` with the conflicting points written by ``show_point(body, hand,
-        tolerance)``; None when the refusal is not about one point."""
-        if self.point is None or self.reason is None:
-            return None
-        if not self.others:
-            return self.reason
-        return self.reason.format(*(show_point(*_triple(p)) for p in self.others))
-
-    def text_with(self, show_point) -> str:
-        """``str(self)`` with the matching points written by ``show_point(body, hand,
-        tolerance)`` (the message every front shows, in a front's own point form); a
-        message given as ``text`` stays as it is."""
-        reason = self.reason_with(show_point)
-        if reason is None or self._own_text:
-            return str(self)
-        body, hand = self.point
-        tol = self.value.tolerance if isinstance(self.value, MatchPoint) else None
-        return f"{self.field}: {show_point(body, hand, tol)} {reason}"
+        super().__init__(f"{self.label}: {detail}" if self.label else detail)
 
 
-def _triple(point) -> tuple[int, int, float | None]:
-    if isinstance(point, MatchPoint):
-        return point.body, point.hand, point.tolerance
-    return tuple(point) + (None,) * (3 - len(point))
+_NUMBER_TEXT = re.compile(r"[+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?")
 
 
-def _engine_point(body: int, hand: int, tolerance: float | None = None) -> str:
-    """A point in the engine's text form, ``B:H`` or ``B:H:T`` (``MatchPoint.text``)."""
-    return MatchPoint(body, hand, tolerance).text()
+def _frame_shown(value) -> str | None:
+    """A frame as given, for a point's label (``40``, ``12.5``); None if not a number."""
+    if isinstance(value, bool) or value is None:
+        return None
+    if isinstance(value, str):
+        text = value.strip()
+        return text if _NUMBER_TEXT.fullmatch(text) and len(text) <= 20 else None
+    if isinstance(value, int | np.integer):
+        return str(int(value))
+    if isinstance(value, float | np.floating):
+        return f"{float(value):g}"
+    return None
 
 
-def _point_refusal(field: str, point: MatchPoint, reason: str, *others) -> ConstraintError:
-    """``field: B:H REASON`` with the points kept apart (``reason`` names ``others`` as
-    ``{0}``, ``{1}`` ...)."""
-    detail = f"{point.text()} " + reason.format(*(o.text() for o in others))
-    return ConstraintError(
-        field,
-        detail,
-        value=point,
-        point=(point.body, point.hand),
-        reason=reason,
-        others=others,
-    )
+def point_label(index: int, body=None, hand=None) -> str:
+    """``matching point K (body B, hand H)``: how every front names the matching point
+    at 0-based ``index`` (K = index + 1, in the order the user gave the points); a frame
+    that is missing or not a number is left out (``matching point 1 (hand 30)``)."""
+    parts = [
+        f"{which} {shown}"
+        for which, shown in (("body", _frame_shown(body)), ("hand", _frame_shown(hand)))
+        if shown is not None
+    ]
+    return f"matching point {index + 1}" + (f" ({', '.join(parts)})" if parts else "")
 
 
 def _show(value) -> str:
@@ -164,29 +152,31 @@ def _show(value) -> str:
     return text if len(text) <= 40 else text[:37] + "..."
 
 
-def _number(value, field: str, expected: str) -> float:
-    """A finite float from a number or numeric text; ConstraintError otherwise."""
-    if isinstance(value, bool) or value is None:
-        raise ConstraintError(
-            field, f"expected {expected}, got {_show(value)}", value=value, expected=expected
+def _number(value, field: str, expected: str, **where) -> float:
+    """A finite float from a number or numeric text; ConstraintError otherwise (``where``:
+    the refusal's ``label`` and ``index``, for a matching point's)."""
+
+    def refused() -> ConstraintError:
+        return ConstraintError(
+            field,
+            f"expected {expected}, got {_show(value)}",
+            value=value,
+            expected=expected,
+            **where,
         )
+
+    if isinstance(value, bool) or value is None:
+        raise refused()
     if isinstance(value, str):
-        text = value.strip()
-        if not re.fullmatch(r"[+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?", text):
-            raise ConstraintError(
-                field, f"expected {expected}, got {_show(value)}", value=value, expected=expected
-            )
-        value = text
+        if not _NUMBER_TEXT.fullmatch(value.strip()):
+            raise refused()
+        value = value.strip()
     try:
         x = float(value)
     except (TypeError, ValueError, OverflowError):
-        raise ConstraintError(
-            field, f"expected {expected}, got {_show(value)}", value=value, expected=expected
-        ) from None
+        raise refused() from None
     if not math.isfinite(x):
-        raise ConstraintError(
-            field, f"expected {expected}, got {_show(value)}", value=value, expected=expected
-        )
+        raise refused()
     return x
 
 
@@ -260,6 +250,26 @@ class WidthRule:
             f"a fraction of the body take from {self.lo:g} to {self.hi:g} or seconds "
             f"like 10s (from {self.lo_s:g} to {self.hi_s:g} s)"
         )
+
+    @property
+    def crossover_s(self) -> float:
+        """Seconds of body take from which the time width is the narrower (the default)."""
+        ratio = self.default_s / self.default
+        return ratio * ratio if self.grows else ratio
+
+    @property
+    def default_text(self) -> str:
+        """The default in words, as :meth:`default_for` applies it (help texts say this)."""
+        time = f"{self.default_s:g} s x sqrt(T / 1 s)" if self.grows else f"{self.default_s:g} s"
+        text = (
+            f"default {self.default:g} of the body take, or {time} when narrower "
+            f"(takes from {self.crossover_s:g} s on"
+        )
+        if self.grows:
+            text += "; T: the body take in seconds"
+        if self.max_cells is not None:
+            text += f"; capped so the band keeps within {self.max_cells:,} cells"
+        return text + ")"
 
     def parse(self, value) -> Width | None:
         """A :class:`Width` from a number (fraction), text (``"0.3"``, ``"10s"``) or a Width;
@@ -399,12 +409,15 @@ class Range:
     def expected(self) -> str:
         return f"a number of {self.unit} from {self.lo:g} to {self.hi:g}"
 
-    def parse(self, value, field: str | None = None) -> float:
+    def parse(self, value, field: str | None = None, expected: str | None = None, **where):
+        """``value`` as a float in range; ConstraintError naming ``field`` (``where``: the
+        refusal's ``label`` and ``index``) otherwise."""
         field = field or self.name
-        x = _number(value, field, self.expected)
+        expected = expected or self.expected
+        x = _number(value, field, expected, **where)
         if not self.lo <= x <= self.hi:
             raise ConstraintError(
-                field, f"expected {self.expected}, got {x:g}", value=x, expected=self.expected
+                field, f"expected {expected}, got {x:g}", value=x, expected=expected, **where
             )
         return x
 
@@ -511,61 +524,96 @@ class MatchPoint:
 
 
 _POINT_EXPECTED = "BODY:HAND or BODY:HAND:TOL (frames >= 0, tolerance in frames)"
+_WHOLE_FRAME = "a whole {}frame number >= 0"
 
 
-def parse_frame(value, field: str = "frame") -> int:
-    """A frame number (0-based) from a whole number or its text (``"125"``, ``125.0``);
-    a fraction (``12.5``: a slip while typing 125) is refused, never truncated or rounded.
-    Every front reads a matching point's frames through here (the app's table too)."""
-    x = _number(value, field, "a whole frame number >= 0")
+def _frame(value, field: str, expected: str, **where) -> int:
+    """A frame number (0-based) from a whole number or its text (``"125"``, ``125.0``); a
+    fraction (``12.5``: a slip while typing 125) is refused, never truncated or rounded."""
+    x = _number(value, field, expected, **where)
     if x != round(x) or not 0 <= x < _FRAME_LIMIT:
         raise ConstraintError(
-            field,
-            f"expected a whole frame number >= 0, got {x:g}",
-            value=value,
-            expected="a whole frame number >= 0",
+            field, f"expected {expected}, got {x:g}", value=value, expected=expected, **where
         )
     return int(x)
 
 
-_frame = parse_frame
+def parse_point_frame(value, index: int, which: str, body=None, hand=None) -> int:
+    """The ``which`` (``"body"`` or ``"hand"``) frame of the matching point at 0-based
+    ``index`` (:func:`_frame`: 12.5 is refused, never truncated); the refusal names the point
+    (``matching point 3 (body 40, hand 12.5): expected a whole hand frame number >= 0, got
+    12.5``; ``body``/``hand``: the point's frames as given, for its label). Every front
+    reads a matching point's frames through here (the app's table too)."""
+    return _frame(
+        value,
+        f"points[{index}].{which}",
+        _WHOLE_FRAME.format(f"{which} "),
+        label=point_label(index, body, hand),
+        index=index,
+    )
 
 
-def parse_point(value, field: str = "points[0]") -> MatchPoint:
-    """One matching point from ``"B:H[:T]"``, ``(B, H[, T])``, ``{"body", "hand",
-    "tolerance"}`` or a MatchPoint."""
+def parse_point_tolerance(value, index: int, body=None, hand=None) -> float:
+    """The tolerance of the matching point at 0-based ``index`` (hand frames, the range of
+    :data:`TOLERANCE`); the refusal names the point."""
+    expected = f"a tolerance from {TOLERANCE.lo:g} to {TOLERANCE.hi:g} {TOLERANCE.unit}"
+    return TOLERANCE.parse(
+        value,
+        f"points[{index}].tolerance",
+        expected=expected,
+        label=point_label(index, body, hand),
+        index=index,
+    )
+
+
+def parse_point(value, index: int = 0, field: str = "points") -> MatchPoint:
+    """One matching point (0-based ``index`` in the user's list, for its refusal) from
+    ``"B:H[:T]"``, ``(B, H[, T])``, ``{"body", "hand", "tolerance"}`` or a MatchPoint."""
+    name = f"{field}[{index}]"
     if isinstance(value, MatchPoint):
         value = (value.body, value.hand, value.tolerance)
     if isinstance(value, str):
         parts = value.strip().split(":")
         if len(parts) not in (2, 3):
-            raise _bad_form(field, value)
+            raise _bad_form(name, index, value)
         value = parts
     if isinstance(value, dict):
+        label = point_label(index, value.get("body"), value.get("hand"))
         unknown = set(value) - {"body", "hand", "tolerance"}
         if unknown:
             raise ConstraintError(
-                f"{field}.{sorted(unknown)[0]}", "unknown field (known: body, hand, tolerance)"
+                f"{name}.{sorted(unknown)[0]}",
+                f"unknown field {_show(sorted(unknown)[0])} (known: body, hand, tolerance)",
+                label=label,
+                index=index,
             )
         for key in ("body", "hand"):
             if key not in value:
-                raise ConstraintError(f"{field}.{key}", "missing", expected="a frame number")
+                raise ConstraintError(
+                    f"{name}.{key}",
+                    f"expected a {key} frame, none was given",
+                    label=label,
+                    expected=f"a {key} frame",
+                    index=index,
+                )
         value = (value["body"], value["hand"], value.get("tolerance"))
     if not isinstance(value, list | tuple | np.ndarray) or len(value) not in (2, 3):
-        raise _bad_form(field, value)
-    body = _frame(value[0], f"{field}.body")
-    hand = _frame(value[1], f"{field}.hand")
+        raise _bad_form(name, index, value)
+    body = parse_point_frame(value[0], index, "body", value[0], value[1])
+    hand = parse_point_frame(value[1], index, "hand", value[0], value[1])
     tol = value[2] if len(value) == 3 else None
-    tol = None if tol is None else parse_tolerance(tol, f"{field}.tolerance")
+    tol = None if tol is None else parse_point_tolerance(tol, index, body, hand)
     return MatchPoint(body, hand, tol)
 
 
-def _bad_form(field: str, value) -> ConstraintError:
+def _bad_form(field: str, index: int, value) -> ConstraintError:
     return ConstraintError(
         field,
         f"expected {_POINT_EXPECTED}, got {_show(value)}",
+        label=point_label(index),
         value=value,
         expected=_POINT_EXPECTED,
+        index=index,
     )
 
 
@@ -594,28 +642,62 @@ def parse_points(items, field: str = "points") -> tuple[MatchPoint, ...]:
             value=items,
             expected=f"at most {MAX_POINTS} points",
         )
-    points = tuple(parse_point(p, f"{field}[{k}]") for k, p in enumerate(items))
+    points = tuple(parse_point(p, k, field) for k, p in enumerate(items))
     for k in range(1, len(points)):
         a, b = points[k - 1], points[k]
-        if b.body <= a.body:
-            raise _point_refusal(
-                f"{field}[{k}]", b, "is out of order: body frames must increase (after {0})", a
-            )
-        if b.hand < a.hand:
-            raise _point_refusal(
-                f"{field}[{k}]",
-                b,
-                f"crosses {{0}}: the hand frame goes back from {a.hand} to {b.hand} while the "
-                "body frame advances, and a path cannot go back in time",
-                a,
-            )
+        reason = _order_reason(k, b.body, b.hand, a.body, a.hand)
+        if reason is not None:
+            raise _point_refusal(k, (b.body, b.hand), reason, b, others=(a,), field=field)
     return points
+
+
+def _order_reason(k: int, x, y, px, py) -> str | None:
+    """Why point ``k`` at ``(x, y)`` cannot follow point ``k - 1`` at ``(px, py)`` (the
+    order rules every front shares), or None."""
+    before = point_label(k - 1)
+    if x == px and y == py:
+        return f"the same frames as {point_label(k - 1, px, py)}; give each point once"
+    if x == px:
+        return (
+            f"on the same body frame as {point_label(k - 1, px, py)}; expected one point per "
+            "body frame (a larger tolerance covers a range of hand frames)"
+        )
+    if x < px:
+        return (
+            f"body frame {x:g} is not after {before}'s body frame {px:g}; body frames must "
+            "increase from one point to the next"
+        )
+    if y < py:
+        return (
+            f"hand frame {y:g} is before {before}'s hand frame {py:g}; a path cannot go back "
+            "in time, so hand frames must not decrease while body frames increase"
+        )
+    return None
+
+
+def _point_refusal(
+    k: int, at: tuple, detail: str, value, others: tuple = (), field: str = "points"
+) -> ConstraintError:
+    """The refusal of the matching point ``k`` (0-based) placed at ``at = (body, hand)``:
+    ``matching point K (body B, hand H): DETAIL``."""
+    x, y = at[0], at[1]
+    placed = all(math.isfinite(float(v)) and float(v) == int(v) and v >= 0 for v in (x, y))
+    return ConstraintError(
+        f"{field}[{k}]",
+        detail,
+        label=point_label(k, x, y),
+        value=value,
+        index=k,
+        point=(int(x), int(y)) if placed else None,
+        others=others if placed else (),
+    )
 
 
 def sort_points(points: Iterable) -> tuple[MatchPoint, ...]:
     """Points (any form :func:`parse_point` reads) in body-frame order, for a front where a
-    person places them anywhere (the app's matrix); then :func:`parse_points`."""
-    parsed = [parse_point(p, f"points[{k}]") for k, p in enumerate(points)]
+    person places them anywhere (the app's matrix); then :func:`parse_points` (a refusal
+    counts the points in that order, as the app's table lists them)."""
+    parsed = [parse_point(p, k) for k, p in enumerate(points)]
     parsed.sort(key=lambda p: (p.body, p.hand))
     return parse_points(parsed)
 
@@ -631,37 +713,6 @@ def point_triples(points) -> list[tuple[int, int, float]]:
     ]
 
 
-def _point_text(k: int, x, y, tol, takes: bool = False) -> str:
-    """``points[k] = (x=.., y=.., tol=..)`` on a matrix; in the takes' own frames (the
-    fronts) ``points[k] = (body frame .., hand frame .., tolerance ..)``."""
-    if takes:
-        return f"points[{k}] = (body frame {x:g}, hand frame {y:g}, tolerance {tol:g})"
-    return f"points[{k}] = (x={x:g}, y={y:g}, tol={tol:g})"
-
-
-def _bad_point(
-    k: int, value: tuple, where: str, detail: str, before: tuple | None = None, takes=False
-) -> ConstraintError:
-    """``points[k] = (x=.., y=.., tol=..) DETAIL`` (field ``points[k]``, ``value`` the point's
-    ``(x, y, tol)``). A refusal of the point as placed (``where`` without a colon: outside the
-    matrix, out of order, too far from its neighbour) keeps the point and the reason apart;
-    ``before`` (the previous point's ``(x, y, tol)``) is the point it conflicts with, named
-    ``{0}`` in ``detail`` so that a front can write it its own way."""
-    x, y, _ = value
-    placed = not where.endswith(":") and x >= 0 and y >= 0 and x == int(x) and y == int(y)
-    others = () if before is None else (before,)
-    shown = detail.format(_point_text(k - 1, *before, takes)) if before else detail
-    return ConstraintError(
-        f"points[{k}]",
-        f"{where[len(f'points[{k}] = ') :]} {shown}",
-        text=f"{where} {shown}",
-        value=value,
-        point=(int(x), int(y)) if placed else None,
-        reason=(detail if before else shown) if placed else None,
-        others=others if placed else (),
-    )
-
-
 def check_points(
     points,
     n: int,
@@ -673,14 +724,15 @@ def check_points(
     """Validated ``(xs, ys, tols)`` int64 arrays of matching points in an ``n x m`` matrix.
 
     ``points``: ``(x, y)`` or ``(x, y, tol)`` per point (a MatchPoint gives
-    ``resolved()``). Besides :func:`parse_points`' order rules: every point inside the
-    matrix, and no pair of points (or a point and a corner) that no path can join
-    (``order=False`` checks single points only). Tolerances are whole frames (rounded
-    down, with ``EPS`` slack).
+    ``resolved()``); ``x`` is a body frame, ``y`` a hand frame. Besides
+    :func:`parse_points`' order rules: every point inside the matrix, and no pair of
+    points (or a point and a corner) that no path can join (``order=False`` checks single
+    points only). Tolerances are whole frames (rounded down, with ``EPS`` slack). A
+    refusal names the point as every front does (:func:`point_label`).
 
     ``grid_scale``: alignment-grid columns per hand frame (body fps / hand fps) when the
-    points are in the files' own frames (the fronts; the text then names body and hand
-    frames, not the matrix's ``x``/``y``). Whether two points on
+    points are in the files' own frames (the fronts; the text then speaks of the takes,
+    not of the matrix). Whether two points on
     consecutive body frames can be joined is then decided where the path runs, on the
     grid (:func:`points_to_grid`'s rounding), and said in the user's frames: a 120 fps
     hand may move 4 frames per 30 fps body frame, a 30 fps hand not even one per 120 fps
@@ -695,111 +747,73 @@ def check_points(
         try:
             vals = [float(v) for v in p]
         except (TypeError, ValueError):
-            raise ConstraintError(
-                f"points[{k}]",
-                f"expected (x, y) or (x, y, tol), got {p!r}",
-                text=f"points[{k}] = {p!r}: expected (x, y) or (x, y, tol)",
-                value=p,
-                expected="(x, y) or (x, y, tol)",
-            ) from None
+            vals = []
         if len(vals) not in (2, 3):
             raise ConstraintError(
                 f"points[{k}]",
-                f"expected (x, y) or (x, y, tol), got {p!r}",
-                text=f"points[{k}] = {p!r}: expected (x, y) or (x, y, tol)",
+                f"expected (body, hand) or (body, hand, tolerance), got {repr(p)[:40]}",
+                label=point_label(k),
                 value=p,
-                expected="(x, y) or (x, y, tol)",
+                expected="(body, hand) or (body, hand, tolerance)",
+                index=k,
             )
         x, y = vals[0], vals[1]
         tol = vals[2] if len(vals) == 3 else 0.0
-        where = _point_text(k, x, y, tol, takes)
-        if not all(math.isfinite(v) for v in (x, y, tol)):
-            raise _bad_point(k, (x, y, tol), where + ":", "values must be finite")
-        if x != round(x) or y != round(y):
-            raise _bad_point(
-                k, (x, y, tol), where + ":", "body and hand frames must be whole numbers"
-            )
-        if tol < 0:
-            raise _bad_point(k, (x, y, tol), where + ":", "tolerance must be >= 0 frames")
-        if not (0 <= x <= n - 1 and 0 <= y <= m - 1):
-            raise _bad_point(
+        value = (x, y, tol)
+        if not all(math.isfinite(v) for v in value):
+            raise _point_refusal(
                 k,
-                (x, y, tol),
-                where,
-                (
-                    f"is outside the takes (body frames 0..{n - 1}, hand frames 0..{m - 1})"
-                    if takes
-                    else f"is outside the {n} x {m} matrix (x in 0..{n - 1}, y in 0..{m - 1})"
-                ),
+                (x, y),
+                f"expected finite frames and tolerance, got tolerance {tol:g}"
+                if math.isfinite(x) and math.isfinite(y)
+                else "expected finite frames",
+                value,
+            )
+        if x != round(x) or y != round(y):
+            raise _point_refusal(k, (x, y), "expected whole body and hand frame numbers", value)
+        if tol < 0:
+            raise _point_refusal(
+                k, (x, y), f"expected a tolerance of at least 0 frames, got {tol:g}", value
+            )
+        if not (0 <= x <= n - 1 and 0 <= y <= m - 1):
+            where = "the takes" if takes else f"the {n} x {m} matrix"
+            raise _point_refusal(
+                k,
+                (x, y),
+                f"outside {where}; expected body frames 0 to {n - 1} and hand frames 0 to {m - 1}",
+                value,
             )
         t = math.floor(tol + EPS)
         if xs and order:
             px, py, pt = xs[-1], ys[-1], raw_tols[-1]
             before = (px, py, pt)
-            if x == px and y == py:
-                raise _bad_point(k, (x, y, tol), where, "duplicates {0}", before, takes)
-            if x == px:
-                raise _bad_point(
-                    k,
-                    (x, y, tol),
-                    where,
-                    "is on the same body frame as {0}; give one "
-                    "point per body frame (a larger tolerance covers "
-                    "a range of hand frames)",
-                    before,
-                    takes,
-                )
-            if x < px:
-                raise _bad_point(
-                    k,
-                    (x, y, tol),
-                    where,
-                    "is out of order: body frames must increase (after {0})",
-                    before,
-                    takes,
-                )
-            if y < py:
-                raise _bad_point(
-                    k,
-                    (x, y, tol),
-                    where,
-                    "crosses {0}: the hand frame goes back from "
-                    f"{py:g} to {y:g} while the body frame advances, "
-                    "and a path cannot go back in time",
-                    before,
-                    takes,
-                )
-            if x == px + 1 and _grid_gap(y, tol, py, pt, scale) > 1:
+            other = point_label(k - 1, px, py)
+            reason = _order_reason(k, x, y, px, py)
+            if reason is None and x == px + 1 and _grid_gap(y, tol, py, pt, scale) > 1:
                 step = "one step" if scale == 1.0 else "one body frame's worth"
-                raise _bad_point(
-                    k,
-                    (x, y, tol),
-                    where,
-                    "and {0} are on consecutive body frames, but "
-                    f"their hand frames {py:g} and {y:g} are more than "
-                    f"{step} apart after tolerances; increase a "
-                    "tolerance or move a point",
-                    before,
-                    takes,
+                reason = (
+                    f"on the body frame after {other}, but their hand frames {py:g} and "
+                    f"{y:g} are more than {step} apart after tolerances ({pt:g} and "
+                    f"{tol:g}); increase a tolerance or move a point"
                 )
+            if reason is not None:
+                raise _point_refusal(k, (x, y), reason, value, others=(before,))
         if order and not open_ends and x == 0 and y - t > 0:
-            raise _bad_point(
+            raise _point_refusal(
                 k,
-                (x, y, tol),
-                where + ":",
-                f"every path starts at (0, 0), so on body frame 0 "
-                f"it covers hand frame 0; the tolerance must be "
-                f"at least {y:g}",
+                (x, y),
+                f"with fixed ends every path starts at (0, 0), so on body frame 0 it "
+                f"covers hand frame 0; expected a tolerance of at least {y:g}",
+                value,
             )
         if order and not open_ends and x == n - 1 and y + t < m - 1:
-            raise _bad_point(
+            raise _point_refusal(
                 k,
-                (x, y, tol),
-                where + ":",
-                f"every path ends at ({n - 1}, {m - 1}), so on "
-                f"body frame {n - 1} it covers hand frame "
-                f"{m - 1}; the tolerance must be at least "
+                (x, y),
+                f"with fixed ends every path ends at ({n - 1}, {m - 1}), so on body frame "
+                f"{n - 1} it covers hand frame {m - 1}; expected a tolerance of at least "
                 f"{m - 1 - y:g}",
+                value,
             )
         xs.append(int(x))
         ys.append(int(y))

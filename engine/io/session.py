@@ -5,7 +5,7 @@ session tuned in the app can be replayed with ``handsplice splice``. The loader
 accepts any text and either returns a valid :class:`SessionSpec` or raises
 :class:`SessionError` naming the field and what was expected, e.g.::
 
-    demo.json: points[2].tolerance: expected a number >= 0, got -1
+    demo.json: matching point 3 (body 80, hand 40): expected a tolerance from 0 to 500 frames, got -1
 
 Schema (version 2)::
 
@@ -76,7 +76,9 @@ _HEX64 = re.compile(r"^[0-9a-f]{64}$")
 class SessionError(ParameterError):
     """A session file or dict is malformed; the message names the field. ``constraint`` is
     the :class:`~engine.dtw.constraints.ConstraintError` behind it, if any (its structured
-    fields: value, expected, the refused point)."""
+    fields: value, expected, the refused point); the message then names what it refuses in
+    its words (``demo.json: matching point 2 (body 80, hand 20): ...``), ``field`` stays
+    the field's name for code (``points[1]``)."""
 
     def __init__(
         self,
@@ -90,7 +92,8 @@ class SessionError(ParameterError):
         self.detail = message
         self.constraint = constraint
         where = f"{source}: " if source else ""
-        super().__init__(f"{where}{field_name}: {message}" if field_name else f"{where}{message}")
+        label = field_name if constraint is None else constraint.label
+        super().__init__(f"{where}{label}: {message}" if label else f"{where}{message}")
 
 
 @dataclass(frozen=True)

@@ -65,7 +65,7 @@ from typing import Any
 
 from engine import __version__
 from engine.base.atomic import atomic_path, clean_stale, write_text, write_texts
-from engine.base.errors import HandSpliceError
+from engine.base.errors import HandSpliceError, ParameterError
 from engine.base.limits import MAX_MANIFEST_ROWS, PAIR_MEMORY_MB, PAIR_SECONDS
 from engine.dtw import constraints as C
 
@@ -100,12 +100,14 @@ _NAME_OK = re.compile(r"[^A-Za-z0-9_.+-]+")
 
 
 class ManifestError(HandSpliceError, ValueError):
-    """The manifest CSV is malformed; the message names the file, line and column."""
+    """The manifest CSV is malformed; the message names the file, line and column
+    (``m.csv line 3: band: ...``, or ``m.csv line 3, column match: ...`` with ``column``)."""
 
-    def __init__(self, path: str | Path, line: int | None, message: str):
+    def __init__(self, path: str | Path, line: int | None, message: str, column: str = ""):
         self.path = str(path)
         self.line = line
         where = Path(path).name + (f" line {line}" if line is not None else "")
+        where += f", column {column}" if column else ""
         super().__init__(f"{where}: {message}")
 
 
@@ -253,8 +255,10 @@ def _parse_row(cells: dict[str, str], path: Path, line: int, base: Path) -> Pair
         band = C.BAND.parse(cells.get("band", ""))
         refine = C.REFINE_BAND.parse(cells.get("refine_band", ""))
         match = tuple((p.body, p.hand, p.tolerance) for p in C.parse_points(cells.get("match", "")))
-    except C.ConstraintError as exc:  # the manifest's column is "match" for the points
-        raise fail(re.sub(r"^points", "match", exc.field), exc.detail) from None
+    except C.ConstraintError as exc:
+        if exc.index is not None:  # "m.csv line 3, column match: matching point 2 (...): ..."
+            raise ManifestError(path, line, str(exc), column="match") from None
+        raise fail(exc.label, exc.detail) from None
     band = None if band is None else band.to_json()
     refine = None if refine is None else refine.to_json()
     name = cells.get("name", "")
@@ -493,7 +497,12 @@ def splice_pair(body, hand, job: PairJob):
     if job.refine_band is not None:
         options["refine_band"] = job.refine_band
     points = [(b, h, 0.0 if t is None else t) for b, h, t in job.match]
-    result = pipeline.splice(body, hand, points=points, hand_points=True, **options)
+    try:
+        result = pipeline.splice(body, hand, points=points, hand_points=True, **options)
+    except C.ConstraintError as exc:  # a point that does not fit these takes: its cell named
+        if exc.index is None:
+            raise
+        raise ParameterError(f"line {job.line}, column match: {exc}") from None
     trust = assess_splice(result.features, result.alignment)
     return result.motion, build_report(
         result, job.body, job.hand, points_given=points, assessment=trust

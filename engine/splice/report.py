@@ -157,11 +157,28 @@ def build_report(
     return report
 
 
+#: what a user can do about unmatched ends (every frame matched; a longer limit), by front:
+#: the command line's flags, or the page's words for them (it has no control for either);
+#: ``unmatched_summary(..., front=)`` picks one
+REMEDIES = {
+    "cli": (
+        "--ends fixed matches every frame",
+        "--max-unmatched SECONDS allows longer unmatched ends",
+    ),
+    "page": (
+        "the command line's --ends fixed matches every frame",
+        "the page has no control for this limit; the command line in 4 · Share with "
+        "--max-unmatched SECONDS added allows longer unmatched ends",
+    ),
+}
+
+
 def unmatched_summary(
     ranges,
     fps: float,
     limit: int | None = None,
     limit_given: bool = False,
+    front: str = "cli",
     retimed: bool = False,
 ) -> str:
     """One sentence on the body frames the alignment leaves without hand timing (open ends:
@@ -185,15 +202,14 @@ def unmatched_summary(
     )
     text = (
         f"body frames {spans} ({frames / float(fps):.1f} s) have no hand match: {holds} "
-        "(--ends fixed matches every frame)"
+        f"({REMEDIES[front][0]})"
     )
     capped = limit is not None and limit > 0 and any(b - a + 1 >= limit for a, b in ranges)
     if capped:
         rule = "--max-unmatched" if limit_given else C.UNMATCHED_DEFAULT
         text += (
             f"; {limit} frames ({limit / float(fps):.1f} s) at an end is the open-end limit "
-            f"({rule}), so the takes may overlap less than this: --max-unmatched SECONDS "
-            "allows longer unmatched ends"
+            f"({rule}), so the takes may overlap less than this: {REMEDIES[front][1]}"
         )
     return text
 

@@ -1,27 +1,85 @@
 """Changing Bokeh models safely from session watchers.
 
 A Bokeh server session must hold its document lock while models change. Bokeh's
-own callbacks (``on_change``, ``on_event``, next-tick callbacks) hold it, but Panel
-may run widget callbacks (a button click, say) on the event loop without it, and a
-model change there raises ``RuntimeError: _pending_writes should be non-None``.
-:func:`with_document_lock` runs a change at once when the lock is held (or when
-there is no server session: tests, page creation) and otherwise schedules it as a
-next-tick callback, which Bokeh runs under the lock.
+own callbacks (``on_change``, ``on_event``, next-tick and timeout callbacks) hold it,
+but Panel may run widget callbacks (a button click, say) on the event loop without
+it, a worker thread never holds it, and a model change there raises
+``RuntimeError: _pending_writes should be non-None``.
+
+Bokeh has no public way to ask whether the running code holds a document's lock, so
+the app keeps that knowledge itself: :func:`next_tick` and :func:`after` schedule a
+callback through Bokeh (which runs it under the document's lock) and mark the
+document as held while it runs. :func:`with_document_lock` runs a change at once when
+the running code holds the lock by such a mark (or when there is no server session:
+tests, page creation) and otherwise schedules it with :func:`next_tick`. A context the
+app did not mark (a Panel widget callback, a worker thread) is treated as unlocked:
+the change waits one tick, which is always safe.
+
+The mark is a context variable, so it is the running thread's and task's own (a
+worker thread never sees the event loop's mark), and it ends when its callback
+returns (an asyncio task started inside one inherits a copy of the variable, but
+runs later, when the lock may be another callback's).
 
 The lock that matters is the one of the document the view's models belong to (its
 tab's). ``pn.state.curdoc`` names the document of the callback that is running, which
 can be another tab's: a change scheduled there ran under that tab's lock, not under the
 lock of the document it changed. So the view's own document is looked up first, and a
-scheduled change runs only if that document's session is still there and holds its
-lock (a closed tab's session is discarded: nobody would see the change).
+scheduled change runs only if that document's session is still there (a closed tab's
+session is discarded: nobody would see the change).
 """
 
 from __future__ import annotations
 
+import contextvars
 import functools
+from collections.abc import Callable
 
 import panel as pn
 from bokeh.model import Model
+
+
+class _Hold:
+    """A running callback's claim that Bokeh runs it under ``doc``'s lock; ``active``
+    until the callback returns."""
+
+    __slots__ = ("active", "doc")
+
+    def __init__(self, doc):
+        self.doc, self.active = doc, True
+
+
+# the documents whose lock the running code holds (innermost last)
+_HELD: contextvars.ContextVar[tuple[_Hold, ...]] = contextvars.ContextVar(
+    "handsplice_document_locks", default=()
+)
+
+
+def under_lock(doc, callback: Callable) -> Callable:
+    """``callback``, marked as running under ``doc``'s lock while it runs. Only for a
+    callback that Bokeh runs under that lock: use :func:`next_tick` or :func:`after`."""
+
+    @functools.wraps(callback)
+    def run(*args, **kwargs):
+        hold = _Hold(doc)
+        token = _HELD.set((*_HELD.get(), hold))
+        try:
+            return callback(*args, **kwargs)
+        finally:
+            hold.active = False
+            _HELD.reset(token)
+
+    return run
+
+
+def next_tick(doc, callback: Callable[[], object]) -> None:
+    """Run ``callback`` on ``doc``'s next event-loop tick, under its lock (safe from any
+    thread: Bokeh's ``add_next_tick_callback``)."""
+    doc.add_next_tick_callback(under_lock(doc, callback))
+
+
+def after(doc, callback: Callable[[], object], ms: float) -> None:
+    """Run ``callback`` ``ms`` milliseconds from now, under ``doc``'s lock."""
+    doc.add_timeout_callback(under_lock(doc, callback), ms)
 
 
 def _view_document(view):
@@ -40,19 +98,11 @@ def _session_of(doc):
 
 
 def _lock_held(doc) -> bool:
-    """True when ``doc``'s server session holds its document lock, or has none to hold."""
-    session = _session_of(doc)
-    if session is None:  # no server session, or the page is being built: nothing to lock
+    """True when the running code holds ``doc``'s lock (marked by :func:`under_lock`),
+    or ``doc`` has no server session whose lock it could need."""
+    if _session_of(doc) is None:  # no server session, or the page is being built
         return True
-    # bokeh keeps a list of pending writes exactly while the lock is held
-    return session._pending_writes is not None
-
-
-def _still_served(doc) -> bool:
-    """True while ``doc``'s server session is alive and holds its lock (a next-tick
-    callback's state); False once the tab's session is discarded."""
-    session = _session_of(doc)
-    return session is not None and not session.destroyed and session._pending_writes is not None
+    return any(hold.active and hold.doc is doc for hold in _HELD.get())
 
 
 def with_document_lock(method):
@@ -64,11 +114,12 @@ def with_document_lock(method):
         if doc is None or _lock_held(doc):
             return method(*args, **kwargs)
 
-        def later():
-            if _still_served(doc):
+        def later():  # a next-tick callback: Bokeh skips it once the session is destroyed
+            session = _session_of(doc)
+            if session is not None and not session.destroyed:
                 method(*args, **kwargs)
 
-        doc.add_next_tick_callback(later)
+        next_tick(doc, later)
         return None
 
     return wrapper

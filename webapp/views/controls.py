@@ -36,12 +36,16 @@ def parameter_widgets(session: Session) -> pn.viewable.Viewable:
                 "type": pn.widgets.FloatSlider,
                 "throttled": True,
                 "label": "Pass-1 band width W1 (fraction of body frames)",
+                # no tooltip above the handle: it covered the label while dragging; the
+                # label itself says the value as it moves (Panel's show_value)
+                "tooltips": False,
                 "step": 0.01,
             },
             "refine_band": {
                 "type": pn.widgets.FloatSlider,
                 "throttled": True,
                 "label": "Pass-2 band width W2 around the pass-1 path",
+                "tooltips": False,
                 "step": 0.01,
             },
             "tolerance": {
@@ -49,6 +53,7 @@ def parameter_widgets(session: Session) -> pn.viewable.Viewable:
                 "throttled": True,
                 "end": 60.0,
                 "label": "Global tolerance T (hand frames)",
+                "tooltips": False,
                 "step": 1.0,
             },
         },
@@ -352,7 +357,9 @@ class PointsTable:
             elif column in ("body frame", "hand frame"):
                 p = s.points[k]
                 key = "body" if column == "body frame" else "hand"
-                frame = C.parse_frame(value, f"points[{k}].{key}")
+                frame = C.parse_point_frame(
+                    value, k, key, *((value, p.hand) if key == "body" else (p.body, value))
+                )
                 s.move_point(
                     k,
                     frame if key == "body" else p.body,
@@ -369,7 +376,7 @@ class PointsTable:
     def _on_error(self, *_):
         s = self.session
         if s.error and time.monotonic() - self._edited_at < self.REFUSAL_S:
-            self.refusal.object = safe_text.markdown(s.page_error())
+            self.refusal.object = safe_text.markdown(s.error)
             self.refusal.visible = True
         elif not s.error:
             self.refusal.visible = False
@@ -401,9 +408,11 @@ def status_line(session: Session) -> pn.viewable.Viewable:
 
     def update(*_):
         text = session.status_text()
+        if session.waiting:
+            text = f"{session.waiting} · the views below still show the pair open before: {text}"
         pane.object = f'<span data-revision="{session.revision}">{safe_text.html(text)}</span>'
 
-    session.param.watch(update, ["revision", "compute_ms", "error"])
+    session.param.watch(update, ["revision", "compute_ms", "error", "waiting"])
     update()
     return pane
 
@@ -413,7 +422,7 @@ def error_alert(session: Session) -> pn.viewable.Viewable:
     alert = refusal_box("hs-error", sizing_mode="stretch_width")
 
     def update(*_):
-        alert.object = safe_text.markdown(session.page_error())
+        alert.object = safe_text.markdown(session.error)
         # a refused side is shown under the Side control (webapp.views.inputs)
         alert.visible = bool(session.error) and "side" not in session.refused_inputs
 
@@ -445,9 +454,14 @@ def undo_redo(session: Session) -> pn.viewable.Viewable:
     return pn.Row(undo, redo, clear)
 
 
-#: Ctrl+Z undoes, Ctrl+Shift+Z and Ctrl+Y redo (Cmd on a Mac), anywhere in the page except
-#: while typing in a text field (where the field's own undo applies): they press the
-#: page's Undo and Redo buttons, so keyboard and mouse do the same thing
+#: The page's keyboard handling. Ctrl+Z undoes, Ctrl+Shift+Z and Ctrl+Y redo (Cmd on a
+#: Mac), anywhere in the page except while typing in a text field (where the field's own
+#: undo applies): they press the page's Undo and Redo buttons, so keyboard and mouse do
+#: the same thing. While a new pair opens (the old pair's views veiled, ``.hs-inactive``:
+#: webapp.views.veil, which blocks the mouse) the keyboard is inert there too: no key
+#: reaches a veiled view (a focused slider, table cell or field), and no edit shortcut
+#: (undo, redo, Delete/Backspace on the matrix's points) acts, before the server would
+#: refuse it.
 _JS_UNDO_KEYS = """
 if (window.__hsUndoKeys) return;
 window.__hsUndoKeys = true;
@@ -459,6 +473,21 @@ const find = (sel, root = document) => {
   }
   return null;
 };
+const typing = (t) => t && (t.tagName === 'INPUT' && !['range', 'checkbox', 'radio', 'button']
+  .includes(t.type) || t.tagName === 'TEXTAREA' || t.isContentEditable);
+const opening = () => find('.hs-inactive') !== null;
+const veiled = (ev) => ev.composedPath().some((n) => n.classList && n.classList.contains('hs-inactive'));
+const editKey = (ev) => ((ev.ctrlKey || ev.metaKey) && !ev.altKey
+    && ['z', 'y'].includes(ev.key.toLowerCase()))
+  || (['Delete', 'Backspace'].includes(ev.key) && !typing(ev.composedPath()[0]));
+for (const type of ['keydown', 'keypress', 'keyup']) {  // before any other listener
+  window.addEventListener(type, (ev) => {
+    if ((veiled(ev) || editKey(ev)) && opening()) {
+      ev.stopImmediatePropagation();
+      ev.preventDefault();
+    }
+  }, true);
+}
 document.addEventListener('keydown', (ev) => {
   if (!(ev.ctrlKey || ev.metaKey) || ev.altKey) return;
   const key = ev.key.toLowerCase();
@@ -476,6 +505,7 @@ document.addEventListener('keydown', (ev) => {
 }, true);
 const queue = [];
 const next = (tries) => {
+  if (opening()) queue.length = 0;  // a press queued before a new pair began to open
   if (!queue.length) return;
   const host = find(queue[0]);
   const button = host && (host.shadowRoot ?? host).querySelector('button');

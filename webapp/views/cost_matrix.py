@@ -51,7 +51,7 @@ from bokeh.plotting import figure
 
 from webapp.state import Session
 from webapp.views import decimate
-from webapp.views._dispatch import with_document_lock
+from webapp.views._dispatch import after, next_tick, with_document_lock
 
 PATH_COLOR = "#ff3b30"
 OTHER_PATH_COLOR = "#ffffff"
@@ -62,6 +62,9 @@ POINT_COLOR = "#ffd60a"
 POINT_SIZE = 13
 POINT_HOVER_PX = POINT_SIZE / 2 + 2
 AXIS_SIGNAL_SIZE = 90
+#: pixels right of the matrix's frame, for its colour bar (labels up to 5 digits) and its
+#: toolbar: reserved, so that the frame's width never depends on the colour bar's labels
+MATRIX_RIGHT_BORDER = 105
 
 
 def _phase_quads(labels: np.ndarray | None, colors: dict) -> dict:
@@ -337,6 +340,8 @@ class CostMatrixView:
         )
         fig.css_classes = ["hs-cost-matrix"]
         fig.min_border_left, fig.min_border_top, fig.min_border_bottom = 10, 6, 6
+        fig.min_border_right = MATRIX_RIGHT_BORDER
+        _sized_by_frame(fig)
         fig.xaxis.visible = False  # the signal strips below and left carry the axes
         fig.yaxis.visible = False
         fig.grid.visible = False
@@ -606,6 +611,8 @@ class CostMatrixView:
             f.outline_line_color = None
         body.min_border_left, body.min_border_top, body.min_border_right = 10, 2, 60
         hand.min_border_top, hand.min_border_bottom, hand.min_border_right = 6, 6, 2
+        _sized_by_frame(body)
+        _sized_by_frame(hand)
         return body, hand
 
     def _edit_queue(self, fig) -> None:
@@ -887,7 +894,7 @@ class CostMatrixView:
         if doc is None or doc.session_context is None:
             self._apply_edits()
         else:
-            doc.add_next_tick_callback(self._apply_edits)
+            next_tick(doc, self._apply_edits)
 
     def _apply_edits(self) -> None:
         try:
@@ -914,7 +921,7 @@ class CostMatrixView:
         if doc is None or doc.session_context is None:
             self._flush_range()
         else:
-            doc.add_timeout_callback(self._flush_range, 120)
+            after(doc, self._flush_range, 120)
 
     def _flush_range(self):
         self._range_timer = False
@@ -936,7 +943,8 @@ class CostMatrixView:
     @property
     def panel_width(self) -> int:
         """Pixels of :meth:`panel`'s content: hand strip, matrix with its colour bar and tools."""
-        return self.figure.frame_width + 70 + AXIS_SIGNAL_SIZE
+        fig = self.figure
+        return fig.min_border_left + fig.frame_width + MATRIX_RIGHT_BORDER + AXIS_SIGNAL_SIZE
 
     def panel(self) -> pn.viewable.Viewable:
         size = self.panel_width - AXIS_SIGNAL_SIZE
@@ -962,6 +970,18 @@ class CostMatrixView:
             width=size + AXIS_SIGNAL_SIZE,
             margin=(0, 10),
         )
+
+
+def _sized_by_frame(fig) -> None:
+    """Lay ``fig`` out at its own size: its ``frame_width``/``frame_height`` where set, else
+    its ``width``/``height``. Bokeh's default fits a plot with a frame size to its parent,
+    so the matrix's frame lost what its colour bar took (21 px at 560) and no longer lined
+    up with the strips' frames of the same ``frame_width``: a body frame read off the
+    strip's axis was a few frames off in the matrix."""
+    for side in ("width", "height"):
+        setattr(fig, f"{side}_policy", "fixed")
+        if getattr(fig, f"frame_{side}") is not None:
+            setattr(fig, side, None)
 
 
 def _unmatched_quads(path, n: int, m: int) -> dict:

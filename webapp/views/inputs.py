@@ -218,6 +218,7 @@ class InputsView:
     def _forget_uploads(self):
         """Other takes are open: the uploads' line, message and fields are cleared."""
         self._pending, self._open = {}, {}
+        self.session.waiting = ""
         self.uploaded.object = ""
         self.message.visible = False
         for dropper in self._droppers.values():
@@ -286,6 +287,7 @@ class InputsView:
                     f"{which}: <b>{safe_text.html(kept.name)}</b> "
                     f"({safe_text.html(_describe(kept.summary))}{notes})"
                 )
+        self._show_waiting(opened or failed)
         if not parts:
             self.uploaded.object = ""
             return
@@ -303,6 +305,16 @@ class InputsView:
         self.uploaded.object = (
             "<span class='hs-uploaded'>Uploaded " + ", ".join(parts) + tail + "</span>"
         )
+
+    def _show_waiting(self, done: bool) -> None:
+        """One checked upload and no partner yet: the status line says what it waits for
+        (the views still show the pair open before)."""
+        text = ""
+        if len(self._pending) == 1 and not done and self._pending != self._open:
+            ((which, kept),) = self._pending.items()
+            other = "hand" if which == "body" else "body"
+            text = f"{which} {kept.name} checked: waiting for a {other} take"
+        self.session.waiting = text
 
     async def _open_pair(self):
         """Open the two checked uploads; the features are computed on a worker thread
@@ -413,7 +425,7 @@ class InputsView:
         s = self.session
         if s.error and "side" in s.refused_inputs:
             self._side_refused = True
-            self._show_error(s.page_error())
+            self._show_error(s.error)
         elif self._side_refused:  # that refusal is over (another edit, a new pair)
             self._side_refused = False
             self.message.visible = False

@@ -23,6 +23,7 @@ import panel as pn
 
 from webapp import backend, safe_text
 from webapp.state import Session
+from webapp.views._dispatch import after, next_tick
 
 #: a preview following edits is rendered once edits have paused this long, ms (a render
 #: started between two drags ran beside the next drag's solve)
@@ -103,6 +104,7 @@ class PreviewView:
             value=session.frame,
             css_classes=["hs-frame-slider"],
             width=330,
+            tooltips=False,  # the label says the frame; a tooltip would cover it
         )
         self.play = pn.widgets.Toggle(
             label="▶ Play", value=False, width=90, css_classes=["hs-play"]
@@ -195,7 +197,7 @@ class PreviewView:
             self._follow_edit()
         elif not self._follow_timer:
             self._follow_timer = True
-            doc.add_timeout_callback(self._on_busy, max(ms, 0.0))
+            after(doc, self._on_busy, max(ms, 0.0))
 
     def _on_busy(self, *_):
         """Render the newest solution once no solve runs and edits have paused."""
@@ -277,7 +279,7 @@ class PreviewView:
                 self._scheduled = False
                 self.render()
 
-            doc.add_next_tick_callback(run)
+            next_tick(doc, run)
 
     def _key(self, frame: int | None = None) -> tuple:
         s = self.session
@@ -325,7 +327,7 @@ class PreviewView:
 
         def done(f):
             try:
-                doc.add_next_tick_callback(lambda: self._finish(key, f))
+                next_tick(doc, lambda: self._finish(key, f))
             except Exception:  # the page was closed meanwhile: nothing to show
                 pass
 

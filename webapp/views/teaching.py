@@ -445,18 +445,18 @@ class TeachingView:
         controls = pn.Column(
             pn.widgets.RadioButtonGroup.from_param(mdl.param.metric, label="Local cost"),
             pn.widgets.FloatSlider.from_param(
-                mdl.param.width, label="Band width W (fraction of n)"
+                mdl.param.width, label="Band width W (fraction of n)", tooltips=False
             ),
             pn.widgets.Checkbox.from_param(mdl.param.use_point, label="Matching point"),
             pn.Row(
                 pn.widgets.IntSlider.from_param(
-                    mdl.param.point_body, label="body frame x", width=130
+                    mdl.param.point_body, label="body frame x", width=130, tooltips=False
                 ),
                 pn.widgets.IntSlider.from_param(
-                    mdl.param.point_hand, label="hand frame y", width=130
+                    mdl.param.point_hand, label="hand frame y", width=130, tooltips=False
                 ),
                 pn.widgets.IntSlider.from_param(
-                    mdl.param.point_tol, label="tolerance T", width=110
+                    mdl.param.point_tol, label="tolerance T", width=110, tooltips=False
                 ),
             ),
             pn.Row(*self.buttons.values()),

@@ -33,7 +33,7 @@ import panel as pn
 from bokeh.models import ColumnDataSource, HoverTool
 
 from webapp.state import Session
-from webapp.views._dispatch import with_document_lock
+from webapp.views._dispatch import after, next_tick, with_document_lock
 
 VERDICT_COLORS = {
     "ok": "#2e7d32",
@@ -222,7 +222,7 @@ class TrustView:
         self._due = max(self._due, now + delay_ms / 1000.0)
         if not self._pending and self._wanted():
             self._pending = True
-            doc.add_timeout_callback(self._start, max(self._due - now, 0.0) * 1000.0)
+            after(doc, self._start, max(self._due - now, 0.0) * 1000.0)
 
     def _start(self):
         self._pending = False
@@ -252,7 +252,7 @@ class TrustView:
             except Exception:  # an assessment that fails leaves the page as it is
                 result = None
             try:
-                doc.add_next_tick_callback(lambda: finished(result))
+                next_tick(doc, lambda: finished(result))
             except Exception:  # the page was closed meanwhile
                 pass
 

@@ -1,0 +1,151 @@
+"""The page's own input in real Chromium: a slider being dragged keeps its label readable
+and says the value as it moves (no tooltip over it); while a new pair opens, the keyboard
+is as inert on the old pair's views as the mouse is."""
+
+from __future__ import annotations
+
+import re
+import time
+
+import pytest
+from conftest import MOCAP, busy_line, open_page, pane_text, served_chromium
+
+LONG_BODY = MOCAP / "lafan1" / "multipleActions1_subject1.bvh"
+LONG_HAND = MOCAP / "manipnet" / "mug1_rightHand.bvh"
+
+pytestmark = pytest.mark.browser
+
+
+@pytest.fixture(scope="module")
+def browser_and_url(tmp_path_factory):
+    with served_chromium(tmp_path_factory) as served:
+        yield served
+
+
+def _overlap(a: dict, b: dict) -> bool:
+    return not (
+        a["x"] + a["width"] <= b["x"]
+        or b["x"] + b["width"] <= a["x"]
+        or a["y"] + a["height"] <= b["y"]
+        or b["y"] + b["height"] <= a["y"]
+    )
+
+
+@pytest.mark.parametrize(
+    "label",
+    ["Pass-1 band width W1", "Global tolerance T", "Body frame"],
+)
+def test_a_dragged_slider_keeps_its_label_readable(browser_and_url, tmp_path, label):
+    browser, url = browser_and_url
+    page = open_page(browser, url, width=1440, height=900, timeout_s=180)
+    try:
+        group = page.locator(".bk-input-group").filter(has_text=re.compile(f"^{label}")).first
+        title = group.locator(".bk-slider-title").first
+        handle = group.locator(".noUi-handle").first
+        handle.scroll_into_view_if_needed()
+        before = title.inner_text()
+        box = handle.bounding_box()
+        x, y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+        page.mouse.move(x, y)
+        page.mouse.down()
+        try:
+            page.mouse.move(x + 60, y, steps=6)
+            page.wait_for_timeout(300)
+            # while the handle is held: the label says the new value, and nothing covers it
+            during = title.inner_text()
+            assert during != before and during.startswith(before.split(":")[0]), during
+            shown = title.bounding_box()
+            tips = page.locator(".noUi-tooltip")
+            for k in range(tips.count()):
+                tip = tips.nth(k)
+                if tip.is_visible():
+                    assert not _overlap(tip.bounding_box(), shown), (label, tip.inner_text())
+            group.screenshot(path=str(tmp_path / "dragging.png"))
+        finally:
+            page.mouse.up()
+        assert not page.errors, page.errors
+    finally:
+        page.context.close()
+
+
+def _points(page) -> int:
+    return len(page.evaluate("hs.cols('hs-points-source', ['x'])")["x"])
+
+
+#: records what the page does from now on: presses of its Undo and Redo buttons (however
+#: they are pressed) and every text the tolerance slider's label shows
+_RECORD = """(title) => {
+  window.__hsPresses = 0;
+  window.__hsTitles = [];
+  window.addEventListener('click', (ev) => {
+    if (ev.composedPath().some((n) => n.classList
+        && (n.classList.contains('hs-undo') || n.classList.contains('hs-redo')))) {
+      window.__hsPresses += 1;
+    }
+  }, true);
+  new MutationObserver(() => window.__hsTitles.push(title.innerText))
+    .observe(title, {childList: true, subtree: true, characterData: true});
+}"""
+
+
+def test_keys_are_inert_on_the_old_pair_while_a_new_pair_opens(browser_and_url, tmp_path):
+    """While an upload opens, the old pair's views are veiled: a focused slider takes no
+    arrow key, and Ctrl+Z / Ctrl+Y / Delete press nothing (the server would refuse them,
+    but the page should not send them); once the new pair is shown the keys work again."""
+    browser, url = browser_and_url
+    page = open_page(browser, url, width=1440, height=900, timeout_s=180)
+    try:
+        n = page.evaluate("hs.frames()")
+        path = page.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
+        k = path["x"].index(n // 2)
+        page.mouse.click(*page.evaluate(f"hs.xy({path['x'][k]}, {path['y'][k]})"))
+        page.wait_for_function(
+            "() => hs.cols('hs-points-source', ['x']).x.length === 1", timeout=60_000
+        )
+        group = page.locator(".bk-input-group").filter(has_text=re.compile("^Global tolerance T"))
+        group = group.first
+        title = group.locator(".bk-slider-title").first
+        handle = group.locator(".noUi-handle").first
+        before = title.inner_text()
+        title.evaluate(_RECORD)
+
+        page.locator(".hs-upload-body input[type=file]").set_input_files(str(LONG_BODY))
+        page.locator(".hs-upload-hand input[type=file]").set_input_files(str(LONG_HAND))
+        deadline = time.monotonic() + 300
+        while "opening multipleActions1_subject1.bvh" not in busy_line(page):
+            assert time.monotonic() < deadline, "the upload did not start opening"
+            page.wait_for_timeout(200)
+        assert page.locator(".hs-inactive").count() >= 2
+        handle.focus()
+        for key in ("ArrowRight", "ArrowRight", "PageUp"):
+            page.keyboard.press(key)
+        page.keyboard.press("Control+z")
+        page.keyboard.press("Control+y")
+        page.keyboard.press("Delete")
+        page.wait_for_timeout(2000)
+        still_opening = "opening" in busy_line(page)
+        # the page sent nothing: the slider's label never moved, no button was pressed, and
+        # the server had no edit to refuse ("not taken: ... is opening")
+        titles = page.evaluate("window.__hsTitles")
+        assert all(t == before for t in titles), titles
+        assert page.evaluate("window.__hsPresses") == 0  # no Undo/Redo pressed
+        alert = page.locator(".hs-error").first
+        assert not (alert.is_visible() and "not taken" in pane_text(alert)), pane_text(alert)
+        assert _points(page) == 1
+        assert still_opening, "the pair opened before the keys were tried: inconclusive"
+        page.screenshot(path=str(tmp_path / "opening_keys.png"))
+
+        # the new pair shown: the same keys act again
+        deadline = time.monotonic() + 300
+        while page.locator(".hs-inactive").count():
+            assert time.monotonic() < deadline, "the new pair did not open"
+            page.wait_for_timeout(250)
+        handle.focus()
+        page.keyboard.press("ArrowRight")
+        deadline = time.monotonic() + 10
+        while title.inner_text() == before:
+            assert time.monotonic() < deadline, "the slider takes no key once the pair is open"
+            page.wait_for_timeout(100)
+        assert not page.errors, page.errors
+    finally:
+        page.context.close()
