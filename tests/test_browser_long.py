@@ -222,6 +222,15 @@ def test_lines_are_thinned_to_the_screen_and_a_zoom_shows_every_frame(tabs, tmp_
         arg=x0,
         timeout=30_000,
     )
+    # the band and the path arrive in separate messages: wait (30 s) for the path's frames
+    # of the zoomed range to be consecutive before reading it
+    a.wait_for_function(
+        "() => { const r = hs.model('hs-x-range');"
+        " const s = [...new Set(hs.cols('hs-path-source', ['x']).x"
+        ".filter(v => v > r.start && v < r.end))].sort((p, q) => p - q);"
+        " return s.length > 1 && s[s.length - 1] - s[0] + 1 === s.length; }",
+        timeout=30_000,
+    )
     xs = a.evaluate("hs.cols('hs-path-source', ['x'])")["x"]
     lo, hi = a.evaluate("[hs.model('hs-x-range').start, hs.model('hs-x-range').end]")
     shown = sorted({v for v in xs if lo < v < hi})

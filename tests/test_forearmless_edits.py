@@ -91,7 +91,10 @@ def test_app_edits_of_a_forearmless_pair_equal_fresh_solves_and_reuse_both_passe
         # the solvers are the previous edit's (the pass-1 one over the app's cost table),
         # re-solving forward only: never more than the band, no backward rows
         assert got.pass1.solver is before.pass1.solver
-        assert got.pass2.solver is before.pass2.solver
+        # pass 2 with open ends keeps two solvers (the probe and the one of the rounded
+        # skip): the edit's is one of the previous edit's, or new only when the skip changed
+        kept2 = (before.pass2.solver, before.pass2.probe)
+        assert any(got.pass2.solver is s for s in kept2) or got.pass2.ends != before.pass2.ends
         for solver, band in (
             (got.pass1.solver, got.pass1.band),
             (got.pass2.solver, got.pass2.band),
@@ -107,7 +110,10 @@ def test_headings_from_remembered_cell_thetas_equal_the_fresh_ones(prepared):
     """Pass 2's heading along pass 1's path computes θ only at cells no earlier path had."""
     feats = prepared.features
     path = P.align_passes(feats).pass1.path
-    other = P.align_passes(feats, points=[(feats.n // 2, feats.m // 2 + 10, 0.0)]).pass1.path
+    # a point a few frames off the path at mid-take: the paths share cells away from it
+    mid = feats.n // 2
+    on_path = int(path[path[:, 0] == mid][0, 1])
+    other = P.align_passes(feats, points=[(mid, on_path + 4, 0.0)]).pass1.path
     feats.params.pop("_theta_cells", None)
     P._cells_theta(feats, other)
     kept = feats.params["_theta_cells"][0]

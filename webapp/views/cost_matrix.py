@@ -979,9 +979,13 @@ def _sized_by_frame(fig) -> None:
     up with the strips' frames of the same ``frame_width``: a body frame read off the
     strip's axis was a few frames off in the matrix."""
     for side in ("width", "height"):
-        setattr(fig, f"{side}_policy", "fixed")
         if getattr(fig, f"frame_{side}") is not None:
+            # "min": the frame plus what its axes, colour bar and toolbar take (BokehJS
+            # sizes "fixed" without a size the same way, but Bokeh's checks refuse that)
+            setattr(fig, f"{side}_policy", "min")
             setattr(fig, side, None)
+        else:
+            setattr(fig, f"{side}_policy", "fixed")
 
 
 def _unmatched_quads(path, n: int, m: int) -> dict:
