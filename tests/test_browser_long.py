@@ -100,8 +100,12 @@ def tabs(long_pair, tmp_path_factory):
         )
         # tab A: the long pair; its first alignment runs off the loop, the page says so
         a = _page(context, url)
-        a.locator(".hs-busy").first.wait_for(timeout=60_000)
-        assert "aligning" in busy_line(a) or "opening" in busy_line(a), busy_line(a)
+        # the busy line is re-drawn as the stages change: read it until it names one
+        deadline, line = time.monotonic() + 60, ""
+        while "aligning" not in line and "opening" not in line:
+            assert time.monotonic() < deadline, f"no busy line naming the work: {line!r}"
+            a.wait_for_timeout(50)
+            line = busy_line(a)
         a.wait_for_function(HAS_PATH, timeout=180_000)
         a.locator(".hs-busy").first.wait_for(state="detached", timeout=60_000)
         # tab B: the demo pair, open and idle
