@@ -122,8 +122,10 @@ def test_keys_are_inert_on_the_old_pair_while_a_new_pair_opens(browser_and_url, 
         page.keyboard.press("Control+z")
         page.keyboard.press("Control+y")
         page.keyboard.press("Delete")
-        page.wait_for_timeout(2000)
+        # the keys went in while the pair was opening (what this test is about); then 2 s
+        # for anything they sent to reach the server and come back
         still_opening = "opening" in busy_line(page)
+        page.wait_for_timeout(2000)
         # the page sent nothing: the slider's label never moved, no button was pressed, and
         # the server had no edit to refuse ("not taken: ... is opening")
         titles = page.evaluate("window.__hsTitles")
