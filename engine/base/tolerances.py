@@ -19,6 +19,14 @@ Budgets (band cells; memory grows with them)
     ``PARALLEL_MIN_CELLS``: from this band area on, an incremental ``Aligner`` runs a
     solve's forward and backward rows on two threads at once (below it a thread's start
     costs more than it saves).
+
+Pass-1 rate (multi-resolution pass 1, ``engine.splice.coarse``)
+    ``PASS1_RATE_CAP_HZ``: pass 1's sign-cost DTW runs first on both takes decimated to at
+    most this rate (a whole number of body frames per coarse frame); takes at or below it
+    are solved as before, bit for bit.
+    ``PASS1_FINE_RADIUS_S``: the exact full-rate pass 1 then runs only on cells within this
+    many seconds (Chebyshev) of the upsampled coarse path, inside the W1 band and the
+    matching points' clips.
 """
 
 from __future__ import annotations
@@ -30,3 +38,5 @@ INCREMENTAL_MAX_CELLS = 100_000_000
 CUMULATIVE_MAX_CELLS = 16_000_000
 DENSE_PASS1_MAX_CELLS = 6_000_000
 PARALLEL_MIN_CELLS = 200_000
+PASS1_RATE_CAP_HZ = 30.0
+PASS1_FINE_RADIUS_S = 0.5

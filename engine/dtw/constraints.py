@@ -46,7 +46,7 @@ import numpy as np
 
 from engine.base.errors import ParameterError
 from engine.base.limits import MAX_BAND_CELLS
-from engine.base.tolerances import FRAME_EPS
+from engine.base.tolerances import FRAME_EPS, PASS1_RATE_CAP_HZ
 
 # slack when rounding tolerances and band edges computed in floating point
 EPS = FRAME_EPS
@@ -873,4 +873,59 @@ def points_to_hand(
         hy = min(int(round(float(y) * scale)), m_hand - 1)
         whole = math.floor(float(t) + EPS) if t else 0
         out.append((int(x), hy, math.floor(whole * scale * 1000.0) / 1000.0))
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# multi-resolution pass 1: the coarse grid (engine.splice.coarse)
+# --------------------------------------------------------------------------------------------
+
+
+def pass1_decimation(fps: float, cap_hz: float | None = None) -> int:
+    """Body frames per coarse pass-1 frame: the smallest whole ``k`` with ``fps / k`` at
+    most ``cap_hz`` (default ``tolerances.PASS1_RATE_CAP_HZ``); 1 for takes at or below
+    the cap (pass 1 then runs at full rate, as before). 120 fps -> 4, 60 -> 2, 100 -> 4."""
+    cap = float(PASS1_RATE_CAP_HZ if cap_hz is None else cap_hz)
+    fps = float(fps)
+    if not (math.isfinite(fps) and fps > cap * (1.0 + EPS)):
+        return 1
+    return max(1, int(math.ceil(fps / cap - EPS)))
+
+
+def coarse_index(frame, k: int) -> np.ndarray:
+    """Coarse frame (row or column) nearest fine frame ``frame``: coarse frame ``r`` is
+    fine frame ``r * k`` (``floor(frame / k + 1/2)``)."""
+    return np.floor(np.asarray(frame, np.float64) / k + 0.5).astype(np.int64)
+
+
+def coarse_points(points, k: int, n_c: int, m_c: int) -> list[tuple[int, int, float]]:
+    """Matching points ``(x, y, tol)`` (grid frames) on the coarse ``n_c x m_c`` grid of
+    decimation ``k``, each tolerance rounded outward: the coarse point's window of
+    columns holds the coarse column of every allowed crossing ``y - tol .. y + tol``
+    (:func:`coarse_index`), plus one coarse column on each side for the up to ``k / 2``
+    fine rows between the point's row and its coarse row. A point with ``tol = 0`` is
+    therefore a tolerance-1 point on the coarse grid; the exact full-rate pass holds it
+    exactly. Points that fall on one coarse row become one point whose window holds
+    theirs. ``k = 1`` returns the points unchanged."""
+    pts = point_triples(points)
+    if k <= 1:
+        return pts
+    rows: list[list[int]] = []  # [x_c, lo_c, hi_c, y_c]
+    for x, y, tol in pts:
+        t = math.floor(float(tol) + EPS)
+        xc = int(min(max(coarse_index(x, k), 0), n_c - 1))
+        lo = int(coarse_index(y - t, k)) - 1
+        hi = int(coarse_index(y + t, k)) + 1
+        yc = int(min(max(coarse_index(y, k), 0), m_c - 1))
+        if rows and rows[-1][0] == xc:
+            last = rows[-1]
+            last[1], last[2] = min(last[1], lo), max(last[2], hi)
+            last[3] = (last[3] + yc) // 2 if last[3] != yc else yc
+        else:
+            rows.append([xc, lo, hi, yc])
+    out = []
+    for xc, lo, hi, yc in rows:
+        lo, hi = max(lo, 0), min(hi, m_c - 1)
+        yc = min(max(yc, lo), hi)
+        out.append((xc, yc, float(max(yc - lo, hi - yc))))
     return out

@@ -52,6 +52,7 @@ from engine.dtw.align import SharedCosts
 from engine.dtw.kernels import get_metric, metric_names
 from engine.model.hand_side import match_chirality, undecided_message
 from engine.model.motion import MarkerSet, Motion
+from engine.splice import coarse as CO
 from engine.splice import merge as MG
 from engine.splice import point_rate as PR
 from engine.splice import spin as SP
@@ -140,6 +141,9 @@ class SpliceFeatures:
     params: dict = field(default_factory=dict)
     timings: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
+    #: pass-1 rows at the capped rate (multi-resolution pass 1, ``engine.splice.coarse``);
+    #: None for takes at or below ``tolerances.PASS1_RATE_CAP_HZ``
+    coarse: CO.CoarseRows | None = None
 
     def hand_to_grid(self, frames) -> np.ndarray:
         """Original hand-take frames -> alignment-grid columns (float)."""
@@ -319,6 +323,24 @@ def prepare(
         dead_zone,
         step1,
     )
+    coarse = None
+    k = C.pass1_decimation(fps)
+    if k > 1 and n >= 2 * k and m >= 2 * k:  # pass 1 first at the capped rate (same windows in s)
+        bc, hc = CO.decimate(body_markers, k), CO.decimate(hand_markers, k)
+        _, _, rows_c, _ = _pass1_features(
+            bc,
+            hc,
+            CO.decimate(body_yaw, k),
+            CO.decimate(hand_yaw, k),
+            fps / k,
+            theta,
+            n_bins,
+            smoothing_s,
+            dead_zone,
+            step1,
+            yaw_offset=yaw_offset,
+        )
+        coarse = CO.CoarseRows(k, len(bc), len(hc), fps / k, rows_c)
     timings["features"] = time.perf_counter() - t1
     progress("features", 1.0)
     M.register_metrics()
@@ -364,6 +386,7 @@ def prepare(
         },
         timings=timings,
         notes=side_notes,
+        coarse=coarse,
     )
 
 
@@ -378,10 +401,12 @@ def _pass1_features(
     smoothing_s,
     dead_zone,
     step1,
+    yaw_offset=None,
 ):
     """``(body, hand PhaseFeatures, pass-1 rows, θ offset)``: the sign codes and headings of
     both takes (eqs. 6-7) and the pass-1 cost rows; a hand take without a trunk gets a
-    constant heading offset for ``theta="trunk"``, estimated near the diagonal."""
+    constant heading offset for ``theta="trunk"``, estimated near the diagonal (or the
+    ``yaw_offset`` given: the coarse rows use the full-rate one)."""
     n, m = body_markers.shape[0], hand_markers.shape[0]
     bp = M.phase_features(body_markers, fps, yaw=body_yaw, window_s=smoothing_s, relative=dead_zone)
     hp = M.phase_features(
@@ -391,11 +416,14 @@ def _pass1_features(
         window_s=smoothing_s,
         relative=dead_zone,
     )
-    yaw_offset = 0.0
-    if theta == "trunk" and hand_yaw is None:
+    if yaw_offset is not None:
+        pass
+    elif theta == "trunk" and hand_yaw is None:
         i = np.arange(n)
         j = np.minimum(np.round(i * (m - 1) / max(n - 1, 1)).astype(np.int64), m - 1)
         yaw_offset = -heading_offset(bp, hp, np.column_stack([i, j]))
+    else:
+        yaw_offset = 0.0
     rows1 = M.phase_rows(bp, hp, theta=theta, n_bins=n_bins, yaw_offset=yaw_offset, step=step1)
     return bp, hp, rows1, yaw_offset
 
@@ -572,6 +600,9 @@ class PassResult:
     seconds : float
     probe : engine.dtw.Aligner or None: pass 2's first open-ends solve (the one that sizes
         ``ends.skip``, :func:`_solve_pass2`), kept for incremental re-solves
+    coarse : ``engine.splice.coarse.CoarsePass`` or None: pass 1's coarse solve (takes
+        above ``tolerances.PASS1_RATE_CAP_HZ``; ``band`` is then the narrow full-rate band
+        around it that the exact pass 1 solved)
     cost_table : (n, m) float64 ``metric(a[i], b[j])`` of every cell, or None: the app's
         tabulated pass-1 costs, which the trust assessment reads instead of the metric
     """
@@ -586,6 +617,7 @@ class PassResult:
     ends: Ends = field(default_factory=Ends)
     probe: object = None
     cost_table: np.ndarray | None = field(default=None, repr=False)
+    coarse: object = None
 
     def local_costs(self, rows_idx=None, cols_idx=None) -> np.ndarray:
         """Local costs on a grid of cells (all cells by default: small takes only)."""
@@ -961,7 +993,34 @@ def align_passes(
     exact = hand_lacks_forearm(features)
     solver1 = previous.pass1.solver if same else None
     ends1 = pass1_ends(features, kind, max_unmatched_s)
-    al1, solver1 = _solve(features.pass1_rows, metric1, band1, solver1, incremental, ends1, exact)
+    coarse1 = None
+    if features.coarse is not None:  # multi-resolution pass 1 (engine.splice.coarse)
+        cr = features.coarse
+        if is_open and cr.chance is None:
+            cr.chance = chance_cost(cr.rows, "splice_phase")
+        al1, solver1, coarse1 = CO.solve(
+            features.pass1_rows,
+            cr,
+            band1,
+            float(band),
+            pts,
+            is_open,
+            unmatched_limits(n, m, features.fps, max_unmatched_s) if is_open else None,
+            ends1,
+            0.5 * cr.chance if is_open else 0.0,
+            _solve,
+            metric1,
+            previous=getattr(previous.pass1, "coarse", None) if same else None,
+            fine_solver=solver1,
+            incremental=incremental,
+            exact=exact,
+            fps=features.fps,
+        )
+        timings["pass1_coarse"] = coarse1.seconds
+    else:
+        al1, solver1 = _solve(
+            features.pass1_rows, metric1, band1, solver1, incremental, ends1, exact
+        )
     t1 = time.perf_counter()
     timings["pass1"] = t1 - t0
     progress("pass 1", 1.0)
@@ -1013,12 +1072,13 @@ def align_passes(
     p1 = PassResult(
         path=np.asarray(al1.path),
         cost=float(al1.cost),
-        band=band1,
+        band=band1 if coarse1 is None else al1.band,
         rows=features.pass1_rows,
         metric=metric1,
         solver=solver1,
         seconds=timings["pass1"],
         ends=ends1,
+        coarse=coarse1,
     )
     p2 = PassResult(
         path=np.asarray(al2.path),

@@ -1,0 +1,246 @@
+"""Multi-resolution pass 1: a coarse solve at a capped frame rate guiding a narrow exact one.
+
+Pass 1's sign-cost DTW ([M] eq. 6) costs the W1 band's cells: on a 2-minute pair at
+120 fps about 40 M of them. Its features are signs of derivatives smoothed over 0.2 s, so
+they change at most a few times per 0.1 s; at 120 fps neighbouring frames mostly carry the
+same codes. Here pass 1 runs in two steps (docs/method.md §2, *Multi-resolution pass 1*):
+
+1. **Coarse**: both takes' alignment markers decimated by ``k`` (every ``k``-th body
+   frame, ``k = constraints.pass1_decimation(fps)``: at most
+   ``tolerances.PASS1_RATE_CAP_HZ``), their features made at the coarse rate with the same
+   windows in seconds (as a take captured at that rate), then DTW in the same band at the
+   coarse size (same width fraction, open-end room and unmatched limits rounded up), with
+   the matching points on the coarse grid, tolerances rounded outward
+   (``constraints.coarse_points``). ``k**2`` fewer cells.
+2. **Fine**: the exact full-rate pass 1 on the cells within
+   ``tolerances.PASS1_FINE_RADIUS_S`` seconds (Chebyshev) of the coarse path's fine cells
+   (:func:`band_around_coarse`), intersected with the W1 band and the matching points'
+   clips (so a point with tolerance 0 is passed exactly, at full rate).
+
+Where the coarse problem cannot be built (points that the rounding brings into conflict)
+or the narrow band holds no path for the ends, pass 1 falls back to the full-rate band
+(``CoarsePass.fallback`` says why). Takes at or below the cap (``k = 1``) never come here.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from engine.base import tolerances as T
+from engine.base.errors import ParameterError
+from engine.dtw import Band, Ends
+from engine.dtw import constraints as C
+from engine.splice.end_band import open_end_band
+
+#: pass 2 directly around the upsampled coarse path (no fine pass 1) when False; measured
+#: in benchmarks/RESULTS.md (*Multi-resolution pass 1*): the fine pass is kept
+FINE_PASS = True
+
+
+@dataclass
+class CoarseRows:
+    """Pass-1 rows of both takes at the coarse rate.
+
+    k : int >= 2, body frames per coarse frame (coarse frame ``r`` = fine frame ``r k``)
+    n, m : coarse rows and columns (``ceil(n_fine / k)``, ``ceil(m_fine / k)``)
+    fps : coarse rate (body fps / k)
+    rows : (a, b) rows of the ``splice_phase`` metric on the coarse grid
+    """
+
+    k: int
+    n: int
+    m: int
+    fps: float
+    rows: tuple[np.ndarray, np.ndarray]
+    chance: float | None = None
+
+
+@dataclass
+class CoarsePass:
+    """The coarse solve of one pass 1 (kept on ``PassResult.coarse``).
+
+    path : (k, 2) coarse cells; band : its Band; solver : Aligner or None (incremental
+    re-solves); ends : its Ends; k : decimation; cells : coarse band cells; radius : the
+    fine band's radius (fine frames); fine_cells : the fine band's cells; seconds : the
+    coarse solve's wall time; fallback : None, or why pass 1 ran on the whole W1 band.
+    """
+
+    path: np.ndarray
+    band: Band
+    solver: object
+    ends: Ends
+    k: int
+    cells: int
+    radius: int
+    fine_cells: int
+    seconds: float
+    fallback: str | None = None
+
+
+def decimate(x: np.ndarray | None, k: int) -> np.ndarray | None:
+    """Every ``k``-th frame (frames 0, k, 2k, ...)."""
+    return None if x is None else np.ascontiguousarray(np.asarray(x)[::k])
+
+
+def coarse_limits(limits: tuple[int, int], k: int, n_c: int, m_c: int) -> tuple[int, int]:
+    """Unmatched-end limits on the coarse grid, rounded up (never fewer frames than the
+    fine limits allow), below each take's coarse length."""
+    body = min(int(math.ceil(limits[0] / k)), n_c - 1)
+    hand = min(int(math.ceil(limits[1] / k)), m_c - 1)
+    return max(body, 0), max(hand, 0)
+
+
+def coarse_band(
+    rows: CoarseRows,
+    width: float,
+    points,
+    is_open: bool,
+    fine_limits: tuple[int, int] | None,
+) -> tuple[Band, list]:
+    """The pass-1 band on the coarse grid (same width fraction, coarse points and, for open
+    ends, the open-end room of ``engine.splice.end_band`` at the coarse rate)."""
+    pts_c = C.coarse_points(points, rows.k, rows.n, rows.m)
+    band = Band.from_constraints(rows.n, rows.m, float(width), pts_c, open_ends=is_open)
+    if is_open:
+        lim = coarse_limits(fine_limits, rows.k, rows.n, rows.m)
+        band = open_end_band(band, float(width), lim, pts_c, rows.fps)
+    return band, pts_c
+
+
+def band_around_coarse(path_c: np.ndarray, k: int, n: int, m: int, radius: int, is_open: bool):
+    """Fine band of the cells within ``radius`` fine frames (Chebyshev) of the fine cells
+    the coarse path's cells stand for (coarse cell ``(r, c)``: fine rows ``r k .. r k + k - 1``,
+    columns ``c k .. c k + k - 1``); rows before its first or after its last coarse row
+    take the range of its end cell (open ends, as ``Band.around_path``)."""
+    p = np.asarray(path_c, np.int64)
+    n_c = int(math.ceil(n / k))
+    first = np.full(n_c, np.iinfo(np.int64).max, np.int64)
+    last = np.full(n_c, -1, np.int64)
+    np.minimum.at(first, p[:, 0], p[:, 1])
+    np.maximum.at(last, p[:, 0], p[:, 1])
+    r0, r1 = int(p[0, 0]), int(p[-1, 0])
+    first[:r0], last[:r0] = p[0, 1], p[0, 1]
+    first[r1 + 1 :], last[r1 + 1 :] = p[-1, 1], p[-1, 1]
+    rows = np.arange(n)
+    f = first[rows // k] * k
+    g = np.minimum(last[rows // k] * k + k - 1, m - 1)
+    r = int(radius)
+    lo = np.maximum(f[np.maximum(rows - r, 0)] - r, 0)
+    hi = np.minimum(g[np.minimum(rows + r, n - 1)] + r, m - 1)
+    return Band(lo, hi, m, open_ends=is_open)
+
+
+def upsample_path(path_c: np.ndarray, k: int, n: int, m: int, is_open: bool) -> np.ndarray:
+    """A monotone, continuous fine path through the fine cells ``(r k, c k)`` of the coarse
+    path (diagonal steps first between them); fixed ends run on to ``(n-1, m-1)``, open ends
+    to the last row or column when the coarse path ends on its last row or column."""
+    p = np.asarray(path_c, np.int64) * k
+    p[:, 0] = np.minimum(p[:, 0], n - 1)
+    p[:, 1] = np.minimum(p[:, 1], m - 1)
+    end_i, end_j = int(p[-1, 0]), int(p[-1, 1])
+    n_c, m_c = int(math.ceil(n / k)), int(math.ceil(m / k))
+    last = np.asarray(path_c[-1])
+    if not is_open or last[0] == n_c - 1:
+        end_i = n - 1
+    if not is_open or last[1] == m_c - 1:
+        end_j = m - 1
+    targets = np.vstack([p, [[end_i, end_j]]])
+    out = [targets[0]]
+    for a, b in zip(targets[:-1], targets[1:], strict=True):
+        di, dj = int(b[0] - a[0]), int(b[1] - a[1])
+        if di == 0 and dj == 0:
+            continue
+        d = min(di, dj)
+        steps = np.zeros((di + dj - d, 2), np.int64)
+        steps[:d] = 1
+        steps[d : d + di - d, 0] = 1
+        steps[d + di - d :, 1] = 1
+        out.append(a + np.cumsum(steps, axis=0))
+    return np.vstack(out).astype(np.int64)
+
+
+def solve(
+    fine_rows,
+    rows: CoarseRows,
+    band1: Band,
+    width: float,
+    points,
+    is_open: bool,
+    fine_limits,
+    ends1: Ends,
+    coarse_skip: float,
+    solve_fn,
+    metric: str,
+    previous=None,
+    fine_solver=None,
+    incremental: bool = False,
+    exact: bool = False,
+    fps: float = 0.0,
+):
+    """Multi-resolution pass 1: ``(Alignment, fine solver, CoarsePass)``.
+
+    ``solve_fn(rows, metric, band, solver, incremental, ends, exact)`` is the pipeline's
+    one-pass solve; ``previous``: the last ``CoarsePass`` of the same features (its
+    solver re-solves only the coarse rows an edit changes); ``band1``: the full-rate W1
+    band with the points' clips (the fine band is cut to it)."""
+    n, m = band1.n, band1.m
+    t0 = time.perf_counter()
+    radius = max(int(math.ceil(T.PASS1_FINE_RADIUS_S * fps)), rows.k)
+    try:
+        band_c, _ = coarse_band(rows, width, points, is_open, fine_limits)
+        ends_c = Ends()
+        if is_open:
+            lim = coarse_limits(fine_limits, rows.k, rows.n, rows.m)
+            ends_c = Ends(lim[0], lim[1], coarse_skip)
+        solver_c = previous.solver if previous is not None else None
+        al_c, solver_c = solve_fn(rows.rows, metric, band_c, solver_c, incremental, ends_c, exact)
+    except ParameterError as err:
+        al, solver = solve_fn(fine_rows, metric, band1, fine_solver, incremental, ends1, exact)
+        empty = np.zeros((0, 2), np.int64)
+        info = CoarsePass(empty, band1, None, ends1, rows.k, 0, 0, band1.area, 0.0, str(err))
+        return al, solver, info
+    t1 = time.perf_counter()
+    path_c = np.asarray(al_c.path)
+    fallback = None
+    try:
+        band_f = band_around_coarse(path_c, rows.k, n, m, radius, is_open).intersect(band1)
+        if FINE_PASS:
+            al, solver = solve_fn(fine_rows, metric, band_f, fine_solver, incremental, ends1, exact)
+        else:
+            al, solver = None, None
+    except ParameterError as err:  # the narrow band misses the ends or the points' clips
+        fallback = str(err)
+        band_f = band1
+        al, solver = solve_fn(fine_rows, metric, band1, fine_solver, incremental, ends1, exact)
+    info = CoarsePass(
+        path=path_c,
+        band=band_c,
+        solver=solver_c,
+        ends=ends_c,
+        k=rows.k,
+        cells=band_c.area,
+        radius=radius,
+        fine_cells=band_f.area,
+        seconds=t1 - t0,
+        fallback=fallback,
+    )
+    if al is None:  # no fine pass: the upsampled coarse path stands for pass 1
+        al = _upsampled_alignment(path_c, rows.k, band_f, ends1, is_open, fine_rows, metric)
+    return al, solver, info
+
+
+def _upsampled_alignment(path_c, k, band_f, ends1, is_open, fine_rows, metric):
+    from engine.align import metrics as M
+    from engine.dtw.align import Alignment
+    from engine.dtw.kernels import get_metric
+
+    n, m = band_f.n, band_f.m
+    path = upsample_path(path_c, k, n, m, is_open)
+    a, b = fine_rows
+    cost = float(np.sum(M.path_values(get_metric(metric).cell, a, b, path)))
+    path.flags.writeable = False
+    return Alignment(path=path, cost=cost, band=band_f, ends=ends1)
