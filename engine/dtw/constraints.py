@@ -884,12 +884,14 @@ def points_to_hand(
 def pass1_decimation(fps: float, cap_hz: float | None = None) -> int:
     """Body frames per coarse pass-1 frame: the smallest whole ``k`` with ``fps / k`` at
     most ``cap_hz`` (default ``tolerances.PASS1_RATE_CAP_HZ``); 1 for takes at or below
-    the cap (pass 1 then runs at full rate, as before). 120 fps -> 4, 60 -> 2, 100 -> 4."""
+    the cap (pass 1 then runs at full rate, as before). 120 fps -> 4, 60 -> 2, 100 -> 4.
+    A rate within 1 % of a multiple of the cap counts as that multiple (a BVH's frame time
+    0.0333330 s is 30.0003 fps: 30 fps)."""
     cap = float(PASS1_RATE_CAP_HZ if cap_hz is None else cap_hz)
     fps = float(fps)
-    if not (math.isfinite(fps) and fps > cap * (1.0 + EPS)):
+    if not (math.isfinite(fps) and fps > 0):
         return 1
-    return max(1, int(math.ceil(fps / cap - EPS)))
+    return max(1, int(math.ceil(fps / cap - 0.01)))
 
 
 def coarse_index(frame, k: int) -> np.ndarray:
@@ -903,7 +905,10 @@ def coarse_points(points, k: int, n_c: int, m_c: int) -> list[tuple[int, int, fl
     decimation ``k``, each tolerance rounded outward: the coarse point's window of
     columns holds the coarse column of every allowed crossing ``y - tol .. y + tol``
     (:func:`coarse_index`), plus one coarse column on each side for the up to ``k / 2``
-    fine rows between the point's row and its coarse row. A point with ``tol = 0`` is
+    fine rows between the point's row and its coarse row; on consecutive coarse rows the
+    earlier window reaches up to the later one (a path can join them), and a point rounded
+    onto the first (last) coarse row reaches the first (last) column (a fixed-end path
+    covers the corner's columns there). A point with ``tol = 0`` is
     therefore a tolerance-1 point on the coarse grid; the exact full-rate pass holds it
     exactly. Points that fall on one coarse row become one point whose window holds
     theirs. ``k = 1`` returns the points unchanged."""
@@ -923,8 +928,15 @@ def coarse_points(points, k: int, n_c: int, m_c: int) -> list[tuple[int, int, fl
             last[3] = (last[3] + yc) // 2 if last[3] != yc else yc
         else:
             rows.append([xc, lo, hi, yc])
+    for prev, cur in zip(rows, rows[1:]):
+        if cur[0] == prev[0] + 1 and cur[1] > prev[2] + 1:  # consecutive rows: windows join
+            prev[2] = cur[1] - 1
     out = []
     for xc, lo, hi, yc in rows:
+        if xc == 0:  # the first / last coarse row: a fixed-end path covers the corner there
+            lo = 0
+        if xc == n_c - 1:
+            hi = m_c - 1
         lo, hi = max(lo, 0), min(hi, m_c - 1)
         yc = min(max(yc, lo), hi)
         out.append((xc, yc, float(max(yc - lo, hi - yc))))

@@ -34,7 +34,6 @@ from engine.base import tolerances as T
 from engine.base.errors import ParameterError
 from engine.dtw import Band, Ends
 from engine.dtw import constraints as C
-from engine.splice.end_band import open_end_band
 
 #: pass 2 directly around the upsampled coarse path (no fine pass 1) when False; measured
 #: in benchmarks/RESULTS.md (*Multi-resolution pass 1*): the fine pass is kept
@@ -94,21 +93,33 @@ def coarse_limits(limits: tuple[int, int], k: int, n_c: int, m_c: int) -> tuple[
     return max(body, 0), max(hand, 0)
 
 
-def coarse_band(
-    rows: CoarseRows,
-    width: float,
-    points,
-    is_open: bool,
-    fine_limits: tuple[int, int] | None,
-) -> tuple[Band, list]:
-    """The pass-1 band on the coarse grid (same width fraction, coarse points and, for open
-    ends, the open-end room of ``engine.splice.end_band`` at the coarse rate)."""
-    pts_c = C.coarse_points(points, rows.k, rows.n, rows.m)
-    band = Band.from_constraints(rows.n, rows.m, float(width), pts_c, open_ends=is_open)
-    if is_open:
-        lim = coarse_limits(fine_limits, rows.k, rows.n, rows.m)
-        band = open_end_band(band, float(width), lim, pts_c, rows.fps)
+def coarse_band(rows: CoarseRows, band1: Band, points) -> tuple[Band, list]:
+    """The pass-1 band on the coarse grid: the envelope of the full-rate band ``band1``
+    (W1, points' clips, open-end room) on the coarse grid, :data:`COARSE_MARGIN` columns
+    wider on each side, cut to the coarse points' clips (``constraints.coarse_points``).
+
+    Coarse row ``r`` stands for the fine rows nearest it (``coarse_index``); its columns
+    are the coarse columns of every cell of those rows, so the coarse band holds the
+    coarse cell of every fine band cell (away from the points' own rows, whose fine clip
+    holds one fine row), and every allowed crossing of a point."""
+    k, n_c, m_c = rows.k, rows.n, rows.m
+    pts_c = C.coarse_points(points, k, n_c, m_c)
+    r = np.minimum(C.coarse_index(np.arange(band1.n), k), n_c - 1)
+    lo = np.full(n_c, m_c - 1, np.int64)
+    hi = np.zeros(n_c, np.int64)
+    np.minimum.at(lo, r, np.minimum(C.coarse_index(band1.lo, k), m_c - 1))
+    np.maximum.at(hi, r, np.minimum(C.coarse_index(band1.hi, k), m_c - 1))
+    lo = np.maximum(lo - COARSE_MARGIN, 0)
+    hi = np.minimum(hi + COARSE_MARGIN, m_c - 1)
+    band = Band(lo, hi, m_c, open_ends=band1.open_ends)
+    if pts_c:
+        band = band.intersect(Band.from_constraints(n_c, m_c, None, pts_c, band1.open_ends))
     return band, pts_c
+
+
+#: coarse columns added on each side of the coarse band (the coarse path may step
+#: between the envelope's edges of neighbouring coarse rows)
+COARSE_MARGIN = 1
 
 
 def band_around_coarse(path_c: np.ndarray, k: int, n: int, m: int, radius: int, is_open: bool):
@@ -191,7 +202,7 @@ def solve(
     t0 = time.perf_counter()
     radius = max(int(math.ceil(T.PASS1_FINE_RADIUS_S * fps)), rows.k)
     try:
-        band_c, _ = coarse_band(rows, width, points, is_open, fine_limits)
+        band_c, _ = coarse_band(rows, band1, points)
         ends_c = Ends()
         if is_open:
             lim = coarse_limits(fine_limits, rows.k, rows.n, rows.m)
