@@ -65,7 +65,8 @@ class CoarsePass:
     path : (k, 2) coarse cells; band : its Band; solver : Aligner or None (incremental
     re-solves); ends : its Ends; k : decimation; cells : coarse band cells; radius : the
     fine band's radius (fine frames); fine_cells : the fine band's cells; seconds : the
-    coarse solve's wall time; fallback : None, or why pass 1 ran on the whole W1 band.
+    coarse solve's wall time; fallback : None, or why pass 1 ran on the whole W1 band;
+    fine_band : the full-rate band pass 1 solved (the W1 band after a fallback).
     """
 
     path: np.ndarray
@@ -78,6 +79,7 @@ class CoarsePass:
     fine_cells: int
     seconds: float
     fallback: str | None = None
+    fine_band: Band | None = None
 
 
 def decimate(x: np.ndarray | None, k: int) -> np.ndarray | None:
@@ -212,7 +214,9 @@ def solve(
     except ParameterError as err:
         al, solver = solve_fn(fine_rows, metric, band1, fine_solver, incremental, ends1, exact)
         empty = np.zeros((0, 2), np.int64)
-        info = CoarsePass(empty, band1, None, ends1, rows.k, 0, 0, band1.area, 0.0, str(err))
+        info = CoarsePass(
+            empty, band1, None, ends1, rows.k, 0, 0, band1.area, 0.0, str(err), band1
+        )
         return al, solver, info
     t1 = time.perf_counter()
     path_c = np.asarray(al_c.path)
@@ -238,6 +242,7 @@ def solve(
         fine_cells=band_f.area,
         seconds=t1 - t0,
         fallback=fallback,
+        fine_band=band_f,
     )
     if al is None:  # no fine pass: the upsampled coarse path stands for pass 1
         al = _upsampled_alignment(path_c, rows.k, band_f, ends1, is_open, fine_rows, metric)

@@ -601,8 +601,9 @@ class PassResult:
     probe : engine.dtw.Aligner or None: pass 2's first open-ends solve (the one that sizes
         ``ends.skip``, :func:`_solve_pass2`), kept for incremental re-solves
     coarse : ``engine.splice.coarse.CoarsePass`` or None: pass 1's coarse solve (takes
-        above ``tolerances.PASS1_RATE_CAP_HZ``; ``band`` is then the narrow full-rate band
-        around it that the exact pass 1 solved)
+        above ``tolerances.PASS1_RATE_CAP_HZ``); ``band`` stays the W1 band (what the app
+        draws and the trust assessment spreads over), ``coarse.fine_band`` is the narrow
+        full-rate band the exact pass 1 solved (``solver.band``)
     cost_table : (n, m) float64 ``metric(a[i], b[j])`` of every cell, or None: the app's
         tabulated pass-1 costs, which the trust assessment reads instead of the metric
     """
@@ -1072,7 +1073,7 @@ def align_passes(
     p1 = PassResult(
         path=np.asarray(al1.path),
         cost=float(al1.cost),
-        band=band1 if coarse1 is None else al1.band,
+        band=band1,
         rows=features.pass1_rows,
         metric=metric1,
         solver=solver1,
