@@ -214,9 +214,7 @@ def solve(
     except ParameterError as err:
         al, solver = solve_fn(fine_rows, metric, band1, fine_solver, incremental, ends1, exact)
         empty = np.zeros((0, 2), np.int64)
-        info = CoarsePass(
-            empty, band1, None, ends1, rows.k, 0, 0, band1.area, 0.0, str(err), band1
-        )
+        info = CoarsePass(empty, band1, None, ends1, rows.k, 0, 0, band1.area, 0.0, str(err), band1)
         return al, solver, info
     t1 = time.perf_counter()
     path_c = np.asarray(al_c.path)
