@@ -19,6 +19,10 @@ Budgets (band cells; memory grows with them)
     ``PARALLEL_MIN_CELLS``: from this band area on, an incremental ``Aligner`` runs a
     solve's forward and backward rows on two threads at once (below it a thread's start
     costs more than it saves).
+    ``TRUST_MAX_CELLS``: the trust assessment (:mod:`engine.splice.uncertainty`) keeps γ of
+    every cell it weighs, both ways (16 bytes a cell, plus a byte of backpointers); a
+    pass whose band holds more cells is weighed on its cells nearest the pass's path
+    (the widest radius that fits: about ±2.3 s at 10 minutes, 120 fps), ~680 MB at most.
 """
 
 from __future__ import annotations
@@ -30,3 +34,4 @@ INCREMENTAL_MAX_CELLS = 100_000_000
 CUMULATIVE_MAX_CELLS = 16_000_000
 DENSE_PASS1_MAX_CELLS = 6_000_000
 PARALLEL_MIN_CELLS = 200_000
+TRUST_MAX_CELLS = 40_000_000
