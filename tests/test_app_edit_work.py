@@ -110,3 +110,20 @@ def test_trust_is_assessed_once_edits_pause_never_beside_a_solve(session, monkey
     view._schedule(0)
     doc.run()
     assert assessed[1:] == [session.revision] and session.trust is not None
+
+
+def test_the_desync_line_says_the_first_assessment_is_running(session, monkeypatch):
+    """Until a pair's first trust assessment is drawn, its line says one is running: a
+    10-minute pair's took minutes, and the empty line looked finished with nothing to say
+    (benchmarks/RESULTS.md, section app_tenmin)."""
+    from webapp.views import trust as trust_view
+    from webapp.views.cost_matrix import CostMatrixView
+
+    real = session.update_trust
+    monkeypatch.setattr(session, "update_trust", lambda *a, **k: False)  # still running
+    view = trust_view.TrustView(session, CostMatrixView(session))
+    assert trust_view.ASSESSING in view.summary.object
+    assert all(b.disabled or not b.visible for b in view.buttons)
+    real()  # the assessment arrives: the line is its summary
+    assert "Desync meter" in view.summary.object
+    assert trust_view.ASSESSING not in view.summary.object

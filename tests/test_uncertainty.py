@@ -350,3 +350,34 @@ def test_a_split_pair_is_pinned_and_keeps_the_absolute_verdicts(case):
     assert "do not pin" not in a.summary
     for k in a.strokes:
         assert k.verdict == U.verdict(k.uncertainty_ms) or k.verdict == "unmatched"
+
+
+def test_a_band_over_the_trust_budget_is_weighed_near_the_path_with_the_same_verdicts(
+    case, monkeypatch
+):
+    """A long take's pass-1 band (180 M cells at 10 minutes) is not held whole by the
+    trust assessment (γ both ways, 16 bytes a cell): over ``TRUST_MAX_CELLS`` only the
+    cells nearest the pass's path are weighed, with the same verdicts on a pinned pair."""
+    res = P.splice(case.body, case.reference, transfer_fingers=False)
+    full = U.alignment_uncertainty(res.features, res.alignment)
+    band1 = res.alignment.pass1.band
+    cap = max(band1.area // 3, res.alignment.pass2.band.area)  # only pass 1 is over it
+    assert band1.area > cap
+    weighed = []
+    row_spread = U.row_spread
+
+    def spy(a, b, band, *args, **kwargs):
+        weighed.append(band)
+        return row_spread(a, b, band, *args, **kwargs)
+
+    monkeypatch.setattr(U, "TRUST_MAX_CELLS", cap)
+    monkeypatch.setattr(U, "row_spread", spy)
+    capped = U.alignment_uncertainty(res.features, res.alignment)
+    assert len(weighed) == 2 and all(b.area <= cap for b in weighed)
+    path = np.asarray(res.alignment.pass1.path)
+    assert np.all(weighed[0].contains(path[:, 0], path[:, 1]))
+    assert weighed[1].area == res.alignment.pass2.band.area  # pass 2 as it was
+    # the far cells weigh next to nothing: the same verdict on nearly every frame
+    same = np.mean(np.array(full.frame_verdicts()) == np.array(capped.frame_verdicts()))
+    assert same >= 0.97, same
+    assert np.median(np.abs(full.ms - capped.ms)) < 1000.0 / res.features.fps

@@ -19,6 +19,10 @@ Budgets (band cells; memory grows with them)
     ``PARALLEL_MIN_CELLS``: from this band area on, an incremental ``Aligner`` runs a
     solve's forward and backward rows on two threads at once (below it a thread's start
     costs more than it saves).
+    ``TRUST_MAX_CELLS``: the trust assessment (:mod:`engine.splice.uncertainty`) keeps γ of
+    every cell it weighs, both ways (16 bytes a cell, plus a byte of backpointers); a
+    pass whose band holds more cells is weighed on its cells nearest the pass's path
+    (the widest radius that fits: about ±2.3 s at 10 minutes, 120 fps), ~680 MB at most.
 
 Pass-1 rate (multi-resolution pass 1, ``engine.splice.coarse``)
     ``PASS1_RATE_CAP_HZ``: pass 1's sign-cost DTW runs first on both takes decimated to at
@@ -40,3 +44,4 @@ DENSE_PASS1_MAX_CELLS = 6_000_000
 PARALLEL_MIN_CELLS = 200_000
 PASS1_RATE_CAP_HZ = 30.0
 PASS1_FINE_RADIUS_S = 0.5
+TRUST_MAX_CELLS = 40_000_000

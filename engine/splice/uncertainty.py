@@ -10,7 +10,8 @@ the fingers there may be mistimed. Per body frame ``i``::
 for pass ``p`` in {1, 2}, with the temperature ``τ_p`` = ``KAPPA`` × the pass's mean
 local cost per path step (the cost of a few frames' typical mismatch: scale-free
 across metrics and takes). Costs: about two extra solves per pass (forward and
-backward γ, 16 bytes per band cell).
+backward γ, 16 bytes per band cell); a band over ``TRUST_MAX_CELLS`` (a long take's
+pass 1) is weighed on its cells nearest the pass's path (:func:`weighed_band`).
 
 Per body frame, in milliseconds of the hand take (issue 17)::
 
@@ -67,7 +68,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
+from engine.base.tolerances import TRUST_MAX_CELLS
 from engine.dtw.align import FIXED
+from engine.dtw.band import Band
 from engine.dtw.marginals import row_spread
 
 #: temperature = KAPPA x the pass's mean local cost per path step (chosen on the tuning seeds)
@@ -226,9 +229,33 @@ def pass_spread(result, warp: np.ndarray, kappa: float = KAPPA) -> np.ndarray:
     temperature = kappa * max(float(result.cost) / max(len(result.path), 1), TEMPERATURE_FLOOR)
     ends = getattr(result, "ends", None) or FIXED
     costs = getattr(result, "cost_table", None)  # the app's tabulated pass-1 costs
+    band = weighed_band(result.band, np.asarray(result.path))
     return row_spread(
-        a, b, result.band, result.metric, warp, temperature, margin=0.0, ends=ends, costs=costs
+        a, b, band, result.metric, warp, temperature, margin=0.0, ends=ends, costs=costs
     ).spread
+
+
+def weighed_band(band, path: np.ndarray, max_cells: int | None = None):
+    """The cells of ``band`` a pass's spread weighs: all of them up to ``max_cells``
+    (default ``engine.base.tolerances.TRUST_MAX_CELLS``), else
+    those within the widest radius of ``path`` ((k, 2) body, hand grid frames) that fits.
+
+    γ both ways is kept for every weighed cell (16 bytes a cell): a 10-minute pair's
+    pass-1 band (180 M cells) would take 2.9 GB and two more pass-1 solves' time after
+    every edit. A cell more than the radius (about 2.3 s at 10 minutes, 120 fps; wider
+    than pass 2's band) from the path weighs ``exp(-extra / τ)`` with an extra cost of
+    that many frames' mismatch: next to nothing on any row the motion pins, and a row it
+    does not pin is over the 100 ms threshold within the radius already."""
+    max_cells = TRUST_MAX_CELLS if max_cells is None else int(max_cells)
+    if band.area <= max_cells:
+        return band
+    radius = max(1, int(max_cells // (2 * band.n)))
+    while True:
+        near = Band.around_path(path, band.n, band.m, radius, open_ends=band.open_ends)
+        weighed = band.intersect(near)
+        if weighed.area <= max_cells or radius == 1:
+            return weighed
+        radius = max(1, int(radius * max_cells / weighed.area * 0.95))
 
 
 def warp_bend(warp: np.ndarray, half: int) -> np.ndarray:

@@ -63,6 +63,9 @@ DEBOUNCE_MS = 1000
 _POOL = concurrent.futures.ThreadPoolExecutor(max_workers=2, thread_name_prefix="hs-trust")
 
 
+#: the summary line while a pair's first assessment runs (about four solves' time: several
+#: minutes for a 10-minute pair on a busy machine, where an empty line looked finished)
+ASSESSING = "assessing how certain the timing is (about four solves' time)…"
 #: the legend under the matrix (static: one text for pinned pairs and pairs not pinned)
 LEGEND_WORDS = {
     **VERDICT_WORDS,
@@ -275,6 +278,8 @@ class TrustView:
             # (hundreds of ms each in a software-rendered page), on every edit
             if self.summary.object:
                 self.summary.object = "<b>Desync meter:</b> updating…"
+            elif s.solution is not None:  # the first assessment: minutes on a long take
+                self.summary.object = f"<b>Desync meter:</b> {ASSESSING}"
             for b in self.buttons:
                 b.disabled = True
                 if s.solution is None:  # no takes: no suggestions to come
