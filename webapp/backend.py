@@ -340,12 +340,14 @@ def _first_key(prepared: Prepared, band, refine_band, points) -> tuple:
 
 
 def first_solution(
-    prepared: Prepared, band, refine_band, points, progress=None, wait: bool = True
+    prepared: Prepared, band, refine_band, points, progress=None, wait: bool = True, owner=None
 ) -> Solution | None:
     """The pair's shared first alignment at these settings (see :data:`_FIRST`): the one
     another tab (or the warm-up) computed, else solved here and kept for the next tab.
     A tab asking while another computes it waits for that one (``wait``; else None).
 
+    ``owner``: who asks (a session's id); the solution computed here names it in its
+    ``cache["solved_for"]`` (the page says whether its alignment was solved for it).
     Never mutate it: :func:`solve` with ``previous`` set to it solves on copies."""
     import concurrent.futures as cf
 
@@ -370,6 +372,7 @@ def first_solution(
         entry.set_exception(exc)
         raise
     sol.cache["shared"] = True
+    sol.cache["solved_for"] = owner
     with _FIRST_LOCK:
         FIRST_STATS["solved"] += 1
         live = {p.key for p in _PREPARED.values()} | {prepared.key}
@@ -532,7 +535,17 @@ def cost_view(
     if kind == "pass1" and prepared.pass1_cost is not None:
         image = prepared.pass1_cost[np.ix_(rows, cols)]
     elif kind == "pass1":
-        image = _local_costs(prepared.features.pass1_rows, pipeline.DEFAULT_METRICS[0], rows, cols)
+        # the whole matrix at screen resolution is what every tab of the pair shows first:
+        # computed once per pair (the server's warm-up, or the first tab), kept with it
+        whole = (x0, x1, y0, y1) == (0, prepared.n, 0, prepared.m)
+        key = ("pass1 overview", sx, sy)
+        image = prepared.views.get(key) if whole else None
+        if image is None:
+            image = _local_costs(
+                prepared.features.pass1_rows, pipeline.DEFAULT_METRICS[0], rows, cols
+            )
+            if whole:
+                prepared.views[key] = image
     elif kind == "pass2" and engine_result is not None:
         image = _local_costs(engine_result.pass2.rows, engine_result.pass2.metric, rows, cols)
     else:

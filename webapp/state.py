@@ -709,7 +709,7 @@ class Session(param.Parameterized):
             points = self.constraint_points()
             if self.runner is None:
                 sol = (
-                    backend.first_solution(self.prepared, band, refine, points)
+                    backend.first_solution(self.prepared, band, refine, points, owner=id(self))
                     if self.solution is None
                     else backend.solve(
                         self.prepared,
@@ -736,7 +736,9 @@ class Session(param.Parameterized):
 
         def work(progress):  # on the worker: solves run one at a time per session
             if self._chain is None:  # the pair's first alignment: shared with other tabs
-                sol = backend.first_solution(prepared, band, refine, points, progress=progress)
+                sol = backend.first_solution(
+                    prepared, band, refine, points, progress=progress, owner=id(self)
+                )
             else:
                 sol = backend.solve(
                     prepared,
@@ -829,6 +831,15 @@ class Session(param.Parameterized):
         return self._solve()
 
     # ------------------------------------------------------------ derived views
+
+    def aligned_here(self) -> bool:
+        """True when the alignment shown was computed for this session; False when it is
+        the pair's first alignment computed earlier for another tab or the server's
+        warm-up (``backend.first_solution``), shown without solving again."""
+        sol = self.solution
+        if sol is None:
+            return False
+        return not sol.cache.get("shared") or sol.cache.get("solved_for") == id(self)
 
     def status_text(self) -> str:
         sol = self.solution
