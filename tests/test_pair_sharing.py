@@ -105,9 +105,22 @@ def test_parsed_values_are_what_float_reads_bit_for_bit():
         fmt = ["%.6f", "%.17g", "%g", "%.3e", "%.20f", "%.1f"][int(rng.integers(6))]
         texts.append(fmt % v)
     texts += [
-        "1.", ".5", "+.5e-3", "-0.000000", "00012.50", "1e22", "1e23", "9007199254740993",
-        "123456789012345678", "0.1234567890123456789", "5e-324", "1e-400", "1E+05",
-        "0." + "0" * 30 + "1", "-180.000000", "359.999999",
+        "1.",
+        ".5",
+        "+.5e-3",
+        "-0.000000",
+        "00012.50",
+        "1e22",
+        "1e23",
+        "9007199254740993",
+        "123456789012345678",
+        "0.1234567890123456789",
+        "5e-324",
+        "1e-400",
+        "1E+05",
+        "0." + "0" * 30 + "1",
+        "-180.000000",
+        "359.999999",
     ]
     rows = [" ".join(texts[k : k + 4]) for k in range(0, len(texts) - len(texts) % 4, 4)]
     got = parse_rows("\n".join(rows), len(rows), 4)
@@ -118,8 +131,27 @@ def test_parsed_values_are_what_float_reads_bit_for_bit():
 
 @pytest.mark.parametrize(
     "text",
-    ["1e", "e5", ".", "-", "+-1", "1-2", "1.2.3", "1..2", "--1", "1e+", "nan", "inf",
-     "1_0", "\u0663", "\u00a01", "0x10", "1e5.", "", "  "],
+    [
+        "1e",
+        "e5",
+        ".",
+        "-",
+        "+-1",
+        "1-2",
+        "1.2.3",
+        "1..2",
+        "--1",
+        "1e+",
+        "nan",
+        "inf",
+        "1_0",
+        "\u0663",
+        "\u00a01",
+        "0x10",
+        "1e5.",
+        "",
+        "  ",
+    ],
 )
 def test_text_that_is_not_one_clean_number_is_left_to_the_caller(text):
     assert parse_rows(text, 1, 1) is None

@@ -328,6 +328,7 @@ def solve(prepared: Prepared, band, refine_band, points, previous=None, progress
 #: content or identity, side, roles: :func:`prepare`) and the settings. The shared
 #: solution's incremental solvers are never run: a session's first edit from it runs on a
 #: copy of them (:func:`_own`), so the edits stay per session.
+#: (The cumulative-cost view may complete their stored γ rows: they stay valid.)
 _FIRST: dict[tuple, object] = {}
 _FIRST_LOCK = threading.Lock()
 #: counters of :func:`first_solution` (read by tests and ``/hs-stats``-like debugging):
@@ -336,7 +337,10 @@ FIRST_STATS = {"solved": 0, "shared": 0}
 
 
 def _first_key(prepared: Prepared, band, refine_band, points) -> tuple:
-    return (prepared.key, repr(band), repr(refine_band), tuple(tuple(p) for p in points))
+    # the Prepared itself too: a pair read again after it left the cache has new features
+    # (its solutions' solvers belong to those); ids of live pairs only (see the eviction)
+    pair = (id(prepared), prepared.key)
+    return (pair, repr(band), repr(refine_band), tuple(tuple(p) for p in points))
 
 
 def first_solution(
@@ -375,7 +379,7 @@ def first_solution(
     sol.cache["solved_for"] = owner
     with _FIRST_LOCK:
         FIRST_STATS["solved"] += 1
-        live = {p.key for p in _PREPARED.values()} | {prepared.key}
+        live = {(id(p), p.key) for p in _PREPARED.values()} | {(id(prepared), prepared.key)}
         for k in [k for k in _FIRST if k[0] not in live]:  # pairs no longer cached
             del _FIRST[k]
     entry.set_result(sol)
@@ -613,11 +617,19 @@ _PREVIEW_LOCK = threading.Lock()
 
 def preview_for(prepared: Prepared, solution: Solution):
     """An ``engine.render.offscreen.Preview`` of body | hand | spliced (cached per solution)."""
-    from engine.render.offscreen import Preview
 
     cached = solution.cache.get("preview")
     if cached is not None:
         return cached
+    # one preview per alignment, whichever tabs show it (a shared first alignment)
+    with solution.cache.setdefault("preview lock", threading.Lock()):
+        cached = solution.cache.get("preview")
+        return cached if cached is not None else _new_preview(prepared, solution)
+
+
+def _new_preview(prepared: Prepared, solution: Solution):
+    from engine.render.offscreen import Preview
+
     spliced = splice(prepared, solution)
     if marker_body(prepared):  # the markers are drawn apart (no mesh): hand | retimed hand
         takes, labels = [prepared.hand, spliced], ["hand take", "hand retimed to the body"]
@@ -670,15 +682,20 @@ def assess(prepared: Prepared, solution: Solution):
     About four solves' time (forward and backward γ of both passes): the app runs it
     off the event loop after an edit has been drawn."""
     cached = solution.cache.get("trust")
-    if cached is None:
-        from engine.trust import assess_splice
+    if cached is not None:
+        return cached
+    # one assessment per alignment, whichever tabs show it (a shared first alignment)
+    with solution.cache.setdefault("trust lock", threading.Lock()):
+        cached = solution.cache.get("trust")
+        if cached is None:
+            from engine.trust import assess_splice
 
-        cached = assess_splice(
-            prepared.features,
-            _with_cost_table(prepared, solution.cache["engine"]),
-            body_phases=prepared.body_phases,
-        )
-        solution.cache["trust"] = cached
+            cached = assess_splice(
+                prepared.features,
+                _with_cost_table(prepared, solution.cache["engine"]),
+                body_phases=prepared.body_phases,
+            )
+            solution.cache["trust"] = cached
     return cached
 
 

@@ -728,7 +728,11 @@ class Session(param.Parameterized):
         prepared, values = self.prepared, self._current(EDIT_PARAMS)
         # a pair's first alignment is every tab's (backend.first_solution): computed by the
         # server's warm-up or another tab, it is shown at once
-        shared = None if self._chain is not None else backend.shared_ready(prepared, band, refine, points)
+        shared = (
+            None
+            if self._chain is not None
+            else backend.shared_ready(prepared, band, refine, points)
+        )
         if shared is not None:
             self._chain = shared
             self._solved(shared, t0, values)

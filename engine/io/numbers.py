@@ -40,7 +40,6 @@ def is_non_finite(text: str) -> bool:
     return NON_FINITE_RE.fullmatch(text) is not None
 
 
-
 # ----------------------------------------------------------------- rows of numbers, fast
 #: white space between numbers: the ASCII characters ``str.split()`` splits on
 _SPACE = np.zeros(256, np.bool_)
