@@ -324,30 +324,27 @@ def solve(prepared: Prepared, band, refine_band, points, previous=None, progress
 #: the first alignment of a pair at given settings (band widths, matching points), shared
 #: by every tab of this server that opens the pair with them: ``handsplice serve``'s
 #: warm-up solves it before any page asks, the first tab otherwise; a second tab (or a
-#: reload) shows it at once instead of solving again. Keyed on the pair's key (files by
-#: content or identity, side, roles: :func:`prepare`) and the settings. The shared
+#: reload) shows it at once instead of solving again. Kept with the pair (``Prepared``:
+#: files by content or identity, side, roles, :func:`prepare`) under its settings. The shared
 #: solution's incremental solvers are never run: a session's first edit from it runs on a
 #: copy of them (:func:`_own`), so the edits stay per session.
 #: (The cumulative-cost view may complete their stored γ rows: they stay valid.)
-_FIRST: dict[tuple, object] = {}
 _FIRST_LOCK = threading.Lock()
-#: counters of :func:`first_solution` (read by tests and ``/hs-stats``-like debugging):
+#: counters of :func:`first_solution` (read by tests):
 #: ``solved`` first alignments computed, ``shared`` handed out without solving
 FIRST_STATS = {"solved": 0, "shared": 0}
 
 
-def _first_key(prepared: Prepared, band, refine_band, points) -> tuple:
-    # the Prepared itself too: a pair read again after it left the cache has new features
-    # (its solutions' solvers belong to those); ids of live pairs only (see the eviction)
-    pair = (id(prepared), prepared.key)
-    return (pair, repr(band), repr(refine_band), tuple(tuple(p) for p in points))
+def _first_key(band, refine_band, points) -> tuple:
+    return ("first alignment", repr(band), repr(refine_band), tuple(tuple(p) for p in points))
 
 
 def first_solution(
     prepared: Prepared, band, refine_band, points, progress=None, wait: bool = True, owner=None
 ) -> Solution | None:
-    """The pair's shared first alignment at these settings (see :data:`_FIRST`): the one
-    another tab (or the warm-up) computed, else solved here and kept for the next tab.
+    """The pair's shared first alignment at these settings (see the note above
+    :data:`FIRST_STATS`): the one another tab (or the warm-up) computed, else solved here
+    and kept for the next tab.
     A tab asking while another computes it waits for that one (``wait``; else None).
 
     ``owner``: who asks (a session's id); the solution computed here names it in its
@@ -355,12 +352,12 @@ def first_solution(
     Never mutate it: :func:`solve` with ``previous`` set to it solves on copies."""
     import concurrent.futures as cf
 
-    key = _first_key(prepared, band, refine_band, points)
+    key = _first_key(band, refine_band, points)
     with _FIRST_LOCK:
-        entry = _FIRST.get(key)
+        entry = prepared.views.get(key)
         mine = entry is None
         if mine:
-            entry = _FIRST[key] = cf.Future()
+            entry = prepared.views[key] = cf.Future()
     if not mine:
         if not wait and not entry.done():
             return None
@@ -372,16 +369,13 @@ def first_solution(
         sol = solve(prepared, band, refine_band, points, progress=progress)
     except BaseException as exc:
         with _FIRST_LOCK:
-            _FIRST.pop(key, None)  # the next tab tries again (after a fix of the settings)
+            prepared.views.pop(key, None)  # the next tab tries again
         entry.set_exception(exc)
         raise
     sol.cache["shared"] = True
     sol.cache["solved_for"] = owner
     with _FIRST_LOCK:
         FIRST_STATS["solved"] += 1
-        live = {(id(p), p.key) for p in _PREPARED.values()} | {(id(prepared), prepared.key)}
-        for k in [k for k in _FIRST if k[0] not in live]:  # pairs no longer cached
-            del _FIRST[k]
     entry.set_result(sol)
     return sol
 
@@ -390,7 +384,7 @@ def shared_ready(prepared: Prepared, band, refine_band, points) -> Solution | No
     """The shared first alignment at these settings when it is already computed, else None
     (the event loop's quick look before it queues a solve)."""
     with _FIRST_LOCK:
-        entry = _FIRST.get(_first_key(prepared, band, refine_band, points))
+        entry = prepared.views.get(_first_key(band, refine_band, points))
     if entry is None or not entry.done() or entry.exception() is not None:
         return None
     with _FIRST_LOCK:
@@ -402,12 +396,12 @@ def offer(prepared: Prepared, solution: Solution) -> None:
     """Share ``solution`` (the warm-up's first alignment of ``prepared``) with every tab."""
     import concurrent.futures as cf
 
-    key = _first_key(prepared, solution.band, solution.refine_band, solution.points)
+    key = _first_key(solution.band, solution.refine_band, solution.points)
     future = cf.Future()
     solution.cache["shared"] = True
     future.set_result(solution)
     with _FIRST_LOCK:
-        _FIRST[key] = future
+        prepared.views[key] = future
 
 
 def adopt(prepared: Prepared, band, refine_band, points) -> Solution | None:
