@@ -295,6 +295,8 @@ def solve(prepared: Prepared, band, refine_band, points, previous=None, progress
     points = tuple(points)
     with prepared.lock:
         earlier = None if previous is None else previous.cache.get("engine")
+        if earlier is not None and previous.cache.get("shared"):  # every tab's: a copy
+            earlier = _own(earlier)
         if earlier is None and prepared.pass1_cost is not None:
             earlier = _seed(prepared)
         result = pipeline.align_passes(
@@ -319,31 +321,150 @@ def solve(prepared: Prepared, band, refine_band, points, previous=None, progress
     return sol
 
 
-#: solutions computed before any page asked (``handsplice serve``'s warm-up of the pair it
-#: opens first), handed whole to the first session that asks for the same alignment (a
-#: solution's incremental solvers belong to one session: it is never shared)
-_SPARE: dict[int, tuple[tuple, Solution]] = {}
+#: the first alignment of a pair at given settings (band widths, matching points), shared
+#: by every tab of this server that opens the pair with them: ``handsplice serve``'s
+#: warm-up solves it before any page asks, the first tab otherwise; a second tab (or a
+#: reload) shows it at once instead of solving again. Kept with the pair (``Prepared``:
+#: files by content or identity, side, roles, :func:`prepare`) under its settings. The shared
+#: solution's incremental solvers are never run: a session's first edit from it runs on a
+#: copy of them (:func:`_own`), so the edits stay per session.
+#: (The cumulative-cost view may complete their stored γ rows: they stay valid.)
+_FIRST_LOCK = threading.Lock()
+#: counters of :func:`first_solution` (read by tests):
+#: ``solved`` first alignments computed, ``shared`` handed out without solving
+FIRST_STATS = {"solved": 0, "shared": 0}
 
 
-def _spare_key(band, refine_band, points) -> tuple:
-    return (repr(band), repr(refine_band), tuple(tuple(p) for p in points))
+def _first_key(band, refine_band, points) -> tuple:
+    return ("first alignment", repr(band), repr(refine_band), tuple(tuple(p) for p in points))
+
+
+def first_solution(
+    prepared: Prepared, band, refine_band, points, progress=None, wait: bool = True, owner=None
+) -> Solution | None:
+    """The pair's shared first alignment at these settings (see the note above
+    :data:`FIRST_STATS`): the one another tab (or the warm-up) computed, else solved here
+    and kept for the next tab.
+    A tab asking while another computes it waits for that one (``wait``; else None).
+
+    ``owner``: who asks (a session's id); the solution computed here names it in its
+    ``cache["solved_for"]`` (the page says whether its alignment was solved for it).
+    Never mutate it: :func:`solve` with ``previous`` set to it solves on copies."""
+    import concurrent.futures as cf
+
+    key = _first_key(band, refine_band, points)
+    with _FIRST_LOCK:
+        entry = prepared.views.get(key)
+        mine = entry is None
+        if mine:
+            entry = prepared.views[key] = cf.Future()
+    if not mine:
+        if not wait and not entry.done():
+            return None
+        sol = entry.result()  # the other tab's refusal is this one's too
+        with _FIRST_LOCK:
+            FIRST_STATS["shared"] += 1
+        return sol
+    try:
+        sol = solve(prepared, band, refine_band, points, progress=progress)
+    except BaseException as exc:
+        with _FIRST_LOCK:
+            prepared.views.pop(key, None)  # the next tab tries again
+        entry.set_exception(exc)
+        raise
+    sol.cache["shared"] = True
+    sol.cache["solved_for"] = owner
+    with _FIRST_LOCK:
+        FIRST_STATS["solved"] += 1
+    entry.set_result(sol)
+    return sol
+
+
+def shared_ready(prepared: Prepared, band, refine_band, points) -> Solution | None:
+    """The shared first alignment at these settings when it is already computed, else None
+    (the event loop's quick look before it queues a solve)."""
+    with _FIRST_LOCK:
+        entry = prepared.views.get(_first_key(band, refine_band, points))
+    if entry is None or not entry.done() or entry.exception() is not None:
+        return None
+    with _FIRST_LOCK:
+        FIRST_STATS["shared"] += 1
+    return entry.result()
 
 
 def offer(prepared: Prepared, solution: Solution) -> None:
-    """Keep ``solution`` (of ``prepared``, nobody else holds it) for :func:`adopt`."""
-    key = _spare_key(solution.band, solution.refine_band, solution.points)
-    with _PREPARE_LOCK:
-        _SPARE[id(prepared)] = (key, solution)
+    """Share ``solution`` (the warm-up's first alignment of ``prepared``) with every tab."""
+    import concurrent.futures as cf
+
+    key = _first_key(solution.band, solution.refine_band, solution.points)
+    future = cf.Future()
+    solution.cache["shared"] = True
+    future.set_result(solution)
+    with _FIRST_LOCK:
+        prepared.views[key] = future
 
 
 def adopt(prepared: Prepared, band, refine_band, points) -> Solution | None:
-    """The offered solution of exactly this alignment, once (then it is the caller's)."""
-    with _PREPARE_LOCK:
-        spare = _SPARE.get(id(prepared))
-        if spare is None or spare[0] != _spare_key(band, refine_band, points):
-            return None
-        del _SPARE[id(prepared)]
-    return spare[1]
+    """The shared first alignment at these settings if it is computed (:func:`shared_ready`)."""
+    return shared_ready(prepared, band, refine_band, points)
+
+
+def _own(result):
+    """``result`` (an engine ``SpliceAlignment``) with copies of its incremental solvers:
+    a session's edit from a shared alignment re-solves on its own copy (the shared rows
+    stay as they are for every other tab). Call under the pair's lock."""
+    from dataclasses import fields, is_dataclass, replace
+
+    if result is None or not is_dataclass(result):
+        return result
+    memo: dict[int, object] = {}
+    changes = {}
+    for f in fields(result):
+        part = getattr(result, f.name)
+        if is_dataclass(part) and hasattr(part, "solver"):
+            extra = {"probe": _own_solver(part.probe, memo)} if hasattr(part, "probe") else {}
+            changes[f.name] = replace(part, solver=_own_solver(part.solver, memo), **extra)
+    return replace(result, **changes)
+
+
+def _own_solver(solver, memo: dict):
+    """A copy of an ``engine.dtw.Aligner`` whose stored rows (γ, β, back-pointers) are its
+    own; the problem (the features' rows) and bands are read-only and stay shared. Other
+    solvers (one-shot ones) are returned as they are."""
+    import copy
+
+    if solver is None or not all(hasattr(solver, a) for a in ("_fwd", "_bwd", "_lock")):
+        return solver
+    if id(solver) not in memo:
+        twin = copy.copy(solver)
+        band, rband = getattr(solver, "_band", None), getattr(solver, "_rband", None)
+        twin._fwd = _own_side(solver._fwd, None if band is None else band.start)
+        twin._bwd = _own_side(solver._bwd, None if rband is None else rband.start)
+        twin._lock = threading.Lock()
+        memo[id(solver)] = twin
+    return memo[id(solver)]
+
+
+def _own_side(side, start):
+    """A copy of one direction's stored rows: the back-pointers of its valid rows and γ of
+    its stored rows only (γ lives in sparse memory: a whole copy would make every page of
+    the band resident)."""
+    import copy
+
+    from engine.dtw.incremental import _sparse_floats
+
+    twin = copy.copy(side)
+    twin.has = side.has.copy()
+    twin.last_col = side.last_col.copy()
+    twin.last_row = side.last_row.copy()
+    if start is None or side.gamma.size <= 1:
+        twin.gamma, twin.bp = side.gamma.copy(), side.bp.copy()
+        return twin
+    twin.bp = side.bp.copy()
+    twin.gamma = _sparse_floats(side.gamma.size)
+    for r in np.flatnonzero(side.has[: side.valid]):
+        twin.gamma[start[r] : start[r + 1]] = side.gamma[start[r] : start[r + 1]]
+    return twin
 
 
 @dataclass
@@ -412,7 +533,17 @@ def cost_view(
     if kind == "pass1" and prepared.pass1_cost is not None:
         image = prepared.pass1_cost[np.ix_(rows, cols)]
     elif kind == "pass1":
-        image = _local_costs(prepared.features.pass1_rows, pipeline.DEFAULT_METRICS[0], rows, cols)
+        # the whole matrix at screen resolution is what every tab of the pair shows first:
+        # computed once per pair (the server's warm-up, or the first tab), kept with it
+        whole = (x0, x1, y0, y1) == (0, prepared.n, 0, prepared.m)
+        key = ("pass1 overview", sx, sy)
+        image = prepared.views.get(key) if whole else None
+        if image is None:
+            image = _local_costs(
+                prepared.features.pass1_rows, pipeline.DEFAULT_METRICS[0], rows, cols
+            )
+            if whole:
+                prepared.views[key] = image
     elif kind == "pass2" and engine_result is not None:
         image = _local_costs(engine_result.pass2.rows, engine_result.pass2.metric, rows, cols)
     else:
@@ -480,11 +611,19 @@ _PREVIEW_LOCK = threading.Lock()
 
 def preview_for(prepared: Prepared, solution: Solution):
     """An ``engine.render.offscreen.Preview`` of body | hand | spliced (cached per solution)."""
-    from engine.render.offscreen import Preview
 
     cached = solution.cache.get("preview")
     if cached is not None:
         return cached
+    # one preview per alignment, whichever tabs show it (a shared first alignment)
+    with solution.cache.setdefault("preview lock", threading.Lock()):
+        cached = solution.cache.get("preview")
+        return cached if cached is not None else _new_preview(prepared, solution)
+
+
+def _new_preview(prepared: Prepared, solution: Solution):
+    from engine.render.offscreen import Preview
+
     spliced = splice(prepared, solution)
     if marker_body(prepared):  # the markers are drawn apart (no mesh): hand | retimed hand
         takes, labels = [prepared.hand, spliced], ["hand take", "hand retimed to the body"]
@@ -537,15 +676,20 @@ def assess(prepared: Prepared, solution: Solution):
     About four solves' time (forward and backward γ of both passes): the app runs it
     off the event loop after an edit has been drawn."""
     cached = solution.cache.get("trust")
-    if cached is None:
-        from engine.trust import assess_splice
+    if cached is not None:
+        return cached
+    # one assessment per alignment, whichever tabs show it (a shared first alignment)
+    with solution.cache.setdefault("trust lock", threading.Lock()):
+        cached = solution.cache.get("trust")
+        if cached is None:
+            from engine.trust import assess_splice
 
-        cached = assess_splice(
-            prepared.features,
-            _with_cost_table(prepared, solution.cache["engine"]),
-            body_phases=prepared.body_phases,
-        )
-        solution.cache["trust"] = cached
+            cached = assess_splice(
+                prepared.features,
+                _with_cost_table(prepared, solution.cache["engine"]),
+                body_phases=prepared.body_phases,
+            )
+            solution.cache["trust"] = cached
     return cached
 
 

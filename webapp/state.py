@@ -708,12 +708,16 @@ class Session(param.Parameterized):
             band, refine = self.widths()
             points = self.constraint_points()
             if self.runner is None:
-                sol = backend.solve(
-                    self.prepared,
-                    band=band,
-                    refine_band=refine,
-                    points=points,
-                    previous=self.solution,
+                sol = (
+                    backend.first_solution(self.prepared, band, refine, points, owner=id(self))
+                    if self.solution is None
+                    else backend.solve(
+                        self.prepared,
+                        band=band,
+                        refine_band=refine,
+                        points=points,
+                        previous=self.solution,
+                    )
                 )
         except (HandSpliceError, ValueError) as exc:
             self.refuse(exc)
@@ -722,21 +726,32 @@ class Session(param.Parameterized):
             self._solved(sol, t0)
             return True
         prepared, values = self.prepared, self._current(EDIT_PARAMS)
-        spare = None if self._chain is not None else backend.adopt(prepared, band, refine, points)
-        if spare is not None:  # the server's warm-up solved exactly this: it is ours now
-            self._chain = spare
-            self._solved(spare, t0, values)
+        # a pair's first alignment is every tab's (backend.first_solution): computed by the
+        # server's warm-up or another tab, it is shown at once
+        shared = (
+            None
+            if self._chain is not None
+            else backend.shared_ready(prepared, band, refine, points)
+        )
+        if shared is not None:
+            self._chain = shared
+            self._solved(shared, t0, values)
             return True
 
         def work(progress):  # on the worker: solves run one at a time per session
-            sol = backend.solve(
-                prepared,
-                band=band,
-                refine_band=refine,
-                points=points,
-                previous=self._chain,
-                progress=progress,
-            )
+            if self._chain is None:  # the pair's first alignment: shared with other tabs
+                sol = backend.first_solution(
+                    prepared, band, refine, points, progress=progress, owner=id(self)
+                )
+            else:
+                sol = backend.solve(
+                    prepared,
+                    band=band,
+                    refine_band=refine,
+                    points=points,
+                    previous=self._chain,
+                    progress=progress,
+                )
             self._chain = sol
             return sol
 
@@ -820,6 +835,15 @@ class Session(param.Parameterized):
         return self._solve()
 
     # ------------------------------------------------------------ derived views
+
+    def aligned_here(self) -> bool:
+        """True when the alignment shown was computed for this session; False when it is
+        the pair's first alignment computed earlier for another tab or the server's
+        warm-up (``backend.first_solution``), shown without solving again."""
+        sol = self.solution
+        if sol is None:
+            return False
+        return not sol.cache.get("shared") or sol.cache.get("solved_for") == id(self)
 
     def status_text(self) -> str:
         sol = self.solution

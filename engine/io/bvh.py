@@ -78,7 +78,7 @@ from engine.base import limits
 from engine.base.atomic import write_text
 from engine.base.errors import MotionFormatError
 from engine.base.limits import MAX_ABS_VALUE, MAX_DEPTH, MAX_FRAMES, MAX_JOINTS
-from engine.io.numbers import NOT_NUMERIC_RE, NUMBER_RE, WHOLE_RE
+from engine.io.numbers import NOT_NUMERIC_RE, NUMBER_RE, WHOLE_RE, parse_rows
 from engine.model import rotations as rot
 from engine.model.motion import (
     POSITION_CHANNELS,
@@ -605,8 +605,21 @@ def _read_rows(
 def _chunk_values(lines: list[str], chunk: list[int], n_values: int) -> np.ndarray:
     """``(len(chunk), n_values)`` float64 values of the rows ``lines[chunk]``, or
     ``_RowTrouble`` if any of them is not clean."""
-    if _NOT_DATA_RE.search("\n".join([lines[k] for k in chunk])):
+    text = "\n".join([lines[k] for k in chunk])
+    block = parse_rows(text, len(chunk), n_values)  # the clean ASCII rows of every exporter
+    if block is None:  # anything else: read as before (a clean file with other white space)
+        if _NOT_DATA_RE.search(text):
+            raise _RowTrouble
+        block = _split_values(lines, chunk, n_values)
+    del text
+    if not np.isfinite(block).all() or (block.size and np.abs(block).max() > MAX_ABS_VALUE):
         raise _RowTrouble
+    return block.reshape(len(chunk), n_values)
+
+
+def _split_values(lines: list[str], chunk: list[int], n_values: int) -> np.ndarray:
+    """The values of rows ``lines[chunk]`` split and converted one by one (``float()``'s
+    white space and numbers), or ``_RowTrouble``."""
     rows = [lines[k].split() for k in chunk]
     if any(len(r) != n_values for r in rows):
         raise _RowTrouble
@@ -615,9 +628,7 @@ def _chunk_values(lines: list[str], chunk: list[int], n_values: int) -> np.ndarr
     except ValueError:
         raise _RowTrouble from None
     del rows
-    if not np.isfinite(block).all() or (block.size and np.abs(block).max() > MAX_ABS_VALUE):
-        raise _RowTrouble
-    return block.reshape(len(chunk), n_values)
+    return block
 
 
 def _explain_rows(

@@ -410,7 +410,13 @@ def status_line(session: Session) -> pn.viewable.Viewable:
         text = session.status_text()
         if session.waiting:
             text = f"{session.waiting} · the views below still show the pair open before: {text}"
-        pane.object = f'<span data-revision="{session.revision}">{safe_text.html(text)}</span>'
+        # data-aligned: "here" (solved for this tab) or "shared" (the pair's first
+        # alignment, solved once for every tab of the server)
+        aligned = "here" if session.aligned_here() else "shared"
+        pane.object = (
+            f'<span data-revision="{session.revision}" data-aligned="{aligned}">'
+            f"{safe_text.html(text)}</span>"
+        )
 
     session.param.watch(update, ["revision", "compute_ms", "error", "waiting"])
     update()
