@@ -197,7 +197,7 @@ class TrustView:
         ]
         for k, b in enumerate(self.buttons):
             b.on_click(lambda _e, k=k: self._on_suggestion(k))
-        self.summary.jscallback(object=_JS_GREY, args=dict(zip(("b0", "b1", "b2"), self.buttons)))
+        self.summary.jscallback(text=_JS_GREY, args=dict(zip(("b0", "b1", "b2"), self.buttons)))
         session.param.watch(self._on_revision, ["revision"])
         session.param.watch(self._on_trust, ["trust"])
         session.param.watch(lambda *_: self._schedule(0), ["busy"])  # a solve ended
