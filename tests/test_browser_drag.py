@@ -19,6 +19,7 @@ from conftest import (
     assert_no_traceback,
     open_demo_session,
     open_page,
+    pane_text,
     revision,
     served_app,
 )
@@ -29,22 +30,29 @@ pytestmark = [pytest.mark.browser, pytest.mark.timeout(900)]
 #: signals of their models, as the page applies the server's messages)
 _JS_RECORD = """() => {
   const doc = Bokeh.documents[0];
-  const by_class = (c) => [...doc.all_models].find(m => (m.css_classes ?? []).includes(c));
+  const has = (m, c) => (m.css_classes ?? []).includes(c);
   window.hsOrder = [];
-  const on = (model, prop, what) =>
-    model.properties[prop].change.connect(() => window.hsOrder.push(what));
-  on(hs.model('hs-path-source'), 'data', 'path');
-  on(hs.model('hs-band-source'), 'data', 'band');
-  on(by_class('hs-status'), 'text', 'status');
-  on(by_class('hs-share-url'), 'value', 'link');
-  on(by_class('hs-points').source, 'data', 'table');
-  on(by_class('hs-desync-summary'), 'text', 'trust');
+  // the document's own change events: every model change the page applies, in order
+  // (robust to the document's models being pulled again on a reconnection)
+  doc.on_change((ev) => {
+    const m = ev.model;
+    if (m == null) return;
+    const attr = ev.attr;
+    let what = null;
+    if (m.name === 'hs-path-source') what = 'path';
+    else if (m.name === 'hs-band-source') what = 'band';
+    else if (has(m, 'hs-status') && attr === 'text') what = 'status';
+    else if (has(m, 'hs-share-url') && attr === 'value') what = 'link';
+    else if (has(m, 'hs-desync-summary') && attr === 'text') what = 'trust';
+    else if ([...doc.all_models].some(t => has(t, 'hs-points') && t.source === m)) what = 'table';
+    if (what !== null) window.hsOrder.push(what);
+  });
 }"""
 
 
 @pytest.fixture(scope="module")
 def served(tmp_path_factory):
-    with served_app(tmp_path_factory) as (url, _, log_path):
+    with served_app(tmp_path_factory, timeout=600) as (url, _, log_path):
         yield url, log_path
     assert_no_traceback(log_path)
 
@@ -77,12 +85,10 @@ def test_drag_sends_the_path_first_and_it_is_the_sessions_path(page, tmp_path):
     page.mouse.click(*page.evaluate("([a, b]) => hs.xy(a, b)", [x, y]))
     _wait(page, lambda: revision(page) > rev, "the click's point was not solved")
     # the click's trust assessment is in the page (its summary names the meter's verdict)
+    summary = page.locator(".hs-desync-summary").first
     _wait(
         page,
-        lambda: (
-            "updating" not in page.locator(".hs-desync-summary").inner_text()
-            and "Desync meter" in page.locator(".hs-desync-summary").inner_text()
-        ),
+        lambda: "Desync meter" in (t := pane_text(summary)) and "updating" not in t,
         "no trust summary after the click",
     )
     pts = page.evaluate("hs.cols('hs-points-source', ['x', 'y'])")
