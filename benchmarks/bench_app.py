@@ -178,7 +178,10 @@ def measure_drags(browser, url: str, drags: int) -> dict:
     cpu0 = server_cpu_s(url)
     for k in range(drags):
         a, b = (y0, y1) if k % 2 == 0 else (y1, y0)
+        rev = page.locator(".hs-status span").get_attribute("data-revision")
         latencies.append(drag_once(page, x, a, b))
+        # the status line of this drag's solve (it may follow the path by a tick or more)
+        page.locator(f".hs-status span:not([data-revision='{rev}'])").wait_for(timeout=60_000)
         status = page.locator(".hs-status span").inner_text()
         found = re.search(r"([\d.]+) ms", status)
         if found:

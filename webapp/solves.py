@@ -85,6 +85,13 @@ class SolveRunner:
             return job.gens["inputs"] == self._gen["inputs"]
         return job.gens == self._gen
 
+    def solving(self) -> bool:
+        """True while a solve job runs or waits (its path is not in the page yet)."""
+        return any(
+            j is not None and j.kind == "solve" and self._current(j)
+            for j in (self._running, self._queued)
+        )
+
     def inputs_pending(self) -> bool:
         return any(
             j is not None and j.kind == "inputs" and self._current(j)

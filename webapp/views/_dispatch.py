@@ -123,3 +123,63 @@ def with_document_lock(method):
         return None
 
     return wrapper
+
+
+class _AfterPath:
+    """One session's views' work that waits until an edit's path is in the page."""
+
+    def __init__(self, session, doc):
+        self.session, self.doc = session, doc
+        self.due: dict = {}  # key -> callback, first asked first run
+        self.armed = False
+        session.param.watch(lambda *_: self._arm(), ["busy"])
+
+    def add(self, key, callback: Callable[[], object]) -> None:
+        self.due[key] = callback
+        self._arm()
+
+    def _solving(self) -> bool:
+        runner = getattr(self.session, "runner", None)
+        return runner is not None and runner.solving()
+
+    def _arm(self) -> None:
+        if self.armed or not self.due or self._solving():
+            return
+        self.armed = True
+        next_tick(self.doc, self._run)
+
+    def _run(self) -> None:
+        self.armed = False
+        if self._solving():  # a newer edit is being solved: after its path (``busy`` re-arms)
+            return
+        session = _session_of(self.doc)
+        if session is None or session.destroyed:
+            self.due.clear()
+            return
+        due, self.due = self.due, {}
+        for callback in due.values():
+            callback()
+
+
+def after_path(session, key, callback: Callable[[], object], doc=None) -> None:
+    """Run ``callback`` once the page has the newest path: the work an edit causes besides
+    its band and path (the points table, the status line, the link, the trust layers).
+
+    A Bokeh server sends a callback's model changes when the callback returns, and the
+    browser applies them in order, so work done in the tick that draws an edit's path
+    (or while its solve runs, delaying that tick) delays the path: on a 2-core machine
+    the table, status line, link and trust took ~0.4 s of the loop per edit and their
+    widget changes hundreds of ms of the page's. Here it runs in a later tick, once no
+    solve is running or queued (an edit during a drag supersedes it; only the last
+    state's work is done), ``key`` coalescing repeats. Without a server session (tests,
+    scripts, the page being built) ``callback`` runs at once.
+    """
+    doc = doc if doc is not None else pn.state.curdoc
+    if doc is None or _session_of(doc) is None:
+        callback()
+        return
+    waiting = getattr(session, "_hs_after_path", None)
+    if waiting is None or waiting.doc is not doc:
+        waiting = _AfterPath(session, doc)
+        session._hs_after_path = waiting
+    waiting.add(key, callback)

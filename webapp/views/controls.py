@@ -11,7 +11,7 @@ from bokeh.models import CustomJS
 from engine.dtw import constraints as C
 from webapp import safe_text
 from webapp.state import PASS2_SPIN_NOTE, Session
-from webapp.views._dispatch import with_document_lock
+from webapp.views._dispatch import after_path, with_document_lock
 from webapp.views.refusal import refusal_box
 
 MATRIX_CHOICES = {
@@ -263,7 +263,13 @@ class PointsTable:
         )
         self.refusal.jscallback(object=into_view, visible=into_view)
         self._edited_at = -1e9
-        session.param.watch(self._refresh, ["points", "tolerance", "revision"])
+        # after the edit's path is in the page (``after_path``): re-rendering the table in
+        # the tick that draws the path, or while its solve runs, delayed the path
+        doc = pn.state.curdoc
+        session.param.watch(
+            lambda *_: after_path(session, ("points-table", id(self)), self._refresh, doc),
+            ["points", "tolerance", "revision"],
+        )
         session.param.watch(self._new_table, ["inputs_revision"])
         session.param.watch(self._on_error, ["error"])
 
@@ -418,7 +424,11 @@ def status_line(session: Session) -> pn.viewable.Viewable:
             f"{safe_text.html(text)}</span>"
         )
 
-    session.param.watch(update, ["revision", "compute_ms", "error", "waiting"])
+    doc = pn.state.curdoc
+    session.param.watch(  # after the edit's path is in the page (``after_path``)
+        lambda *_: after_path(session, ("status", id(pane)), update, doc),
+        ["revision", "compute_ms", "error", "waiting"],
+    )
     update()
     return pane
 

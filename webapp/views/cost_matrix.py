@@ -132,6 +132,10 @@ const adopt = () => {  // show the session's points once every edit sent is answ
   st.pending = st.pending.filter(e => e.seq > acked);
   if (st.pending.length || dragging()) return;  // a drag in progress adopts when it ends
   const d = server.data;
+  if (JSON.stringify(cols(d)) === JSON.stringify(cols(src.data))) {  // as shown: no change
+    st.shown = cols(src.data);  // (one message fewer for the server while it solves)
+    return;
+  }
   st.syncing = true;
   try {
     src.data = {x: Array.from(d.x ?? []), y: Array.from(d.y ?? []),
@@ -625,6 +629,7 @@ class CostMatrixView:
             {"x": [], "y": [], "tol": []}, tags=[0], name="hs-server-points"
         )
         self._acked = 0
+        self._sent_points = None  # (points, acked edit, tolerance bars) last sent (_sync_points)
         self._page_up = False
         if pn.state.curdoc is not None and pn.state.curdoc.session_context is not None:
             pn.state.onload(lambda: setattr(self, "_page_up", True))
@@ -780,17 +785,27 @@ class CostMatrixView:
             "y": [p.hand for p in pts],
             "tol": [None if p.tolerance is None else p.tolerance for p in pts],
         }
-        # data first, then the answered edit number: the page adopts the session's points
-        # once nothing it sent is still unanswered (a newer click is never overwritten)
-        self.server_points.data = data
-        self.server_points.tags = [self._acked]
-        if not self._page_up:  # the page is not up yet: its first points are the session's
-            self.points_source.data = dict(data)
-        self.tol_source.data = {
+        bars = {
             "x": [p.body for p in pts],
             "y0": [p.hand - t - 0.5 for p, t in zip(pts, tol)],
             "y1": [p.hand + t + 0.5 for p, t in zip(pts, tol)],
         }
+        # an edit calls this up to three times (points set, edits answered, path drawn):
+        # only what changed is sent, each message being one more for the page to apply
+        # before the path it waits for
+        if self._sent_points == (data, self._acked, bars) and self._page_up:
+            return
+        # data first, then the answered edit number: the page adopts the session's points
+        # once nothing it sent is still unanswered (a newer click is never overwritten)
+        if self._sent_points is None or self._sent_points[0] != data:
+            self.server_points.data = data
+        if self.server_points.tags != [self._acked]:
+            self.server_points.tags = [self._acked]
+        if not self._page_up:  # the page is not up yet: its first points are the session's
+            self.points_source.data = dict(data)
+        if self._sent_points is None or self._sent_points[2] != bars:
+            self.tol_source.data = bars
+        self._sent_points = (data, self._acked, bars)
 
     @with_document_lock
     def show_line(self, source: ColumnDataSource, x, ys: dict, axis: str = "x") -> None:

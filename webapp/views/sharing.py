@@ -27,6 +27,7 @@ import panel as pn
 from engine.render.video import remaining_text
 from webapp import backend, safe_text
 from webapp.state import VIEW_STATE, Session
+from webapp.views._dispatch import after_path
 from webapp.views.refusal import refusal_box
 
 #: exports of all sessions share these threads (renders take turns on the OpenGL lock)
@@ -141,8 +142,10 @@ class SharingView:
                 "border-radius": "4px",
             },
         )
-        session.param.watch(
-            self._update_link, ["revision", "inputs_revision", "matrix", *VIEW_STATE]
+        doc = pn.state.curdoc
+        session.param.watch(  # after the edit's path is in the page (``after_path``)
+            lambda *_: after_path(session, ("link", id(self)), self._update_link, doc),
+            ["revision", "inputs_revision", "matrix", *VIEW_STATE],
         )
         self._update_link()
         doc = pn.state.curdoc

@@ -33,7 +33,7 @@ import panel as pn
 from bokeh.models import ColumnDataSource, HoverTool
 
 from webapp.state import Session
-from webapp.views._dispatch import after, next_tick, with_document_lock
+from webapp.views._dispatch import after, after_path, next_tick, with_document_lock
 
 VERDICT_COLORS = {
     "ok": "#2e7d32",
@@ -88,6 +88,20 @@ def _runs(values: list[str], words: dict = VERDICT_WORDS) -> dict:
         "color": [VERDICT_COLORS[x] for x in v[starts]],
         "verdict": [words[x] for x in v[starts]],
     }
+
+
+#: the desync summary while the suggestions are stale (an edit is being assessed)
+STALE_SUMMARY = '<b>Desync meter:</b> <span class="hs-updating">updating…</span>'
+
+#: the page greys the suggestion buttons out while the summary says they are stale: the
+#: buttons' own DOM state, not their models' ``disabled`` (see ``TrustView._draw``)
+_JS_GREY = """
+const stale = String(source.text ?? "").includes("hs-updating");
+for (const b of [b0, b1, b2]) {
+  const el = Bokeh.index.find_one(b)?.button_el;
+  if (el != null) el.disabled = stale;
+}
+"""
 
 
 class TrustView:
@@ -186,6 +200,7 @@ class TrustView:
         ]
         for k, b in enumerate(self.buttons):
             b.on_click(lambda _e, k=k: self._on_suggestion(k))
+        self.summary.jscallback(text=_JS_GREY, args=dict(zip(("b0", "b1", "b2"), self.buttons)))
         session.param.watch(self._on_revision, ["revision"])
         session.param.watch(self._on_trust, ["trust"])
         session.param.watch(lambda *_: self._schedule(0), ["busy"])  # a solve ended
@@ -195,7 +210,7 @@ class TrustView:
 
     def _on_revision(self, *_):
         self._armed = None
-        self._draw(None)
+        self._draw_soon()
         if self.session.solution is None:
             return
         doc = self._doc
@@ -264,7 +279,14 @@ class TrustView:
     # ------------------------------------------------------------ drawing
 
     def _on_trust(self, *_):
-        self._draw(self.session.trust)
+        self._draw_soon()
+
+    def _draw_soon(self) -> None:
+        """Draw the session's trust (None: the old one greyed) once the edit's path is in
+        the page (``after_path``): the layers and the buttons' changes went out before it."""
+        after_path(
+            self.session, ("trust", id(self)), lambda: self._draw(self.session.trust), self._doc
+        )
 
     @with_document_lock
     def _draw(self, trust):
@@ -273,15 +295,16 @@ class TrustView:
             self._matrix.show_line(self.region_source, np.zeros(0, np.int32), {"lo": [], "hi": []})
             self.strip_source.data = _runs([])
             self.meter_source.data = {"start": [], "stop": [], "color": [], "verdict": [], "ms": []}
-            # the old suggestions are greyed out, not hidden, until the new ones arrive:
-            # showing and hiding widgets lays the whole page out again in the browser
-            # (hundreds of ms each in a software-rendered page), on every edit
+            # the old suggestions are greyed out, not hidden, until the new ones arrive, by
+            # the page itself (``_JS_GREY``, on this text): showing, hiding, disabling or
+            # enabling a widget lays the whole page out again in the browser (150-300 ms
+            # each in a software-rendered page on a busy machine; six per edit), which
+            # held up the next drag's path
             if self.summary.object:
-                self.summary.object = "<b>Desync meter:</b> updating…"
+                self.summary.object = STALE_SUMMARY
             elif s.solution is not None:  # the first assessment: minutes on a long take
                 self.summary.object = f"<b>Desync meter:</b> {ASSESSING}"
             for b in self.buttons:
-                b.disabled = True
                 if s.solution is None:  # no takes: no suggestions to come
                     b.visible = False
             return
@@ -311,7 +334,6 @@ class TrustView:
                 body, _ = trust.suggestions[k]
                 b.label = f"Check body frame {body} (±{unc.ms[body]:.0f} ms)"
                 b.color = "light"
-                b.disabled = False
                 b.visible = True
             else:
                 b.visible = False
