@@ -294,7 +294,9 @@ def run(args: argparse.Namespace) -> int:
     from engine.splice.report import build_report, dumps
 
     progress = _Progress(args.quiet)
-    result = pipeline.splice(
+    from engine.splice.retime import splice_takes
+
+    result, retimed = splice_takes(
         body,
         hand,
         side=args.side,
@@ -308,12 +310,7 @@ def run(args: argparse.Namespace) -> int:
         progress=progress,
         ends=args.ends,
         max_unmatched_s=args.max_unmatched,
-        transfer_fingers=not retimed,
     )
-    if retimed:
-        from engine.splice.retime import retimed_hand
-
-        result.motion = retimed_hand(hand, result.alignment.map, result.features.fps)
     from engine.trust import assess_splice
 
     progress("trust", 0.0)
