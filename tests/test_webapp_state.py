@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from engine.base.errors import HandSpliceError
+from engine.dtw import constraints as C
 from engine.io.session import MatchPoint, SessionError
 from webapp import backend, config, uploads
 from webapp.state import Session
@@ -398,10 +399,11 @@ def test_widths_typed_in_seconds_are_checked_edits(session):
     (w1, _, w1_s, *_), *_ = parameter_widgets(session)  # slider, its note, seconds
     before = session.to_spec()
     w1_s.value = "1e9"
-    assert "band" in session.error and "seconds" in session.error
+    assert session.error.startswith("W1 in seconds: expected seconds from")
     assert w1_s.value == "1e9" and session.band_s is None and session.to_spec() == before
     w1_s.value = "abc"
-    assert "band" in session.error and w1_s.value == "abc" and session.band_s is None
+    assert session.error.startswith("W1 in seconds: ") and "got 'abc'" in session.error
+    assert w1_s.value == "abc" and session.band_s is None
     w1_s.value = "2"
     assert session.error == "" and session.band_s == 2.0 and w1.disabled
     w1_s.value = "2.50s"
@@ -1271,3 +1273,23 @@ def test_points_table_refuses_a_fraction_of_a_frame_with_the_rules_one_text(sess
     ]
     edit("hand frame", "125")
     assert session.points[0].hand == 125 and session.error == ""
+
+
+def test_a_refused_seconds_entry_speaks_of_its_field(session):
+    """What is typed into a width's field in seconds is refused in that field's words
+    (``W1 in seconds``, seconds only, the text as typed), not as ``band`` with its
+    fractions; empty text puts the fraction back in force."""
+    assert session.set_constraints(band_s="2") and session.band_s == 2.0
+    for typed in ("abc", "0s", "1.5x"):
+        assert not session.set_constraints(band_s=typed)
+        assert session.error == (
+            f"W1 in seconds: expected seconds from 0.1 to 3600 (like 10 or 10s), got {typed!r}"
+        )
+        assert "fraction" not in session.error and session.band_s == 2.0
+        assert session.refusal().field == "band_s"
+    assert not session.set_constraints(refine_band_s="0")
+    assert session.error.startswith("W2 in seconds: expected seconds from 0.05 to 3600")
+    assert session.set_constraints(band_s="3 s") and session.band_s == 3.0
+    assert session.set_constraints(band_s="") and session.band_s is None
+    assert session.widths()[0] == C.Width(session.band)
+

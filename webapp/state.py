@@ -507,21 +507,34 @@ class Session(param.Parameterized):
     def _update_history_flags(self) -> None:
         self.param.update(can_undo=bool(self._undo), can_redo=bool(self._redo))
 
-    def set_constraints(self, band=None, refine_band=None, tolerance=None, points=None) -> bool:
+    def set_constraints(
+        self,
+        band=None,
+        refine_band=None,
+        tolerance=None,
+        points=None,
+        band_s=None,
+        refine_band_s=None,
+    ) -> bool:
         """Band widths (a fraction, ``"10s"`` or a ``Width``), the global tolerance and the
         matching points as a person types them, checked by engine.dtw.constraints as every
-        front is; one undoable edit. False (and ``error``, nothing changed) if refused."""
+        front is; one undoable edit. False (and ``error``, nothing changed) if refused.
+        ``band_s``/``refine_band_s``: what was typed into a width's field in seconds (``2``,
+        ``2s``; empty text: the fraction is in force again), refused in that field's words
+        (``W1 in seconds: ...``)."""
         values: dict = {}
         try:
-            for name, rule, value in (
-                ("band", C.BAND, band),
-                ("refine_band", C.REFINE_BAND, refine_band),
+            for name, rule, value, seconds in (
+                ("band", C.BAND, band, band_s),
+                ("refine_band", C.REFINE_BAND, refine_band, refine_band_s),
             ):
                 width = rule.parse(value)
                 if width is not None and width.unit == C.SECONDS:
                     values[f"{name}_s"] = width.value
                 elif width is not None:
                     values.update({name: width.value, f"{name}_s": None})
+                if seconds is not None:
+                    values[f"{name}_s"] = rule.parse_seconds(seconds)
             if tolerance is not None:
                 values["tolerance"] = C.parse_tolerance(tolerance)
             if points is not None:

@@ -63,8 +63,10 @@ def parameter_widgets(session: Session) -> pn.viewable.Viewable:
     # through Session.set_constraints (engine.dtw.constraints' ranges and one-line refusal,
     # as for links and session files); a refused value gives way to the one in force
     seconds = {
-        "band": _seconds_input(session, "band", "W1 in seconds (empty: fraction)"),
-        "refine_band": _seconds_input(session, "refine_band", "W2 in seconds (empty: fraction)"),
+        "band": _seconds_input(session, "band", f"{C.BAND.seconds_label} (empty: fraction)"),
+        "refine_band": _seconds_input(
+            session, "refine_band", f"{C.REFINE_BAND.seconds_label} (empty: fraction)"
+        ),
     }
 
     # a slider whose width is overridden by seconds is greyed out, and a line under it
@@ -171,10 +173,9 @@ def _seconds_input(session: Session, name: str, label: str) -> pn.widgets.TextIn
         text = str(event.new or "").strip()
         if text == _seconds_text(getattr(session, field)):
             return  # what is in force (the page echoing a value shown): no edit
-        if not text:  # emptied: the fraction is in force again
-            ok = session.set_constraints(**{name: getattr(session, name)})
-        else:
-            ok = session.set_constraints(**{name: text if text.endswith("s") else f"{text}s"})
+        # emptied: the fraction is in force again; a refusal speaks of this field
+        # ("W1 in seconds: ...", engine.dtw.constraints), showing the text as typed
+        ok = session.set_constraints(**{field: text})
         if ok:
             show()  # normalised: show what is in force
         # refused: the text stays as typed, to be corrected (the error line says why and
