@@ -952,14 +952,15 @@ def test_command_line_uses_the_session_file_then_explicit_flags(session):
 
     session.add_point(40, 20, 0)
     view = sharing.SharingView(session)
-    first, second = view.command.object.split("<br>", 1)
+    where, first, second = view.command.object.split("<br>", 2)
+    assert "run in your HandSplice folder" in where and ".venv/bin/handsplice" in where
     assert first == (
-        f"$ handsplice splice {session.take_paths()[0].name} "
+        f"$ .venv/bin/handsplice splice {session.take_paths()[0].name} "
         f"{session.take_paths()[1].name} -o spliced.bvh "
         f"--session {sharing.SESSION_FILENAME}"
     )
     assert "--match" not in first
-    assert "explicit flags" in second and "$ handsplice splice " in second
+    assert "explicit flags" in second and "$ .venv/bin/handsplice splice " in second
     assert "--match 40:" in second and "--band" in second
 
 
@@ -1293,3 +1294,26 @@ def test_a_refused_seconds_entry_speaks_of_its_field(session):
     assert session.set_constraints(band_s="") and session.band_s is None
     assert session.widths()[0] == C.Width(session.band)
 
+
+def test_the_pages_command_line_runs_the_program_the_readme_installs(session):
+    """The Share section's command lines name the program as the README's "Command line"
+    section runs it (``make demo`` puts it in the clone's .venv, not on PATH), and say
+    where to run them."""
+    import html
+    import re
+    import shlex
+
+    from conftest import ROOT
+
+    from webapp.views import sharing
+
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    block = readme.split("## Command line", 1)[1].split("```sh", 1)[1].split("```", 1)[0]
+    programs = {line.split()[0] for line in block.strip().splitlines()}
+    assert len(programs) == 1, programs
+    view = sharing.SharingView(session)
+    lines = [html.unescape(re.sub("<[^>]+>", "", ln)) for ln in view.command.object.split("<br>")]
+    commands = [shlex.split(ln.removeprefix("$ ")) for ln in lines if ln.startswith("$ ")]
+    assert len(commands) == 2
+    assert {argv[0] for argv in commands} == programs
+    assert lines[0].startswith("# run in your HandSplice folder")

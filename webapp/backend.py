@@ -743,6 +743,16 @@ def _video_key(camera: str, size: tuple[int, int], indices: range) -> tuple:
     return (camera, tuple(size), indices.start, indices.stop, indices.step)
 
 
+#: the command line's program as a user who followed the README has it: ``make demo``
+#: installs it in the clone's ``.venv`` (not on PATH)
+CLI_PROGRAM = ".venv/bin/handsplice"
+#: said above the page's command lines: where they run and what their file names are
+CLI_WHERE = (
+    "# run in your HandSplice folder (README: make demo installed .venv/bin/handsplice there); "
+    "the takes' names stand for their paths on your disk"
+)
+
+
 def cli_command(
     body: str,
     hand: str,
@@ -764,7 +774,7 @@ def cli_command(
     from engine.dtw import constraints as C
 
     parts = [
-        "handsplice",
+        CLI_PROGRAM,
         "splice",
         shlex.quote(body),
         shlex.quote(hand),
@@ -793,7 +803,7 @@ def cli_session_command(
 
     return " ".join(
         [
-            "handsplice",
+            CLI_PROGRAM,
             "splice",
             shlex.quote(body),
             shlex.quote(hand),

@@ -342,6 +342,7 @@ class SharingView:
                 body, hand, s.side, *s.widths(), s.user_points(), s.roles
             )
             self.command.object = (
+                f"<span style='color:#777'>{safe_text.html(backend.CLI_WHERE)}</span><br>"
                 "$ " + safe_text.html(session_cmd) + "<br>"
                 "<span style='color:#777'># or with explicit flags (--match takes hand-file "
                 "frames):</span><br>$ " + safe_text.html(flags_cmd)
