@@ -36,7 +36,8 @@ MARKER_BODY_NOTE = (
     "The body take holds **markers** (C3D/TRC): it has no skeleton to receive fingers. "
     "The alignment, matching points and bands work as for any pair; *Spliced BVH* gives the "
     "**hand take retimed to the body** (one frame per body frame, at the body's frame rate) "
-    "to pair with your markers in an animation tool, and the preview draws the body's "
+    "to pair with your markers in an animation tool, *Spliced GLB (3D)* the same retimed "
+    "hand as a skinned 3D hand (no body), and the preview draws the body's "
     "markers (the aligned arm in orange) beside the hand."
 )
 MARKER_HAND_NOTE = (

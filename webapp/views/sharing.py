@@ -163,15 +163,19 @@ class SharingView:
         self.message.visible = False
         return io.BytesIO(data)
 
-    async def _bvh(self):
+    def _stem(self) -> str:
+        """The downloads' file stem: a marker body gives the hand take retimed to it (see
+        the page's note), named so (``-hand-retimed``), in BVH and in 3D alike."""
         s = self.session
         retimed = s.prepared is not None and backend.marker_body(s.prepared)
-        # a marker body gives the hand take retimed to it (see the page's note)
-        self.bvh.filename = f"{s.output_stem()}{'-hand-retimed' if retimed else ''}.bvh"
+        return f"{s.output_stem()}{'-hand-retimed' if retimed else ''}"
+
+    async def _bvh(self):
+        self.bvh.filename = f"{self._stem()}.bvh"
         return await self._off_loop(self.bvh, "spliced BVH", backend.bvh_bytes)
 
     async def _glb(self):
-        self.glb.filename = f"{self.session.output_stem()}.glb"
+        self.glb.filename = f"{self._stem()}.glb"
         return await self._off_loop(self.glb, "spliced GLB", backend.glb_bytes)
 
     async def _off_loop(self, widget, what: str, encode) -> io.BytesIO | None:
