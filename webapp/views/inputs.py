@@ -31,6 +31,9 @@ from webapp.views.refusal import refusal_box
 _WORKERS = ThreadPoolExecutor(max_workers=2, thread_name_prefix="hs-upload")
 #: the sample selector's entry while an uploaded pair is open
 UPLOADED = "(your uploaded pair)"
+#: the sample selector's entry while one uploaded take waits for its partner (the views
+#: still show the pair open before, which the selector must not claim is the one chosen)
+WAITING = "(your upload: waiting for its partner)"
 
 MARKER_BODY_NOTE = (
     "The body take holds **markers** (C3D/TRC): it has no skeleton to receive fingers. "
@@ -109,7 +112,8 @@ class InputsView:
         self.roles_apply.on_click(self._on_roles)
         self._show_roles()
         session.param.watch(
-            self._on_session_inputs, ["sample", "body_sha256", "hand_sha256", "roles", "opening"]
+            self._on_session_inputs,
+            ["sample", "body_sha256", "hand_sha256", "roles", "opening", "waiting"],
         )
         session.param.watch(self._show_note, ["inputs_revision"])
         # a side the takes lack is refused here, under the Side control that asked for it
@@ -128,18 +132,27 @@ class InputsView:
     # ------------------------------------------------------------ the sample selector
 
     def _sample_options(self) -> list[str]:
+        if self.session.waiting:
+            return [WAITING, *self._names]
         uploaded = not self.session.sample and self.session.body_sha256
         return ([UPLOADED] if uploaded else []) + self._names
 
     def _sample_value(self) -> str | None:
         s = self.session
+        if s.waiting:  # the chosen takes are the upload, not the pair still shown
+            return WAITING
         if s.sample in self._names:
             return s.sample
         return UPLOADED if s.body_sha256 else None
 
     def _on_sample(self, event):
-        if event.new and event.new != UPLOADED and event.new != self.session.sample:
+        if not event.new or event.new in (UPLOADED, WAITING):
+            return
+        if event.new != self.session.sample:
             self.session.load_sample(event.new)
+        elif self.session.waiting:  # back to the sample still shown: the upload is dropped
+            self._forget_uploads()
+            self._on_session_inputs()
 
     def _session_key(self) -> tuple:
         s = self.session
