@@ -1317,3 +1317,39 @@ def test_the_pages_command_line_runs_the_program_the_readme_installs(session):
     assert len(commands) == 2
     assert {argv[0] for argv in commands} == programs
     assert lines[0].startswith("# run in your HandSplice folder")
+
+
+def test_the_unmatched_end_limit_is_an_edit_the_file_link_and_command_line_carry(
+    session, tmp_path, capsys
+):
+    """The page's open-end limit (the CLI's --max-unmatched) is an undoable edit checked by
+    engine.dtw.constraints (its refusal names the page's field), and the session file, the
+    link and the command line carry it: the CLI replays the page's splice byte for byte."""
+    from engine.cli import main
+    from engine.io import session as session_io
+
+    cells = session.solution.pass1.band_cells
+    assert not session.set_constraints(max_unmatched_s="-1")
+    assert session.error == (
+        "Unmatched ends at most (seconds): expected a number of seconds from 0 to 3600, got -1"
+    )
+    assert session.set_constraints(max_unmatched_s="0.5")
+    assert session.solution.cache["engine"].max_unmatched_s == 0.5
+    assert session.solution.pass1.band_cells < cells
+    assert "0.5 s unmatched at each end (the limit set above)" in session.unmatched_note()
+    spec = session_io.parse_session(session.to_json())
+    assert spec.max_unmatched_s == 0.5
+    assert session_io.from_query(session.to_query()).max_unmatched_s == 0.5
+    body, hand = session.take_paths()
+    flags = backend.cli_command(
+        body.name, hand.name, "right", *session.widths(), [], None, session.max_unmatched_s
+    )
+    assert "--max-unmatched 0.5" in flags
+    file = tmp_path / "s.json"
+    file.write_text(session.to_json(), encoding="utf-8")
+    out = tmp_path / "cli.bvh"
+    assert main(["splice", str(body), str(hand), "-o", str(out), "--session", str(file)]) == 0
+    capsys.readouterr()
+    assert out.read_bytes() == backend.bvh_bytes(session.spliced())
+    session.undo()
+    assert session.max_unmatched_s is None and session.solution.pass1.band_cells == cells

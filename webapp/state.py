@@ -34,7 +34,15 @@ from engine.io.session import MatchPoint, SessionSpec, TakeRef
 from webapp import backend, config
 from webapp.solves import Job, SolveRunner
 
-EDIT_PARAMS = ("band", "band_s", "refine_band", "refine_band_s", "tolerance", "points")
+EDIT_PARAMS = (
+    "band",
+    "band_s",
+    "refine_band",
+    "refine_band_s",
+    "tolerance",
+    "points",
+    "max_unmatched_s",
+)
 INPUT_PARAMS = ("sample", "body_sha256", "hand_sha256", "side", "roles")
 #: the page's view state kept in the session (file and link): preview camera, hand trails,
 #: follow edits, pick mode
@@ -131,6 +139,13 @@ class Session(param.Parameterized):
         bounds=(C.TOLERANCE.lo, C.TOLERANCE.hi),
         step=1.0,
         doc="global matching-point tolerance T in hand frames",
+    )
+    max_unmatched_s = param.Number(
+        default=None,
+        allow_None=True,
+        bounds=(C.MAX_UNMATCHED.lo, C.MAX_UNMATCHED.hi),
+        doc="open ends: seconds each take may stay unmatched at each end (the CLI's "
+        "--max-unmatched); None: the default, " + C.UNMATCHED_DEFAULT,
     )
     points = param.Parameter(
         default=(),
@@ -515,13 +530,15 @@ class Session(param.Parameterized):
         points=None,
         band_s=None,
         refine_band_s=None,
+        max_unmatched_s=None,
     ) -> bool:
         """Band widths (a fraction, ``"10s"`` or a ``Width``), the global tolerance and the
         matching points as a person types them, checked by engine.dtw.constraints as every
         front is; one undoable edit. False (and ``error``, nothing changed) if refused.
         ``band_s``/``refine_band_s``: what was typed into a width's field in seconds (``2``,
         ``2s``; empty text: the fraction is in force again), refused in that field's words
-        (``W1 in seconds: ...``)."""
+        (``W1 in seconds: ...``); ``max_unmatched_s`` likewise, the open-end limit typed in
+        seconds (empty text: the default limit)."""
         values: dict = {}
         try:
             for name, rule, value, seconds in (
@@ -535,6 +552,10 @@ class Session(param.Parameterized):
                     values.update({name: width.value, f"{name}_s": None})
                 if seconds is not None:
                     values[f"{name}_s"] = rule.parse_seconds(seconds)
+            if max_unmatched_s is not None:
+                values["max_unmatched_s"] = C.parse_max_unmatched(
+                    max_unmatched_s, label=C.MAX_UNMATCHED_LABEL
+                )
             if tolerance is not None:
                 values["tolerance"] = C.parse_tolerance(tolerance)
             if points is not None:
@@ -727,6 +748,7 @@ class Session(param.Parameterized):
                     refine_band=refine,
                     points=points,
                     previous=self.solution,
+                    max_unmatched_s=self.max_unmatched_s,
                 )
         except (HandSpliceError, ValueError) as exc:
             self.refuse(exc)
@@ -735,7 +757,13 @@ class Session(param.Parameterized):
             self._solved(sol, t0)
             return True
         prepared, values = self.prepared, self._current(EDIT_PARAMS)
-        spare = None if self._chain is not None else backend.adopt(prepared, band, refine, points)
+        limit = self.max_unmatched_s
+        # the warm-up's solution has the default open-end limit
+        spare = (
+            None
+            if self._chain is not None or limit is not None
+            else backend.adopt(prepared, band, refine, points)
+        )
         if spare is not None:  # the server's warm-up solved exactly this: it is ours now
             self._chain = spare
             self._solved(spare, t0, values)
@@ -749,6 +777,7 @@ class Session(param.Parameterized):
                 points=points,
                 previous=self._chain,
                 progress=progress,
+                max_unmatched_s=limit,
             )
             self._chain = sol
             return sol
@@ -860,6 +889,57 @@ class Session(param.Parameterized):
         )
         return text + (f" · {unmatched}" if unmatched else "")
 
+    def unmatched_limits_s(self) -> tuple[float, float] | None:
+        """Seconds of the body and of the hand take that may stay unmatched at each end
+        (``engine.dtw.constraints.unmatched_limits``: the limit set, or the default for
+        these takes); None without takes."""
+        if self.prepared is None or not self.fps:
+            return None
+        body, hand = C.unmatched_limits(self.n, self.m, self.fps, self.max_unmatched_s)
+        return body / self.fps, hand / self.fps
+
+    def unmatched_note(self) -> str:
+        """What the open-end limit in force is for these takes, in words (under its field)."""
+        limits = self.unmatched_limits_s()
+        if limits is None:
+            return ""
+        body, hand = limits
+        rule = (
+            "the limit set above"
+            if self.max_unmatched_s is not None
+            else f"the default: {C.UNMATCHED_DEFAULT}"
+        )
+        return (
+            f"In force: the body take may leave {body:.1f} s and the hand take {hand:.1f} s "
+            f"unmatched at each end ({rule})."
+        )
+
+    def band_placement_note(self) -> str:
+        """Why narrowing W1 barely narrows the band of takes of different lengths, or ""
+        (``engine.splice.end_band``: with open ends pass 1's band also holds every place
+        the shorter take can sit inside the longer one; their spread comes from the takes'
+        lengths and the unmatched-end limit, W1 only widens each place). Said where that
+        spread is at least W1 (then it, not W1, makes most of the band's width)."""
+        if self.prepared is None or not self.fps:
+            return ""
+        from engine.splice.end_band import placement_offsets
+
+        limits = C.unmatched_limits(self.n, self.m, self.fps, self.max_unmatched_s)
+        offsets = placement_offsets(self.n, self.m, limits)
+        if offsets is None:
+            return ""
+        spread = (offsets[1] - offsets[0]) / self.fps
+        if spread < self.widths()[0].frames(self.n, self.fps) / self.fps:
+            return ""
+        shorter = "hand" if self.m < self.n else "body"
+        return (
+            f"With open ends the band also holds every place the shorter ({shorter}) take "
+            f"can sit inside the longer one: {spread:.1f} s of start times, set by the takes' "
+            f"lengths and the unmatched-end limit ({C.MAX_UNMATCHED_LABEL}, below), not by "
+            "W1, which only widens each place. So narrowing W1 narrows the band little; "
+            "a smaller unmatched-end limit or a matching point narrows it."
+        )
+
     def axis_signals(self) -> tuple[np.ndarray, np.ndarray]:
         if self.prepared is None:
             return np.zeros(0), np.zeros(0)
@@ -936,6 +1016,7 @@ class Session(param.Parameterized):
             refine_band=refine,
             tolerance=self.tolerance,
             points=self.points,
+            max_unmatched_s=self.max_unmatched_s,
             roles=dict(self.roles),
             view={"matrix": self.matrix, "frame": self.frame, **self._current(VIEW_STATE)},
         )
@@ -1066,7 +1147,12 @@ class Session(param.Parameterized):
         refine = spec.refine_band or C.REFINE_BAND.default_for(prepared.n, fps)
         grid = backend.points_to_grid(prepared, [p.resolved(spec.tolerance) for p in points])
         solution = backend.solve(
-            prepared, band=band, refine_band=refine, points=grid, progress=progress
+            prepared,
+            band=band,
+            refine_band=refine,
+            points=grid,
+            progress=progress,
+            max_unmatched_s=spec.max_unmatched_s,
         )
         widths = {}
         for name, width in (("band", band), ("refine_band", refine)):
@@ -1081,6 +1167,7 @@ class Session(param.Parameterized):
             **widths,
             tolerance=spec.tolerance,
             points=points,
+            max_unmatched_s=spec.max_unmatched_s,
             matrix=spec.view.get("matrix", self.matrix),
             frame=int(min(spec.view.get("frame", 0), max(prepared.n - 1, 0))),
             **{k: spec.view.get(k, session_io.VIEW_DEFAULTS[k]) for k in VIEW_STATE},

@@ -248,6 +248,8 @@ def run(args: argparse.Namespace) -> int:
     refine_band = C.REFINE_BAND.parse(args.refine_band)
     C.parse_ends(args.ends)  # refused before any file is read, as the widths are
     C.parse_max_unmatched(args.max_unmatched)
+    if spec is not None and args.max_unmatched is None:  # the page's limit, if it set one
+        args.max_unmatched = spec.max_unmatched_s
     if spec is not None:
         band = band if band is not None else spec.band
         refine_band = refine_band if refine_band is not None else spec.refine_band

@@ -489,13 +489,20 @@ def parse_ends(value) -> str:
     return text
 
 
-def parse_max_unmatched(value) -> float | None:
-    """Seconds a take may begin or end with unmatched (open ends); None = the default."""
+#: the app's field for the open-end limit (its refusal names it, as ``--max-unmatched``
+#: names the flag's)
+MAX_UNMATCHED_LABEL = "Unmatched ends at most (seconds)"
+
+
+def parse_max_unmatched(value, label: str | None = None) -> float | None:
+    """Seconds a take may begin or end with unmatched (open ends); None = the default.
+    ``label``: the field the value was typed into, for the refusal (default: the rule's
+    name, ``max_unmatched_s``)."""
     if value is None or (isinstance(value, str) and not value.strip()):
         return None
     if isinstance(value, str):
         value = re.sub(r"\s*s\s*$", "", value.strip())
-    return MAX_UNMATCHED.parse(value)
+    return MAX_UNMATCHED.parse(value, **({} if label is None else {"label": label}))
 
 
 def unmatched_limits(

@@ -122,16 +122,45 @@ def parameter_widgets(session: Session) -> pn.viewable.Viewable:
     session.param.watch(w2_in_use, ["inputs_revision"])
     w2_in_use()
     fraction_in_force()
+    # takes of different lengths with open ends: the band also holds every place of the
+    # shorter take inside the longer one, which W1 does not narrow (said under W1)
+    placement = pn.pane.Markdown(
+        "",
+        css_classes=["hs-band-placement"],
+        visible=False,
+        margin=(0, 10),
+        styles={"color": "#666", "font-size": "12px"},
+    )
+    # the open-end limit (the CLI's --max-unmatched): range, default and refusal are
+    # engine.dtw.constraints'; empty = the default for these takes, said below the field
+    unmatched = _unmatched_input(session)
+    unmatched_note = pn.pane.Markdown(
+        "",
+        css_classes=["hs-unmatched-note"],
+        margin=(0, 10),
+        styles={"color": "#666", "font-size": "12px"},
+    )
+
+    def open_end_notes(*_):
+        text = session.band_placement_note()
+        placement.object, placement.visible = text, bool(text)
+        unmatched_note.object = session.unmatched_note()
+
+    session.param.watch(open_end_notes, ["inputs_revision", "revision", "max_unmatched_s"])
+    open_end_notes()
     widgets = params._widgets  # linked to the session by pn.Param; laid out here
     return pn.Column(
         pn.Column(
             widgets["band"],
             overridden["band"],
             seconds["band"],
+            placement,
             widgets["refine_band"],
             overridden["refine_band"],
             seconds["refine_band"],
             widgets["tolerance"],
+            unmatched,
+            unmatched_note,
             sizing_mode="stretch_width",
             css_classes=["hs-params"],
         ),
@@ -183,6 +212,40 @@ def _seconds_input(session: Session, name: str, label: str) -> pn.widgets.TextIn
 
     widget.param.watch(typed, "value")
     session.param.watch(show, [field])
+    return widget
+
+
+def _unmatched_input(session: Session) -> pn.widgets.TextInput:
+    """The open-end limit in seconds (``Session.max_unmatched_s``, the CLI's
+    --max-unmatched), kept in step with the session both ways; what is typed is an edit the
+    session checks (engine.dtw.constraints' range and refusal, naming this field); empty
+    text is the default limit. A refused entry stays as typed, to be corrected."""
+    widget = pn.widgets.TextInput(
+        label=f"{C.MAX_UNMATCHED_LABEL}, each end of each take",
+        value=_seconds_text(session.max_unmatched_s),
+        placeholder="empty: the default (said below)",
+        css_classes=["hs-max-unmatched"],
+    )
+    syncing = [False]
+
+    def show(*_):
+        syncing[0] = True
+        try:
+            widget.value = _seconds_text(session.max_unmatched_s)
+        finally:
+            syncing[0] = False
+
+    def typed(event):
+        if syncing[0]:
+            return
+        text = str(event.new or "").strip()
+        if text == _seconds_text(session.max_unmatched_s):
+            return
+        if session.set_constraints(max_unmatched_s=text):
+            show()
+
+    widget.param.watch(typed, "value")
+    session.param.watch(show, ["max_unmatched_s"])
     return widget
 
 

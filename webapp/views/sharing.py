@@ -343,7 +343,7 @@ class SharingView:
             hand = s.hand_name or paths[1].name
             session_cmd = backend.cli_session_command(body, hand, SESSION_FILENAME)
             flags_cmd = backend.cli_command(
-                body, hand, s.side, *s.widths(), s.user_points(), s.roles
+                body, hand, s.side, *s.widths(), s.user_points(), s.roles, s.max_unmatched_s
             )
             self.command.object = (
                 f"<span style='color:#777'>{safe_text.html(backend.CLI_WHERE)}</span><br>"
