@@ -94,8 +94,8 @@ def parameter_widgets(session: Session) -> pn.viewable.Viewable:
             note.visible = value is not None and not unused
             if note.visible:
                 note.object = (
-                    f"The fraction above is not used: {label} = {value:g} s is in force "
-                    "(empty the seconds field to use the fraction)."
+                    f"The fraction above is not used: the seconds field below sets {label} "
+                    f"to {value:g} seconds (empty it to use the fraction)."
                 )
 
     session.param.watch(fraction_in_force, ["band_s", "refine_band_s", "inputs_revision"])
