@@ -1,5 +1,7 @@
 """A new user's rough edges of the page, through its own controls in real Chromium:
 
+- a hand take faster than the body: the points' heading says a point's hand frame snaps
+  to the body's rate (the preview named hand 1200 for a point at 1199);
 - while one uploaded take waits for its partner, the sample picker does not name the
   sample pair still shown as the one chosen (it said "wave-ok");
 - takes of different lengths with open ends: the page says, under W1, that the band also
@@ -71,6 +73,11 @@ def _uploaded_line(page) -> str:
 
 
 def test_the_sample_picker_does_not_name_the_sample_while_an_upload_waits(page):
+    # the demo's hand take runs at 40 fps, its body at 30: a point's hand frame snaps to
+    # the body's rate, said under the points' heading (a stranger's R3-4)
+    note = page.locator(".hs-hand-rate-note").first
+    note.wait_for(state="visible", timeout=BUSY_S * 1000)
+    assert "(40 vs 30 fps)" in pane_text(note) and "preview" in pane_text(note)
     demo = _picker(page)
     assert demo and not demo.startswith("(")
     page.locator(".hs-upload-body input[type=file]").set_input_files(str(BODY_BVH))

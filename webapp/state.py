@@ -940,6 +940,21 @@ class Session(param.Parameterized):
             "a smaller unmatched-end limit or a matching point narrows it."
         )
 
+    def hand_rate_note(self) -> str:
+        """Why a point's hand frame and the preview's can differ by a frame or two, or "":
+        a hand take faster than the body is aligned at the body's rate (its frames on the
+        alignment grid, ``constraints.points_to_grid``), so a point's hand frame counts to
+        the nearest grid column, and the preview names the hand frame of that column."""
+        if not (self.prepared is not None and self.fps and self.hand_fps > self.fps * 1.001):
+            return ""
+        ratio = self.hand_fps / self.fps
+        return (
+            f"The hand take has {ratio:.3g} frames per body frame ({self.hand_fps:g} vs "
+            f"{self.fps:g} fps) and is aligned at the body's rate, in steps of {ratio:.3g} "
+            "hand frames: a point's hand frame is aligned to the nearest step, so the preview "
+            f"at its body frame may name a hand frame up to {ratio / 2:.3g} from the table's."
+        )
+
     def axis_signals(self) -> tuple[np.ndarray, np.ndarray]:
         if self.prepared is None:
             return np.zeros(0), np.zeros(0)

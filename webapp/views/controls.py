@@ -215,6 +215,27 @@ def _seconds_input(session: Session, name: str, label: str) -> pn.widgets.TextIn
     return widget
 
 
+def hand_rate_note(session: Session) -> pn.viewable.Viewable:
+    """Under the matching points' heading: a hand take faster than the body snaps a point's
+    hand frame to the body's rate (``Session.hand_rate_note``), said before anyone asks why
+    the preview names another hand frame."""
+    pane = pn.pane.Markdown(
+        "",
+        css_classes=["hs-hand-rate-note"],
+        visible=False,
+        margin=(0, 10),
+        styles={"color": "#666", "font-size": "12px"},
+    )
+
+    def update(*_):
+        text = session.hand_rate_note()
+        pane.object, pane.visible = text, bool(text)
+
+    session.param.watch(update, ["inputs_revision"])
+    update()
+    return pane
+
+
 def _unmatched_input(session: Session) -> pn.widgets.TextInput:
     """The open-end limit in seconds (``Session.max_unmatched_s``, the CLI's
     --max-unmatched), kept in step with the session both ways; what is typed is an edit the
