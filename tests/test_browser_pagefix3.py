@@ -72,8 +72,13 @@ def _picker(page) -> str:
 
 
 def _uploaded_line(page) -> str:
+    """The "Uploaded …" line ('' while it is re-drawn, or the page is busy past the
+    locator's timeout on a loaded machine: the callers poll)."""
     line = page.locator(".hs-upload-status")
-    return pane_text(line) if line.count() else ""
+    try:
+        return pane_text(line.first) if line.count() else ""
+    except Exception:  # noqa: BLE001 - polled again
+        return ""
 
 
 def test_the_sample_picker_does_not_name_the_sample_while_an_upload_waits(page):
