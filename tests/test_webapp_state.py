@@ -376,7 +376,9 @@ def test_w2_is_greyed_out_where_pass_2_compares_the_hand_turning(cfg):
     s = Session(cfg)
     s.load_sample(DEMO)
     layout = parameter_widgets(s)
-    (w1, _, w1_s, w2, _, w2_s, _), note = layout[0], layout[1]  # widths, their notes
+    # widths, their notes (W1's: why an open-end band narrows little), the tolerance and
+    # the unmatched-end limit with its note
+    (w1, _, w1_s, _, w2, _, w2_s, _, _, _), note = layout[0], layout[1]
     s.matrix = "pass2"
     assert s.pass2_turns_hand() and s.matrix_label() == PASS2_SPIN_LABEL
     assert w2.disabled and w2_s.disabled and not w1.disabled and not w1_s.disabled
