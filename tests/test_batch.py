@@ -382,7 +382,8 @@ def test_a_missing_take_fails_its_pair_before_any_cluster_starts(tmp_path):
 def test_reader_notes_reach_the_pair_record_summary_page_and_progress(takes, tmp_path):
     """pyomeca's TRC (its header says 652 frames, 93 rows follow) under a file name with
     markup: the reader's note (which ``splice`` prints on stderr) is in the failed pair's
-    record, its summary.csv row, the progress lines and index.html, escaped there."""
+    record, its summary.csv row, the progress lines and index.html, escaped there (a marker
+    body splices: the pair gives the hand take retimed to it, as ``handsplice splice``)."""
     import io
     import shutil
 
@@ -399,7 +400,7 @@ def test_reader_notes_reach_the_pair_record_summary_page_and_progress(takes, tmp
     )
     rec = run_pair(job, tmp_path, thumbnails="none", seconds=None, memory_mb=None)
     note = "<b>cut&.trc: the header says 652 frames, 93 were read"
-    assert rec["status"] == "failed" and rec["notes"] == note  # a marker take: refused
+    assert rec["status"] == "done" and rec["notes"] == note, rec["error"]
     write_summary_csv([rec], tmp_path / "summary.csv")
     assert _summary(tmp_path)["cut"]["notes"] == note
     page = write_index_html([rec], tmp_path / "index.html", "m.csv", 1.0).read_text("utf-8")
@@ -440,3 +441,33 @@ def test_a_done_pair_keeps_its_reader_notes_in_its_report(takes, tmp_path, monke
     report = json.loads((tmp_path / rec["report"]).read_text("utf-8"))
     assert report["reader_notes"] == expected
     assert is_done(job, tmp_path)["record"]["notes"] == rec["notes"]
+
+
+# ---------------------------------------------------------------- marker takes
+
+
+def test_batch_splices_a_marker_body_as_splice_does_and_refuses_a_marker_hand_alike(
+    takes, tmp_path, capsys
+):
+    """A TRC body with a BVH hand: ``handsplice batch`` writes what ``handsplice splice``
+    writes (the hand take retimed to the body), byte for byte; a marker hand is refused by
+    both with the same one-line reason."""
+    trc = MOCAP / "pyomeca" / "markers.trc"
+    hand = takes / "hands" / Path(HANDS[0]).name
+    job = PairJob(line=2, name="trc", body=str(trc), hand=str(hand), side="right")
+    rec = run_pair(job, tmp_path / "batch", thumbnails="stick", seconds=None, memory_mb=None)
+    assert rec["status"] == "done", rec["error"]
+    out = tmp_path / "cli.bvh"
+    assert main(["splice", str(trc), str(hand), "-o", str(out), "--side", "right"]) == 0
+    capsys.readouterr()
+    batch_bvh = tmp_path / "batch" / rec["output"]
+    assert batch_bvh.read_bytes() == out.read_bytes()
+    assert read_bvh(batch_bvh).n_frames == rec["body_frames"] == 93  # one per body frame
+
+    refused = PairJob(line=3, name="hands", body=str(hand), hand=str(trc), side="right")
+    rec = run_pair(refused, tmp_path / "batch", thumbnails="none", seconds=None, memory_mb=None)
+    assert rec["status"] == "failed"
+    assert main(["splice", str(hand), str(trc), "-o", str(tmp_path / "x.bvh")]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line == f"handsplice: error: {rec['error']}"
+    assert "the hand take must be a skeletal take" in line

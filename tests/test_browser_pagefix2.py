@@ -100,7 +100,7 @@ def test_a_refused_band_entry_stays_to_be_corrected(page):
     field.press("Enter")
     alert = page.locator(".hs-error").first
     alert.wait_for(state="visible", timeout=BUSY_S * 1000)
-    assert "band: expected" in pane_text(alert) and "1.5x" in pane_text(alert)
+    assert "W1 in seconds: expected seconds" in pane_text(alert) and "1.5x" in pane_text(alert)
     page.wait_for_timeout(1000)  # the server's answer has come back to the page
     assert field.input_value() == "1.5x"  # kept as typed (it was emptied / reset)
     # corrected in place: accepted, the error goes

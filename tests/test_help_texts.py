@@ -58,7 +58,8 @@ def test_the_default_text_is_what_default_for_applies(rule):
 
 def test_the_page_names_the_unmatched_ends_remedies_as_the_command_lines():
     """The status line told a web user "--max-unmatched SECONDS allows longer unmatched
-    ends", a flag with no control on the page: the page's sentence says where it goes."""
+    ends", a flag with no control on the page: the page's sentence names the page's own
+    field for the limit."""
     from engine.splice.report import unmatched_summary
 
     ranges = [(0, 499), (4087, 4586)]  # both ends cut by a 500-frame limit
@@ -68,7 +69,7 @@ def test_the_page_names_the_unmatched_ends_remedies_as_the_command_lines():
     assert ": --max-unmatched SECONDS allows longer unmatched ends" in cli
     assert page.startswith("body frames 0-499, 4087-4586 (33.3 s) have no hand match")
     assert "(the command line's --ends fixed matches every frame)" in page
-    assert "the page has no control for this limit; the command line in 4 · Share" in page
+    assert "a larger 'Unmatched ends at most (seconds)' (under the band widths)" in page
     # every flag the page names is the command line's
     for flag in re.finditer(r"--[a-z-]+", page):
         assert "command line" in page[max(0, flag.start() - 45) : flag.start()], page

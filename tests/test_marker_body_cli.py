@@ -50,7 +50,7 @@ def test_the_pages_command_redoes_a_marker_body_splice(marker_session, tmp_path,
     s = marker_session
     session_argv, flags_argv = _shown_commands(s)
     argv = session_argv if which == "session file" else flags_argv
-    assert argv[:2] == ["handsplice", "splice"]
+    assert argv[:2] == [".venv/bin/handsplice", "splice"]  # as the README installs it
     assert argv[2:4] == [BODY_C3D.name, HAND_BVH.name]
     rest = argv[4:]
     rest[rest.index("-o") + 1] = str(tmp_path / "cli.bvh")
@@ -84,3 +84,29 @@ def test_a_marker_bodys_status_does_not_speak_of_its_fingers(marker_session):
     status = marker_session.status_text()
     assert "no hand match" in status, status  # this pair has an unmatched start
     assert "retimed hand take holds" in status and "fingers hold" not in status, status
+
+
+def test_the_pages_glb_of_a_marker_body_is_the_retimed_hand_in_3d(marker_session, tmp_path):
+    """The "Spliced GLB (3D)" button of a marker body gives what its BVH gives, in 3D: the
+    hand take retimed to the body (one key per body frame at the body's rate), named so
+    (it was named as a splice of the body)."""
+    import asyncio
+    import base64
+
+    import pygltflib
+
+    from webapp.views import sharing
+
+    s = marker_session
+    view = sharing.SharingView(s)
+    asyncio.run(view.glb._async_sync_data())  # the button's click, as Panel runs it
+    assert not view.message.visible, view.message.object
+    assert view.glb.filename == "markers_analogs-spliced-hand-retimed.glb"
+    path = tmp_path / view.glb.filename
+    path.write_bytes(base64.b64decode(view.glb.data.split(",", 1)[1]))
+    doc = pygltflib.GLTF2().load_binary(str(path))
+    retimed = backend.splice(s.prepared, s.solution)
+    assert {node.name for node in doc.nodes} >= set(retimed.skeleton.names)
+    times = doc.accessors[doc.animations[0].samplers[0].input]
+    assert times.count == s.n == retimed.n_frames
+    assert times.max[0] == pytest.approx((s.n - 1) / s.fps, abs=1e-3)

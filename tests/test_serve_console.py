@@ -115,3 +115,46 @@ def test_downloads_of_a_pair_opened_from_disk_are_named_after_the_body(tmp_path)
     assert s.output_stem() == f"{BODY.stem}-spliced"  # was "<body>.bvh_<hand>.bvh-spliced"
     s.sample = "wave-ok"
     assert s.output_stem() == "wave-ok-spliced"
+
+
+def test_show_url_labels_the_users_own_pair_as_theirs():
+    """``serve BODY HAND --show-url``: the link that opens the user's pair is labelled as
+    theirs (it said "demo pair:", a stranger's R3-3); no demo pair is named."""
+    from webapp.config import local_pair
+    from webapp.serve_cli import sample_url
+
+    exe = Path(sys.executable).with_name("handsplice")
+    port = free_port()
+    proc = subprocess.Popen(
+        [str(exe), "serve", str(BODY), str(HAND), "--port", str(port), "--show-url", "--no-warm"],
+        cwd=ROOT,
+        env=os.environ.copy(),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+    )
+    lines: list[str] = []
+
+    def read():
+        for line in proc.stdout:
+            lines.append(line.rstrip("\n"))
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    try:
+        deadline = time.monotonic() + WARM_UP_S
+        while not any("press Ctrl+C" in line for line in lines):
+            assert proc.poll() is None and time.monotonic() < deadline, lines
+            time.sleep(0.2)
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+        reader.join(timeout=10)
+    url = f"http://127.0.0.1:{port}/"
+    link = sample_url(url, local_pair(BODY, HAND, "right").name)
+    assert f"your pair's link: {link}" in lines, lines
+    assert not any(line.startswith("demo pair") for line in lines), lines

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from engine.base.errors import HandSpliceError
+from engine.dtw import constraints as C
 from engine.io.session import MatchPoint, SessionError
 from webapp import backend, config, uploads
 from webapp.state import Session
@@ -375,7 +376,9 @@ def test_w2_is_greyed_out_where_pass_2_compares_the_hand_turning(cfg):
     s = Session(cfg)
     s.load_sample(DEMO)
     layout = parameter_widgets(s)
-    (w1, _, w1_s, w2, _, w2_s, _), note = layout[0], layout[1]  # widths, their notes
+    # widths, their notes (W1's: why an open-end band narrows little), the tolerance and
+    # the unmatched-end limit with its note
+    (w1, _, w1_s, _, w2, _, w2_s, _, _, _), note = layout[0], layout[1]
     s.matrix = "pass2"
     assert s.pass2_turns_hand() and s.matrix_label() == PASS2_SPIN_LABEL
     assert w2.disabled and w2_s.disabled and not w1.disabled and not w1_s.disabled
@@ -398,10 +401,11 @@ def test_widths_typed_in_seconds_are_checked_edits(session):
     (w1, _, w1_s, *_), *_ = parameter_widgets(session)  # slider, its note, seconds
     before = session.to_spec()
     w1_s.value = "1e9"
-    assert "band" in session.error and "seconds" in session.error
+    assert session.error.startswith("W1 in seconds: expected seconds from")
     assert w1_s.value == "1e9" and session.band_s is None and session.to_spec() == before
     w1_s.value = "abc"
-    assert "band" in session.error and w1_s.value == "abc" and session.band_s is None
+    assert session.error.startswith("W1 in seconds: ") and "got 'abc'" in session.error
+    assert w1_s.value == "abc" and session.band_s is None
     w1_s.value = "2"
     assert session.error == "" and session.band_s == 2.0 and w1.disabled
     w1_s.value = "2.50s"
@@ -950,14 +954,15 @@ def test_command_line_uses_the_session_file_then_explicit_flags(session):
 
     session.add_point(40, 20, 0)
     view = sharing.SharingView(session)
-    first, second = view.command.object.split("<br>", 1)
+    where, first, second = view.command.object.split("<br>", 2)
+    assert "run in your HandSplice folder" in where and ".venv/bin/handsplice" in where
     assert first == (
-        f"$ handsplice splice {session.take_paths()[0].name} "
+        f"$ .venv/bin/handsplice splice {session.take_paths()[0].name} "
         f"{session.take_paths()[1].name} -o spliced.bvh "
         f"--session {sharing.SESSION_FILENAME}"
     )
     assert "--match" not in first
-    assert "explicit flags" in second and "$ handsplice splice " in second
+    assert "explicit flags" in second and "$ .venv/bin/handsplice splice " in second
     assert "--match 40:" in second and "--band" in second
 
 
@@ -1271,3 +1276,108 @@ def test_points_table_refuses_a_fraction_of_a_frame_with_the_rules_one_text(sess
     ]
     edit("hand frame", "125")
     assert session.points[0].hand == 125 and session.error == ""
+
+
+def test_a_refused_seconds_entry_speaks_of_its_field(session):
+    """What is typed into a width's field in seconds is refused in that field's words
+    (``W1 in seconds``, seconds only, the text as typed), not as ``band`` with its
+    fractions; empty text puts the fraction back in force."""
+    assert session.set_constraints(band_s="2") and session.band_s == 2.0
+    for typed in ("abc", "0s", "1.5x"):
+        assert not session.set_constraints(band_s=typed)
+        assert session.error == (
+            f"W1 in seconds: expected seconds from 0.1 to 3600 (like 10 or 10s), got {typed!r}"
+        )
+        assert "fraction" not in session.error and session.band_s == 2.0
+        assert session.refusal().field == "band_s"
+    assert not session.set_constraints(refine_band_s="0")
+    assert session.error.startswith("W2 in seconds: expected seconds from 0.05 to 3600")
+    assert session.set_constraints(band_s="3 s") and session.band_s == 3.0
+    assert session.set_constraints(band_s="") and session.band_s is None
+    assert session.widths()[0] == C.Width(session.band)
+
+
+def test_the_pages_command_line_runs_the_program_the_readme_installs(session):
+    """The Share section's command lines name the program as the README's "Command line"
+    section runs it (``make demo`` puts it in the clone's .venv, not on PATH), and say
+    where to run them."""
+    import html
+    import re
+    import shlex
+
+    from conftest import ROOT
+
+    from webapp.views import sharing
+
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    block = readme.split("## Command line", 1)[1].split("```sh", 1)[1].split("```", 1)[0]
+    programs = {line.split()[0] for line in block.strip().splitlines()}
+    assert len(programs) == 1, programs
+    view = sharing.SharingView(session)
+    lines = [html.unescape(re.sub("<[^>]+>", "", ln)) for ln in view.command.object.split("<br>")]
+    commands = [shlex.split(ln.removeprefix("$ ")) for ln in lines if ln.startswith("$ ")]
+    assert len(commands) == 2
+    assert {argv[0] for argv in commands} == programs
+    assert lines[0].startswith("# run in your HandSplice folder")
+
+
+def test_the_unmatched_end_limit_is_an_edit_the_file_link_and_command_line_carry(
+    session, tmp_path, capsys
+):
+    """The page's open-end limit (the CLI's --max-unmatched) is an undoable edit checked by
+    engine.dtw.constraints (its refusal names the page's field), and the session file, the
+    link and the command line carry it: the CLI replays the page's splice byte for byte."""
+    from engine.cli import main
+    from engine.io import session as session_io
+
+    cells = session.solution.pass1.band_cells
+    assert not session.set_constraints(max_unmatched_s="-1")
+    assert session.error == (
+        "Unmatched ends at most (seconds): expected a number of seconds from 0 to 3600, got -1"
+    )
+    assert session.set_constraints(max_unmatched_s="0.5")
+    assert session.solution.cache["engine"].max_unmatched_s == 0.5
+    assert session.solution.pass1.band_cells < cells
+    assert "0.5 s unmatched at each end (the limit set above)" in session.unmatched_note()
+    spec = session_io.parse_session(session.to_json())
+    assert spec.max_unmatched_s == 0.5
+    assert session_io.from_query(session.to_query()).max_unmatched_s == 0.5
+    body, hand = session.take_paths()
+    flags = backend.cli_command(
+        body.name, hand.name, "right", *session.widths(), [], None, session.max_unmatched_s
+    )
+    assert "--max-unmatched 0.5" in flags
+    file = tmp_path / "s.json"
+    file.write_text(session.to_json(), encoding="utf-8")
+    out = tmp_path / "cli.bvh"
+    assert main(["splice", str(body), str(hand), "-o", str(out), "--session", str(file)]) == 0
+    capsys.readouterr()
+    assert out.read_bytes() == backend.bvh_bytes(session.spliced())
+    session.undo()
+    assert session.max_unmatched_s is None and session.solution.pass1.band_cells == cells
+
+
+def test_a_new_pair_gets_its_own_default_time_width(cfg, tmp_path):
+    """A long take opens with W1 in seconds by default (1.5 s x sqrt(T)); the next pair
+    gets its own default, not the previous pair's (a stranger's R3-8: 17.2 s carried from a
+    131 s take to a 153 s one); a width the person typed stays."""
+    from engine.io.bvh import read_bvh, write_bvh
+    from tests.conftest import MOCAP
+
+    takes = read_bvh(MOCAP / "lafan1" / "dance1_subject1.bvh")
+    fps = takes.fps
+    digests = {}
+    for seconds in (30, 40):
+        path = tmp_path / f"body{seconds}.bvh"
+        write_bvh(takes.frames(0, int(seconds * fps)), path)
+        digests[seconds], _ = uploads.store(cfg, path.name, path.read_bytes())
+    hand_path = MOCAP / "gestification" / "fingers-ok.bvh"
+    hand, _ = uploads.store(cfg, hand_path.name, hand_path.read_bytes())
+    s = Session(cfg)
+    s.load_uploads(digests[30], hand, "body30.bvh", hand_path.name)
+    assert s.error == "" and s.band_s == C.BAND.default_for(s.n, s.fps).value == 8.2
+    s.load_uploads(digests[40], hand, "body40.bvh", hand_path.name)
+    assert s.error == "" and s.band_s == C.BAND.default_for(s.n, s.fps).value == 9.5
+    assert s.set_constraints(band_s="7")
+    s.load_uploads(digests[30], hand, "body30.bvh", hand_path.name)
+    assert s.band_s == 7.0  # typed: kept

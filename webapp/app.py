@@ -189,6 +189,7 @@ def create_app() -> pn.viewable.Viewable:
         pick,
         controls.undo_redo(session),
         pn.pane.Markdown("**Matching points** (empty tolerance = global)", margin=(10, 10, 0, 10)),
+        controls.hand_rate_note(session),
         points.panel(),
         width=420,
         sizing_mode=None,

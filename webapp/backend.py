@@ -72,6 +72,8 @@ class Solution:
     band: object = None  # engine.dtw.constraints.Width (or a fraction) as given
     refine_band: object = None
     seconds: float = 0.0
+    #: the open-end limit given (seconds each take may stay unmatched), None: the default
+    max_unmatched_s: float | None = None
     cache: dict = field(default_factory=dict, compare=False, repr=False)
 
 
@@ -282,10 +284,19 @@ class stages_to:
         return False
 
 
-def solve(prepared: Prepared, band, refine_band, points, previous=None, progress=None) -> Solution:
+def solve(
+    prepared: Prepared,
+    band,
+    refine_band,
+    points,
+    previous=None,
+    progress=None,
+    max_unmatched_s: float | None = None,
+) -> Solution:
     """Pass 1 and pass 2 for band widths ``band``/``refine_band`` (``constraints.Width``,
     fractions of n or ``"10s"``) and matching points ``[(body, hand, tol), ...]``;
     ValueError/HandSpliceError if infeasible (the checks are engine.dtw.constraints').
+    ``max_unmatched_s``: the open-end limit (``--max-unmatched``), None for the default.
 
     ``progress(stage, fraction)``: the engine's stages (pass 1, pass 2, merge) as they
     start and end. Safe on a worker thread (the app runs long solves there)."""
@@ -306,6 +317,7 @@ def solve(prepared: Prepared, band, refine_band, points, previous=None, progress
             points=list(points),
             previous=earlier,
             progress=progress or _STAGES,
+            max_unmatched_s=max_unmatched_s,
         )
     p1, p2 = result.pass1, result.pass2
     sol = Solution(
@@ -316,6 +328,7 @@ def solve(prepared: Prepared, band, refine_band, points, previous=None, progress
         band=band,
         refine_band=refine_band,
         seconds=time.perf_counter() - t0,
+        max_unmatched_s=max_unmatched_s,
     )
     sol.cache["engine"] = result
     return sol
@@ -887,6 +900,16 @@ def _video_key(camera: str, size: tuple[int, int], indices: range) -> tuple:
     return (camera, tuple(size), indices.start, indices.stop, indices.step)
 
 
+#: the command line's program as a user who followed the README has it: ``make demo``
+#: installs it in the clone's ``.venv`` (not on PATH)
+CLI_PROGRAM = ".venv/bin/handsplice"
+#: said above the page's command lines: where they run and what their file names are
+CLI_WHERE = (
+    "# run in your HandSplice folder (README: make demo installed .venv/bin/handsplice there); "
+    "the takes' names stand for their paths on your disk"
+)
+
+
 def cli_command(
     body: str,
     hand: str,
@@ -895,8 +918,10 @@ def cli_command(
     refine_band,
     points,
     roles: dict | None = None,
+    max_unmatched_s: float | None = None,
 ) -> str:
-    """The ``handsplice splice`` command line that reproduces this alignment.
+    """The ``handsplice splice`` command line that reproduces this alignment
+    (``max_unmatched_s``: the open-end limit, where one is set).
 
     ``points``: ``[(body, hand, tol)]`` in each file's own frames (the page's and
     ``--match``'s numbering), tolerance in hand frames: written as the page shows them;
@@ -908,7 +933,7 @@ def cli_command(
     from engine.dtw import constraints as C
 
     parts = [
-        "handsplice",
+        CLI_PROGRAM,
         "splice",
         shlex.quote(body),
         shlex.quote(hand),
@@ -921,6 +946,8 @@ def cli_command(
         "--refine-band",
         C.REFINE_BAND.parse(refine_band).text(),
     ]
+    if max_unmatched_s is not None:
+        parts += ["--max-unmatched", f"{C.parse_max_unmatched(max_unmatched_s):g}"]
     for x, h, tol in points:
         parts += ["--match", C.MatchPoint(x, h, tol or None).text()]
     if roles:
@@ -937,7 +964,7 @@ def cli_session_command(
 
     return " ".join(
         [
-            "handsplice",
+            CLI_PROGRAM,
             "splice",
             shlex.quote(body),
             shlex.quote(hand),

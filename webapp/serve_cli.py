@@ -241,7 +241,10 @@ def run(args: argparse.Namespace) -> int:
     if local is not None:
         print(f"your pair:      {local.body} + {local.hand} ({local.side} hand)", flush=True)
     if args.show_url and cfg.default_sample:
-        print(f"demo pair:      {sample_url(url, cfg.default_sample)}", flush=True)
+        # the pair the page opens first: the user's own (serve BODY HAND), else the demo
+        ours = local is not None and cfg.default_sample == local.name
+        label = "your pair's link:" if ours else "demo pair:     "
+        print(f"{label} {sample_url(url, cfg.default_sample)}", flush=True)
     print("press Ctrl+C to stop", flush=True)
     try:
         server.start()

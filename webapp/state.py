@@ -34,7 +34,15 @@ from engine.io.session import MatchPoint, SessionSpec, TakeRef
 from webapp import backend, config
 from webapp.solves import Job, SolveRunner
 
-EDIT_PARAMS = ("band", "band_s", "refine_band", "refine_band_s", "tolerance", "points")
+EDIT_PARAMS = (
+    "band",
+    "band_s",
+    "refine_band",
+    "refine_band_s",
+    "tolerance",
+    "points",
+    "max_unmatched_s",
+)
 INPUT_PARAMS = ("sample", "body_sha256", "hand_sha256", "side", "roles")
 #: the page's view state kept in the session (file and link): preview camera, hand trails,
 #: follow edits, pick mode
@@ -132,6 +140,13 @@ class Session(param.Parameterized):
         step=1.0,
         doc="global matching-point tolerance T in hand frames",
     )
+    max_unmatched_s = param.Number(
+        default=None,
+        allow_None=True,
+        bounds=(C.MAX_UNMATCHED.lo, C.MAX_UNMATCHED.hi),
+        doc="open ends: seconds each take may stay unmatched at each end (the CLI's "
+        "--max-unmatched); None: the default, " + C.UNMATCHED_DEFAULT,
+    )
     points = param.Parameter(
         default=(),
         doc="matching points: tuple of MatchPoint, body and "
@@ -215,6 +230,9 @@ class Session(param.Parameterized):
         self._accepted: dict | None = None  # edit values of the solution shown
         self._accepted_undo = 0  # undo steps then
         self._carry_error = ""  # shown on after the next solve (a link that failed)
+        #: width fields in seconds the session set as a long take's default (never typed):
+        #: the next pair gets its own default instead ({"band_s": 17.2})
+        self._auto_widths: dict[str, float] = {}
         self.opening_since = 0.0  # monotonic s when ``opening`` was set
         super().__init__(**params)
         self.param.watch(self._on_edit, list(EDIT_PARAMS))
@@ -299,8 +317,10 @@ class Session(param.Parameterized):
         body_name: str = "",
         hand_name: str = "",
         then=None,
+        side: str | None = None,
     ) -> None:
-        """Open two uploaded takes by content hash (``then``: as for :meth:`load_sample`)."""
+        """Open two uploaded takes by content hash (``then``: as for :meth:`load_sample`;
+        ``side``: the arm to align, None to keep the one chosen)."""
         self._set_inputs(
             then=then,
             new_pair=True,
@@ -309,6 +329,7 @@ class Session(param.Parameterized):
             hand_sha256=hand_sha256,
             body_name=body_name,
             hand_name=hand_name,
+            **({} if side is None else {"side": side}),
         )
 
     def set_roles(self, roles: dict) -> bool:
@@ -405,7 +426,7 @@ class Session(param.Parameterized):
             self.param.update(
                 points=kept,
                 frame=min(self.frame, max(self.n - 1, 0)),
-                **self._long_take_widths(prepared),
+                **self._long_take_widths(prepared, new_pair),
             )
         finally:
             self._applying = False
@@ -415,15 +436,26 @@ class Session(param.Parameterized):
         self._update_history_flags()
         then(True)
 
-    def _long_take_widths(self, prepared) -> dict:
+    def _long_take_widths(self, prepared, new_pair: bool = False) -> dict:
         """Time widths for a long take when the fractions are still the defaults (the
-        constraints' rule: the paper's fraction, at most a few seconds)."""
-        out = {}
+        constraints' rule: the paper's fraction, at most a few seconds). A new pair does
+        not inherit the previous pair's default time width (one the person never typed):
+        it gets its own, as the command line would give it."""
+        out: dict = {}
         for name, rule in (("band", C.BAND), ("refine_band", C.REFINE_BAND)):
-            if getattr(self, f"{name}_s") is None and getattr(self, name) == rule.default:
+            key = f"{name}_s"
+            seconds = getattr(self, key)
+            if new_pair and seconds is not None and seconds == self._auto_widths.get(key):
+                seconds = out[key] = None
+            if seconds is None and getattr(self, name) == rule.default:
                 width = rule.default_for(prepared.n, prepared.features.fps)
                 if width.unit == C.SECONDS:
-                    out[f"{name}_s"] = width.value
+                    out[key] = width.value
+        auto = {k: v for k, v in out.items() if v is not None}
+        for key, value in self._auto_widths.items():  # still in force, untouched
+            if key not in out and getattr(self, key) == value:
+                auto[key] = value
+        self._auto_widths = auto
         return out
 
     def widths(self) -> tuple[C.Width, C.Width]:
@@ -507,21 +539,40 @@ class Session(param.Parameterized):
     def _update_history_flags(self) -> None:
         self.param.update(can_undo=bool(self._undo), can_redo=bool(self._redo))
 
-    def set_constraints(self, band=None, refine_band=None, tolerance=None, points=None) -> bool:
+    def set_constraints(
+        self,
+        band=None,
+        refine_band=None,
+        tolerance=None,
+        points=None,
+        band_s=None,
+        refine_band_s=None,
+        max_unmatched_s=None,
+    ) -> bool:
         """Band widths (a fraction, ``"10s"`` or a ``Width``), the global tolerance and the
         matching points as a person types them, checked by engine.dtw.constraints as every
-        front is; one undoable edit. False (and ``error``, nothing changed) if refused."""
+        front is; one undoable edit. False (and ``error``, nothing changed) if refused.
+        ``band_s``/``refine_band_s``: what was typed into a width's field in seconds (``2``,
+        ``2s``; empty text: the fraction is in force again), refused in that field's words
+        (``W1 in seconds: ...``); ``max_unmatched_s`` likewise, the open-end limit typed in
+        seconds (empty text: the default limit)."""
         values: dict = {}
         try:
-            for name, rule, value in (
-                ("band", C.BAND, band),
-                ("refine_band", C.REFINE_BAND, refine_band),
+            for name, rule, value, seconds in (
+                ("band", C.BAND, band, band_s),
+                ("refine_band", C.REFINE_BAND, refine_band, refine_band_s),
             ):
                 width = rule.parse(value)
                 if width is not None and width.unit == C.SECONDS:
                     values[f"{name}_s"] = width.value
                 elif width is not None:
                     values.update({name: width.value, f"{name}_s": None})
+                if seconds is not None:
+                    values[f"{name}_s"] = rule.parse_seconds(seconds)
+            if max_unmatched_s is not None:
+                values["max_unmatched_s"] = C.parse_max_unmatched(
+                    max_unmatched_s, label=C.MAX_UNMATCHED_LABEL
+                )
             if tolerance is not None:
                 values["tolerance"] = C.parse_tolerance(tolerance)
             if points is not None:
@@ -710,13 +761,14 @@ class Session(param.Parameterized):
             if self.runner is None:
                 sol = (
                     backend.first_solution(self.prepared, band, refine, points, owner=id(self))
-                    if self.solution is None
+                    if self.solution is None and self.max_unmatched_s is None
                     else backend.solve(
                         self.prepared,
                         band=band,
                         refine_band=refine,
                         points=points,
                         previous=self.solution,
+                        max_unmatched_s=self.max_unmatched_s,
                     )
                 )
         except (HandSpliceError, ValueError) as exc:
@@ -726,11 +778,13 @@ class Session(param.Parameterized):
             self._solved(sol, t0)
             return True
         prepared, values = self.prepared, self._current(EDIT_PARAMS)
+        limit = self.max_unmatched_s
         # a pair's first alignment is every tab's (backend.first_solution): computed by the
-        # server's warm-up or another tab, it is shown at once
+        # server's warm-up or another tab, it is shown at once; it has the default open-end
+        # limit
         shared = (
             None
-            if self._chain is not None
+            if self._chain is not None or limit is not None
             else backend.shared_ready(prepared, band, refine, points)
         )
         if shared is not None:
@@ -739,7 +793,7 @@ class Session(param.Parameterized):
             return True
 
         def work(progress):  # on the worker: solves run one at a time per session
-            if self._chain is None:  # the pair's first alignment: shared with other tabs
+            if self._chain is None and limit is None:  # the first alignment: shared
                 sol = backend.first_solution(
                     prepared, band, refine, points, progress=progress, owner=id(self)
                 )
@@ -751,6 +805,7 @@ class Session(param.Parameterized):
                     points=points,
                     previous=self._chain,
                     progress=progress,
+                    max_unmatched_s=limit,
                 )
             self._chain = sol
             return sol
@@ -871,6 +926,72 @@ class Session(param.Parameterized):
         )
         return text + (f" · {unmatched}" if unmatched else "")
 
+    def unmatched_limits_s(self) -> tuple[float, float] | None:
+        """Seconds of the body and of the hand take that may stay unmatched at each end
+        (``engine.dtw.constraints.unmatched_limits``: the limit set, or the default for
+        these takes); None without takes."""
+        if self.prepared is None or not self.fps:
+            return None
+        body, hand = C.unmatched_limits(self.n, self.m, self.fps, self.max_unmatched_s)
+        return body / self.fps, hand / self.fps
+
+    def unmatched_note(self) -> str:
+        """What the open-end limit in force is for these takes, in words (under its field)."""
+        limits = self.unmatched_limits_s()
+        if limits is None:
+            return ""
+        body, hand = limits
+        rule = (
+            "the limit set above"
+            if self.max_unmatched_s is not None
+            else f"the default: {C.UNMATCHED_DEFAULT}"
+        )
+        return (
+            f"In force: the body take may leave {body:.1f} s and the hand take {hand:.1f} s "
+            f"unmatched at each end ({rule})."
+        )
+
+    def band_placement_note(self) -> str:
+        """Why narrowing W1 barely narrows the band of takes of different lengths, or ""
+        (``engine.splice.end_band``: with open ends pass 1's band also holds every place
+        the shorter take can sit inside the longer one; their spread comes from the takes'
+        lengths and the unmatched-end limit, W1 only widens each place). Said where that
+        spread is at least W1 (then it, not W1, makes most of the band's width)."""
+        if self.prepared is None or not self.fps:
+            return ""
+        from engine.splice.end_band import placement_offsets
+
+        limits = C.unmatched_limits(self.n, self.m, self.fps, self.max_unmatched_s)
+        offsets = placement_offsets(self.n, self.m, limits)
+        if offsets is None:
+            return ""
+        spread = (offsets[1] - offsets[0]) / self.fps
+        if spread < self.widths()[0].frames(self.n, self.fps) / self.fps:
+            return ""
+        shorter = "hand" if self.m < self.n else "body"
+        return (
+            f"With open ends the band also holds every place the shorter ({shorter}) take "
+            f"can sit inside the longer one: {spread:.1f} s of start times, set by the takes' "
+            f"lengths and the unmatched-end limit ({C.MAX_UNMATCHED_LABEL}, below), not by "
+            "W1, which only widens each place. So narrowing W1 narrows the band little; "
+            "a smaller unmatched-end limit or a matching point narrows it."
+        )
+
+    def hand_rate_note(self) -> str:
+        """Why a point's hand frame and the preview's can differ by a frame or two, or "":
+        a hand take faster than the body is aligned at the body's rate (its frames on the
+        alignment grid, ``constraints.points_to_grid``), so a point's hand frame counts to
+        the nearest grid column, and the preview names the hand frame of that column."""
+        if not (self.prepared is not None and self.fps and self.hand_fps > self.fps * 1.001):
+            return ""
+        ratio = self.hand_fps / self.fps
+        return (
+            f"The hand take has {ratio:.3g} frames per body frame ({self.hand_fps:g} vs "
+            f"{self.fps:g} fps) and is aligned at the body's rate, in steps of {ratio:.3g} "
+            "hand frames: a point's hand frame is aligned to the nearest step, so the preview "
+            f"at its body frame may name a hand frame up to {ratio / 2:.3g} from the table's."
+        )
+
     def axis_signals(self) -> tuple[np.ndarray, np.ndarray]:
         if self.prepared is None:
             return np.zeros(0), np.zeros(0)
@@ -947,6 +1068,7 @@ class Session(param.Parameterized):
             refine_band=refine,
             tolerance=self.tolerance,
             points=self.points,
+            max_unmatched_s=self.max_unmatched_s,
             roles=dict(self.roles),
             view={"matrix": self.matrix, "frame": self.frame, **self._current(VIEW_STATE)},
         )
@@ -1077,7 +1199,12 @@ class Session(param.Parameterized):
         refine = spec.refine_band or C.REFINE_BAND.default_for(prepared.n, fps)
         grid = backend.points_to_grid(prepared, [p.resolved(spec.tolerance) for p in points])
         solution = backend.solve(
-            prepared, band=band, refine_band=refine, points=grid, progress=progress
+            prepared,
+            band=band,
+            refine_band=refine,
+            points=grid,
+            progress=progress,
+            max_unmatched_s=spec.max_unmatched_s,
         )
         widths = {}
         for name, width in (("band", band), ("refine_band", refine)):
@@ -1085,6 +1212,15 @@ class Session(param.Parameterized):
                 widths[f"{name}_s"] = width.value
             else:
                 widths.update({name: width.value, f"{name}_s": None})
+        # the defaults chosen here for a long take (the file or link gave no width)
+        auto = {
+            f"{name}_s": width.value
+            for name, given, width in (
+                ("band", spec.band, band),
+                ("refine_band", spec.refine_band, refine),
+            )
+            if given is None and width.unit == C.SECONDS
+        }
         values = dict(
             inputs,
             side=spec.side,
@@ -1092,6 +1228,7 @@ class Session(param.Parameterized):
             **widths,
             tolerance=spec.tolerance,
             points=points,
+            max_unmatched_s=spec.max_unmatched_s,
             matrix=spec.view.get("matrix", self.matrix),
             frame=int(min(spec.view.get("frame", 0), max(prepared.n - 1, 0))),
             **{k: spec.view.get(k, session_io.VIEW_DEFAULTS[k]) for k in VIEW_STATE},
@@ -1102,6 +1239,7 @@ class Session(param.Parameterized):
             "solution": solution,
             "compute_ms": (time.perf_counter() - t0) * 1000.0,
             "refused": refused,
+            "auto_widths": auto,
         }
 
     def _commit(self, staged: dict) -> None:
@@ -1113,6 +1251,7 @@ class Session(param.Parameterized):
         self._set_sizes(prepared)
         self.param.update(solution=staged["solution"], trust=None, compute_ms=staged["compute_ms"])
         self._apply(staged["values"])
+        self._auto_widths = dict(staged.get("auto_widths", {}))
         self._undo.clear()
         self._redo.clear()
         self._chain = staged["solution"]

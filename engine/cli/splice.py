@@ -248,6 +248,8 @@ def run(args: argparse.Namespace) -> int:
     refine_band = C.REFINE_BAND.parse(args.refine_band)
     C.parse_ends(args.ends)  # refused before any file is read, as the widths are
     C.parse_max_unmatched(args.max_unmatched)
+    if spec is not None and args.max_unmatched is None:  # the page's limit, if it set one
+        args.max_unmatched = spec.max_unmatched_s
     if spec is not None:
         band = band if band is not None else spec.band
         refine_band = refine_band if refine_band is not None else spec.refine_band
@@ -294,7 +296,9 @@ def run(args: argparse.Namespace) -> int:
     from engine.splice.report import build_report, dumps
 
     progress = _Progress(args.quiet)
-    result = pipeline.splice(
+    from engine.splice.retime import splice_takes
+
+    result, retimed = splice_takes(
         body,
         hand,
         side=args.side,
@@ -308,12 +312,7 @@ def run(args: argparse.Namespace) -> int:
         progress=progress,
         ends=args.ends,
         max_unmatched_s=args.max_unmatched,
-        transfer_fingers=not retimed,
     )
-    if retimed:
-        from engine.splice.retime import retimed_hand
-
-        result.motion = retimed_hand(hand, result.alignment.map, result.features.fps)
     from engine.trust import assess_splice
 
     progress("trust", 0.0)

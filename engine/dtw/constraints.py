@@ -243,6 +243,37 @@ class WidthRule:
     #: the default width is capped so that its band (both takes about as long) keeps
     #: within this many cells (None: no cap)
     max_cells: int | None = None
+    symbol: str = ""  # the paper's name of the width: W1, W2
+
+    @property
+    def seconds_label(self) -> str:
+        """The app's field for this width in seconds (``W1 in seconds``): a refusal of what
+        was typed there names it (not ``band``, whose text speaks of fractions too)."""
+        return f"{self.symbol or self.name} in seconds"
+
+    @property
+    def expected_seconds(self) -> str:
+        return f"seconds from {self.lo_s:g} to {self.hi_s:g} (like 10 or 10s)"
+
+    def parse_seconds(self, value) -> float | None:
+        """A width typed into a field in seconds (``10``, ``10s``, ``10 s``); empty text or
+        None -> None (the fraction is in force). ConstraintError with field ``NAME_s``,
+        labelled :attr:`seconds_label`, showing the value as typed."""
+        if value is None or (isinstance(value, str) and not value.strip()):
+            return None
+        text = value
+        if isinstance(value, str):
+            text = re.sub(r"\s*s(ec(onds?)?)?\s*$", "", value.strip(), flags=re.IGNORECASE)
+        where = {"label": self.seconds_label, "value": value, "expected": self.expected_seconds}
+        try:
+            x = _number(text, f"{self.name}_s", self.expected_seconds)
+        except ConstraintError:
+            x = math.nan
+        if not self.lo_s - EPS <= x <= self.hi_s + EPS:
+            raise ConstraintError(
+                f"{self.name}_s", f"expected {self.expected_seconds}, got {_show(value)}", **where
+            )
+        return float(x)
 
     @property
     def expected(self) -> str:
@@ -354,6 +385,7 @@ BAND = WidthRule(
     hi_s=3600.0,
     grows=True,
     max_cells=MAX_BAND_CELLS,
+    symbol="W1",
 )
 REFINE_BAND = WidthRule(
     "refine_band",
@@ -364,6 +396,7 @@ REFINE_BAND = WidthRule(
     default_s=2.0,
     lo_s=0.05,
     hi_s=3600.0,
+    symbol="W2",
 )
 
 
@@ -456,13 +489,20 @@ def parse_ends(value) -> str:
     return text
 
 
-def parse_max_unmatched(value) -> float | None:
-    """Seconds a take may begin or end with unmatched (open ends); None = the default."""
+#: the app's field for the open-end limit (its refusal names it, as ``--max-unmatched``
+#: names the flag's)
+MAX_UNMATCHED_LABEL = "Unmatched ends at most (seconds)"
+
+
+def parse_max_unmatched(value, label: str | None = None) -> float | None:
+    """Seconds a take may begin or end with unmatched (open ends); None = the default.
+    ``label``: the field the value was typed into, for the refusal (default: the rule's
+    name, ``max_unmatched_s``)."""
     if value is None or (isinstance(value, str) and not value.strip()):
         return None
     if isinstance(value, str):
         value = re.sub(r"\s*s\s*$", "", value.strip())
-    return MAX_UNMATCHED.parse(value)
+    return MAX_UNMATCHED.parse(value, **({} if label is None else {"label": label}))
 
 
 def unmatched_limits(

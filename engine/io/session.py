@@ -19,6 +19,8 @@ Schema (version 2)::
       "band": 0.3,            # pass-1 band width W1: fraction of the body take, or "10s"
       "refine_band": 0.1,     # pass-2 band width W2 around the pass-1 path, the same forms
       "tolerance": 0,         # global matching-point tolerance T, frames
+      "max_unmatched": 20,    # optional: open ends, seconds each take may stay unmatched
+                              # at each end (--max-unmatched); absent: the default
       "points": [{"body": 120, "hand": 98, "tolerance": null}, ...],
                               # matching points (body frame, hand frame), 0-based; body
                               # frames increase, hand frames never decrease; each in its
@@ -126,6 +128,9 @@ class SessionSpec:
     view: dict = field(default_factory=dict)
     #: "file": hand frames of the hand file (version 2); "grid": alignment grid (version 1)
     hand_frames: str = "file"
+    #: open ends: seconds each take may stay unmatched at each end (None: the default,
+    #: ``constraints.UNMATCHED_DEFAULT``); the CLI's --max-unmatched
+    max_unmatched_s: float | None = None
 
     def __post_init__(self):
         # one normal form, checked by engine.dtw.constraints (ConstraintError names the field)
@@ -133,6 +138,7 @@ class SessionSpec:
         object.__setattr__(self, "refine_band", C.REFINE_BAND.parse(self.refine_band))
         object.__setattr__(self, "tolerance", C.parse_tolerance(self.tolerance))
         object.__setattr__(self, "points", C.parse_points(tuple(self.points)))
+        object.__setattr__(self, "max_unmatched_s", C.parse_max_unmatched(self.max_unmatched_s))
 
     def constraint_points(self) -> list[tuple[int, int, float]]:
         """Matching points as ``[(body_frame, hand_frame, tolerance), ...]`` for the DTW band."""
@@ -170,6 +176,8 @@ def to_dict(spec: SessionSpec) -> dict:
     for key, width in (("band", spec.band), ("refine_band", spec.refine_band)):
         if width is not None:
             out[key] = width.to_json()
+    if spec.max_unmatched_s is not None:
+        out["max_unmatched"] = _num_out(spec.max_unmatched_s)
     if spec.roles:
         out["roles"] = spec.roles
     if spec.view:
@@ -247,6 +255,7 @@ _TOP_FIELDS = {
     "points",
     "roles",
     "view",
+    "max_unmatched",
 }
 
 
@@ -301,6 +310,7 @@ def from_dict(data: Any, source: str | None = None) -> SessionSpec:
         if not isinstance(raw_points, list):
             raise C.ConstraintError("points", f"expected a list, got {_show(raw_points)}")
         points = C.parse_points([_json_point(p) for p in raw_points])
+        max_unmatched = C.parse_max_unmatched(_json_number(data.get("max_unmatched")))
     except C.ConstraintError as exc:
         raise SessionError(source, exc.field, exc.detail, exc) from None
 
@@ -344,6 +354,7 @@ def from_dict(data: Any, source: str | None = None) -> SessionSpec:
         roles={k: v for k, v in clean_roles.items() if v},
         view=view,
         hand_frames=HAND_FRAMES[version],
+        max_unmatched_s=max_unmatched,
     )
     return validate(spec, source)
 
@@ -451,7 +462,7 @@ def to_query(spec: SessionSpec) -> dict[str, str]:
 
     ``sample=NAME`` or ``body=SHA256&hand=SHA256`` (with ``bname`` and ``hname``, the
     uploaded files' original names, where known), ``side``, ``band``, ``refine``, ``tol``,
-    ``pts=B:H[:T],...``, ``roles`` (JSON), ``view``, ``frame``, and ``frames=hand`` when the
+    ``unmatched`` (the open-end limit, seconds, where set), ``pts=B:H[:T],...``, ``roles`` (JSON), ``view``, ``frame``, and ``frames=hand`` when the
     hand frames are the hand file's own (links made before have grid frames); the view
     state ``camera``, ``trails``, ``follow`` and ``pick`` (``1`` or ``0``) only where it is
     not the default (``VIEW_DEFAULTS``). Take paths (CLI sessions) are not put in URLs.
@@ -471,6 +482,8 @@ def to_query(spec: SessionSpec) -> dict[str, str]:
     if spec.refine_band is not None:
         q["refine"] = spec.refine_band.text()
     q["tol"] = f"{spec.tolerance:g}"
+    if spec.max_unmatched_s is not None:
+        q["unmatched"] = f"{spec.max_unmatched_s:g}"
     if spec.points:
         q["pts"] = ",".join(p.text() for p in spec.points)
         if spec.hand_frames == "file":
@@ -562,6 +575,10 @@ def read_query(query: dict[str, str]) -> tuple[SessionSpec, tuple[SessionError, 
         tolerance = constraint("tol", lambda: C.parse_tolerance(str(q["tol"])))
         if tolerance is not None:
             data["tolerance"] = tolerance
+    if q.get("unmatched"):
+        limit = constraint("unmatched", lambda: C.parse_max_unmatched(str(q["unmatched"])))
+        if limit is not None:
+            data["max_unmatched"] = limit
     if q.get("pts"):
         points = constraint("pts", lambda: C.parse_points(str(q["pts"])))
         if points is not None:

@@ -483,14 +483,14 @@ def splice_pair(body, hand, job: PairJob):
     """The default splice of one pair: ``engine.splice.pipeline.splice`` with the job's options.
 
     Matching points are ``(body frame, hand frame[, tol])`` in frames of the original
-    takes, as ``handsplice splice --match`` reads them. Returns ``(Motion, report dict)``
+    takes, as ``handsplice splice --match`` reads them. A marker body (C3D/TRC) gives the
+    hand take retimed to it, as ``handsplice splice`` does. Returns ``(Motion, report dict)``
     with the report of :func:`engine.splice.report.build_report`.
     """
-    from engine.splice import pipeline
     from engine.splice.report import build_report
+    from engine.splice.retime import splice_takes
     from engine.trust import assess_splice
 
-    pipeline.require_skeletal(body, hand)
     options = {"side": job.side}
     if job.band is not None:
         options["band"] = job.band
@@ -498,7 +498,8 @@ def splice_pair(body, hand, job: PairJob):
         options["refine_band"] = job.refine_band
     points = [(b, h, 0.0 if t is None else t) for b, h, t in job.match]
     try:
-        result = pipeline.splice(body, hand, points=points, hand_points=True, **options)
+        # a marker body (C3D/TRC) gives the hand take retimed to it, as handsplice splice
+        result, _ = splice_takes(body, hand, points=points, hand_points=True, **options)
     except C.ConstraintError as exc:  # a point that does not fit these takes: its cell named
         if exc.index is None:
             raise

@@ -37,7 +37,7 @@ import numpy as np
 
 from engine.dtw import Band
 
-__all__ = ["inside_band", "open_end_band"]
+__all__ = ["inside_band", "open_end_band", "placement_offsets"]
 
 
 #: the widening at each end is at most this many seconds (real takes start and end a few
@@ -127,3 +127,19 @@ def inside_band(
     lo = np.maximum(np.floor(i - d_hi - reach), 0.0).astype(np.int64)
     hi = np.minimum(np.ceil(i - d_lo + reach), m - 1.0).astype(np.int64)
     return lo, hi
+
+
+def placement_offsets(n: int, m: int, limits: tuple[int, int]) -> tuple[int, int] | None:
+    """``(d_lo, d_hi)``: the offsets (body frame minus hand frame, grid frames) of the
+    slope-1 placements of the shorter take inside the longer one that :func:`inside_band`
+    covers, or None when it covers none (takes as long, or limits that allow none). The
+    band's width across them, ``d_hi - d_lo``, comes from the takes' lengths and the
+    unmatched-end limits, not from W1 (which only widens each placement by ``Λ1``): the
+    app says so beside W1."""
+    diff = n - m
+    if diff == 0 or n < 2 or m < 2:
+        return None
+    body_lim, hand_lim = int(limits[0]), int(limits[1])
+    d_lo = max(min(0, diff), -hand_lim, diff - body_lim)
+    d_hi = min(max(0, diff), body_lim, diff + hand_lim)
+    return None if d_lo > d_hi else (d_lo, d_hi)

@@ -167,8 +167,7 @@ REMEDIES = {
     ),
     "page": (
         "the command line's --ends fixed matches every frame",
-        "the page has no control for this limit; the command line in 4 · Share with "
-        "--max-unmatched SECONDS added allows longer unmatched ends",
+        f"a larger '{C.MAX_UNMATCHED_LABEL}' (under the band widths) allows longer unmatched ends",
     ),
 }
 

@@ -38,3 +38,20 @@ def retimed_hand(hand: Motion, hand_frames: np.ndarray, fps: float) -> Motion:
         float(fps),
         replace(hand.meta, source=f"{source} retimed to the body", format="derived"),
     )
+
+
+def splice_takes(body, hand, **options):
+    """``engine.splice.pipeline.splice`` of any pair the fronts accept: a skeletal body
+    gets the hand take's wrist and fingers; a marker body (C3D/TRC) has no skeleton to
+    receive them, so ``result.motion`` is then the hand take retimed to it
+    (:func:`retimed_hand`). One rule for ``handsplice splice`` and ``handsplice batch``
+    (the app's backend does the same per edit). Returns ``(result, retimed)``;
+    ``HandSpliceError`` for a marker hand (no finger rotations to give)."""
+    from engine.splice import pipeline
+
+    retimed = pipeline.marker_body(body)
+    pipeline.require_skeletal(body, hand, marker_body_ok=True)
+    result = pipeline.splice(body, hand, transfer_fingers=not retimed, **options)
+    if retimed:
+        result.motion = retimed_hand(hand, result.alignment.map, result.features.fps)
+    return result, retimed

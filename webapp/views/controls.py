@@ -63,8 +63,10 @@ def parameter_widgets(session: Session) -> pn.viewable.Viewable:
     # through Session.set_constraints (engine.dtw.constraints' ranges and one-line refusal,
     # as for links and session files); a refused value gives way to the one in force
     seconds = {
-        "band": _seconds_input(session, "band", "W1 in seconds (empty: fraction)"),
-        "refine_band": _seconds_input(session, "refine_band", "W2 in seconds (empty: fraction)"),
+        "band": _seconds_input(session, "band", f"{C.BAND.seconds_label} (empty: fraction)"),
+        "refine_band": _seconds_input(
+            session, "refine_band", f"{C.REFINE_BAND.seconds_label} (empty: fraction)"
+        ),
     }
 
     # a slider whose width is overridden by seconds is greyed out, and a line under it
@@ -92,8 +94,8 @@ def parameter_widgets(session: Session) -> pn.viewable.Viewable:
             note.visible = value is not None and not unused
             if note.visible:
                 note.object = (
-                    f"The fraction above is not used: {label} = {value:g} s is in force "
-                    "(empty the seconds field to use the fraction)."
+                    f"The fraction above is not used: the seconds field below sets {label} "
+                    f"to {value:g} seconds (empty it to use the fraction)."
                 )
 
     session.param.watch(fraction_in_force, ["band_s", "refine_band_s", "inputs_revision"])
@@ -120,16 +122,45 @@ def parameter_widgets(session: Session) -> pn.viewable.Viewable:
     session.param.watch(w2_in_use, ["inputs_revision"])
     w2_in_use()
     fraction_in_force()
+    # takes of different lengths with open ends: the band also holds every place of the
+    # shorter take inside the longer one, which W1 does not narrow (said under W1)
+    placement = pn.pane.Markdown(
+        "",
+        css_classes=["hs-band-placement"],
+        visible=False,
+        margin=(0, 10),
+        styles={"color": "#666", "font-size": "12px"},
+    )
+    # the open-end limit (the CLI's --max-unmatched): range, default and refusal are
+    # engine.dtw.constraints'; empty = the default for these takes, said below the field
+    unmatched = _unmatched_input(session)
+    unmatched_note = pn.pane.Markdown(
+        "",
+        css_classes=["hs-unmatched-note"],
+        margin=(0, 10),
+        styles={"color": "#666", "font-size": "12px"},
+    )
+
+    def open_end_notes(*_):
+        text = session.band_placement_note()
+        placement.object, placement.visible = text, bool(text)
+        unmatched_note.object = session.unmatched_note()
+
+    session.param.watch(open_end_notes, ["inputs_revision", "revision", "max_unmatched_s"])
+    open_end_notes()
     widgets = params._widgets  # linked to the session by pn.Param; laid out here
     return pn.Column(
         pn.Column(
             widgets["band"],
             overridden["band"],
             seconds["band"],
+            placement,
             widgets["refine_band"],
             overridden["refine_band"],
             seconds["refine_band"],
             widgets["tolerance"],
+            unmatched,
+            unmatched_note,
             sizing_mode="stretch_width",
             css_classes=["hs-params"],
         ),
@@ -171,10 +202,9 @@ def _seconds_input(session: Session, name: str, label: str) -> pn.widgets.TextIn
         text = str(event.new or "").strip()
         if text == _seconds_text(getattr(session, field)):
             return  # what is in force (the page echoing a value shown): no edit
-        if not text:  # emptied: the fraction is in force again
-            ok = session.set_constraints(**{name: getattr(session, name)})
-        else:
-            ok = session.set_constraints(**{name: text if text.endswith("s") else f"{text}s"})
+        # emptied: the fraction is in force again; a refusal speaks of this field
+        # ("W1 in seconds: ...", engine.dtw.constraints), showing the text as typed
+        ok = session.set_constraints(**{field: text})
         if ok:
             show()  # normalised: show what is in force
         # refused: the text stays as typed, to be corrected (the error line says why and
@@ -182,6 +212,61 @@ def _seconds_input(session: Session, name: str, label: str) -> pn.widgets.TextIn
 
     widget.param.watch(typed, "value")
     session.param.watch(show, [field])
+    return widget
+
+
+def hand_rate_note(session: Session) -> pn.viewable.Viewable:
+    """Under the matching points' heading: a hand take faster than the body snaps a point's
+    hand frame to the body's rate (``Session.hand_rate_note``), said before anyone asks why
+    the preview names another hand frame."""
+    pane = pn.pane.Markdown(
+        "",
+        css_classes=["hs-hand-rate-note"],
+        visible=False,
+        margin=(0, 10),
+        styles={"color": "#666", "font-size": "12px"},
+    )
+
+    def update(*_):
+        text = session.hand_rate_note()
+        pane.object, pane.visible = text, bool(text)
+
+    session.param.watch(update, ["inputs_revision"])
+    update()
+    return pane
+
+
+def _unmatched_input(session: Session) -> pn.widgets.TextInput:
+    """The open-end limit in seconds (``Session.max_unmatched_s``, the CLI's
+    --max-unmatched), kept in step with the session both ways; what is typed is an edit the
+    session checks (engine.dtw.constraints' range and refusal, naming this field); empty
+    text is the default limit. A refused entry stays as typed, to be corrected."""
+    widget = pn.widgets.TextInput(
+        label=f"{C.MAX_UNMATCHED_LABEL}, each end of each take",
+        value=_seconds_text(session.max_unmatched_s),
+        placeholder="empty: the default (said below)",
+        css_classes=["hs-max-unmatched"],
+    )
+    syncing = [False]
+
+    def show(*_):
+        syncing[0] = True
+        try:
+            widget.value = _seconds_text(session.max_unmatched_s)
+        finally:
+            syncing[0] = False
+
+    def typed(event):
+        if syncing[0]:
+            return
+        text = str(event.new or "").strip()
+        if text == _seconds_text(session.max_unmatched_s):
+            return
+        if session.set_constraints(max_unmatched_s=text):
+            show()
+
+    widget.param.watch(typed, "value")
+    session.param.watch(show, ["max_unmatched_s"])
     return widget
 
 

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import panel as pn
 
+from engine.model.roles import side_from_name
 from webapp import backend, safe_text, uploads
 from webapp.backend import one_line
 from webapp.state import Session
@@ -31,12 +32,16 @@ from webapp.views.refusal import refusal_box
 _WORKERS = ThreadPoolExecutor(max_workers=2, thread_name_prefix="hs-upload")
 #: the sample selector's entry while an uploaded pair is open
 UPLOADED = "(your uploaded pair)"
+#: the sample selector's entry while one uploaded take waits for its partner (the views
+#: still show the pair open before, which the selector must not claim is the one chosen)
+WAITING = "(your upload: waiting for its partner)"
 
 MARKER_BODY_NOTE = (
     "The body take holds **markers** (C3D/TRC): it has no skeleton to receive fingers. "
     "The alignment, matching points and bands work as for any pair; *Spliced BVH* gives the "
     "**hand take retimed to the body** (one frame per body frame, at the body's frame rate) "
-    "to pair with your markers in an animation tool, and the preview draws the body's "
+    "to pair with your markers in an animation tool, *Spliced GLB (3D)* the same retimed "
+    "hand as a skinned 3D hand (no body), and the preview draws the body's "
     "markers (the aligned arm in orange) beside the hand."
 )
 MARKER_HAND_NOTE = (
@@ -88,6 +93,8 @@ class InputsView:
         self._pending: dict[str, uploads.Kept] = {}
         self._open: dict[str, uploads.Kept] = {}
         self._opening = False
+        #: "mug1_leftHand.bvh says left": the side the uploaded hand's name chose, or ""
+        self._named_side = ""
         self._droppers = {"body": self.body_file, "hand": self.hand_file}
         self._inputs_key = self._session_key()
         self.roles_body = pn.widgets.TextAreaInput(
@@ -108,7 +115,8 @@ class InputsView:
         self.roles_apply.on_click(self._on_roles)
         self._show_roles()
         session.param.watch(
-            self._on_session_inputs, ["sample", "body_sha256", "hand_sha256", "roles", "opening"]
+            self._on_session_inputs,
+            ["sample", "body_sha256", "hand_sha256", "roles", "opening", "waiting"],
         )
         session.param.watch(self._show_note, ["inputs_revision"])
         # a side the takes lack is refused here, under the Side control that asked for it
@@ -127,18 +135,27 @@ class InputsView:
     # ------------------------------------------------------------ the sample selector
 
     def _sample_options(self) -> list[str]:
+        if self.session.waiting:
+            return [WAITING, *self._names]
         uploaded = not self.session.sample and self.session.body_sha256
         return ([UPLOADED] if uploaded else []) + self._names
 
     def _sample_value(self) -> str | None:
         s = self.session
+        if s.waiting:  # the chosen takes are the upload, not the pair still shown
+            return WAITING
         if s.sample in self._names:
             return s.sample
         return UPLOADED if s.body_sha256 else None
 
     def _on_sample(self, event):
-        if event.new and event.new != UPLOADED and event.new != self.session.sample:
+        if not event.new or event.new in (UPLOADED, WAITING):
+            return
+        if event.new != self.session.sample:
             self.session.load_sample(event.new)
+        elif self.session.waiting:  # back to the sample still shown: the upload is dropped
+            self._forget_uploads()
+            self._on_session_inputs()
 
     def _session_key(self) -> tuple:
         s = self.session
@@ -218,6 +235,7 @@ class InputsView:
     def _forget_uploads(self):
         """Other takes are open: the uploads' line, message and fields are cleared."""
         self._pending, self._open = {}, {}
+        self._named_side = ""
         self.session.waiting = ""
         self.uploaded.object = ""
         self.message.visible = False
@@ -293,8 +311,13 @@ class InputsView:
             return
         if not opened and len(parts) == 2:
             opened = self._pending == self._open and self._open_is_shown()
+        named = self._named_side
         tail = (
-            " — open."
+            (
+                f" — open, side {self.session.side} (the file name {safe_text.html(named)})."
+                if named
+                else " — open."
+            )
             if opened
             else " — not opened (the reason is below)."
             if failed
@@ -326,6 +349,12 @@ class InputsView:
             self._open = dict(self._pending)
             self._show_uploaded(opened=True)
             return
+        # the engine reads the take under its hash: a side its own file name says
+        # (mug1_leftHand.bvh) is the side to align, as handsplice splice takes it from the
+        # name; the uploaded line says so
+        named = side_from_name(hand.name)
+        side = named if named in ("right", "left") and named != s.side else None
+        self._named_side = "" if side is None else f"{hand.name} says {side}"
         loop = asyncio.get_running_loop()
         # one progress line (the Alignment section's) counts the whole opening; the old
         # pair's views go inactive at once
@@ -337,7 +366,7 @@ class InputsView:
                 backend.prepare,
                 body.path,
                 hand.path,
-                s.side,
+                side or s.side,
                 dict(s.roles),
                 takes=(body.take, hand.take),
             ),
@@ -363,7 +392,7 @@ class InputsView:
 
         self._opening = True
         try:
-            s.load_uploads(body.digest, hand.digest, body.name, hand.name, then=then)
+            s.load_uploads(body.digest, hand.digest, body.name, hand.name, then=then, side=side)
             await opened
         finally:
             self._opening = False

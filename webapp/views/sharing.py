@@ -166,15 +166,19 @@ class SharingView:
         self.message.visible = False
         return io.BytesIO(data)
 
-    async def _bvh(self):
+    def _stem(self) -> str:
+        """The downloads' file stem: a marker body gives the hand take retimed to it (see
+        the page's note), named so (``-hand-retimed``), in BVH and in 3D alike."""
         s = self.session
         retimed = s.prepared is not None and backend.marker_body(s.prepared)
-        # a marker body gives the hand take retimed to it (see the page's note)
-        self.bvh.filename = f"{s.output_stem()}{'-hand-retimed' if retimed else ''}.bvh"
+        return f"{s.output_stem()}{'-hand-retimed' if retimed else ''}"
+
+    async def _bvh(self):
+        self.bvh.filename = f"{self._stem()}.bvh"
         return await self._off_loop(self.bvh, "spliced BVH", backend.bvh_bytes)
 
     async def _glb(self):
-        self.glb.filename = f"{self.session.output_stem()}.glb"
+        self.glb.filename = f"{self._stem()}.glb"
         return await self._off_loop(self.glb, "spliced GLB", backend.glb_bytes)
 
     async def _off_loop(self, widget, what: str, encode) -> io.BytesIO | None:
@@ -342,9 +346,10 @@ class SharingView:
             hand = s.hand_name or paths[1].name
             session_cmd = backend.cli_session_command(body, hand, SESSION_FILENAME)
             flags_cmd = backend.cli_command(
-                body, hand, s.side, *s.widths(), s.user_points(), s.roles
+                body, hand, s.side, *s.widths(), s.user_points(), s.roles, s.max_unmatched_s
             )
             self.command.object = (
+                f"<span style='color:#777'>{safe_text.html(backend.CLI_WHERE)}</span><br>"
                 "$ " + safe_text.html(session_cmd) + "<br>"
                 "<span style='color:#777'># or with explicit flags (--match takes hand-file "
                 "frames):</span><br>$ " + safe_text.html(flags_cmd)
