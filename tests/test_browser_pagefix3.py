@@ -8,10 +8,7 @@
   holds every place the shorter take can sit inside the longer one (which W1 does not
   narrow), and has a field for the unmatched-end limit (the CLI's --max-unmatched; the
   status line named only the flag), whose refusal names the field, and which the link,
-  the session file and the command line carry;
-- an uploaded hand take whose file name says its side (``mug1_leftHand.bvh``) is aligned
-  on that side, and the page says so (it was spliced onto the side chosen before, a right
-  hand onto the left arm, without a word).
+  the session file and the command line carry.
 """
 
 from __future__ import annotations
@@ -25,7 +22,6 @@ import pytest
 from conftest import (
     BODY_BVH,
     HAND_BVH,
-    MOCAP,
     assert_no_traceback,
     band_cells,
     open_page,
@@ -169,22 +165,3 @@ def test_the_open_end_band_is_explained_under_w1_and_its_limit_has_a_field(page,
     _until(lambda: revision(page) > rev, "undo was not solved")
     _until(lambda: page.locator(".hs-max-unmatched input").first.input_value() == "", "not undone")
     assert band_cells(status_line(page)) == cells
-
-
-def test_an_uploaded_hand_is_aligned_on_the_side_its_file_name_says(page):
-    side = page.locator(".hs-side").first
-    assert "active" in (side.locator("button", has_text="right").get_attribute("class") or "")
-    hand = MOCAP / "manipnet" / "mug1_leftHand.bvh"
-    page.locator(".hs-upload-body input[type=file]").set_input_files(str(BODY_BVH))
-    _until(lambda: "now the other take" in _uploaded_line(page), "body not checked")
-    page.locator(".hs-upload-hand input[type=file]").set_input_files(str(hand))
-    line = _until(
-        lambda: _uploaded_line(page) if re.search(r"hand:.*— open", _uploaded_line(page)) else "",
-        "pair not opened",
-    )
-    assert "open, side left (the file name mug1_leftHand.bvh says left)." in line, line
-    _until(
-        lambda: "active" in (side.locator("button", has_text="left").get_attribute("class") or ""),
-        "the Side control does not show left",
-    )
-    _until(lambda: "--side left" in pane_text(page.locator(".hs-cli").first), "no --side left")

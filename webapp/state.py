@@ -317,10 +317,8 @@ class Session(param.Parameterized):
         body_name: str = "",
         hand_name: str = "",
         then=None,
-        side: str | None = None,
     ) -> None:
-        """Open two uploaded takes by content hash (``then``: as for :meth:`load_sample`;
-        ``side``: the arm to align, None to keep the one chosen)."""
+        """Open two uploaded takes by content hash (``then``: as for :meth:`load_sample`)."""
         self._set_inputs(
             then=then,
             new_pair=True,
@@ -329,7 +327,6 @@ class Session(param.Parameterized):
             hand_sha256=hand_sha256,
             body_name=body_name,
             hand_name=hand_name,
-            **({} if side is None else {"side": side}),
         )
 
     def set_roles(self, roles: dict) -> bool:

@@ -21,7 +21,6 @@ from pathlib import Path
 
 import panel as pn
 
-from engine.model.roles import side_from_name
 from webapp import backend, safe_text, uploads
 from webapp.backend import one_line
 from webapp.state import Session
@@ -93,8 +92,6 @@ class InputsView:
         self._pending: dict[str, uploads.Kept] = {}
         self._open: dict[str, uploads.Kept] = {}
         self._opening = False
-        #: "mug1_leftHand.bvh says left": the side the uploaded hand's name chose, or ""
-        self._named_side = ""
         self._droppers = {"body": self.body_file, "hand": self.hand_file}
         self._inputs_key = self._session_key()
         self.roles_body = pn.widgets.TextAreaInput(
@@ -235,7 +232,6 @@ class InputsView:
     def _forget_uploads(self):
         """Other takes are open: the uploads' line, message and fields are cleared."""
         self._pending, self._open = {}, {}
-        self._named_side = ""
         self.session.waiting = ""
         self.uploaded.object = ""
         self.message.visible = False
@@ -311,13 +307,8 @@ class InputsView:
             return
         if not opened and len(parts) == 2:
             opened = self._pending == self._open and self._open_is_shown()
-        named = self._named_side
         tail = (
-            (
-                f" — open, side {self.session.side} (the file name {safe_text.html(named)})."
-                if named
-                else " — open."
-            )
+            " — open."
             if opened
             else " — not opened (the reason is below)."
             if failed
@@ -349,12 +340,6 @@ class InputsView:
             self._open = dict(self._pending)
             self._show_uploaded(opened=True)
             return
-        # the engine reads the take under its hash: a side its own file name says
-        # (mug1_leftHand.bvh) is the side to align, as handsplice splice takes it from the
-        # name; the uploaded line says so
-        named = side_from_name(hand.name)
-        side = named if named in ("right", "left") and named != s.side else None
-        self._named_side = "" if side is None else f"{hand.name} says {side}"
         loop = asyncio.get_running_loop()
         # one progress line (the Alignment section's) counts the whole opening; the old
         # pair's views go inactive at once
@@ -366,7 +351,7 @@ class InputsView:
                 backend.prepare,
                 body.path,
                 hand.path,
-                side or s.side,
+                s.side,
                 dict(s.roles),
                 takes=(body.take, hand.take),
             ),
@@ -392,7 +377,7 @@ class InputsView:
 
         self._opening = True
         try:
-            s.load_uploads(body.digest, hand.digest, body.name, hand.name, then=then, side=side)
+            s.load_uploads(body.digest, hand.digest, body.name, hand.name, then=then)
             await opened
         finally:
             self._opening = False
