@@ -1355,29 +1355,3 @@ def test_the_unmatched_end_limit_is_an_edit_the_file_link_and_command_line_carry
     assert out.read_bytes() == backend.bvh_bytes(session.spliced())
     session.undo()
     assert session.max_unmatched_s is None and session.solution.pass1.band_cells == cells
-
-
-def test_a_new_pair_gets_its_own_default_time_width(cfg, tmp_path):
-    """A long take opens with W1 in seconds by default (1.5 s x sqrt(T)); the next pair
-    gets its own default, not the previous pair's (a stranger's R3-8: 17.2 s carried from a
-    131 s take to a 153 s one); a width the person typed stays."""
-    from engine.io.bvh import read_bvh, write_bvh
-    from tests.conftest import MOCAP
-
-    takes = read_bvh(MOCAP / "lafan1" / "dance1_subject1.bvh")
-    fps = takes.fps
-    digests = {}
-    for seconds in (30, 40):
-        path = tmp_path / f"body{seconds}.bvh"
-        write_bvh(takes.frames(0, int(seconds * fps)), path)
-        digests[seconds], _ = uploads.store(cfg, path.name, path.read_bytes())
-    hand_path = MOCAP / "gestification" / "fingers-ok.bvh"
-    hand, _ = uploads.store(cfg, hand_path.name, hand_path.read_bytes())
-    s = Session(cfg)
-    s.load_uploads(digests[30], hand, "body30.bvh", hand_path.name)
-    assert s.error == "" and s.band_s == C.BAND.default_for(s.n, s.fps).value == 8.2
-    s.load_uploads(digests[40], hand, "body40.bvh", hand_path.name)
-    assert s.error == "" and s.band_s == C.BAND.default_for(s.n, s.fps).value == 9.5
-    assert s.set_constraints(band_s="7")
-    s.load_uploads(digests[30], hand, "body30.bvh", hand_path.name)
-    assert s.band_s == 7.0  # typed: kept

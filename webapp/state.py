@@ -230,9 +230,6 @@ class Session(param.Parameterized):
         self._accepted: dict | None = None  # edit values of the solution shown
         self._accepted_undo = 0  # undo steps then
         self._carry_error = ""  # shown on after the next solve (a link that failed)
-        #: width fields in seconds the session set as a long take's default (never typed):
-        #: the next pair gets its own default instead ({"band_s": 17.2})
-        self._auto_widths: dict[str, float] = {}
         self.opening_since = 0.0  # monotonic s when ``opening`` was set
         super().__init__(**params)
         self.param.watch(self._on_edit, list(EDIT_PARAMS))
@@ -423,7 +420,7 @@ class Session(param.Parameterized):
             self.param.update(
                 points=kept,
                 frame=min(self.frame, max(self.n - 1, 0)),
-                **self._long_take_widths(prepared, new_pair),
+                **self._long_take_widths(prepared),
             )
         finally:
             self._applying = False
@@ -433,26 +430,15 @@ class Session(param.Parameterized):
         self._update_history_flags()
         then(True)
 
-    def _long_take_widths(self, prepared, new_pair: bool = False) -> dict:
+    def _long_take_widths(self, prepared) -> dict:
         """Time widths for a long take when the fractions are still the defaults (the
-        constraints' rule: the paper's fraction, at most a few seconds). A new pair does
-        not inherit the previous pair's default time width (one the person never typed):
-        it gets its own, as the command line would give it."""
-        out: dict = {}
+        constraints' rule: the paper's fraction, at most a few seconds)."""
+        out = {}
         for name, rule in (("band", C.BAND), ("refine_band", C.REFINE_BAND)):
-            key = f"{name}_s"
-            seconds = getattr(self, key)
-            if new_pair and seconds is not None and seconds == self._auto_widths.get(key):
-                seconds = out[key] = None
-            if seconds is None and getattr(self, name) == rule.default:
+            if getattr(self, f"{name}_s") is None and getattr(self, name) == rule.default:
                 width = rule.default_for(prepared.n, prepared.features.fps)
                 if width.unit == C.SECONDS:
-                    out[key] = width.value
-        auto = {k: v for k, v in out.items() if v is not None}
-        for key, value in self._auto_widths.items():  # still in force, untouched
-            if key not in out and getattr(self, key) == value:
-                auto[key] = value
-        self._auto_widths = auto
+                    out[f"{name}_s"] = width.value
         return out
 
     def widths(self) -> tuple[C.Width, C.Width]:
@@ -1209,15 +1195,6 @@ class Session(param.Parameterized):
                 widths[f"{name}_s"] = width.value
             else:
                 widths.update({name: width.value, f"{name}_s": None})
-        # the defaults chosen here for a long take (the file or link gave no width)
-        auto = {
-            f"{name}_s": width.value
-            for name, given, width in (
-                ("band", spec.band, band),
-                ("refine_band", spec.refine_band, refine),
-            )
-            if given is None and width.unit == C.SECONDS
-        }
         values = dict(
             inputs,
             side=spec.side,
@@ -1236,7 +1213,6 @@ class Session(param.Parameterized):
             "solution": solution,
             "compute_ms": (time.perf_counter() - t0) * 1000.0,
             "refused": refused,
-            "auto_widths": auto,
         }
 
     def _commit(self, staged: dict) -> None:
@@ -1248,7 +1224,6 @@ class Session(param.Parameterized):
         self._set_sizes(prepared)
         self.param.update(solution=staged["solution"], trust=None, compute_ms=staged["compute_ms"])
         self._apply(staged["values"])
-        self._auto_widths = dict(staged.get("auto_widths", {}))
         self._undo.clear()
         self._redo.clear()
         self._chain = staged["solution"]
