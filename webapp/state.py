@@ -299,8 +299,10 @@ class Session(param.Parameterized):
         body_name: str = "",
         hand_name: str = "",
         then=None,
+        side: str | None = None,
     ) -> None:
-        """Open two uploaded takes by content hash (``then``: as for :meth:`load_sample`)."""
+        """Open two uploaded takes by content hash (``then``: as for :meth:`load_sample`);
+        ``side``: the side to align (the one in force when None)."""
         self._set_inputs(
             then=then,
             new_pair=True,
@@ -309,6 +311,7 @@ class Session(param.Parameterized):
             hand_sha256=hand_sha256,
             body_name=body_name,
             hand_name=hand_name,
+            **({"side": side} if side else {}),
         )
 
     def set_roles(self, roles: dict) -> bool:
