@@ -54,6 +54,7 @@ def test_info_with_a_contradicting_side_warns_in_one_line(right_named, capsys):
     assert "warning" not in capsys.readouterr().err
 
 
+@pytest.mark.timeout(1500)  # a whole splice: kernels compile on a cold cache
 def test_splice_with_a_contradicting_side_warns_and_splices(right_named, tmp_path, capsys):
     out = tmp_path / "o.bvh"
     code = main(["splice", str(BODY), str(right_named), "-o", str(out), "--side", "left", "--quiet"])
