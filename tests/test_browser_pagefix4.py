@@ -101,3 +101,37 @@ def test_an_uploaded_hand_takes_the_side_its_file_name_says(page, tmp_path):
     assert "mug_leftHand.bvh: the file name says left" in text and "right hand" in text, text
     assert "--side right" in _cli(page, r"--side right")
     assert not page.errors, page.errors
+
+
+#: records every verdict the body field's tile gets and every text of the "Uploaded …"
+#: line (Bokeh models: the page redraws both from them)
+RECORD = """() => {
+  window.hsTags = []; window.hsLines = [];
+  for (const m of Bokeh.documents[0]._all_models.values()) {
+    const classes = m.css_classes ?? [];
+    if (classes.includes('hs-upload-body'))
+      m.properties.tags.change.connect(() => window.hsTags.push([...m.tags]));
+    if (classes.includes('hs-upload-status'))
+      m.properties.text.change.connect(() => window.hsLines.push(m.text));
+  }
+}"""
+
+
+def test_a_large_upload_says_how_much_has_arrived(page):
+    assert LAFAN.stat().st_size > 3e6
+    page.evaluate(RECORD)
+    _upload(page, "body", LAFAN)
+    _wait_line(page, r"Uploaded body:.*multipleActions1_subject1\.bvh.*now the other take")
+    tags = page.evaluate("window.hsTags")
+    receiving = [t for t in tags if t[0] == "receiving"]
+    assert receiving, tags  # the tile said how much the server has, before "Checking…"
+    for _, name, main, sub, _serial in receiving:
+        assert name == LAFAN.name
+        assert re.fullmatch(r"Receiving \d{1,2} %", main), main
+        assert re.match(r"\d+\.\d of \d+\.\d MB", sub), sub
+    assert [t[0] for t in tags][-2:] == ["checking", "ok"], tags
+    lines = page.evaluate("window.hsLines")
+    assert any(
+        re.search(r"receiving <b>multipleActions1_subject1\.bvh</b>: \d+ %, [\d.]+ of [\d.]+ MB", x)
+        for x in lines
+    ), lines

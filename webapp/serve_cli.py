@@ -21,7 +21,7 @@ from pathlib import Path
 
 from engine.base.limits import MAX_SESSION_BYTES, MAX_UPLOAD_BYTES
 
-#: the largest websocket message the server accepts: an upload chunk (4 MiB) or a
+#: the largest websocket message the server accepts: an upload chunk (1 MiB) or a
 #: session file sent whole (base64: 4/3 of MAX_SESSION_BYTES), with room to spare
 WEBSOCKET_MAX_MESSAGE = 16 * 1024 * 1024 + 2 * MAX_SESSION_BYTES
 

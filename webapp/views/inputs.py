@@ -25,7 +25,7 @@ from engine.model.roles import side_from_name, side_name_conflict
 from webapp import backend, safe_text, uploads
 from webapp.backend import one_line
 from webapp.state import Session
-from webapp.views.dropper import TakeDropper
+from webapp.views.dropper import Receipt, TakeDropper
 from webapp.views.refusal import refusal_box
 
 #: upload checks and pair preparation of all sessions share these threads
@@ -68,7 +68,7 @@ class InputsView:
             cfg, css_classes=["hs-upload-hand"], width=320, label="hand take"
         )
         for which, dropper in (("body", self.body_file), ("hand", self.hand_file)):
-            dropper.on_progress = self._on_progress
+            dropper.on_progress = lambda receipt, w=which: self._on_progress(w, receipt)
             dropper.on_staged = lambda staged, w=which: self._on_staged(w, staged)
             dropper.on_refused = lambda text, w=which: self._refuse(w, text, checked=False)
         self.side = pn.widgets.RadioButtonGroup.from_param(
@@ -228,11 +228,15 @@ class InputsView:
         for dropper in self._droppers.values():
             dropper.verdict("clear")
 
-    def _on_progress(self, name: str, received: int, total: int):
+    def _on_progress(self, which: str, receipt: Receipt):
+        """How much of a file is on the server: in its tile (percent, MB, time left) and
+        on the line below the fields."""
+        main, sub = receipt.words()
+        if receipt.chunk < receipt.chunks:  # the last chunk's tile says "Checking…" next
+            self._droppers[which].verdict("receiving", receipt.tile, main, sub)
         self.uploaded.object = (
-            f"<span class='hs-receiving'>receiving "
-            f"<b>{safe_text.html(name)}</b>: {received / 2**20:.1f} of "
-            f"{max(total, received) / 2**20:.1f} MiB</span>"
+            f"<span class='hs-receiving'>receiving <b>{safe_text.html(receipt.name)}</b>: "
+            f"{receipt.percent} %, {safe_text.html(sub)}</span>"
         )
 
     def _on_staged(self, which: str, staged: uploads.Staged):
