@@ -79,6 +79,23 @@ def test_suggestions_are_apart_and_worst_first():
     assert unc.suggestions(3) == [50, 200, 120]
 
 
+def test_suggestions_are_matched_body_frames_only():
+    """Rows outside the overlap (the status line's "no hand match") carry the largest
+    uncertainty of an open-ended pair (±37 s in the stranger's run 3, R3-9), yet a
+    matching point there has no matched hand frame to move: none is suggested there,
+    and a window straddling the overlap's edge offers its matched peak."""
+    n = 600
+    ms = np.full(n, 20.0)
+    ms[400:] = 37000.0  # the unmatched end: huge, meaningless uncertainty
+    ms[100], ms[250], ms[395] = 400.0, 300.0, 200.0
+    alignment = type("A", (), {"unmatched_body": [(400, n - 1)]})()
+    matched = U.matched_rows(alignment, n)
+    unc = U.Uncertainty(ms=ms, pass1_ms=ms, pass2_ms=ms * 0, fps=30.0, matched=matched)
+    picks = unc.suggestions(3)
+    assert picks and all(matched[p] for p in picks), picks
+    assert sorted(picks) == [100, 250, 395]
+
+
 def test_session_drops_an_assessment_of_an_older_edit(tmp_path):
     from webapp import config
     from webapp.state import Session

@@ -21,7 +21,7 @@ from pathlib import Path
 
 from engine.base.limits import MAX_SESSION_BYTES, MAX_UPLOAD_BYTES
 
-#: the largest websocket message the server accepts: an upload chunk (4 MiB) or a
+#: the largest websocket message the server accepts: an upload chunk (1 MiB) or a
 #: session file sent whole (base64: 4/3 of MAX_SESSION_BYTES), with room to spare
 WEBSOCKET_MAX_MESSAGE = 16 * 1024 * 1024 + 2 * MAX_SESSION_BYTES
 
@@ -50,8 +50,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--side",
         choices=("right", "left"),
-        default="right",
-        help="which hand of BODY HAND to align and splice (default right)",
+        default=None,
+        help="which hand of BODY HAND to align and splice (default: the side HAND's file "
+        "name says, e.g. mug1_rightHand.bvh, else right)",
     )
     p.add_argument("--port", type=int, default=5006, help="TCP port (default 5006; 0 = any free)")
     p.add_argument(
@@ -190,9 +191,13 @@ def run(args: argparse.Namespace) -> int:
     try:
         local = None
         if args.body is not None:
+            from engine.cli.info import warn_side
+            from engine.model.roles import side_from_name
             from webapp import backend
 
-            local = config.local_pair(args.body, args.hand, args.side)
+            warn_side(args.hand, args.side)  # a right-named hand served as left: say so
+            side = args.side or side_from_name(args.hand) or "right"
+            local = config.local_pair(args.body, args.hand, side)
             with backend.stages_to(stages):
                 _open_local(local)  # a take the engine refuses: one line, exit 2, no server
         cfg = config.configure(

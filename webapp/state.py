@@ -230,6 +230,9 @@ class Session(param.Parameterized):
         self._accepted: dict | None = None  # edit values of the solution shown
         self._accepted_undo = 0  # undo steps then
         self._carry_error = ""  # shown on after the next solve (a link that failed)
+        #: time widths in force that the default rule set (``band_s``: 17.2), not typed:
+        #: the next pair gets its own default instead (:meth:`_long_take_widths`)
+        self._auto_widths: dict[str, float] = {}
         self.opening_since = 0.0  # monotonic s when ``opening`` was set
         super().__init__(**params)
         self.param.watch(self._on_edit, list(EDIT_PARAMS))
@@ -314,8 +317,10 @@ class Session(param.Parameterized):
         body_name: str = "",
         hand_name: str = "",
         then=None,
+        side: str | None = None,
     ) -> None:
-        """Open two uploaded takes by content hash (``then``: as for :meth:`load_sample`)."""
+        """Open two uploaded takes by content hash (``then``: as for :meth:`load_sample`);
+        ``side``: the side to align (the one in force when None)."""
         self._set_inputs(
             then=then,
             new_pair=True,
@@ -324,6 +329,7 @@ class Session(param.Parameterized):
             hand_sha256=hand_sha256,
             body_name=body_name,
             hand_name=hand_name,
+            **({"side": side} if side else {}),
         )
 
     def set_roles(self, roles: dict) -> bool:
@@ -433,12 +439,22 @@ class Session(param.Parameterized):
     def _long_take_widths(self, prepared) -> dict:
         """Time widths for a long take when the fractions are still the defaults (the
         constraints' rule: the paper's fraction, at most a few seconds)."""
-        out = {}
+        out, auto = {}, {}
         for name, rule in (("band", C.BAND), ("refine_band", C.REFINE_BAND)):
-            if getattr(self, f"{name}_s") is None and getattr(self, name) == rule.default:
-                width = rule.default_for(prepared.n, prepared.features.fps)
-                if width.unit == C.SECONDS:
-                    out[f"{name}_s"] = width.value
+            key = f"{name}_s"
+            current = getattr(self, key)
+            if current is None:
+                defaulted = getattr(self, name) == rule.default
+            else:  # the previous pair's default (never typed) gives way to this pair's
+                defaulted = self._auto_widths.get(key) == current
+            if not defaulted:
+                continue
+            width = rule.default_for(prepared.n, prepared.features.fps)
+            if width.unit == C.SECONDS:
+                out[key] = auto[key] = width.value
+            else:
+                out.update({key: None, name: rule.default})
+        self._auto_widths = auto
         return out
 
     def widths(self) -> tuple[C.Width, C.Width]:
@@ -470,6 +486,9 @@ class Session(param.Parameterized):
         if not self._solve():
             self._apply(old)  # rejected: back to the values that worked
             return
+        for name in old:  # a width the user set is theirs from now on, whatever its value
+            if name in ("band", "band_s", "refine_band", "refine_band_s"):
+                self._auto_widths.pop(name if name.endswith("_s") else f"{name}_s", None)
         # the idle time since the last step of this slider was solved (not the time between
         # steps: steps queued behind a slow solve still belong to one run)
         run = self._slider_run
@@ -1189,10 +1208,12 @@ class Session(param.Parameterized):
             progress=progress,
             max_unmatched_s=spec.max_unmatched_s,
         )
-        widths = {}
+        widths, auto = {}, {}
         for name, width in (("band", band), ("refine_band", refine)):
             if width.unit == C.SECONDS:
                 widths[f"{name}_s"] = width.value
+                if getattr(spec, name) is None:  # the default rule's, not the link's
+                    auto[f"{name}_s"] = width.value
             else:
                 widths.update({name: width.value, f"{name}_s": None})
         values = dict(
@@ -1213,12 +1234,14 @@ class Session(param.Parameterized):
             "solution": solution,
             "compute_ms": (time.perf_counter() - t0) * 1000.0,
             "refused": refused,
+            "auto_widths": auto,
         }
 
     def _commit(self, staged: dict) -> None:
         """Install a staged state: results first, so watchers of the inputs see a consistent
         session (a frame of the new takes has a hand frame in the new solution)."""
         prepared = staged["prepared"]
+        self._auto_widths = dict(staged.get("auto_widths", {}))
         self.end_opening()
         self.prepared = prepared
         self._set_sizes(prepared)

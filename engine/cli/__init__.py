@@ -63,6 +63,11 @@ def load_take(path):
     return take
 
 
+def warn(text: str) -> None:
+    """One warning line on stderr at once (``handsplice: warning: ...``); not an error."""
+    print(f"handsplice: warning: {text}", file=sys.stderr, flush=True)
+
+
 def _print_notes() -> None:
     for note in _NOTES:
         print(f"handsplice: note: {note}", file=sys.stderr)

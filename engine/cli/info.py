@@ -54,6 +54,7 @@ def run(args: argparse.Namespace) -> int:
 
         overrides = load_role_overrides(args.roles)
     take = load_take(args.file)
+    warn_side(args.file, args.side)
     if isinstance(take, MarkerSet):
         if overrides:
             from engine.base.errors import ParameterError
@@ -70,6 +71,16 @@ def run(args: argparse.Namespace) -> int:
     else:
         sys.stdout.write(format_text(report))
     return 0
+
+
+def warn_side(path, side) -> None:
+    """``--side`` contradicting the file's name: one warning line (the side asked wins)."""
+    from engine.cli import warn
+    from engine.model.roles import side_name_conflict
+
+    conflict = side_name_conflict(path, side)
+    if conflict:
+        warn(f"{conflict} (leave --side out to follow the name)")
 
 
 def describe_motion(motion, path, overrides=None, side=None) -> dict:

@@ -291,6 +291,19 @@ def side_from_name(text: str | Path) -> str | None:
     return sides.pop() if len(sides) == 1 else None
 
 
+def side_name_conflict(text: str | Path, side: str | None) -> str | None:
+    """The one-line warning when ``side`` (``--side``, the page's Side) contradicts the
+    side a file's name says (``mug1_rightHand.bvh`` taken as left), else None. The side
+    asked for is used; the warning says so (a mirrored-wrong hand is easy to miss)."""
+    named = side_from_name(text)
+    if side not in SIDES or named is None or named == side:
+        return None
+    return (
+        f"{Path(str(text)).name}: the file name says {named} but the side asked for is "
+        f"{side}; taking it as the {side} hand"
+    )
+
+
 # --------------------------------------------------------------------------- results
 
 

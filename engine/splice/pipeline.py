@@ -185,8 +185,10 @@ def require_skeletal(body, hand, marker_body_ok: bool = False) -> None:
 
 
 def _roles_for(take, overrides, side: str | None = None):
-    """Roles from joint names; a hand-only rig without a side gets it from the file name,
-    else ``side`` (``--side right|left``), else its geometry (``engine.model.hand_side``)."""
+    """Roles from joint names; a hand-only rig without a side gets ``side`` (``--side
+    right|left``: it wins over the file name, which the CLI then warns about, as the page
+    does: ``engine.model.roles.side_name_conflict``), else the file name's, else its
+    geometry (``engine.model.hand_side``)."""
     from engine.model.hand_side import sided_roles
     from engine.model.roles import find_roles, side_from_name
 
@@ -195,6 +197,8 @@ def _roles_for(take, overrides, side: str | None = None):
     if overrides is not None and not isinstance(overrides, dict):
         return overrides  # a Roles object
     hint = side_from_name(take.meta.source) if take.meta.source else None
+    if side in ("right", "left"):
+        hint = side
     roles = find_roles(take.skeleton, overrides=overrides or None, side_hint=hint)
     return sided_roles(take, roles, side)
 

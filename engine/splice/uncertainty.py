@@ -158,10 +158,16 @@ class Uncertainty:
         moves, and a point placed at the uncertainty's peak there lowered the hard families'
         p95 more than one at the stretch's visible (moving) edge (issue 17; measured on the
         tuning seeds, then on the reported ones: ``benchmarks/bench_uncertainty.py``).
+        Only matched rows (``matched``) are offered and scored: outside the overlap no
+        hand frame is matched, so a matching point there has nothing to fix (their
+        uncertainty spans the whole unmatched stretch).
         """
         gap = max(1, int(round(gap_s * self.fps)))
-        n = len(self.ms)
-        csum = np.concatenate([[0.0], np.cumsum(self.ms)])
+        ms = np.asarray(self.ms, np.float64)
+        if self.matched is not None:
+            ms = np.where(np.asarray(self.matched, bool), ms, 0.0)
+        n = len(ms)
+        csum = np.concatenate([[0.0], np.cumsum(ms)])
         half = gap // 2
         lo = np.clip(np.arange(n) - half, 0, n)
         hi = np.clip(np.arange(n) + half + 1, 0, n)
@@ -172,7 +178,7 @@ class Uncertainty:
             if score[i] <= 0.0 or len(chosen) >= count:
                 break
             a, b = int(lo[i]), int(hi[i])
-            peak = a + int(np.argmax(self.ms[a:b]))
+            peak = a + int(np.argmax(ms[a:b]))
             if all(abs(peak - c) >= gap for c in chosen):
                 chosen.append(peak)
         return chosen

@@ -17,7 +17,9 @@ the tile through ``textContent`` only.
 from __future__ import annotations
 
 import itertools
+import time
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import panel as pn
 from bokeh.models import CustomJS
@@ -26,10 +28,19 @@ from webapp import uploads
 from webapp.config import AppConfig
 from webapp.views._dispatch import with_document_lock
 
-#: bytes per websocket message of an upload
-CHUNK_BYTES = 4 * 1024 * 1024
+#: bytes per websocket message of an upload: the server counts what has arrived after
+#: each (the tile's percent), so a few-MB take shows it moving; smaller chunks did not
+#: slow a 3.2 MB upload down (``benchmarks/bench_upload.py``, RESULTS "pagefix4")
+CHUNK_BYTES = 1024 * 1024
 #: tile colours of the server's verdicts (FilePond's own green and red, a neutral grey)
-VERDICT_COLORS = {"checking": "#64605e", "ok": "#369763", "refused": "#c44e47"}
+VERDICT_COLORS = {
+    "receiving": "#64605e",
+    "checking": "#64605e",
+    "ok": "#369763",
+    "refused": "#c44e47",
+}
+#: the page is told how much has arrived at most this often (and at the last chunk)
+PROGRESS_EVERY_S = 0.25
 
 #: the page side of :meth:`TakeDropper.verdict`: the model's ``tags`` are
 #: ``[state, file name, main text, sub text, serial]``; the tile of that file gets the
@@ -42,7 +53,10 @@ if (pond == null || state == null) return;
 if (state === 'clear') { pond.removeFiles(); return; }
 const paint = () => {
   const item = pond.getFiles().find(f => f.filename === name.split(/[\\\\/]/).pop());
-  if (item == null || item.status !== 5) return false;
+  // "receiving" (the server's count of the bytes on its disk) also while FilePond still
+  // sends (status 3: its ring counts what the browser queued, not what arrived)
+  const shown = item != null && (item.status === 5 || (state === 'receiving' && item.status === 3));
+  if (!shown) return false;
   const li = pond.element.querySelector('#filepond--item-' + item.id);
   if (li == null) return false;
   li._hsVerdict = {state, main, sub};
@@ -77,10 +91,40 @@ again();
 _SERIAL = itertools.count(1)
 
 
+@dataclass(frozen=True)
+class Receipt:
+    """How much of an upload is on the server's disk: ``received`` of about ``expected``
+    bytes (exact once the last of ``chunks`` chunks is in), ``seconds`` since the first;
+    ``name`` the shown name, ``tile`` the browser's name of the file (its tile)."""
+
+    name: str
+    tile: str
+    received: int
+    expected: int
+    chunk: int
+    chunks: int
+    seconds: float
+
+    @property
+    def percent(self) -> int:
+        if self.chunk >= self.chunks:
+            return 100
+        return min(99, int(100 * self.received / max(self.expected, 1)))
+
+    def words(self) -> tuple[str, str]:
+        """(main, sub) texts: ``Receiving 42 %``, ``1.3 of 3.2 MB · about 4 s left``."""
+        main = f"Receiving {self.percent} %"
+        sub = f"{self.received / 1e6:.1f} of {self.expected / 1e6:.1f} MB"
+        if 0 < self.received < self.expected and self.seconds > 0.5:
+            left = (self.expected - self.received) * self.seconds / self.received
+            sub += f" · about {left:.0f} s left"
+        return main, sub
+
+
 class TakeDropper(pn.widgets.FileDropper):
     """One take's upload field. Callbacks (set by the owner), all on the event loop:
-    ``on_progress(name, received_bytes, total_bytes)``, ``on_staged(Staged)`` and
-    ``on_refused(message)``."""
+    ``on_progress(Receipt)`` (at most every :data:`PROGRESS_EVERY_S`), ``on_staged(Staged)``
+    and ``on_refused(message)``."""
 
     def __init__(self, cfg: AppConfig, **params):
         params.setdefault("chunk_size", CHUNK_BYTES)
@@ -91,7 +135,9 @@ class TakeDropper(pn.widgets.FileDropper):
         super().__init__(**params)
         self._cfg = cfg
         self._incoming: dict[str, uploads.Incoming | None] = {}
-        self.on_progress: Callable[[str, int, int], None] = lambda *a: None
+        self._started: dict[str, float] = {}
+        self.on_progress: Callable[[Receipt], None] = lambda r: None
+        self._told = 0.0  # when on_progress was last called
         self.on_staged: Callable[[uploads.Staged], None] = lambda s: None
         self.on_refused: Callable[[str], None] = lambda m: None
         #: the name the browser gave the latest file (its tile's name; shown names are cleaned)
@@ -125,11 +171,29 @@ class TakeDropper(pn.widgets.FileDropper):
                 self._drop(name)
                 self._incoming[name] = None  # refused until opened (a bad name stays refused)
                 self._incoming[name] = uploads.Incoming(self._cfg, name)
+                self._started[name] = time.monotonic()
+                self._told = 0.0
             incoming = self._incoming.get(name)
             if incoming is None:
                 return  # the rest of a refused file
             incoming.write(data.get("data") or b"")
-            self.on_progress(incoming.name, incoming.size, total * self.chunk_size)
+            now = time.monotonic()
+            if chunk >= total or now - self._told >= PROGRESS_EVERY_S:
+                self._told = now
+                self.on_progress(
+                    Receipt(
+                        name=incoming.name,
+                        tile=name,
+                        received=incoming.size,
+                        # every chunk but the last is whole: the size is known within one
+                        expected=incoming.size
+                        if chunk >= total
+                        else max(incoming.size, int((total - 0.5) * self.chunk_size)),
+                        chunk=chunk,
+                        chunks=total,
+                        seconds=now - self._started.get(name, now),
+                    )
+                )
             if chunk >= total:
                 del self._incoming[name]
                 self.on_staged(incoming.finish())

@@ -21,10 +21,11 @@ from pathlib import Path
 
 import panel as pn
 
+from engine.model.roles import side_from_name, side_name_conflict
 from webapp import backend, safe_text, uploads
 from webapp.backend import one_line
 from webapp.state import Session
-from webapp.views.dropper import TakeDropper
+from webapp.views.dropper import Receipt, TakeDropper
 from webapp.views.refusal import refusal_box
 
 #: upload checks and pair preparation of all sessions share these threads
@@ -71,7 +72,7 @@ class InputsView:
             cfg, css_classes=["hs-upload-hand"], width=320, label="hand take"
         )
         for which, dropper in (("body", self.body_file), ("hand", self.hand_file)):
-            dropper.on_progress = self._on_progress
+            dropper.on_progress = lambda receipt, w=which: self._on_progress(w, receipt)
             dropper.on_staged = lambda staged, w=which: self._on_staged(w, staged)
             dropper.on_refused = lambda text, w=which: self._refuse(w, text, checked=False)
         self.side = pn.widgets.RadioButtonGroup.from_param(
@@ -92,6 +93,8 @@ class InputsView:
         self._pending: dict[str, uploads.Kept] = {}
         self._open: dict[str, uploads.Kept] = {}
         self._opening = False
+        #: what the last opening did with the side (followed the hand file's name)
+        self._side_note = ""
         self._droppers = {"body": self.body_file, "hand": self.hand_file}
         self._inputs_key = self._session_key()
         self.roles_body = pn.widgets.TextAreaInput(
@@ -116,6 +119,7 @@ class InputsView:
             ["sample", "body_sha256", "hand_sha256", "roles", "opening", "waiting"],
         )
         session.param.watch(self._show_note, ["inputs_revision"])
+        session.param.watch(self._on_side, ["side"])
         # a side the takes lack is refused here, under the Side control that asked for it
         # (the page's error line is far below it)
         self._side_refused = False
@@ -238,11 +242,15 @@ class InputsView:
         for dropper in self._droppers.values():
             dropper.verdict("clear")
 
-    def _on_progress(self, name: str, received: int, total: int):
+    def _on_progress(self, which: str, receipt: Receipt):
+        """How much of a file is on the server: in its tile (percent, MB, time left) and
+        on the line below the fields."""
+        main, sub = receipt.words()
+        if receipt.chunk < receipt.chunks:  # the last chunk's tile says "Checking…" next
+            self._droppers[which].verdict("receiving", receipt.tile, main, sub)
         self.uploaded.object = (
-            f"<span class='hs-receiving'>receiving "
-            f"<b>{safe_text.html(name)}</b>: {received / 2**20:.1f} of "
-            f"{max(total, received) / 2**20:.1f} MiB</span>"
+            f"<span class='hs-receiving'>receiving <b>{safe_text.html(receipt.name)}</b>: "
+            f"{receipt.percent} %, {safe_text.html(sub)}</span>"
         )
 
     def _on_staged(self, which: str, staged: uploads.Staged):
@@ -307,8 +315,9 @@ class InputsView:
             return
         if not opened and len(parts) == 2:
             opened = self._pending == self._open and self._open_is_shown()
+        side = self._side_words() if len(parts) == 2 and (opened or failed) else ""
         tail = (
-            " — open."
+            f" — open{side}."
             if opened
             else " — not opened (the reason is below)."
             if failed
@@ -319,6 +328,24 @@ class InputsView:
         self.uploaded.object = (
             "<span class='hs-uploaded'>Uploaded " + ", ".join(parts) + tail + "</span>"
         )
+
+    def _on_side(self, *_):
+        """The Side changed on the open uploaded pair: the line says whether it now
+        contradicts the hand file's name."""
+        if self._open and self._pending == self._open and self._open_is_shown():
+            self._side_note = ""
+            self._show_uploaded(opened=True)
+
+    def _side_words(self) -> str:
+        """``; side right, as the hand file's name says`` when the opening followed the
+        name, or the warning when the side in force contradicts it (escaped)."""
+        hand = self._pending.get("hand")
+        conflict = side_name_conflict(hand.name, self.session.side) if hand else None
+        if conflict:
+            return f"; <span class='hs-side-warning'>⚠ {safe_text.html(conflict)}</span>"
+        if self._side_note:
+            return f"; <span class='hs-side-from-name'>{safe_text.html(self._side_note)}</span>"
+        return ""
 
     def _show_waiting(self, done: bool) -> None:
         """One checked upload and no partner yet: the status line says what it waits for
@@ -341,6 +368,13 @@ class InputsView:
             self._show_uploaded(opened=True)
             return
         loop = asyncio.get_running_loop()
+        # the side follows the hand file's name (mug1_rightHand.bvh: right), as the CLI's
+        # without --side; the Side control then shows it and the line below says why
+        named = side_from_name(hand.name)
+        side = named or s.side
+        self._side_note = (
+            f"side {side}, as the hand file's name says" if named and named != s.side else ""
+        )
         # one progress line (the Alignment section's) counts the whole opening; the old
         # pair's views go inactive at once
         self.uploaded.object += " <span class='hs-opening'>— opening (progress below)</span>"
@@ -351,7 +385,7 @@ class InputsView:
                 backend.prepare,
                 body.path,
                 hand.path,
-                s.side,
+                side,
                 dict(s.roles),
                 takes=(body.take, hand.take),
             ),
@@ -377,7 +411,7 @@ class InputsView:
 
         self._opening = True
         try:
-            s.load_uploads(body.digest, hand.digest, body.name, hand.name, then=then)
+            s.load_uploads(body.digest, hand.digest, body.name, hand.name, then=then, side=side)
             await opened
         finally:
             self._opening = False
