@@ -181,10 +181,10 @@ DEMO_SERVER_START_S = 600.0
 
 @pytest.fixture(scope="session")
 def demo_server(tmp_path_factory):
-    """``(url, log path)`` of the run's one ``handsplice serve`` on the demo pair (defaults:
-    warmed up, no upload limit but the default), shared by the browser modules that need no
-    fresh server; HANDSPLICE_TEST_URL: that server instead (log path None). At the end of
-    the run its whole log must hold no traceback."""
+    """``(url, log path)`` of the run's one ``handsplice serve`` with the default options
+    (the demo pair, warmed up), shared by the browser modules that need no fresh server;
+    HANDSPLICE_TEST_URL: that server instead (log path None). At the end of the run its
+    whole log must hold no traceback."""
     if os.environ.get("HANDSPLICE_TEST_URL"):
         yield os.environ["HANDSPLICE_TEST_URL"].rstrip("/") + "/", None
         return
