@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import os
 import re
 from pathlib import Path
@@ -101,41 +102,145 @@ def served_app(tmp_path_factory, *serve_args: str, timeout: float = 120.0):
         yield url, uploads, log_path
 
 
-def assert_no_traceback(log_path: Path) -> None:
-    """The server's log holds no traceback (the first one is shown when it does)."""
-    text = log_path.read_text(errors="replace")
+def assert_no_traceback(log_path: Path, since: int = 0) -> None:
+    """The server's log holds no traceback (the first one is shown when it does); ``since``:
+    in what it wrote after that byte offset."""
+    with log_path.open("rb") as log:
+        log.seek(since)
+        text = log.read().decode(errors="replace")
     assert "Traceback" not in text, text[text.find("Traceback") :][:3000]
+
+
+# One Playwright and one Chromium serve the browser tests of the run (each test opens its
+# tabs in a context of its own). While Playwright's sync API runs, ``asyncio.run`` fails in
+# this thread ("cannot be called from a running event loop"): a test that drives no browser
+# stops it first (it starts again, in a second or two, for the next browser test).
+_CHROMIUM: dict = {}
+
+
+def shared_browser():
+    """The run's Chromium (Playwright driving Debian's Chromium), started on first use (again
+    if it was stopped or went away)."""
+    browser = _CHROMIUM.get("browser")
+    if browser is not None and browser.is_connected():
+        return browser
+    sync_api = pytest.importorskip("playwright.sync_api")
+    from webapp.launch import launch_chromium
+
+    if "playwright" not in _CHROMIUM:
+        _CHROMIUM["playwright"] = sync_api.sync_playwright().start()
+    _CHROMIUM["browser"] = launch_chromium(_CHROMIUM["playwright"])
+    return _CHROMIUM["browser"]
+
+
+def stop_shared_browser() -> None:
+    """Close the run's Chromium and stop Playwright, if they run."""
+    browser = _CHROMIUM.pop("browser", None)
+    if browser is not None and browser.is_connected():
+        browser.close()
+    playwright = _CHROMIUM.pop("playwright", None)
+    if playwright is not None:
+        playwright.stop()
+
+
+def pytest_sessionfinish(session, exitstatus):
+    stop_shared_browser()
+
+
+@pytest.fixture(autouse=True)
+def _no_playwright_outside_browser_tests(request):
+    """A test that drives no browser (no ``browser`` mark, no ``browser`` fixture) runs with
+    Playwright stopped, so that its ``asyncio.run`` works."""
+    if request.node.get_closest_marker("browser") is None and "browser" not in (
+        request.fixturenames
+    ):
+        stop_shared_browser()
 
 
 @pytest.fixture(scope="module")
 def browser():
-    """A Chromium (Playwright) for the test module."""
-    sync_api = pytest.importorskip("playwright.sync_api")
-    from webapp.launch import launch_chromium
-
-    with sync_api.sync_playwright() as p:
-        b = launch_chromium(p)
-        yield b
-        b.close()
+    """The run's Chromium (Playwright), shared by every browser test: a test opens its tabs
+    in a fresh context (:func:`open_page`) and closes it."""
+    return shared_browser()
 
 
 @contextlib.contextmanager
 def served_chromium(tmp_path_factory, *serve_args: str, timeout: float = 400.0):
-    """``(browser, url)``: ``handsplice serve`` (its own upload folder, ``serve_args``) and a
-    Chromium; on exit, the server's log must hold no traceback."""
-    sync_api = pytest.importorskip("playwright.sync_api")
-    from webapp.launch import launch_chromium
-
-    with (
-        served_app(tmp_path_factory, *serve_args, timeout=timeout) as (url, _, log_path),
-        sync_api.sync_playwright() as p,
-    ):
-        browser = launch_chromium(p)
-        try:
-            yield browser, url
-        finally:
-            browser.close()
+    """``(browser, url)``: ``handsplice serve`` of its own (its own upload folder,
+    ``serve_args``) and the run's Chromium; on exit, the server's log must hold no
+    traceback. Without ``serve_args`` a module needing no fresh server uses
+    :func:`demo_url` instead."""
+    with served_app(tmp_path_factory, *serve_args, timeout=timeout) as (url, _, log_path):
+        yield shared_browser(), url
     assert_no_traceback(log_path)
+
+
+#: a shared two-core machine can take minutes to warm the demo pair
+DEMO_SERVER_START_S = 600.0
+
+
+@pytest.fixture(scope="session")
+def demo_server(tmp_path_factory):
+    """``(url, log path)`` of the run's one ``handsplice serve`` with the default options
+    (the demo pair, warmed up), shared by the browser modules that need no fresh server;
+    HANDSPLICE_TEST_URL: that server instead (log path None). At the end of the run its
+    whole log must hold no traceback."""
+    if os.environ.get("HANDSPLICE_TEST_URL"):
+        yield os.environ["HANDSPLICE_TEST_URL"].rstrip("/") + "/", None
+        return
+    with served_app(tmp_path_factory, timeout=DEMO_SERVER_START_S) as (url, _, log_path):
+        yield url, log_path
+    assert_no_traceback(log_path)
+
+
+@dataclasses.dataclass(frozen=True)
+class ServerLog:
+    """What a server logged from byte ``since`` of its log ``path`` on (None: not ours)."""
+
+    path: Path | None
+    since: int = 0
+
+    def assert_no_traceback(self) -> None:
+        if self.path is not None:
+            assert_no_traceback(self.path, self.since)
+
+
+@pytest.fixture(scope="module")
+def demo_log(demo_server) -> ServerLog:
+    """The shared demo server's log from the module's start on; at the end of the module it
+    must hold no traceback."""
+    path = demo_server[1]
+    log = ServerLog(path, path.stat().st_size if path is not None else 0)
+    yield log
+    log.assert_no_traceback()
+
+
+@pytest.fixture(scope="module")
+def demo_url(demo_server, demo_log) -> str:
+    """URL of the run's shared demo server (:func:`demo_server`). Each tab is a session of
+    its own; what a server keeps across sessions (uploads, the opened pairs it caches, the
+    warm-up's spare solution, taken by the first tab) is shared with the modules before."""
+    return demo_server[0]
+
+
+@pytest.fixture()
+def demo_page(browser, demo_url):
+    """A fresh tab (1300 x 1000) on the shared demo server once its matrix shows a path; at
+    the end, the tab must have had no JavaScript error."""
+    page = open_page(browser, demo_url, timeout_s=DEMO_SERVER_START_S)
+    yield page
+    page.context.close()
+    assert not page.errors, page.errors
+
+
+@pytest.fixture()
+def stranger_page(browser, demo_url):
+    """:func:`demo_page` at the strangers' screen size, 1440 x 900."""
+    page = open_page(browser, demo_url, width=1440, height=900, timeout_s=DEMO_SERVER_START_S)
+    page.wait_for_timeout(500)  # as the strangers did: a look at the page before acting
+    yield page
+    page.context.close()
+    assert not page.errors, page.errors
 
 
 def open_tab(
@@ -205,6 +310,19 @@ def band_cells(status: str) -> int:
     match = re.search(r"band ([\d,]+) cells", status)
     assert match, status
     return int(match.group(1).replace(",", ""))
+
+
+def click_path_mid_take(page, timeout_s: float = 60.0) -> int:
+    """Click the path's cell at the middle body frame and wait for the point it places (the
+    page had none); the open pair's body frame count."""
+    n = page.evaluate("hs.frames()")
+    path = page.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
+    k = path["x"].index(n // 2)
+    page.mouse.click(*page.evaluate(f"hs.xy({path['x'][k]}, {path['y'][k]})"))
+    page.wait_for_function(
+        "() => hs.cols('hs-points-source', ['x']).x.length === 1", timeout=timeout_s * 1000
+    )
+    return n
 
 
 def busy_line(page) -> str:

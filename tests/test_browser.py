@@ -1,8 +1,8 @@
 """The app in a real browser: Debian's Chromium driven by Playwright.
 
-A server (``handsplice serve``) is started on a free port for the module and
-killed at the end. Waits poll the page (Bokeh's document model or the DOM), no
-fixed sleeps. Playwright's CSS selectors pierce the open shadow roots Panel and
+The run's shared demo server (``handsplice serve`` on a free port: conftest's
+``demo_url``; HANDSPLICE_TEST_URL: that server instead) serves the module. Waits poll
+the page (Bokeh's document model or the DOM), no fixed sleeps. Playwright's CSS selectors pierce the open shadow roots Panel and
 Bokeh render into, so the stable hooks ``.hs-cost-matrix``, ``.hs-status`` and
 ``.hs-points`` are found wherever they sit.
 """
@@ -10,7 +10,6 @@ Bokeh render into, so the stable hooks ``.hs-cost-matrix``, ``.hs-status`` and
 from __future__ import annotations
 
 import json
-import os
 import re
 import time
 
@@ -21,24 +20,10 @@ from conftest import (
     open_page,
     pane_text,
     revision,
-    served_app,
     status_line,
 )
 
 pytestmark = pytest.mark.browser
-
-SERVER_LOG: dict = {}
-
-
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    """URL of a running ``handsplice serve`` (or HANDSPLICE_TEST_URL when set)."""
-    if os.environ.get("HANDSPLICE_TEST_URL"):
-        yield os.environ["HANDSPLICE_TEST_URL"].rstrip("/") + "/"
-        return
-    with served_app(tmp_path_factory) as (url, _, log_path):
-        SERVER_LOG["path"] = log_path
-        yield url
 
 
 def _open(browser, url: str):
@@ -112,8 +97,8 @@ def _drag(page, x0, y0, x1, y1) -> None:
 
 
 @pytest.fixture(scope="module")
-def page(browser, server):
-    p = _open(browser, server)
+def page(browser, demo_url):
+    p = _open(browser, demo_url)
     yield p
     p.context.close()
 
@@ -294,9 +279,9 @@ def test_download_glb_is_the_spliced_take_in_3d(page, tmp_path):
     assert accessor(doc, blob, doc.meshes[0].primitives[0].attributes.POSITION).shape[0] > 1000
 
 
-def test_download_preview_gif(page, browser, server, tmp_path):
+def test_download_preview_gif(page, browser, demo_url, tmp_path):
     """The export shows its progress, and another session stays responsive meanwhile."""
-    other = _open(browser, server)
+    other = _open(browser, demo_url)
     try:
         # the same kind of edit with no export running: what this machine takes anyway
         baseline = []
@@ -363,8 +348,8 @@ def test_shared_url_restores_the_session(page, browser):
         other.context.close()
 
 
-def test_a_bad_link_opens_the_demo_and_says_why(browser, server):
-    other = _open(browser, server + "?sample=nope&band=0.5&pts=3:4")
+def test_a_bad_link_opens_the_demo_and_says_why(browser, demo_url):
+    other = _open(browser, demo_url + "?sample=nope&band=0.5&pts=3:4")
     try:
         alert = other.locator(".hs-error")
         alert.wait_for(state="visible", timeout=30_000)
@@ -403,8 +388,8 @@ def _settle(page, quiet: float = 1.0, timeout: float = 30.0) -> str:
     return status_line(page)
 
 
-def test_band_and_global_tolerance_sliders_change_the_band(browser, server):
-    other = _open(browser, server)
+def test_band_and_global_tolerance_sliders_change_the_band(browser, demo_url):
+    other = _open(browser, demo_url)
     try:
         cells0 = band_cells(_settle(other))
         rev = revision(other)
@@ -483,12 +468,12 @@ def _start_busy_session(page) -> None:
 
 
 @pytest.mark.parametrize("busy", [False, True], ids=["alone", "beside-a-busy-session"])
-def test_quick_clicks_and_a_drag_all_reach_the_session(browser, server, tmp_path, busy):
+def test_quick_clicks_and_a_drag_all_reach_the_session(browser, demo_url, tmp_path, busy):
     """Five clicks 50 ms apart and a drag while the previous edit is solved: every point
     (the dragged one at its new place) is in the matrix, the table, the status line and the
     downloaded session file; nothing drawn in the page is lost."""
-    page = _open(browser, server)
-    other = _open(browser, server) if busy else None
+    page = _open(browser, demo_url)
+    other = _open(browser, demo_url) if busy else None
     try:
         if other is not None:
             _start_busy_session(other)
@@ -596,12 +581,12 @@ def _png_coverage(src: str) -> float:
     return float((np.abs(img - img[0, 0]).sum(axis=2) > 40).mean())
 
 
-def test_one_frame_numbering_from_hover_to_session_file(browser, server, tmp_path):
+def test_one_frame_numbering_from_hover_to_session_file(browser, demo_url, tmp_path):
     """A point placed on the matrix is named by the same hand frame (the hand file's own,
     not the alignment grid's) in the hover, the table, the command line and the session
     file; the preview caption names the frame the matrix marker shows. Saves the gallery's
     first view (mid-wave: a link may name the frame) and its dragged-point picture."""
-    page = _open_wide(browser, server + "?frame=75")
+    page = _open_wide(browser, demo_url + "?frame=75")
     try:
         page.locator(".hs-preview-image img").wait_for(timeout=120_000)  # rendered on load
         page.locator(".hs-closeup-image img").wait_for(timeout=120_000)
@@ -685,8 +670,8 @@ def test_one_frame_numbering_from_hover_to_session_file(browser, server, tmp_pat
         page.context.close()
 
 
-def test_legends_and_hand_closeup(browser, server):
-    page = _open_wide(browser, server + "?frame=75")  # mid-wave: the hand is up
+def test_legends_and_hand_closeup(browser, demo_url):
+    page = _open_wide(browser, demo_url + "?frame=75")  # mid-wave: the hand is up
     try:
         legend = pane_text(page.locator(".hs-legends"))
         for words in (
@@ -731,12 +716,12 @@ def test_legends_and_hand_closeup(browser, server):
         page.context.close()
 
 
-def test_lesson_steps_by_cell_and_by_row(browser, server):
+def test_lesson_steps_by_cell_and_by_row(browser, demo_url):
     from webapp.views.teaching import TeachingModel
 
     mdl = TeachingModel()
     rows = [sum(1 for i, _ in mdl.order if i == r) for r in range(mdl.n)]
-    page = _open_wide(browser, server)
+    page = _open_wide(browser, demo_url)
     try:
         step = page.locator(".hs-teach-step button")
         step.scroll_into_view_if_needed()
@@ -778,8 +763,8 @@ def test_lesson_steps_by_cell_and_by_row(browser, server):
         page.context.close()
 
 
-def test_keyboard_undo_redo_and_one_step_per_slider_run(browser, server):
-    page = _open(browser, server)
+def test_keyboard_undo_redo_and_one_step_per_slider_run(browser, demo_url):
+    page = _open(browser, demo_url)
     try:
 
         def count() -> int:
@@ -821,9 +806,9 @@ def test_keyboard_undo_redo_and_one_step_per_slider_run(browser, server):
         page.context.close()
 
 
-def test_server_log_has_no_tracebacks(page):
-    """Whatever the page did, the server raised nothing (run last: it reads the whole log)."""
-    path = SERVER_LOG.get("path")
-    if path is None:
-        pytest.skip("server not started by this test module")
-    assert_no_traceback(path)
+def test_server_log_has_no_tracebacks(page, demo_log):
+    """Whatever the page did, the server raised nothing (run last: it reads the whole log
+    the server wrote since the module began)."""
+    if demo_log.path is None:
+        pytest.skip("server not started by this test run")
+    assert_no_traceback(demo_log.path, demo_log.since)

@@ -13,7 +13,7 @@ from pathlib import Path
 from urllib.parse import parse_qsl, urlsplit
 
 import pytest
-from conftest import BODY_BVH, HAND_BVH, XSS_PAYLOAD, open_page, pane_text, served_chromium, xss_ran
+from conftest import BODY_BVH, HAND_BVH, XSS_PAYLOAD, open_page, pane_text, xss_ran
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(1500)]
 
@@ -25,9 +25,9 @@ POINTS_LINK = (
 
 
 @pytest.fixture(scope="module")
-def served(tmp_path_factory):
-    with served_chromium(tmp_path_factory) as browser_and_url:
-        yield browser_and_url
+def served(browser, demo_url):
+    """(the run's Chromium, the URL of the run's shared demo server)."""
+    return browser, demo_url
 
 
 def _open(browser, url: str):

@@ -43,8 +43,6 @@ from conftest import (
     status_line,
 )
 
-from webapp.launch import launch_chromium
-
 pytestmark = pytest.mark.browser
 
 BODY_SECONDS = 120
@@ -79,9 +77,8 @@ def _page(context, url: str):
 
 
 @pytest.fixture(scope="module")
-def tabs(long_pair, tmp_path_factory):
+def tabs(browser, long_pair, tmp_path_factory):
     """``(tab A on the long pair, aligned; tab B on the demo pair, aligned; log path)``."""
-    sync_api = pytest.importorskip("playwright.sync_api")
     from webapp.config import SAMPLE_DIR, demo_sample_name
 
     body, hand = long_pair
@@ -92,9 +89,7 @@ def tabs(long_pair, tmp_path_factory):
             _,
             log_path,
         ),
-        sync_api.sync_playwright() as p,
     ):
-        browser = launch_chromium(p)
         context = browser.new_context(
             viewport={"width": 1300, "height": 1000}, accept_downloads=True
         )
@@ -114,7 +109,7 @@ def tabs(long_pair, tmp_path_factory):
         b.wait_for_timeout(500)
         yield a, b, log_path
         errors = a.errors + b.errors
-        browser.close()
+        context.close()
     assert not errors, errors
     assert_no_traceback(log_path)
 

@@ -12,28 +12,17 @@ from __future__ import annotations
 import time
 
 import pytest
-from conftest import assert_no_traceback, open_page, revision, served_app, visible_tooltips
+from conftest import revision, visible_tooltips
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(1500)]
 
-#: a shared two-core machine can take minutes to warm the demo pair
-SERVER_START_S = 600.0
 BUSY_S = 240.0
 
 
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    with served_app(tmp_path_factory, timeout=SERVER_START_S) as (url, _, log_path):
-        yield url
-    assert_no_traceback(log_path)
-
-
 @pytest.fixture()
-def page(browser, server):
-    page = open_page(browser, server, timeout_s=SERVER_START_S)
-    yield page
-    page.context.close()
-    assert not page.errors, page.errors
+def page(demo_page):
+    """A fresh tab on the run's shared demo server (conftest's ``demo_page``)."""
+    return demo_page
 
 
 def _add_point(page) -> tuple[int, int]:

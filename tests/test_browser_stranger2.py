@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import busy_line, open_page, served_chromium
+from conftest import busy_line, click_path_mid_take
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(1500)]
 
@@ -24,24 +24,13 @@ MOCAP = Path(__file__).resolve().parents[2] / "shared" / "data" / "mocap"
 #: takes seconds, long enough to look at the page meanwhile
 LONG_BODY = MOCAP / "lafan1" / "multipleActions1_subject1.bvh"
 LONG_HAND = MOCAP / "manipnet" / "mug1_rightHand.bvh"
-SERVER_START_S = 600
 BUSY_S = 300
 
 
-@pytest.fixture(scope="module")
-def served(tmp_path_factory):
-    with served_chromium(tmp_path_factory, timeout=SERVER_START_S) as (browser, url):
-        yield browser, url
-
-
 @pytest.fixture()
-def page(served):
-    browser, url = served
-    page = open_page(browser, url, width=1440, height=900, timeout_s=SERVER_START_S)
-    page.wait_for_timeout(500)
-    yield page
-    page.context.close()
-    assert not page.errors, page.errors
+def page(stranger_page):
+    """A fresh 1440 x 900 tab on the run's shared demo server (conftest's ``stranger_page``)."""
+    return stranger_page
 
 
 def _text(locator) -> str:
@@ -168,13 +157,7 @@ def _refusal_in_view(page, value: str, timeout: float = 30.0) -> str:
 
 
 def test_refused_table_edit_is_said_next_to_the_table(page, tmp_path):
-    n = page.evaluate("hs.frames()")
-    path = page.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
-    k = path["x"].index(n // 2)
-    page.mouse.click(*page.evaluate(f"hs.xy({path['x'][k]}, {path['y'][k]})"))
-    page.wait_for_function(
-        "() => hs.cols('hs-points-source', ['x']).x.length === 1", timeout=60_000
-    )
+    n = click_path_mid_take(page)
     page.wait_for_timeout(800)
     _edit(page, "body frame", "9999")
     text = _refusal_in_view(page, "9999")

@@ -23,11 +23,9 @@ import re
 import time
 
 import pytest
-from conftest import BODY_BVH, open_page, pane_text, served_chromium, status_line, visible_tooltips
+from conftest import BODY_BVH, pane_text, status_line, visible_tooltips
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(1500)]
-
-SERVER_START_S = 600
 
 #: client pixels of body frame ``body`` in the matrix and in the strip below it, of hand
 #: frame ``hand`` in the matrix and in the hand strip at its left, and the frames' edges
@@ -48,19 +46,10 @@ _JS_PIXELS = """([body, hand]) => {
 }"""
 
 
-@pytest.fixture(scope="module")
-def served(tmp_path_factory):
-    with served_chromium(tmp_path_factory, timeout=SERVER_START_S) as (browser, url):
-        yield browser, url
-
-
 @pytest.fixture()
-def page(served):
-    browser, url = served
-    page = open_page(browser, url, width=1440, height=900, timeout_s=SERVER_START_S)
-    yield page
-    page.context.close()
-    assert not page.errors, page.errors
+def page(stranger_page):
+    """A fresh 1440 x 900 tab on the run's shared demo server (conftest's ``stranger_page``)."""
+    return stranger_page
 
 
 def _hovered_body_frame(page, x: float, y: float) -> int:

@@ -7,22 +7,23 @@ import re
 from pathlib import Path
 
 import pytest
-from conftest import open_page, served_chromium
+from conftest import open_page
 
 pytestmark = pytest.mark.browser
 FIGURES = Path(__file__).resolve().parents[1] / "benchmarks" / "figures"
 
 
 @pytest.fixture(scope="module")
-def page(tmp_path_factory):
-    with served_chromium(tmp_path_factory) as (browser, url):
-        yield open_page(
-            browser,
-            url,
-            timeout_s=90,
-            ready="() => window.Bokeh && Bokeh.documents.length && Bokeh.documents[0]"
-            ".get_model_by_name('hs-confidence-source')?.data.start?.length > 0",
-        )
+def page(browser, demo_url):
+    page = open_page(
+        browser,
+        demo_url,
+        timeout_s=90,
+        ready="() => window.Bokeh && Bokeh.documents.length && Bokeh.documents[0]"
+        ".get_model_by_name('hs-confidence-source')?.data.start?.length > 0",
+    )
+    yield page
+    page.context.close()
 
 
 def test_strip_region_and_meter_follow_the_alignment(page):

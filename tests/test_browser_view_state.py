@@ -8,15 +8,15 @@ import json
 import time
 
 import pytest
-from conftest import open_page, pane_text, served_chromium
+from conftest import open_page, pane_text
 
 pytestmark = pytest.mark.browser
 
 
 @pytest.fixture(scope="module")
-def browser_and_url(tmp_path_factory):
-    with served_chromium(tmp_path_factory) as served:
-        yield served
+def browser_and_url(browser, demo_url):
+    """(the run's Chromium, the URL of the run's shared demo server)."""
+    return browser, demo_url
 
 
 def _open(browser, url: str):

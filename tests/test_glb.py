@@ -278,28 +278,23 @@ def _serve_js(page, glb: Path) -> str:
 
 
 @pytest.mark.browser
-def test_glb_loads_in_threejs_and_animates_as_the_bvh(spliced, tmp_path):
-    from playwright.sync_api import sync_playwright
-
-    from webapp.launch import launch_chromium
-
+def test_glb_loads_in_threejs_and_animates_as_the_bvh(browser, spliced, tmp_path):
     _js_ready()
     motion, glb = spliced
     frames = [0, motion.n_frames // 3, motion.n_frames - 1]
     times = [f / motion.fps for f in frames]
-    with sync_playwright() as pw:
-        browser = launch_chromium(pw)
-        try:
-            page = browser.new_page()
-            errors: list[str] = []
-            page.on("pageerror", lambda exc: errors.append(str(exc)))
-            page.goto(_serve_js(page, glb))
-            page.wait_for_function("window.pageReady === true", timeout=60_000)
-            result = page.evaluate(
-                "([url, times]) => window.loadGlb(url, times)", ["http://glb.test/take.glb", times]
-            )
-        finally:
-            browser.close()
+    context = browser.new_context()
+    try:
+        page = context.new_page()
+        errors: list[str] = []
+        page.on("pageerror", lambda exc: errors.append(str(exc)))
+        page.goto(_serve_js(page, glb))
+        page.wait_for_function("window.pageReady === true", timeout=60_000)
+        result = page.evaluate(
+            "([url, times]) => window.loadGlb(url, times)", ["http://glb.test/take.glb", times]
+        )
+    finally:
+        context.close()
     assert not errors, errors
     assert result["skinned"] and result["animations"] == 1 and result["vertices"] > 1000
     assert result["bones"] == list(motion.skeleton.names)

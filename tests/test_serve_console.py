@@ -17,7 +17,7 @@ from pathlib import Path
 
 from conftest import MOCAP
 
-from webapp.launch import free_port
+from webapp.launch import free_port, stop_process
 
 ROOT = Path(__file__).resolve().parents[1]
 BODY = MOCAP / "bandai-namco" / "dataset-2_wave-right-hand_normal_001.bvh"
@@ -57,12 +57,7 @@ def test_serve_body_hand_prints_its_warm_up_stages_on_stderr():
                 break  # (a server listening has warmed up: its console said what it said)
             time.sleep(0.2)
     finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+        stop_process(proc, timeout=20)
         reader.join(timeout=10)
     text = "\n".join(lines)
     stages = [

@@ -711,18 +711,17 @@ def _served_document(*roots):
     return doc, session
 
 
-def test_model_changes_wait_for_the_document_lock(monkeypatch):
-    """Outside Bokeh's document lock (a Panel widget callback run on the event loop) a view's
-    model change is deferred to a next-tick callback of the view's own document (not of the
-    document whose callback is running: another tab's) and runs under that document's lock;
-    once that tab's session is discarded the change is dropped. Inside the lock it runs at
-    once."""
-    import asyncio
+@pytest.fixture
+def two_tabs(monkeypatch):
+    """A view whose ``draw`` changes a model under the document lock, its tab (``tab``,
+    ``tab_session``) and another tab (``other``, ``other_session``), both served by real
+    (connection-less) server sessions; each tab's next-tick callbacks are collected in
+    ``ticks[id(doc)]`` instead of being run."""
+    from types import SimpleNamespace
 
-    import panel as pn
     from bokeh.models import ColumnDataSource
 
-    from webapp.views._dispatch import next_tick, with_document_lock
+    from webapp.views._dispatch import with_document_lock
 
     class View:
         def __init__(self):
@@ -734,10 +733,34 @@ def test_model_changes_wait_for_the_document_lock(monkeypatch):
 
     view = View()
     tab, tab_session = _served_document(view.source)  # the view's tab
-    other, _ = _served_document()  # the tab whose callback is running
-    scheduled = {id(tab): [], id(other): []}
+    other, other_session = _served_document()
+    ticks = {id(tab): [], id(other): []}
     for d in (tab, other):
-        monkeypatch.setattr(d, "add_next_tick_callback", scheduled[id(d)].append)
+        monkeypatch.setattr(d, "add_next_tick_callback", ticks[id(d)].append)
+    return SimpleNamespace(
+        view=view,
+        tab=tab,
+        tab_session=tab_session,
+        other=other,
+        other_session=other_session,
+        ticks=ticks,
+    )
+
+
+def test_model_changes_wait_for_the_document_lock(two_tabs, monkeypatch):
+    """Outside Bokeh's document lock (a Panel widget callback run on the event loop) a view's
+    model change is deferred to a next-tick callback of the view's own document (not of the
+    document whose callback is running: another tab's) and runs under that document's lock;
+    once that tab's session is discarded the change is dropped. Inside the lock it runs at
+    once."""
+    import asyncio
+
+    import panel as pn
+
+    from webapp.views._dispatch import next_tick
+
+    view, tab, tab_session = two_tabs.view, two_tabs.tab, two_tabs.tab_session
+    other, scheduled = two_tabs.other, two_tabs.ticks  # other: the tab whose callback runs
     monkeypatch.setattr(type(pn.state), "curdoc", property(lambda self: other))
 
     view.draw(1)  # no lock held: deferred to the view's document
@@ -756,7 +779,7 @@ def test_model_changes_wait_for_the_document_lock(monkeypatch):
     later()  # dropped without an error: nobody is there to see it
 
 
-def test_only_code_that_holds_the_lock_changes_models_at_once(monkeypatch):
+def test_only_code_that_holds_the_lock_changes_models_at_once(two_tabs):
     """The run-now-or-defer decision follows who holds the lock, not whether somebody does:
     a worker thread, an asyncio task outliving the callback that started it and a callback
     holding another tab's lock all defer the change (made at once there, Bokeh would send
@@ -764,24 +787,10 @@ def test_only_code_that_holds_the_lock_changes_models_at_once(monkeypatch):
     lock, accepted by Bokeh's real session."""
     import asyncio
 
-    from bokeh.models import ColumnDataSource
+    from webapp.views._dispatch import next_tick
 
-    from webapp.views._dispatch import next_tick, with_document_lock
-
-    class View:
-        def __init__(self):
-            self.source = ColumnDataSource({"x": [0]})
-
-        @with_document_lock
-        def draw(self, x):
-            self.source.data = {"x": [x]}
-
-    view = View()
-    tab, tab_session = _served_document(view.source)
-    other, other_session = _served_document()
-    ticks = {id(tab): [], id(other): []}
-    for d in (tab, other):
-        monkeypatch.setattr(d, "add_next_tick_callback", ticks[id(d)].append)
+    view, tab, tab_session = two_tabs.view, two_tabs.tab, two_tabs.tab_session
+    other, other_session, ticks = two_tabs.other, two_tabs.other_session, two_tabs.ticks
 
     def run_ticks(doc, session):  # as Bokeh runs next-tick callbacks: one by one, locked
         while ticks[id(doc)]:
