@@ -75,7 +75,9 @@ def main(argv=None) -> int:
         return pn.Column(field, done)
 
     port = free_port()
-    server = pn.serve(app, port=port, threaded=True, show=False, websocket_max_message_size=64 << 20)
+    server = pn.serve(
+        app, port=port, threaded=True, show=False, websocket_max_message_size=64 << 20
+    )
     time.sleep(2)
     print(f"load {os.getloadavg()[0]:.1f} at start", flush=True)
     with sync_playwright() as p:

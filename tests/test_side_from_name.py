@@ -57,7 +57,12 @@ def test_info_with_a_contradicting_side_warns_in_one_line(right_named, capsys):
 @pytest.mark.timeout(1500)  # a whole splice: kernels compile on a cold cache
 def test_splice_with_a_contradicting_side_warns_and_splices(right_named, tmp_path, capsys):
     out = tmp_path / "o.bvh"
-    code = main(["splice", str(BODY), str(right_named), "-o", str(out), "--side", "left", "--quiet"])
+    code = main(
+        ["splice", str(BODY), str(right_named), "-o", str(out), "--side", "left", "--quiet"]
+    )
     err = capsys.readouterr().err
     assert code == 0 and out.is_file(), err
-    assert sum("warning: mug_rightHand.bvh: the file name says right" in x for x in err.splitlines()) == 1
+    assert (
+        sum("warning: mug_rightHand.bvh: the file name says right" in x for x in err.splitlines())
+        == 1
+    )
