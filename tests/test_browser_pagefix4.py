@@ -12,6 +12,7 @@ Debian's Chromium driven by Playwright; files go in through the page's own uploa
 
 from __future__ import annotations
 
+import html
 import re
 import time
 from pathlib import Path
@@ -91,7 +92,7 @@ def test_an_uploaded_hand_takes_the_side_its_file_name_says(page, tmp_path):
     _upload(page, "body", BODY_BVH)
     _wait_line(page, r"Uploaded body:.*now the other take")
     _upload(page, "hand", hand)
-    text = _wait_line(page, r"Uploaded body:.*hand:.*open")
+    text = _wait_line(page, r"Uploaded body:.*hand:.*— open[;.]")  # not "— opening"
     assert "side left, as the hand file's name says" in text, text
     assert _active_side(page) == "left"
     assert "--side left" in _cli(page, r"--side left")
@@ -130,7 +131,7 @@ def test_a_large_upload_says_how_much_has_arrived(page):
         assert re.fullmatch(r"Receiving \d{1,2} %", main), main
         assert re.match(r"\d+\.\d of \d+\.\d MB", sub), sub
     assert [t[0] for t in tags][-2:] == ["checking", "ok"], tags
-    lines = page.evaluate("window.hsLines")
+    lines = [html.unescape(x) for x in page.evaluate("window.hsLines")]  # the model's text
     assert any(
         re.search(r"receiving <b>multipleActions1_subject1\.bvh</b>: \d+ %, [\d.]+ of [\d.]+ MB", x)
         for x in lines
