@@ -35,11 +35,14 @@ HEADER = """
 """
 
 ALIGN_TEXT = """
-Each pixel compares a body frame (x) with a hand frame (y); dark is similar. The optimal
-path (red) is the cheapest monotone route from the first to the last frame pair, searched
-only inside the **band** (blue). Pass 1 compares the signs of arm velocities and
+Each pixel compares a body frame (x) with a hand frame (y); dark is similar. Each pass's
+optimal path is the cheapest monotone route between the frame pairs it matches, searched
+only inside its **band** (blue). Pass 1 compares the signs of arm velocities and
 accelerations (phases of the gesture), pass 2 refines inside a narrow band around the
-pass-1 path by comparing forearm/hand directions (the dashed line is the other pass).
+pass-1 path by comparing forearm/hand directions (a hand take without a forearm: how the
+hand turns, over pass 1's whole band, so its path can lie far from pass 1's). The **red
+line is the alignment used**, in every view: the path the splice, the preview and the status
+line follow (pass 2's; the legend says which); the dashed line is the other pass's path.
 
 **Matching points** (yellow): *click* the matrix to add one, *drag* it to move it,
 select it and press *Backspace* to delete it. The path then passes within the point's
@@ -181,6 +184,12 @@ def create_app() -> pn.viewable.Viewable:
         options={"Edit points": False, "Pick frames": True},
         css_classes=["hs-click-mode"],
         description=None,
+    )
+    # the mode applies in the browser at once (a click made before the server's answer
+    # arrives must not add a point); the server sets the same (CostMatrixView.set_pick_mode)
+    pick.jscallback(
+        value="tool.add = cb_obj.labels[cb_obj.active] !== 'Pick frames'",
+        args={"tool": matrix.point_tool},
     )
 
     side_panel = pn.Column(

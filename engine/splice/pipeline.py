@@ -926,6 +926,13 @@ def uses_spin(features: SpliceFeatures) -> bool:
     return hand_lacks_forearm(features) and SP.spin_available(features)
 
 
+def alignment_pass(features: SpliceFeatures) -> int:
+    """1 or 2: the pass whose path the splice follows (``SpliceAlignment.warp`` and ``map``
+    are made from it). Pass 2, except for a hand take without a forearm that pass 2 cannot
+    compare by its turning either (D2 is constant there): then pass 1."""
+    return 1 if hand_lacks_forearm(features) and not uses_spin(features) else 2
+
+
 def align_passes(
     features: SpliceFeatures,
     band=None,
@@ -1060,7 +1067,7 @@ def align_passes(
     progress("pass 2", 1.0)
 
     progress("merge", 0.0)
-    final = al1 if hand_lacks_forearm(features) and not spin else al2
+    final = al1 if alignment_pass(features) == 1 else al2
     warp = straighten_holds(features, MG.median_warp(final.path, n), pts)
     if pts:  # near a point the hand runs at the local rate (engine.splice.point_rate)
         warp = PR.rate_lines(warp, [p[0] for p in pts], features.fps, final.overlap[0])

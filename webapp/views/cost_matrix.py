@@ -250,9 +250,10 @@ MATRIX_COLOUR = {
 }
 
 
-def phase_legend_html(colors: dict, matrix: str = "pass1") -> str:
+def phase_legend_html(colors: dict, matrix: str = "pass1", used: int = 2) -> str:
     """The legend of the strips along the axes (wrist speed curves, phase colour bars) and
-    of the matrix (its colour for the view ``matrix`` shown, band, path, points)."""
+    of the matrix (its colour for the view ``matrix`` shown, band, the path of pass ``used``
+    that the splice follows in red, the other pass's path dashed, points)."""
     names = [
         (1, "P", "preparation"),
         (2, "S", "stroke"),
@@ -277,7 +278,11 @@ def phase_legend_html(colors: dict, matrix: str = "pass1") -> str:
         f'<div class="hs-matrix-colour" data-matrix="{matrix}">Matrix colour: '
         f"{MATRIX_COLOUR.get(matrix, MATRIX_COLOUR['pass1'])} · "
         '<span style="color:#4fc3f7">■</span> band edges, outside dimmed · '
-        '<span style="color:#ff3b30">━</span> optimal path · '
+        f'<span class="hs-used-path" data-pass="{used}"><span style="color:#ff3b30">━</span> '
+        f"<b>alignment used</b>: pass {used}'s optimal path, which the splice, the preview "
+        "and the status line follow (in every view)</span> · "
+        f'<span class="hs-other-path-key" data-pass="{3 - used}">╌ pass {3 - used}\'s path'
+        f"{' (pass 2 searches around it)' if used == 2 else ''}</span> · "
         '<span style="color:#ffd60a">●</span> matching points</div></div>'
     )
 
@@ -661,15 +666,12 @@ class CostMatrixView:
         session.param.watch(lambda *_: self._sync_points(), ["points", "tolerance"])
         session.param.watch(self._on_matrix, ["matrix"])
         self.legend = pn.pane.HTML(
-            phase_legend_html(self._colors, session.matrix),
+            phase_legend_html(self._colors, session.matrix, self._used_pass()),
             css_classes=["hs-legends"],
             width=400,  # set by panel()
             margin=(4, 0),
         )
-        session.param.watch(
-            lambda e: setattr(self.legend, "object", phase_legend_html(self._colors, e.new)),
-            ["matrix"],
-        )
+        session.param.watch(lambda *_: self._show_legend(), ["matrix"])
         session.param.watch(self._on_frame, ["frame"])
         session.param.watch(self._on_inputs, ["inputs_revision"])
         session.param.watch(lambda *_: self.set_pick_mode(self.session.pick), ["pick"])
@@ -718,6 +720,20 @@ class CostMatrixView:
         self._update_image((-0.5, n - 0.5, lo, hi))
         self._on_result()
 
+    def _used_pass(self) -> int:
+        """The pass whose path the splice follows (``pipeline.alignment_pass``)."""
+        from engine.splice.pipeline import alignment_pass
+
+        prepared = self.session.prepared
+        return 2 if prepared is None else alignment_pass(prepared.features)
+
+    def _show_legend(self) -> None:
+        if getattr(self, "legend", None) is None:  # not built yet (__init__)
+            return
+        html = phase_legend_html(self._colors, self.session.matrix, self._used_pass())
+        if self.legend.object != html:
+            self.legend.object = html
+
     @with_document_lock
     def _on_result(self, *_):
         s = self.session
@@ -730,18 +746,18 @@ class CostMatrixView:
                 )
             self.unmatched_source.data = _unmatched_quads(None, 0, 0)
             return
-        shown, other = (
-            (sol.pass2, sol.pass1)
-            if s.matrix in ("pass2", "cumulative2")
-            else (sol.pass1, sol.pass2)
-        )
+        # the red path is the alignment used (the splice, preview and status follow it) in
+        # every view; the band is the shown pass's; the other pass's path is dashed
+        shown = sol.pass2 if s.matrix in ("pass2", "cumulative2") else sol.pass1
+        used, other = (sol.pass1, sol.pass2) if self._used_pass() == 1 else (sol.pass2, sol.pass1)
+        self._show_legend()
         r = s.hand_scale  # grid columns -> hand-file frames
         # the path first: it is what a drag is waiting for; compact dtypes keep messages small,
         # and every line is thinned to the screen's columns (``decimate``)
         self.show_line(
             self.path_source,
-            shown.path[:, 0].astype(np.int32),
-            {"y": (shown.path[:, 1] * r).astype(np.float32)},
+            used.path[:, 0].astype(np.int32),
+            {"y": (used.path[:, 1] * r).astype(np.float32)},
         )
         lo, hi = shown.band.lo, shown.band.hi
         self.show_line(
@@ -754,7 +770,7 @@ class CostMatrixView:
             other.path[:, 0].astype(np.int32),
             {"y": (other.path[:, 1] * r).astype(np.float32)},
         )
-        quads = _unmatched_quads(shown.path, len(lo), shown.band.m)
+        quads = _unmatched_quads(used.path, len(lo), shown.band.m)
         quads["bottom"] = [v * r for v in quads["bottom"]]
         quads["top"] = [v * r for v in quads["top"]]
         self.unmatched_source.data = quads
