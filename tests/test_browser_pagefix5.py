@@ -53,7 +53,7 @@ def _matched_body_frames(status: str, n: int) -> tuple[int, int]:
     """The first and last body frame with a hand match, as the status line says."""
     found = re.search(r"body frames ([\d, -]+?) \(", status)
     first, last = 0, n - 1
-    for span in (found.group(1).split(", ") if found else []):
+    for span in found.group(1).split(", ") if found else []:
         a, _, b = span.partition("-")
         a, b = int(a), int(b or a)
         if a == 0:
@@ -124,3 +124,40 @@ def test_a_click_right_after_choosing_pick_frames_adds_no_point(page):
     assert page.evaluate("hs.cols('hs-points-source', ['x'])")["x"] == []
     assert page.locator(".hs-points .tabulator-row").count() == 0
     assert "0 matching points" in status_line(page)
+
+
+@pytest.fixture(scope="module")
+def long_page(tmp_path_factory):
+    """A tab on a body of over 10,000 frames (the 6.7 s body 51 times) and the hand piece."""
+    folder = tmp_path_factory.mktemp("long")
+    body = _cut_bvh(BODY, folder / "wave51.bvh", repeat=51)
+    hand = _cut_bvh(HAND, folder / "mug_rightHand.bvh", start=1200, count=360)
+    with served_chromium(
+        tmp_path_factory, str(body), str(hand), "--side", "right", timeout=SERVER_START_S
+    ) as (browser, url):
+        page = open_page(browser, url, width=1440, height=900, timeout_s=SERVER_START_S)
+        yield page
+        page.context.close()
+        assert not page.errors, page.errors
+
+
+def test_the_points_table_shows_5_digit_frames_whole(long_page):
+    """R3-14: a point at body frame >= 10000 reads whole in the table (it showed "110…"),
+    and the table still fits its panel (nothing scrolled sideways)."""
+    page = long_page
+    n = page.evaluate("hs.frames()")
+    assert n > 10_000
+    path = page.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
+    k = max(i for i, x in enumerate(path["x"]) if x >= 10_000)
+    body = path["x"][k]
+    page.mouse.click(*page.evaluate("([a, b]) => hs.xy(a, b)", [body, path["y"][k]]))
+    rows = page.locator(".hs-points .tabulator-row")
+    _until(page, lambda: rows.count() == 1, "the click's point is not in the table")
+    cell = rows.first.locator(".tabulator-cell[tabulator-field='body frame']")
+    _until(page, lambda: cell.inner_text().strip().isdigit(), "no body frame in the table")
+    assert int(cell.inner_text()) >= 10_000
+    fits = "e => e.scrollWidth <= e.clientWidth"
+    for field in ("body frame", "hand frame", "effective"):
+        one = rows.first.locator(f".tabulator-cell[tabulator-field='{field}']")
+        assert one.evaluate(fits), (field, one.inner_text())
+    assert page.locator(".hs-points .tabulator-tableholder").first.evaluate(fits)

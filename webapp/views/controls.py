@@ -269,6 +269,29 @@ def _unmatched_input(session: Session) -> pn.widgets.TextInput:
     session.param.watch(show, ["max_unmatched_s"])
     return widget
 
+#: points table: pixels per digit of a frame number and the rest of a frame cell (padding)
+_DIGIT_PX, _CELL_PX = 9, 16
+
+
+def _frame_column_width(frames: int) -> int:
+    """Pixels of a points-table column of frame numbers up to ``frames - 1`` (at least 4
+    digits: 52 px)."""
+    return _CELL_PX + _DIGIT_PX * max(4, len(str(max(int(frames) - 1, 0))))
+
+
+def _column_widths(body_frames: int, hand_frames: int) -> dict[str, int]:
+    """The points table's column widths for takes of ``body_frames`` and ``hand_frames``:
+    frame numbers never cut off, the whole table as wide as for 4-digit takes."""
+    body, hand = _frame_column_width(body_frames), _frame_column_width(hand_frames)
+    extra = body + hand - 2 * _frame_column_width(0)
+    return {
+        "body frame": body,
+        "hand frame": hand,
+        "seconds": 112 - extra,  # wraps: "367.10 s ·" / "16.65 s"
+        "tolerance": 44,
+        "effective": 92,
+    }
+
 
 def _points_frame(session: Session) -> pd.DataFrame:
     """The table's rows: frames in each file's numbering (whole numbers), their times, the
@@ -372,14 +395,10 @@ class PointsTable:
                 "effective": "tol. in use",
             },
             # with the delete column (about 40 px) all columns fit the side panel's 400 px:
-            # nothing is cut off or scrolled sideways
-            widths={
-                "body frame": 52,
-                "hand frame": 52,
-                "seconds": 112,
-                "tolerance": 44,
-                "effective": 92,
-            },
+            # nothing is cut off or scrolled sideways; the frame columns are as wide as the
+            # takes' largest frame numbers (5 digits on a long take), the times (which wrap)
+            # give up what they take beyond 4 digits
+            widths=_column_widths(self.session.n, self.session.m_hand),
             header_align="center",
             header_tooltips={
                 "body frame": "body frame (body file's numbering)",

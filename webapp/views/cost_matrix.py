@@ -282,7 +282,7 @@ def phase_legend_html(colors: dict, matrix: str = "pass1", used: int = 2) -> str
         f"<b>alignment used</b>: pass {used}'s optimal path, which the splice, the preview "
         "and the status line follow (in every view)</span> · "
         f'<span class="hs-other-path-key" data-pass="{3 - used}">╌ pass {3 - used}\'s path'
-        f"{' (pass 2 searches around it)' if used == 2 else ''}</span> · "
+        "</span> · "
         '<span style="color:#ffd60a">●</span> matching points</div></div>'
     )
 
