@@ -269,6 +269,7 @@ def _unmatched_input(session: Session) -> pn.widgets.TextInput:
     session.param.watch(show, ["max_unmatched_s"])
     return widget
 
+
 #: points table: pixels per digit of a frame number and the rest of a frame cell (padding)
 _DIGIT_PX, _CELL_PX = 9, 16
 
