@@ -20,7 +20,15 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import SAMPLE_DATA, open_page, pane_text, served_chromium, status_line
+from conftest import (
+    SAMPLE_DATA,
+    assert_no_traceback,
+    open_page,
+    pane_text,
+    served_app,
+    served_chromium,
+    status_line,
+)
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(1500)]
 
@@ -127,18 +135,19 @@ def test_a_click_right_after_choosing_pick_frames_adds_no_point(page):
 
 
 @pytest.fixture(scope="module")
-def long_page(tmp_path_factory):
-    """A tab on a body of over 10,000 frames (the 6.7 s body 51 times) and the hand piece."""
+def long_page(served, tmp_path_factory):
+    """A tab (the module's Chromium) on a body of over 10,000 frames (the 6.7 s body 51
+    times) and the hand piece, served by its own server."""
     folder = tmp_path_factory.mktemp("long")
     body = _cut_bvh(BODY, folder / "wave51.bvh", repeat=51)
     hand = _cut_bvh(HAND, folder / "mug_rightHand.bvh", start=1200, count=360)
-    with served_chromium(
-        tmp_path_factory, str(body), str(hand), "--side", "right", timeout=SERVER_START_S
-    ) as (browser, url):
-        page = open_page(browser, url, width=1440, height=900, timeout_s=SERVER_START_S)
+    args = (str(body), str(hand), "--side", "right")
+    with served_app(tmp_path_factory, *args, timeout=SERVER_START_S) as (url, _, log_path):
+        page = open_page(served[0], url, width=1440, height=900, timeout_s=SERVER_START_S)
         yield page
         page.context.close()
         assert not page.errors, page.errors
+    assert_no_traceback(log_path)
 
 
 def test_the_points_table_shows_5_digit_frames_whole(long_page):
