@@ -1150,6 +1150,17 @@ def test_a_hand_take_uploaded_as_the_body_is_refused_and_the_pair_stays(cfg, ses
     assert session.to_spec() == before and session.solution is not None
 
 
+def test_a_refused_upload_names_the_persons_files_not_their_kept_hashes(cfg, session):
+    """Stranger R3-11: a swapped pair's refusal named the hand by the server's kept file
+    (``9a285b…d73.bvh has no finger joints``); it names the uploaded file's own name."""
+    body_bytes = cfg.sample(DEMO).body.read_bytes()
+    body, _ = uploads.store(cfg, "my-body.bvh", body_bytes)
+    session.load_uploads(body, body, "my-body.bvh", "my-hand.bvh")
+    assert session.error and "\n" not in session.error
+    assert "my-hand.bvh" in session.error or "my-body.bvh" in session.error, session.error
+    assert body not in session.error, session.error
+
+
 def test_the_explicit_flags_line_names_the_points_as_the_table_does_and_replays(session, tmp_path):
     """The page's ``--match`` shows each point in the hand file's frames with the
     tolerance typed in the table (a round trip through the alignment grid used to

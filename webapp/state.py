@@ -20,6 +20,7 @@ URL query (``?sample=demo&band=0.3&pts=120:98:2,...``).
 
 from __future__ import annotations
 
+import re
 import time
 from dataclasses import dataclass, replace
 from urllib.parse import urlencode
@@ -243,7 +244,7 @@ class Session(param.Parameterized):
     def refuse(self, exc: BaseException, text: str | None = None, inputs=()) -> None:
         """Say why an edit or input was refused: ``error`` is ``text`` (default: the
         exception's one line) and :meth:`refusal` the constraint behind it, if any."""
-        text = backend.one_line(exc) if text is None else text
+        text = self._named_uploads(backend.one_line(exc)) if text is None else text
         cause = exc if isinstance(exc, C.ConstraintError) else getattr(exc, "constraint", None)
         self._refused = (text, cause)
         self.refused_inputs = tuple(inputs)
@@ -400,13 +401,21 @@ class Session(param.Parameterized):
 
     def _open_failed(self, exc: BaseException, old: dict, then) -> None:
         self.end_opening()
-        message = backend.one_line(exc)
+        message = self._named_uploads(backend.one_line(exc))
         if self.prepared is not None:  # keep what worked: inputs back to their old values
             self._apply(old)
         # the inputs whose change was refused (a side the takes lack): the page shows
         # the refusal next to their controls
         self.refuse(exc, message, inputs=tuple(old))
         then(False)
+
+    def _named_uploads(self, text: str) -> str:
+        """``text`` with the uploaded takes' kept file names (``<sha256>.bvh``, what the
+        engine read) given as the person's own file names (``walk.bvh``)."""
+        for sha, name in ((self.body_sha256, self.body_name), (self.hand_sha256, self.hand_name)):
+            if sha and name:
+                text = re.sub(rf"\b{sha}\.(bvh|c3d|trc)\b", lambda _m, n=name: n, text)
+        return text
 
     def _opened(self, prepared, t0: float, then, new_pair: bool = False) -> None:
         """The takes are open: show them (matrix, axes), then solve. The matching points
