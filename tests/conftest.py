@@ -55,6 +55,19 @@ def bandai():
 DEMO_SAMPLE = "wave-ok"
 
 
+def demo_config(sample_dir: Path, tmp_path_factory, max_upload_bytes: int = 2 * 1024 * 1024):
+    """The app's configuration for session tests: the bundled samples, the demo pair by
+    default, a fresh upload folder (``max_upload_bytes`` per file)."""
+    from webapp import config
+
+    return config.AppConfig(
+        sample_dir=sample_dir.resolve(),
+        upload_dir=tmp_path_factory.mktemp("uploads"),
+        default_sample=DEMO_SAMPLE,
+        max_upload_bytes=max_upload_bytes,
+    )
+
+
 def open_demo_session(upload_dir: Path, sample: str = DEMO_SAMPLE):
     """A ``webapp.state.Session`` on ``sample`` from sample_data, opened and aligned (its
     uploads would go to ``upload_dir``)."""

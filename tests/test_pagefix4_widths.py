@@ -12,7 +12,7 @@ import io
 
 import numpy as np
 import pytest
-from conftest import HAND_BVH, MOCAP
+from conftest import HAND_BVH, MOCAP, demo_config
 
 from engine.dtw import constraints as C
 from engine.io.bvh import format_bvh, read_bvh
@@ -39,12 +39,7 @@ def _tiled_body(seconds: float) -> bytes:
 
 @pytest.fixture(scope="module")
 def cfg(sample_dir, tmp_path_factory) -> config.AppConfig:
-    return config.AppConfig(
-        sample_dir=sample_dir.resolve(),
-        upload_dir=tmp_path_factory.mktemp("uploads"),
-        default_sample=DEMO,
-        max_upload_bytes=16 * 1024 * 1024,
-    )
+    return demo_config(sample_dir, tmp_path_factory, max_upload_bytes=16 * 1024 * 1024)
 
 
 def _open(s: Session, cfg, body: bytes, name: str) -> None:

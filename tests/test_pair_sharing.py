@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import demo_config
 
 from engine.io.numbers import parse_rows
 from webapp import backend, config
@@ -18,12 +19,7 @@ DEMO = "wave-ok"
 
 @pytest.fixture(scope="module")
 def cfg(sample_dir, tmp_path_factory) -> config.AppConfig:
-    return config.AppConfig(
-        sample_dir=sample_dir.resolve(),
-        upload_dir=tmp_path_factory.mktemp("uploads"),
-        default_sample=DEMO,
-        max_upload_bytes=2 * 1024 * 1024,
-    )
+    return demo_config(sample_dir, tmp_path_factory)
 
 
 def _open(cfg) -> Session:

@@ -7,6 +7,7 @@ from urllib.parse import parse_qsl, urlsplit
 
 import numpy as np
 import pytest
+from conftest import demo_config
 
 from engine.base.errors import HandSpliceError
 from engine.dtw import constraints as C
@@ -19,12 +20,7 @@ DEMO = "wave-ok"
 
 @pytest.fixture(scope="module")
 def cfg(sample_dir, tmp_path_factory) -> config.AppConfig:
-    return config.AppConfig(
-        sample_dir=sample_dir.resolve(),
-        upload_dir=tmp_path_factory.mktemp("uploads"),
-        default_sample=DEMO,
-        max_upload_bytes=2 * 1024 * 1024,
-    )
+    return demo_config(sample_dir, tmp_path_factory)
 
 
 @pytest.fixture

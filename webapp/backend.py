@@ -417,11 +417,6 @@ def offer(prepared: Prepared, solution: Solution) -> None:
         prepared.views[key] = future
 
 
-def adopt(prepared: Prepared, band, refine_band, points) -> Solution | None:
-    """The shared first alignment at these settings if it is computed (:func:`shared_ready`)."""
-    return shared_ready(prepared, band, refine_band, points)
-
-
 def _own(result):
     """``result`` (an engine ``SpliceAlignment``) with copies of its incremental solvers:
     a session's edit from a shared alignment re-solves on its own copy (the shared rows
