@@ -121,7 +121,15 @@ def test_keys_are_inert_on_the_old_pair_while_a_new_pair_opens(browser_and_url, 
         # the keys went in while the pair was opening (what this test is about); then 2 s
         # for anything they sent to reach the server and come back
         still_opening = "opening" in busy_line(page)
-        page.wait_for_timeout(2000)
+        # up to 2 s for anything they sent to reach the server and come back; the old pair's
+        # point stays while the old pair is shown (the new pair may open meanwhile on a fast
+        # machine: it has no point, so only the veiled moments are counted)
+        veiled_points = []
+        for _ in range(10):
+            page.wait_for_timeout(200)
+            if page.locator(".hs-inactive").count() < 2:
+                break
+            veiled_points.append(_points(page))
         # the page sent nothing: the slider's label never moved, no button was pressed, and
         # the server had no edit to refuse ("not taken: ... is opening")
         titles = page.evaluate("window.__hsTitles")
@@ -129,8 +137,9 @@ def test_keys_are_inert_on_the_old_pair_while_a_new_pair_opens(browser_and_url, 
         assert page.evaluate("window.__hsPresses") == 0  # no Undo/Redo pressed
         alert = page.locator(".hs-error").first
         assert not (alert.is_visible() and "not taken" in pane_text(alert)), pane_text(alert)
-        assert _points(page) == 1
         assert still_opening, "the pair opened before the keys were tried: inconclusive"
+        assert veiled_points, "the new pair opened at once: inconclusive"
+        assert all(n == 1 for n in veiled_points), veiled_points
         page.screenshot(path=str(tmp_path / "opening_keys.png"))
 
         # the new pair shown: the same keys act again
