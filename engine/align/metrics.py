@@ -577,6 +577,24 @@ def phase_rows(
     return a, b
 
 
+def decimate_phase_rows(
+    rows: tuple[np.ndarray, np.ndarray], body: PhaseFeatures, hand: PhaseFeatures, k: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`phase_rows`' rows of every ``k``-th frame (frames 0, k, 2k, ...) for a grid of
+    ``fps / k``: the header and the sign codes of those frames (derivatives, dead zones and
+    the hand's rotated masks of the full-rate take: nothing is recomputed), and the eq.-7
+    windows made again from every ``k``-th marker frame (W frames of the coarse grid, as a
+    take captured at that rate). ``body``, ``hand``: the features the rows were made from."""
+    a, b = rows
+    half = int(a[0, 0]) if a.shape[0] else 0
+    a_c = np.ascontiguousarray(a[::k])
+    b_c = np.ascontiguousarray(b[::k])
+    if half:
+        _raw_windows(np.ascontiguousarray(body.markers[::k]), a_c[:, _HEADER : _HEADER + 2 * half])
+        _raw_windows(np.ascontiguousarray(hand.markers[::k]), b_c[:, _HEADER : _HEADER + 2 * half])
+    return a_c, b_c
+
+
 def rotated_packed_codes(
     hand: PhaseFeatures, n_bins: int = THETA_BINS, out=None
 ) -> tuple[np.ndarray, np.ndarray]:

@@ -66,7 +66,11 @@ class CoarsePass:
     re-solves); ends : its Ends; k : decimation; cells : coarse band cells; radius : the
     fine band's radius (fine frames); fine_cells : the fine band's cells; seconds : the
     coarse solve's wall time; fallback : None, or why pass 1 ran on the whole W1 band;
-    fine_band : the full-rate band pass 1 solved (the W1 band after a fallback).
+    fine_band : the full-rate band pass 1 solved last (the W1 band after a fallback);
+    rounds : how many times the fine band was widened where the fine path ran along its
+    edge (:func:`widen_where_pinched`); solved_cells : band cells of every fine solve
+    together (an upper bound of the cells computed: a re-solve by an ``Aligner`` reuses
+    the rows before the first widened one).
     """
 
     path: np.ndarray
@@ -80,6 +84,8 @@ class CoarsePass:
     seconds: float
     fallback: str | None = None
     fine_band: Band | None = None
+    rounds: int = 0
+    solved_cells: int = 0
 
 
 def decimate(x: np.ndarray | None, k: int) -> np.ndarray | None:
@@ -145,6 +151,50 @@ def band_around_coarse(path_c: np.ndarray, k: int, n: int, m: int, radius: int, 
     lo = np.maximum(f[np.maximum(rows - r, 0)] - r, 0)
     hi = np.minimum(g[np.minimum(rows + r, n - 1)] + r, m - 1)
     return Band(lo, hi, m, open_ends=is_open)
+
+
+#: the fine path must keep this many fine frames (Chebyshev) from every edge of the fine
+#: band that is not an edge of the W1 band; where it comes closer, the band is widened
+#: there and pass 1 solved again (:func:`widen_where_pinched`)
+EDGE_CLEARANCE = 1
+
+
+def widen_where_pinched(path, band_f: Band, band1: Band, grow: int, is_open: bool):
+    """The fine band widened where ``path`` (its optimum) comes within
+    :data:`EDGE_CLEARANCE` frames of an edge that ``band1`` (the W1 band with the points'
+    clips) does not have; None when it nowhere does.
+
+    Rows whose path neighbourhood leaves ``band_f`` are *pinched*; in every row within
+    ``grow`` rows of a pinched one the band takes in the cells within ``grow`` frames of
+    the path (inside ``band1``), and the rows before (after) it as much of the left
+    (right) edge as a path into those cells needs (a path never moves back).
+
+    Why this gives the full-rate optimum where the coarse path strays: the optimum in
+    the narrow band is the optimum of every path inside it, so a better path inside
+    ``band1`` must leave the narrow band. When the optimum of the narrow band runs along
+    its edge, a better path just outside is likely (the edge is what stops it), and the
+    band grows there; when it keeps clear of every edge, no path within
+    ``EDGE_CLEARANCE`` frames of it is better, but a better one that leaves and rejoins
+    it farther away is not excluded (only the whole W1 band would show it)."""
+    n, m = band_f.n, band_f.m
+    d = EDGE_CLEARANCE
+    near = Band.around_path(path, n, m, d, open_ends=is_open)
+    need_lo = np.maximum(near.lo, band1.lo)
+    need_hi = np.minimum(near.hi, band1.hi)
+    pinched = (need_lo < band_f.lo) | (need_hi > band_f.hi)
+    if not pinched.any():
+        return None
+    rows = np.flatnonzero(pinched)
+    mark = np.zeros(n + 1, np.int64)  # rows within ``grow`` of a pinched row
+    np.add.at(mark, np.maximum(rows - grow, 0), 1)
+    np.add.at(mark, np.minimum(rows + grow + 1, n), -1)
+    mark = np.cumsum(mark[:n]) > 0
+    around = Band.around_path(path, n, m, grow, open_ends=is_open)
+    lo = np.where(mark, np.minimum(band_f.lo, np.maximum(around.lo, band1.lo)), band_f.lo)
+    hi = np.where(mark, np.maximum(band_f.hi, np.minimum(around.hi, band1.hi)), band_f.hi)
+    lo = np.minimum.accumulate(lo[::-1])[::-1]  # reachable: earlier rows start no later
+    hi = np.maximum.accumulate(hi)
+    return Band(lo, hi, m, open_ends=band_f.open_ends).intersect(band1)
 
 
 def upsample_path(path_c: np.ndarray, k: int, n: int, m: int, is_open: bool) -> np.ndarray:
@@ -219,16 +269,30 @@ def solve(
     t1 = time.perf_counter()
     path_c = np.asarray(al_c.path)
     fallback = None
+    rounds, solved = 0, 0
     try:
         band_f = band_around_coarse(path_c, rows.k, n, m, radius, is_open).intersect(band1)
         if FINE_PASS:
             al, solver = solve_fn(fine_rows, metric, band_f, fine_solver, incremental, ends1, exact)
+            solved = band_f.area
+            # widen the strip where the fine path runs along its edge, and solve again,
+            # until the path keeps EDGE_CLEARANCE frames from every edge the W1 band does
+            # not have (docs/method.md §2, *Multi-resolution pass 1*)
+            grow = radius
+            while True:
+                wider = widen_where_pinched(al.path, band_f, band1, grow, is_open)
+                if wider is None:
+                    break
+                band_f, grow, rounds = wider, 2 * grow, rounds + 1
+                al, solver = solve_fn(fine_rows, metric, band_f, solver, incremental, ends1, exact)
+                solved += band_f.area
         else:
             al, solver = None, None
     except ParameterError as err:  # the narrow band misses the ends or the points' clips
         fallback = str(err)
         band_f = band1
         al, solver = solve_fn(fine_rows, metric, band1, fine_solver, incremental, ends1, exact)
+        solved = band1.area
     info = CoarsePass(
         path=path_c,
         band=band_c,
@@ -241,6 +305,8 @@ def solve(
         seconds=t1 - t0,
         fallback=fallback,
         fine_band=band_f,
+        rounds=rounds,
+        solved_cells=solved,
     )
     if al is None:  # no fine pass: the upsampled coarse path stands for pass 1
         al = _upsampled_alignment(path_c, rows.k, band_f, ends1, is_open, fine_rows, metric)
