@@ -121,3 +121,51 @@ def test_open_ends_through_costs_match_brute_force(seed):
     d = np.arange(m)[None, :] - col[:, None]
     w = np.exp(-extra / 0.5)
     assert np.allclose(rs.spread, np.sqrt((w * d**2).sum(1) / w.sum(1)))
+
+
+def _open_gamma(cost, skip, max_body, max_hand):
+    """γ of every cell with open starts (naive.dtw_banded_open's virtual row and column)."""
+    n, m = cost.shape
+    g = np.full((n + 1, m + 1), np.inf)
+    g[0, 0] = 0.0
+    for c in range(1, m + 1):
+        if c <= max_hand:
+            g[0, c] = skip * c
+    for r in range(1, n + 1):
+        if r <= max_body:
+            g[r, 0] = skip * r
+    for i in range(n):
+        for j in range(m):
+            g[i + 1, j + 1] = cost[i, j] + min(g[i, j], g[i, j + 1], g[i + 1, j])
+    return g[1:, 1:]
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_near_optimal_rows_match_brute_force(seed):
+    """Cells whose cheapest path (open or fixed ends) is within a margin of the optimum."""
+    from engine.dtw.marginals import near_optimal_rows
+
+    rng = np.random.default_rng(seed)
+    n, m = (int(v) for v in rng.integers(6, 25, size=2))
+    a = rng.normal(size=(n, 2))
+    b = rng.normal(size=(m, 2))
+    cost = ((a[:, None, :] - b[None, :, :]) ** 2).sum(-1)
+    is_open = seed % 2 == 1
+    ends = Ends(3, 4, 0.7) if is_open else Ends()
+    lim = (3, 4) if is_open else (0, 0)
+    fwd = _open_gamma(cost, ends.skip, *lim)
+    bwd = _open_gamma(cost[::-1, ::-1], ends.skip, *lim)[::-1, ::-1]
+    through = fwd + bwd - cost
+    total = through.min()
+    margin = float(rng.uniform(0.5, 4.0))
+    first, last, got_total = near_optimal_rows(a, b, Band.full(n, m), "sqeuclidean", margin, ends)
+    assert got_total == pytest.approx(total)
+    for i in range(n):
+        cols = np.flatnonzero(through[i] <= total + margin + 1e-9)
+        strict = np.flatnonzero(through[i] <= total + margin - 1e-9)
+        if cols.size == 0:
+            assert first[i] == -1 and last[i] == -1
+        else:
+            assert cols.min() <= first[i] and last[i] <= cols.max()
+            if strict.size:
+                assert first[i] <= strict.min() and last[i] >= strict.max()

@@ -180,3 +180,67 @@ def row_spread(
         reach,
     )
     return RowSpread(total=total, spread=spread, reach=reach)
+
+
+def near_optimal_rows(a, b, band: Band, metric, margin: float, ends: Ends = FIXED):
+    """Column range of each row's cells whose cheapest path costs at most ``T* + margin``.
+
+    Returns ``(first, last, total)``: ``(n,)`` int64 arrays (``-1`` in both on a row with no
+    such cell) and ``T*``. ``T(i, j)`` is computed without the local costs, as ``γ(i, j)``
+    plus the cheapest way on from the cell: the smallest β of its successors in the band,
+    or, on the last row or column, the skip cost of ending there (open ends). Cost: two
+    forward passes keeping γ of every cell (16 bytes per cell while it runs).
+    """
+    problem = Problem.from_features(a, b, metric)
+    band.check_fits((problem.n, problem.m), problem.what)
+    gf, total = _gamma(problem, band, ends)
+    rband = band.reversed()
+    gb, _ = _gamma(problem.reversed(), rband, ends)
+    n = band.n
+    first = np.full(n, -1, np.int64)
+    last = np.full(n, -1, np.int64)
+    _near_rows(
+        gf,
+        gb,
+        band.lo,
+        band.hi,
+        band.start,
+        rband.lo,
+        rband.start,
+        band.m,
+        ends.array(),
+        total + float(margin),
+        first,
+        last,
+    )
+    return first, last, total
+
+
+@njit_cached()
+def _near_rows(gf, gb, lo, hi, start, rlo, rstart, m, ends, limit, first, last):
+    """Rows of ``first``/``last`` for :func:`near_optimal_rows`; β of cell ``(i, j)`` is the
+    reversed problem's γ at ``(n-1-i, m-1-j)``."""
+    n = lo.shape[0]
+    skip = ends[0]
+    max_body = int(ends[1])
+    max_hand = int(ends[2])
+    for i in range(n):
+        ri = n - 1 - i
+        for j in range(lo[i], hi[i] + 1):
+            on = np.inf
+            if i + 1 < n:
+                r1 = ri - 1
+                if lo[i + 1] <= j <= hi[i + 1]:
+                    on = min(on, gb[rstart[r1] + m - 1 - j - rlo[r1]])
+                if lo[i + 1] <= j + 1 <= hi[i + 1]:
+                    on = min(on, gb[rstart[r1] + m - 2 - j - rlo[r1]])
+            if j + 1 <= hi[i]:
+                on = min(on, gb[rstart[ri] + m - 2 - j - rlo[ri]])
+            if i == n - 1 and m - 1 - j <= max_hand:
+                on = min(on, skip * (m - 1 - j))
+            if j == m - 1 and n - 1 - i <= max_body:
+                on = min(on, skip * (n - 1 - i))
+            if gf[start[i] + j - lo[i]] + on <= limit:
+                if first[i] < 0:
+                    first[i] = j
+                last[i] = j

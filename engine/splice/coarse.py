@@ -5,17 +5,19 @@ Pass 1's sign-cost DTW ([M] eq. 6) costs the W1 band's cells: on a 2-minute pair
 they change at most a few times per 0.1 s; at 120 fps neighbouring frames mostly carry the
 same codes. Here pass 1 runs in two steps (docs/method.md §2, *Multi-resolution pass 1*):
 
-1. **Coarse**: both takes' alignment markers decimated by ``k`` (every ``k``-th body
-   frame, ``k = constraints.pass1_decimation(fps)``: at most
-   ``tolerances.PASS1_RATE_CAP_HZ``), their features made at the coarse rate with the same
-   windows in seconds (as a take captured at that rate), then DTW in the same band at the
+1. **Coarse**: both takes' pass-1 rows decimated by ``k`` (every ``k``-th frame,
+   ``k = constraints.pass1_decimation(fps)``: at most ``tolerances.PASS1_RATE_CAP_HZ``):
+   the full-rate signs of those frames, the eq.-7 windows made from the coarse frames
+   (``metrics.decimate_phase_rows``), then DTW in the same band at the
    coarse size (same width fraction, open-end room and unmatched limits rounded up), with
    the matching points on the coarse grid, tolerances rounded outward
    (``constraints.coarse_points``). ``k**2`` fewer cells.
 2. **Fine**: the exact full-rate pass 1 on the cells within
    ``tolerances.PASS1_FINE_RADIUS_S`` seconds (Chebyshev) of the coarse path's fine cells
    (:func:`band_around_coarse`), intersected with the W1 band and the matching points'
-   clips (so a point with tolerance 0 is passed exactly, at full rate).
+   clips (so a point with tolerance 0 is passed exactly, at full rate); where the fine
+   path runs along an edge of that strip which the W1 band does not have, the strip is
+   widened there and the fine pass solved again (:func:`widen_where_pinched`).
 
 Where the coarse problem cannot be built (points that the rounding brings into conflict)
 or the narrow band holds no path for the ends, pass 1 falls back to the full-rate band
@@ -67,6 +69,7 @@ class CoarsePass:
     fine band's radius (fine frames); fine_cells : the fine band's cells; seconds : the
     coarse solve's wall time; fallback : None, or why pass 1 ran on the whole W1 band;
     fine_band : the full-rate band pass 1 solved last (the W1 band after a fallback);
+    near : whether it also holds the near-optimal coarse cells (:func:`near_optimal_cells`);
     rounds : how many times the fine band was widened where the fine path ran along its
     edge (:func:`widen_where_pinched`); solved_cells : band cells of every fine solve
     together (an upper bound of the cells computed: a re-solve by an ``Aligner`` reuses
@@ -84,13 +87,9 @@ class CoarsePass:
     seconds: float
     fallback: str | None = None
     fine_band: Band | None = None
+    near: bool = False
     rounds: int = 0
     solved_cells: int = 0
-
-
-def decimate(x: np.ndarray | None, k: int) -> np.ndarray | None:
-    """Every ``k``-th frame (frames 0, k, 2k, ...)."""
-    return None if x is None else np.ascontiguousarray(np.asarray(x)[::k])
 
 
 def coarse_limits(limits: tuple[int, int], k: int, n_c: int, m_c: int) -> tuple[int, int]:
@@ -197,6 +196,40 @@ def widen_where_pinched(path, band_f: Band, band1: Band, grow: int, is_open: boo
     return Band(lo, hi, m, open_ends=band_f.open_ends).intersect(band1)
 
 
+def near_optimal_cells(rows: CoarseRows, metric: str, band_c: Band, ends_c: Ends, total, steps):
+    """``(first, last)`` coarse columns per coarse row of the cells whose cheapest coarse
+    path costs at most ``tolerances.PASS1_NEAR_STEPS`` mean path cells (``total / steps``)
+    more than the coarse optimum (``engine.dtw.marginals.near_optimal_rows``): the other
+    alignments the coarse signs nearly tie with, which the fine pass also looks at."""
+    from engine.dtw.marginals import near_optimal_rows
+
+    margin = T.PASS1_NEAR_STEPS * float(total) / max(int(steps), 1)
+    first, last, _ = near_optimal_rows(*rows.rows, band_c, metric, margin, ends_c)
+    return first, last
+
+
+def with_cells(band: Band, cells, k: int, radius: int) -> Band:
+    """``band`` and the fine cells within ``radius`` fine frames (Chebyshev) of the fine
+    cells that the coarse cells ``cells = (first, last)`` (column range per coarse row,
+    ``-1`` where none) stand for (coarse cell ``(r, c)``: fine rows ``r k .. r k + k - 1``,
+    columns ``c k .. c k + k - 1``)."""
+    from scipy.ndimage import maximum_filter1d, minimum_filter1d
+
+    first, last = cells
+    n, m = band.n, band.m
+    rc = np.minimum(np.arange(n) // k, len(first) - 1)
+    some = last[rc] >= 0
+    f = np.where(some, first[rc] * k, m)
+    g = np.where(some, np.minimum(last[rc] * k + k - 1, m - 1), -1)
+    size = 2 * int(radius) + 1
+    lo = minimum_filter1d(f, size, mode="nearest")
+    hi = maximum_filter1d(g, size, mode="nearest")
+    near = hi >= 0  # rows within ``radius`` of a row with such cells
+    lo = np.where(near, np.maximum(np.minimum(band.lo, lo - radius), 0), band.lo)
+    hi = np.where(near, np.minimum(np.maximum(band.hi, hi + radius), m - 1), band.hi)
+    return Band(lo, hi, m, open_ends=band.open_ends)
+
+
 def upsample_path(path_c: np.ndarray, k: int, n: int, m: int, is_open: bool) -> np.ndarray:
     """A monotone, continuous fine path through the fine cells ``(r k, c k)`` of the coarse
     path (diagonal steps first between them); fixed ends run on to ``(n-1, m-1)``, open ends
@@ -266,12 +299,18 @@ def solve(
         empty = np.zeros((0, 2), np.int64)
         info = CoarsePass(empty, band1, None, ends1, rows.k, 0, 0, band1.area, 0.0, str(err), band1)
         return al, solver, info
-    t1 = time.perf_counter()
     path_c = np.asarray(al_c.path)
+    near = None
+    if band1.area >= T.PASS1_NEAR_MIN_CELLS:
+        near = near_optimal_cells(rows, metric, band_c, ends_c, al_c.cost, len(path_c))
+    t1 = time.perf_counter()
     fallback = None
     rounds, solved = 0, 0
     try:
-        band_f = band_around_coarse(path_c, rows.k, n, m, radius, is_open).intersect(band1)
+        band_f = band_around_coarse(path_c, rows.k, n, m, radius, is_open)
+        if near is not None:
+            band_f = with_cells(band_f, near, rows.k, rows.k)
+        band_f = band_f.intersect(band1)
         if FINE_PASS:
             al, solver = solve_fn(fine_rows, metric, band_f, fine_solver, incremental, ends1, exact)
             solved = band_f.area
@@ -305,6 +344,7 @@ def solve(
         seconds=t1 - t0,
         fallback=fallback,
         fine_band=band_f,
+        near=near is not None,
         rounds=rounds,
         solved_cells=solved,
     )
