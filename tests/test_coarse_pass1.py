@@ -298,3 +298,34 @@ def test_no_widening_when_the_fine_path_keeps_clear_of_the_edge():
     )
     assert info.rounds == 0 and info.solved_cells == info.fine_band.area
     assert np.array_equal(al.path, align(fine, band1).path)
+
+
+def test_long_takes_also_solve_the_near_optimal_coarse_cells(pair120, monkeypatch):
+    """From PASS1_NEAR_MIN_CELLS W1 cells on, the fine band also holds every coarse cell
+    whose cheapest coarse path is within PASS1_NEAR_STEPS mean path cells of the coarse
+    optimum (here forced on for a short pair): a superset of the strip, same result."""
+    from engine.dtw.marginals import near_optimal_rows
+
+    feats = P.prepare(*pair120)
+    plain = P.align_passes(feats)
+    assert not plain.pass1.coarse.near  # a short pair: the strip only
+    monkeypatch.setattr(T, "PASS1_NEAR_MIN_CELLS", 0)
+    res = P.align_passes(feats)
+    cp, k = res.pass1.coarse, feats.coarse.k
+    assert cp.near and cp.fallback is None
+    fine, strip = cp.fine_band, plain.pass1.coarse.fine_band
+    assert np.all(fine.lo <= strip.lo) and np.all(fine.hi >= strip.hi)
+    total_c = P._solve(feats.coarse.rows, "splice_phase", cp.band, None, False, cp.ends)[0]
+    first, last, _ = near_optimal_rows(
+        *feats.coarse.rows,
+        cp.band,
+        "splice_phase",
+        T.PASS1_NEAR_STEPS * total_c.cost / len(total_c.path),
+        cp.ends,
+    )
+    for r in np.flatnonzero(last >= 0):  # the fine cells of every near-optimal coarse cell
+        for i in range(r * k, min(r * k + k, feats.n)):
+            assert fine.lo[i] <= max(first[r] * k, res.pass1.band.lo[i])
+            assert fine.hi[i] >= min(last[r] * k, res.pass1.band.hi[i])
+    assert res.pass1.cost == pytest.approx(plain.pass1.cost, rel=1e-12)
+    assert np.array_equal(res.map, plain.map)
