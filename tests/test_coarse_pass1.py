@@ -310,19 +310,18 @@ def test_long_takes_also_solve_the_near_optimal_coarse_cells(pair120, monkeypatc
     plain = P.align_passes(feats)
     assert not plain.pass1.coarse.near  # a short pair: the strip only
     monkeypatch.setattr(T, "PASS1_NEAR_MIN_CELLS", 0)
-    res = P.align_passes(feats)
+    res = P.align_passes(feats, incremental=False)  # one forward pass: coarse path and γ
+    inc = P.align_passes(feats, incremental=True)  # the coarse Aligner's path, then γ
+    assert inc.pass1.coarse.near and np.array_equal(inc.pass1.coarse.path, res.pass1.coarse.path)
+    assert np.array_equal(inc.pass1.coarse.fine_band.lo, res.pass1.coarse.fine_band.lo)
     cp, k = res.pass1.coarse, feats.coarse.k
     assert cp.near and cp.fallback is None
     fine, strip = cp.fine_band, plain.pass1.coarse.fine_band
     assert np.all(fine.lo <= strip.lo) and np.all(fine.hi >= strip.hi)
-    total_c = P._solve(feats.coarse.rows, "splice_phase", cp.band, None, False, cp.ends)[0]
-    first, last, _ = near_optimal_rows(
-        *feats.coarse.rows,
-        cp.band,
-        "splice_phase",
-        T.PASS1_NEAR_STEPS * total_c.cost / len(total_c.path),
-        cp.ends,
+    first, last, _, path_c = near_optimal_rows(
+        *feats.coarse.rows, cp.band, "splice_phase", T.PASS1_NEAR_STEPS, cp.ends, per_cell=True
     )
+    assert np.array_equal(path_c, cp.path)  # the one-shot coarse solve's path
     for r in np.flatnonzero(last >= 0):  # the fine cells of every near-optimal coarse cell
         for i in range(r * k, min(r * k + k, feats.n)):
             assert fine.lo[i] <= max(first[r] * k, res.pass1.band.lo[i])

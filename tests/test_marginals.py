@@ -158,8 +158,12 @@ def test_near_optimal_rows_match_brute_force(seed):
     through = fwd + bwd - cost
     total = through.min()
     margin = float(rng.uniform(0.5, 4.0))
-    first, last, got_total = near_optimal_rows(a, b, Band.full(n, m), "sqeuclidean", margin, ends)
+    first, last, got_total, path = near_optimal_rows(
+        a, b, Band.full(n, m), "sqeuclidean", margin, ends
+    )
     assert got_total == pytest.approx(total)
+    want = align_features(a, b, Band.full(n, m), ends=ends)
+    assert np.array_equal(path, want.path) and got_total == want.cost
     for i in range(n):
         cols = np.flatnonzero(through[i] <= total + margin + 1e-9)
         strict = np.flatnonzero(through[i] <= total + margin - 1e-9)

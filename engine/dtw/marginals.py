@@ -182,18 +182,36 @@ def row_spread(
     return RowSpread(total=total, spread=spread, reach=reach)
 
 
-def near_optimal_rows(a, b, band: Band, metric, margin: float, ends: Ends = FIXED):
+def near_optimal_rows(a, b, band: Band, metric, margin: float, ends: Ends = FIXED, per_cell=False):
     """Column range of each row's cells whose cheapest path costs at most ``T* + margin``.
 
-    Returns ``(first, last, total)``: ``(n,)`` int64 arrays (``-1`` in both on a row with no
-    such cell) and ``T*``. ``T(i, j)`` is computed without the local costs, as ``γ(i, j)``
-    plus the cheapest way on from the cell: the smallest β of its successors in the band,
-    or, on the last row or column, the skip cost of ending there (open ends). Cost: two
-    forward passes keeping γ of every cell (16 bytes per cell while it runs).
+    Returns ``(first, last, total, path)``: ``(n,)`` int64 arrays (``-1`` in both on a row
+    with no such cell), ``T*`` and the optimal path (``align_features``' own: the same
+    forward pass and backtrack). ``per_cell``: ``margin`` is per path cell (the margin
+    used is ``margin * T* / len(path)``). ``T(i, j)`` is computed without the local costs,
+    as ``γ(i, j)`` plus the cheapest way on from the cell: the smallest β of its
+    successors in the band, or, on the last row or column, the skip cost of ending there
+    (open ends). Cost: two forward passes keeping γ of every cell (17 bytes per cell
+    while it runs).
     """
     problem = Problem.from_features(a, b, metric)
     band.check_fits((problem.n, problem.m), problem.what)
-    gf, total = _gamma(problem, band, ends)
+    bp = np.empty(band.area, np.uint8)
+    gf = np.empty(band.area, np.float64)
+    last_col = np.empty(band.n)
+    last_row = np.empty(band.m)
+    e = ends.array()
+    bad, _ = problem.forward(
+        band.lo, band.hi, band.start, 0, band.n, bp, gf, 1, e, last_col, last_row
+    )
+    if bad >= 0:
+        raise problem.bad_cost_error(int(bad), band)
+    total, i_end, j_end = K.best_end(last_row, last_col, band.lo, band.hi, e, band.n - 1)
+    check_total(total)
+    path = K.backtrack(bp, band.lo, band.start, i_end, j_end)
+    del bp
+    if per_cell:
+        margin = float(margin) * float(total) / len(path)
     rband = band.reversed()
     gb, _ = _gamma(problem.reversed(), rband, ends)
     n = band.n
@@ -208,12 +226,13 @@ def near_optimal_rows(a, b, band: Band, metric, margin: float, ends: Ends = FIXE
         rband.lo,
         rband.start,
         band.m,
-        ends.array(),
-        total + float(margin),
+        e,
+        float(total) + float(margin),
         first,
         last,
     )
-    return first, last, total
+    path.flags.writeable = False
+    return first, last, float(total), path
 
 
 @njit_cached()

@@ -196,16 +196,23 @@ def widen_where_pinched(path, band_f: Band, band1: Band, grow: int, is_open: boo
     return Band(lo, hi, m, open_ends=band_f.open_ends).intersect(band1)
 
 
-def near_optimal_cells(rows: CoarseRows, metric: str, band_c: Band, ends_c: Ends, total, steps):
+def near_optimal_cells(rows: CoarseRows, metric: str, band_c: Band, ends_c: Ends):
     """``(first, last)`` coarse columns per coarse row of the cells whose cheapest coarse
-    path costs at most ``tolerances.PASS1_NEAR_STEPS`` mean path cells (``total / steps``)
-    more than the coarse optimum (``engine.dtw.marginals.near_optimal_rows``): the other
-    alignments the coarse signs nearly tie with, which the fine pass also looks at."""
+    path costs at most ``tolerances.PASS1_NEAR_STEPS`` mean path cells more than the
+    coarse optimum (``engine.dtw.marginals.near_optimal_rows``): the other alignments
+    the coarse signs nearly tie with, which the fine pass also looks at."""
+    return _near_solve(rows, metric, band_c, ends_c)[1]
+
+
+def _near_solve(rows: CoarseRows, metric: str, band_c: Band, ends_c: Ends):
+    """``(coarse Alignment, (first, last))`` of :func:`near_optimal_cells`."""
+    from engine.dtw.align import Alignment
     from engine.dtw.marginals import near_optimal_rows
 
-    margin = T.PASS1_NEAR_STEPS * float(total) / max(int(steps), 1)
-    first, last, _ = near_optimal_rows(*rows.rows, band_c, metric, margin, ends_c)
-    return first, last
+    first, last, total, path = near_optimal_rows(
+        *rows.rows, band_c, metric, T.PASS1_NEAR_STEPS, ends_c, per_cell=True
+    )
+    return Alignment(path=path, cost=total, band=band_c, ends=ends_c), (first, last)
 
 
 def with_cells(band: Band, cells, k: int, radius: int) -> Band:
@@ -293,16 +300,23 @@ def solve(
             lim = coarse_limits(fine_limits, rows.k, rows.n, rows.m)
             ends_c = Ends(lim[0], lim[1], coarse_skip)
         solver_c = previous.solver if previous is not None else None
-        al_c, solver_c = solve_fn(rows.rows, metric, band_c, solver_c, incremental, ends_c, exact)
+        near = None
+        if band1.area >= T.PASS1_NEAR_MIN_CELLS and solver_c is None and not incremental:
+            # one forward pass gives the coarse path (the one-shot solve's) and γ for the
+            # near-optimal cells
+            al_c, near = _near_solve(rows, metric, band_c, ends_c)
+        else:
+            al_c, solver_c = solve_fn(
+                rows.rows, metric, band_c, solver_c, incremental, ends_c, exact
+            )
+            if band1.area >= T.PASS1_NEAR_MIN_CELLS:
+                near = near_optimal_cells(rows, metric, band_c, ends_c)
     except ParameterError as err:
         al, solver = solve_fn(fine_rows, metric, band1, fine_solver, incremental, ends1, exact)
         empty = np.zeros((0, 2), np.int64)
         info = CoarsePass(empty, band1, None, ends1, rows.k, 0, 0, band1.area, 0.0, str(err), band1)
         return al, solver, info
     path_c = np.asarray(al_c.path)
-    near = None
-    if band1.area >= T.PASS1_NEAR_MIN_CELLS:
-        near = near_optimal_cells(rows, metric, band_c, ends_c, al_c.cost, len(path_c))
     t1 = time.perf_counter()
     fallback = None
     rounds, solved = 0, 0
