@@ -121,3 +121,59 @@ def test_open_ends_through_costs_match_brute_force(seed):
     d = np.arange(m)[None, :] - col[:, None]
     w = np.exp(-extra / 0.5)
     assert np.allclose(rs.spread, np.sqrt((w * d**2).sum(1) / w.sum(1)))
+
+
+@pytest.mark.parametrize("block_cells", [1, 7, 50, 10**9])
+@pytest.mark.parametrize("seed", range(3))
+def test_blocks_of_rows_give_the_whole_bands_result(seed, block_cells):
+    # the band swept by blocks of rows (γ kept at block boundaries, made again for the
+    # backward pass) is the brute force's answer for any block size, open ends included
+    rng = np.random.default_rng(200 + seed)
+    n, m = rng.integers(8, 30, size=2)
+    a = rng.normal(size=(n, 2))
+    b = rng.normal(size=(m, 2))
+    cost = ((a[:, None, :] - b[None, :, :]) ** 2).sum(-1)
+    ends = Ends(body=int(rng.integers(0, n // 2)), hand=int(rng.integers(0, m // 2)), skip=0.4)
+    through, total = _brute_open(cost, ends)
+    band = Band.full(n, m)
+    col = np.full(n, m / 3.0)
+    rs = row_spread(a, b, band, "sqeuclidean", col, 0.5, 0.3, ends=ends, block_cells=block_cells)
+    assert rs.total == pytest.approx(total)
+    row_best = np.maximum(through.min(axis=1, keepdims=True), total)
+    extra = np.maximum(through - row_best, 0.0)
+    d = np.arange(m)[None, :] - col[:, None]
+    w = np.exp(-extra / 0.5)
+    assert np.allclose(rs.spread, np.sqrt((w * d**2).sum(1) / w.sum(1)))
+    assert np.allclose(rs.reach, np.where(extra <= 0.3, np.abs(d), 0.0).max(1))
+    # the dense-cost route (the app's table) by blocks: the same numbers
+    rc = row_spread(
+        a, b, band, "sqeuclidean", col, 0.5, 0.3, ends=ends, costs=cost, block_cells=block_cells
+    )
+    assert np.allclose(rc.spread, rs.spread) and np.allclose(rc.reach, rs.reach)
+
+
+def test_the_weighing_holds_one_block_of_gamma_not_the_band():
+    # 1.6 M band cells: γ of the whole band both ways would be ~27 MB; by blocks of 100 k
+    # cells the sweep holds under 4 MB at once, and the result is bit for bit the same
+    import tracemalloc
+
+    rng = np.random.default_rng(5)
+    n = m = 4000
+    a = np.cumsum(rng.normal(size=(n, 1)), axis=0)
+    b = a + 0.1 * rng.normal(size=(m, 1))
+    band = Band.sakoe_chiba(n, m, 0.1)
+    assert band.area > 1_500_000
+    col = np.arange(n, dtype=float)
+    ends = Ends(body=40, hand=40, skip=0.5)
+    row_spread(a[:50], b[:50], Band.full(50, 50), "sqeuclidean", col[:50], 1.0, 1.0)  # JIT
+    whole = row_spread(a, b, band, "sqeuclidean", col, 1.0, 1.0, ends=ends, block_cells=10**9)
+    tracemalloc.start()
+    try:
+        parts = row_spread(a, b, band, "sqeuclidean", col, 1.0, 1.0, ends=ends, block_cells=100_000)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak < 4_000_000, peak
+    assert parts.total == whole.total
+    assert np.array_equal(parts.spread, whole.spread)
+    assert np.array_equal(parts.reach, whole.reach)
