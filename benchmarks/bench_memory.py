@@ -127,9 +127,10 @@ def _digest(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()[:12]
 
 
-def measure(seconds: int, base: str, folder: Path) -> list[dict]:
+def measure(seconds: int, base: str, folder: Path, only: str | None = None) -> list[dict]:
     body, hand, _ = LP.pair_files(seconds)
     trees = [("before", LP.baseline_tree(base, ("engine",), name="mem")), ("now", None)]
+    trees = [t for t in trees if only in (None, t[0])]
     rows = []
     for _label, tree in trees:
         _run(WARM, [str(body), str(hand)], tree)
@@ -172,12 +173,18 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--seconds", type=int, nargs="+", default=[120, 600])
     ap.add_argument("--base", default=BASE)
     ap.add_argument("--out", default=None, help="folder for the rows (JSON) and outputs")
+    ap.add_argument("--only", choices=("before", "now"), default=None)
+    ap.add_argument("--table", default=None, help="print the table of these rows.json files")
     args = ap.parse_args(argv)
+    if args.table:
+        rows = [r for f in args.table.split(",") for r in json.loads(Path(f).read_text())]
+        print(table(rows))
+        return
     folder = Path(args.out or tempfile.mkdtemp(prefix="bench-memory-"))
     folder.mkdir(parents=True, exist_ok=True)
     rows = []
     for s in args.seconds:
-        rows += measure(s, args.base, folder)
+        rows += measure(s, args.base, folder, args.only)
         (folder / "rows.json").write_text(json.dumps(rows, indent=1))
     print(table(rows))
     print(time.strftime("%H:%M"), os.getloadavg())

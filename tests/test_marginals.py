@@ -177,3 +177,49 @@ def test_the_weighing_holds_one_block_of_gamma_not_the_band():
     assert parts.total == whole.total
     assert np.array_equal(parts.spread, whole.spread)
     assert np.array_equal(parts.reach, whole.reach)
+
+
+@pytest.fixture(scope="module")
+def phase_case():
+    from benchmarks.split import make_case
+
+    return make_case("lafan1", 3, crop_s=6.0)
+
+
+@pytest.mark.parametrize("theta", ["window", "trunk", "none"])
+def test_the_backward_pass_state_is_the_forward_state_reversed(phase_case, theta):
+    # the backward pass's row-kernel state is made from the forward one without reversed
+    # copies of the rows: every array as PhaseProblem(a[::-1], b[::-1]) makes it
+    from engine.align import phase_kernel as PK
+    from engine.dtw.align import Problem
+    from engine.splice import pipeline as P
+
+    f = P.prepare(phase_case.body, phase_case.hand, theta=theta)
+    a, b = f.pass1_rows
+    state = PK.prepare(a, b)
+    got = state.reversed()
+    want = PK.prepare(np.ascontiguousarray(a[::-1]), np.ascontiguousarray(b[::-1]))
+    assert not want.fallback and not got.fallback
+    for x, y in zip(got.args(), want.args(), strict=True):
+        assert np.array_equal(np.asarray(x), np.asarray(y))
+        assert getattr(x, "dtype", None) == getattr(y, "dtype", None)
+    problem = Problem.from_features(a, b, "splice_phase")
+    problem._rows_state = problem.metric.prepare(problem.a, problem.b)
+    back = problem.reversed()
+    assert np.shares_memory(back.a, a) and back._rows_state is not None
+
+
+def test_the_pass1_spread_is_the_same_with_the_reversed_state(phase_case, monkeypatch):
+    from engine.align import phase_kernel as PK
+    from engine.splice import pipeline as P
+
+    f = P.prepare(phase_case.body, phase_case.hand)
+    a, b = f.pass1_rows
+    band = Band.from_constraints(f.n, f.m, 0.3, [])
+    col = np.linspace(0, f.m - 1, f.n)
+    ends = Ends(body=10, hand=10, skip=2.0)
+    got = row_spread(a, b, band, "splice_phase", col, 3.0, 1.0, ends=ends, block_cells=5000)
+    monkeypatch.setattr(PK.PhaseProblem, "reversed", lambda self: None)  # reversed copies
+    want = row_spread(a, b, band, "splice_phase", col, 3.0, 1.0, ends=ends)
+    assert got.total == want.total
+    assert np.array_equal(got.spread, want.spread) and np.array_equal(got.reach, want.reach)

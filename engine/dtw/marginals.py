@@ -76,6 +76,7 @@ def _sweep(problem: Problem, band: Band, r0: int, r1: int, before, e, last_col, 
     ``last_row`` γ of row ``r1 - 1`` (the kernels' convention)."""
     base = int(band.start[r0 - 1]) if r0 > 0 else 0
     start = band.start - base
+    start.setflags(write=False)  # as band.start: the kernels' compiled (read-only) signatures
     size = int(band.start[r1]) - base
     gamma = np.empty(size, np.float64)
     bp = np.empty(size, np.uint8)  # not read: the kernels write backpointers
