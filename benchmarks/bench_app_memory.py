@@ -83,7 +83,7 @@ def run(seconds: int, tree: Path | None) -> dict:
     body, hand, _ = LP.pair_files(seconds)
     root = str(tree) if tree is not None else str(LP.ROOT)
     env = dict(os.environ, PYTHONPATH=root, PYOPENGL_PLATFORM="egl")
-    env.setdefault("NUMBA_CACHE_DIR", str(Path(root) / ".numba_cache"))
+    env["NUMBA_CACHE_DIR"] = str(Path(root) / ".numba_cache")
     out = subprocess.run(
         [sys.executable, "-c", CHILD, str(body), str(hand)],
         env=env,

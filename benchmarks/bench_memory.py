@@ -109,7 +109,7 @@ def _run(code: str, args: list[str], tree: Path | None) -> dict:
     env = dict(os.environ)
     root = str(tree) if tree is not None else str(LP.ROOT)
     env["PYTHONPATH"] = root
-    env.setdefault("NUMBA_CACHE_DIR", str(Path(root) / ".numba_cache"))
+    env["NUMBA_CACHE_DIR"] = str(Path(root) / ".numba_cache")  # each tree's own (warm) cache
     out = subprocess.run(
         [sys.executable, "-c", code, *args],
         env=env,
@@ -127,9 +127,12 @@ def _digest(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()[:12]
 
 
-def measure(seconds: int, base: str, folder: Path, only: str | None = None) -> list[dict]:
+def measure(
+    seconds: int, base: str, folder: Path, only: str | None = None, base_tree: Path | None = None
+) -> list[dict]:
     body, hand, _ = LP.pair_files(seconds)
-    trees = [("before", LP.baseline_tree(base, ("engine",), name="mem")), ("now", None)]
+    before = base_tree or LP.baseline_tree(base, ("engine",), name="mem")
+    trees = [("before", before), ("now", None)]
     trees = [t for t in trees if only in (None, t[0])]
     rows = []
     for _label, tree in trees:
@@ -174,6 +177,13 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--base", default=BASE)
     ap.add_argument("--out", default=None, help="folder for the rows (JSON) and outputs")
     ap.add_argument("--only", choices=("before", "now"), default=None)
+    ap.add_argument(
+        "--base-tree",
+        type=Path,
+        default=None,
+        help="a checkout of BASE to run as it is, with its own warm .numba_cache (a fresh "
+        "git archive compiles every kernel first: minutes on a loaded machine)",
+    )
     ap.add_argument("--table", default=None, help="print the table of these rows.json files")
     args = ap.parse_args(argv)
     if args.table:
@@ -184,7 +194,7 @@ def main(argv: list[str] | None = None) -> None:
     folder.mkdir(parents=True, exist_ok=True)
     rows = []
     for s in args.seconds:
-        rows += measure(s, args.base, folder, args.only)
+        rows += measure(s, args.base, folder, args.only, args.base_tree)
         (folder / "rows.json").write_text(json.dumps(rows, indent=1))
     print(table(rows))
     print(time.strftime("%H:%M"), os.getloadavg())
