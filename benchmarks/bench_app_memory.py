@@ -68,9 +68,8 @@ pv = step("preview", lambda: backend.preview_for(prep, sol))
 from engine.io.session import VIEW_DEFAULTS
 step("preview frame", lambda: backend.render_frame(prep, sol, n // 2, VIEW_DEFAULTS["camera"], False))
 step("trust", lambda: backend.assess(prep, sol))
-path = sol.cache["engine"].path
-i = prep.features.n // 2
-j = int(path[path[:, 0] == i][0, 1]) + 24
+i = n // 2
+j = min(int(round(float(sol.cache["engine"].map[i]))) + 24, prep.m_hand - 1)  # hand frames
 sol2 = step("edit: solve", lambda: backend.solve(prep, band, refine, [(i, j, 0.0)], previous=sol))
 step("edit: spliced take", lambda: backend.splice(prep, sol2))
 step("edit: preview", lambda: backend.preview_for(prep, sol2))

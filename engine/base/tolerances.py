@@ -24,7 +24,7 @@ Budgets (band cells; memory grows with them)
     pass whose band holds more cells is weighed on its cells nearest the pass's path
     (the widest radius that fits: about ±2.3 s at 10 minutes, 120 fps).
     ``TRUST_BLOCK_CELLS``: the trust holds γ of this many band cells at once (both ways, 17
-    bytes a cell: ~70 MB), not of the whole band (:func:`engine.dtw.marginals.row_spread`
+    bytes a cell: ~17 MB), not of the whole band (:func:`engine.dtw.marginals.row_spread`
     sweeps the band by blocks of rows; the result is the same for any block size).
 
 Pass-1 rate (multi-resolution pass 1, ``engine.splice.coarse``)
@@ -48,4 +48,4 @@ PARALLEL_MIN_CELLS = 200_000
 PASS1_RATE_CAP_HZ = 30.0
 PASS1_FINE_RADIUS_S = 0.5
 TRUST_MAX_CELLS = 40_000_000
-TRUST_BLOCK_CELLS = 4_000_000
+TRUST_BLOCK_CELLS = 1_000_000
