@@ -22,7 +22,10 @@ Budgets (band cells; memory grows with them)
     ``TRUST_MAX_CELLS``: the trust assessment (:mod:`engine.splice.uncertainty`) keeps γ of
     every cell it weighs, both ways (16 bytes a cell, plus a byte of backpointers); a
     pass whose band holds more cells is weighed on its cells nearest the pass's path
-    (the widest radius that fits: about ±2.3 s at 10 minutes, 120 fps), ~680 MB at most.
+    (the widest radius that fits: about ±2.3 s at 10 minutes, 120 fps).
+    ``TRUST_BLOCK_CELLS``: the trust holds γ of this many band cells at once (both ways, 17
+    bytes a cell: ~17 MB), not of the whole band (:func:`engine.dtw.marginals.row_spread`
+    sweeps the band by blocks of rows; the result is the same for any block size).
 
 Pass-1 rate (multi-resolution pass 1, ``engine.splice.coarse``)
     ``PASS1_RATE_CAP_HZ``: pass 1's sign-cost DTW runs first on both takes decimated to at
@@ -54,3 +57,4 @@ PASS1_FINE_RADIUS_S = 0.5
 PASS1_NEAR_STEPS = 3.0
 PASS1_NEAR_MIN_CELLS = 100_000_000
 TRUST_MAX_CELLS = 40_000_000
+TRUST_BLOCK_CELLS = 1_000_000
