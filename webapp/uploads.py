@@ -94,6 +94,16 @@ def _extension(name: str) -> str:
     return ext
 
 
+def check_name(filename: str | None) -> str:
+    """The shown name of a file the browser means to upload, if its extension is one the
+    server reads (:data:`EXTENSIONS`); UploadError (``x.png: expected a .bvh, .c3d or .trc
+    file``) otherwise. The page's fields refuse such a file before sending it and ask
+    the server for this message."""
+    name = display_name(filename)
+    _extension(name)
+    return name
+
+
 def _is_regular(path: Path) -> bool:
     """True for a regular file; symlinks are never followed (``lstat``)."""
     try:
