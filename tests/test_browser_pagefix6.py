@@ -75,7 +75,6 @@ def test_a_file_of_another_kind_is_refused_before_it_is_sent(demo_page, which):
 def test_a_take_is_still_sent_after_a_refused_kind(demo_page):
     """The kind check looks at the name's extension, so a .BVH of any MIME type the
     browser guesses is sent and checked as before (after a refused .png)."""
-
     page = demo_page
     field = page.locator(".hs-upload-body input[type=file]")
     field.set_input_files({"name": "photo.png", "mimeType": "image/png", "buffer": PNG})
