@@ -104,7 +104,8 @@ _SERIAL = itertools.count(1)
 #: the tags state by which the page tells the server of a file it refused by its kind
 WRONG_KIND = "wrong-kind"
 
-#: the page side of the kind check (once per field, when the page is ready): FilePond
+#: the page side of the kind check (once per field, when the page is ready; it also has
+#: FilePond say the size limit as the page does, in MiB): FilePond
 #: checks a file's type against the field's ``accept`` list; browsers give .bvh/.c3d/.trc
 #: files no MIME type (or a guess), so the "type" it checks is the name's extension. A
 #: file it refuses is not sent; the field's model's ``tags`` tell the server its name
@@ -118,6 +119,8 @@ const setup = () => {
     fileValidateTypeDetectType: (file, type) => Promise.resolve(kind(file.name)),
     labelFileTypeNotAllowed: 'Refused',
     fileValidateTypeLabelExpectedTypes: 'not sent: expected {allButLastType} or {lastType}',
+    // FilePond would say the limit in decimal MB (209.7 MB for 200 MiB)
+    labelMaxFileSize: limit,
   });
 };
 setup();
@@ -191,7 +194,12 @@ class TakeDropper(pn.widgets.FileDropper):
         model.js_on_change("tags", CustomJS(args={"colors": VERDICT_COLORS}, code=_JS_VERDICT))
         model.on_change("tags", self._on_tags)
         if doc is not None:
-            args = {"dropper": model, "exts": list(uploads.EXTENSIONS), "wrong": WRONG_KIND}
+            args = {
+                "dropper": model,
+                "exts": list(uploads.EXTENSIONS),
+                "wrong": WRONG_KIND,
+                "limit": f"Maximum file size is {uploads.limit_words(self._cfg.max_upload_bytes)}",
+            }
             doc.js_on_event("document_ready", CustomJS(args=args, code=_JS_KIND))
         return model
 

@@ -64,7 +64,7 @@ class InputsView:
             width=260,
         )
         self.sample.param.watch(self._on_sample, "value")
-        limit = f"{cfg.max_upload_bytes / 2**20:.0f} MiB"
+        limit = uploads.limit_words(cfg.max_upload_bytes)
         self.body_file = TakeDropper(
             cfg, css_classes=["hs-upload-body"], width=320, label="body take"
         )
