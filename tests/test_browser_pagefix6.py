@@ -5,6 +5,10 @@
   kind of file. Now the fields carry ``accept=".bvh,.c3d,.trc"``, a file of another
   kind is refused in the browser before a byte is sent, its tile turns red at once, and
   the page's red message names the file (escaped) and what was expected.
+* R4-3: a refused body and then a refused hand: both tiles said "Refused · see below" but
+  the box below held only the hand's reason. Now one line per refused field.
+* R4-4 (in test_browser_uploads, whose server has a small limit): the refused tile said
+  the limit in decimal MB (209.7 MB for the page's "200 MiB"); now in MiB as the page.
 """
 
 from __future__ import annotations
@@ -92,3 +96,43 @@ def test_a_take_is_still_sent_after_a_refused_kind(demo_page):
     assert tile.locator(".filepond--file-status-main").inner_text() == "Checked"
     assert page.evaluate("window.__hs_sent.upload") >= 1
     assert not page.locator(".hs-upload-error").is_visible()
+
+
+def test_each_refused_field_keeps_its_reason(demo_page, tmp_path):
+    """R4-3: a refused body and then a refused hand: the red box below the fields
+    holds both reasons, one line each (it held only the latest, though both tiles said
+    "Refused · see below"); a good file in one field takes its line away."""
+    page = demo_page
+    broken = tmp_path / "broken.bvh"
+    broken.write_text("HIERARCHY\nROOT Hips\n{\n OFFSET 0 0\n")
+    empty = tmp_path / "empty.bvh"
+    empty.write_text("")
+    alert = page.locator(".hs-upload-error")
+    page.locator(".hs-upload-body input[type=file]").set_input_files(str(broken))
+    page.locator(".hs-upload-body .filepond--item[data-hs-verdict='refused']").wait_for(
+        timeout=BUSY_S * 1000
+    )
+    page.locator(".hs-upload-hand input[type=file]").set_input_files(str(empty))
+    page.locator(".hs-upload-hand .filepond--item[data-hs-verdict='refused']").wait_for(
+        timeout=BUSY_S * 1000
+    )
+    lines = alert.locator("p")
+    page.wait_for_function(
+        "e => e.shadowRoot.querySelectorAll('p').length === 2",
+        arg=alert.element_handle(),
+        timeout=BUSY_S * 1000,
+    )
+    texts = [t.strip() for t in lines.all_inner_texts()]
+    assert texts[0].startswith("broken.bvh line"), texts
+    assert texts[1].startswith("empty.bvh"), texts
+    # a good body in its place: only the hand's reason is left
+    page.locator(".hs-upload-body input[type=file]").set_input_files(str(BODY_BVH))
+    page.locator(".hs-upload-body .filepond--item[data-hs-verdict='ok']").wait_for(
+        timeout=BUSY_S * 1000
+    )
+    page.wait_for_function(
+        "e => e.shadowRoot.querySelectorAll('p').length === 1",
+        arg=alert.element_handle(),
+        timeout=BUSY_S * 1000,
+    )
+    assert alert.locator("p").inner_text().strip().startswith("empty.bvh")
