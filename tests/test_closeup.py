@@ -86,11 +86,12 @@ def _cut_bvh(src: Path, dst: Path, start: int, count: int) -> Path:
     return dst
 
 
-def hand_seen_in_closeup(preview: Preview, i: int, side: str) -> tuple[float, float]:
-    """``(seen, area)`` of the spliced hand in frame ``i``'s close-up as rendered:
+def hand_seen_in_closeup(preview: Preview, i: int, side: str) -> tuple[float, float, bool]:
+    """``(seen, area, cut)`` of the spliced hand in frame ``i``'s close-up as rendered:
     the hand's mesh is drawn in pure green, ``seen`` is the number of green pixels of the
     whole take's picture over those of the hand drawn alone (what the body hides from
-    the camera is not seen), ``area`` the hand alone's share of the picture."""
+    the camera is not seen), ``area`` the hand alone's share of the picture, ``cut``
+    whether the hand alone reaches the picture's edge."""
     view = preview.views[0]
     mesh = view.mesh
     hand = mesh.part == mesh.part_names.index(f"{side}_hand")
@@ -98,17 +99,18 @@ def hand_seen_in_closeup(preview: Preview, i: int, side: str) -> tuple[float, fl
     colors[hand] = (0.0, 1.0, 0.0, 1.0)
     alone = mesh.faces[hand[mesh.faces].all(axis=1)]
 
-    def green(m) -> int:
+    def green(m) -> np.ndarray:
         view.mesh = m
         img = preview.frame(i, view="single", camera="hands", size=SIZE).astype(int)
-        return int(((img[..., 1] > img[..., 0] + 40) & (img[..., 1] > img[..., 2] + 40)).sum())
+        return (img[..., 1] > img[..., 0] + 40) & (img[..., 1] > img[..., 2] + 40)
 
     try:
         whole = green(dataclasses.replace(mesh, colors=colors))
         drawn = green(dataclasses.replace(mesh, colors=colors, faces=alone))
     finally:
         view.mesh = mesh
-    return whole / max(drawn, 1), drawn / (SIZE[0] * SIZE[1])
+    cut = bool(drawn[0].any() or drawn[-1].any() or drawn[:, 0].any() or drawn[:, -1].any())
+    return whole.sum() / max(drawn.sum(), 1), drawn.sum() / drawn.size, cut
 
 
 #: (body take, first frame, hand take, side): 7 s of a long take where the body hides
@@ -137,9 +139,9 @@ def test_the_closeup_sees_a_hand_the_body_hides_from_the_front(case, mocap_dir, 
     front = {f: view.hand_seen(f, aspect, yfov)[0] for f in range(0, 201, 5)}
     hidden = min(front, key=front.get)
     assert front[hidden] < 0.3  # the body hides the hand from the front there
-    seen, area = hand_seen_in_closeup(preview, hidden, side)
+    seen, area, cut = hand_seen_in_closeup(preview, hidden, side)
     assert seen > 0.6, f"frame {hidden}: {seen:.0%} of the hand seen"
-    assert area > 0.01  # and drawn large enough to judge
+    assert area > 0.01 and not cut  # and drawn whole, large enough to judge
     # a frame where the front sees the hand keeps the front view
     free = max(front, key=front.get)
     assert view.hands_direction(free, aspect, yfov) == HANDS_DIRECTIONS[0]
