@@ -36,11 +36,12 @@ def main() -> None:
     parser.add_argument("--step", type=int, default=40)
     args = parser.parse_args()
     sys.path.insert(0, str(ROOT / "tests"))
+    from test_closeup import hand_seen_in_closeup
+
     import engine.render.scene as scene
     from engine.cli import main as cli
     from engine.io.bvh import read_bvh
     from engine.render.offscreen import Preview
-    from test_closeup import hand_seen_in_closeup
 
     gain = scene.HANDS_SWITCH_GAIN
     print(f"load: {os.getloadavg()[0]:.1f}")
