@@ -174,6 +174,7 @@ def test_near_optimal_rows_match_brute_force(seed):
             if strict.size:
                 assert first[i] <= strict.min() and last[i] >= strict.max()
 
+
 @pytest.mark.parametrize("block_cells", [1, 7, 50, 10**9])
 @pytest.mark.parametrize("seed", range(3))
 def test_blocks_of_rows_give_the_whole_bands_result(seed, block_cells):
