@@ -60,7 +60,7 @@ def test_a_file_of_another_kind_is_refused_before_it_is_sent(demo_page, which):
     tile = page.locator(f".hs-upload-{which} .filepond--item[data-hs-verdict='refused']")
     tile.wait_for(timeout=BUSY_S * 1000)
     assert tile.locator(".filepond--file-status-main").inner_text() == "Refused"
-    assert tile.locator(".filepond--file-status-sub").inner_text() == "not received"
+    assert tile.locator(".filepond--file-status-sub").inner_text() == "not sent"
     panel = tile.locator(".filepond--panel-center")
     page.wait_for_function(
         "e => getComputedStyle(e).backgroundColor === 'rgb(196, 78, 71)'",
@@ -124,7 +124,13 @@ def test_each_refused_field_keeps_its_reason(demo_page, tmp_path):
     )
     texts = [t.strip() for t in lines.all_inner_texts()]
     assert texts[0].startswith("broken.bvh line"), texts
-    assert texts[1].startswith("empty.bvh"), texts
+    assert texts[1] == "empty.bvh: the file is empty", texts
+    # both tiles point to the reasons below (R5-4: the empty file's tile said "not received"
+    # as if the network had failed)
+    for which in ("body", "hand"):
+        sub = page.locator(f".hs-upload-{which} .filepond--item[data-hs-verdict='refused'] ")
+        sub = sub.locator(".filepond--file-status-sub")
+        assert sub.inner_text() == "see below", which
     # a good body in its place: only the hand's reason is left
     page.locator(".hs-upload-body input[type=file]").set_input_files(str(BODY_BVH))
     page.locator(".hs-upload-body .filepond--item[data-hs-verdict='ok']").wait_for(

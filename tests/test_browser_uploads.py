@@ -396,6 +396,17 @@ def test_a_session_file_with_html_in_sample_runs_no_script(page, tmp_path):
     alert.wait_for(state="visible", timeout=BUSY_S * 1000)
     assert XSS_PAYLOAD in pane_text(alert)  # shown literally
     assert not xss_ran(page)
+    # R5-7: the refusal is said just under the session file's field and brought into the
+    # window (it sat under the link and the command lines, cut off at the window's bottom)
+    page.wait_for_function(
+        "e => { const r = e.getBoundingClientRect();"
+        " return r.height > 0 && r.top >= 0 && r.bottom <= window.innerHeight; }",
+        arg=alert.element_handle(),
+        timeout=BUSY_S * 1000,
+    )
+    field = page.locator(".hs-open-session").bounding_box()
+    box = alert.bounding_box()
+    assert 0 <= box["y"] - (field["y"] + field["height"]) < 40, (field, box)
 
 
 def test_a_link_with_html_in_sample_runs_no_script(browser, served):

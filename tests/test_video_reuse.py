@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import asyncio
+import io
 
 import numpy as np
 import pytest
@@ -58,3 +59,39 @@ def test_a_second_gif_click_reuses_the_file_until_an_edit(session, renders):
     assert renders == list(shown)
     assert third.getvalue() != first.getvalue()
     assert "unchanged" not in view.progress_text.object
+
+
+class _Stream(io.StringIO):
+    def __init__(self, terminal: bool):
+        super().__init__()
+        self._terminal = terminal
+
+    def isatty(self) -> bool:
+        return self._terminal
+
+
+def test_progress_in_a_log_is_plain_lines_and_on_a_terminal_one_redrawn_bar():
+    """R5-5: a preview's progress written to a log (stderr not a terminal) was one line of
+    hundreds of carriage-return updates; now a plain line every few seconds and the last one.
+    On a terminal it stays a bar redrawn in place."""
+    from engine.render.video import progress_printer
+
+    log = _Stream(terminal=False)
+    report = progress_printer("preview out.gif", stream=log, log_interval=0.0)
+    for done in range(1, 6):
+        report(done, 5)
+    text = log.getvalue()
+    assert "\r" not in text and "#" not in text
+    lines = text.splitlines()
+    assert len(lines) == 5 and lines[-1].startswith("preview out.gif: 5/5 ")
+    quiet = _Stream(terminal=False)
+    report = progress_printer("p", stream=quiet)  # the default: one line per 10 s at most
+    for done in range(1, 188):
+        report(done, 187)
+    assert quiet.getvalue().count("\n") == 1 and quiet.getvalue().startswith("p: 187/187")
+    tty = _Stream(terminal=True)
+    report = progress_printer("p", stream=tty, min_interval=0.0)
+    for done in range(1, 4):
+        report(done, 3)
+    assert tty.getvalue().count("\r") == 3 and tty.getvalue().endswith("\n")
+    assert tty.getvalue().count("\n") == 1 and "[" in tty.getvalue()

@@ -1373,3 +1373,14 @@ def test_the_unmatched_end_limit_is_an_edit_the_file_link_and_command_line_carry
     assert out.read_bytes() == backend.bvh_bytes(session.spliced())
     session.undo()
     assert session.max_unmatched_s is None and session.solution.pass1.band_cells == cells
+
+
+def test_every_number_of_the_status_says_what_it_is(session):
+    """R5-3: the solve time stood bare ("2166.0 ms") beside the desync meter's milliseconds;
+    it is now "solved in N ms", and no number of the line is left without its word."""
+    import re
+
+    text = session.status_text()
+    assert re.search(r"solved in [\d,]+ ms", text), text
+    costs_and_time = text.split(" · ")[:4]
+    assert [part.split()[0] for part in costs_and_time] == ["pass", "pass", "solved", "band"]

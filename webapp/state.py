@@ -921,7 +921,7 @@ class Session(param.Parameterized):
         share = 100.0 * cells / max(self.n * self.m, 1)
         text = (
             f"pass 1 cost {sol.pass1.cost:.4g} · pass 2 cost {sol.pass2.cost:.4g} · "
-            f"{self.compute_ms:.1f} ms · band {cells:,} cells ({share:.0f} %) · "
+            f"solved in {self.compute_ms:,.0f} ms · band {cells:,} cells ({share:.0f} %) · "
             f"{len(self.points)} matching point{'s' if len(self.points) != 1 else ''}"
         )
         result = sol.cache.get("engine")

@@ -362,27 +362,36 @@ def remaining_text(spent: float, done: int, total: int) -> str:
     return f"about {left:.0f} s left" if left < 120 else f"about {left / 60:.0f} min left"
 
 
-def progress_printer(label: str = "rendering", stream=None, min_interval: float = 0.2) -> Progress:
-    """A ``progress(done, total)`` that draws a one-line bar on ``stream`` (stderr)."""
+def progress_printer(
+    label: str = "rendering", stream=None, min_interval: float = 0.2, log_interval: float = 10.0
+) -> Progress:
+    """A ``progress(done, total)`` for ``stream`` (stderr): on a terminal a one-line bar
+    redrawn at most every ``min_interval`` s; elsewhere (a log file, a pipe) a plain line
+    at most every ``log_interval`` s and the last one, never carriage returns."""
     stream = stream or sys.stderr
-    state = {"last": 0.0, "start": time.perf_counter()}
+    terminal = bool(getattr(stream, "isatty", lambda: False)())
+    interval = min_interval if terminal else log_interval
+    state = {"last": 0.0 if terminal else time.perf_counter(), "start": time.perf_counter()}
 
     def report(done: int, total: int) -> None:
         now = time.perf_counter()
         final = total and done >= total
-        if not final and now - state["last"] < min_interval:
+        if not final and now - state["last"] < interval:
             return
         state["last"] = now
+        spent = now - state["start"]
         if total:
-            width = 30
-            fill = int(width * done / total)
-            bar = "#" * fill + "-" * (width - fill)
-            spent = now - state["start"]
             left = remaining_text(spent, done, total)
-            msg = f"\r{label} [{bar}] {done}/{total} {spent:.1f}s{left and ', ' + left}  "
+            counts = f"{done}/{total} {spent:.1f}s{left and ', ' + left}"
+            if terminal:
+                fill = int(30 * done / total)
+                msg = f"\r{label} [{'#' * fill + '-' * (30 - fill)}] {counts}  "
+            else:
+                msg = f"{label}: {counts}"
         else:
-            msg = f"\r{label} {done} frames {now - state['start']:.1f}s"
-        stream.write(msg + ("\n" if final else ""))
+            msg = f"{label} {done} frames {spent:.1f}s"
+            msg = "\r" + msg if terminal else msg
+        stream.write(msg + ("\n" if final or not terminal else ""))
         stream.flush()
 
     return report

@@ -364,13 +364,9 @@ class PointsTable:
         self._holder = pn.Column(self.table, margin=0, sizing_mode="stretch_width")
         #: a refused edit of the table is said here, where it was typed (the page's error
         #: line sits above the matrix, often scrolled out of view)
-        self.refusal = refusal_box("hs-table-error", sizing_mode="stretch_width", margin=(4, 10))
-        # brought into view when shown (the rows below it may be at the screen's edge)
-        into_view = (
-            "setTimeout(() => { const v = Bokeh.index.find_one(source);"
-            " if (v && v.el && source.visible) v.el.scrollIntoView({block: 'center'}); }, 100)"
+        self.refusal = refusal_box(
+            "hs-table-error", into_view=True, sizing_mode="stretch_width", margin=(4, 10)
         )
-        self.refusal.jscallback(object=into_view, visible=into_view)
         self._edited_at = -1e9
         # after the edit's path is in the page (``after_path``): re-rendering the table in
         # the tick that draws the path, or while its solve runs, delayed the path

@@ -168,7 +168,8 @@ class Receipt:
 class TakeDropper(pn.widgets.FileDropper):
     """One take's upload field. Callbacks (set by the owner), all on the event loop:
     ``on_progress(Receipt)`` (at most every :data:`PROGRESS_EVERY_S`), ``on_staged(Staged)``
-    and ``on_refused(message)``."""
+    and ``on_refused(message, tile_words)`` (``tile_words``: the tile's short word under
+    "Refused": "not sent" when the page refused the file by its kind, else "see below")."""
 
     def __init__(self, cfg: AppConfig, **params):
         params.setdefault("chunk_size", CHUNK_BYTES)
@@ -185,7 +186,7 @@ class TakeDropper(pn.widgets.FileDropper):
         self.on_progress: Callable[[Receipt], None] = lambda r: None
         self._told = 0.0  # when on_progress was last called
         self.on_staged: Callable[[uploads.Staged], None] = lambda s: None
-        self.on_refused: Callable[[str], None] = lambda m: None
+        self.on_refused: Callable[[str, str], None] = lambda m, w: None
         #: the name the browser gave the latest file (its tile's name; shown names are cleaned)
         self.file_name = ""
 
@@ -214,7 +215,7 @@ class TakeDropper(pn.widgets.FileDropper):
         except uploads.UploadError as exc:
             self.file_name = name
             self._drop(name)
-            self.on_refused(str(exc))
+            self.on_refused(str(exc), "not sent")
 
     @with_document_lock
     def verdict(self, state: str, name: str = "", main: str = "", sub: str = "") -> None:
@@ -268,7 +269,7 @@ class TakeDropper(pn.widgets.FileDropper):
         except uploads.UploadError as exc:
             self._drop(name)
             self._incoming[name] = None
-            self.on_refused(str(exc))
+            self.on_refused(str(exc), "see below")
 
     def _drop(self, name: str) -> None:
         incoming = self._incoming.pop(name, None)

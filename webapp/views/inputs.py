@@ -74,7 +74,7 @@ class InputsView:
         for which, dropper in (("body", self.body_file), ("hand", self.hand_file)):
             dropper.on_progress = lambda receipt, w=which: self._on_progress(w, receipt)
             dropper.on_staged = lambda staged, w=which: self._on_staged(w, staged)
-            dropper.on_refused = lambda text, w=which: self._refuse(w, text, checked=False)
+            dropper.on_refused = lambda text, words, w=which: self._refuse(w, text, words=words)
         self.side = pn.widgets.RadioButtonGroup.from_param(
             session.param.side, css_classes=["hs-side"], width=180
         )
@@ -283,15 +283,16 @@ class InputsView:
         if len(self._pending) == 2:
             await self._open_pair()
 
-    def _refuse(self, which: str, text: str, tile: str | None = None, checked: bool = True):
-        """A take was refused: its tile turns red, the reason is shown, and the take of the
-        open uploaded pair (if any) is the one the next upload pairs with."""
+    def _refuse(self, which: str, text: str, tile: str | None = None, words: str = "see below"):
+        """A take was refused: its tile turns red with ``words`` under "Refused", the
+        reason is shown, and the take of the open uploaded pair (if any) is the one the next
+        upload pairs with."""
         dropper = self._droppers[which]
         dropper.verdict(
             "refused",
             dropper.file_name if tile is None else tile,
             "Refused",
-            "see below" if checked else "not received",
+            words,
         )
         if which in self._open:
             self._pending[which] = self._open[which]

@@ -70,7 +70,7 @@ class SharingView:
 
     def __init__(self, session: Session):
         self.session = session
-        self.message = refusal_box("hs-share-error")
+        self.message = refusal_box("hs-share-error", into_view=True)
         self.bvh = _Download(
             callback=self._bvh,
             filename="spliced.bvh",
@@ -369,8 +369,9 @@ class SharingView:
                 ),
                 self.open_session,
             ),
+            # a refused file or download is said under the controls used, brought into view
+            self.message,
             self.link,
             self.command,
-            self.message,
             sizing_mode="stretch_width",
         )
