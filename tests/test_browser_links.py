@@ -91,7 +91,8 @@ def test_one_bad_link_value_keeps_the_takes_and_the_good_values(served, tmp_path
         page.wait_for_function("() => !location.search.includes('band=99')", timeout=30_000)
         query = dict(parse_qsl(urlsplit(page.locator(".hs-share-url input").input_value()).query))
         assert query["sample"] == "bye-hello" and query["pts"] == "30:20:3,60:50"
-        assert query["view"] == "pass2" and query["band"] != "99"
+        # the band is the automatic default again: not in the link (R4-8)
+        assert query["view"] == "pass2" and "band" not in query
         assert not page.errors, page.errors
     finally:
         page.context.close()
@@ -156,6 +157,55 @@ def test_a_link_of_an_uploaded_pair_keeps_the_file_names(served, tmp_path):
         assert info.value.suggested_filename.endswith("walk-spliced.bvh")
         assert info.value.suggested_filename != "handsplice-spliced.bvh"
         assert not xss_ran(page)
+        assert not page.errors, page.errors
+    finally:
+        page.context.close()
+
+
+def _slider_frame(page) -> int:
+    """The body frame the preview's slider shows (its handle's value, as read aloud)."""
+    handle = page.locator(".hs-frame-slider .noUi-handle").first
+    return int(float(handle.get_attribute("aria-valuenow")))
+
+
+def test_the_link_follows_the_frame_slider(served, tmp_path):
+    """Stranger R4-5: move the preview's frame slider, copy the link, open it: it opens at
+    the frame moved to (the link and the address bar kept the old frame)."""
+    browser, url = served
+    page = _open(browser, url)
+    try:
+        box = page.locator(".hs-share-url input")
+        assert dict(parse_qsl(urlsplit(box.input_value()).query)).get("frame") == "0"
+        track = page.locator(".hs-frame-slider .noUi-base").first
+        track.scroll_into_view_if_needed()
+        size = track.bounding_box()
+        track.click(position={"x": size["width"] * 0.7, "y": size["height"] / 2})
+        deadline = time.monotonic() + BUSY_S
+        while (frame := _slider_frame(page)) == 0:
+            assert time.monotonic() < deadline, "the slider did not move"
+            page.wait_for_timeout(100)
+        # the preview shows the frame; the link box and the address bar follow it
+        page.locator(f".hs-preview-info span[data-frame='{frame}']").wait_for(timeout=BUSY_S * 1000)
+        while (link := box.input_value()).find(f"frame={frame}&") < 0 and not link.endswith(
+            f"frame={frame}"
+        ):
+            assert time.monotonic() < deadline, (frame, link)
+            page.wait_for_timeout(100)
+        page.wait_for_function(
+            "f => new URLSearchParams(location.search).get('frame') === String(f)",
+            arg=frame,
+            timeout=30_000,
+        )
+        assert not page.errors, page.errors
+    finally:
+        page.context.close()
+
+    page = _open(browser, link)
+    try:
+        assert dict(parse_qsl(urlsplit(link).query))["frame"] == str(frame)
+        page.locator(f".hs-preview-info span[data-frame='{frame}']").wait_for(timeout=BUSY_S * 1000)
+        assert _slider_frame(page) == frame
+        page.screenshot(path=str(tmp_path / "links-frame.png"), full_page=True)
         assert not page.errors, page.errors
     finally:
         page.context.close()

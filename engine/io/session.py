@@ -70,6 +70,9 @@ PREVIEW_CAMERAS = ("three-quarter", "front", "side")
 #: out, as in files and links made before it existed, takes its default)
 VIEW_DEFAULTS = {"camera": "three-quarter", "trails": False, "follow": True, "pick": False}
 VIEW_FIELDS = ("matrix", "frame", *VIEW_DEFAULTS)
+#: the file's keys of the constraints whose key is not the constraint's field name (a
+#: refusal names the key the file holds)
+FILE_KEYS = {"max_unmatched_s": "max_unmatched"}
 MAX_POINTS = C.MAX_POINTS
 MAX_TEXT = MAX_SESSION_BYTES  # a session is small; refuse anything bigger (engine.base.limits)
 _HEX64 = re.compile(r"^[0-9a-f]{64}$")
@@ -311,8 +314,9 @@ def from_dict(data: Any, source: str | None = None) -> SessionSpec:
             raise C.ConstraintError("points", f"expected a list, got {_show(raw_points)}")
         points = C.parse_points([_json_point(p) for p in raw_points])
         max_unmatched = C.parse_max_unmatched(_json_number(data.get("max_unmatched")))
-    except C.ConstraintError as exc:
-        raise SessionError(source, exc.field, exc.detail, exc) from None
+    except C.ConstraintError as exc:  # named by the file's key (``max_unmatched``)
+        named = exc.named(FILE_KEYS.get(exc.field, exc.field))
+        raise SessionError(source, exc.field, exc.detail, named) from None
 
     roles = data.get("roles", {})
     if not isinstance(roles, dict):
@@ -541,8 +545,8 @@ def read_query(query: dict[str, str]) -> tuple[SessionSpec, tuple[SessionError, 
         """``read()`` with engine.dtw.constraints' refusal kept as a problem (None then)."""
         try:
             return read()
-        except C.ConstraintError as exc:
-            problems.append(SessionError(source, exc.field, exc.detail, exc))
+        except C.ConstraintError as exc:  # named by the link's key (``refine``, ``unmatched``)
+            problems.append(SessionError(source, exc.field, exc.detail, exc.named(key)))
         except SessionError as exc:
             problems.append(exc)
         return None
