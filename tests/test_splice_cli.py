@@ -375,6 +375,14 @@ def test_an_end_cut_by_max_unmatched_is_named_in_the_unmatched_sentence(tmp_path
             ["render", "{body}", "-o", "{tmp}/o.png", "--size", "0x0"],
             "--size 0x0: width and height must lie in 16..4096",
         ),
+        (  # "phase parameter hold_speed: ..." before
+            ["analyze", "{body}", "--hold-speed", "-5"],
+            "--hold-speed: expected a positive number (phase parameter), got -5.0",
+        ),
+        (  # "handedness threshold: ..." before
+            ["analyze", "{body}", "--threshold", "-1"],
+            "--threshold: expected a handedness threshold >= 0 (m/s), got -1.0",
+        ),
         (
             ["batch", "{tmp}/pairs.csv", "-o", "{tmp}/out", "--pair-seconds", "-1"],
             "--pair-seconds: expected a number >= 0 (0: no limit), got -1.0",

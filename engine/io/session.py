@@ -16,8 +16,11 @@ Schema (version 2)::
               | {"body": TAKE, "hand": TAKE},            # TAKE = {"path": "walk.bvh"}
                                                          #      | {"sha256": HEX64, "name": "walk.bvh"}
       "side": "right" | "left" | "both",
-      "band": 0.3,            # pass-1 band width W1: fraction of the body take, or "10s"
-      "refine_band": 0.1,     # pass-2 band width W2 around the pass-1 path, the same forms
+      "band": 0.3,            # optional: pass-1 band width W1, fraction of the body take
+                              # or "10s"; absent: the automatic default for the takes
+                              # (what the app saves unless the user set a width)
+      "refine_band": 0.1,     # optional: pass-2 band width W2 around the pass-1 path,
+                              # the same forms and default
       "tolerance": 0,         # global matching-point tolerance T, frames
       "max_unmatched": 20,    # optional: open ends, seconds each take may stay unmatched
                               # at each end (--max-unmatched); absent: the default
@@ -465,7 +468,8 @@ def to_query(spec: SessionSpec) -> dict[str, str]:
     """Short URL query parameters restoring ``spec`` (for sharing a link to the app).
 
     ``sample=NAME`` or ``body=SHA256&hand=SHA256`` (with ``bname`` and ``hname``, the
-    uploaded files' original names, where known), ``side``, ``band``, ``refine``, ``tol``,
+    uploaded files' original names, where known), ``side``, ``band`` and ``refine`` (where
+    set: absent, the automatic default), ``tol``,
     ``unmatched`` (the open-end limit, seconds, where set), ``pts=B:H[:T],...``, ``roles`` (JSON), ``view``, ``frame``, and ``frames=hand`` when the
     hand frames are the hand file's own (links made before have grid frames); the view
     state ``camera``, ``trails``, ``follow`` and ``pick`` (``1`` or ``0``) only where it is
