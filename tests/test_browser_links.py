@@ -35,6 +35,15 @@ def _open(browser, url: str):
     return open_page(browser, url, timeout_s=600)
 
 
+def _wait_sample(page, name: str, timeout: float = BUSY_S) -> None:
+    """Wait until the sample chooser shows ``name`` (the page may draw the link's path a
+    message before it updates the chooser: a loaded machine showed the old name then)."""
+    chooser, deadline = page.locator(".hs-sample select"), time.monotonic() + timeout
+    while (shown := chooser.input_value()) != name:
+        assert time.monotonic() < deadline, shown
+        page.wait_for_timeout(100)
+
+
 def _table_rows(page, want: int, timeout: float = 20.0) -> list[tuple[str, str, str]]:
     """(body, hand, tolerance) of each row the "Matching points" table shows, once it
     shows ``want`` rows (or ``timeout`` seconds passed: what it shows then)."""
@@ -80,7 +89,7 @@ def test_one_bad_link_value_keeps_the_takes_and_the_good_values(served, tmp_path
     try:
         alert = page.locator(".hs-error")
         alert.wait_for(state="visible", timeout=BUSY_S * 1000)
-        assert page.locator(".hs-sample select").input_value() == "bye-hello"
+        _wait_sample(page, "bye-hello")
         rows = _table_rows(page, 2)
         page.screenshot(path=str(tmp_path / "links-bad-band.png"), full_page=True)
         assert rows == [("30", "20", "3"), ("60", "50", "")]
@@ -105,7 +114,7 @@ def test_one_bad_link_value_keeps_the_takes_and_the_good_values(served, tmp_path
             "shared link: URL: matching point 1 (hand 20): expected a whole body frame number "
             ">= 0, got 'abc'" in pane_text(alert)
         )
-        assert page.locator(".hs-sample select").input_value() == "bye-hello"
+        _wait_sample(page, "bye-hello")
         assert _table_rows(page, 0, timeout=2.0) == []
         query = dict(parse_qsl(urlsplit(page.locator(".hs-share-url input").input_value()).query))
         assert query["band"] == "0.4" and "pts" not in query
@@ -170,12 +179,15 @@ def _slider_frame(page) -> int:
 
 def test_the_link_follows_the_frame_slider(served, tmp_path):
     """Stranger R4-5: move the preview's frame slider, copy the link, open it: it opens at
-    the frame moved to (the link and the address bar kept the old frame)."""
+    the frame moved to (the link and the address bar kept the old frame). And R4-8: the
+    band widths left at their automatic default are not in the link (it wrote
+    ``band=0.3&refine=0.1`` as if set); W1 typed in the page is."""
     browser, url = served
     page = _open(browser, url)
     try:
         box = page.locator(".hs-share-url input")
-        assert dict(parse_qsl(urlsplit(box.input_value()).query)).get("frame") == "0"
+        query = dict(parse_qsl(urlsplit(box.input_value()).query))
+        assert query.get("frame") == "0" and "band" not in query and "refine" not in query, query
         track = page.locator(".hs-frame-slider .noUi-base").first
         track.scroll_into_view_if_needed()
         size = track.bounding_box()
@@ -196,6 +208,14 @@ def test_the_link_follows_the_frame_slider(served, tmp_path):
             arg=frame,
             timeout=30_000,
         )
+        field = page.locator(".hs-band-s input").first  # W1 set by the user: in the link
+        field.scroll_into_view_if_needed()
+        field.fill("2")
+        field.press("Enter")
+        while "band=2s" not in (link := box.input_value()):
+            assert time.monotonic() < deadline, link
+            page.wait_for_timeout(100)
+        assert "refine=" not in link and f"frame={frame}" in link, link
         assert not page.errors, page.errors
     finally:
         page.context.close()
@@ -205,6 +225,7 @@ def test_the_link_follows_the_frame_slider(served, tmp_path):
         assert dict(parse_qsl(urlsplit(link).query))["frame"] == str(frame)
         page.locator(f".hs-preview-info span[data-frame='{frame}']").wait_for(timeout=BUSY_S * 1000)
         assert _slider_frame(page) == frame
+        assert page.locator(".hs-band-s input").first.input_value() == "2"
         page.screenshot(path=str(tmp_path / "links-frame.png"), full_page=True)
         assert not page.errors, page.errors
     finally:

@@ -395,7 +395,7 @@ def test_widths_typed_in_seconds_are_checked_edits(session):
     from webapp.views.controls import parameter_widgets
 
     (w1, _, w1_s, *_), *_ = parameter_widgets(session)  # slider, its note, seconds
-    before = session.to_spec()
+    before, fraction = session.to_spec(), session.band
     w1_s.value = "1e9"
     assert session.error.startswith("W1 in seconds: expected seconds from")
     assert w1_s.value == "1e9" and session.band_s is None and session.to_spec() == before
@@ -407,7 +407,7 @@ def test_widths_typed_in_seconds_are_checked_edits(session):
     w1_s.value = "2.50s"
     assert session.band_s == 2.5 and w1_s.value == "2.5"
     w1_s.value = ""
-    assert session.band_s is None and not w1.disabled and session.band == before.band
+    assert session.band_s is None and not w1.disabled and session.band == fraction
 
 
 def test_the_status_names_body_frames_left_without_a_hand_match(session):

@@ -1251,7 +1251,7 @@ class Session(param.Parameterized):
             progress=progress,
             max_unmatched_s=spec.max_unmatched_s,
         )
-        widths = _width_values({"band": band, "refine_band": refine}, ("band", "refine_band"))
+        widths = _width_values({"band": band, "refine_band": refine}, dict(WIDTHS))
         values = dict(
             inputs,
             side=spec.side,
