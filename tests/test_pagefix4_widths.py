@@ -119,17 +119,25 @@ def test_the_automatic_w1_is_stored_as_automatic_in_the_file_link_and_command(cf
 
 
 def test_a_typed_width_is_stored_and_kept_and_undo_makes_it_automatic_again(cfg):
+    """A width typed in the page is the user's: saved, kept with the next pair, and the
+    note under W1 no longer calls it the default; undo makes it the default again."""
+    from webapp.views.controls import parameter_widgets
+
     s = Session(cfg)
     _open(s, cfg, _tiled_body(30.0), "thirty.bvh")
+    (_, note, w1_s, *_), *_ = parameter_widgets(s)  # W1's slider, its note, its seconds
     first = s.band_s
-    s.band_s = 12.0
-    assert s.error == "" and _query(s)["band"] == "12s" and "refine" not in _query(s)
+    assert "the default for these takes" in note.object and w1_s.value == f"{first:g}"
+    w1_s.value = "12"  # typed in the page
+    assert s.error == "" and s.band_s == 12.0 and "default" not in note.object
+    assert _query(s)["band"] == "12s" and "refine" not in _query(s)
     other = Session(cfg)
     other.from_query(_query(s))
     _open(other, cfg, _tiled_body(40.0), "forty.bvh")
     assert other.band_s == 12.0  # a width the user set goes on with the next pair
     assert s.undo() and s.band_s == first and "band" not in _query(s)
-    assert s.redo() and _query(s)["band"] == "12s"
+    assert "the default for these takes" in note.object
+    assert s.redo() and _query(s)["band"] == "12s" and "default" not in note.object
 
 
 def test_old_files_and_links_with_an_explicit_width_open_as_before(cfg):

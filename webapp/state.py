@@ -526,8 +526,8 @@ class Session(param.Parameterized):
         # a width the user set is theirs from now on, whatever its value
         self.automatic = automatic - {_width_of(name) for name in old}
         if not self._solve():
+            self.automatic = automatic  # first: the values' watchers read it
             self._apply(old)  # rejected: back to the values that worked
-            self.automatic = automatic
             return
         # the idle time since the last step of this slider was solved (not the time between
         # steps: steps queued behind a slow solve still belong to one run)
@@ -573,8 +573,8 @@ class Session(param.Parameterized):
         snap = source.pop()
         self._slider_run = None
         target.append(Snapshot(self._current(snap.values), self.automatic))
+        self.automatic = snap.automatic  # first: the values' watchers read it
         self._apply(snap.values)
-        self.automatic = snap.automatic
         self._solve()
         self._update_history_flags()
         return True
@@ -879,8 +879,8 @@ class Session(param.Parameterized):
         values go back to those of the path on screen (the undo steps since go too)."""
         self.refuse(exc)
         if self._accepted is not None:
+            self.automatic = self._accepted_automatic  # first: the values' watchers read it
             self._apply(self._accepted)
-            self.automatic = self._accepted_automatic
             del self._undo[self._accepted_undo :]
             self._slider_run = None
             self._update_history_flags()
@@ -1282,11 +1282,11 @@ class Session(param.Parameterized):
         self.prepared = prepared
         self._set_sizes(prepared)
         self.param.update(solution=staged["solution"], trust=None, compute_ms=staged["compute_ms"])
+        self.automatic = staged["automatic"]  # first: the values' watchers read it
         self._apply(staged["values"])
         self._undo.clear()
         self._redo.clear()
         self._chain = staged["solution"]
-        self.automatic = staged["automatic"]
         self._accepted, self._accepted_undo = self._current(EDIT_PARAMS), 0
         self._accepted_automatic = self.automatic
         self.inputs_revision += 1
