@@ -141,24 +141,24 @@ def test_a_typed_width_is_stored_and_kept_and_undo_makes_it_automatic_again(cfg)
 
 
 def test_old_files_and_links_with_an_explicit_width_open_as_before(cfg):
-    """A file or link written before (the default W1 written out, ``band=8.2s``) opens
-    with that width, as a width set: it stays with the next pair, as it did."""
+    """A file or link written before holds the automatic default as a number
+    (``band=8.2s``): it opens with that width, as before, and as the default it is (the
+    next pair gets its own). A width that is not the takes' default (a fraction on a long
+    take, ``12s``) opens as a width set: it stays with the next pair."""
     import json
 
     s = Session(cfg)
     _open(s, cfg, _tiled_body(30.0), "thirty.bvh")
     first = s.band_s
     old = json.loads(s.to_json())
-    old["band"], old["refine_band"] = f"{first:g}s", 0.1
+    old["band"], old["refine_band"] = f"{first:g}s", 0.1  # the old app wrote band always
     other = Session(cfg)
     other.from_json(json.dumps(old), source="old.json")
     assert other.error == "" and (other.band_s, other.refine_band_s) == (first, None)
-    assert (other.to_spec().band, other.to_spec().refine_band) == (
-        C.Width(first, C.SECONDS),
-        C.Width(0.1),
-    )
+    assert (other.to_spec().band, other.to_spec().refine_band) == (None, C.Width(0.1))
     _open(other, cfg, _tiled_body(40.0), "forty.bvh")
-    assert (other.band_s, other.refine_band_s, other.refine_band) == (first, None, 0.1)
+    assert other.band_s == _default_w1(other) > first  # its own default, not 8.2 s
+    assert (other.refine_band_s, other.refine_band) == (None, 0.1)  # the file's W2 stays
     link = Session(cfg)
-    link.from_query({**_query(s), "band": f"{first:g}s"})
-    assert link.band_s == first and _query(link)["band"] == f"{first:g}s"
+    link.from_query({**_query(s), "band": "12s"})
+    assert link.error == "" and link.band_s == 12.0 and _query(link)["band"] == "12s"

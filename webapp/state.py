@@ -1239,9 +1239,16 @@ class Session(param.Parameterized):
             if not keep_takes:
                 raise
             refused, points = exc, ()  # the link's takes and other values open without them
-        fps = prepared.features.fps
-        band = spec.band or C.BAND.default_for(prepared.n, fps)
-        refine = spec.refine_band or C.REFINE_BAND.default_for(prepared.n, fps)
+        defaults = {
+            name: rule.default_for(prepared.n, prepared.features.fps) for name, rule in WIDTHS
+        }
+        # automatic: a width the spec leaves out, or one that is these takes' default (files
+        # and links written before held the automatic default as a number, 17.2 s)
+        automatic = frozenset(
+            name for name, _ in WIDTHS if getattr(spec, name) in (None, defaults[name])
+        )
+        band = spec.band or defaults["band"]
+        refine = spec.refine_band or defaults["refine_band"]
         grid = backend.points_to_grid(prepared, [p.resolved(spec.tolerance) for p in points])
         solution = backend.solve(
             prepared,
@@ -1270,8 +1277,7 @@ class Session(param.Parameterized):
             "solution": solution,
             "compute_ms": (time.perf_counter() - t0) * 1000.0,
             "refused": refused,
-            # the widths the spec leaves out: the default rule's, not the link's or file's
-            "automatic": frozenset(name for name, _ in WIDTHS if getattr(spec, name) is None),
+            "automatic": automatic,
         }
 
     def _commit(self, staged: dict) -> None:
