@@ -622,6 +622,20 @@ def test_opening_a_bad_session_file_in_the_page_keeps_the_session(session, cfg):
     assert inputs.sample.value == "wave-hello" and "wave-hello" in view.link.value
 
 
+def test_the_link_follows_the_preview_frame(session):
+    """Stranger R4-5: the frame moved (the preview's slider writes ``frame``) is in the
+    link field at once (without a server; a page's link follows it
+    once the frame rests, tests/test_browser_links.py)."""
+    from webapp.views.preview import PreviewView
+    from webapp.views.sharing import SharingView
+
+    preview, view = PreviewView(session), SharingView(session)
+    assert "frame=0" in view.link.value
+    preview.slider.value = 57  # the slider, as a person moves it
+    assert session.frame == 57 and "frame=57" in view.link.value, view.link.value
+    assert dict(parse_qsl(urlsplit(view.link.value).query))["frame"] == "57"
+
+
 def test_session_json_with_paths_is_refused_by_the_app(cfg):
     s = Session(cfg)
     with pytest.raises(SessionError, match="inputs.body"):
