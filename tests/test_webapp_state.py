@@ -984,7 +984,11 @@ def test_command_line_uses_the_session_file_then_explicit_flags(session):
     )
     assert "--match" not in first
     assert "explicit flags" in second and "$ .venv/bin/handsplice splice " in second
-    assert "--match 40:" in second and "--band" in second
+    # the automatic band widths are the command's own default: left out (R4-8); set, given
+    assert "--match 40:" in second and "--band" not in second and "--refine-band" not in second
+    session.band = 0.25
+    second = view.command.object.split("<br>", 2)[2]
+    assert "--band 0.25" in second and "--refine-band" not in second
 
 
 def test_a_run_of_one_slider_is_one_undo_step(session, monkeypatch):
