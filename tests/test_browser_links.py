@@ -35,6 +35,15 @@ def _open(browser, url: str):
     return open_page(browser, url, timeout_s=600)
 
 
+def _wait_sample(page, name: str, timeout: float = BUSY_S) -> None:
+    """Wait until the sample chooser shows ``name`` (the page may draw the link's path a
+    message before it updates the chooser: a loaded machine showed the old name then)."""
+    chooser, deadline = page.locator(".hs-sample select"), time.monotonic() + timeout
+    while (shown := chooser.input_value()) != name:
+        assert time.monotonic() < deadline, shown
+        page.wait_for_timeout(100)
+
+
 def _table_rows(page, want: int, timeout: float = 20.0) -> list[tuple[str, str, str]]:
     """(body, hand, tolerance) of each row the "Matching points" table shows, once it
     shows ``want`` rows (or ``timeout`` seconds passed: what it shows then)."""
@@ -80,7 +89,7 @@ def test_one_bad_link_value_keeps_the_takes_and_the_good_values(served, tmp_path
     try:
         alert = page.locator(".hs-error")
         alert.wait_for(state="visible", timeout=BUSY_S * 1000)
-        assert page.locator(".hs-sample select").input_value() == "bye-hello"
+        _wait_sample(page, "bye-hello")
         rows = _table_rows(page, 2)
         page.screenshot(path=str(tmp_path / "links-bad-band.png"), full_page=True)
         assert rows == [("30", "20", "3"), ("60", "50", "")]
@@ -91,7 +100,8 @@ def test_one_bad_link_value_keeps_the_takes_and_the_good_values(served, tmp_path
         page.wait_for_function("() => !location.search.includes('band=99')", timeout=30_000)
         query = dict(parse_qsl(urlsplit(page.locator(".hs-share-url input").input_value()).query))
         assert query["sample"] == "bye-hello" and query["pts"] == "30:20:3,60:50"
-        assert query["view"] == "pass2" and query["band"] != "99"
+        # the band is the automatic default again: not in the link (R4-8)
+        assert query["view"] == "pass2" and "band" not in query
         assert not page.errors, page.errors
     finally:
         page.context.close()
@@ -104,7 +114,7 @@ def test_one_bad_link_value_keeps_the_takes_and_the_good_values(served, tmp_path
             "shared link: URL: matching point 1 (hand 20): expected a whole body frame number "
             ">= 0, got 'abc'" in pane_text(alert)
         )
-        assert page.locator(".hs-sample select").input_value() == "bye-hello"
+        _wait_sample(page, "bye-hello")
         assert _table_rows(page, 0, timeout=2.0) == []
         query = dict(parse_qsl(urlsplit(page.locator(".hs-share-url input").input_value()).query))
         assert query["band"] == "0.4" and "pts" not in query
@@ -156,6 +166,67 @@ def test_a_link_of_an_uploaded_pair_keeps_the_file_names(served, tmp_path):
         assert info.value.suggested_filename.endswith("walk-spliced.bvh")
         assert info.value.suggested_filename != "handsplice-spliced.bvh"
         assert not xss_ran(page)
+        assert not page.errors, page.errors
+    finally:
+        page.context.close()
+
+
+def _slider_frame(page) -> int:
+    """The body frame the preview's slider shows (its handle's value, as read aloud)."""
+    handle = page.locator(".hs-frame-slider .noUi-handle").first
+    return int(float(handle.get_attribute("aria-valuenow")))
+
+
+def test_the_link_follows_the_frame_slider(served, tmp_path):
+    """Stranger R4-5: move the preview's frame slider, copy the link, open it: it opens at
+    the frame moved to (the link and the address bar kept the old frame). And R4-8: the
+    band widths left at their automatic default are not in the link (it wrote
+    ``band=0.3&refine=0.1`` as if set); W1 typed in the page is."""
+    browser, url = served
+    page = _open(browser, url)
+    try:
+        box = page.locator(".hs-share-url input")
+        query = dict(parse_qsl(urlsplit(box.input_value()).query))
+        assert query.get("frame") == "0" and "band" not in query and "refine" not in query, query
+        track = page.locator(".hs-frame-slider .noUi-base").first
+        track.scroll_into_view_if_needed()
+        size = track.bounding_box()
+        track.click(position={"x": size["width"] * 0.7, "y": size["height"] / 2})
+        deadline = time.monotonic() + BUSY_S
+        while (frame := _slider_frame(page)) == 0:
+            assert time.monotonic() < deadline, "the slider did not move"
+            page.wait_for_timeout(100)
+        # the preview shows the frame; the link box and the address bar follow it
+        page.locator(f".hs-preview-info span[data-frame='{frame}']").wait_for(timeout=BUSY_S * 1000)
+        while (link := box.input_value()).find(f"frame={frame}&") < 0 and not link.endswith(
+            f"frame={frame}"
+        ):
+            assert time.monotonic() < deadline, (frame, link)
+            page.wait_for_timeout(100)
+        page.wait_for_function(
+            "f => new URLSearchParams(location.search).get('frame') === String(f)",
+            arg=frame,
+            timeout=30_000,
+        )
+        field = page.locator(".hs-band-s input").first  # W1 set by the user: in the link
+        field.scroll_into_view_if_needed()
+        field.fill("2")
+        field.press("Enter")
+        while "band=2s" not in (link := box.input_value()):
+            assert time.monotonic() < deadline, link
+            page.wait_for_timeout(100)
+        assert "refine=" not in link and f"frame={frame}" in link, link
+        assert not page.errors, page.errors
+    finally:
+        page.context.close()
+
+    page = _open(browser, link)
+    try:
+        assert dict(parse_qsl(urlsplit(link).query))["frame"] == str(frame)
+        page.locator(f".hs-preview-info span[data-frame='{frame}']").wait_for(timeout=BUSY_S * 1000)
+        assert _slider_frame(page) == frame
+        assert page.locator(".hs-band-s input").first.input_value() == "2"
+        page.screenshot(path=str(tmp_path / "links-frame.png"), full_page=True)
         assert not page.errors, page.errors
     finally:
         page.context.close()

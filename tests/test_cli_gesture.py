@@ -62,7 +62,7 @@ def test_analyze_thresholds_change_the_result(capsys):
         (["analyze", "missing.bvh"], "missing.bvh"),
         (["analyze", str(MOCAP / "pyomeca" / "markers.trc")], "skeletal take"),
         (["analyze", str(MOCAP / "gestification" / "clenching.bvh")], "right shoulder"),
-        (["analyze", str(WAVE), "--hold-speed", "-1"], "hold_speed"),
+        (["analyze", str(WAVE), "--hold-speed", "-1"], "--hold-speed: expected a positive"),
         (["synthesize", str(WAVE), "-o", "{tmp}/x.bvh", "--no-graft"], "no finger joints"),
         (["synthesize", str(BEAT), "-o", "{tmp}/x.bvh", "--poses", "claw@3"], "unknown hand pose"),
         (["synthesize", str(BEAT), "-o", "{tmp}/x.bvh", "--poses", "fist@999"], "outside"),

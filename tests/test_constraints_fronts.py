@@ -84,6 +84,23 @@ def _source(front, refusal, found, points) -> str:
     return ""
 
 
+#: each front's own name of a field where it is not the field's (stranger R4-6: the CLI
+#: named ``max_unmatched_s``, not the flag typed)
+_FRONT_NAMES = {
+    "cli": {"band": "--band", "refine_band": "--refine-band"},
+    "link": {"refine_band": "refine"},
+}
+
+
+def _named(front, refusal) -> str:
+    """engine.dtw.constraints' text as ``front`` shows it: the field by the front's name
+    for it (the flag, the link's key); a matching point in its own words."""
+    if refusal.index is not None:
+        return str(refusal)
+    label = _FRONT_NAMES.get(front, {}).get(refusal.field, refusal.label)
+    return f"{label}: {refusal.detail}"
+
+
 def _bvh_text(motion) -> str:
     from engine.io.bvh import format_bvh
 
@@ -238,8 +255,10 @@ def test_every_front_accepts_or_refuses_alike(case, tmp_path, capsys, app):
         for front, (status, message) in results.items():
             assert status == "refused", (front, message)
             assert "\n" not in message
-            # the same text; only the source in front differs
-            assert message == _source(front, expected, found, points) + text, (front, message)
+            # the same text; only the source in front, and the front's name of the field
+            # (a flag, the link's key), differ
+            shown = _source(front, expected, found, points) + _named(front, expected)
+            assert message == shown, (front, message)
 
 
 def test_defaults_are_the_papers_fractions_on_short_takes_and_seconds_on_long():
@@ -464,3 +483,25 @@ def test_consecutive_points_are_judged_at_the_takes_frame_rates():
     C.check_points([(100, 50), (101, 51)], 400, 100, grid_scale=1.0)
     # a tolerance in hand frames widens the reach on the grid
     C.check_points([(100, 2000), (101, 2010, 6)], 200, 4000, grid_scale=30 / 120)
+
+
+def test_a_refusal_names_the_key_each_front_holds():
+    """The session file names its key (``max_unmatched``), the link its own (``unmatched``,
+    ``refine``, ``tol``), not the engine's field names (``max_unmatched_s``,
+    ``refine_band``); a matching point keeps its own words."""
+    from engine.io import session as session_io
+
+    with pytest.raises(session_io.SessionError) as info:
+        session_io.parse_session('{"max_unmatched": -1}', source="s.json")
+    assert str(info.value) == (
+        "s.json: max_unmatched: expected a number of seconds from 0 to 3600, got -1"
+    )
+    assert info.value.constraint.field == "max_unmatched_s"  # for code, as before
+    _, problems = session_io.read_query(
+        {"sample": "demo", "unmatched": "-1", "refine": "5", "tol": "999", "pts": "5:x"}
+    )
+    texts = [str(p) for p in problems]
+    assert texts[0].startswith("URL: refine: expected a fraction"), texts
+    assert texts[1].startswith("URL: tol: expected a number of frames"), texts
+    assert texts[2].startswith("URL: unmatched: expected a number of seconds"), texts
+    assert texts[3].startswith("URL: matching point 1 (body 5): expected"), texts

@@ -346,3 +346,72 @@ def test_an_end_cut_by_max_unmatched_is_named_in_the_unmatched_sentence(tmp_path
     line = next(x for x in err.splitlines() if "have no hand match" in x)
     assert line.startswith("splice: body frames 0-14, 172-186 (1.0 s) have no hand match"), line
     assert "15 frames (0.5 s) at an end is the open-end limit (--max-unmatched)" in line
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (  # stranger R4-6: it named the engine's field max_unmatched_s
+            ["splice", "{body}", "{hand}", "-o", "{tmp}/o.bvh", "--max-unmatched", "-1"],
+            "--max-unmatched: expected a number of seconds from 0 to 3600, got -1",
+        ),
+        (  # argparse's "invalid float value" before
+            ["splice", "{body}", "{hand}", "-o", "{tmp}/o.bvh", "--max-unmatched=abc"],
+            "--max-unmatched: expected a number of seconds from 0 to 3600, got 'abc'",
+        ),
+        (  # a prefix argparse takes for the flag
+            ["splice", "{body}", "{hand}", "-o", "{tmp}/o.bvh", "--max-unm", "1e9"],
+            "--max-unmatched: expected a number of seconds from 0 to 3600, got 1e+09",
+        ),
+        (
+            ["splice", "{body}", "{hand}", "-o", "{tmp}/o.bvh", "--band", "5"],
+            "--band: expected a fraction of the body take from 0.02 to 1",
+        ),
+        (
+            ["splice", "{body}", "{hand}", "-o", "{tmp}/o.bvh", "--refine-band", "0s"],
+            "--refine-band: expected a fraction of the body take from 0.01 to 1",
+        ),
+        (
+            ["render", "{body}", "-o", "{tmp}/o.png", "--size", "0x0"],
+            "--size 0x0: width and height must lie in 16..4096",
+        ),
+        (  # "phase parameter hold_speed: ..." before
+            ["analyze", "{body}", "--hold-speed", "-5"],
+            "--hold-speed: expected a positive number (phase parameter), got -5.0",
+        ),
+        (  # "handedness threshold: ..." before
+            ["analyze", "{body}", "--threshold", "-1"],
+            "--threshold: expected a handedness threshold >= 0 (m/s), got -1.0",
+        ),
+        (
+            ["batch", "{tmp}/pairs.csv", "-o", "{tmp}/out", "--pair-seconds", "-1"],
+            "--pair-seconds: expected a number >= 0 (0: no limit), got -1.0",
+        ),
+        (
+            ["batch", "{tmp}/pairs.csv", "-o", "{tmp}/out", "--pair-memory-mb", "nan"],
+            "--pair-memory-mb: expected a number >= 0 (0: no limit), got nan",
+        ),
+    ],
+)
+def test_a_bad_flag_value_names_the_flag_typed(tmp_path, capsys, args, message):
+    """A refused flag value is named by the flag the user typed (one rule,
+    ``engine.cli.flag_for``), never by the engine's name of the value; one line, exit 2."""
+    argv = [a.format(body=BODY, hand=HAND, tmp=tmp_path) for a in args]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"handsplice: error: {message}") and err.count("\n") == 1, err
+    assert "Traceback" not in err and "_s:" not in err and "pair_" not in err
+    assert not (tmp_path / "o.bvh").exists() and not (tmp_path / "out").exists()
+
+
+def test_a_value_named_like_a_flag_not_given_keeps_its_name():
+    """Only a flag given on the command line renames the message (a file's or another
+    source's message keeps its words)."""
+    from engine.cli import named_as_typed
+
+    text = "band: expected a fraction"
+    assert named_as_typed(text, ["splice", "b.bvh", "--band", "5"]) == "--band: expected a fraction"
+    assert named_as_typed(text, ["splice", "b.bvh", "--session", "s.json"]) == text
+    assert named_as_typed("walk.bvh line 3: bad", ["render", "--frame", "3"]) == (
+        "walk.bvh line 3: bad"
+    )

@@ -395,7 +395,7 @@ def test_widths_typed_in_seconds_are_checked_edits(session):
     from webapp.views.controls import parameter_widgets
 
     (w1, _, w1_s, *_), *_ = parameter_widgets(session)  # slider, its note, seconds
-    before = session.to_spec()
+    before, fraction = session.to_spec(), session.band
     w1_s.value = "1e9"
     assert session.error.startswith("W1 in seconds: expected seconds from")
     assert w1_s.value == "1e9" and session.band_s is None and session.to_spec() == before
@@ -407,7 +407,7 @@ def test_widths_typed_in_seconds_are_checked_edits(session):
     w1_s.value = "2.50s"
     assert session.band_s == 2.5 and w1_s.value == "2.5"
     w1_s.value = ""
-    assert session.band_s is None and not w1.disabled and session.band == before.band
+    assert session.band_s is None and not w1.disabled and session.band == fraction
 
 
 def test_the_status_names_body_frames_left_without_a_hand_match(session):
@@ -620,6 +620,20 @@ def test_opening_a_bad_session_file_in_the_page_keeps_the_session(session, cfg):
     view.open_session.value = other.to_json().encode()
     assert not view.message.visible and session.to_spec() == other.to_spec()
     assert inputs.sample.value == "wave-hello" and "wave-hello" in view.link.value
+
+
+def test_the_link_follows_the_preview_frame(session):
+    """Stranger R4-5: the frame moved (the preview's slider writes ``frame``) is in the
+    link field at once (without a server; a page's link follows it
+    once the frame rests, tests/test_browser_links.py)."""
+    from webapp.views.preview import PreviewView
+    from webapp.views.sharing import SharingView
+
+    preview, view = PreviewView(session), SharingView(session)
+    assert "frame=0" in view.link.value
+    preview.slider.value = 57  # the slider, as a person moves it
+    assert session.frame == 57 and "frame=57" in view.link.value, view.link.value
+    assert dict(parse_qsl(urlsplit(view.link.value).query))["frame"] == "57"
 
 
 def test_session_json_with_paths_is_refused_by_the_app(cfg):
@@ -970,7 +984,11 @@ def test_command_line_uses_the_session_file_then_explicit_flags(session):
     )
     assert "--match" not in first
     assert "explicit flags" in second and "$ .venv/bin/handsplice splice " in second
-    assert "--match 40:" in second and "--band" in second
+    # the automatic band widths are the command's own default: left out (R4-8); set, given
+    assert "--match 40:" in second and "--band" not in second and "--refine-band" not in second
+    session.band = 0.25
+    second = view.command.object.split("<br>", 2)[2]
+    assert "--band 0.25" in second and "--refine-band" not in second
 
 
 def test_a_run_of_one_slider_is_one_undo_step(session, monkeypatch):

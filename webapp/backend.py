@@ -916,7 +916,9 @@ def cli_command(
     max_unmatched_s: float | None = None,
 ) -> str:
     """The ``handsplice splice`` command line that reproduces this alignment
-    (``max_unmatched_s``: the open-end limit, where one is set).
+    (``band``, ``refine_band``: the widths set, None for the automatic default, left out
+    as the command's own default is the same; ``max_unmatched_s``: the open-end limit,
+    where one is set).
 
     ``points``: ``[(body, hand, tol)]`` in each file's own frames (the page's and
     ``--match``'s numbering), tolerance in hand frames: written as the page shows them;
@@ -936,11 +938,14 @@ def cli_command(
         "spliced.bvh",
         "--side",
         side,
-        "--band",
-        C.BAND.parse(band).text(),
-        "--refine-band",
-        C.REFINE_BAND.parse(refine_band).text(),
     ]
+    for flag, rule, width in (
+        ("--band", C.BAND, band),
+        ("--refine-band", C.REFINE_BAND, refine_band),
+    ):
+        width = rule.parse(width)
+        if width is not None:  # None: the automatic default, the command's own too
+            parts += [flag, width.text()]
     if max_unmatched_s is not None:
         parts += ["--max-unmatched", f"{C.parse_max_unmatched(max_unmatched_s):g}"]
     for x, h, tol in points:

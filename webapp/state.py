@@ -68,11 +68,23 @@ SLIDER_PARAMS = ("band", "refine_band", "tolerance")
 SLIDER_RUN_S = 5.0
 
 
+#: the band widths: (parameter of the fraction, its rule); ``NAME_s`` holds seconds
+WIDTHS = (("band", C.BAND), ("refine_band", C.REFINE_BAND))
+
+
+def _width_of(name: str) -> str | None:
+    """The band width an edit parameter sets (``band_s`` -> ``band``), or None."""
+    base = name.removesuffix("_s")
+    return base if any(base == w for w, _ in WIDTHS) else None
+
+
 @dataclass(frozen=True)
 class Snapshot:
-    """Values of the edit parameters before an edit (an undo step)."""
+    """Values of the edit parameters before an edit (an undo step), and which band widths
+    were then the automatic default (``Session.automatic``)."""
 
     values: dict
+    automatic: frozenset = frozenset()
 
 
 @dataclass(frozen=True)
@@ -81,6 +93,19 @@ class _Change:
 
     name: str
     old: object
+
+
+def _width_values(widths: dict, names) -> dict:
+    """The parameter values that put ``widths[name]`` (a ``Width``) in force, for each of
+    ``names``: ``NAME_s`` for seconds, else the fraction ``NAME`` (and ``NAME_s`` None)."""
+    out: dict = {}
+    for name in names:
+        width = widths[name]
+        if width.unit == C.SECONDS:
+            out[f"{name}_s"] = width.value
+        else:
+            out.update({name: width.value, f"{name}_s": None})
+    return out
 
 
 def _same(a, b) -> bool:
@@ -231,11 +256,18 @@ class Session(param.Parameterized):
         self._accepted: dict | None = None  # edit values of the solution shown
         self._accepted_undo = 0  # undo steps then
         self._carry_error = ""  # shown on after the next solve (a link that failed)
-        #: time widths in force that the default rule set (``band_s``: 17.2), not typed:
-        #: the next pair gets its own default instead (:meth:`_long_take_widths`)
-        self._auto_widths: dict[str, float] = {}
         self.opening_since = 0.0  # monotonic s when ``opening`` was set
         super().__init__(**params)
+        #: the band widths ("band", "refine_band") whose width in force is the automatic
+        #: default (``rule.default_for`` the open takes: 17.2 s on a long take), not one the
+        #: user set: the next pair gets its own default, and the session file and link say
+        #: "automatic" (they leave the width out) instead of a width (:meth:`chosen_widths`)
+        self.automatic: frozenset[str] = frozenset(
+            name
+            for name, rule in WIDTHS
+            if getattr(self, f"{name}_s") is None and getattr(self, name) == rule.default
+        )
+        self._accepted_automatic = self.automatic  # that of the solution shown
         self.param.watch(self._on_edit, list(EDIT_PARAMS))
         self.param.watch(self._on_inputs, list(INPUT_PARAMS))
 
@@ -440,31 +472,20 @@ class Session(param.Parameterized):
         finally:
             self._applying = False
         self._accepted, self._accepted_undo = self._current(EDIT_PARAMS), 0
+        self._accepted_automatic = self.automatic
         self.inputs_revision += 1
         self._solve(t0=t0)
         self._update_history_flags()
         then(True)
 
     def _long_take_widths(self, prepared) -> dict:
-        """Time widths for a long take when the fractions are still the defaults (the
-        constraints' rule: the paper's fraction, at most a few seconds)."""
-        out, auto = {}, {}
-        for name, rule in (("band", C.BAND), ("refine_band", C.REFINE_BAND)):
-            key = f"{name}_s"
-            current = getattr(self, key)
-            if current is None:
-                defaulted = getattr(self, name) == rule.default
-            else:  # the previous pair's default (never typed) gives way to this pair's
-                defaulted = self._auto_widths.get(key) == current
-            if not defaulted:
-                continue
-            width = rule.default_for(prepared.n, prepared.features.fps)
-            if width.unit == C.SECONDS:
-                out[key] = auto[key] = width.value
-            else:
-                out.update({key: None, name: rule.default})
-        self._auto_widths = auto
-        return out
+        """The automatic widths (:attr:`automatic`) for ``prepared``'s takes (the
+        constraints' rule: the paper's fraction, at most a few seconds); a width the user
+        set stays."""
+        return _width_values(
+            {name: rule.default_for(prepared.n, prepared.features.fps) for name, rule in WIDTHS},
+            self.automatic,
+        )
 
     def widths(self) -> tuple[C.Width, C.Width]:
         """The pass-1 and pass-2 band widths in force (seconds when set, else fractions)."""
@@ -475,6 +496,15 @@ class Session(param.Parameterized):
             else C.Width(self.refine_band)
         )
         return band, refine
+
+    def chosen_widths(self) -> tuple[C.Width | None, C.Width | None]:
+        """The band widths as the user chose them: :meth:`widths`, None for a width that is
+        the automatic default (what the session file, the link and the command line
+        store: "automatic", so that other takes get their own default)."""
+        return tuple(
+            None if name in self.automatic else width
+            for (name, _), width in zip(WIDTHS, self.widths())
+        )
 
     # ------------------------------------------------------------ edits
 
@@ -492,12 +522,13 @@ class Session(param.Parameterized):
             )
             return
         started = time.monotonic()
+        automatic = self.automatic
+        # a width the user set is theirs from now on, whatever its value
+        self.automatic = automatic - {_width_of(name) for name in old}
         if not self._solve():
+            self.automatic = automatic  # first: the values' watchers read it
             self._apply(old)  # rejected: back to the values that worked
             return
-        for name in old:  # a width the user set is theirs from now on, whatever its value
-            if name in ("band", "band_s", "refine_band", "refine_band_s"):
-                self._auto_widths.pop(name if name.endswith("_s") else f"{name}_s", None)
         # the idle time since the last step of this slider was solved (not the time between
         # steps: steps queued behind a slow solve still belong to one run)
         run = self._slider_run
@@ -512,7 +543,7 @@ class Session(param.Parameterized):
         ):
             pass  # the same slider again: the run stays one undo step
         else:
-            self._undo.append(Snapshot(old))
+            self._undo.append(Snapshot(old, automatic))
             del self._undo[:-UNDO_LIMIT]
         self._slider_run = None if name is None else (name, time.monotonic())
         self._redo.clear()
@@ -541,7 +572,8 @@ class Session(param.Parameterized):
             return False
         snap = source.pop()
         self._slider_run = None
-        target.append(Snapshot(self._current(snap.values)))
+        target.append(Snapshot(self._current(snap.values), self.automatic))
+        self.automatic = snap.automatic  # first: the values' watchers read it
         self._apply(snap.values)
         self._solve()
         self._update_history_flags()
@@ -788,7 +820,7 @@ class Session(param.Parameterized):
         if self.runner is None:
             self._solved(sol, t0)
             return True
-        prepared, values = self.prepared, self._current(EDIT_PARAMS)
+        prepared, values, automatic = self.prepared, self._current(EDIT_PARAMS), self.automatic
         limit = self.max_unmatched_s
         # a pair's first alignment is every tab's (backend.first_solution): computed by the
         # server's warm-up or another tab, it is shown at once; it has the default open-end
@@ -800,7 +832,7 @@ class Session(param.Parameterized):
         )
         if shared is not None:
             self._chain = shared
-            self._solved(shared, t0, values)
+            self._solved(shared, t0, values, automatic)
             return True
 
         def work(progress):  # on the worker: solves run one at a time per session
@@ -826,19 +858,20 @@ class Session(param.Parameterized):
                 "solve",
                 "aligning",
                 work,
-                done=lambda sol: self._solved(sol, t0, values),
+                done=lambda sol: self._solved(sol, t0, values, automatic),
                 failed=self._solve_failed,
             )
         )
         return True  # refused later: _solve_failed
 
-    def _solved(self, sol, t0: float, values: dict | None = None) -> None:
+    def _solved(self, sol, t0: float, values: dict | None = None, automatic=None) -> None:
         error, self._carry_error = self._carry_error, ""
         self.param.update(
             solution=sol, trust=None, compute_ms=(time.perf_counter() - t0) * 1000.0, error=error
         )
         self.revision += 1
         self._accepted = self._current(EDIT_PARAMS) if values is None else values
+        self._accepted_automatic = self.automatic if automatic is None else automatic
         self._accepted_undo = len(self._undo)
 
     def _solve_failed(self, exc: BaseException) -> None:
@@ -846,6 +879,7 @@ class Session(param.Parameterized):
         values go back to those of the path on screen (the undo steps since go too)."""
         self.refuse(exc)
         if self._accepted is not None:
+            self.automatic = self._accepted_automatic  # first: the values' watchers read it
             self._apply(self._accepted)
             del self._undo[self._accepted_undo :]
             self._slider_run = None
@@ -1068,7 +1102,7 @@ class Session(param.Parameterized):
             body = TakeRef(sha256=self.body_sha256, name=self.body_name or None)
         if not self.sample and self.hand_sha256:
             hand = TakeRef(sha256=self.hand_sha256, name=self.hand_name or None)
-        band, refine = self.widths()
+        band, refine = self.chosen_widths()  # None: automatic (each pair's own default)
         return SessionSpec(
             sample=self.sample,
             body=body,
@@ -1205,9 +1239,16 @@ class Session(param.Parameterized):
             if not keep_takes:
                 raise
             refused, points = exc, ()  # the link's takes and other values open without them
-        fps = prepared.features.fps
-        band = spec.band or C.BAND.default_for(prepared.n, fps)
-        refine = spec.refine_band or C.REFINE_BAND.default_for(prepared.n, fps)
+        defaults = {
+            name: rule.default_for(prepared.n, prepared.features.fps) for name, rule in WIDTHS
+        }
+        # automatic: a width the spec leaves out, or one that is these takes' default (files
+        # and links written before held the automatic default as a number, 17.2 s)
+        automatic = frozenset(
+            name for name, _ in WIDTHS if getattr(spec, name) in (None, defaults[name])
+        )
+        band = spec.band or defaults["band"]
+        refine = spec.refine_band or defaults["refine_band"]
         grid = backend.points_to_grid(prepared, [p.resolved(spec.tolerance) for p in points])
         solution = backend.solve(
             prepared,
@@ -1217,14 +1258,7 @@ class Session(param.Parameterized):
             progress=progress,
             max_unmatched_s=spec.max_unmatched_s,
         )
-        widths, auto = {}, {}
-        for name, width in (("band", band), ("refine_band", refine)):
-            if width.unit == C.SECONDS:
-                widths[f"{name}_s"] = width.value
-                if getattr(spec, name) is None:  # the default rule's, not the link's
-                    auto[f"{name}_s"] = width.value
-            else:
-                widths.update({name: width.value, f"{name}_s": None})
+        widths = _width_values({"band": band, "refine_band": refine}, dict(WIDTHS))
         values = dict(
             inputs,
             side=spec.side,
@@ -1243,23 +1277,24 @@ class Session(param.Parameterized):
             "solution": solution,
             "compute_ms": (time.perf_counter() - t0) * 1000.0,
             "refused": refused,
-            "auto_widths": auto,
+            "automatic": automatic,
         }
 
     def _commit(self, staged: dict) -> None:
         """Install a staged state: results first, so watchers of the inputs see a consistent
         session (a frame of the new takes has a hand frame in the new solution)."""
         prepared = staged["prepared"]
-        self._auto_widths = dict(staged.get("auto_widths", {}))
         self.end_opening()
         self.prepared = prepared
         self._set_sizes(prepared)
         self.param.update(solution=staged["solution"], trust=None, compute_ms=staged["compute_ms"])
+        self.automatic = staged["automatic"]  # first: the values' watchers read it
         self._apply(staged["values"])
         self._undo.clear()
         self._redo.clear()
         self._chain = staged["solution"]
         self._accepted, self._accepted_undo = self._current(EDIT_PARAMS), 0
+        self._accepted_automatic = self.automatic
         self.inputs_revision += 1
         self.error, self._carry_error = self._carry_error, ""
         if staged.get("refused") is not None:  # a link's points left out: say why too

@@ -9,6 +9,8 @@ prints one line ``handsplice: error: ...`` with exit status 2, as do ``MemoryErr
 and ``RecursionError`` (input beyond what ``engine.base.limits`` refuses up front, one line,
 never a traceback); anything else is
 a bug, printed on one line with exit status 1 (``--debug`` shows the traceback).
+A refusal of a flag's value names the flag as typed (``--max-unmatched: expected ...``),
+not the engine's name of the value (``max_unmatched_s``): :func:`flag_for` is the one rule.
 
 Notes: what a reader accepted but a user should know (``meta.notes``, e.g. a TRC cut
 short) is printed on stderr as ``handsplice: note: ...`` once the command has finished
@@ -31,6 +33,33 @@ SUBCOMMANDS = ["info", "splice", "analyze", "synthesize", "render", "batch"]
 #: (no static import: the engine never depends on the web app; without the app installed
 #: the subcommand is simply absent)
 PLUGINS = {"serve": "webapp.serve_cli"}
+
+
+#: the engine's names of values set by a flag not spelled ``--`` + the name with ``-`` for
+#: ``_`` (as ``refine_band`` is by ``--refine-band``, ``pair_seconds`` by ``--pair-seconds``)
+FLAG_NAMES = {"max_unmatched_s": "--max-unmatched"}
+
+
+def flag_for(name: str) -> str:
+    """The flag that sets the value the engine calls ``name`` (``max_unmatched_s`` ->
+    ``--max-unmatched``, ``refine_band`` -> ``--refine-band``)."""
+    return FLAG_NAMES.get(name, "--" + name.replace("_", "-"))
+
+
+def named_as_typed(message: str, argv: list[str]) -> str:
+    """``message`` with the engine's name of the value it refuses (its first word:
+    ``max_unmatched_s: expected ...``, ``size 0x0: ...``) replaced by that value's flag
+    where the command line gives that flag (``--max-unmatched: expected ...``): the user
+    reads the flag they typed. A message about anything else (a file, a flag not given) is
+    left as it is."""
+    match = re.match(r"([a-z][a-z0-9_]*)(?=[: ])", message)
+    if match is None:
+        return message
+    flag = flag_for(match.group(1))
+    typed = {a.split("=", 1)[0] for a in argv if a.startswith("--") and len(a) > 2}
+    if any(flag.startswith(t) for t in typed):  # argparse takes unique prefixes too
+        return flag + message[match.end() :]
+    return message
 
 
 def output_file(text: str) -> str:
@@ -103,6 +132,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
@@ -127,6 +157,8 @@ def main(argv: list[str] | None = None) -> int:
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         if isinstance(exc, OSError) and getattr(exc, "filename", None):
             msg = f"{exc.filename}: {exc.strerror or msg}"
+        elif not isinstance(exc, OSError | KeyError):  # a file's errors start with its name
+            msg = named_as_typed(msg, argv)
         print(f"handsplice: error: {msg}", file=sys.stderr)
         return 2
     except (MemoryError, RecursionError) as exc:  # input beyond what engine.base.limits foresaw

@@ -141,7 +141,6 @@ def add_parser(subparsers) -> None:
     )
     p.add_argument(
         "--max-unmatched",
-        type=float,
         default=None,
         metavar="SECONDS",
         help="open ends: seconds of each take that may stay unmatched at each end "
@@ -247,7 +246,7 @@ def run(args: argparse.Namespace) -> int:
     band = C.BAND.parse(args.band)
     refine_band = C.REFINE_BAND.parse(args.refine_band)
     C.parse_ends(args.ends)  # refused before any file is read, as the widths are
-    C.parse_max_unmatched(args.max_unmatched)
+    args.max_unmatched = C.parse_max_unmatched(args.max_unmatched)  # "20", "20s"
     if spec is not None and args.max_unmatched is None:  # the page's limit, if it set one
         args.max_unmatched = spec.max_unmatched_s
     if spec is not None:

@@ -109,6 +109,23 @@ class ConstraintError(ParameterError):
         self.others = tuple(others)
         super().__init__(f"{self.label}: {detail}" if self.label else detail)
 
+    def named(self, label: str) -> ConstraintError:
+        """This refusal labelled with a front's own name of the field (the session file's
+        ``max_unmatched``, the link's ``unmatched``); a matching point's label (the point
+        in the user's words) is kept."""
+        if self.label != self.field:
+            return self
+        return ConstraintError(
+            self.field,
+            self.detail,
+            label=label,
+            value=self.value,
+            expected=self.expected,
+            index=self.index,
+            point=self.point,
+            others=self.others,
+        )
+
 
 _NUMBER_TEXT = re.compile(r"[+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?")
 

@@ -55,10 +55,12 @@ class HandednessParameters:
     def __post_init__(self) -> None:
         if not (np.isfinite(self.threshold) and self.threshold >= 0):
             raise ParameterError(
-                f"handedness threshold: expected a number >= 0 (m/s), got {self.threshold!r}"
+                f"threshold: expected a handedness threshold >= 0 (m/s), got {self.threshold!r}"
             )
         if self.point not in ("tip", "wrist"):
-            raise ParameterError(f"handedness point: expected 'tip' or 'wrist', got {self.point!r}")
+            raise ParameterError(
+                f"point: expected 'tip' or 'wrist' (handedness), got {self.point!r}"
+            )
         if self.hold_span not in ("phrase", "hold"):
             raise ParameterError(
                 f"handedness hold_span: expected 'phrase' or 'hold', got {self.hold_span!r}"

@@ -124,7 +124,7 @@ class PhaseParameters:
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ParameterError(
-                    f"phase parameter {name}: expected a positive number, got {v!r}"
+                    f"{name}: expected a positive number (phase parameter), got {v!r}"
                 )
         for name in (
             "min_hold_s",
@@ -135,18 +135,18 @@ class PhaseParameters:
         ):
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0):
-                raise ParameterError(f"phase parameter {name}: expected a number >= 0, got {v!r}")
+                raise ParameterError(f"{name}: expected a number >= 0 (phase parameter), got {v!r}")
         if self.valley_depth >= 1:
             raise ParameterError(
-                f"phase parameter valley_depth: expected < 1, got {self.valley_depth!r}"
+                f"valley_depth: expected < 1 (phase parameter), got {self.valley_depth!r}"
             )
         if self.stroke_accel_ratio > 1:
             raise ParameterError(
-                f"phase parameter stroke_accel_ratio: expected <= 1, got {self.stroke_accel_ratio!r}"
+                f"stroke_accel_ratio: expected <= 1 (phase parameter), got {self.stroke_accel_ratio!r}"
             )
         if self.reference not in ("shoulder", "pelvis"):
             raise ParameterError(
-                f"phase parameter reference: expected 'shoulder' or 'pelvis', got {self.reference!r}"
+                f"reference: expected 'shoulder' or 'pelvis' (phase parameter), got {self.reference!r}"
             )
 
 

@@ -16,8 +16,11 @@ Schema (version 2)::
               | {"body": TAKE, "hand": TAKE},            # TAKE = {"path": "walk.bvh"}
                                                          #      | {"sha256": HEX64, "name": "walk.bvh"}
       "side": "right" | "left" | "both",
-      "band": 0.3,            # pass-1 band width W1: fraction of the body take, or "10s"
-      "refine_band": 0.1,     # pass-2 band width W2 around the pass-1 path, the same forms
+      "band": 0.3,            # optional: pass-1 band width W1, fraction of the body take
+                              # or "10s"; absent: the automatic default for the takes
+                              # (what the app saves unless the user set a width)
+      "refine_band": 0.1,     # optional: pass-2 band width W2 around the pass-1 path,
+                              # the same forms and default
       "tolerance": 0,         # global matching-point tolerance T, frames
       "max_unmatched": 20,    # optional: open ends, seconds each take may stay unmatched
                               # at each end (--max-unmatched); absent: the default
@@ -70,6 +73,9 @@ PREVIEW_CAMERAS = ("three-quarter", "front", "side")
 #: out, as in files and links made before it existed, takes its default)
 VIEW_DEFAULTS = {"camera": "three-quarter", "trails": False, "follow": True, "pick": False}
 VIEW_FIELDS = ("matrix", "frame", *VIEW_DEFAULTS)
+#: the file's keys of the constraints whose key is not the constraint's field name (a
+#: refusal names the key the file holds)
+FILE_KEYS = {"max_unmatched_s": "max_unmatched"}
 MAX_POINTS = C.MAX_POINTS
 MAX_TEXT = MAX_SESSION_BYTES  # a session is small; refuse anything bigger (engine.base.limits)
 _HEX64 = re.compile(r"^[0-9a-f]{64}$")
@@ -311,8 +317,9 @@ def from_dict(data: Any, source: str | None = None) -> SessionSpec:
             raise C.ConstraintError("points", f"expected a list, got {_show(raw_points)}")
         points = C.parse_points([_json_point(p) for p in raw_points])
         max_unmatched = C.parse_max_unmatched(_json_number(data.get("max_unmatched")))
-    except C.ConstraintError as exc:
-        raise SessionError(source, exc.field, exc.detail, exc) from None
+    except C.ConstraintError as exc:  # named by the file's key (``max_unmatched``)
+        named = exc.named(FILE_KEYS.get(exc.field, exc.field))
+        raise SessionError(source, exc.field, exc.detail, named) from None
 
     roles = data.get("roles", {})
     if not isinstance(roles, dict):
@@ -461,7 +468,8 @@ def to_query(spec: SessionSpec) -> dict[str, str]:
     """Short URL query parameters restoring ``spec`` (for sharing a link to the app).
 
     ``sample=NAME`` or ``body=SHA256&hand=SHA256`` (with ``bname`` and ``hname``, the
-    uploaded files' original names, where known), ``side``, ``band``, ``refine``, ``tol``,
+    uploaded files' original names, where known), ``side``, ``band`` and ``refine`` (where
+    set: absent, the automatic default), ``tol``,
     ``unmatched`` (the open-end limit, seconds, where set), ``pts=B:H[:T],...``, ``roles`` (JSON), ``view``, ``frame``, and ``frames=hand`` when the
     hand frames are the hand file's own (links made before have grid frames); the view
     state ``camera``, ``trails``, ``follow`` and ``pick`` (``1`` or ``0``) only where it is
@@ -541,8 +549,8 @@ def read_query(query: dict[str, str]) -> tuple[SessionSpec, tuple[SessionError, 
         """``read()`` with engine.dtw.constraints' refusal kept as a problem (None then)."""
         try:
             return read()
-        except C.ConstraintError as exc:
-            problems.append(SessionError(source, exc.field, exc.detail, exc))
+        except C.ConstraintError as exc:  # named by the link's key (``refine``, ``unmatched``)
+            problems.append(SessionError(source, exc.field, exc.detail, exc.named(key)))
         except SessionError as exc:
             problems.append(exc)
         return None

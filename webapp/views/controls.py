@@ -92,7 +92,13 @@ def parameter_widgets(session: Session) -> pn.viewable.Viewable:
             note = overridden[name]
             unused = name == "refine_band" and session.pass2_turns_hand()  # said below
             note.visible = value is not None and not unused
-            if note.visible:
+            if note.visible and name in session.automatic:  # not set: each pair's own
+                note.object = (
+                    f"The fraction above is not used: the seconds field below sets {label} "
+                    f"to {value:g} seconds, the default for these takes (another pair gets "
+                    "its own until you set a width; empty the field to use the fraction)."
+                )
+            elif note.visible:
                 note.object = (
                     f"The fraction above is not used: the seconds field below sets {label} "
                     f"to {value:g} seconds (empty it to use the fraction)."

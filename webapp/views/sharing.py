@@ -27,7 +27,7 @@ import panel as pn
 from engine.render.video import remaining_text
 from webapp import backend, safe_text
 from webapp.state import VIEW_STATE, Session
-from webapp.views._dispatch import after_path
+from webapp.views._dispatch import after, after_path
 from webapp.views.refusal import refusal_box
 
 #: exports of all sessions share these threads (renders take turns on the OpenGL lock)
@@ -36,6 +36,9 @@ _EXPORTS = ThreadPoolExecutor(max_workers=2, thread_name_prefix="hs-export")
 _FILES = ThreadPoolExecutor(max_workers=2, thread_name_prefix="hs-download")
 #: how often the page's progress follows an export, seconds
 PROGRESS_INTERVAL = 0.25
+#: the link takes the preview's frame once it has stood still this long, ms: each new link
+#: is a browser history entry, so not one per frame while Play runs or the slider is dragged
+FRAME_LINK_MS = 300
 #: the name the page gives the downloaded session file (the command line refers to it)
 SESSION_FILENAME = "handsplice-session.json"
 
@@ -143,10 +146,15 @@ class SharingView:
             },
         )
         doc = pn.state.curdoc
+        self._doc = doc
         session.param.watch(  # after the edit's path is in the page (``after_path``)
-            lambda *_: after_path(session, ("link", id(self)), self._update_link, doc),
+            lambda *_: self._link_soon(),
             ["revision", "inputs_revision", "matrix", *VIEW_STATE],
         )
+        # the preview's frame (slider, Play, a picked cell) is in the link too, once it stands
+        self._frame_moved_at = 0.0
+        self._frame_due = False
+        session.param.watch(self._on_frame, ["frame"])
         self._update_link()
         doc = pn.state.curdoc
         if doc is not None and doc.session_context is not None:
@@ -333,6 +341,29 @@ class SharingView:
             return origin + (loc.pathname or "/")
         return ""
 
+    def _link_soon(self) -> None:
+        after_path(self.session, ("link", id(self)), self._update_link, self._doc)
+
+    def _on_frame(self, *_) -> None:
+        """The frame moved: the link follows once it has stood still ``FRAME_LINK_MS``
+        (at once without a server session: tests, scripts)."""
+        doc = self._doc
+        self._frame_moved_at = time.monotonic()
+        if doc is None or doc.session_context is None:
+            self._update_link()
+            return
+        if not self._frame_due:
+            self._frame_due = True
+            after(doc, self._frame_stood, FRAME_LINK_MS)
+
+    def _frame_stood(self) -> None:
+        left_ms = 1000.0 * (self._frame_moved_at - time.monotonic()) + FRAME_LINK_MS
+        if left_ms > 1.0:  # moved again meanwhile: wait for it to stand
+            after(self._doc, self._frame_stood, left_ms)
+            return
+        self._frame_due = False
+        self._link_soon()
+
     def _update_link(self, *_):
         query = self.session.share_url()
         self.link.value = self._base_url() + query
@@ -346,7 +377,7 @@ class SharingView:
             hand = s.hand_name or paths[1].name
             session_cmd = backend.cli_session_command(body, hand, SESSION_FILENAME)
             flags_cmd = backend.cli_command(
-                body, hand, s.side, *s.widths(), s.user_points(), s.roles, s.max_unmatched_s
+                body, hand, s.side, *s.chosen_widths(), s.user_points(), s.roles, s.max_unmatched_s
             )
             self.command.object = (
                 f"<span style='color:#777'>{safe_text.html(backend.CLI_WHERE)}</span><br>"
