@@ -207,29 +207,36 @@ def cell_theta_sums(body_row, hand_row, half):
 
 
 @numba.njit(cache=True, nogil=True)
-def _scan(rows, half, width, window):
+def _scan(rows, half, width, window, step):
     """One pass over a take's rows (each row's cache lines once): the masks Z = P ∨ Q and
     G = P (``(width, F, 2)`` uint64, bin by bin, see :func:`zg_cost`), the yaw bins and
     steps ``(F,)``, and, when ``window``, the frames the eq.-7 windows hold: ``(2, (F + 4) K)``
     float64 (x, then z; padded frame ``p``'s ``K`` markers at ``p K``: row ``r``'s own frame
     at ``p = r + 2``, two frames beyond each end from the end rows' windows) if slot ``d``
-    of every row ``r`` holds padded frame ``r + d`` (the rows are consecutive frames of a
-    take, in order), else ``(2, 0)``. Values compared with ``==`` (a NaN never matches).
+    of every row ``r`` holds padded frame ``r + 2 + step (d - 2)`` (``step`` 1: the rows are
+    consecutive frames of a take, -1: of a take reversed), else ``(2, 0)`` (returned at
+    the first row that differs). Values compared with ``==`` (a NaN never matches).
 
     Row ``s``'s windows are checked two rows after its own frame is stored (they reach
-    frame ``s + 2``), while its lines are still in cache."""
+    padded frame ``s + 4``), while its lines are still in cache."""
     f = rows.shape[0]
     k = half // WINDOW
     pq = np.empty((width, f, 2), np.uint64)
     yaw = np.empty(f, np.int64)
-    step = np.empty(f)
+    cost = np.empty(f)
     pad = np.empty((2, (f + 4) * k if window else 0))
     off = HEADER + 2 * half
     if window:
         for x in range(2):  # the frames beyond the ends, from the end rows' windows
-            for t in range(2 * k):
-                pad[x, t] = rows[0, HEADER + x * half + t]
-                pad[x, (f + 2) * k + t] = rows[f - 1, HEADER + x * half + 3 * k + t]
+            for d in range(WINDOW):
+                o = step * (d - 2)
+                src = HEADER + x * half + d * k
+                if o < 0:
+                    for c in range(k):
+                        pad[x, (2 + o) * k + c] = rows[0, src + c]
+                elif o > 0:
+                    for c in range(k):
+                        pad[x, (f + 1 + o) * k + c] = rows[f - 1, src + c]
     flat = rows.reshape(-1)
     used = off + 2 * width  # the columns read: rows' lines prefetched ROWS_AHEAD rows ahead
     for r in range(f + 2):
@@ -239,7 +246,7 @@ def _scan(rows, half, width, window):
                 prefetch(flat, np.uint64(base + t))
         if r < f:
             yaw[r] = int(rows[r, 3])
-            step[r] = rows[r, 4]
+            cost[r] = rows[r, 4]
             for b in range(width):
                 p = np.uint64(rows[r, off + 2 * b])
                 pq[b, r, 0] = p | np.uint64(rows[r, off + 2 * b + 1])
@@ -252,20 +259,22 @@ def _scan(rows, half, width, window):
         if window and s >= 0:
             bad = 0
             for x in range(2):
-                src = HEADER + x * half
-                dst = s * k
-                for t in range(half):
-                    bad += rows[s, src + t] != pad[x, dst + t]
+                for d in range(WINDOW):
+                    src = HEADER + x * half + d * k
+                    dst = (s + 2 + step * (d - 2)) * k
+                    for c in range(k):
+                        bad += rows[s, src + c] != pad[x, dst + c]
             if bad:
-                return np.empty((2, 0)), pq, yaw, step
-    return pad, pq, yaw, step
+                return np.empty((2, 0)), pq, yaw, cost
+    return pad, pq, yaw, cost
 
 
 @numba.njit(cache=True, nogil=True)
-def _window_sums(pad, half, f):
-    """The eq.-7 window centroids of every row from :func:`_scan`'s frames: ``(F,)`` x and z
-    (float32, :func:`window_means`' sums: values in the row's order, one after another), and
-    the frames ``(2, K, F + 4)`` float32, marker by marker (columns contiguous)."""
+def _window_sums(pad, half, f, step):
+    """The eq.-7 window centroids of every row from :func:`_scan`'s frames (of ``step``):
+    ``(F,)`` x and z (float32, :func:`window_means`' sums: values in the row's order, one
+    after another), and the frames ``(2, K, F + 4)`` float32, marker by marker (columns
+    contiguous)."""
     k = half // WINDOW
     cols = np.empty((2, k, f + 4))
     for p in range(f + 4):
@@ -274,10 +283,11 @@ def _window_sums(pad, half, f):
                 cols[x, c, p] = pad[x, p * k + c]
     sx = np.zeros(f)
     sz = np.zeros(f)
-    for d in range(WINDOW):  # slot d of row r is padded frame r + d
+    for d in range(WINDOW):  # slot d of row r is padded frame r + o
+        o = 2 + step * (d - 2)
         for c in range(k):
-            cx = cols[0, c, d : d + f]
-            cz = cols[1, c, d : d + f]
+            cx = cols[0, c, o : o + f]
+            cz = cols[1, c, o : o + f]
             for r in range(f):  # rows side by side: vectorises
                 sx[r] += cx[r]
                 sz[r] += cz[r]
@@ -293,37 +303,25 @@ def _take_arrays(rows: np.ndarray, half: int, width: int, window: bool):
     """Per-frame arrays of one take's rows: ``(x, z, mx, mz, pq, yaw, step)`` with the
     padded frame coordinates ``x``, ``z`` ``(K, F + 4)`` float32 (marker by marker; zeros
     unless ``window``), the window centroids ``mx``, ``mz`` ``(F,)`` float32, the masks
-    ``pq`` ``(width, F, 2)`` and the yaw bins and steps ``(F,)``; None when ``window`` and
-    the rows' windows are not those of consecutive frames.
+    ``pq`` ``(width, F, 2)`` and the yaw bins and step costs ``(F,)``; None when ``window``
+    and the rows' windows are not those of consecutive frames.
 
     Rows of a whole take, of a contiguous part of one, or of either reversed (the
-    backward passes: done as the rows in take order, then reversed, as
-    :meth:`PhaseProblem.reversed`) qualify; any other selection of rows (e.g. every other
-    frame) does not, and the caller falls back to the per-cell metric.
+    backward passes) qualify; any other selection of rows (e.g. every other frame) does
+    not, and the caller falls back to the per-cell metric.
     """
     rows = np.ascontiguousarray(rows, dtype=np.float64)
     f, k = rows.shape[0], half // WINDOW
-    pad, pq, yaw, step = _scan(rows, half, width, window)
     if not window:
+        _, pq, yaw, cost = _scan(rows, half, width, False, 1)
         zeros = np.zeros((k, f + 4), np.float32)
-        return zeros, zeros, np.zeros(f, np.float32), np.zeros(f, np.float32), pq, yaw, step
-    if pad.shape[1]:
-        mx, mz, cols = _window_sums(pad, half, f)
-        return cols[0], cols[1], mx, mz, pq, yaw, step
-    fwd = rows[::-1].copy()  # reversed frames? (slot d of row r holds frame r - (d - 2))
-    pad, pq, yaw, step = _scan(fwd, half, width, window)
-    if not pad.shape[1]:
-        return None
-    mx, mz, cols = _window_sums(pad, half, f)
-    return (
-        np.ascontiguousarray(cols[0, :, ::-1]),
-        np.ascontiguousarray(cols[1, :, ::-1]),
-        np.ascontiguousarray(mx[::-1]),
-        np.ascontiguousarray(mz[::-1]),
-        np.ascontiguousarray(pq[:, ::-1]),
-        np.ascontiguousarray(yaw[::-1]),
-        np.ascontiguousarray(step[::-1]),
-    )
+        return zeros, zeros, np.zeros(f, np.float32), np.zeros(f, np.float32), pq, yaw, cost
+    for step in (1, -1):  # window slot d holds row r + step (d - 2)
+        pad, pq, yaw, cost = _scan(rows, half, width, True, step)
+        if pad.shape[1]:
+            mx, mz, cols = _window_sums(pad, half, f, step)
+            return cols[0], cols[1], mx, mz, pq, yaw, cost
+    return None
 
 
 def _padded_coords(rows: np.ndarray, half: int):
@@ -883,6 +881,8 @@ def _forward(
     ring_w = m + 4 if window else 1
     cre = np.empty((_RING, ring_w), np.float32)
     cim = np.empty((_RING, ring_w), np.float32)
+    st_a = np.nan  # the step costs tab_a and tab_b hold (NaN: none yet; rebuilt when they differ)
+    st_b = np.nan
     next_p = i0
     K._init_prev(prev, gamma, lo, hi, start, i0, ends)
     i = i0
@@ -898,8 +898,12 @@ def _forward(
             _theta_cells(
                 i + 1, lo_b, hi_b, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, cells_b
             )
-            _cost_table(bstep[i], tab_a)
-            _cost_table(bstep[i + 1], tab_b)
+            if not (bstep[i] == st_a):
+                st_a = bstep[i]
+                _cost_table(st_a, tab_a)
+            if not (bstep[i + 1] == st_b):
+                st_b = bstep[i + 1]
+                _cost_table(st_b, tab_b)
             bad = _dp_pair_codes(
                 prev,
                 mid,
@@ -940,7 +944,9 @@ def _forward(
             _theta_cells(
                 i, lo[i], hi[i], bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, cells_a
             )
-            _cost_table(bstep[i], tab_a)
+            if not (bstep[i] == st_a):
+                st_a = bstep[i]
+                _cost_table(st_a, tab_a)
             if _dp_row_codes(
                 prev,
                 cur,
