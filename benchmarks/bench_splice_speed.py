@@ -388,6 +388,9 @@ def report_pass1_problems(res: dict, load) -> str:
         "",
         f"Load average (1 min) {load[0]:.1f} at the start, {load[1]:.1f} at the end "
         "(2 cores, shared). Target (issue 13): ≤ 5 ns per band cell.",
+        "",
+        "Notes on what changed are written by hand under the figures (a re-run rewrites the "
+        "whole section: carry them over from `git log -p benchmarks/RESULTS.md`).",
     ]
     return "\n".join(lines)
 
