@@ -291,9 +291,9 @@ def _window_sums(pad, half, f, step):
             for r in range(f):  # rows side by side: vectorises
                 sx[r] += cx[r]
                 sz[r] += cz[r]
-    mx = np.empty(f, np.float32)
-    mz = np.empty(f, np.float32)
-    for r in range(f):
+    mx = np.zeros(f, np.float32)
+    mz = np.zeros(f, np.float32)
+    for r in range(f if half > 0 else 0):  # (no windows: centroids 0, as before)
         mx[r] = np.float32(sx[r] / half)
         mz[r] = np.float32(sz[r] / half)
     return mx, mz, cols.astype(np.float32)
