@@ -28,6 +28,10 @@ Run: ``.venv/bin/python -m benchmarks.bench_splice_speed [--quick] [--no-10min]`
   :data:`STAGE_BASE` beside this checkout's, both on the 2-minute splice's own pass-1 rows,
   band and open ends: CPU ns per band cell of the forward pass (interleaved runs), the
   backpointers, last row/column and total compared (section ``splice_speed_pass1``).
+* ``--pass1-problems``: the same comparison on each problem pass 1 of the 2-minute splice
+  solves (the coarse band, the fine band around the coarse path, and the W1 band at full
+  rate), ``prepare`` included and timed apart (section ``splice_speed_pass1_problems``;
+  ``HANDSPLICE_STAGE_BASE`` names the *before* code).
 * ``--stages``: CPU time of every engine stage of the 2-minute (and 10-minute) splice,
   warm (median of :data:`STAGE_SPLICES` splices per child process, children of both codes
   alternately), beside :data:`STAGE_BASE`; the spliced take's bytes and the pass-1 and
@@ -271,18 +275,10 @@ def _module_at(ref: str, path: str, name: str):
     return mod
 
 
-def bench_pass1_rows(body_p, hand_p, reps: int) -> dict:
-    """CPU ns per band cell of pass 1's forward pass (row kernel at :data:`STAGE_BASE` and
-    now) on the 2-minute splice's own rows, band and open ends; same outputs checked."""
-    from engine.align import phase_kernel as now_k
-    from engine.io.bvh import read_bvh
-    from engine.splice import pipeline as P
-
-    old_k = _module_at(STAGE_BASE, "engine/align/phase_kernel.py", f"old_phase_kernel_{STAGE_BASE}")
-    r = P.splice(read_bvh(body_p), read_bvh(hand_p))
-    p1 = r.alignment.pass1
-    a, b = p1.rows
-    band, ends = p1.band, p1.ends.array()
+def _pass1_ab(old_k, now_k, a, b, band, ends, reps: int) -> dict:
+    """CPU time of two pass-1 row kernels (modules ``old_k``, ``now_k``: ``prepare`` then
+    ``forward``) on one problem, interleaved; the backpointers, last row/column and total
+    compared."""
     n, m = band.n, band.m
     gamma = np.empty(1)
 
@@ -301,8 +297,12 @@ def bench_pass1_rows(body_p, hand_p, reps: int) -> dict:
     )
     del res
     times = {"old": [], "now": []}
+    prep = {"old": [], "now": []}
     for _ in range(reps):
         for k, mod in (("old", old_k), ("now", now_k)):
+            c0 = time.thread_time()
+            mod.prepare(a, b)
+            prep[k].append(time.thread_time() - c0)
             c0 = time.thread_time()
             run(mod)
             times[k].append(time.thread_time() - c0)
@@ -311,10 +311,88 @@ def bench_pass1_rows(body_p, hand_p, reps: int) -> dict:
         "frames": [n, m],
         "ns": {k: statistics.median(v) / band.area * 1e9 for k, v in times.items()},
         "ns_min": {k: min(v) / band.area * 1e9 for k, v in times.items()},
+        "prepare_ms": {k: statistics.median(v) * 1e3 for k, v in prep.items()},
+        "s": {k: statistics.median(v) for k, v in times.items()},
         "ratio": statistics.median(x / y for x, y in zip(times["now"], times["old"])),
         "same": bool(same),
         "reps": reps,
     }
+
+
+def bench_pass1_rows(body_p, hand_p, reps: int) -> dict:
+    """CPU ns per band cell of pass 1's forward pass (row kernel at :data:`STAGE_BASE` and
+    now) on the 2-minute splice's own rows, W1 band and open ends; same outputs checked."""
+    from engine.align import phase_kernel as now_k
+    from engine.io.bvh import read_bvh
+    from engine.splice import pipeline as P
+
+    old_k = _module_at(STAGE_BASE, "engine/align/phase_kernel.py", f"old_phase_kernel_{STAGE_BASE}")
+    r = P.splice(read_bvh(body_p), read_bvh(hand_p))
+    p1 = r.alignment.pass1
+    return _pass1_ab(old_k, now_k, *p1.rows, p1.band, p1.ends.array(), reps)
+
+
+def bench_pass1_problems(body_p, hand_p, reps: int) -> dict:
+    """:func:`_pass1_ab` on each problem pass 1 of the 2-minute splice solves: the coarse
+    band (multi-resolution pass 1's first step), the fine band around it, and the whole W1
+    band at full rate (pass 1 without the coarse step, ``--pass1``'s problem)."""
+    from engine.align import phase_kernel as now_k
+    from engine.io.bvh import read_bvh
+    from engine.splice import pipeline as P
+
+    old_k = _module_at(STAGE_BASE, "engine/align/phase_kernel.py", f"old_phase_kernel_{STAGE_BASE}")
+    feats = P.prepare(read_bvh(body_p), read_bvh(hand_p))
+    p1 = P.align_passes(feats).pass1
+    co = p1.coarse
+    ends = p1.ends.array()
+    problems = {
+        "coarse": (*feats.coarse.rows, co.band, co.ends.array()),
+        "fine": (*p1.rows, co.fine_band, ends),
+        "W1, full rate": (*p1.rows, p1.band, ends),
+    }
+    return {name: _pass1_ab(old_k, now_k, *pr, reps) for name, pr in problems.items()}
+
+
+def report_pass1_problems(res: dict, load) -> str:
+    """The ``--pass1-problems`` section."""
+    lines = [
+        "## Splice speed: pass 1 per band cell on the splice's own problems (pass1ns, issue 13)",
+        "",
+        f"*before* = `engine/align/phase_kernel.py` at `{STAGE_BASE}`, *now* = this checkout's, "
+        "both in this process (`bench_splice_speed --pass1-problems`), on the problems pass 1 "
+        "of the 2-minute splice (14,400 x 14,400 frames, default band) solves: the coarse band "
+        "(every 4th frame), the fine band around the coarse path, and the whole W1 band at full "
+        "rate (pass 1 without the coarse step; `--pass1`'s problem). Each run = `prepare` "
+        "(the rows unpacked and checked) + the forward pass, CPU time (`thread_time`), "
+        f"{next(iter(res.values()))['reps']} interleaved runs of each code.",
+        "",
+        "| problem | band cells | before: ns per cell, median / min | now: median / min "
+        "| now / before | prepare before / now (ms) | same outputs |",
+        "|---|---:|---:|---:|---:|---:|---|",
+    ]
+    for name, k in res.items():
+        lines.append(
+            f"| {name} | {k['cells']:,} | {k['ns']['old']:.2f} / {k['ns_min']['old']:.2f} | "
+            f"**{k['ns']['now']:.2f}** / {k['ns_min']['now']:.2f} | **{k['ratio']:.2f}** | "
+            f"{k['prepare_ms']['old']:.1f} / {k['prepare_ms']['now']:.1f} | {k['same']} |"
+        )
+    co, fi = res["coarse"], res["fine"]
+    cells = co["cells"] + fi["cells"]
+    old = (co["s"]["old"] + fi["s"]["old"]) / cells * 1e9
+    now = (co["s"]["now"] + fi["s"]["now"]) / cells * 1e9
+    lines += [
+        "",
+        f"Pass 1 as the splice runs it (coarse + fine, {cells:,} cells; medians): "
+        f"before {old:.2f}, now **{now:.2f}** ns per band cell ({now / old:.2f}). "
+        "*Same outputs* = backpointers of every band cell, last row and column, total.",
+        "",
+        f"Load average (1 min) {load[0]:.1f} at the start, {load[1]:.1f} at the end "
+        "(2 cores, shared). Target (issue 13): ≤ 5 ns per band cell.",
+        "",
+        "Notes on what changed are written by hand under the figures (a re-run rewrites the "
+        "whole section: carry them over from `git log -p benchmarks/RESULTS.md`).",
+    ]
+    return "\n".join(lines)
 
 
 def report_pass1(k, load) -> str:
@@ -755,8 +833,23 @@ def main(argv=None) -> int:
         action="store_true",
         help="only pass 1's row kernel beside STAGE_BASE's (section splice_speed_pass1)",
     )
+    ap.add_argument(
+        "--pass1-problems",
+        action="store_true",
+        help="only pass 1's row kernel beside STAGE_BASE's on the splice's coarse, fine and "
+        "W1 problems (section splice_speed_pass1_problems)",
+    )
     args = ap.parse_args(argv)
     fps = 120.0
+    if args.pass1_problems:
+        load0 = os.getloadavg()[0]
+        files = LP.pair_files(120.0, fps)
+        res = bench_pass1_problems(files[0], files[1], max(args.reps, 1))
+        print(json.dumps(res), flush=True)
+        text = report_pass1_problems(res, (load0, os.getloadavg()[0]))
+        print(text)
+        write_section("splice_speed_pass1_problems", text)
+        return 0
     if args.pass1:
         load0 = os.getloadavg()[0]
         files = LP.pair_files(120.0, fps)

@@ -265,15 +265,24 @@ def test_row_kernel_costs_equal_the_per_cell_metric_for_any_marker_count(feats, 
         assert np.array_equal(row, ref), f"{markers} markers, row {i}"
 
 
-@pytest.mark.parametrize("reverse", [False, True])
-def test_forward_pass_equals_the_per_cell_forward_pass(feats, reverse):
+@pytest.mark.parametrize(
+    ("reverse", "steps"), [(False, "same"), (True, "same"), (False, "varying")]
+)
+def test_forward_pass_equals_the_per_cell_forward_pass(feats, reverse, steps):
     """The whole forward pass (every band cell's backpointer, the last column, the last row
     inside its band, the total) with open ends, constraints and rows of both orders (backward passes reverse
-    them) is the engine's per-cell forward pass with ``splice_phase``."""
+    them) is the engine's per-cell forward pass with ``splice_phase``; also when the body
+    rows' step costs change along the take (runs of equal ones: the row kernel's cost tables
+    are remade only where the step cost changes)."""
     from engine.dtw import Ends
     from engine.dtw import kernels as KD
 
     a, b = feats.pass1_rows
+    if steps == "varying":
+        a = a.copy()
+        runs = np.random.default_rng(3).choice([0.0, 0.25, 1.5], size=-(-a.shape[0] // 5))
+        a[:, 4] = np.repeat(runs, 5)[: a.shape[0]]
+        assert len(np.unique(a[:, 4])) == 3
     if reverse:
         a, b = np.ascontiguousarray(a[::-1]), np.ascontiguousarray(b[::-1])
     n, m = feats.n, feats.m

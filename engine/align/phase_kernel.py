@@ -61,6 +61,8 @@ _TWO_PI = 2.0 * np.pi
 _RING = 8  # ring-buffer rows of C (five in use; a power of two)
 #: cells ahead whose hand masks the recurrence prefetches
 AHEAD = 64
+#: rows ahead whose values :func:`_scan` prefetches
+ROWS_AHEAD = 8
 
 
 @intrinsic
@@ -205,84 +207,130 @@ def cell_theta_sums(body_row, hand_row, half):
 
 
 @numba.njit(cache=True, nogil=True)
-def _unpack(rows, hand, nb, half):
-    """Per-frame arrays of one take's rows: window centroids ``(F,)`` x and z
-    (float32), the masks Z = P ∨ Q and G = P (``(1 or nb, F, 2)``, see :func:`zg_cost`),
-    the yaw bins and steps ``(F,)``."""
+def _scan(rows, half, width, window, step):
+    """One pass over a take's rows (each row's cache lines once): the masks Z = P ∨ Q and
+    G = P (``(width, F, 2)`` uint64, bin by bin, see :func:`zg_cost`), the yaw bins and
+    steps ``(F,)``, and, when ``window``, the frames the eq.-7 windows hold: ``(2, (F + 4) K)``
+    float64 (x, then z; padded frame ``p``'s ``K`` markers at ``p K``: row ``r``'s own frame
+    at ``p = r + 2``, two frames beyond each end from the end rows' windows) if slot ``d``
+    of every row ``r`` holds padded frame ``r + 2 + step (d - 2)`` (``step`` 1: the rows are
+    consecutive frames of a take, -1: of a take reversed), else ``(2, 0)`` (returned at
+    the first row that differs). Values compared with ``==`` (a NaN never matches).
+
+    Row ``s``'s windows are checked two rows after its own frame is stored (they reach
+    padded frame ``s + 4``), while its lines are still in cache."""
     f = rows.shape[0]
-    mx = np.zeros(f, np.float32)
-    mz = np.zeros(f, np.float32)
-    yaw = np.zeros(f, np.int64)
-    step = np.zeros(f)
-    width = nb if hand else 1
-    pq = np.zeros((width, f, 2), np.uint64)  # bin by bin: neighbouring cells, one cache line
+    k = half // WINDOW
+    pq = np.empty((width, f, 2), np.uint64)
+    yaw = np.empty(f, np.int64)
+    cost = np.empty(f)
+    pad = np.empty((2, (f + 4) * k if window else 0))
     off = HEADER + 2 * half
-    for r in range(f):
-        row = rows[r]
-        if half > 0:
-            sx, sz = window_means(row, half)
-            mx[r] = np.float32(sx)
-            mz[r] = np.float32(sz)
-        yaw[r] = int(row[3])
-        step[r] = row[4]
-        for b in range(width):
-            p = np.uint64(row[off + 2 * b])
-            pq[b, r, 0] = p | np.uint64(row[off + 2 * b + 1])
-            pq[b, r, 1] = p
-    return mx, mz, pq, yaw, step
+    if window:
+        for x in range(2):  # the frames beyond the ends, from the end rows' windows
+            for d in range(WINDOW):
+                o = step * (d - 2)
+                src = HEADER + x * half + d * k
+                if o < 0:
+                    for c in range(k):
+                        pad[x, (2 + o) * k + c] = rows[0, src + c]
+                elif o > 0:
+                    for c in range(k):
+                        pad[x, (f + 1 + o) * k + c] = rows[f - 1, src + c]
+    flat = rows.reshape(-1)
+    used = off + 2 * width  # the columns read: rows' lines prefetched ROWS_AHEAD rows ahead
+    for r in range(f + 2):
+        if r + ROWS_AHEAD < f:  # (a row's lines are far apart: the prefetchers miss them)
+            base = (r + ROWS_AHEAD) * rows.shape[1]
+            for t in range(0, used, 8):
+                prefetch(flat, np.uint64(base + t))
+        if r < f:
+            yaw[r] = int(rows[r, 3])
+            cost[r] = rows[r, 4]
+            for b in range(width):
+                p = np.uint64(rows[r, off + 2 * b])
+                pq[b, r, 0] = p | np.uint64(rows[r, off + 2 * b + 1])
+                pq[b, r, 1] = p
+            if window:
+                for x in range(2):
+                    for c in range(k):
+                        pad[x, (r + 2) * k + c] = rows[r, HEADER + x * half + 2 * k + c]
+        s = r - 2
+        if window and s >= 0:
+            bad = 0
+            for x in range(2):
+                for d in range(WINDOW):
+                    src = HEADER + x * half + d * k
+                    dst = (s + 2 + step * (d - 2)) * k
+                    for c in range(k):
+                        bad += rows[s, src + c] != pad[x, dst + c]
+            if bad:
+                return np.empty((2, 0)), pq, yaw, cost
+    return pad, pq, yaw, cost
 
 
 @numba.njit(cache=True, nogil=True)
-def _consecutive_windows(rows, half, step):
-    """``(F + 4, 2, K)`` frames of the take when the eq.-7 windows of ``rows`` (x of slots
-    0..4, then z, ``K`` markers each) are those of consecutive frames (slot ``d`` of row
-    ``r`` holds padded frame ``r + 2 + step (d − 2)``; the frames beyond the ends come from
-    the end rows' windows), else an empty array. Values compared with ``==`` (a NaN never
-    matches)."""
-    f = rows.shape[0]
+def _window_sums(pad, half, f, step):
+    """The eq.-7 window centroids of every row from :func:`_scan`'s frames (of ``step``):
+    ``(F,)`` x and z (float32, :func:`window_means`' sums: values in the row's order, one
+    after another), and the frames ``(2, K, F + 4)`` float32, marker by marker (columns
+    contiguous)."""
     k = half // WINDOW
-    pad = np.empty((f + 4, 2, k))
-    for r in range(f):  # row by row: each row's cache lines once
+    cols = np.empty((2, k, f + 4))
+    for p in range(f + 4):
         for x in range(2):
             for c in range(k):
-                pad[2 + r, x, c] = rows[r, HEADER + x * half + 2 * k + c]
-    for x in range(2):
+                cols[x, c, p] = pad[x, p * k + c]
+    sx = np.zeros(f)
+    sz = np.zeros(f)
+    for d in range(WINDOW):  # slot d of row r is padded frame r + o
+        o = 2 + step * (d - 2)
         for c in range(k):
-            for d in range(WINDOW):  # the frames beyond the ends, from the end rows
-                off = step * (d - 2)
-                if off < 0:
-                    pad[2 + off, x, c] = rows[0, HEADER + x * half + d * k + c]
-                elif off > 0:
-                    pad[f + 1 + off, x, c] = rows[f - 1, HEADER + x * half + d * k + c]
-    for r in range(f):
-        for x in range(2):
-            for d in range(WINDOW):
-                p = 2 + step * (d - 2) + r
-                col = HEADER + x * half + d * k
-                for c in range(k):
-                    if not (rows[r, col + c] == pad[p, x, c]):
-                        return np.empty((0, 2, k))
-    return pad
+            cx = cols[0, c, o : o + f]
+            cz = cols[1, c, o : o + f]
+            for r in range(f):  # rows side by side: vectorises
+                sx[r] += cx[r]
+                sz[r] += cz[r]
+    mx = np.zeros(f, np.float32)
+    mz = np.zeros(f, np.float32)
+    for r in range(f if half > 0 else 0):  # (no windows: centroids 0, as before)
+        mx[r] = np.float32(sx[r] / half)
+        mz[r] = np.float32(sz[r] / half)
+    return mx, mz, cols.astype(np.float32)
 
 
-def _padded_coords(rows: np.ndarray, half: int):
-    """x and z ``(F + 4, K)`` float32 of the frames the rows' windows hold, in row order
-    (padded index ``p`` = row ``p - 2``'s own frame; two frames beyond each end from the
-    end rows' windows), or None when the windows are not those of consecutive frames.
+def _take_arrays(rows: np.ndarray, half: int, width: int, window: bool):
+    """Per-frame arrays of one take's rows: ``(x, z, mx, mz, pq, yaw, step)`` with the
+    padded frame coordinates ``x``, ``z`` ``(K, F + 4)`` float32 (marker by marker; zeros
+    unless ``window``), the window centroids ``mx``, ``mz`` ``(F,)`` float32, the masks
+    ``pq`` ``(width, F, 2)`` and the yaw bins and step costs ``(F,)``; None when ``window``
+    and the rows' windows are not those of consecutive frames.
 
     Rows of a whole take, of a contiguous part of one, or of either reversed (the
     backward passes) qualify; any other selection of rows (e.g. every other frame) does
     not, and the caller falls back to the per-cell metric.
     """
     rows = np.ascontiguousarray(rows, dtype=np.float64)
+    f, k = rows.shape[0], half // WINDOW
+    if not window:
+        _, pq, yaw, cost = _scan(rows, half, width, False, 1)
+        zeros = np.zeros((k, f + 4), np.float32)
+        return zeros, zeros, np.zeros(f, np.float32), np.zeros(f, np.float32), pq, yaw, cost
     for step in (1, -1):  # window slot d holds row r + step (d - 2)
-        pad = _consecutive_windows(rows, half, step)
-        if pad.shape[0]:
-            return (
-                np.ascontiguousarray(pad[:, 0], np.float32),
-                np.ascontiguousarray(pad[:, 1], np.float32),
-            )
+        pad, pq, yaw, cost = _scan(rows, half, width, True, step)
+        if pad.shape[1]:
+            mx, mz, cols = _window_sums(pad, half, f, step)
+            return cols[0], cols[1], mx, mz, pq, yaw, cost
     return None
+
+
+def _padded_coords(rows: np.ndarray, half: int):
+    """x and z ``(F + 4, K)`` float32 of the frames the rows' windows hold, in row order
+    (padded index ``p`` = row ``p - 2``'s own frame; two frames beyond each end from the
+    end rows' windows), or None when the windows are not those of consecutive frames
+    (:func:`_take_arrays`)."""
+    got = _take_arrays(rows, half, 0, True)
+    return None if got is None else (got[0].T.copy(), got[1].T.copy())
 
 
 class PhaseProblem:
@@ -297,26 +345,21 @@ class PhaseProblem:
         self.half, self.nb, self.mode = half, nb, mode
         self.n, self.m = a.shape[0], b.shape[0]
         self.fallback = False
-        k = half // WINDOW
         if 2 * nb * self.m >= 2**31:  # a mask index (_mask_index) would not fit int32
             self.fallback, self.a, self.b = True, a, b
             return
-        if mode == MODE_WINDOW:
-            body_c = _padded_coords(a, half)
-            hand_c = _padded_coords(b, half)
-            if body_c is None or hand_c is None:
-                self.fallback, self.a, self.b = True, a, b
-                return
-            bx, bz = body_c
-            hx, hz = hand_c[0].T.copy(), hand_c[1].T.copy()  # (K, m + 4): columns contiguous
-        else:
-            bx = bz = np.zeros((self.n + 4, k), np.float32)
-            hx = hz = np.zeros((k, self.m + 4), np.float32)
-        bmx, bmz, bpq, byaw, bstep = _unpack(a, False, nb, half)
-        hmx, hmz, hpq, hyaw, _ = _unpack(b, True, nb, half)
+        window = mode == MODE_WINDOW
+        body = _take_arrays(a, half, 1, window)
+        hand = _take_arrays(b, half, nb, window) if body is not None else None
+        if body is None or hand is None:
+            self.fallback, self.a, self.b = True, a, b
+            return
+        bx, bz, bmx, bmz, bpq, byaw, bstep = body
+        hx, hz, hmx, hmz, hpq, hyaw, _ = hand
         bnz = np.ascontiguousarray(bpq[0, :, 0])  # Z: code ≠ 0
         bpos = np.ascontiguousarray(bpq[0, :, 1])  # G: code = +1
-        self.body = (bx, bz, bmx, bmz, bnz, bpos, byaw, bstep)
+        # body frames (n + 4, K), hand frames (K, m + 4): each kernel's reads contiguous
+        self.body = (bx.T.copy(), bz.T.copy(), bmx, bmz, bnz, bpos, byaw, bstep)
         self.hand = (hx, hz, hmx, hmz, hpq.reshape(-1), hyaw)  # (Z, G) flat: (nb m 2,)
 
     def args(self) -> tuple:
@@ -838,6 +881,8 @@ def _forward(
     ring_w = m + 4 if window else 1
     cre = np.empty((_RING, ring_w), np.float32)
     cim = np.empty((_RING, ring_w), np.float32)
+    st_a = np.nan  # the step costs tab_a and tab_b hold (NaN: none yet; rebuilt when they differ)
+    st_b = np.nan
     next_p = i0
     K._init_prev(prev, gamma, lo, hi, start, i0, ends)
     i = i0
@@ -853,8 +898,12 @@ def _forward(
             _theta_cells(
                 i + 1, lo_b, hi_b, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, cells_b
             )
-            _cost_table(bstep[i], tab_a)
-            _cost_table(bstep[i + 1], tab_b)
+            if not (bstep[i] == st_a):
+                st_a = bstep[i]
+                _cost_table(st_a, tab_a)
+            if not (bstep[i + 1] == st_b):
+                st_b = bstep[i + 1]
+                _cost_table(st_b, tab_b)
             bad = _dp_pair_codes(
                 prev,
                 mid,
@@ -895,7 +944,9 @@ def _forward(
             _theta_cells(
                 i, lo[i], hi[i], bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, cells_a
             )
-            _cost_table(bstep[i], tab_a)
+            if not (bstep[i] == st_a):
+                st_a = bstep[i]
+                _cost_table(st_a, tab_a)
             if _dp_row_codes(
                 prev,
                 cur,
