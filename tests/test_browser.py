@@ -353,7 +353,10 @@ def test_shared_url_restores_the_session(page, browser):
     try:
         assert other.evaluate("hs.cols('hs-points-source', ['x', 'y', 'tol'])") == pts
         cost = status.split("·")[0].strip()
-        assert status_line(other).split("·")[0].strip() == cost
+        deadline = time.monotonic() + 30  # the status line may follow the path by a message
+        while (shown := status_line(other).split("·")[0].strip()) != cost:
+            assert time.monotonic() < deadline, f"{shown!r} != {cost!r}"
+            other.wait_for_timeout(50)
     finally:
         other.context.close()
 
