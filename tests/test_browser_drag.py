@@ -16,12 +16,11 @@ import numpy as np
 import pytest
 from conftest import (
     DEMO_SAMPLE,
-    assert_no_traceback,
+    DEMO_SERVER_START_S,
     open_demo_session,
     open_page,
     pane_text,
     revision,
-    served_app,
 )
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(900)]
@@ -51,15 +50,10 @@ _JS_RECORD = """() => {
 
 
 @pytest.fixture(scope="module")
-def served(tmp_path_factory):
-    with served_app(tmp_path_factory, timeout=600) as (url, _, log_path):
-        yield url, log_path
-    assert_no_traceback(log_path)
-
-
-@pytest.fixture(scope="module")
-def page(browser, served):
-    p = open_page(browser, served[0], matrix_timeout_s=60, console=True)
+def page(browser, demo_url):
+    """A tab of its own (a session of its own) on the run's shared demo server, for the
+    module's two tests in turn (the second drags the first one's point)."""
+    p = open_page(browser, demo_url, timeout_s=DEMO_SERVER_START_S, console=True)
     yield p
     p.context.close()
 

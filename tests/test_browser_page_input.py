@@ -8,7 +8,7 @@ import re
 import time
 
 import pytest
-from conftest import MOCAP, busy_line, click_path_mid_take, open_page, pane_text, served_chromium
+from conftest import MOCAP, busy_line, click_path_mid_take, open_page, pane_text
 
 LONG_BODY = MOCAP / "lafan1" / "multipleActions1_subject1.bvh"
 LONG_HAND = MOCAP / "manipnet" / "mug1_rightHand.bvh"
@@ -17,12 +17,14 @@ pytestmark = pytest.mark.browser
 
 
 @pytest.fixture(scope="module")
-def browser_and_url(tmp_path_factory):
-    """A server of this module's own: the keys test opens the long pair, which must take
-    seconds to open (a server keeps the pairs it opened; stranger2's test opens the same
-    pair on the shared demo server)."""
-    with served_chromium(tmp_path_factory) as served:
-        yield served
+def long_body(tmp_path_factory):
+    """LONG_BODY under its own name with one more blank line at its end: the same take, but
+    a file the run's shared demo server has not opened yet (it keeps the pairs it opened,
+    by content, and stranger2's test opens LONG_BODY itself there), so it takes seconds
+    to open."""
+    path = tmp_path_factory.mktemp("long") / LONG_BODY.name
+    path.write_bytes(LONG_BODY.read_bytes() + b"\n")
+    return path
 
 
 def _overlap(a: dict, b: dict) -> bool:
@@ -90,12 +92,13 @@ _RECORD = """(title) => {
 }"""
 
 
-def test_keys_are_inert_on_the_old_pair_while_a_new_pair_opens(browser_and_url, tmp_path):
+def test_keys_are_inert_on_the_old_pair_while_a_new_pair_opens(
+    browser, demo_url, long_body, tmp_path
+):
     """While an upload opens, the old pair's views are veiled: a focused slider takes no
     arrow key, and Ctrl+Z / Ctrl+Y / Delete press nothing (the server would refuse them,
     but the page should not send them); once the new pair is shown the keys work again."""
-    browser, url = browser_and_url
-    page = open_page(browser, url, width=1440, height=900, timeout_s=180)
+    page = open_page(browser, demo_url, width=1440, height=900, timeout_s=180)
     try:
         click_path_mid_take(page)
         group = page.locator(".bk-input-group").filter(has_text=re.compile("^Global tolerance T"))
@@ -105,7 +108,7 @@ def test_keys_are_inert_on_the_old_pair_while_a_new_pair_opens(browser_and_url, 
         before = title.inner_text()
         title.evaluate(_RECORD)
 
-        page.locator(".hs-upload-body input[type=file]").set_input_files(str(LONG_BODY))
+        page.locator(".hs-upload-body input[type=file]").set_input_files(str(long_body))
         page.locator(".hs-upload-hand input[type=file]").set_input_files(str(LONG_HAND))
         deadline = time.monotonic() + 300
         while "opening multipleActions1_subject1.bvh" not in busy_line(page):

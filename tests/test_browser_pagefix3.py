@@ -22,34 +22,21 @@ import pytest
 from conftest import (
     BODY_BVH,
     HAND_BVH,
-    assert_no_traceback,
     band_cells,
-    open_page,
     pane_text,
     revision,
-    served_app,
     status_line,
 )
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(1500)]
 
-SERVER_START_S = 600.0
 BUSY_S = 300.0
 
 
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    with served_app(tmp_path_factory, timeout=SERVER_START_S) as (url, _, log_path):
-        yield url
-    assert_no_traceback(log_path)
-
-
 @pytest.fixture()
-def page(browser, server):
-    page = open_page(browser, server, timeout_s=SERVER_START_S)
-    yield page
-    page.context.close()
-    assert not page.errors, page.errors
+def page(demo_page):
+    """A fresh tab on the run's shared demo server (conftest's ``demo_page``)."""
+    return demo_page
 
 
 def _until(condition, what: str, seconds: float = BUSY_S):

@@ -18,11 +18,10 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import BODY_BVH, MOCAP, open_page, pane_text, served_app
+from conftest import BODY_BVH, MOCAP, pane_text
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(1500)]
 
-SERVER_START_S = 600.0
 BUSY_S = 300.0
 MUG = MOCAP / "manipnet" / "mug1_rightHand.bvh"
 LAFAN = MOCAP / "lafan1" / "multipleActions1_subject1.bvh"
@@ -38,17 +37,11 @@ def _cropped(src: Path, dest: Path, frames: int) -> Path:
     return dest
 
 
-@pytest.fixture(scope="module")
-def served(tmp_path_factory):
-    with served_app(tmp_path_factory, "--max-upload-mb", "40", timeout=SERVER_START_S) as s:
-        yield s
-
-
 @pytest.fixture()
-def page(browser, served):
-    page = open_page(browser, served[0], timeout_s=SERVER_START_S)
-    yield page
-    page.context.close()
+def page(demo_page):
+    """A fresh tab on the run's shared demo server (conftest's ``demo_page``; its default
+    upload limit takes the several-MB take)."""
+    return demo_page
 
 
 def _upload(page, which: str, path: Path) -> None:
