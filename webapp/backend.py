@@ -611,6 +611,25 @@ def glb_bytes(motion) -> bytes:
     return encode("glb", motion)
 
 
+def served_file(prepared: Prepared, solution: Solution, kind: str, name: str, owner=None):
+    """The spliced take's ``kind`` ("bvh" or "glb") file, written to the server's disk by a
+    child (``webapp.downloads.write``: the command line's writer, the CLI's bytes) and
+    served over HTTP under the browser name ``name`` (``webapp.served_files``: the page
+    fetches it; the server holds none of its bytes). The file made for this alignment
+    before is served again while the server keeps it (the same bytes: an alignment never
+    changes); ``owner`` (a page) keeps its latest file of each kind."""
+    from webapp.downloads import write
+    from webapp.served_files import STORE
+
+    kept = solution.cache.get(("file", kind))
+    if kept is not None and kept.name == name and STORE.get(kept.token) is kept:
+        return kept
+    motion = splice(prepared, solution)
+    served = STORE.put(lambda path: write(kind, motion, path), name, kind, owner=owner)
+    solution.cache[("file", kind)] = served
+    return served
+
+
 # ---------------------------------------------------------------- previews
 
 _PREVIEWS: dict[int, object] = {}
