@@ -236,6 +236,8 @@ class Session(param.Parameterized):
         self._auto_widths: dict[str, float] = {}
         self.opening_since = 0.0  # monotonic s when ``opening`` was set
         super().__init__(**params)
+        # the alignment shown: a shared one no page shows lets go of its preview (backend)
+        self.param.watch(lambda e: backend.showing(self, e.new), "solution")
         self.param.watch(self._on_edit, list(EDIT_PARAMS))
         self.param.watch(self._on_inputs, list(INPUT_PARAMS))
 
