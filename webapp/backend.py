@@ -711,10 +711,17 @@ def showing(page, solution: Solution | None) -> None:
 
 
 def _let_go(solution: Solution) -> None:
-    """Drop ``solution``'s spliced take and preview (made again when asked for)."""
-    with solution.cache.setdefault("preview lock", threading.Lock()):
+    """Drop ``solution``'s spliced take and preview (made again when asked for). Never
+    waits: while its preview is being made (a render asked before the page moved on) it is
+    kept."""
+    lock = solution.cache.setdefault("preview lock", threading.Lock())
+    if not lock.acquire(blocking=False):
+        return
+    try:
         preview = solution.cache.pop("preview", None)
         solution.cache.pop("spliced", None)
+    finally:
+        lock.release()
     with _PREVIEW_LOCK:
         for key in [k for k, kept in _PREVIEWS.items() if kept is preview]:
             del _PREVIEWS[key]
