@@ -187,9 +187,17 @@ class TakeView:
     _hands_dirs: dict = field(default_factory=dict)
     _posed: dict = field(default_factory=dict, repr=False)
 
-    def __post_init__(self) -> None:
-        self.positions = FrameJoints(self, 0)
-        self.rotations = FrameJoints(self, 1)
+    @property
+    def positions(self) -> FrameJoints:
+        """(F, J, 3) world joint positions, display space, computed for the frames indexed
+        (made on each access: a view held by its own attribute would be a reference cycle,
+        freed only by the garbage collector, with its take)."""
+        return FrameJoints(self, 0)
+
+    @property
+    def rotations(self) -> FrameJoints:
+        """(F, J, 4) world joint rotations, file frame, computed for the frames indexed."""
+        return FrameJoints(self, 1)
 
     def poses(self, frames) -> tuple[np.ndarray, np.ndarray]:
         """World joints of ``frames`` (a slice or an int array): display positions
