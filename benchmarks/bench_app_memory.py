@@ -9,7 +9,8 @@ takes, features), the shared first alignment, the spliced take, the preview
 rendered offscreen), the trust assessment; then one edit (a matching point at mid-take
 on the path: ``backend.solve(previous=...)``), its spliced take, preview and trust. A
 thread samples the resident memory (VmRSS) every 10 ms; the peak of each step and the
-process's VmHWM are printed. The reference code runs the same child from ``git archive
+process's VmHWM are printed. The tab's Session tells the server which alignment it shows
+(``backend.showing``, where the code has it): the first alignment, then the edit. The reference code runs the same child from ``git archive
 BASE`` (engine and webapp), one after the other. Not measured here: the Panel document,
 the matrix image's Bokeh models and the websocket (the browser bench
 ``bench_app_tenmin`` samples the real server).
@@ -63,14 +64,21 @@ prep = step("prepare", lambda: backend.prepare(body, hand, "right"))
 n = prep.features.n
 band, refine = C.BAND.default_for(n, prep.fps), C.REFINE_BAND.default_for(n, prep.fps)
 sol = step("first alignment", lambda: backend.first_solution(prep, band, refine, []))
+# what the tab's Session tells the server it shows (backend.showing; absent in older code)
+class Page:
+    pass
+page = Page()
+showing = getattr(backend, "showing", lambda page, solution: None)
+showing(page, sol)
 step("spliced take", lambda: backend.splice(prep, sol))
-pv = step("preview", lambda: backend.preview_for(prep, sol))
+step("preview", lambda: backend.preview_for(prep, sol))
 from engine.io.session import VIEW_DEFAULTS
 step("preview frame", lambda: backend.render_frame(prep, sol, n // 2, VIEW_DEFAULTS["camera"], False))
 step("trust", lambda: backend.assess(prep, sol))
 i = n // 2
 j = min(int(round(float(sol.cache["engine"].map[i]))) + 24, prep.m_hand - 1)  # hand frames
 sol2 = step("edit: solve", lambda: backend.solve(prep, band, refine, [(i, j, 0.0)], previous=sol))
+showing(page, sol2)  # the tab shows the edit: nobody shows the shared first alignment now
 step("edit: spliced take", lambda: backend.splice(prep, sol2))
 step("edit: preview", lambda: backend.preview_for(prep, sol2))
 step("edit: trust", lambda: backend.assess(prep, sol2))

@@ -128,3 +128,40 @@ def test_the_desync_line_says_the_first_assessment_is_running(session, monkeypat
     real()  # the assessment arrives: the line is its summary
     assert "Desync meter" in view.summary.object
     assert trust_view.ASSESSING not in view.summary.object
+
+
+def test_a_shared_alignment_no_page_shows_lets_go_of_its_spliced_take_and_preview(session):
+    """The pair's shared first alignment is kept for later tabs; its spliced take and
+    preview (0.14 GB at 10 minutes) only while a page shows it (issue 13, app memory)."""
+    import gc
+
+    class Page:  # a page as the registry sees it (a Session in the app)
+        pass
+
+    prepared, edited = session.prepared, session.solution
+    shared = backend.solve(prepared, edited.band, edited.refine_band, [])
+    shared.cache["shared"] = True  # as backend.first_solution marks it
+    a, b = Page(), Page()
+    backend.showing(a, shared)
+    backend.showing(b, shared)
+    preview = backend.preview_for(prepared, shared)
+    spliced = backend.splice(prepared, shared)
+    backend.showing(a, edited)  # one page moved on, the other still shows it
+    assert shared.cache["preview"] is preview and shared.cache["spliced"] is spliced
+    backend.showing(b, None)  # that page closed: nobody shows it
+    assert "preview" not in shared.cache and "spliced" not in shared.cache
+    assert all(p is not preview for p in backend._PREVIEWS.values())
+    again = backend.render_frame(prepared, shared, 3, "front", False, size=(96, 64))
+    assert again.shape == (64, 96, 3) and "preview" in shared.cache  # made again when shown
+    backend.showing(a, shared)
+    backend.showing(a, None)
+    assert "preview" not in shared.cache
+    # an alignment of one page only is left alone (it goes with the page)
+    backend.preview_for(prepared, edited)
+    backend.showing(a, edited)
+    backend.showing(a, None)
+    assert "preview" in edited.cache
+    # the session tells the registry what it shows after every edit
+    session.add_point(session.n // 3, session.hand_frame_for(session.n // 3), 1)
+    gc.collect()
+    assert backend._SHOWN.get(session) is session.solution is not edited

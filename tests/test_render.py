@@ -344,3 +344,27 @@ def test_hands_camera_is_a_close_up(beat_preview, beat):
     assert np.linalg.norm(near[0] - near[1]) > 1.8 * np.linalg.norm(far[0] - far[1])
     assert np.all((near > 0) & (near < [160, 120]))  # both hands in the picture
     assert silhouette(beat_preview.frame(20, camera="hands", floor=False)).mean() > 0.1
+
+
+def test_a_view_poses_frames_when_drawn_and_keeps_no_joints_of_every_frame(beat):
+    """A take's view holds its framing (a few floats a frame), not every frame's world
+    joints (issue 13: +0.7 GB for the app's three views of a 10-minute take); the joints of
+    any frames it is asked for are the whole take's forward kinematics, to the bit."""
+    from engine.model.fastkin import forward_kinematics
+    from engine.render.scene import TakeView
+
+    view = TakeView.from_motion(beat)
+    frames, joints = beat.n_frames, beat.skeleton.n_joints
+    held = sum(v.nbytes for v in vars(view).values() if isinstance(v, np.ndarray))
+    # targets and hand targets, (F, 3) each, and a few per-joint flags: no (F, J, ...) array
+    assert held < 64 * frames + 64 * joints < frames * joints * 7 * 8 // 10
+    assert view.positions.shape == (frames, joints, 3) and len(view.rotations) == frames
+    pos, wrot = forward_kinematics(beat)
+    shown = view.scale * np.einsum("ij,fkj->fki", view.axes, pos)
+    picks = np.array([0, frames // 2, frames - 1, 7])
+    assert np.array_equal(view.positions[picks], shown[picks])
+    assert np.array_equal(view.positions[picks, 3], shown[picks, 3])
+    assert np.array_equal(view.positions[5:9, [1, 2]], shown[5:9, [1, 2]])
+    assert np.array_equal(view.rotations[-1], wrot[-1])
+    assert np.array_equal(view.positions[frames // 2, 4], shown[frames // 2, 4])
+    assert len(view._posed) <= 8  # a few posed frames are kept, not the take

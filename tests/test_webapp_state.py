@@ -948,17 +948,18 @@ def test_failed_exports_download_nothing_and_say_why(session, monkeypatch):
     from webapp.views import sharing
 
     view = sharing.SharingView(session)
-    view.bvh._clicks += 1  # a working download first: one transfer, real bytes
-    assert view.bvh._transfers == 1 and len(view.bvh.data) > 1000
-    first = view.bvh.data
+    view.bvh._clicks += 1  # a working download first: the page gets the file's address
+    assert view.bvh.links == 1 and view.bvh.served.size > 1000
+    assert view.bvh._transfers == 0 and view.bvh.data is None  # no base64 copy in the page
+    first = view.bvh.served
 
     def broken(*args, **kwargs):
         raise RuntimeError("renderer exploded")
 
-    monkeypatch.setattr(backend, "bvh_bytes", broken)
+    monkeypatch.setattr(backend, "served_file", broken)
     monkeypatch.setattr(backend, "preview_video", broken)
     view.bvh._clicks += 1  # the button's click, as the browser sends it
-    assert view.bvh._transfers == 1 and view.bvh.data == first  # nothing new was sent
+    assert view.bvh.links == 1 and view.bvh.served is first  # nothing new was sent
     assert view.message.visible and "spliced BVH: " in view.message.object
     assert "renderer exploded" in view.message.object
 
@@ -1198,6 +1199,9 @@ def test_the_explicit_flags_line_names_the_points_as_the_table_does_and_replays(
     assert main(["splice", *argv, "--quiet"]) == 0
     app_bytes = backend.bvh_bytes(backend.splice(session.prepared, session.solution))
     assert (tmp_path / "cli.bvh").read_bytes() == app_bytes
+    # the file the page's button serves (written by the download child) is the same
+    served = backend.served_file(session.prepared, session.solution, "bvh", "x.bvh")
+    assert served.path.read_bytes() == app_bytes
 
 
 def test_a_link_of_an_uploaded_pair_keeps_the_file_names(cfg):

@@ -172,6 +172,8 @@ def create_app() -> pn.viewable.Viewable:
         # (a page fetched but never shown, e.g. a readiness probe, computes nothing)
         session.compute_off_loop(doc)
         pn.state.onload(lambda: _initial_state(session, args))
+        # the page closed: the alignment it showed is no longer shown (backend.showing)
+        doc.on_session_destroyed(lambda _: backend.showing(session, None))
     else:
         _initial_state(session, args)
     inputs = InputsView(session)

@@ -20,6 +20,7 @@ import math
 import re
 import threading
 import time
+import weakref
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -611,6 +612,25 @@ def glb_bytes(motion) -> bytes:
     return encode("glb", motion)
 
 
+def served_file(prepared: Prepared, solution: Solution, kind: str, name: str, owner=None):
+    """The spliced take's ``kind`` ("bvh" or "glb") file, written to the server's disk by a
+    child (``webapp.downloads.write``: the command line's writer, the CLI's bytes) and
+    served over HTTP under the browser name ``name`` (``webapp.served_files``: the page
+    fetches it; the server holds none of its bytes). The file made for this alignment
+    before is served again while the server keeps it (the same bytes: an alignment never
+    changes); ``owner`` (a page) keeps its latest file of each kind."""
+    from webapp.downloads import write
+    from webapp.served_files import STORE
+
+    kept = solution.cache.get(("file", kind))
+    if kept is not None and kept.name == name and STORE.get(kept.token) is kept:
+        return kept
+    motion = splice(prepared, solution)
+    served = STORE.put(lambda path: write(kind, motion, path), name, kind, owner=owner)
+    solution.cache[("file", kind)] = served
+    return served
+
+
 # ---------------------------------------------------------------- previews
 
 _PREVIEWS: dict[int, object] = {}
@@ -666,6 +686,47 @@ def _new_preview(prepared: Prepared, solution: Solution):
     if old is not None and old is not preview:
         old.close()
     return preview
+
+
+#: the alignment each page shows (a page's Session -> its Solution; see :func:`showing`)
+_SHOWN: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_SHOWN_LOCK = threading.Lock()
+
+
+def showing(page, solution: Solution | None) -> None:
+    """Page ``page`` (its Session) shows ``solution`` now; None: the page closed.
+
+    A pair's shared first alignment (:func:`first_solution`) is kept for every later tab,
+    and so were its spliced take and preview: 0.14 GB at 10 minutes beside the edited
+    alignment's own. Once no page shows it, it lets go of them (:func:`_let_go`); a page
+    that shows it again makes them again (seconds for a long take). Its solve and trust
+    stay, and any other alignment is freed with the page that showed it."""
+    with _SHOWN_LOCK:
+        old = _SHOWN.pop(page, None)
+        if solution is not None:
+            _SHOWN[page] = solution
+        unseen = old is not None and all(s is not old for s in _SHOWN.values())
+    if unseen and old is not solution and old.cache.get("shared"):
+        _let_go(old)
+
+
+def _let_go(solution: Solution) -> None:
+    """Drop ``solution``'s spliced take and preview (made again when asked for). Never
+    waits: while its preview is being made (a render asked before the page moved on) it is
+    kept."""
+    lock = solution.cache.setdefault("preview lock", threading.Lock())
+    if not lock.acquire(blocking=False):
+        return
+    try:
+        preview = solution.cache.pop("preview", None)
+        solution.cache.pop("spliced", None)
+    finally:
+        lock.release()
+    with _PREVIEW_LOCK:
+        for key in [k for k, kept in _PREVIEWS.items() if kept is preview]:
+            del _PREVIEWS[key]
+    if preview is not None:
+        preview.close()
 
 
 def _skeleton_key(skeleton) -> tuple:

@@ -14,10 +14,16 @@ The child calls the very functions the command line calls (``engine.io.bvh.forma
 ``engine.export.glb.glb_bytes``), so the bytes are the CLI's. An encoder's error comes
 back as the same exception type and one-line text; a child that dies (out of memory)
 or outlasts ``seconds`` raises :class:`EncodeFailed`.
+
+:func:`write` has the child write the file itself, with the command line's writers
+(``engine.io.bvh.write_bvh``: the text in pieces, atomically; ``engine.export.glb.write_glb``):
+the server then holds none of its bytes (the page fetches it over HTTP,
+``webapp.served_files``), and the child not the whole text either.
 """
 
 from __future__ import annotations
 
+import os
 import pickle
 
 from engine.base.errors import HandSpliceError
@@ -37,13 +43,26 @@ def encode(kind: str, motion, seconds: float = ENCODE_SECONDS) -> bytes:
 
     Raises what the encoder raised (``ValueError`` for a motion BVH cannot hold, with
     its text), or :class:`EncodeFailed` when the child dies or outlasts ``seconds``."""
+    return _in_child(kind, motion, None, seconds)
+
+
+def write(kind: str, motion, path, seconds: float = ENCODE_SECONDS) -> int:
+    """Write the ``kind`` file of ``motion`` to ``path`` (atomically: whole or not at all)
+    in a child process, with the command line's writer; returns its size in bytes.
+    Raises as :func:`encode`."""
+    return _in_child(kind, motion, str(path), seconds)
+
+
+def _in_child(kind: str, motion, path: str | None, seconds: float):
     from webapp.uploads import child_context
 
     if kind not in ENCODERS:
         raise ValueError(f"download kind: expected one of {', '.join(ENCODERS)}, got {kind!r}")
     ctx = child_context()
     here, there = ctx.Pipe(duplex=True)
-    child = ctx.Process(target=_child_encode, args=(kind, there), daemon=True, name=f"hs-{kind}")
+    child = ctx.Process(
+        target=_child_encode, args=(kind, there, path), daemon=True, name=f"hs-{kind}"
+    )
     died = EncodeFailed(f"the {kind.upper()} file could not be made (its process died)")
     try:
         child.start()
@@ -53,7 +72,7 @@ def encode(kind: str, motion, seconds: float = ENCODE_SECONDS) -> bytes:
             if not here.poll(seconds):
                 raise EncodeFailed(f"the {kind.upper()} file took longer than {seconds:g} s")
             verdict, detail = here.recv()
-            data = here.recv_bytes() if verdict == "ok" else b""
+            data = here.recv_bytes() if verdict == "ok" and path is None else detail
         except (EOFError, OSError):  # the child died: out of memory or worse
             raise died from None
     finally:
@@ -96,18 +115,40 @@ def _glb(motion) -> bytes:
     return glb_bytes(motion)
 
 
+def _write_bvh(motion, path: str) -> None:
+    from engine.io.bvh import write_bvh
+
+    write_bvh(motion, path)
+
+
+def _write_glb(motion, path: str) -> None:
+    from engine.export.glb import write_glb
+
+    write_glb(motion, path)
+
+
 #: what each download kind runs in the child (the command line's own encoders)
 ENCODERS = {"bvh": _bvh, "glb": _glb}
+#: ... and writers (atomic; the BVH text in pieces)
+WRITERS = {"bvh": _write_bvh, "glb": _write_glb}
 
 
-def _child_encode(kind: str, conn) -> None:  # runs in the child process
+def _child_encode(kind: str, conn, path: str | None = None) -> None:  # runs in the child
     try:
-        data = ENCODERS[kind](_receive_motion(conn))
+        motion = _receive_motion(conn)
+        if path is None:
+            data = ENCODERS[kind](motion)
+        else:
+            WRITERS[kind](motion, path)
+            data = None
     except Exception as exc:  # noqa: BLE001 - the parent raises it with its one line
         text = str(exc).strip().splitlines()
         conn.send((type(exc).__name__, text[0] if text else type(exc).__name__))
     else:
-        conn.send(("ok", len(data)))
-        conn.send_bytes(data)
+        if data is None:
+            conn.send(("ok", os.path.getsize(path)))
+        else:
+            conn.send(("ok", len(data)))
+            conn.send_bytes(data)
     finally:
         conn.close()

@@ -174,7 +174,7 @@ def run(args: argparse.Namespace) -> int:
     _check_args(args)
     import panel as pn
 
-    from webapp import config
+    from webapp import config, served_files
     from webapp.app import ConsoleStages, create_app, warm_up
     from webapp.launch import free_port
 
@@ -235,6 +235,9 @@ def run(args: argparse.Namespace) -> int:
         # than a chunk or a session file (base64), so the limit stays small
         websocket_max_message_size=WEBSOCKET_MAX_MESSAGE,
         http_server_kwargs={"max_buffer_size": WEBSOCKET_MAX_MESSAGE},
+        # large downloads (the spliced BVH/GLB) are fetched over plain HTTP from the
+        # server's disk, not sent base64 in a Bokeh property (webapp.served_files)
+        extra_patterns=[served_files.ROUTE],
     )
     # what start-up made (modules, compiled kernels, the warm-up's pair) lives as long as the
     # server: left out of every later collection (Panel collects after each closed tab; a

@@ -268,6 +268,9 @@ class Session(param.Parameterized):
             if getattr(self, f"{name}_s") is None and getattr(self, name) == rule.default
         )
         self._accepted_automatic = self.automatic  # that of the solution shown
+
+        # the alignment shown: a shared one no page shows lets go of its preview (backend)
+        self.param.watch(lambda e: backend.showing(self, e.new), "solution")
         self.param.watch(self._on_edit, list(EDIT_PARAMS))
         self.param.watch(self._on_inputs, list(INPUT_PARAMS))
 

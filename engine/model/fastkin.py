@@ -62,10 +62,20 @@ def _fk_kernel(rot, trans, parents, wpos, wrot):
             wpos[f, j, 2] = wpos[f, p, 2] + vz + qw * tz + (qx * ty - qy * tx)
 
 
-def forward_kinematics(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
-    """World positions ``(F, J, 3)`` (file units) and rotations ``(F, J, 4)`` of every joint."""
-    rot = np.ascontiguousarray(motion.rotations, dtype=np.float64)
-    trans = np.ascontiguousarray(motion.translations, dtype=np.float64)
+def forward_kinematics(motion: Motion, frames=None) -> tuple[np.ndarray, np.ndarray]:
+    """World positions ``(F, J, 3)`` (file units) and rotations ``(F, J, 4)`` of every joint.
+
+    ``frames``: only these frames (a slice, an int array, or an int: then ``(1, J, ...)``);
+    each frame's values are the same floats as in the whole take's (frames are independent),
+    and a slice of a contiguous take is read in place (no copy of the take)."""
+    rot, trans = motion.rotations, motion.translations
+    if frames is not None:
+        if isinstance(frames, (int, np.integer)):
+            f = int(frames) % max(rot.shape[0], 1)
+            frames = slice(f, f + 1)
+        rot, trans = rot[frames], trans[frames]
+    rot = np.ascontiguousarray(rot, dtype=np.float64)
+    trans = np.ascontiguousarray(trans, dtype=np.float64)
     parents = np.ascontiguousarray(motion.skeleton.parents, dtype=np.int64)
     wpos = np.zeros(trans.shape)
     wrot = np.zeros(rot.shape)

@@ -98,19 +98,69 @@ def display_transform(motion: Motion, anatomy: Anatomy) -> tuple[float, np.ndarr
     return float(scale), axes
 
 
+#: frames whose joints are computed at once while a view is prepared (forward kinematics
+#: and display positions of a block, ~4 MB for 52 joints): the view keeps what framing
+#: needs of every frame (bounds, the anchor's rotation), never every frame's joints
+BLOCK_FRAMES = 2048
+#: posed frames a view keeps (the frames on screen, a neighbour being scrubbed to)
+POSE_CACHE_FRAMES = 8
+
+
+class FrameJoints:
+    """A take's world joints by frame, computed when indexed (forward kinematics of the
+    frames asked for only): ``view.positions[i]`` ``(J, 3)``, ``view.positions[frames,
+    joints]``, ``view.rotations[i]`` ``(J, 4)``; numpy's indexing, the first index over
+    frames. The same floats as the whole take's arrays would hold (frames are independent).
+
+    ``view.positions`` holds display-space positions (metres, +Y up), ``view.rotations``
+    world rotations in the file's frame (for skinning). A frame's arrays are read-only
+    (they are shared with the view's small cache of posed frames)."""
+
+    def __init__(self, view: TakeView, part: int):
+        self._view, self._part = view, part
+
+    @property
+    def shape(self) -> tuple[int, int, int]:
+        return (self._view.n_frames, self._view.motion.skeleton.n_joints, 3 + self._part)
+
+    def __len__(self) -> int:
+        return self._view.n_frames
+
+    def __getitem__(self, key):
+        key = key if isinstance(key, tuple) else (key,)
+        frames, rest = key[0], key[1:]
+        if isinstance(frames, (int, np.integer)):
+            whole = self._view.pose(int(frames))[self._part]
+            return whole[rest] if rest else whole
+        if not isinstance(frames, slice):
+            frames = np.asarray(frames)
+            if frames.dtype == bool:
+                frames = np.flatnonzero(frames)
+            frames = np.where(frames < 0, frames + self._view.n_frames, frames)
+        block = self._view.poses(frames)[self._part]
+        if isinstance(frames, slice):
+            return block[(slice(None), *rest)]
+        return block[(np.arange(len(block)).reshape(frames.shape), *rest)]
+
+
 @dataclass
 class TakeView:
-    """One take ready to draw: world joints of every frame, mesh and framing.
+    """One take ready to draw: mesh, framing, and world joints of any frame on demand.
 
     Build with :meth:`from_motion`. Arrays are in display space (metres, +Y up).
+    A view holds the take (``motion``), the mesh and per-frame framing (a few floats a
+    frame); the joints of a frame are computed when it is drawn (:meth:`pose`, forward
+    kinematics of one frame: microseconds), so a 10-minute take's view is a few MB
+    instead of its (F, J, 7) float64 world joints (0.2 GB for 52 joints at 72,000 frames).
 
     motion : Motion
     anatomy : Anatomy
     mesh : SkinnedMesh (rest pose, file units)
     scale : float, metres per file unit used
     axes : (3, 3) file-to-display rotation
-    positions : (F, J, 3) world joint positions, display space
-    rotations : (F, J, 4) world joint rotations, file frame (for skinning)
+    positions : (F, J, 3) world joint positions, display space (:class:`FrameJoints`:
+        computed for the frames indexed)
+    rotations : (F, J, 4) world joint rotations, file frame (for skinning; the same)
     targets : (F, 3) smoothed look-at points
     radius : float, metres; the sphere the camera keeps in view
     facing, right : (3,) unit horizontal vectors (the take's median facing)
@@ -122,8 +172,6 @@ class TakeView:
     mesh: SkinnedMesh
     scale: float
     axes: np.ndarray
-    positions: np.ndarray
-    rotations: np.ndarray
     targets: np.ndarray
     radius: float
     facing: np.ndarray
@@ -137,6 +185,40 @@ class TakeView:
     #: (V,) bool: the mesh's vertices of the hands the close-up frames
     hand_vertices: np.ndarray | None = None
     _hands_dirs: dict = field(default_factory=dict)
+    _posed: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def positions(self) -> FrameJoints:
+        """(F, J, 3) world joint positions, display space, computed for the frames indexed
+        (made on each access: a view held by its own attribute would be a reference cycle,
+        freed only by the garbage collector, with its take)."""
+        return FrameJoints(self, 0)
+
+    @property
+    def rotations(self) -> FrameJoints:
+        """(F, J, 4) world joint rotations, file frame, computed for the frames indexed."""
+        return FrameJoints(self, 1)
+
+    def poses(self, frames) -> tuple[np.ndarray, np.ndarray]:
+        """World joints of ``frames`` (a slice or an int array): display positions
+        ``(K, J, 3)`` and file-frame rotations ``(K, J, 4)``."""
+        pos, wrot = forward_kinematics(self.motion, frames)
+        return self.scale * np.einsum("ij,fkj->fki", self.axes, pos), wrot
+
+    def pose(self, i: int) -> tuple[np.ndarray, np.ndarray]:
+        """World joints of frame ``i``: display positions ``(J, 3)`` and file-frame
+        rotations ``(J, 4)`` (read-only; the last :data:`POSE_CACHE_FRAMES` are kept)."""
+        i = self.check_frame(i)
+        hit = self._posed.get(i)
+        if hit is None:
+            pos, wrot = self.poses(slice(i, i + 1))
+            hit = (pos[0], wrot[0])
+            for a in hit:
+                a.flags.writeable = False
+            if len(self._posed) >= POSE_CACHE_FRAMES:
+                self._posed.pop(next(iter(self._posed)))
+            self._posed[i] = hit
+        return hit
 
     @classmethod
     def from_motion(
@@ -154,15 +236,18 @@ class TakeView:
         ``roles`` (``engine.model.roles.Roles``) fixes the arm and finger joints; default:
         found from the names (a hand take's side from its file name).
         ``close_up_sides`` (e.g. ``("right",)``): the hands the ``hands`` camera frames
-        (default all)."""
+        (default all).
+
+        The take's frames are posed :data:`BLOCK_FRAMES` at a time for the framing
+        (per-frame bounds of the visible and the hand joints, the anchor's rotation)."""
         if motion.n_frames < 1:
             raise ValueError(f"{label or 'take'}: has no frames to render")
         if not 0 <= bind_frame < motion.n_frames:
             raise ValueError(
                 f"{label or 'take'}: bind frame {bind_frame} outside 0..{motion.n_frames - 1}"
             )
-        pos, wrot = forward_kinematics(motion)
-        bind_pos, bind_rot = pos[bind_frame], wrot[bind_frame]
+        pos, wrot = forward_kinematics(motion, bind_frame)
+        bind_pos, bind_rot = pos[0], wrot[0]
         if anatomy is None:
             from engine.model.roles import side_from_name
 
@@ -180,7 +265,23 @@ class TakeView:
                 "(wrist with fingers) found by joint name; nothing to draw "
                 "(rename the joints or pass --roles)"
             )
-        if not (np.ptp(pos, axis=(0, 1)) > 0).any():
+        scale, axes = display_transform(motion, anatomy)
+        visible = np.ones(motion.skeleton.n_joints, bool)
+        visible[list(anatomy.hidden)] = False
+        anchor = (
+            anatomy.pelvis if anatomy.kind == "body" else next(iter(anatomy.hands.values())).wrist
+        )
+        # the hands' close-up: the hands' joints (wrists and fingers)
+        hand_joints = sorted(
+            {
+                d
+                for side, h in anatomy.hands.items()
+                if close_up_sides is None or side in close_up_sides
+                for d in motion.skeleton.descendants(h.wrist)
+            }
+        )
+        track = _Framing.of(motion, scale, axes, visible, anchor, hand_joints)
+        if not (track.extent > 0).any():
             raise ParameterError(
                 f"{name}: every joint sits at one point in every frame (all "
                 "offsets and motion zero); nothing to draw"
@@ -193,12 +294,7 @@ class TakeView:
                 f"{mesh.bind_positions.shape[0]} joints, the skeleton has "
                 f"{motion.skeleton.n_joints}"
             )
-        scale, axes = display_transform(motion, anatomy)
-        disp = scale * np.einsum("ij,fkj->fki", axes, pos)
-        visible = np.ones(motion.skeleton.n_joints, bool)
-        visible[list(anatomy.hidden)] = False
-        vis_pos = disp[:, visible]
-        lo, hi = vis_pos.min(axis=1), vis_pos.max(axis=1)
+        lo, hi = track.lo, track.hi
         center = 0.5 * (lo + hi)
         half_diag = 0.5 * np.linalg.norm(hi - lo, axis=1)
         height_m = anatomy.height * scale
@@ -212,10 +308,7 @@ class TakeView:
         win = max(1, int(round(0.4 * motion.fps)))
         targets = _moving_average(center, win)
         # facing: the bind pose's facing carried by the pelvis (or wrist) rotation
-        anchor = (
-            anatomy.pelvis if anatomy.kind == "body" else next(iter(anatomy.hands.values())).wrist
-        )
-        rel = rot.multiply(wrot[:, anchor], rot.conjugate(bind_rot[anchor]))
+        rel = rot.multiply(track.anchor, rot.conjugate(bind_rot[anchor]))
         fwd = rot.rotate(rel, anatomy.forward) @ axes.T
         up_hand = rot.rotate(rel, anatomy.up) @ axes.T
         if anatomy.kind == "body":
@@ -236,8 +329,6 @@ class TakeView:
             mesh,
             float(scale),
             axes,
-            disp,
-            wrot,
             targets,
             radius,
             facing,
@@ -259,19 +350,10 @@ class TakeView:
             offsets.append(0.5 * (vlo + vhi) - center[f])
             radii.append(0.5 * np.linalg.norm(vhi - vlo))
             lowest.append(vlo[1])
+        view._posed.clear()  # the sampled frames are not the ones the page shows first
         view.targets = targets + np.median(offsets, axis=0)
-        # the hands' close-up: centre and size of the hands' joints (wrists and fingers)
-        hand_joints = sorted(
-            {
-                d
-                for side, h in anatomy.hands.items()
-                if close_up_sides is None or side in close_up_sides
-                for d in motion.skeleton.descendants(h.wrist)
-            }
-        )
         if anatomy.kind == "body" and hand_joints:
-            hp = disp[:, hand_joints]
-            h_lo, h_hi = hp.min(axis=1), hp.max(axis=1)
+            h_lo, h_hi = track.hand_lo, track.hand_hi
             h_half = 0.5 * np.linalg.norm(h_hi - h_lo, axis=1)
             view.hand_radius = float(np.percentile(h_half, 90) + 0.9 * anatomy.hand_length * scale)
             view.hand_targets = _keep_in_view(
@@ -311,9 +393,9 @@ class TakeView:
 
     def vertices(self, i: int) -> tuple[np.ndarray, np.ndarray]:
         """Skinned vertices and normals ``(V, 3)`` of frame ``i``, display space."""
-        i = self.check_frame(i)
-        file_pos = self.positions[i] @ self.axes / self.scale  # back to file frame
-        verts, normals = self.mesh.pose(file_pos, self.rotations[i])
+        disp, wrot = self.pose(i)
+        file_pos = disp @ self.axes / self.scale  # back to file frame
+        verts, normals = self.mesh.pose(file_pos, wrot)
         return self.scale * verts @ self.axes.T, normals @ self.axes.T
 
     def camera_pose(self, i: int, camera: str, aspect: float, yfov: float) -> np.ndarray:
@@ -398,6 +480,50 @@ class TakeView:
             visible = depth[mine] <= nearest[cy[mine], cx[mine]] + _OCCLUSION_SLACK
             seen[k] = visible.sum() / max(int(hand.sum()), 1)
         return seen
+
+
+@dataclass
+class _Framing:
+    """What a view's framing needs of every frame of a take, gathered :data:`BLOCK_FRAMES`
+    frames at a time: bounds ``lo``, ``hi`` (F, 3) of the visible joints and ``hand_lo``,
+    ``hand_hi`` (F, 3) of the close-up's hand joints (display space, metres; None without
+    hand joints), the anchor joint's world rotation ``anchor`` (F, 4, file frame), and
+    ``extent`` (3,): the spread of every joint over every frame (file units)."""
+
+    lo: np.ndarray
+    hi: np.ndarray
+    hand_lo: np.ndarray | None
+    hand_hi: np.ndarray | None
+    anchor: np.ndarray
+    extent: np.ndarray
+
+    @classmethod
+    def of(cls, motion, scale, axes, visible, anchor: int, hand_joints) -> _Framing:
+        frames = motion.n_frames
+        lo, hi = np.empty((frames, 3)), np.empty((frames, 3))
+        hands = np.empty((2, frames, 3)) if hand_joints else None
+        turn = np.empty((frames, 4))
+        low, high = np.full(3, np.inf), np.full(3, -np.inf)
+        for a in range(0, frames, BLOCK_FRAMES):
+            b = min(a + BLOCK_FRAMES, frames)
+            pos, wrot = forward_kinematics(motion, slice(a, b))
+            low = np.minimum(low, pos.min(axis=(0, 1)))
+            high = np.maximum(high, pos.max(axis=(0, 1)))
+            disp = scale * np.einsum("ij,fkj->fki", axes, pos)
+            shown = disp[:, visible]
+            lo[a:b], hi[a:b] = shown.min(axis=1), shown.max(axis=1)
+            if hands is not None:
+                hp = disp[:, hand_joints]
+                hands[0, a:b], hands[1, a:b] = hp.min(axis=1), hp.max(axis=1)
+            turn[a:b] = wrot[:, anchor]
+        return cls(
+            lo,
+            hi,
+            None if hands is None else hands[0],
+            None if hands is None else hands[1],
+            turn,
+            high - low,
+        )
 
 
 def _keep_in_view(centres: np.ndarray, reach: np.ndarray, radius: float, half: int) -> np.ndarray:

@@ -10,7 +10,9 @@ nothing changed (same alignment, same frames) downloads the file made before at 
 GLB are made on a worker thread too (a long take's splice takes seconds), their bytes
 in a child process (``webapp.downloads``: the tens of megabytes of BVH text would hold
 the interpreter, and every other tab, for seconds), with a "preparing…" line and the
-seconds so far. A download that
+seconds so far; the child writes the file to the server's disk and the page fetches it
+over plain HTTP (``webapp.served_files``), not base64 in a Bokeh property (a 10-minute
+take's BVH is ~80 MB). A download that
 fails downloads nothing: its callback returns None and the page shows why.
 """
 
@@ -23,11 +25,13 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 
 import panel as pn
+from bokeh.models import CustomJS
 
 from engine.render.video import remaining_text
 from webapp import backend, safe_text
+from webapp.served_files import STORE, ServedFile
 from webapp.state import VIEW_STATE, Session
-from webapp.views._dispatch import after, after_path
+from webapp.views._dispatch import after, after_path, with_document_lock
 from webapp.views.refusal import refusal_box
 
 #: exports of all sessions share these threads (renders take turns on the OpenGL lock)
@@ -46,12 +50,51 @@ SESSION_FILENAME = "handsplice-session.json"
 class _Download(pn.widgets.FileDownload):
     """A download button whose callback may return None: then nothing is sent and the
     browser downloads nothing (Panel 1.9's FileDownload would raise on None, and the
-    browser only saves a file when the server sends new data)."""
+    browser only saves a file when the server sends new data).
+
+    A callback may also return a ``webapp.served_files.ServedFile`` (a large file on the
+    server's disk): then only its address and name go to the page (the button's model's
+    ``tags``), whose script fetches it with a plain GET (``<a download>`` clicked), instead
+    of Panel's base64 copy of the file in a Bokeh property. ``links`` counts those sent,
+    ``served`` is the last."""
+
+    links = 0
+    served: ServedFile | None = None
+
+    def _get_model(self, doc, root=None, parent=None, comm=None):
+        model = super()._get_model(doc, root, parent, comm)
+        model.js_on_change("tags", CustomJS(code=_JS_FETCH))
+        return model
 
     def _sync_data(self, fileobj):
         if fileobj is None:
             return
+        if isinstance(fileobj, ServedFile):
+            self.served = fileobj
+            self.links += 1
+            self._send_link([_LINK_TAG, fileobj.url, fileobj.name, self.links])
+            return
         super()._sync_data(fileobj)
+
+    @with_document_lock
+    def _send_link(self, tags: list) -> None:
+        for model, _ in list(self._models.values()):
+            model.tags = tags
+
+
+_LINK_TAG = "hs-file"
+#: the page fetches a served file: a hidden link to its address, named, clicked once
+_JS_FETCH = """
+const t = cb_obj.tags;
+if (!Array.isArray(t) || t.length < 3 || t[0] !== 'hs-file') { return; }
+const a = document.createElement('a');
+a.href = t[1];
+a.download = t[2];
+a.style.display = 'none';
+document.body.appendChild(a);
+a.click();
+a.remove();
+"""
 
 
 #: said once a file is made and handed to the browser (a finished step: the line is not
@@ -158,6 +201,9 @@ class SharingView:
         self._update_link()
         doc = pn.state.curdoc
         if doc is not None and doc.session_context is not None:
+            # the page's served files go when it closes (the store keeps a few in any case)
+            owner = id(self)
+            doc.on_session_destroyed(lambda _: STORE.drop(owner))
             # the browser reports its own address once the page is up; the address bar then
             # gets the state that is open (a link that could not be restored is replaced)
             pn.state.onload(self._update_link)
@@ -182,18 +228,19 @@ class SharingView:
         return f"{s.output_stem()}{'-hand-retimed' if retimed else ''}"
 
     async def _bvh(self):
-        self.bvh.filename = f"{self._stem()}.bvh"
-        return await self._off_loop(self.bvh, "spliced BVH", backend.bvh_bytes)
+        return await self._off_loop(self.bvh, "spliced BVH", "bvh")
 
     async def _glb(self):
-        self.glb.filename = f"{self._stem()}.glb"
-        return await self._off_loop(self.glb, "spliced GLB", backend.glb_bytes)
+        return await self._off_loop(self.glb, "spliced GLB", "glb")
 
-    async def _off_loop(self, widget, what: str, encode) -> io.BytesIO | None:
-        """``encode(spliced motion)`` of the alignment shown now, made on a download thread
-        while the event loop serves every session; the page says what is being prepared
-        and for how long. None (nothing downloads) when it fails, with the reason shown."""
+    async def _off_loop(self, widget, what: str, kind: str) -> ServedFile | None:
+        """The spliced take's ``kind`` file of the alignment shown now, made on a download
+        thread (its bytes by a child, onto the server's disk: ``backend.served_file``) while
+        the event loop serves every session; the page says what is being prepared and for
+        how long, then fetches the file over HTTP. None (nothing downloads) when it fails,
+        with the reason shown."""
         s = self.session
+        name = widget.filename = f"{self._stem()}.{kind}"
         if s.prepared is None or s.solution is None:
             return self._guard(s.spliced, what)  # says why (no takes loaded)
         prepared, solution = s.prepared, s.solution  # this state, whatever is edited meanwhile
@@ -201,8 +248,9 @@ class SharingView:
         self.prepare_text.object = f"{what}: preparing…"
         self.prepare_text.visible = True
         t0 = time.perf_counter()
+        owner = id(self)
         job = asyncio.get_running_loop().run_in_executor(
-            _FILES, lambda: encode(backend.splice(prepared, solution))
+            _FILES, lambda: backend.served_file(prepared, solution, kind, name, owner=owner)
         )
         try:
             while True:
@@ -220,9 +268,9 @@ class SharingView:
             widget.disabled = False
         self.message.visible = False
         self.prepare_text.object = (
-            f"{what}: {len(data) / 1024:.0f} KiB in {time.perf_counter() - t0:.1f} s, {SENT}"
+            f"{what}: {data.size / 1024:.0f} KiB in {time.perf_counter() - t0:.1f} s, {SENT}"
         )
-        return io.BytesIO(data)
+        return data
 
     def _session_json(self):
         return self._guard(lambda: self.session.to_json().encode("utf-8"), "session")
