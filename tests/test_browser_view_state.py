@@ -76,7 +76,12 @@ def test_view_state_set_in_the_page_comes_back_from_link_and_session_file(
         assert time.monotonic() < deadline, f"the link does not follow the view: {shared}"
         page.wait_for_timeout(100)
     assert all(f in shared for f in ("camera=side", "trails=1", "follow=0", "pick=1"))
-    assert page.url.endswith(shared[shared.index("?") :])  # the address bar carries it too
+    # the address bar carries it too (it follows the link field once the view is still)
+    query = shared[shared.index("?") :]
+    deadline = time.monotonic() + 30
+    while not page.url.endswith(query):
+        assert time.monotonic() < deadline, f"the address bar does not follow: {page.url}"
+        page.wait_for_timeout(100)
 
     with page.expect_download(timeout=60_000) as info:
         page.locator(".hs-download-session button").click()

@@ -335,7 +335,7 @@ def test_app_glb_download_callback(tmp_path):
     view = sharing.SharingView(session)
     data = asyncio.run(view._glb())  # made on a download thread, awaited here
     assert data is not None and view.glb.filename == f"{session.output_stem()}.glb"
-    doc = pygltflib.GLTF2.load_from_bytes(data.getvalue())
+    doc = pygltflib.GLTF2.load_from_bytes(data.path.read_bytes())  # the file the page fetches
     motion = session.spliced()
     assert [doc.nodes[j].name for j in doc.skins[0].joints] == list(motion.skeleton.names)
     world, _ = animated_world(doc, doc.binary_blob(), motion.n_frames)

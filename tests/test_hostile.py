@@ -640,7 +640,7 @@ def test_batch_cli_limit_options(tmp_path, capsys):
     manifest = tmp_path / "m.csv"
     manifest.write_text(f"body,hand,side\n{BODY},{HAND},right\n")
     status, err = cli(["batch", manifest, "-o", tmp_path / "o", "--pair-seconds", "-1"], capsys)
-    one_line_exit_2(status, err, "pair_seconds")
+    one_line_exit_2(status, err, "--pair-seconds")
     with pytest.raises(SystemExit) as info:  # argparse's own one-line error
         main(["batch", str(manifest), "-o", str(tmp_path / "o"), "--pair-memory-mb", "x"])
     assert info.value.code == 2 and "--pair-memory-mb" in capsys.readouterr().err

@@ -91,7 +91,6 @@ def test_the_pages_glb_of_a_marker_body_is_the_retimed_hand_in_3d(marker_session
     hand take retimed to the body (one key per body frame at the body's rate), named so
     (it was named as a splice of the body)."""
     import asyncio
-    import base64
 
     import pygltflib
 
@@ -103,7 +102,7 @@ def test_the_pages_glb_of_a_marker_body_is_the_retimed_hand_in_3d(marker_session
     assert not view.message.visible, view.message.object
     assert view.glb.filename == "markers_analogs-spliced-hand-retimed.glb"
     path = tmp_path / view.glb.filename
-    path.write_bytes(base64.b64decode(view.glb.data.split(",", 1)[1]))
+    path.write_bytes(view.glb.served.path.read_bytes())  # the file the page fetches over HTTP
     doc = pygltflib.GLTF2().load_binary(str(path))
     retimed = backend.splice(s.prepared, s.solution)
     assert {node.name for node in doc.nodes} >= set(retimed.skeleton.names)
