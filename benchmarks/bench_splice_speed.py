@@ -841,24 +841,20 @@ def main(argv=None) -> int:
     )
     args = ap.parse_args(argv)
     fps = 120.0
-    if args.pass1_problems:
-        load0 = os.getloadavg()[0]
-        files = LP.pair_files(120.0, fps)
-        res = bench_pass1_problems(files[0], files[1], max(args.reps, 1))
-        print(json.dumps(res), flush=True)
-        text = report_pass1_problems(res, (load0, os.getloadavg()[0]))
-        print(text)
-        write_section("splice_speed_pass1_problems", text)
-        return 0
-    if args.pass1:
-        load0 = os.getloadavg()[0]
-        files = LP.pair_files(120.0, fps)
-        k = bench_pass1_rows(files[0], files[1], max(args.reps, 1))
-        print(json.dumps(k), flush=True)
-        text = report_pass1(k, (load0, os.getloadavg()[0]))
-        print(text)
-        write_section("splice_speed_pass1", text)
-        return 0
+    # the two pass-1 kernel benches: (flag, bench, report, RESULTS section)
+    for chosen, bench, report, section in (
+        (args.pass1_problems, bench_pass1_problems, report_pass1_problems, "_problems"),
+        (args.pass1, bench_pass1_rows, report_pass1, ""),
+    ):
+        if chosen:
+            load0 = os.getloadavg()[0]
+            files = LP.pair_files(120.0, fps)
+            res = bench(files[0], files[1], max(args.reps, 1))
+            print(json.dumps(res), flush=True)
+            text = report(res, (load0, os.getloadavg()[0]))
+            print(text)
+            write_section(f"splice_speed_pass1{section}", text)
+            return 0
     if args.stages:
         load0 = os.getloadavg()[0]
         before = LP.baseline_tree(STAGE_BASE)
