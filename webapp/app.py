@@ -154,26 +154,63 @@ def _local_stylesheets(doc) -> None:
 
 
 def create_app() -> pn.viewable.Viewable:
-    """Build the page for one browser session."""
-    from webapp.views import controls, credits
-    from webapp.views.cost_matrix import CostMatrixView
-    from webapp.views.inputs import InputsView
-    from webapp.views.progress import BusyLine
-    from webapp.views.sharing import SharingView
-    from webapp.views.trust import TrustView
-    from webapp.views.veil import Veil
+    """Build the page for one browser session.
+
+    Served, the page's first answer is a light shell: the header and a line that says
+    what the server does and for how long (building the page, opening the takes,
+    aligning), so a long pair never shows a blank page. Once the browser has the shell
+    (Panel's ``onload``), the pair starts opening on the worker and the takes and
+    alignment sections are built beside it; the share and lesson sections follow once
+    the first matrix is in the page (:class:`webapp.views.progress.FirstLine`).
+    Without a server (tests, scripts) the whole page is built at once."""
+    from webapp.views import connection
+    from webapp.views.progress import FirstLine
 
     session = Session(config.get())
     doc = pn.state.curdoc
     _local_stylesheets(doc)
     args = _link_args()
-    if doc is not None and doc.session_context is not None:
-        # opening and solving never hold the event loop; they start once the page is up
-        # (a page fetched but never shown, e.g. a readiness probe, computes nothing)
+    served = doc is not None and doc.session_context is not None
+    first = FirstLine(session)
+    page = pn.Column(
+        pn.pane.HTML(HEADER, sizing_mode="stretch_width", margin=(10, 10, 0, 10)),
+        first.panel(),
+        sizing_mode="stretch_width",
+        css_classes=["hs-app"],
+        styles={"max-width": "2000px", "margin": "0 auto"},
+    )
+    page.session = session  # for tests and debugging
+    if served:
+        # opening and solving never hold the event loop; they start once the shell is in
+        # the browser (a page fetched but never shown, e.g. a readiness probe, computes
+        # nothing and builds no more than the shell)
         session.compute_off_loop(doc)
-        pn.state.onload(lambda: _initial_state(session, args))
+        pn.state.onload(lambda: fill_page(page, session, first, args))
     else:
-        _initial_state(session, args)
+        fill_page(page, session, first, args)
+    connection.install(doc if served else None)
+    return page
+
+
+def fill_page(page: pn.Column, session: Session, first, args: dict[str, str] | None) -> None:
+    """Open the session's first pair and put the page's sections into the shell ``page``:
+    takes and alignment at once (the pair opens on the worker meanwhile), share and lesson
+    once the first matrix is drawn (``first.then``; at once without a server)."""
+    first.building()
+    _initial_state(session, args)  # served: the pair opens on the worker from here on
+    page.extend(_work_sections(session))
+    first.built(lambda: page.extend(_later_sections(session)))
+
+
+def _work_sections(session: Session) -> list:
+    """The takes and the alignment (matrix, its controls, trust, preview)."""
+    from webapp.views import controls, credits
+    from webapp.views.cost_matrix import CostMatrixView
+    from webapp.views.inputs import InputsView
+    from webapp.views.progress import BusyLine
+    from webapp.views.trust import TrustView
+    from webapp.views.veil import Veil
+
     inputs = InputsView(session)
     matrix = CostMatrixView(session)
     trust = TrustView(session, matrix)
@@ -238,31 +275,21 @@ def create_app() -> pn.viewable.Viewable:
         controls.error_alert(session),
         views,
     )
-    sections = [
-        pn.pane.HTML(HEADER, sizing_mode="stretch_width", margin=(10, 10, 0, 10)),
-        _section("1 · Takes", "", inputs.panel(), credits.credits_pane(session)),
-        alignment,
-    ]
-    sections.append(_section("4 · Share", SharingView.TEXT, SharingView(session).panel()))
+    return [_section("1 · Takes", "", inputs.panel(), credits.credits_pane(session)), alignment]
+
+
+def _later_sections(session: Session) -> list:
+    """Share and the DTW lesson: built once the first matrix is in the page."""
+    from webapp.views.sharing import SharingView
+
+    sections = [_section("4 · Share", SharingView.TEXT, SharingView(session).panel())]
     try:
         from webapp.views.teaching import TeachingView
 
         sections.append(_section("5 · How DTW works", TeachingView.TEXT, TeachingView().panel()))
     except ImportError:
         pass
-    page = pn.Column(
-        *sections,
-        sizing_mode="stretch_width",
-        css_classes=["hs-app"],
-        styles={"max-width": "2000px", "margin": "0 auto"},
-    )
-    page.session = session  # for tests and debugging
-    from webapp.views import connection
-
-    connection.install(
-        pn.state.curdoc if pn.state.curdoc and pn.state.curdoc.session_context else None
-    )
-    return page
+    return sections
 
 
 #: a warm-up stage running this long (s) says so again on the console, and again after

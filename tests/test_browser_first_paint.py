@@ -1,0 +1,82 @@
+"""The page answers at once and says what it waits for (issue 13, stranger R3-1).
+
+``handsplice serve BODY HAND --no-warm``: the first tab opens and aligns the pair itself.
+Before, the server built the whole page (matrix, trust, share, the DTW lesson) before
+its first byte, and the opening started after that: a blank white page for 18-22 s on
+a long pair. Now the first answer is a light shell (the header and a line) and the
+line says what the server does and for how long (building the page, opening the takes,
+aligning) until the matrix, band and path are in the page; the share and lesson
+sections come after the matrix.
+"""
+
+from __future__ import annotations
+
+import re
+import time
+import urllib.request
+
+import pytest
+from conftest import BODY_BVH, HAND_BVH, HAS_PATH, open_tab, served_chromium
+
+pytestmark = pytest.mark.browser
+
+#: the first line while the page waits: a stage, "…", the seconds since the page was asked
+LINE = re.compile(r"^(building the page|opening the page|opening .+: .+|.+)… \d+ s$")
+LESSON = "How DTW works"
+
+
+@pytest.fixture(scope="module")
+def served(tmp_path_factory):
+    with served_chromium(tmp_path_factory, str(BODY_BVH), str(HAND_BVH), "--no-warm") as s:
+        yield s
+
+
+def _first_line(page) -> str:
+    line = page.locator(".hs-first")
+    try:
+        return line.first.inner_text(timeout=500).strip() if line.count() else ""
+    except Exception:  # noqa: BLE001 - the line went away meanwhile
+        return ""
+
+
+def test_the_first_answer_is_a_light_shell_with_the_line(served):
+    """The page's HTML answer holds the header and the first line, not the matrix: the
+    server sends it before it builds the page or opens the pair."""
+    _, url = served
+    with urllib.request.urlopen(url, timeout=120) as reply:
+        html = reply.read().decode("utf-8", "replace")
+    assert "hs-first-line" in html and "opening the page" in html
+    for later in ("hs-cost-matrix", "hs-status", LESSON):
+        assert later not in html, later
+
+
+def test_the_line_names_the_stage_and_seconds_until_the_matrix_then_the_rest_comes(served):
+    browser, url = served
+    context = browser.new_context(viewport={"width": 1300, "height": 1000})
+    page = open_tab(context, url, timeout_s=300, ready="() => window.Bokeh && Bokeh.documents.length")
+    seen: list[str] = []
+    lesson_before_path = False
+    deadline = time.monotonic() + 300
+    while not page.evaluate(HAS_PATH):
+        assert time.monotonic() < deadline, f"no path; lines {seen}"
+        text = _first_line(page)
+        if text and (not seen or seen[-1] != text):
+            seen.append(text)
+        lesson_before_path |= page.get_by_text(LESSON).count() > 0
+        page.wait_for_timeout(50)
+    assert seen, "no line while the page waited for its matrix"
+    assert all(LINE.match(t) for t in seen), seen
+    stages = " | ".join(seen)
+    # the pair's own opening is named (its body file's name), with the engine's stages
+    assert "opening" in stages and BODY_BVH.stem in stages, seen
+    assert not lesson_before_path, "the lesson was built before the matrix"
+    # after the path: the line goes, the share and lesson sections arrive
+    page.get_by_text(LESSON).first.wait_for(timeout=120_000)
+    page.get_by_text("4 · Share").first.wait_for(timeout=10_000)
+    deadline = time.monotonic() + 10
+    while _first_line(page):
+        assert time.monotonic() < deadline, _first_line(page)
+        page.wait_for_timeout(50)
+    errors = page.errors
+    context.close()
+    assert not errors, errors
