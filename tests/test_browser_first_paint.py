@@ -73,7 +73,9 @@ def test_the_first_answer_is_a_light_shell_with_the_line(served):
 def test_the_line_names_the_stage_and_seconds_until_the_matrix_then_the_rest_comes(served):
     browser, url = served
     context = browser.new_context(viewport={"width": 1300, "height": 1000})
-    page = open_tab(context, url, timeout_s=300, ready="() => window.Bokeh && Bokeh.documents.length")
+    page = open_tab(
+        context, url, timeout_s=300, ready="() => window.Bokeh && Bokeh.documents.length"
+    )
     seen: list[str] = []
     lesson_before_path = False
     deadline = time.monotonic() + 300

@@ -198,7 +198,11 @@ def fill_page(page: pn.Column, session: Session, first, args: dict[str, str] | N
     once the first matrix is drawn (``first.then``; at once without a server)."""
     first.building()
     _initial_state(session, args)  # served: the pair opens on the worker from here on
-    page.extend(_work_sections(session))
+    try:
+        page.extend(_work_sections(session))
+    except Exception as exc:  # the line says so (no endless "building the page…"); logged
+        first.failed(f"the page could not be built ({one_line(exc)}); reload to try again")
+        raise
     first.built(lambda: page.extend(_later_sections(session)))
 
 

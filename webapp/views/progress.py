@@ -168,6 +168,14 @@ class FirstLine:
             return
         self._tick()
 
+    def failed(self, text: str) -> None:
+        """The page could not be built: the line says ``text`` and stops."""
+        self.done = True
+        if self._timer is not None:
+            self._timer.stop()
+            self._timer = None
+        self.pane.object = f'<div class="hs-first" data-stage="failed">{safe_text.html(text)}</div>'
+
     def _tick(self) -> None:
         if self.done:
             return
