@@ -24,7 +24,10 @@ def _served_page(doc: Document):
     from webapp import app
 
     page = app.create_app()
-    page.extend(app._work_sections(page.session) + app._later_sections(page.session))
+    sections, rest = app._work_sections(page.session)
+    page.extend(sections)
+    rest()
+    page.extend(app._later_sections(page.session))
     return page.get_root(doc)
 
 

@@ -194,81 +194,56 @@ def create_app() -> pn.viewable.Viewable:
 
 def fill_page(page: pn.Column, session: Session, first, args: dict[str, str] | None) -> None:
     """Open the session's first pair and put the page's sections into the shell ``page``:
-    takes and alignment at once (the pair opens on the worker meanwhile), share and lesson
-    once the first matrix is drawn (``first.then``; at once without a server)."""
+    the matrix at once (the pair opens on the worker meanwhile), the takes' inputs, the
+    matrix's controls and the preview in the next tick (so the matrix goes to the browser
+    first), share and lesson once the first matrix is drawn (``first.built``); without a
+    server all at once."""
     first.building()
     _initial_state(session, args)  # served: the pair opens on the worker from here on
     try:
-        page.extend(_work_sections(session))
+        sections, rest = _work_sections(session)
+        page.extend(sections)
     except Exception as exc:  # the line says so (no endless "building the page…"); logged
         first.failed(f"the page could not be built ({one_line(exc)}); reload to try again")
         raise
-    first.built(lambda: page.extend(_later_sections(session)))
+
+    def fill_rest():
+        try:
+            rest()
+        except Exception as exc:
+            first.failed(f"the page could not be built ({one_line(exc)}); reload to try again")
+            raise
+        first.built(lambda: page.extend(_later_sections(session)))
+
+    doc = pn.state.curdoc
+    if doc is not None and doc.session_context is not None:
+        from webapp.views._dispatch import after
+
+        after(doc, fill_rest, 0)
+    else:
+        fill_rest()
 
 
-def _work_sections(session: Session) -> list:
-    """The takes and the alignment (matrix, its controls, trust, preview)."""
+def _work_sections(session: Session) -> tuple[list, object]:
+    """The takes and the alignment sections, and ``rest()``, which fills in what the first
+    matrix does not need: the takes' inputs, the matrix's controls and points table, the
+    preview."""
     from webapp.views import controls, credits
     from webapp.views.cost_matrix import CostMatrixView
-    from webapp.views.inputs import InputsView
     from webapp.views.progress import BusyLine
     from webapp.views.trust import TrustView
     from webapp.views.veil import Veil
 
-    inputs = InputsView(session)
     matrix = CostMatrixView(session)
     trust = TrustView(session, matrix)
-    points = controls.PointsTable(session)
-    pick = pn.widgets.RadioButtonGroup.from_param(  # the session's pick mode (its file, link)
-        session.param.pick,
-        name="",
-        options={"Edit points": False, "Pick frames": True},
-        css_classes=["hs-click-mode"],
-        description=None,
-    )
-    # the mode applies in the browser at once (a click made before the server's answer
-    # arrives must not add a point); the server sets the same (CostMatrixView.set_pick_mode)
-    pick.jscallback(
-        value="tool.add = cb_obj.labels[cb_obj.active] !== 'Pick frames'",
-        args={"tool": matrix.point_tool},
-    )
-
-    side_panel = pn.Column(
-        controls.parameter_widgets(session),
-        pn.pane.Markdown("**A click on the matrix**", margin=(10, 10, 0, 10)),
-        pick,
-        controls.undo_redo(session),
-        pn.pane.Markdown("**Matching points** (empty tolerance = global)", margin=(10, 10, 0, 10)),
-        controls.hand_rate_note(session),
-        points.panel(),
-        width=420,
-        sizing_mode=None,
-    )
+    status = controls.status_line(session)
     # matrix, its controls and the preview side by side on a wide screen (they wrap below
     # one another on a narrow one); the trust layers sit under the matrix
-    work = [
-        pn.Column(matrix.panel(), trust.panel(), margin=0, sizing_mode=None, width=trust.width),
-        side_panel,
-    ]
-    try:
-        from webapp.views.preview import PreviewView
-
-        work.append(
-            pn.Column(
-                pn.pane.Markdown("### 3 · Preview", margin=(0, 10)),
-                pn.pane.Markdown(
-                    PreviewView.TEXT, css_classes=["hs-section-text"], width=680, margin=(0, 10)
-                ),
-                PreviewView(session).panel(),
-                sizing_mode=None,
-                width=700,
-            )
-        )
-    except ImportError:
-        pass
-    status = controls.status_line(session)
     views = pn.FlexBox(
-        *work, flex_wrap="wrap", align_items="flex-start", sizing_mode="stretch_width"
+        pn.Column(matrix.panel(), trust.panel(), margin=0, sizing_mode=None, width=trust.width),
+        flex_wrap="wrap",
+        align_items="flex-start",
+        sizing_mode="stretch_width",
     )
     Veil(session, status, views)  # greyed, no input, while a new pair opens
     alignment = _section(
@@ -279,7 +254,64 @@ def _work_sections(session: Session) -> list:
         controls.error_alert(session),
         views,
     )
-    return [_section("1 · Takes", "", inputs.panel(), credits.credits_pane(session)), alignment]
+    takes = _section("1 · Takes", "")
+
+    def rest() -> None:
+        from webapp.views.inputs import InputsView
+
+        inputs = InputsView(session)
+        takes.extend([inputs.panel(), credits.credits_pane(session)])
+        points = controls.PointsTable(session)
+        pick = pn.widgets.RadioButtonGroup.from_param(  # the session's pick mode (file, link)
+            session.param.pick,
+            name="",
+            options={"Edit points": False, "Pick frames": True},
+            css_classes=["hs-click-mode"],
+            description=None,
+        )
+        # the mode applies in the browser at once (a click made before the server's answer
+        # arrives must not add a point); the server sets the same (CostMatrixView.set_pick_mode)
+        pick.jscallback(
+            value="tool.add = cb_obj.labels[cb_obj.active] !== 'Pick frames'",
+            args={"tool": matrix.point_tool},
+        )
+        work = [
+            pn.Column(
+                controls.parameter_widgets(session),
+                pn.pane.Markdown("**A click on the matrix**", margin=(10, 10, 0, 10)),
+                pick,
+                controls.undo_redo(session),
+                pn.pane.Markdown(
+                    "**Matching points** (empty tolerance = global)", margin=(10, 10, 0, 10)
+                ),
+                controls.hand_rate_note(session),
+                points.panel(),
+                width=420,
+                sizing_mode=None,
+            )
+        ]
+        try:
+            from webapp.views.preview import PreviewView
+
+            work.append(
+                pn.Column(
+                    pn.pane.Markdown("### 3 · Preview", margin=(0, 10)),
+                    pn.pane.Markdown(
+                        PreviewView.TEXT,
+                        css_classes=["hs-section-text"],
+                        width=680,
+                        margin=(0, 10),
+                    ),
+                    PreviewView(session).panel(),
+                    sizing_mode=None,
+                    width=700,
+                )
+            )
+        except ImportError:
+            pass
+        views.extend(work)
+
+    return [takes, alignment], rest
 
 
 def _later_sections(session: Session) -> list:
