@@ -1,6 +1,8 @@
 """The page answers at once and says what it waits for (issue 13, stranger R3-1).
 
-``handsplice serve BODY HAND --no-warm``: the first tab opens and aligns the pair itself.
+``handsplice serve BODY HAND --no-warm`` on a 30-second 120 fps pair (LAFAN1
+``multipleActions1`` resampled: 3,600 frames, with ManipNet's mug hand take): the first
+tab aligns the pair itself (seconds).
 Before, the server built the whole page (matrix, trust, share, the DTW lesson) before
 its first byte, and the opening started after that: a blank white page for 18-22 s on
 a long pair. Now the first answer is a light shell (the header and a line) and the
@@ -13,20 +15,37 @@ from __future__ import annotations
 
 import re
 import time
+from pathlib import Path
 
 import pytest
-from conftest import BODY_BVH, HAND_BVH, HAS_PATH, open_tab, served_chromium
+from conftest import HAS_PATH, MOCAP, open_tab, served_chromium
 
 pytestmark = pytest.mark.browser
 
-#: the first line while the page waits: a stage, "…", the seconds since the page was asked
-LINE = re.compile(r"^(building the page|opening the page|opening .+: .+|.+)… \d+ s$")
 LESSON = "How DTW works"
 
 
+SECONDS = 30
+FPS = 120.0
+
+
 @pytest.fixture(scope="module")
-def served(tmp_path_factory):
-    with served_chromium(tmp_path_factory, str(BODY_BVH), str(HAND_BVH), "--no-warm") as s:
+def pair(tmp_path_factory) -> tuple[Path, Path]:
+    from engine.io import load_take
+    from engine.io.bvh import write_bvh
+    from engine.model.kinematics import resample
+
+    folder = tmp_path_factory.mktemp("pair")
+    body = resample(load_take(MOCAP / "lafan1" / "multipleActions1_subject1.bvh"), FPS)
+    path = folder / "multipleActions1_30s_120fps.bvh"
+    write_bvh(body.frames(0, int(SECONDS * FPS)), path)
+    return path, MOCAP / "manipnet" / "mug1_rightHand.bvh"
+
+
+@pytest.fixture(scope="module")
+def served(tmp_path_factory, pair):
+    body, hand = pair
+    with served_chromium(tmp_path_factory, str(body), str(hand), "--no-warm") as s:
         yield s
 
 
@@ -39,8 +58,11 @@ def _first_line(page) -> str:
 
 
 #: records, at the first moment the page has its document, what that document holds
+#: (``__hs_first``), and every text the server gives the first line (``__hs_lines``: a
+#: busy browser may apply several before it paints, so polling the screen could miss one)
 FIRST_DOCUMENT = """
 (() => {
+  window.__hs_lines = [];
   const look = () => {
     const d = window.Bokeh && Bokeh.documents.length ? Bokeh.documents[0] : null;
     if (d == null) { setTimeout(look, 5); return; }
@@ -48,10 +70,16 @@ FIRST_DOCUMENT = """
       m => (m.css_classes || []).includes('hs-first-line'));
     window.__hs_first = {matrix: !!d.get_model_by_name('hs-x-range'),
                          line: line ? String(line.text) : null};
+    if (line) {
+      window.__hs_lines.push(String(line.text));
+      line.properties.text.change.connect(() => window.__hs_lines.push(String(line.text)));
+    }
   };
   look();
 })();
 """
+#: the stage a line's HTML names (its ``data-stage``), with its seconds
+STAGE = re.compile(r'data-stage="([^"]*)".*?… (\d+) s<', re.S)
 
 
 def test_the_first_answer_is_a_light_shell_with_the_line(served):
@@ -73,24 +101,30 @@ def test_the_first_answer_is_a_light_shell_with_the_line(served):
 def test_the_line_names_the_stage_and_seconds_until_the_matrix_then_the_rest_comes(served):
     browser, url = served
     context = browser.new_context(viewport={"width": 1300, "height": 1000})
+    context.add_init_script(FIRST_DOCUMENT)
+    # a band of its own: this tab solves the pair's alignment itself (another tab's first
+    # alignment at the default settings would be shown at once, with nothing to wait for)
     page = open_tab(
-        context, url, timeout_s=300, ready="() => window.Bokeh && Bokeh.documents.length"
+        context,
+        url + "?band=0.45",
+        timeout_s=300,
+        ready="() => window.Bokeh && Bokeh.documents.length",
     )
-    seen: list[str] = []
     lesson_before_path = False
     deadline = time.monotonic() + 300
     while not page.evaluate(HAS_PATH):
-        assert time.monotonic() < deadline, f"no path; lines {seen}"
-        text = _first_line(page)
-        if text and (not seen or seen[-1] != text):
-            seen.append(text)
+        assert time.monotonic() < deadline, "no path"
         lesson_before_path |= page.get_by_text(LESSON).count() > 0
         page.wait_for_timeout(50)
-    assert seen, "no line while the page waited for its matrix"
-    assert all(LINE.match(t) for t in seen), seen
-    stages = " | ".join(seen)
-    # the pair's own opening is named (its body file's name), with the engine's stages
-    assert "opening" in stages and BODY_BVH.stem in stages, seen
+    lines = page.evaluate("window.__hs_lines")
+    seen = [m.group(1) for m in map(STAGE.search, lines) if m]
+    assert seen and seen[0] == "opening the page", lines
+    assert "building the page" in seen, seen
+    # besides the page's own building, the pair's work: this tab opens the link's pair
+    # ("opening NAME: …") and solves its alignment ("aligning…"), with the engine's stage
+    assert any(t.startswith(("aligning", "opening ")) and t != "opening the page" for t in seen), (
+        seen
+    )
     assert not lesson_before_path, "the lesson was built before the matrix"
     # after the path: the line goes, the share and lesson sections arrive
     page.get_by_text(LESSON).first.wait_for(timeout=120_000)
