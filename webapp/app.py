@@ -200,6 +200,7 @@ def fill_page(page: pn.Column, session: Session, first, args: dict[str, str] | N
     server all at once."""
     first.building()
     _initial_state(session, args)  # served: the pair opens on the worker from here on
+    first.update()  # "building the page · opening NAME: …" goes out with the matrix
     try:
         sections, rest = _work_sections(session)
         page.extend(sections)

@@ -142,17 +142,17 @@ class FirstLine:
         )
 
     def _stage(self) -> str | None:
-        """What the line says now; None: the first matrix is in the page."""
-        if self._phase:
-            return self._phase
+        """What the line says now: the page's own phase and the session's work (opening
+        the takes, aligning, with the engine's stage); None: the first matrix is in."""
         s = self.session
         runner = s.runner
         running = runner is not None and runner.busy and runner.stage
+        work = ""
         if s.opening:
-            return f"opening {s.opening}: " + (runner.stage if running else "reading the takes")
-        if s.busy:
-            return runner.stage if running else s.busy
-        return None
+            work = f"opening {s.opening}: " + (runner.stage if running else "reading the takes")
+        elif s.busy:
+            work = runner.stage if running else s.busy
+        return " · ".join(part for part in (self._phase, work) if part) or None
 
     def building(self) -> None:
         self._phase = "building the page"
@@ -175,6 +175,10 @@ class FirstLine:
             self._timer.stop()
             self._timer = None
         self.pane.object = f'<div class="hs-first" data-stage="failed">{safe_text.html(text)}</div>'
+
+    def update(self) -> None:
+        """Say what happens now (the periodic tick does so too, between callbacks)."""
+        self._tick()
 
     def _tick(self) -> None:
         if self.done:
