@@ -1,6 +1,6 @@
 """Opening a long pair in Chromium: first byte, first text, first matrix (issue 13, R3-1).
 
-Run: ``.venv/bin/python -m benchmarks.bench_app_open CODE [CODE ...]`` where CODE is
+Run: ``.venv/bin/python -m benchmarks.bench_app_open [--by-path-only] CODE [CODE ...]`` where CODE is
 ``now`` (this checkout) or a commit (its ``engine``, ``webapp``, ``sample_data``), each on
 its own ``handsplice serve`` one after the other in the same run.
 
@@ -55,7 +55,9 @@ def _tab(browser, url: str, n: int) -> tuple[dict, object]:
 
 
 def main(argv=None) -> int:
-    codes = (argv if argv is not None else sys.argv[1:]) or ["now"]
+    args = list(argv if argv is not None else sys.argv[1:])
+    by_path_only = "--by-path-only" in args  # no upload server (a shorter run)
+    codes = [a for a in args if not a.startswith("--")] or ["now"]
     from playwright.sync_api import sync_playwright
 
     seconds = 120.0
@@ -80,8 +82,9 @@ def main(argv=None) -> int:
                 out["tab2"], tab2 = _tab(browser, url, n)
                 tab1.context.close()
                 tab2.context.close()
-            with app_long.serve(tree, "--upload-dir", str(up)) as (url, _):
-                out["upload"] = app_long.by_upload(browser, url, body, hand, n)
+            if not by_path_only:
+                with app_long.serve(tree, "--upload-dir", str(up)) as (url, _):
+                    out["upload"] = app_long.by_upload(browser, url, body, hand, n)
             out["load_after"] = app_long.loadavg()
             print(json.dumps(out), flush=True)
         browser.close()
