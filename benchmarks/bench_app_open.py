@@ -1,6 +1,7 @@
 """Opening a long pair in Chromium: first byte, first text, first matrix (issue 13, R3-1).
 
-Run: ``.venv/bin/python -m benchmarks.bench_app_open [--by-path-only] CODE [CODE ...]`` where CODE is
+Run: ``.venv/bin/python -m benchmarks.bench_app_open [--by-path-only | --by-upload-only] CODE
+[CODE ...]`` where CODE is
 ``now`` (this checkout) or a commit (its ``engine``, ``webapp``, ``sample_data``), each on
 its own ``handsplice serve`` one after the other in the same run.
 
@@ -57,6 +58,7 @@ def _tab(browser, url: str, n: int) -> tuple[dict, object]:
 def main(argv=None) -> int:
     args = list(argv if argv is not None else sys.argv[1:])
     by_path_only = "--by-path-only" in args  # no upload server (a shorter run)
+    by_upload_only = "--by-upload-only" in args  # no server of the pair by path
     codes = [a for a in args if not a.startswith("--")] or ["now"]
     from playwright.sync_api import sync_playwright
 
@@ -65,6 +67,7 @@ def main(argv=None) -> int:
     n = int(round(seconds * 120))
     with tempfile.TemporaryDirectory() as tmp, sync_playwright() as p:
         browser = launch_chromium(p)
+        out_rows: list[dict] = []
         for code in codes:
             tree = (
                 None
@@ -72,20 +75,22 @@ def main(argv=None) -> int:
                 else baseline_tree(code, ("engine", "webapp", "sample_data"), name="open-" + code)
             )
             out: dict = {"code": code, "load_before": app_long.loadavg()}
-            up = Path(tmp) / f"up-{code}"
-            with app_long.serve(tree, str(body), str(hand), "--upload-dir", str(up)) as (
-                url,
-                started,
-            ):
-                out["start_s"] = started
-                out["tab1"], tab1 = _tab(browser, url, n)
-                out["tab2"], tab2 = _tab(browser, url, n)
-                tab1.context.close()
-                tab2.context.close()
+            up = Path(tmp) / f"up-{code}-{len(out_rows)}"
+            if not by_upload_only:
+                with app_long.serve(tree, str(body), str(hand), "--upload-dir", str(up)) as (
+                    url,
+                    started,
+                ):
+                    out["start_s"] = started
+                    out["tab1"], tab1 = _tab(browser, url, n)
+                    out["tab2"], tab2 = _tab(browser, url, n)
+                    tab1.context.close()
+                    tab2.context.close()
             if not by_path_only:
                 with app_long.serve(tree, "--upload-dir", str(up)) as (url, _):
                     out["upload"] = app_long.by_upload(browser, url, body, hand, n)
             out["load_after"] = app_long.loadavg()
+            out_rows.append(out)
             print(json.dumps(out), flush=True)
         browser.close()
     return 0
