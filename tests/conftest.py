@@ -266,7 +266,8 @@ def open_tab(
     console: bool = False,
 ):
     """A new tab of the Playwright ``context`` at ``url``, once the page condition
-    ``ready`` holds (default: the matrix shows a path), with the page's ``hs`` helpers.
+    ``ready`` holds (default: the matrix shows a path, and the page's later sections,
+    built after it, are in the page), with the page's ``hs`` helpers.
 
     ``page.errors`` collects the tab's JavaScript errors (``console``: console errors
     too). ``timeout_s`` bounds the load and the wait for ``ready``; ``matrix_timeout_s``
@@ -284,6 +285,8 @@ def open_tab(
     if matrix_timeout_s is not None:
         page.locator(".hs-cost-matrix").first.wait_for(timeout=matrix_timeout_s * 1000)
     page.wait_for_function(ready, timeout=timeout_s * 1000)
+    if ready is HAS_PATH:  # the page's later sections (share, lesson) follow the first path
+        page.locator(".hs-share-url").first.wait_for(state="attached", timeout=timeout_s * 1000)
     page.evaluate(PAGE_HELPERS)
     page.errors = errors
     return page

@@ -49,11 +49,17 @@ def test_strip_region_and_meter_follow_the_alignment(page):
     meter = page.evaluate("hs.cols('hs-desync-meter-source', ['start', 'stop', 'color'])")
     assert meter["start"], "the demo's wave has strokes on the phase track"
     assert set(meter["color"]) <= colours
-    summary = page.locator(".hs-desync-summary").first.evaluate(
+    # the summary says "assessing …" until the trust of this alignment is in (off the loop)
+    text = (
         "e => [...(e.shadowRoot ? e.shadowRoot.children : []), ...e.children]"
         ".filter(c => c.tagName !== 'STYLE' && c.tagName !== 'LINK')"
         ".map(c => c.innerText).join(' ')"
     )
+    line = page.locator(".hs-desync-summary").first
+    page.wait_for_function(
+        f"e => !({text})(e).includes('assessing')", arg=line.element_handle(), timeout=120_000
+    )
+    summary = line.evaluate(text)
     assert "Desync meter" in summary and "stroke" in summary
     assert summary.count("do not pin the timing") == 1
     assert page.evaluate("!!hs.model('hs-confidence-strip') && !!hs.model('hs-desync-meter')")

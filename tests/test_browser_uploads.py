@@ -107,17 +107,27 @@ def _tile(page, which: str, state: str, timeout: float = BUSY_S) -> tuple[str, s
     return main, sub
 
 
+#: a page condition: band and path of a body take of ``n`` frames are drawn (the band's
+#: last vertex is the take's last frame; its vertices may be thinned to screen columns)
+ALIGNED = """(n) => {
+  const band = hs.cols('hs-band-source', ['x']).x;
+  return band.length > 0 && band[band.length - 1] === n - 1
+    && hs.cols('hs-path-source', ['x']).x.length > 0;
+}"""
+
+
 def _upload_pair(page, body, hand) -> str:
     _upload(page, "body", body)
     _wait_uploaded(page, r"Uploaded body:.*now the other take")
     _upload(page, "hand", hand)
     text = _wait_uploaded(page, r"Uploaded body:.*hand:.*open\.")
-    # the matrix follows the line by a moment: wait until it shows the new body take
+    # the matrix follows the line by a moment: wait until it shows the new body take, and
+    # then its alignment (the takes are drawn before their band and path are solved)
+    n = load_take(Path(body)).n_frames
     page.wait_for_function(
-        "(n) => hs.model('hs-x-range').end === n - 0.5",
-        arg=load_take(Path(body)).n_frames,
-        timeout=BUSY_S * 1000,
+        "(n) => hs.model('hs-x-range').end === n - 0.5", arg=n, timeout=BUSY_S * 1000
     )
+    page.wait_for_function(ALIGNED, arg=n, timeout=BUSY_S * 1000)
     return text
 
 

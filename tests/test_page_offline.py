@@ -18,6 +18,19 @@ from bokeh.models import ImportedStyleSheet
 pytest.importorskip("panel")
 
 
+def _served_page(doc: Document):
+    """``create_app``'s page in ``doc`` with every section: the shell the server answers
+    with, and the sections it adds once the browser has the shell (its ``onload``)."""
+    from webapp import app
+
+    page = app.create_app()
+    sections, rest = app._work_sections(page.session)
+    page.extend(sections)
+    rest()
+    page.extend(app._later_sections(page.session))
+    return page.get_root(doc)
+
+
 def _served_doc() -> Document:
     """A document as a Bokeh server session has it, before its page is rendered."""
     doc = Document()
@@ -32,12 +45,11 @@ def test_every_stylesheet_of_a_new_session_is_served_locally():
     from panel.io.state import set_curdoc
 
     from webapp import config
-    from webapp.app import create_app
 
     config.configure()
     doc = _served_doc()
     with set_curdoc(doc):
-        root = create_app().get_root(doc)
+        root = _served_page(doc)
     urls = {str(m.url) for m in root.references() if isinstance(m, ImportedStyleSheet)}
     assert any("filepond" in u for u in urls) and any("tabulator" in u for u in urls), urls
     remote = sorted(u for u in urls if "://" in u)
@@ -52,12 +64,11 @@ def test_the_page_layout_passes_bokehs_own_checks():
     from panel.io.state import set_curdoc
 
     from webapp import config
-    from webapp.app import create_app
 
     config.configure()
     doc = _served_doc()
     with set_curdoc(doc):
-        root = create_app().get_root(doc)
+        root = _served_page(doc)
     issues = check_integrity(list(root.references()))
     found = [f"{w.code} {w.name}: {w.text}" for w in issues.warning + issues.error]
     assert not found, found

@@ -280,3 +280,22 @@ def test_a_long_file_name_is_kept_whole_for_the_command_line():
     absurd = "y" * 1000 + ".bvh"  # no file system holds such a name
     shown = uploads.display_name(absurd)
     assert len(shown) == uploads.MAX_NAME_CHARS and "…" in shown and shown.endswith(".bvh")
+
+
+def test_opening_an_upload_again_finds_its_pair_still_prepared(cfg):
+    """The page prepares a pair as its second take is checked, then the session opens it
+    by hash (``path_for``, which marks both files used): that must find the same features,
+    not read and compute both takes again (the file's modification time, which the cache
+    knows it by, stays; the quota's order goes by the access time)."""
+    from webapp import backend
+
+    body = uploads.check(cfg, uploads.stage_bytes(cfg, "body.bvh", BODY.read_bytes()))
+    hand = uploads.check(cfg, uploads.stage_bytes(cfg, "hand.bvh", HAND.read_bytes()))
+    first = backend.prepare(body.path, hand.path, "auto", {}, takes=(body.take, hand.take))
+    before = body.path.stat()
+    time.sleep(0.01)  # a clock step, so that a touched modification time would differ
+    paths = uploads.path_for(cfg, body.digest), uploads.path_for(cfg, hand.digest)
+    after = body.path.stat()
+    assert after.st_mtime_ns == before.st_mtime_ns
+    assert after.st_atime_ns > before.st_atime_ns  # marked used
+    assert backend.prepare(*paths, "auto", {}) is first

@@ -154,82 +154,99 @@ def _local_stylesheets(doc) -> None:
 
 
 def create_app() -> pn.viewable.Viewable:
-    """Build the page for one browser session."""
-    from webapp.views import controls, credits
-    from webapp.views.cost_matrix import CostMatrixView
-    from webapp.views.inputs import InputsView
-    from webapp.views.progress import BusyLine
-    from webapp.views.sharing import SharingView
-    from webapp.views.trust import TrustView
-    from webapp.views.veil import Veil
+    """Build the page for one browser session.
+
+    Served, the page's first answer is a light shell: the header and a line that says
+    what the server does and for how long (building the page, opening the takes,
+    aligning), so a long pair never shows a blank page. Once the browser has the shell
+    (Panel's ``onload``), the pair starts opening on the worker and the takes and
+    alignment sections are built beside it; the share and lesson sections follow once
+    the first matrix is in the page (:class:`webapp.views.progress.FirstLine`).
+    Without a server (tests, scripts) the whole page is built at once."""
+    from webapp.views import connection
+    from webapp.views.progress import FirstLine
 
     session = Session(config.get())
     doc = pn.state.curdoc
     _local_stylesheets(doc)
     args = _link_args()
-    if doc is not None and doc.session_context is not None:
-        # opening and solving never hold the event loop; they start once the page is up
-        # (a page fetched but never shown, e.g. a readiness probe, computes nothing)
+    served = doc is not None and doc.session_context is not None
+    first = FirstLine(session)
+    page = pn.Column(
+        pn.pane.HTML(HEADER, sizing_mode="stretch_width", margin=(10, 10, 0, 10)),
+        first.panel(),
+        sizing_mode="stretch_width",
+        css_classes=["hs-app"],
+        styles={"max-width": "2000px", "margin": "0 auto"},
+    )
+    page.session = session  # for tests and debugging
+    if served:
+        # opening and solving never hold the event loop; they start once the shell is in
+        # the browser (a page fetched but never shown, e.g. a readiness probe, computes
+        # nothing and builds no more than the shell)
         session.compute_off_loop(doc)
-        pn.state.onload(lambda: _initial_state(session, args))
+        pn.state.onload(lambda: fill_page(page, session, first, args))
         # the page closed: the alignment it showed is no longer shown (backend.showing)
         doc.on_session_destroyed(lambda _: backend.showing(session, None))
     else:
-        _initial_state(session, args)
-    inputs = InputsView(session)
+        fill_page(page, session, first, args)
+    connection.install(doc if served else None)
+    return page
+
+
+def fill_page(page: pn.Column, session: Session, first, args: dict[str, str] | None) -> None:
+    """Open the session's first pair and put the page's sections into the shell ``page``:
+    the matrix at once (the pair opens on the worker meanwhile), the takes' inputs, the
+    matrix's controls and the preview in the next tick (so the matrix goes to the browser
+    first), share and lesson once the first matrix is drawn (``first.built``); without a
+    server all at once."""
+    first.building()
+    _initial_state(session, args)  # served: the pair opens on the worker from here on
+    first.update()  # "building the page · opening NAME: …" goes out with the matrix
+    try:
+        sections, rest = _work_sections(session)
+        page.extend(sections)
+    except Exception as exc:  # the line says so (no endless "building the page…"); logged
+        first.failed(f"the page could not be built ({one_line(exc)}); reload to try again")
+        raise
+
+    def fill_rest():
+        try:
+            rest()
+        except Exception as exc:
+            first.failed(f"the page could not be built ({one_line(exc)}); reload to try again")
+            raise
+        first.built(lambda: page.extend(_later_sections(session)))
+
+    doc = pn.state.curdoc
+    if doc is not None and doc.session_context is not None:
+        from webapp.views._dispatch import after
+
+        after(doc, fill_rest, 0)
+    else:
+        fill_rest()
+
+
+def _work_sections(session: Session) -> tuple[list, object]:
+    """The takes and the alignment sections, and ``rest()``, which fills in what the first
+    matrix does not need: the takes' inputs, the matrix's controls and points table, the
+    preview."""
+    from webapp.views import controls, credits
+    from webapp.views.cost_matrix import CostMatrixView
+    from webapp.views.progress import BusyLine
+    from webapp.views.trust import TrustView
+    from webapp.views.veil import Veil
+
     matrix = CostMatrixView(session)
     trust = TrustView(session, matrix)
-    points = controls.PointsTable(session)
-    pick = pn.widgets.RadioButtonGroup.from_param(  # the session's pick mode (its file, link)
-        session.param.pick,
-        name="",
-        options={"Edit points": False, "Pick frames": True},
-        css_classes=["hs-click-mode"],
-        description=None,
-    )
-    # the mode applies in the browser at once (a click made before the server's answer
-    # arrives must not add a point); the server sets the same (CostMatrixView.set_pick_mode)
-    pick.jscallback(
-        value="tool.add = cb_obj.labels[cb_obj.active] !== 'Pick frames'",
-        args={"tool": matrix.point_tool},
-    )
-
-    side_panel = pn.Column(
-        controls.parameter_widgets(session),
-        pn.pane.Markdown("**A click on the matrix**", margin=(10, 10, 0, 10)),
-        pick,
-        controls.undo_redo(session),
-        pn.pane.Markdown("**Matching points** (empty tolerance = global)", margin=(10, 10, 0, 10)),
-        controls.hand_rate_note(session),
-        points.panel(),
-        width=420,
-        sizing_mode=None,
-    )
+    status = controls.status_line(session)
     # matrix, its controls and the preview side by side on a wide screen (they wrap below
     # one another on a narrow one); the trust layers sit under the matrix
-    work = [
-        pn.Column(matrix.panel(), trust.panel(), margin=0, sizing_mode=None, width=trust.width),
-        side_panel,
-    ]
-    try:
-        from webapp.views.preview import PreviewView
-
-        work.append(
-            pn.Column(
-                pn.pane.Markdown("### 3 · Preview", margin=(0, 10)),
-                pn.pane.Markdown(
-                    PreviewView.TEXT, css_classes=["hs-section-text"], width=680, margin=(0, 10)
-                ),
-                PreviewView(session).panel(),
-                sizing_mode=None,
-                width=700,
-            )
-        )
-    except ImportError:
-        pass
-    status = controls.status_line(session)
     views = pn.FlexBox(
-        *work, flex_wrap="wrap", align_items="flex-start", sizing_mode="stretch_width"
+        pn.Column(matrix.panel(), trust.panel(), margin=0, sizing_mode=None, width=trust.width),
+        flex_wrap="wrap",
+        align_items="flex-start",
+        sizing_mode="stretch_width",
     )
     Veil(session, status, views)  # greyed, no input, while a new pair opens
     alignment = _section(
@@ -240,31 +257,78 @@ def create_app() -> pn.viewable.Viewable:
         controls.error_alert(session),
         views,
     )
-    sections = [
-        pn.pane.HTML(HEADER, sizing_mode="stretch_width", margin=(10, 10, 0, 10)),
-        _section("1 · Takes", "", inputs.panel(), credits.credits_pane(session)),
-        alignment,
-    ]
-    sections.append(_section("4 · Share", SharingView.TEXT, SharingView(session).panel()))
+    takes = _section("1 · Takes", "")
+
+    def rest() -> None:
+        from webapp.views.inputs import InputsView
+
+        inputs = InputsView(session)
+        takes.extend([inputs.panel(), credits.credits_pane(session)])
+        points = controls.PointsTable(session)
+        pick = pn.widgets.RadioButtonGroup.from_param(  # the session's pick mode (file, link)
+            session.param.pick,
+            name="",
+            options={"Edit points": False, "Pick frames": True},
+            css_classes=["hs-click-mode"],
+            description=None,
+        )
+        # the mode applies in the browser at once (a click made before the server's answer
+        # arrives must not add a point); the server sets the same (CostMatrixView.set_pick_mode)
+        pick.jscallback(
+            value="tool.add = cb_obj.labels[cb_obj.active] !== 'Pick frames'",
+            args={"tool": matrix.point_tool},
+        )
+        work = [
+            pn.Column(
+                controls.parameter_widgets(session),
+                pn.pane.Markdown("**A click on the matrix**", margin=(10, 10, 0, 10)),
+                pick,
+                controls.undo_redo(session),
+                pn.pane.Markdown(
+                    "**Matching points** (empty tolerance = global)", margin=(10, 10, 0, 10)
+                ),
+                controls.hand_rate_note(session),
+                points.panel(),
+                width=420,
+                sizing_mode=None,
+            )
+        ]
+        try:
+            from webapp.views.preview import PreviewView
+
+            work.append(
+                pn.Column(
+                    pn.pane.Markdown("### 3 · Preview", margin=(0, 10)),
+                    pn.pane.Markdown(
+                        PreviewView.TEXT,
+                        css_classes=["hs-section-text"],
+                        width=680,
+                        margin=(0, 10),
+                    ),
+                    PreviewView(session).panel(),
+                    sizing_mode=None,
+                    width=700,
+                )
+            )
+        except ImportError:
+            pass
+        views.extend(work)
+
+    return [takes, alignment], rest
+
+
+def _later_sections(session: Session) -> list:
+    """Share and the DTW lesson: built once the first matrix is in the page."""
+    from webapp.views.sharing import SharingView
+
+    sections = [_section("4 · Share", SharingView.TEXT, SharingView(session).panel())]
     try:
         from webapp.views.teaching import TeachingView
 
         sections.append(_section("5 · How DTW works", TeachingView.TEXT, TeachingView().panel()))
     except ImportError:
         pass
-    page = pn.Column(
-        *sections,
-        sizing_mode="stretch_width",
-        css_classes=["hs-app"],
-        styles={"max-width": "2000px", "margin": "0 auto"},
-    )
-    page.session = session  # for tests and debugging
-    from webapp.views import connection
-
-    connection.install(
-        pn.state.curdoc if pn.state.curdoc and pn.state.curdoc.session_context else None
-    )
-    return page
+    return sections
 
 
 #: a warm-up stage running this long (s) says so again on the console, and again after

@@ -120,7 +120,7 @@ def _is_regular(path: Path) -> bool:
 
 def path_for(cfg: AppConfig, digest: str) -> Path:
     """The stored file of upload ``digest`` (UploadError when unknown, not a hash, or not a
-    regular file). Marks it as used, so the quota removes it last."""
+    regular file). Marks it as used (:func:`_mark_used`), so the quota removes it last."""
     if not isinstance(digest, str) or not _HEX64.match(digest):
         raise UploadError(f"upload: expected a 64-digit hex hash, got {str(digest)[:70]!r}")
     for ext in EXTENSIONS:
@@ -131,15 +131,31 @@ def path_for(cfg: AppConfig, digest: str) -> Path:
                     f"upload {digest[:12]}...: not a regular file on this server "
                     "(links are not followed)"
                 )
-            try:
-                os.utime(path, follow_symlinks=False)
-            except OSError:
-                pass  # a read-only folder: the quota order is only a preference
+            _mark_used(path)
             return path
     raise UploadError(
         f"upload {digest[:12]}...: no such file on this server "
         "(uploads are kept per server; upload the take again)"
     )
+
+
+def _mark_used(path: Path) -> None:
+    """Set ``path``'s access time to now, the time the quota orders by (:func:`_last_used`).
+    Its modification time stays: the server's cache of opened pairs knows a file by it
+    (``webapp.backend.prepare``), so opening a pair just uploaded (its files named again
+    by hash) finds the features computed while it was checked instead of reading both
+    takes again."""
+    try:
+        mtime = os.lstat(path).st_mtime_ns
+        os.utime(path, ns=(time.time_ns(), mtime), follow_symlinks=False)
+    except OSError:
+        pass  # a read-only folder: the quota order is only a preference
+
+
+def _last_used(st: os.stat_result) -> float:
+    """When a kept upload was last stored or opened (s): its modification or, if later,
+    its access time (:func:`_mark_used`)."""
+    return max(st.st_mtime, st.st_atime)
 
 
 # ---------------------------------------------------------------- receiving
@@ -398,7 +414,7 @@ def enforce_quota(cfg: AppConfig, keep: set[str] = frozenset()) -> list[str]:
             _discard(Path(entry.path))
             removed.append(entry.name)
         elif _KEPT.match(entry.name):
-            kept.append((st.st_mtime, st.st_size, entry.name))
+            kept.append((_last_used(st), st.st_size, entry.name))
     kept.sort()
     count, total = len(kept), sum(size for _, size, _ in kept)
     for _, size, name in kept:

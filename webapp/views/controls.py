@@ -11,6 +11,7 @@ from bokeh.models import CustomJS
 from engine.dtw import constraints as C
 from webapp import safe_text
 from webapp.state import PASS2_SPIN_NOTE, Session
+from webapp.views import page_js
 from webapp.views._dispatch import after_path, with_document_lock
 from webapp.views.refusal import refusal_box
 
@@ -554,8 +555,17 @@ def error_alert(session: Session) -> pn.viewable.Viewable:
     return alert
 
 
+class _UndoButton(pn.widgets.Button):
+    """The Undo button; it brings the page's undo keys (:data:`_JS_UNDO_KEYS`) with it."""
+
+    def _get_model(self, doc, root=None, parent=None, comm=None):
+        model = super()._get_model(doc, root, parent, comm)
+        page_js.run_once(model, _JS_UNDO_KEYS, doc=doc)
+        return model
+
+
 def undo_redo(session: Session) -> pn.viewable.Viewable:
-    undo = pn.widgets.Button(
+    undo = _UndoButton(
         label="↶ Undo", disabled=not session.can_undo, width=90, css_classes=["hs-undo"]
     )
     redo = pn.widgets.Button(
@@ -571,9 +581,6 @@ def undo_redo(session: Session) -> pn.viewable.Viewable:
         redo.disabled = not session.can_redo
 
     session.param.watch(flags, ["can_undo", "can_redo"])
-    doc = pn.state.curdoc
-    if doc is not None:
-        doc.js_on_event("document_ready", CustomJS(code=_JS_UNDO_KEYS))
     return pn.Row(undo, redo, clear)
 
 

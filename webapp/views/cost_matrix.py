@@ -50,7 +50,7 @@ from bokeh.palettes import Viridis256
 from bokeh.plotting import figure
 
 from webapp.state import Session
-from webapp.views import decimate
+from webapp.views import decimate, page_js
 from webapp.views._dispatch import after, next_tick, with_document_lock
 
 PATH_COLOR = "#ff3b30"
@@ -648,9 +648,7 @@ class CostMatrixView:
         self.points_source.js_on_change("data", CustomJS(args=args, code=_JS_SEND_EDIT))
         reconcile = CustomJS(args=args, code=_JS_RECONCILE)
         fig.js_on_event(DoubleTap, CustomJS(args=args, code=_JS_NO_PRESS + _JS_DOUBLE_TAP_IS_A_TAP))
-        doc = pn.state.curdoc
-        if doc is not None:
-            doc.js_on_event("document_ready", CustomJS(code=_JS_NO_PRESS))
+        page_js.run_once(fig, _JS_NO_PRESS)
         self.server_points.js_on_change("data", reconcile)
         self.server_points.js_on_change("tags", reconcile)
         self.edit_source.on_change("data", self._on_edits)

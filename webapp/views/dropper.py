@@ -34,6 +34,7 @@ from bokeh.models import CustomJS
 
 from webapp import uploads
 from webapp.config import AppConfig
+from webapp.views import page_js
 from webapp.views._dispatch import with_document_lock
 
 #: bytes per websocket message of an upload: the server counts what has arrived after
@@ -201,7 +202,7 @@ class TakeDropper(pn.widgets.FileDropper):
                 "wrong": WRONG_KIND,
                 "limit": f"Maximum file size is {uploads.limit_words(self._cfg.max_upload_bytes)}",
             }
-            doc.js_on_event("document_ready", CustomJS(args=args, code=_JS_KIND))
+            page_js.run_once(model, _JS_KIND, args, doc=doc)
         return model
 
     def _on_tags(self, attr, old, new) -> None:

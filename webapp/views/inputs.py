@@ -98,7 +98,9 @@ class InputsView:
         self._droppers = {"body": self.body_file, "hand": self.hand_file}
         #: each field's refused file's reason (shown one line a field, body first)
         self._refusals: dict[str, str] = {}
-        self._inputs_key = self._session_key()
+        # none yet: the first look (below, or once an opening ends) shows what is open; the
+        # page's takes section is built after the first pair began to open (webapp.app)
+        self._inputs_key: tuple | None = None
         self.roles_body = pn.widgets.TextAreaInput(
             label="Body take",
             placeholder="right.wrist = RHand\nright.elbow = RForeArm",
@@ -134,6 +136,7 @@ class InputsView:
             "aligns with a BVH hand; what it cannot give is said here once it is open.",
             styles={"color": "#555", "font-size": "12px"},
         )
+        self._on_session_inputs()
 
     # ------------------------------------------------------------ the sample selector
 
@@ -431,7 +434,9 @@ class InputsView:
             await opened
         finally:
             self._opening = False
-            self._inputs_key = self._session_key()
+            # none yet: the first look (below, or once an opening ends) shows what is open; the
+        # page's takes section is built after the first pair began to open (webapp.app)
+        self._inputs_key: tuple | None = None
         if s.body_sha256 != body.digest or s.hand_sha256 != hand.digest:
             self._show_uploaded(failed=True)
             self._show_error(

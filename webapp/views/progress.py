@@ -95,3 +95,115 @@ class BusyLine:
 
     def panel(self) -> pn.viewable.Viewable:
         return self.pane
+
+
+#: ms between the first matrix being in the page and the page's later sections (share,
+#: lesson) being built: the browser draws the matrix before the server sends more
+LATER_MS = 300
+
+
+class FirstLine:
+    """The page's first line, sent with its first answer: what the server does for this
+    page and the seconds since it was asked for it (building the page, opening the takes
+    and the engine's stage, aligning), until the first matrix is in the page; then empty.
+
+    ``building()`` when the page's sections are being built; ``built(then)`` once they
+    are in the page: ``then()`` runs once nothing is opening or aligning any more (the
+    first matrix, band and path are drawn), :data:`LATER_MS` later."""
+
+    def __init__(self, session: Session):
+        self.session = session
+        self.since = time.monotonic()
+        self._phase = "opening the page"  # what the page itself does ('' once built)
+        self._then = None
+        self._timer = None
+        self._doc = pn.state.curdoc
+        self.done = False
+        self.pane = pn.pane.HTML(
+            self._html(self._phase),
+            css_classes=["hs-first-line"],
+            height=HEIGHT_PX,
+            margin=(6, 10, 0, 10),
+            sizing_mode="stretch_width",
+            styles={"font-family": "monospace", "font-size": "13px", "color": "#1d3557"},
+        )
+
+    def _served(self) -> bool:
+        doc = self._doc
+        return doc is not None and doc.session_context is not None
+
+    def _html(self, stage: str) -> str:
+        seconds = time.monotonic() - self.since
+        return (
+            f'<div class="hs-first" data-stage="{safe_text.html(stage)}" '
+            'style="display:flex;gap:10px;align-items:center">'
+            '<progress style="width:140px;height:12px"></progress>'
+            f"<span>{safe_text.html(stage)}… {seconds:.0f} s</span></div>"
+        )
+
+    def _stage(self) -> str | None:
+        """What the line says now: the page's own phase and the session's work (opening
+        the takes, aligning, with the engine's stage); None: the first matrix is in."""
+        s = self.session
+        runner = s.runner
+        running = runner is not None and runner.busy and runner.stage
+        work = ""
+        if s.opening:
+            work = f"opening {s.opening}: " + (runner.stage if running else "reading the takes")
+        elif s.busy:
+            work = runner.stage if running else s.busy
+        return " · ".join(part for part in (self._phase, work) if part) or None
+
+    def building(self) -> None:
+        self._phase = "building the page"
+        if self._served() and self._timer is None:
+            self._timer = pn.state.add_periodic_callback(self._tick, period=TICK_MS)
+        self._tick()
+
+    def built(self, then) -> None:
+        self._phase = ""
+        self._then = then
+        if not self._served():
+            self._finish()
+            return
+        self._tick()
+
+    def failed(self, text: str) -> None:
+        """The page could not be built: the line says ``text`` and stops."""
+        self.done = True
+        if self._timer is not None:
+            self._timer.stop()
+            self._timer = None
+        self.pane.object = f'<div class="hs-first" data-stage="failed">{safe_text.html(text)}</div>'
+
+    def update(self) -> None:
+        """Say what happens now (the periodic tick does so too, between callbacks)."""
+        self._tick()
+
+    def _tick(self) -> None:
+        if self.done:
+            return
+        stage = self._stage()
+        if stage is None:
+            self._finish()
+        else:
+            self.pane.object = self._html(stage)
+
+    def _finish(self) -> None:
+        self.done = True
+        if self._timer is not None:
+            self._timer.stop()
+            self._timer = None
+        self.pane.object = ""
+        then, self._then = self._then, None
+        if then is None:
+            return
+        if self._served():
+            from webapp.views._dispatch import after
+
+            after(self._doc, then, LATER_MS)
+        else:
+            then()
+
+    def panel(self) -> pn.viewable.Viewable:
+        return self.pane
