@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import BODY_BVH, MOCAP, open_page, pane_text, served_app
+from conftest import BODY_BVH, MOCAP, cropped_bvh, open_page, pane_text, served_app
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(1500)]
 
@@ -26,16 +26,6 @@ SERVER_START_S = 600.0
 BUSY_S = 300.0
 MUG = MOCAP / "manipnet" / "mug1_rightHand.bvh"
 LAFAN = MOCAP / "lafan1" / "multipleActions1_subject1.bvh"
-
-
-def _cropped(src: Path, dest: Path, frames: int) -> Path:
-    """``src`` (a BVH) cut to its first ``frames`` frames, written to ``dest``."""
-    head, _, motion = src.read_text().partition("MOTION\n")
-    lines = motion.splitlines()
-    dest.write_text(
-        head + f"MOTION\nFrames: {frames}\n{lines[1]}\n" + "\n".join(lines[2 : 2 + frames]) + "\n"
-    )
-    return dest
 
 
 @pytest.fixture(scope="module")
@@ -87,7 +77,7 @@ def _cli(page, pattern: str) -> str:
 
 
 def test_an_uploaded_hand_takes_the_side_its_file_name_says(page, tmp_path):
-    hand = _cropped(MUG, tmp_path / "mug_leftHand.bvh", 480)  # 4 s at 120 fps
+    hand = cropped_bvh(MUG, tmp_path / "mug_leftHand.bvh", 480)  # 4 s at 120 fps
     assert _active_side(page) == "right"  # the demo pair's side
     _upload(page, "body", BODY_BVH)
     _wait_line(page, r"Uploaded body:.*now the other take")

@@ -117,6 +117,7 @@ class TrustView:
         self._running = False  # an assessment of this page is on the pool
         self._failed = -1  # the revision whose assessment failed (not tried again)
         self._armed: int | None = None  # suggestion index whose moment is being shown
+        self._takes = session.takes_key  # the takes whose suggestions the buttons show
         fig = matrix.figure
         self.region_source = ColumnDataSource(
             {"x": [], "lo": [], "hi": []}, name="hs-uncertain-region-source"
@@ -300,14 +301,18 @@ class TrustView:
             # enabling a widget lays the whole page out again in the browser (150-300 ms
             # each in a software-rendered page on a busy machine; six per edit), which
             # held up the next drag's path
-            if self.summary.object:
+            other_takes = s.takes_key != self._takes  # the buttons name another pair's frames
+            if self.summary.object and not other_takes:
                 self.summary.object = STALE_SUMMARY
             elif s.solution is not None:  # the first assessment: minutes on a long take
                 self.summary.object = f"<b>Desync meter:</b> {ASSESSING}"
+            elif other_takes:  # new takes being aligned: nothing of the previous pair's
+                self.summary.object = ""
             for b in self.buttons:
-                if s.solution is None:  # no takes: no suggestions to come
+                if s.solution is None or other_takes:  # none to come, or not these takes'
                     b.visible = False
             return
+        self._takes = s.takes_key
         unc = trust.uncertainty
         r = s.hand_scale  # the matrix's hand axis counts hand-file frames
         warp = np.asarray(s.solution.warp, dtype=float) * r
