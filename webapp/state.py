@@ -391,6 +391,7 @@ class Session(param.Parameterized):
         if [e.name for e in events] != ["side"]:
             return events, new_pair
         old = self._current(values)
+        self.error = ""  # its question is answered
         self._begin_new_pair(values)
         self._apply(values)
         return (*events, *[_Change(k, v) for k, v in old.items()]), True

@@ -117,7 +117,7 @@ class TrustView:
         self._running = False  # an assessment of this page is on the pool
         self._failed = -1  # the revision whose assessment failed (not tried again)
         self._armed: int | None = None  # suggestion index whose moment is being shown
-        self._takes = session.takes_key  # the takes whose suggestions the buttons show
+        self._takes = session.takes_key  # the takes the layers and suggestions are of
         fig = matrix.figure
         self.region_source = ColumnDataSource(
             {"x": [], "lo": [], "hi": []}, name="hs-uncertain-region-source"
@@ -204,6 +204,7 @@ class TrustView:
         self.summary.jscallback(text=_JS_GREY, args=dict(zip(("b0", "b1", "b2"), self.buttons)))
         session.param.watch(self._on_revision, ["revision"])
         session.param.watch(self._on_trust, ["trust"])
+        session.param.watch(self._on_takes, ["inputs_revision"])
         session.param.watch(lambda *_: self._schedule(0), ["busy"])  # a solve ended
         self._on_revision()
 
@@ -282,6 +283,19 @@ class TrustView:
     def _on_trust(self, *_):
         self._draw_soon()
 
+    @with_document_lock
+    def _on_takes(self, *_):
+        """Other takes are shown: the layers, summary and suggestions of the previous pair
+        go at once (in the tick that shows the takes, under the page's veil), not greyed
+        as an edit's are: they name another pair's frames."""
+        if self.session.takes_key == self._takes:
+            return
+        self._takes = self.session.takes_key
+        self.summary.object = ""
+        for b in self.buttons:
+            b.visible = False
+        self._draw(None)
+
     def _draw_soon(self) -> None:
         """Draw the session's trust (None: the old one greyed) once the edit's path is in
         the page (``after_path``): the layers and the buttons' changes went out before it."""
@@ -301,18 +315,14 @@ class TrustView:
             # enabling a widget lays the whole page out again in the browser (150-300 ms
             # each in a software-rendered page on a busy machine; six per edit), which
             # held up the next drag's path
-            other_takes = s.takes_key != self._takes  # the buttons name another pair's frames
-            if self.summary.object and not other_takes:
+            if self.summary.object:
                 self.summary.object = STALE_SUMMARY
             elif s.solution is not None:  # the first assessment: minutes on a long take
                 self.summary.object = f"<b>Desync meter:</b> {ASSESSING}"
-            elif other_takes:  # new takes being aligned: nothing of the previous pair's
-                self.summary.object = ""
             for b in self.buttons:
-                if s.solution is None or other_takes:  # none to come, or not these takes'
+                if s.solution is None:  # no takes: no suggestions to come
                     b.visible = False
             return
-        self._takes = s.takes_key
         unc = trust.uncertainty
         r = s.hand_scale  # the matrix's hand axis counts hand-file frames
         warp = np.asarray(s.solution.warp, dtype=float) * r
