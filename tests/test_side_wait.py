@@ -110,8 +110,10 @@ def test_off_the_loop_a_new_pair_opens_until_its_first_path_is_in(cfg, kept):
         side="left",
     )
     assert s.opening == f"{BODY_BVH.name} + mug_leftHand.bvh"
+    assert s.to_query()["sample"] == cfg.default_sample  # a link names the pair shown
     doc.pump(lambda: not s.opening)
     # the takes were shown while the opening went on: their first alignment was part of it
     assert seen == [(f"{BODY_BVH.name} + mug_leftHand.bvh", False)]
     assert s.solution is not None and s.n == s.prepared.n and not s.error
+    assert s.to_query()["hname"] == "mug_leftHand.bvh"
     doc.pump(lambda: not s.busy)

@@ -45,6 +45,9 @@ EDIT_PARAMS = (
     "max_unmatched_s",
 )
 INPUT_PARAMS = ("sample", "body_sha256", "hand_sha256", "side", "roles")
+#: the inputs of the pair shown (its takes as named, side, roles): what a link and a session
+#: file name, also while other takes are being opened
+SHOWN_INPUTS = ("sample", "body_sha256", "hand_sha256", "body_name", "hand_name", "side", "roles")
 #: the page's view state kept in the session (file and link): preview camera, hand trails,
 #: follow edits, pick mode
 VIEW_STATE = tuple(session_io.VIEW_DEFAULTS)
@@ -239,6 +242,7 @@ class Session(param.Parameterized):
         #: a new pair refused for its side while another pair is open: (its input values,
         #: the ``waiting`` text); the next side chosen opens it (:meth:`_side_chosen`)
         self._side_wait: tuple[dict, str] | None = None
+        self._shown: dict | None = None  # SHOWN_INPUTS of the pair shown, once one is
         super().__init__(**params)
         self.param.watch(self._on_edit, list(EDIT_PARAMS))
         self.param.watch(self._on_inputs, list(INPUT_PARAMS))
@@ -433,7 +437,7 @@ class Session(param.Parameterized):
         self.runner.submit(
             Job(
                 "inputs",
-                "opening the takes",
+                "reading the takes",
                 lambda progress: backend.prepare(paths[0], paths[1], side, roles, takes=takes),
                 done=lambda prepared: self._opened(prepared, t0, then, new_pair),
                 failed=lambda exc: self._open_failed(exc, old, then, new_pair),
@@ -498,6 +502,7 @@ class Session(param.Parameterized):
         and suggestions are not the new pair's) and the progress line counts the whole
         opening, the first alignment included (seconds on a marker take)."""
         self.prepared = prepared
+        self._shown = self._current(SHOWN_INPUTS)
         self._chain = None
         self.param.update(solution=None, trust=None)
         self._undo.clear()
@@ -1143,24 +1148,27 @@ class Session(param.Parameterized):
     # ------------------------------------------------------------ save / restore
 
     def to_spec(self) -> SessionSpec:
+        """The session as a link or session file gives it: the takes of the pair shown (not
+        those of a pair still opening), its parameters, points and view."""
+        shown = self._shown or self._current(SHOWN_INPUTS)
         body = hand = None
-        if not self.sample and self.body_sha256:
-            body = TakeRef(sha256=self.body_sha256, name=self.body_name or None)
-        if not self.sample and self.hand_sha256:
-            hand = TakeRef(sha256=self.hand_sha256, name=self.hand_name or None)
+        if not shown["sample"] and shown["body_sha256"]:
+            body = TakeRef(sha256=shown["body_sha256"], name=shown["body_name"] or None)
+        if not shown["sample"] and shown["hand_sha256"]:
+            hand = TakeRef(sha256=shown["hand_sha256"], name=shown["hand_name"] or None)
         band, refine = self.widths()
         return SessionSpec(
-            sample=self.sample,
+            sample=shown["sample"],
             body=body,
             hand=hand,
-            side=self.side,
+            side=shown["side"],
             hand_frames="file",
             band=band,
             refine_band=refine,
             tolerance=self.tolerance,
             points=self.points,
             max_unmatched_s=self.max_unmatched_s,
-            roles=dict(self.roles),
+            roles=dict(shown["roles"]),
             view={"matrix": self.matrix, "frame": self.frame, **self._current(VIEW_STATE)},
         )
 
@@ -1337,6 +1345,7 @@ class Session(param.Parameterized):
         self._set_sizes(prepared)
         self.param.update(solution=staged["solution"], trust=None, compute_ms=staged["compute_ms"])
         self._apply(staged["values"])
+        self._shown = self._current(SHOWN_INPUTS)
         self._undo.clear()
         self._redo.clear()
         self._chain = staged["solution"]
