@@ -45,14 +45,13 @@ def kept(cfg, tmp_path_factory):
     }
 
 
+def _load_left_pair(s: Session, kept: dict) -> None:
+    left = "mug_leftHand.bvh"
+    s.load_uploads(kept[BODY_BVH.name], kept[left], BODY_BVH.name, left, side="left")
+
+
 def _open_left_pair(s: Session, kept: dict) -> None:
-    s.load_uploads(
-        kept[BODY_BVH.name],
-        kept["mug_leftHand.bvh"],
-        BODY_BVH.name,
-        "mug_leftHand.bvh",
-        side="left",
-    )
+    _load_left_pair(s, kept)
     assert not s.error and s.side == "left" and s.solution is not None
 
 
@@ -102,13 +101,7 @@ def test_off_the_loop_a_new_pair_opens_until_its_first_path_is_in(cfg, kept):
     assert not s.opening
     seen = []  # (opening, has a solution) each time new takes are shown
     s.param.watch(lambda e: seen.append((s.opening, s.solution is not None)), ["inputs_revision"])
-    s.load_uploads(
-        kept[BODY_BVH.name],
-        kept["mug_leftHand.bvh"],
-        BODY_BVH.name,
-        "mug_leftHand.bvh",
-        side="left",
-    )
+    _load_left_pair(s, kept)
     assert s.opening == f"{BODY_BVH.name} + mug_leftHand.bvh"
     assert s.to_query()["sample"] == cfg.default_sample  # a link names the pair shown
     doc.pump(lambda: not s.opening)
