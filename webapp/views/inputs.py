@@ -6,11 +6,11 @@ and the pair's features are computed on a worker thread, so a large or hostile f
 never holds up this or any other session. A refused file shows the reader's one-line
 reason and the pair that is open stays open; a new pair whose hand has only the other
 side waits for the Side chosen (the question names the files as uploaded), and choosing
-it opens that pair (:meth:`webapp.state.Session.load_uploads`). Each field's tile says what the server
-made of its file (checking, checked, refused: :meth:`TakeDropper.verdict`), and the
-"Uploaded …" line names only takes that are open or waiting for their partner: a
-sample, a session file or a link that opens other takes clears both. Every file name
-and message shown here goes through :mod:`webapp.safe_text`.
+it opens that pair (:meth:`webapp.state.Session.load_uploads`). Each field's tile says
+what the server made of its file (checking, checked, refused:
+:meth:`TakeDropper.verdict`), and the "Uploaded …" line names only takes that are open or
+waiting for their partner: a sample, a session file or a link that opens other takes
+clears both. Every file name and message shown here goes through :mod:`webapp.safe_text`.
 """
 
 from __future__ import annotations
