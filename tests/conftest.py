@@ -23,6 +23,17 @@ def mocap_files(pattern: str = "**/*.bvh") -> list[Path]:
     return sorted(MOCAP.glob(pattern))
 
 
+def cropped_bvh(src: Path, dest: Path, frames: int) -> Path:
+    """``src`` (a BVH) cut to its first ``frames`` frames, written to ``dest`` (a short real
+    take under a name of the test's choosing: ``mug_leftHand.bvh``)."""
+    head, _, motion = src.read_text().partition("MOTION\n")
+    lines = motion.splitlines()
+    dest.write_text(
+        head + f"MOTION\nFrames: {frames}\n{lines[1]}\n" + "\n".join(lines[2 : 2 + frames]) + "\n"
+    )
+    return dest
+
+
 @pytest.fixture(scope="session")
 def mocap_dir() -> Path:
     if not MOCAP.is_dir():

@@ -10,7 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from conftest import MOCAP
+from conftest import MOCAP, cropped_bvh
 
 from engine.cli import main
 from engine.model.roles import side_name_conflict
@@ -22,11 +22,7 @@ BODY = MOCAP / "bandai-namco/dataset-2_wave-right-hand_normal_001.bvh"
 @pytest.fixture(scope="module")
 def right_named(tmp_path_factory) -> Path:
     """ManipNet's hand take (no side in its joint names) cut to 2 s, named ``..._rightHand``."""
-    head, _, motion = MUG.read_text().partition("MOTION\n")
-    lines = motion.splitlines()
-    path = tmp_path_factory.mktemp("hand") / "mug_rightHand.bvh"
-    path.write_text(head + f"MOTION\nFrames: 240\n{lines[1]}\n" + "\n".join(lines[2:242]) + "\n")
-    return path
+    return cropped_bvh(MUG, tmp_path_factory.mktemp("hand") / "mug_rightHand.bvh", 240)
 
 
 def test_the_rule_names_the_file_and_both_sides():

@@ -28,7 +28,7 @@ from urllib.parse import urlencode
 import numpy as np
 import param
 
-from engine.base.errors import HandSpliceError
+from engine.base.errors import HandSpliceError, SideError
 from engine.dtw import constraints as C
 from engine.io import session as session_io
 from engine.io.session import MatchPoint, SessionSpec, TakeRef
@@ -45,6 +45,9 @@ EDIT_PARAMS = (
     "max_unmatched_s",
 )
 INPUT_PARAMS = ("sample", "body_sha256", "hand_sha256", "side", "roles")
+#: the inputs of the pair shown (its takes as named, side, roles): what a link and a session
+#: file name, also while other takes are being opened
+SHOWN_INPUTS = ("sample", "body_sha256", "hand_sha256", "body_name", "hand_name", "side", "roles")
 #: the page's view state kept in the session (file and link): preview camera, hand trails,
 #: follow edits, pick mode
 VIEW_STATE = tuple(session_io.VIEW_DEFAULTS)
@@ -235,7 +238,8 @@ class Session(param.Parameterized):
     waiting = param.String(
         default="",
         doc="an uploaded take that waits for its partner ('body walk.bvh checked: waiting "
-        "for a hand take'), or empty; meanwhile the views show the pair open before",
+        "for a hand take') or a new pair that waits for the side its hand has, or empty; "
+        "meanwhile the views show the pair open before",
     )
     can_undo = param.Boolean(default=False)
     can_redo = param.Boolean(default=False)
@@ -257,6 +261,10 @@ class Session(param.Parameterized):
         self._accepted_undo = 0  # undo steps then
         self._carry_error = ""  # shown on after the next solve (a link that failed)
         self.opening_since = 0.0  # monotonic s when ``opening`` was set
+        #: a new pair refused for its side while another pair is open: (its input values,
+        #: the ``waiting`` text); the next side chosen opens it (:meth:`_side_chosen`)
+        self._side_wait: tuple[dict, str] | None = None
+        self._shown: dict | None = None  # SHOWN_INPUTS of the pair shown, once one is
         super().__init__(**params)
         #: the band widths ("band", "refine_band") whose width in force is the automatic
         #: default (``rule.default_for`` the open takes: 17.2 s on a long take), not one the
@@ -312,6 +320,12 @@ class Session(param.Parameterized):
     def config(self) -> config.AppConfig:
         return self._cfg
 
+    @property
+    def takes_key(self) -> tuple:
+        """Which takes the inputs name: ``(sample, body sha256, hand sha256)`` (a view
+        compares it to tell a new pair from a side or role change of the same one)."""
+        return (self.sample, self.body_sha256, self.hand_sha256)
+
     def take_paths(self):
         """(body path, hand path) of the current inputs, or None when incomplete.
 
@@ -354,12 +368,20 @@ class Session(param.Parameterized):
         hand_name: str = "",
         then=None,
         side: str | None = None,
+        takes: tuple | None = None,
     ) -> None:
         """Open two uploaded takes by content hash (``then``: as for :meth:`load_sample`);
-        ``side``: the side to align (the one in force when None)."""
+        ``side``: the side to align (the one in force when None); ``takes``: ``(body,
+        hand)`` as the upload check read them (not read again).
+
+        When the hand (or body) has no arm on that side while another pair is open, the
+        new pair waits for the side: ``error`` says which side it has (naming the files as
+        uploaded), ``waiting`` says that it waits, the open pair stays, and the next side
+        chosen opens the new pair (any other takes chosen drop it)."""
         self._set_inputs(
             then=then,
             new_pair=True,
+            takes=takes,
             sample=None,
             body_sha256=body_sha256,
             hand_sha256=hand_sha256,
@@ -378,43 +400,82 @@ class Session(param.Parameterized):
         self.roles = spec.roles
         return not self.error
 
-    def _set_inputs(self, then=None, new_pair: bool = False, **values) -> None:
+    def _set_inputs(self, then=None, new_pair: bool = False, takes=None, **values) -> None:
         """``new_pair``: other takes than the open ones (a sample or uploads): once they
         are open, the matching points go (they name frames of the old takes); a refused
-        pair leaves the open pair and its points as they were."""
+        pair leaves the open pair, its names and its points as they were."""
         old = self._current(values)
+        if new_pair:
+            self._begin_new_pair(values)
         self._apply(values)
-        self._on_inputs(*[_Change(k, old[k]) for k in values], then=then, new_pair=new_pair)
+        self._on_inputs(
+            *[_Change(k, old[k]) for k in values], then=then, new_pair=new_pair, takes=takes
+        )
 
-    def _on_inputs(self, *events, then=None, new_pair: bool = False) -> None:
+    def _begin_new_pair(self, values: dict) -> None:
+        """Off the loop, a new pair's opening begins before its inputs are set, so the views
+        never name the new takes over the previous pair's (they switch when it is shown)."""
+        if self.runner is not None:
+            names = (values.get("body_name"), values.get("hand_name"))
+            self.begin_opening(values.get("sample") or " + ".join(n for n in names if n))
+
+    def _side_chosen(self, events, new_pair: bool):
+        """The inputs to open for ``events``: a side chosen while a new pair waits for its
+        side opens that pair (``(events, True)`` with its inputs applied); any other input
+        change drops the waiting pair."""
+        if self._side_wait is None:
+            return events, new_pair
+        values = self._side_wait[0]
+        self.drop_side_wait()
+        if [e.name for e in events] != ["side"]:
+            return events, new_pair
+        old = self._current(values)
+        self.error = ""  # its question is answered
+        self._begin_new_pair(values)
+        self._apply(values)
+        return (*events, *[_Change(k, v) for k, v in old.items()]), True
+
+    @property
+    def waits_for_side(self) -> bool:
+        """A new pair waits for the side its takes have (``waiting`` says which)."""
+        return self._side_wait is not None
+
+    def drop_side_wait(self) -> None:
+        """Forget the new pair that waits for its side (other takes were chosen)."""
+        wait, self._side_wait = self._side_wait, None
+        if wait is not None and self.waiting == wait[1]:
+            self.waiting = ""
+
+    def _on_inputs(self, *events, then=None, new_pair: bool = False, takes=None) -> None:
         if self._applying:
             return
+        events, new_pair = self._side_chosen(events, new_pair)
         if not (self.sample or (self.body_sha256 and self.hand_sha256)):
+            if new_pair:
+                self.end_opening()
             return
         t0 = time.perf_counter()
-        old = {e.name: e.old for e in events if e.name in INPUT_PARAMS}
+        # every input the change set (the files' names too): a refused pair puts them back
+        old = {e.name: e.old for e in events}
         then = then or (lambda opened: None)
         try:
             paths = self.take_paths()
             side, roles = self.side, dict(self.roles)
             if self.runner is None:
-                prepared = backend.prepare(paths[0], paths[1], side, roles)
+                prepared = backend.prepare(paths[0], paths[1], side, roles, takes=takes)
         except (HandSpliceError, ValueError, KeyError, OSError) as exc:
-            self._open_failed(exc, old, then)
+            self._open_failed(exc, old, then, new_pair)
             return
         if self.runner is None:
             self._opened(prepared, t0, then, new_pair)
             return
-        if new_pair:
-            names = (self.body_name, self.hand_name)
-            self.begin_opening(self.sample or " + ".join(n for n in names if n))
         self.runner.submit(
             Job(
                 "inputs",
-                "opening the takes",
-                lambda progress: backend.prepare(paths[0], paths[1], side, roles),
+                "reading the takes",
+                lambda progress: backend.prepare(paths[0], paths[1], side, roles, takes=takes),
                 done=lambda prepared: self._opened(prepared, t0, then, new_pair),
-                failed=lambda exc: self._open_failed(exc, old, then),
+                failed=lambda exc: self._open_failed(exc, old, then, new_pair),
                 dropped=lambda: self._open_dropped(then),
             )
         )
@@ -434,14 +495,29 @@ class Session(param.Parameterized):
             self.end_opening()
         then(False)
 
-    def _open_failed(self, exc: BaseException, old: dict, then) -> None:
+    def _open_failed(self, exc: BaseException, old: dict, then, new_pair: bool = False) -> None:
         self.end_opening()
         message = self._named_uploads(backend.one_line(exc))
+        # a new pair whose takes have only the other side waits for it (the open pair stays)
+        wait = None
+        if (
+            new_pair
+            and self.prepared is not None
+            and isinstance(exc, SideError)
+            and any(side != self.side for side in exc.found)
+        ):
+            wait = self._current(k for k in old if k != "side")
         if self.prepared is not None:  # keep what worked: inputs back to their old values
             self._apply(old)
         # the inputs whose change was refused (a side the takes lack): the page shows
         # the refusal next to their controls
-        self.refuse(exc, message, inputs=tuple(old))
+        self.refuse(exc, message, inputs=("side",) if wait else tuple(old))
+        if wait:
+            names = " + ".join(
+                n for n in (wait.get("body_name"), wait.get("hand_name")) if n
+            ) or str(wait.get("sample") or "the new takes")
+            self._side_wait = (wait, f"{names} waits for its side: {message}")
+            self.waiting = self._side_wait[1]
         then(False)
 
     def _named_uploads(self, text: str) -> str:
@@ -454,9 +530,14 @@ class Session(param.Parameterized):
 
     def _opened(self, prepared, t0: float, then, new_pair: bool = False) -> None:
         """The takes are open: show them (matrix, axes), then solve. The matching points
-        stay where they still fit (a side or role change), none after a new pair."""
-        self.end_opening()
+        stay where they still fit (a side or role change), none after a new pair.
+
+        The opening lasts until the first path is in (:meth:`_solved`, or refused), as a
+        link's does: until then the views of the previous pair stay inactive (its preview
+        and suggestions are not the new pair's) and the progress line counts the whole
+        opening, the first alignment included (seconds on a marker take)."""
         self.prepared = prepared
+        self._shown = self._current(SHOWN_INPUTS)
         self._chain = None
         self.param.update(solution=None, trust=None)
         self._undo.clear()
@@ -478,6 +559,8 @@ class Session(param.Parameterized):
         self._accepted_automatic = self.automatic
         self.inputs_revision += 1
         self._solve(t0=t0)
+        if self.runner is None or not self.runner.solving():  # solved, shared or refused
+            self.end_opening()
         self._update_history_flags()
         then(True)
 
@@ -873,6 +956,7 @@ class Session(param.Parameterized):
             solution=sol, trust=None, compute_ms=(time.perf_counter() - t0) * 1000.0, error=error
         )
         self.revision += 1
+        self.end_opening()  # a new pair's first path: it is open
         self._accepted = self._current(EDIT_PARAMS) if values is None else values
         self._accepted_automatic = self.automatic if automatic is None else automatic
         self._accepted_undo = len(self._undo)
@@ -880,6 +964,7 @@ class Session(param.Parameterized):
     def _solve_failed(self, exc: BaseException) -> None:
         """The newest solve was refused (off the loop): its reason is shown and the edit
         values go back to those of the path on screen (the undo steps since go too)."""
+        self.end_opening()
         self.refuse(exc)
         if self._accepted is not None:
             self.automatic = self._accepted_automatic  # first: the values' watchers read it
@@ -1100,24 +1185,27 @@ class Session(param.Parameterized):
     # ------------------------------------------------------------ save / restore
 
     def to_spec(self) -> SessionSpec:
+        """The session as a link or session file gives it: the takes of the pair shown (not
+        those of a pair still opening), its parameters, points and view."""
+        shown = self._shown or self._current(SHOWN_INPUTS)
         body = hand = None
-        if not self.sample and self.body_sha256:
-            body = TakeRef(sha256=self.body_sha256, name=self.body_name or None)
-        if not self.sample and self.hand_sha256:
-            hand = TakeRef(sha256=self.hand_sha256, name=self.hand_name or None)
+        if not shown["sample"] and shown["body_sha256"]:
+            body = TakeRef(sha256=shown["body_sha256"], name=shown["body_name"] or None)
+        if not shown["sample"] and shown["hand_sha256"]:
+            hand = TakeRef(sha256=shown["hand_sha256"], name=shown["hand_name"] or None)
         band, refine = self.chosen_widths()  # None: automatic (each pair's own default)
         return SessionSpec(
-            sample=self.sample,
+            sample=shown["sample"],
             body=body,
             hand=hand,
-            side=self.side,
+            side=shown["side"],
             hand_frames="file",
             band=band,
             refine_band=refine,
             tolerance=self.tolerance,
             points=self.points,
             max_unmatched_s=self.max_unmatched_s,
-            roles=dict(self.roles),
+            roles=dict(shown["roles"]),
             view={"matrix": self.matrix, "frame": self.frame, **self._current(VIEW_STATE)},
         )
 
@@ -1137,6 +1225,7 @@ class Session(param.Parameterized):
         shared link): points that do not fit the takes are left out, with their refusal in
         ``error``, and the rest opens.
         """
+        self.drop_side_wait()  # the takes chosen now are the link's or the file's
         spec = self._takes_for(spec)
         if self.runner is None:
             self._commit(self._stage(spec, keep_takes=keep_takes))
@@ -1293,6 +1382,7 @@ class Session(param.Parameterized):
         self.param.update(solution=staged["solution"], trust=None, compute_ms=staged["compute_ms"])
         self.automatic = staged["automatic"]  # first: the values' watchers read it
         self._apply(staged["values"])
+        self._shown = self._current(SHOWN_INPUTS)
         self._undo.clear()
         self._redo.clear()
         self._chain = staged["solution"]

@@ -36,5 +36,14 @@ class RoleError(HandSpliceError, KeyError):
         return str(self.args[0]) if self.args else ""
 
 
+class SideError(RoleError):
+    """A take has no arm or hand on the side asked for; ``found``: the sides it has
+    (``("right",)``), so a caller can offer the other one."""
+
+    def __init__(self, message: str, found=()):
+        super().__init__(message)
+        self.found = tuple(found)
+
+
 class ParameterError(HandSpliceError, ValueError):
     """A parameter (band width, matching point, option) is out of range."""

@@ -45,7 +45,7 @@ from engine.align.features import (
 )
 from engine.base import limits
 from engine.base import tolerances as T
-from engine.base.errors import HandSpliceError, ParameterError, RoleError
+from engine.base.errors import HandSpliceError, ParameterError, RoleError, SideError
 from engine.dtw import Aligner, Band, Ends, align_features
 from engine.dtw import constraints as C
 from engine.dtw.align import SharedCosts
@@ -226,14 +226,16 @@ def resolve_sides(
     wanted = ("right", "left") if side == "both" else (side,)
     for s in wanted:
         if s not in body_sides:
-            raise RoleError(
-                f"{body_name} has no {s} wrist (arms found: {', '.join(body_sides) or 'none'})"
+            raise SideError(
+                f"{body_name} has no {s} wrist (arms found: {', '.join(body_sides) or 'none'})",
+                body_sides,
             )
         if s not in hand_sides:
-            raise RoleError(
+            raise SideError(
                 f"{hand_name} has no {s} hand (hands found: "
                 f"{', '.join(hand_sides) or 'none'}); try --side "
-                f"{hand_sides[0] if hand_sides else 'right'}"
+                f"{hand_sides[0] if hand_sides else 'right'}",
+                hand_sides,
             )
     return wanted
 

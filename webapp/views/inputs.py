@@ -4,11 +4,13 @@ Uploads arrive in chunks (:class:`webapp.views.dropper.TakeDropper`), are checke
 the engine's reader in a child process off the event loop (:func:`webapp.uploads.check`)
 and the pair's features are computed on a worker thread, so a large or hostile file
 never holds up this or any other session. A refused file shows the reader's one-line
-reason and the pair that is open stays open. Each field's tile says what the server
-made of its file (checking, checked, refused: :meth:`TakeDropper.verdict`), and the
-"Uploaded …" line names only takes that are open or waiting for their partner: a
-sample, a session file or a link that opens other takes clears both. Every file name
-and message shown here goes through :mod:`webapp.safe_text`.
+reason and the pair that is open stays open; a new pair whose hand has only the other
+side waits for the Side chosen (the question names the files as uploaded), and choosing
+it opens that pair (:meth:`webapp.state.Session.load_uploads`). Each field's tile says
+what the server made of its file (checking, checked, refused:
+:meth:`TakeDropper.verdict`), and the "Uploaded …" line names only takes that are open or
+waiting for their partner: a sample, a session file or a link that opens other takes
+clears both. Every file name and message shown here goes through :mod:`webapp.safe_text`.
 """
 
 from __future__ import annotations
@@ -28,13 +30,18 @@ from webapp.state import Session
 from webapp.views.dropper import Receipt, TakeDropper
 from webapp.views.refusal import refusal_box
 
-#: upload checks and pair preparation of all sessions share these threads
+#: the upload checks of all sessions share these threads (the pair then opens on the
+#: session's own worker: webapp.solves)
 _WORKERS = ThreadPoolExecutor(max_workers=2, thread_name_prefix="hs-upload")
 #: the sample selector's entry while an uploaded pair is open
 UPLOADED = "(your uploaded pair)"
 #: the sample selector's entry while one uploaded take waits for its partner (the views
 #: still show the pair open before, which the selector must not claim is the one chosen)
 WAITING = "(your upload: waiting for its partner)"
+#: and while an uploaded pair waits for the Side its hand has (Session.waits_for_side)
+WAITING_SIDE = "(your upload: waiting for its side)"
+#: the "Uploaded …" line's tail while the pair opens
+OPENING = " <span class='hs-opening'>— opening (progress below)</span>"
 
 MARKER_BODY_NOTE = (
     "The body take holds **markers** (C3D/TRC): it has no skeleton to receive fingers. "
@@ -123,6 +130,7 @@ class InputsView:
             ["sample", "body_sha256", "hand_sha256", "roles", "opening", "waiting"],
         )
         session.param.watch(self._show_note, ["inputs_revision"])
+        session.param.watch(self._on_pair_shown, ["inputs_revision"])
         session.param.watch(self._on_side, ["side"])
         # a side the takes lack is refused here, under the Side control that asked for it
         # (the page's error line is far below it)
@@ -140,22 +148,25 @@ class InputsView:
 
     # ------------------------------------------------------------ the sample selector
 
+    def _waiting_label(self) -> str:
+        return WAITING_SIDE if self.session.waits_for_side else WAITING
+
     def _sample_options(self) -> list[str]:
         if self.session.waiting:
-            return [WAITING, *self._names]
+            return [self._waiting_label(), *self._names]
         uploaded = not self.session.sample and self.session.body_sha256
         return ([UPLOADED] if uploaded else []) + self._names
 
     def _sample_value(self) -> str | None:
         s = self.session
         if s.waiting:  # the chosen takes are the upload, not the pair still shown
-            return WAITING
+            return self._waiting_label()
         if s.sample in self._names:
             return s.sample
         return UPLOADED if s.body_sha256 else None
 
     def _on_sample(self, event):
-        if not event.new or event.new in (UPLOADED, WAITING):
+        if not event.new or event.new in (UPLOADED, WAITING, WAITING_SIDE):
             return
         if event.new != self.session.sample:
             self.session.load_sample(event.new)
@@ -164,8 +175,7 @@ class InputsView:
             self._on_session_inputs()
 
     def _session_key(self) -> tuple:
-        s = self.session
-        return (s.sample, s.body_sha256, s.hand_sha256)
+        return self.session.takes_key
 
     def _on_session_inputs(self, *_):
         """Follow inputs set by the session itself (uploads, a session file, undo of roles):
@@ -178,7 +188,10 @@ class InputsView:
         if key != self._inputs_key and not self._opening:
             self._inputs_key = key
             opened = (self._open.get("body"), self._open.get("hand"))
-            if key[0] or None in opened or key[1:] != tuple(k.digest for k in opened):
+            if self._is_pending(key):  # the upload that waited for its side is opening
+                self._show_uploaded()
+                self.uploaded.object += OPENING
+            elif key[0] or None in opened or key[1:] != tuple(k.digest for k in opened):
                 self._forget_uploads()
                 self._show_kept_pair()
         options, value = self._sample_options(), self._sample_value()
@@ -187,6 +200,24 @@ class InputsView:
         elif self.sample.value != value and value is not None:
             self.sample.value = value
         self._show_roles()
+
+    def _is_pending(self, key: tuple) -> bool:
+        """``key`` (the session's takes) is the checked upload pair not yet open here."""
+        pending = (self._pending.get("body"), self._pending.get("hand"))
+        return (
+            not key[0]
+            and None not in pending
+            and self._pending != self._open
+            and key[1:] == tuple(k.digest for k in pending)
+        )
+
+    def _on_pair_shown(self, *_):
+        """New takes are shown: the upload pair that waited for its side (opened by the
+        Side chosen, not by this view) is the open one now."""
+        if not self._opening and self._is_pending(self._session_key()):
+            self._inputs_key = self._session_key()
+            self._open = dict(self._pending)
+            self._show_uploaded(opened=True)
 
     def _show_kept_pair(self):
         """An uploaded pair opened by a link or a session file (not through these fields,
@@ -242,6 +273,7 @@ class InputsView:
         """Other takes are open: the uploads' line, message and fields are cleared."""
         self._pending, self._open = {}, {}
         self._refusals = {}
+        self.session.drop_side_wait()
         self.session.waiting = ""
         self.uploaded.object = ""
         self.message.visible = False
@@ -338,6 +370,8 @@ class InputsView:
         tail = (
             f" — open{side}."
             if opened
+            else " — waiting for the side you choose (its question is below)."
+            if self.session.waits_for_side
             else " — not opened (the reason is below)."
             if failed
             else ""
@@ -368,7 +402,10 @@ class InputsView:
 
     def _show_waiting(self, done: bool) -> None:
         """One checked upload and no partner yet: the status line says what it waits for
-        (the views still show the pair open before)."""
+        (the views still show the pair open before). A pair waiting for its side is the
+        session's to say (``Session.waits_for_side``)."""
+        if self.session.waits_for_side:
+            return
         text = ""
         if len(self._pending) == 1 and not done and self._pending != self._open:
             ((which, kept),) = self._pending.items()
@@ -377,16 +414,17 @@ class InputsView:
         self.session.waiting = text
 
     async def _open_pair(self):
-        """Open the two checked uploads; the features are computed on a worker thread
-        (the session then finds them in the engine's cache). The open pair stays when
-        the new one cannot be aligned."""
+        """Open the two checked uploads through the session (the takes the check read are
+        handed over: the session's worker computes the features; the page's progress line
+        counts the opening, the first alignment included). The open pair stays when the
+        new one cannot be opened; one whose hand has only the other side waits for the Side
+        chosen (the session's rule: :meth:`Session.load_uploads`)."""
         s = self.session
         body, hand = self._pending["body"], self._pending["hand"]
         if (s.body_sha256, s.hand_sha256) == (body.digest, hand.digest) and not s.sample:
             self._open = dict(self._pending)
             self._show_uploaded(opened=True)
             return
-        loop = asyncio.get_running_loop()
         # the side follows the hand file's name (mug1_rightHand.bvh: right), as the CLI's
         # without --side; the Side control then shows it and the line below says why
         named = side_from_name(hand.name)
@@ -394,35 +432,14 @@ class InputsView:
         self._side_note = (
             f"side {side}, as the hand file's name says" if named and named != s.side else ""
         )
-        # one progress line (the Alignment section's) counts the whole opening; the old
-        # pair's views go inactive at once
-        self.uploaded.object += " <span class='hs-opening'>— opening (progress below)</span>"
-        s.begin_opening(f"{body.name} + {hand.name}")
-        job = loop.run_in_executor(
-            _WORKERS,
-            functools.partial(
-                backend.prepare,
-                body.path,
-                hand.path,
-                side,
-                dict(s.roles),
-                takes=(body.take, hand.take),
-            ),
-        )
-        try:
-            await job
-        except Exception as exc:  # the reason is shown; nothing changes
-            s.end_opening()
-            self._show_uploaded(failed=True)
-            self._show_error(f"{body.name} + {hand.name}: {one_line(exc)}")
-            return
-        # the engine's cache holds the takes now: this view keeps only their names
+        self.uploaded.object += OPENING
+        # the session holds the takes from now on (the engine's cache once they are open):
+        # this view keeps only their names
+        takes = (body.take, hand.take)
         self._pending = {k: dataclasses.replace(v, take=None) for k, v in self._pending.items()}
         before = s.error
-        # the session opens the pair (found in the engine's cache) and then solves the
-        # alignment off the event loop (seconds on a long pair; the page's "aligning…"
-        # line says so); without a server it is all done within load_uploads
-        opened = loop.create_future()
+        # without a server it is all done within load_uploads
+        opened = asyncio.get_running_loop().create_future()
 
         def then(ok: bool) -> None:
             if not opened.done():
@@ -430,7 +447,10 @@ class InputsView:
 
         self._opening = True
         try:
-            s.load_uploads(body.digest, hand.digest, body.name, hand.name, then=then, side=side)
+            s.load_uploads(
+                body.digest, hand.digest, body.name, hand.name, then=then, side=side, takes=takes
+            )
+            del takes
             await opened
         finally:
             self._opening = False

@@ -39,6 +39,8 @@ _SPINNER = (
     "border:2px solid #8a5a00;border-top-color:transparent;border-radius:50%;"
     'animation:hs-spin 0.8s linear infinite;vertical-align:-1px"></span>'
 )
+#: the preview's line while new takes have no picture yet (the previous pair's are gone)
+PENDING = "the first frame of these takes is drawn once they are aligned…"
 #: the worker that renders previews of all sessions (OpenGL calls take turns anyway:
 #: engine.render.backend.GL_LOCK), so the event loop never waits for a render
 _RENDERS = ThreadPoolExecutor(max_workers=1, thread_name_prefix="hs-preview")
@@ -145,6 +147,7 @@ class PreviewView:
         self._follow_timer = False
         session.param.watch(lambda *_: self._render_soon(), ["camera", "trails"])
         self._rendered_key = None
+        self._takes = session.takes_key  # the takes of the pictures shown
         self._played = None
         self._inflight = False
         self._since = 0.0  # when the render in flight was asked for (perf_counter s)
@@ -166,6 +169,10 @@ class PreviewView:
         end = max(self.session.n - 1, 1)
         self.slider.end = end
         self._rendered_key = None
+        if self.session.takes_key != self._takes:  # other takes: the pictures were not theirs
+            self._takes = self.session.takes_key
+            self.image.object = self.closeup.object = None
+            self.info.object = f'<span class="hs-preview-pending">{PENDING}</span>'
         self._points_seen = self.session.points  # a new pair: no edit to follow
         self._render_soon()
 

@@ -54,7 +54,7 @@ class BusyLine:
         if s.opening:  # one line for the whole opening (checking, reading, first solve)
             stage = f"opening {s.opening}" + (f": {stage}" if running else ": reading the takes")
             seconds, size = time.monotonic() - s.opening_since, ""
-            tail = "the greyed views below still show the previous pair and take no edits"
+            tail = "the greyed views below take no edits until it is aligned"
         return (
             f'<div class="hs-busy" data-busy="{safe_text.html(s.busy or "opening")}" '
             'style="display:flex;gap:10px;align-items:center">'

@@ -117,6 +117,7 @@ class TrustView:
         self._running = False  # an assessment of this page is on the pool
         self._failed = -1  # the revision whose assessment failed (not tried again)
         self._armed: int | None = None  # suggestion index whose moment is being shown
+        self._takes = session.takes_key  # the takes the layers and suggestions are of
         fig = matrix.figure
         self.region_source = ColumnDataSource(
             {"x": [], "lo": [], "hi": []}, name="hs-uncertain-region-source"
@@ -203,6 +204,7 @@ class TrustView:
         self.summary.jscallback(text=_JS_GREY, args=dict(zip(("b0", "b1", "b2"), self.buttons)))
         session.param.watch(self._on_revision, ["revision"])
         session.param.watch(self._on_trust, ["trust"])
+        session.param.watch(self._on_takes, ["inputs_revision"])
         session.param.watch(lambda *_: self._schedule(0), ["busy"])  # a solve ended
         self._on_revision()
 
@@ -280,6 +282,19 @@ class TrustView:
 
     def _on_trust(self, *_):
         self._draw_soon()
+
+    @with_document_lock
+    def _on_takes(self, *_):
+        """Other takes are shown: the layers, summary and suggestions of the previous pair
+        go at once (in the tick that shows the takes, under the page's veil), not greyed
+        as an edit's are: they name another pair's frames."""
+        if self.session.takes_key == self._takes:
+            return
+        self._takes = self.session.takes_key
+        self.summary.object = ""
+        for b in self.buttons:
+            b.visible = False
+        self._draw(None)
 
     def _draw_soon(self) -> None:
         """Draw the session's trust (None: the old one greyed) once the edit's path is in

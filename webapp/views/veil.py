@@ -1,10 +1,13 @@
 """The open pair's views go inactive while a new pair opens.
 
 While :attr:`webapp.state.Session.opening` is set (a new sample, uploads, a link or a
-session file being opened off the event loop: seconds on a long take) the status line,
-the matrix, its controls and the preview still show the previous pair. They are greyed
-and take no pointer input (the session refuses edits meanwhile too), and the page's
-progress line (:mod:`webapp.views.progress`) says which pair is opening.
+session file being opened off the event loop, until its first path is in: seconds on a
+long take or a marker take) the status line, the matrix, its controls, the trust layers
+with their suggested points and the preview still show the previous pair. They are
+greyed and take no pointer input (the session refuses edits meanwhile too), and the
+page's progress line (:mod:`webapp.views.progress`) says which pair is opening. Once it
+is shown, the preview and the suggestions say they are still being made for the new
+pair rather than show the previous pair's.
 """
 
 from __future__ import annotations
