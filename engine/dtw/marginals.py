@@ -27,10 +27,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from engine.base.errors import check_cancelled
+
 from . import kernels as K
 from ._config import njit_cached
 from .align import FIXED, Ends, Problem, check_total
 from .band import Band
+
+#: rows of the Python subtraction loop between two looks at ``cancelled`` (:func:`row_spread`)
+CANCEL_ROWS = 1024
 
 
 @dataclass(frozen=True, eq=False)
@@ -126,6 +131,7 @@ def row_spread(
     margin: float,
     ends: Ends = FIXED,
     costs=None,
+    cancelled=None,
 ) -> RowSpread:
     """Per-row spread of the cheap cells around ``centre`` for features ``a``, ``b``.
 
@@ -139,6 +145,9 @@ def row_spread(
     costs : (n, m) float64 ``metric(a[i], b[j])`` of every cell when already tabulated (the
         app's pass-1 table), read instead of evaluating the metric: the same values, without
         a metric call per cell and a Python call per row
+    cancelled : a callable or None; when it returns True between the steps (each γ sweep,
+        every ``CANCEL_ROWS`` rows of the subtraction) ``engine.base.errors.Cancelled``
+        is raised: the app gives up an assessment that a newer edit has made stale
     """
     if costs is not None:
         problem = Problem.from_cost(costs)
@@ -147,17 +156,23 @@ def row_spread(
     else:
         problem = Problem.from_features(a, b, metric)
     band.check_fits((problem.n, problem.m), problem.what)
+    check_cancelled(cancelled)
     gf, total = _gamma(problem, band, ends)
+    check_cancelled(cancelled)
     # γf - D: subtract each cell's local cost once, row by row (no n x m array)
     if problem.kind == "matrix":
         _subtract_band(gf, problem.cost, band.lo, band.hi, band.start)
     else:
         for i in range(band.n):
+            if i % CANCEL_ROWS == 0:
+                check_cancelled(cancelled)
             lo, hi = int(band.lo[i]), int(band.hi[i])
             s = int(band.start[i])
             gf[s : s + hi - lo + 1] -= problem.cost_row(i, lo, hi)
     rband = band.reversed()
+    check_cancelled(cancelled)
     gb, _ = _gamma(problem.reversed(), rband, ends)
+    check_cancelled(cancelled)
     n, m = band.n, band.m
     spread = np.empty(n)
     reach = np.empty(n)

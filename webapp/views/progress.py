@@ -15,6 +15,7 @@ import panel as pn
 
 from webapp import safe_text
 from webapp.state import Session
+from webapp.views._dispatch import after, after_path
 
 #: how often the line's stage and seconds are refreshed while busy, ms
 TICK_MS = 250
@@ -38,7 +39,8 @@ class BusyLine:
             sizing_mode="stretch_width",
             styles={"font-family": "monospace", "font-size": "13px", "color": "#1d3557"},
         )
-        self._timer = None
+        self._timer = False  # a tick is due (``_tick``)
+        self._doc = None
         self._shown = False
         session.param.watch(self._on_busy, ["busy", "opening"])
         self._on_busy()
@@ -72,23 +74,34 @@ class BusyLine:
         if doc is None or doc.session_context is None:  # no server: shown as it is
             self._show(self._line() if busy else "")
             return
-        if busy and self._timer is None:
+        self._doc = doc
+        if busy and not self._timer:
             if self.session.opening or not self.session.busy.startswith("align"):  # at once
                 self._show(self._line())
-            self._timer = pn.state.add_periodic_callback(self._tick, period=TICK_MS)
-        elif not busy:
-            if self._timer is not None:
-                self._timer.stop()
-                self._timer = None
-            if self._shown:
-                self._show("")
+            # Bokeh timeouts, not Panel's periodic callbacks: each run of one of those
+            # toggles Panel's busy state, a message to the page during every solve
+            self._timer = True
+            after(doc, self._tick, TICK_MS)
+        elif not busy and self._shown:
+            # a solve's line goes once its path is in the page: hiding it in the tick that
+            # draws the path sent the pane's change before the path
+            after_path(self.session, ("busy-line", id(self)), self._hide, doc)
+
+    def _hide(self) -> None:
+        if self._shown and not (self.session.busy or self.session.opening):
+            self._show("")
 
     def _tick(self):
-        runner = self.session.runner
-        if self.session.opening:
+        self._timer = False
+        s, runner = self.session, self.session.runner
+        if not (s.busy or s.opening):
+            return
+        self._timer = True
+        after(self._doc, self._tick, TICK_MS)
+        if s.opening:
             self._show(self._line())
             return
-        if not self.session.busy or runner is None:
+        if runner is None:
             return
         if self._shown or time.monotonic() - runner.started >= SHOW_AFTER_S:
             self._show(self._line())
