@@ -228,10 +228,12 @@ class TrustView:
         """An assessment is due: a solution without one, no solve or opening running, none
         of this page's assessments running."""
         s = self.session
+        runner = s.runner
         return (
             s.solution is not None
             and s.trust is None
             and not s.busy
+            and not (runner is not None and runner.solving())
             and not self._running
             and s.revision != self._failed
         )
