@@ -337,3 +337,40 @@ def test_play_says_when_it_waits_on_a_slow_render(tabs, tmp_path):
         a.wait_for_timeout(100)
     play.click()  # pause
     wait.first.wait_for(state="detached", timeout=30_000)
+
+
+def test_second_tab_answers_while_first_tab_reopens_for_the_other_side(tabs, tmp_path):
+    """R3-16 (the stranger's run 3): tab B's edit seemed to wait a minute while tab A
+    re-solved after a Side change. A Side change re-opens the pair (the other arm's
+    features, then a full solve) off the loop, on A's own worker: B's click, made while A
+    is busy, must be answered before A's work ends. (Measured on the 131 s pair at a load
+    of 18-22: B answered in 7.4 s while A took 24.6 s; B alone took 5.7-10.7 s then, so
+    the minute was the machine's load, not a queue.)"""
+    a, b, _ = tabs
+    side = a.locator(".hs-side").first
+    a_rev = revision(a)
+    a.bring_to_front()
+    side.locator("button", has_text="left").click()
+    deadline = time.monotonic() + 30
+    while not busy_line(a):
+        assert revision(a) == a_rev, "tab A re-opened before its busy line showed"
+        assert time.monotonic() < deadline, "tab A never got busy after the Side change"
+        a.wait_for_timeout(20)
+    t_a = time.monotonic()
+    _click_b(b, 0.35)
+    t_b = time.monotonic()
+    assert busy_line(a) and revision(a) == a_rev, (
+        f"tab B's edit was answered after {t_b - t_a:.1f} s, only once tab A's re-opening ended"
+    )
+    deadline = time.monotonic() + 300
+    while revision(a) <= a_rev or busy_line(a):
+        assert time.monotonic() < deadline, "tab A's re-opening never ended"
+        a.wait_for_timeout(100)
+    assert "active" in (side.locator("button", has_text="left").get_attribute("class") or "")
+    # back to the right hand (its features are kept: quick) for the tests after this one
+    a_rev = revision(a)
+    side.locator("button", has_text="right").click()
+    deadline = time.monotonic() + 300
+    while revision(a) <= a_rev or busy_line(a):
+        assert time.monotonic() < deadline, "tab A never went back to the right hand"
+        a.wait_for_timeout(100)

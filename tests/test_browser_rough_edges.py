@@ -71,13 +71,18 @@ def test_points_table_shows_every_column(page, tmp_path):
     _add_point(page)
     table = page.locator(".hs-points").first
     table.scroll_into_view_if_needed()
+    delete = page.locator(".hs-points .tabulator-row").first.locator(
+        ".tabulator-cell:has(span[title='delete this point'])"
+    )
+    # the table is filled after the path is drawn: wait for the point's row to be laid out
+    deadline = time.monotonic() + BUSY_S
+    while (last := delete.bounding_box() if delete.count() else None) is None:
+        assert time.monotonic() < deadline, "the point's row never showed in the table"
+        page.wait_for_timeout(100)
     holder = page.locator(".hs-points .tabulator-tableholder").first
     widths = holder.evaluate("e => [e.scrollWidth, e.clientWidth]")
     assert widths[0] <= widths[1], f"the table scrolls sideways: {widths}"
     box = table.bounding_box()
-    delete = page.locator(".hs-points .tabulator-row").first.locator(
-        ".tabulator-cell:has(span[title='delete this point'])"
-    )
     last = delete.bounding_box()  # the last column a person sees: it was cut off
     assert last["x"] + last["width"] <= box["x"] + box["width"] + 0.5, (last, box)
     header = page.locator(".hs-points .tabulator-col-title", has_text="tol. in use").first

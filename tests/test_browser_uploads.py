@@ -316,6 +316,11 @@ def test_a_file_over_the_limit_is_refused_by_the_browser(page, served):
     before = sorted(p.name for p in uploads.iterdir())
     _upload(page, "body", big)
     page.get_by_text("File is too large").first.wait_for(timeout=BUSY_S * 1000)
+    # the tile says the limit as the text under the fields does, in MiB (R4-4: it said
+    # "Maximum file size is 209.7 MB" under "up to 200 MiB")
+    sub = page.locator(".hs-upload-body .filepond--file-status-sub").first.inner_text()
+    assert sub == f"Maximum file size is {MAX_UPLOAD_MB} MiB", sub
+    page.get_by_text(f"up to {MAX_UPLOAD_MB} MiB each").first.wait_for(timeout=5000)
     page.wait_for_timeout(1000)
     assert sorted(p.name for p in uploads.iterdir()) == before  # nothing was sent
     assert "receiving" not in pane_text(page.locator(".hs-upload-status"))

@@ -117,3 +117,36 @@ def test_reading_allocates_little_beyond_the_take():
     arrays = m.rotations.nbytes + m.translations.nbytes
     assert m.n_frames == 12000
     assert peak < 1.6 * len(text) + arrays + 8e6, (peak, len(text), arrays)
+
+
+@pytest.mark.parametrize("frames", [1, 3, 2048, 10**6])
+def test_the_writers_pieces_are_the_whole_text(frames: int, tmp_path: Path):
+    """``iter_bvh`` joined is ``format_bvh`` for any piece size (pieces that split the data
+    lines anywhere, one piece for all of them), and ``write_bvh`` writes the same bytes."""
+    m = parse_bvh(_long_take(50), "long.bvh")
+    whole = bvh.format_bvh(m)
+    assert "".join(bvh.iter_bvh(m, frames=frames)) == whole
+    out = tmp_path / "out.bvh"
+    bvh.write_bvh(m, out)
+    assert out.read_bytes() == whole.encode("utf-8")
+
+
+def test_writing_a_long_take_holds_a_piece_of_its_text_not_all_of_it(tmp_path: Path):
+    """``write_bvh`` streams the text and makes the Euler angles a few joints at a time: the
+    peak traced memory stays within a third of the file and twice the pose arrays (the
+    text held whole with its lines, or every joint's Euler intermediates at once, are
+    several times that)."""
+    m = parse_bvh(_long_take(12000), "long.bvh")
+    out = tmp_path / "out.bvh"
+    channels = m.rotations.nbytes + m.translations.nbytes  # the (F, C) values, float64
+    tracemalloc.start()
+    try:
+        tracemalloc.reset_peak()
+        base = tracemalloc.get_traced_memory()[0]
+        bvh.write_bvh(m, out)
+        peak = tracemalloc.get_traced_memory()[1] - base
+    finally:
+        tracemalloc.stop()
+    size = out.stat().st_size
+    assert size > 5e6
+    assert peak < size / 3 + 2 * channels, (peak, size, channels)

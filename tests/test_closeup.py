@@ -1,8 +1,13 @@
 """The hands' close-up camera frames the spliced hand in every frame: the first and last
 frames too (where a moving average of the hand's place leans on one side) and during
-fast moves (a wave)."""
+fast moves (a wave); and it sees the hand where the body hides it from the front (the
+strangers' R3-5 and R4-1: a long take's pose with the hand behind the torso showed the
+elbow and torso, no spliced finger)."""
 
 from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -10,6 +15,7 @@ import pytest
 from engine.cli import main
 from engine.io.bvh import read_bvh
 from engine.render.offscreen import Preview
+from engine.render.scene import HANDS_DIRECTIONS
 
 #: the app's close-up size (webapp.views.preview), pixels
 SIZE = (330, 300)
@@ -69,3 +75,73 @@ def test_the_first_frames_closeup_shows_the_hand(spliced, tmp_path):
     background = image[2, 2].astype(int)
     patch = image[max(cy - 12, 0) : cy + 12, max(cx - 12, 0) : cx + 12].astype(int)
     assert (np.abs(patch - background).sum(axis=-1) > 30).mean() > 0.2  # the hand is drawn there
+
+
+def _cut_bvh(src: Path, dst: Path, start: int, count: int) -> Path:
+    """``dst``: frames ``start`` to ``start + count`` of ``src``."""
+    lines = src.read_text().splitlines()
+    k = next(i for i, line in enumerate(lines) if line.startswith("MOTION"))
+    motion = [line for line in lines[k + 3 :] if line.strip()][start : start + count]
+    dst.write_text("\n".join([*lines[: k + 1], f"Frames: {len(motion)}", lines[k + 2], *motion]))
+    return dst
+
+
+def hand_seen_in_closeup(preview: Preview, i: int, side: str) -> tuple[float, float, bool]:
+    """``(seen, area, cut)`` of the spliced hand in frame ``i``'s close-up as rendered:
+    the hand's mesh is drawn in pure green, ``seen`` is the number of green pixels of the
+    whole take's picture over those of the hand drawn alone (what the body hides from
+    the camera is not seen), ``area`` the hand alone's share of the picture, ``cut``
+    whether the hand alone reaches the picture's edge."""
+    view = preview.views[0]
+    mesh = view.mesh
+    hand = mesh.part == mesh.part_names.index(f"{side}_hand")
+    colors = mesh.colors.copy()
+    colors[hand] = (0.0, 1.0, 0.0, 1.0)
+    alone = mesh.faces[hand[mesh.faces].all(axis=1)]
+
+    def green(m) -> np.ndarray:
+        view.mesh = m
+        img = preview.frame(i, view="single", camera="hands", size=SIZE).astype(int)
+        return (img[..., 1] > img[..., 0] + 40) & (img[..., 1] > img[..., 2] + 40)
+
+    try:
+        whole = green(dataclasses.replace(mesh, colors=colors))
+        drawn = green(dataclasses.replace(mesh, colors=colors, faces=alone))
+    finally:
+        view.mesh = mesh
+    cut = bool(drawn[0].any() or drawn[-1].any() or drawn[:, 0].any() or drawn[:, -1].any())
+    return whole.sum() / max(drawn.sum(), 1), drawn.sum() / drawn.size, cut
+
+
+#: (body take, first frame, hand take, side): 7 s of a long take where the body hides
+#: the spliced hand from the close-up's front view (R4-1: LAFAN1 multipleActions1 near
+#: body frame 3488, the right hand behind the torso: none of it seen from the front)
+HIDDEN = {
+    "behind-torso": (
+        "lafan1/multipleActions1_subject1.bvh",
+        3388,
+        "manipnet/mug1_rightHand.bvh",
+        "right",
+    ),
+}
+
+
+@pytest.mark.parametrize("case", sorted(HIDDEN))
+def test_the_closeup_sees_a_hand_the_body_hides_from_the_front(case, mocap_dir, tmp_path):
+    body, start, hand, side = HIDDEN[case]
+    cut = _cut_bvh(mocap_dir / body, tmp_path / "body.bvh", start, 201)
+    out = tmp_path / "spliced.bvh"
+    args = ["splice", str(cut), str(mocap_dir / hand), "-o", str(out), "--side", side, "--quiet"]
+    assert main(args) == 0
+    preview = Preview(read_bvh(out), close_up_sides=(side,))
+    view = preview.views[0]
+    aspect, yfov = SIZE[0] / SIZE[1], np.radians(35.0)
+    front = {f: view.hand_seen(f, aspect, yfov)[0] for f in range(0, 201, 5)}
+    hidden = min(front, key=front.get)
+    assert front[hidden] < 0.3  # the body hides the hand from the front there
+    seen, area, cut = hand_seen_in_closeup(preview, hidden, side)
+    assert seen > 0.6, f"frame {hidden}: {seen:.0%} of the hand seen"
+    assert area > 0.01 and not cut  # and drawn whole, large enough to judge
+    # a frame where the front sees the hand keeps the front view
+    free = max(front, key=front.get)
+    assert view.hands_direction(free, aspect, yfov) == HANDS_DIRECTIONS[0]

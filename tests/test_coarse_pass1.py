@@ -212,3 +212,119 @@ def test_app_edit_chain_on_a_real_120fps_pair_with_forearms(pair120, tmp_path):
         stats = got.pass1.solver.last_stats
         partial += stats.cells_computed < got.pass1.band.area
     assert partial >= 2
+
+
+def test_coarse_rows_are_every_kth_full_rate_row(pair120):
+    """The coarse pass-1 rows reuse the full-rate signs (derivatives over the same 0.2 s,
+    the takes' own dead zones, the hand's rotated masks) at every k-th frame; only the
+    eq.-7 windows are made again from the coarse frames."""
+    from engine.align import metrics as M
+
+    feats = P.prepare(*pair120)
+    cr = feats.coarse
+    assert cr is not None and cr.k == 4
+    a, b = feats.pass1_rows
+    a_c, b_c = cr.rows
+    assert (cr.n, cr.m) == (len(a[::4]), len(b[::4])) == (len(a_c), len(b_c))
+    half = int(a[0, 0])
+    codes = slice(M._HEADER + 2 * half, None)
+    assert np.array_equal(a_c[:, codes], a[::4, codes])
+    assert np.array_equal(b_c[:, codes], b[::4, codes])
+    assert np.array_equal(a_c[:, : M._HEADER], a[::4, : M._HEADER])
+    win = np.zeros((cr.n, 2 * half))
+    M._raw_windows(np.ascontiguousarray(feats.body_phase.markers[::4]), win)
+    assert np.array_equal(a_c[:, M._HEADER : M._HEADER + 2 * half], win)
+
+
+def _valley_costs(n, k, shift, rows):
+    """Fine (n x n) and coarse costs: the fine costs fall towards a valley that leaves the
+    diagonal by ``shift`` frames over ``rows`` (every column nearer the valley is cheaper);
+    the coarse costs know only the diagonal."""
+    i = np.arange(n)[:, None]
+    j = np.arange(n)[None, :]
+    bump = np.clip(np.minimum(i - rows[0], rows[1] - i), 0, None)
+    valley = i + np.minimum(bump, shift)
+    fine = 0.1 + np.minimum(np.abs(j - valley) / 80.0, 1.0)
+    nc = -(-n // k)
+    ic = np.arange(nc)[:, None]
+    jc = np.arange(nc)[None, :]
+    coarse = 0.1 + np.minimum(np.abs(jc - ic) / 20.0, 1.0)
+    return fine, coarse
+
+
+def _matrix_solve(rows, metric, band, solver, incremental, ends, exact):
+    from engine.dtw import align
+
+    return align(rows, band, ends), None
+
+
+@pytest.mark.parametrize("is_open", [False, True])
+def test_fine_band_widens_where_the_fine_path_runs_along_its_edge(is_open):
+    """A coarse path on the diagonal and a fine optimum 40 frames off it (the strip is
+    about 12 frames wide): the narrow solve runs along the strip's edge, the strip widens
+    there until the path keeps clear of it, and pass 1 gives the whole band's optimum."""
+    from engine.dtw import Ends, align
+
+    n, k, fps = 240, 4, 20.0  # radius: 0.5 s = 10 frames
+    fine, coarse = _valley_costs(n, k, 40, (60, 180))
+    band1 = Band.from_constraints(n, n, 0.8, None, open_ends=is_open)
+    ends = Ends(20, 20, 0.5) if is_open else Ends()
+    rows = CO.CoarseRows(k, coarse.shape[0], coarse.shape[1], fps / k, coarse)
+    want = align(fine, band1, ends)
+    lim = (20, 20) if is_open else None
+    al, _, info = CO.solve(
+        fine, rows, band1, 0.8, [], is_open, lim, ends, 0.5, _matrix_solve, "m", fps=fps
+    )
+    assert info.fallback is None and info.rounds >= 1
+    assert info.fine_band.area < band1.area
+    assert np.array_equal(al.path, want.path) and al.cost == pytest.approx(want.cost)
+    # the first strip alone missed it: its optimum ran along the edge
+    strip = CO.band_around_coarse(info.path, k, n, n, info.radius, is_open).intersect(band1)
+    narrow = align(fine, strip, ends)
+    assert narrow.cost > want.cost + 1.0
+    assert CO.widen_where_pinched(narrow.path, strip, band1, info.radius, is_open) is not None
+    assert CO.widen_where_pinched(al.path, info.fine_band, band1, info.radius, is_open) is None
+
+
+def test_no_widening_when_the_fine_path_keeps_clear_of_the_edge():
+    from engine.dtw import Ends, align
+
+    n, k, fps = 240, 4, 20.0
+    fine, coarse = _valley_costs(n, k, 0, (60, 180))  # both on the diagonal
+    band1 = Band.from_constraints(n, n, 0.8, None)
+    rows = CO.CoarseRows(k, coarse.shape[0], coarse.shape[1], fps / k, coarse)
+    al, _, info = CO.solve(
+        fine, rows, band1, 0.8, [], False, None, Ends(), 0.0, _matrix_solve, "m", fps=fps
+    )
+    assert info.rounds == 0 and info.solved_cells == info.fine_band.area
+    assert np.array_equal(al.path, align(fine, band1).path)
+
+
+def test_long_takes_also_solve_the_near_optimal_coarse_cells(pair120, monkeypatch):
+    """From PASS1_NEAR_MIN_CELLS W1 cells on, the fine band also holds every coarse cell
+    whose cheapest coarse path is within PASS1_NEAR_STEPS mean path cells of the coarse
+    optimum (here forced on for a short pair): a superset of the strip, same result."""
+    from engine.dtw.marginals import near_optimal_rows
+
+    feats = P.prepare(*pair120)
+    plain = P.align_passes(feats)
+    assert not plain.pass1.coarse.near  # a short pair: the strip only
+    monkeypatch.setattr(T, "PASS1_NEAR_MIN_CELLS", 0)
+    res = P.align_passes(feats, incremental=False)  # one forward pass: coarse path and γ
+    inc = P.align_passes(feats, incremental=True)  # the coarse Aligner's path, then γ
+    assert inc.pass1.coarse.near and np.array_equal(inc.pass1.coarse.path, res.pass1.coarse.path)
+    assert np.array_equal(inc.pass1.coarse.fine_band.lo, res.pass1.coarse.fine_band.lo)
+    cp, k = res.pass1.coarse, feats.coarse.k
+    assert cp.near and cp.fallback is None
+    fine, strip = cp.fine_band, plain.pass1.coarse.fine_band
+    assert np.all(fine.lo <= strip.lo) and np.all(fine.hi >= strip.hi)
+    first, last, _, path_c = near_optimal_rows(
+        *feats.coarse.rows, cp.band, "splice_phase", T.PASS1_NEAR_STEPS, cp.ends, per_cell=True
+    )
+    assert np.array_equal(path_c, cp.path)  # the one-shot coarse solve's path
+    for r in np.flatnonzero(last >= 0):  # the fine cells of every near-optimal coarse cell
+        for i in range(r * k, min(r * k + k, feats.n)):
+            assert fine.lo[i] <= max(first[r] * k, res.pass1.band.lo[i])
+            assert fine.hi[i] >= min(last[r] * k, res.pass1.band.hi[i])
+    assert res.pass1.cost == pytest.approx(plain.pass1.cost, rel=1e-12)
+    assert np.array_equal(res.map, plain.map)

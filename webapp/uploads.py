@@ -94,6 +94,22 @@ def _extension(name: str) -> str:
     return ext
 
 
+def limit_words(max_bytes: int) -> str:
+    """The upload limit as the page and its messages say it: ``200 MiB`` (binary
+    megabytes, as ``--max-upload-mb`` counts them; a fraction to one decimal)."""
+    return f"{round(max_bytes / 2**20, 1):g} MiB"
+
+
+def check_name(filename: str | None) -> str:
+    """The shown name of a file the browser means to upload, if its extension is one the
+    server reads (:data:`EXTENSIONS`); UploadError (``x.png: expected a .bvh, .c3d or .trc
+    file``) otherwise. The page's fields refuse such a file before sending it and ask
+    the server for this message."""
+    name = display_name(filename)
+    _extension(name)
+    return name
+
+
 def _is_regular(path: Path) -> bool:
     """True for a regular file; symlinks are never followed (``lstat``)."""
     try:
@@ -159,7 +175,7 @@ class Incoming:
         if self.size > self.cfg.max_upload_bytes:
             self.discard()
             raise UploadError(
-                f"{self.name}: over the {self.cfg.max_upload_bytes / 2**20:.0f} MiB upload limit"
+                f"{self.name}: over the {limit_words(self.cfg.max_upload_bytes)} upload limit"
             )
         try:
             view = memoryview(data)

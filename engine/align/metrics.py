@@ -577,6 +577,24 @@ def phase_rows(
     return a, b
 
 
+def decimate_phase_rows(
+    rows: tuple[np.ndarray, np.ndarray], body: PhaseFeatures, hand: PhaseFeatures, k: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`phase_rows`' rows of every ``k``-th frame (frames 0, k, 2k, ...) for a grid of
+    ``fps / k``: the header and the sign codes of those frames (derivatives, dead zones and
+    the hand's rotated masks of the full-rate take: nothing is recomputed), and the eq.-7
+    windows made again from every ``k``-th marker frame (W frames of the coarse grid, as a
+    take captured at that rate). ``body``, ``hand``: the features the rows were made from."""
+    a, b = rows
+    half = int(a[0, 0]) if a.shape[0] else 0
+    a_c = np.ascontiguousarray(a[::k])
+    b_c = np.ascontiguousarray(b[::k])
+    if half:
+        _raw_windows(np.ascontiguousarray(body.markers[::k]), a_c[:, _HEADER : _HEADER + 2 * half])
+        _raw_windows(np.ascontiguousarray(hand.markers[::k]), b_c[:, _HEADER : _HEADER + 2 * half])
+    return a_c, b_c
+
+
 def rotated_packed_codes(
     hand: PhaseFeatures, n_bins: int = THETA_BINS, out=None
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -831,6 +849,28 @@ def _grid_kernel(metric, a, b, rows, cols, out):
             out[r, c] = metric(ar, b[cols[c]])
 
 
+# ``_grid_kernel`` and ``_path_kernel`` for this module's two splice metrics, each calling its
+# metric by name (no dispatcher argument), so that their machine code is cached on disk: a
+# fresh process (a batch worker's pair, a server, the CLI) loads them instead of compiling
+# them (seconds each). Other metrics go through the generic kernels.
+
+
+@numba.njit(cache=True, nogil=True)
+def _grid_kernel_phase(a, b, rows, cols, out):
+    for r in range(rows.shape[0]):
+        ar = a[rows[r]]
+        for c in range(cols.shape[0]):
+            out[r, c] = splice_phase(ar, b[cols[c]])
+
+
+@numba.njit(cache=True, nogil=True)
+def _grid_kernel_angle(a, b, rows, cols, out):
+    for r in range(rows.shape[0]):
+        ar = a[rows[r]]
+        for c in range(cols.shape[0]):
+            out[r, c] = splice_angle(ar, b[cols[c]])
+
+
 def cost_grid(
     metric, a: np.ndarray, b: np.ndarray, rows: np.ndarray, cols: np.ndarray
 ) -> np.ndarray:
@@ -846,7 +886,12 @@ def cost_grid(
     if cols.size and (cols.min() < 0 or cols.max() >= len(b)):
         raise ParameterError(f"cost grid: columns must lie in 0..{len(b) - 1}")
     out = np.zeros((rows.size, cols.size), dtype=np.float64)
-    _grid_kernel(metric, a, b, rows, cols, out)
+    if metric is splice_phase:
+        _grid_kernel_phase(a, b, rows, cols, out)
+    elif metric is splice_angle:
+        _grid_kernel_angle(a, b, rows, cols, out)
+    else:
+        _grid_kernel(metric, a, b, rows, cols, out)
     return out
 
 
@@ -932,9 +977,26 @@ def _path_kernel(metric, a, b, path, out):
         out[k] = metric(a[path[k, 0]], b[path[k, 1]])
 
 
+@numba.njit(cache=True, nogil=True)
+def _path_kernel_phase(a, b, path, out):  # _path_kernel for splice_phase, cached (see above)
+    for k in range(path.shape[0]):
+        out[k] = splice_phase(a[path[k, 0]], b[path[k, 1]])
+
+
+@numba.njit(cache=True, nogil=True)
+def _path_kernel_angle(a, b, path, out):  # _path_kernel for splice_angle, cached (see above)
+    for k in range(path.shape[0]):
+        out[k] = splice_angle(a[path[k, 0]], b[path[k, 1]])
+
+
 def path_values(metric, a: np.ndarray, b: np.ndarray, path: np.ndarray) -> np.ndarray:
     """``metric(a[i], b[j])`` for every cell ``(i, j)`` of ``path (k, 2)``, as ``(k,)`` float64."""
     path = np.ascontiguousarray(path, dtype=np.int64).reshape(-1, 2)
     out = np.zeros(len(path), dtype=np.float64)
-    _path_kernel(metric, a, b, path, out)
+    if metric is splice_phase:
+        _path_kernel_phase(a, b, path, out)
+    elif metric is splice_angle:
+        _path_kernel_angle(a, b, path, out)
+    else:
+        _path_kernel(metric, a, b, path, out)
     return out

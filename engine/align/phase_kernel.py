@@ -322,6 +322,30 @@ class PhaseProblem:
     def args(self) -> tuple:
         return (*self.body, *self.hand, self.mode, self.nb, self.half)
 
+    def reversed(self) -> PhaseProblem | None:
+        """The state of both takes' rows reversed (a backward pass), made from this one
+        without the rows: every array is per frame (the padded coordinates keep two
+        frames beyond each end, so they reverse too), so it is this one's arrays in the
+        opposite frame order, the same as ``PhaseProblem(a[::-1], b[::-1])``. None for the
+        per-cell fallback (it needs the rows themselves)."""
+        if self.fallback:
+            return None
+        out = PhaseProblem.__new__(PhaseProblem)
+        out.half, out.nb, out.mode, out.n, out.m = self.half, self.nb, self.mode, self.n, self.m
+        out.fallback = False
+        out.body = tuple(np.ascontiguousarray(x[::-1]) for x in self.body)
+        hx, hz, hmx, hmz, hpq, hyaw = self.hand
+        pq = hpq.reshape(self.nb, self.m, 2)[:, ::-1]
+        out.hand = (
+            np.ascontiguousarray(hx[:, ::-1]),
+            np.ascontiguousarray(hz[:, ::-1]),
+            np.ascontiguousarray(hmx[::-1]),
+            np.ascontiguousarray(hmz[::-1]),
+            np.ascontiguousarray(pq).reshape(-1),
+            np.ascontiguousarray(hyaw[::-1]),
+        )
+        return out
+
 
 def prepare(a: np.ndarray, b: np.ndarray) -> PhaseProblem:
     """Row-kernel data for ``splice_phase`` rows ``a`` (body, ``(n, d)``) and ``b`` (hand)."""

@@ -184,10 +184,22 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
         yield tmp
 
 
-def write_text(path: str | Path, text: str) -> None:
-    """Write ``text`` to ``path`` atomically (UTF-8)."""
-    with atomic_path(path) as tmp:
+def _write_pieces(tmp: Path, text) -> None:
+    """``text`` (a str, or an iterable of str pieces written one after another, so a long
+    text is never held whole) into ``tmp`` as UTF-8."""
+    if isinstance(text, str):
         tmp.write_text(text, encoding="utf-8")
+        return
+    with open(tmp, "w", encoding="utf-8", newline="") as fh:
+        for piece in text:
+            fh.write(piece)
+
+
+def write_text(path: str | Path, text) -> None:
+    """Write ``text`` to ``path`` atomically (UTF-8); ``text`` may be an iterable of str
+    pieces (e.g. ``engine.io.bvh.iter_bvh``)."""
+    with atomic_path(path) as tmp:
+        _write_pieces(tmp, text)
 
 
 def write_bytes(path: str | Path, data: bytes) -> None:
@@ -196,11 +208,12 @@ def write_bytes(path: str | Path, data: bytes) -> None:
         tmp.write_bytes(data)
 
 
-def write_texts(items: Sequence[tuple[str | Path, str]]) -> None:
-    """Write several ``(path, text)`` files that belong together (see ``atomic_group``)."""
+def write_texts(items: Sequence[tuple[str | Path, object]]) -> None:
+    """Write several ``(path, text)`` files that belong together (see ``atomic_group``);
+    a text may be an iterable of str pieces, as in :func:`write_text`."""
     with atomic_group([p for p, _ in items]) as temps:
         for tmp, (_, text) in zip(temps, items, strict=True):
-            tmp.write_text(text, encoding="utf-8")
+            _write_pieces(tmp, text)
 
 
 def _on_sigterm(signum, frame) -> None:

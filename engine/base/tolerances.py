@@ -22,7 +22,10 @@ Budgets (band cells; memory grows with them)
     ``TRUST_MAX_CELLS``: the trust assessment (:mod:`engine.splice.uncertainty`) keeps γ of
     every cell it weighs, both ways (16 bytes a cell, plus a byte of backpointers); a
     pass whose band holds more cells is weighed on its cells nearest the pass's path
-    (the widest radius that fits: about ±2.3 s at 10 minutes, 120 fps), ~680 MB at most.
+    (the widest radius that fits: about ±2.3 s at 10 minutes, 120 fps).
+    ``TRUST_BLOCK_CELLS``: the trust holds γ of this many band cells at once (both ways, 17
+    bytes a cell: ~17 MB), not of the whole band (:func:`engine.dtw.marginals.row_spread`
+    sweeps the band by blocks of rows; the result is the same for any block size).
 
 Pass-1 rate (multi-resolution pass 1, ``engine.splice.coarse``)
     ``PASS1_RATE_CAP_HZ``: pass 1's sign-cost DTW runs first on both takes decimated to at
@@ -31,6 +34,13 @@ Pass-1 rate (multi-resolution pass 1, ``engine.splice.coarse``)
     ``PASS1_FINE_RADIUS_S``: the exact full-rate pass 1 then runs only on cells within this
     many seconds (Chebyshev) of the upsampled coarse path, inside the W1 band and the
     matching points' clips.
+    ``PASS1_NEAR_STEPS``: ... and on the cells of every other coarse alignment whose
+    cheapest coarse path costs at most this many mean coarse path cells more than the
+    coarse optimum (a stretch where the coarse signs nearly tie between two alignments:
+    the full-rate optimum may take the other one), when the W1 band holds at least
+    ``PASS1_NEAR_MIN_CELLS`` cells (long takes: the 10-minute pair at 120 fps needed it;
+    on the 2-minute pair and every shorter bench case the strip alone gave the full-rate
+    result, and the search would cost two more coarse passes, about a tenth of a splice).
 """
 
 from __future__ import annotations
@@ -44,4 +54,7 @@ DENSE_PASS1_MAX_CELLS = 6_000_000
 PARALLEL_MIN_CELLS = 200_000
 PASS1_RATE_CAP_HZ = 30.0
 PASS1_FINE_RADIUS_S = 0.5
+PASS1_NEAR_STEPS = 3.0
+PASS1_NEAR_MIN_CELLS = 100_000_000
 TRUST_MAX_CELLS = 40_000_000
+TRUST_BLOCK_CELLS = 1_000_000

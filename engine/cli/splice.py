@@ -231,7 +231,7 @@ def run(args: argparse.Namespace) -> int:
     from engine.base.errors import ParameterError
     from engine.cli import load_take
     from engine.dtw import constraints as C
-    from engine.io.bvh import format_bvh
+    from engine.io.bvh import iter_bvh
     from engine.splice import pipeline
 
     started = time.perf_counter()  # the whole wait: reading, splice, trust and writing
@@ -322,8 +322,9 @@ def run(args: argparse.Namespace) -> int:
     trust = assess_splice(result.features, result.alignment)
     progress("trust", 1.0)
     progress("write", 0.0)
-    # the spliced take and its report are one result: both replaced, or neither
-    outputs = [(out, format_bvh(result.motion))]
+    # the spliced take and its report are one result: both replaced, or neither; the take's
+    # text is written piece by piece (a 10-minute take's text held whole is ~0.75 GB)
+    outputs = [(out, iter_bvh(result.motion))]
     if args.report:
         outputs.append(
             (

@@ -273,6 +273,23 @@ class Problem:
                 self.what,
                 cost=np.ascontiguousarray(self.cost[::-1, ::-1]),
             )
+        state = self._rows_state
+        made = getattr(state, "reversed", None)
+        reversed_state = made() if made is not None else None
+        if reversed_state is not None:
+            # a row kernel whose state reverses without the rows (``PhaseProblem``): the
+            # rows stay views (read only for error messages), no reversed copies of them
+            out = Problem(
+                self.kind,
+                self.n,
+                self.m,
+                self.what,
+                a=self.a[::-1],
+                b=self.b[::-1],
+                metric=self.metric,
+            )
+            out._rows_state = reversed_state
+            return out
         a = np.ascontiguousarray(self.a[::-1])
         b = np.ascontiguousarray(self.b[::-1])
         extra = {"bT": np.ascontiguousarray(b.T)} if self.kind == "builtin" else {}

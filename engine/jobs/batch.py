@@ -409,7 +409,7 @@ def _run_pair_here(
             record["notes"] = NOTE_SEPARATOR.join(notes)
         motion, report = (splice or splice_pair)(body, hand, job)
         outs = outputs_of(job, outdir)
-        from engine.io.bvh import format_bvh
+        from engine.io.bvh import iter_bvh
 
         report = dict(report)
         report["output"] = outs["output"].name
@@ -428,7 +428,7 @@ def _run_pair_here(
         # the spliced take and its report: both replaced, or neither
         write_texts(
             [
-                (outs["output"], format_bvh(motion)),
+                (outs["output"], iter_bvh(motion)),
                 (outs["report"], json.dumps(_jsonable(report)) + "\n"),
             ]
         )

@@ -12,7 +12,10 @@ character's largest pose, and from a fixed direction relative to the take's
 median facing (pelvis rotation applied to the rest-pose facing), so a video does
 not zoom or swing. The hands' close-up follows the hands' joints the same way, drawn
 towards each frame's own hand wherever the average would let it leave the picture
-(the first and last frames, fast moves).
+(the first and last frames, fast moves). It looks from the front (slightly from the
+right and above) unless the body hides the hand from there (a crouch, a hand behind the
+torso): then from the direction of :data:`HANDS_DIRECTIONS` that sees most of the hand
+(:meth:`TakeView.hands_direction`, a coarse depth test of the posed mesh's vertices).
 """
 
 from __future__ import annotations
@@ -39,6 +42,21 @@ _CAMERA_ANGLES = {
     "three-quarter": (40.0, 14.0),
     "hands": (15.0, 18.0),
 }
+#: directions the hands' close-up may look from (azimuth towards the character's right,
+#: elevation; degrees), the front one (``_CAMERA_ANGLES["hands"]``) first
+HANDS_DIRECTIONS = tuple(
+    (az, el)
+    for el in (18.0, 55.0, -20.0)
+    for az in (15.0, 60.0, -30.0, 105.0, -75.0, 150.0, -120.0, 195.0)
+)
+#: a direction other than the front is taken when it sees this much more of the hand
+#: (fraction of the hand's vertices), so a hand the front sees well stays seen from there
+HANDS_SWITCH_GAIN = 0.15
+#: the coarse depth test's grid, cells across the picture's shorter side
+_OCCLUSION_CELLS = 72
+#: how far (metres) a vertex may lie behind the front-most surface of its cell and count
+#: as seen (the mesh's own thickness at a grazing angle)
+_OCCLUSION_SLACK = 0.012
 #: how far the hand's mesh reaches beyond its joints' box (fingertips past the last
 #: joint, the palm's thickness), in hand lengths: the close-up keeps this in view
 HAND_MESH_REACH = 0.25
@@ -116,6 +134,9 @@ class TakeView:
     _visible: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     hand_targets: np.ndarray | None = None
     hand_radius: float = 0.0
+    #: (V,) bool: the mesh's vertices of the hands the close-up frames
+    hand_vertices: np.ndarray | None = None
+    _hands_dirs: dict = field(default_factory=dict)
 
     @classmethod
     def from_motion(
@@ -259,6 +280,14 @@ class TakeView:
                 view.hand_radius,
                 win,
             )
+            parts = [
+                k
+                for k, name in enumerate(view.mesh.part_names)
+                if name.endswith("_hand")
+                and (close_up_sides is None or name[: -len("_hand")] in close_up_sides)
+            ]
+            if parts and len(view.mesh.part) == len(view.mesh.vertices):
+                view.hand_vertices = np.isin(view.mesh.part, parts)
         view.radius = float(max(radius - margin, np.percentile(radii, 95)) * 1.04)
         if anatomy.kind == "body":
             view.floor_y = float(min(lowest))
@@ -295,16 +324,80 @@ class TakeView:
         if camera not in _CAMERA_ANGLES:
             raise ValueError(f"camera {camera!r}: expected one of {', '.join(CAMERAS)}")
         i = self.check_frame(i)
-        az, el = np.radians(_CAMERA_ANGLES[camera])
-        horizontal = np.cos(az) * self.facing + np.sin(az) * self.right
-        direction = np.cos(el) * horizontal + np.sin(el) * self.view_up
         half = 0.5 * min(yfov, 2 * np.arctan(np.tan(0.5 * yfov) * aspect))
         if camera == "hands" and self.hand_targets is not None:
             radius, target = self.hand_radius, self.hand_targets[i]
+            direction = self._direction(*self.hands_direction(i, aspect, yfov))
         else:
             radius, target = self.radius, self.targets[i]
+            direction = self._direction(*_CAMERA_ANGLES[camera])
         dist = radius / np.sin(half) * 1.02
         return look_at(target + dist * direction, target, self.view_up)
+
+    def _direction(self, az_deg: float, el_deg: float) -> np.ndarray:
+        """Unit vector from the look-at point towards the camera at (azimuth, elevation)."""
+        az, el = np.radians(az_deg), np.radians(el_deg)
+        horizontal = np.cos(az) * self.facing + np.sin(az) * self.right
+        return np.cos(el) * horizontal + np.sin(el) * self.view_up
+
+    def hands_direction(self, i: int, aspect: float = 1.1, yfov: float = np.radians(35.0)):
+        """``(azimuth, elevation)`` degrees the hands' close-up looks from at frame ``i``:
+        the front one of :data:`HANDS_DIRECTIONS` unless another sees at least
+        :data:`HANDS_SWITCH_GAIN` more of the hand's vertices (:meth:`hand_seen`); then the
+        one that sees most (the first of equals). Cached per frame."""
+        i = self.check_frame(i)
+        key = (i, round(float(aspect), 3), round(float(yfov), 4))
+        if key not in self._hands_dirs:
+            if self.hand_vertices is None or not self.hand_vertices.any():
+                choice = _CAMERA_ANGLES["hands"]
+            else:
+                seen = self.hand_seen(i, aspect, yfov)
+                best = int(np.argmax(seen))
+                choice = HANDS_DIRECTIONS[best if seen[best] >= seen[0] + HANDS_SWITCH_GAIN else 0]
+            if len(self._hands_dirs) > 4096:
+                self._hands_dirs.clear()
+            self._hands_dirs[key] = choice
+        return self._hands_dirs[key]
+
+    def hand_seen(self, i: int, aspect: float = 1.1, yfov: float = np.radians(35.0)) -> np.ndarray:
+        """Fraction of the close-up hand's mesh vertices seen from each of
+        :data:`HANDS_DIRECTIONS` at frame ``i`` (a coarse depth test: every vertex of the
+        posed mesh is projected into a grid of about :data:`_OCCLUSION_CELLS` cells a
+        side; a hand vertex is seen when no other vertex of its cell or the 8 around it
+        lies more than :data:`_OCCLUSION_SLACK` in front of it, and it is in the picture).
+        """
+        verts = self.vertices(self.check_frame(i))[0]
+        hand = self.hand_vertices
+        target = self.hand_targets[i]
+        half = 0.5 * min(yfov, 2 * np.arctan(np.tan(0.5 * yfov) * aspect))
+        dist = self.hand_radius / np.sin(half) * 1.02
+        f = 1.0 / np.tan(0.5 * yfov)
+        rows = _OCCLUSION_CELLS
+        cols = max(int(round(rows * aspect)), 1)
+        seen = np.zeros(len(HANDS_DIRECTIONS))
+        rel = verts - target
+        for k, (az, el) in enumerate(HANDS_DIRECTIONS):
+            pose = look_at(dist * self._direction(az, el), np.zeros(3), self.view_up)
+            cam = (rel - pose[:3, 3]) @ pose[:3, :3]
+            depth = -cam[:, 2]
+            ok = depth > 1e-3
+            d = np.where(ok, depth, 1.0)
+            x = (f / aspect * cam[:, 0] / d + 1) * 0.5 * cols
+            y = (1 - f * cam[:, 1] / d) * 0.5 * rows
+            inside = ok & (x >= 0) & (x < cols) & (y >= 0) & (y < rows)
+            cx = np.clip(x.astype(np.int64), 0, cols - 1)
+            cy = np.clip(y.astype(np.int64), 0, rows - 1)
+            front = np.full((rows + 2, cols + 2), np.inf)
+            other = inside & ~hand
+            np.minimum.at(front, (cy[other] + 1, cx[other] + 1), depth[other])
+            nearest = front[1:-1, 1:-1].copy()
+            for dy in (0, 1, 2):
+                for dx in (0, 1, 2):
+                    np.minimum(nearest, front[dy : dy + rows, dx : dx + cols], out=nearest)
+            mine = hand & inside
+            visible = depth[mine] <= nearest[cy[mine], cx[mine]] + _OCCLUSION_SLACK
+            seen[k] = visible.sum() / max(int(hand.sum()), 1)
+        return seen
 
 
 def _keep_in_view(centres: np.ndarray, reach: np.ndarray, radius: float, half: int) -> np.ndarray:

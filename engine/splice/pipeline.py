@@ -330,21 +330,10 @@ def prepare(
     coarse = None
     k = C.pass1_decimation(fps)
     if k > 1 and n >= 2 * k and m >= 2 * k:  # pass 1 first at the capped rate (same windows in s)
-        bc, hc = CO.decimate(body_markers, k), CO.decimate(hand_markers, k)
-        _, _, rows_c, _ = _pass1_features(
-            bc,
-            hc,
-            CO.decimate(body_yaw, k),
-            CO.decimate(hand_yaw, k),
-            fps / k,
-            theta,
-            n_bins,
-            smoothing_s,
-            dead_zone,
-            step1,
-            yaw_offset=yaw_offset,
-        )
-        coarse = CO.CoarseRows(k, len(bc), len(hc), fps / k, rows_c)
+        # every k-th frame of the full-rate rows: the same signs (derivatives over the same
+        # seconds, the takes' own dead zones), θ windows of the coarse frames
+        rows_c = M.decimate_phase_rows(rows1, bp, hp, k)
+        coarse = CO.CoarseRows(k, len(rows_c[0]), len(rows_c[1]), fps / k, rows_c)
     timings["features"] = time.perf_counter() - t1
     progress("features", 1.0)
     M.register_metrics()
@@ -405,12 +394,10 @@ def _pass1_features(
     smoothing_s,
     dead_zone,
     step1,
-    yaw_offset=None,
 ):
     """``(body, hand PhaseFeatures, pass-1 rows, θ offset)``: the sign codes and headings of
     both takes (eqs. 6-7) and the pass-1 cost rows; a hand take without a trunk gets a
-    constant heading offset for ``theta="trunk"``, estimated near the diagonal (or the
-    ``yaw_offset`` given: the coarse rows use the full-rate one)."""
+    constant heading offset for ``theta="trunk"``, estimated near the diagonal."""
     n, m = body_markers.shape[0], hand_markers.shape[0]
     bp = M.phase_features(body_markers, fps, yaw=body_yaw, window_s=smoothing_s, relative=dead_zone)
     hp = M.phase_features(
@@ -420,9 +407,7 @@ def _pass1_features(
         window_s=smoothing_s,
         relative=dead_zone,
     )
-    if yaw_offset is not None:
-        pass
-    elif theta == "trunk" and hand_yaw is None:
+    if theta == "trunk" and hand_yaw is None:
         i = np.arange(n)
         j = np.minimum(np.round(i * (m - 1) / max(n - 1, 1)).astype(np.int64), m - 1)
         yaw_offset = -heading_offset(bp, hp, np.column_stack([i, j]))

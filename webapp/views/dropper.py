@@ -12,6 +12,14 @@ server then accepts it is told by :meth:`TakeDropper.verdict`, which rewrites th
 file's tile in the page: grey "Checking…", green "Checked" with what was read, or red
 "Refused" (the reason is in the page's message), or empties the field. Text reaches
 the tile through ``textContent`` only.
+
+A file of a kind the server does not read (by its name's extension,
+:data:`webapp.uploads.EXTENSIONS`) is refused in the browser before a byte is sent:
+the field's ``accept`` lists those extensions (the file picker offers only them) and
+FilePond checks a dropped file's extension (browsers give these files no MIME type, so
+its type check is told to use the extension). The tile turns red at once and the
+browser sends the server only the file's name, whose refusal (the same message as a
+sent file's, :func:`webapp.uploads.check_name`) the page shows like any other.
 """
 
 from __future__ import annotations
@@ -49,13 +57,16 @@ PROGRESS_EVERY_S = 0.25
 _JS_VERDICT = """
 const [state, name, main, sub] = cb_obj.tags;
 const pond = Bokeh.index.find_one(cb_obj)?._file_pond;
-if (pond == null || state == null) return;
+if (pond == null || !(state in colors || state === 'clear')) return;  // not a verdict
 if (state === 'clear') { pond.removeFiles(); return; }
 const paint = () => {
   const item = pond.getFiles().find(f => f.filename === name.split(/[\\\\/]/).pop());
   // "receiving" (the server's count of the bytes on its disk) also while FilePond still
   // sends (status 3: its ring counts what the browser queued, not what arrived)
-  const shown = item != null && (item.status === 5 || (state === 'receiving' && item.status === 3));
+  // "refused" also on a file FilePond did not send (status 8: refused by its kind)
+  const shown = item != null && (
+    item.status === 5 || (state === 'receiving' && item.status === 3) ||
+    (state === 'refused' && item.status === 8));
   if (!shown) return false;
   const li = pond.element.querySelector('#filepond--item-' + item.id);
   if (li == null) return false;
@@ -89,6 +100,39 @@ const again = () => {  // until FilePond has drawn the sent state; then check it
 again();
 """
 _SERIAL = itertools.count(1)
+
+#: the tags state by which the page tells the server of a file it refused by its kind
+WRONG_KIND = "wrong-kind"
+
+#: the page side of the kind check (once per field, when the page is ready; it also has
+#: FilePond say the size limit as the page does, in MiB): FilePond
+#: checks a file's type against the field's ``accept`` list; browsers give .bvh/.c3d/.trc
+#: files no MIME type (or a guess), so the "type" it checks is the name's extension. A
+#: file it refuses is not sent; the field's model's ``tags`` tell the server its name
+_JS_KIND = """
+if (dropper._hsKind) return;
+dropper._hsKind = true;
+const kind = (name) => (/\\.[^.\\\\/]*$/.exec(name ?? '') ?? [''])[0].toLowerCase();
+const setup = () => {
+  if (window.FilePond == null) { setTimeout(setup, 100); return; }
+  window.FilePond.setOptions({
+    fileValidateTypeDetectType: (file, type) => Promise.resolve(kind(file.name)),
+    labelFileTypeNotAllowed: 'Refused',
+    fileValidateTypeLabelExpectedTypes: 'not sent: expected {allButLastType} or {lastType}',
+    // FilePond would say the limit in decimal MB (209.7 MB for 200 MiB)
+    labelMaxFileSize: limit,
+  });
+};
+setup();
+document.addEventListener('FilePond:addfile', (event) => {
+  const {error, file} = event.detail;
+  if (error == null || file == null || exts.includes(kind(file.filename))) return;
+  const own = Bokeh.index.find_one(dropper)?._file_pond;
+  // FilePond dispatches on its root element (in the field's shadow root)
+  if (own == null || own.element !== event.composedPath()[0]) return;  // the other field's
+  dropper.tags = [wrong, file.filename, '', '', -Date.now()];
+});
+"""
 
 
 @dataclass(frozen=True)
@@ -130,6 +174,8 @@ class TakeDropper(pn.widgets.FileDropper):
         params.setdefault("chunk_size", CHUNK_BYTES)
         params.setdefault("multiple", False)
         params.setdefault("previews", [])
+        # the file picker offers only what the server reads; FilePond refuses the rest
+        params.setdefault("accepted_filetypes", list(uploads.EXTENSIONS))
         # FilePond counts KB in thousands of bytes: the browser refuses what the server would
         params.setdefault("max_file_size", f"{cfg.max_upload_bytes // 1000}KB")
         super().__init__(**params)
@@ -146,7 +192,29 @@ class TakeDropper(pn.widgets.FileDropper):
     def _get_model(self, doc, root=None, parent=None, comm=None):
         model = super()._get_model(doc, root, parent, comm)
         model.js_on_change("tags", CustomJS(args={"colors": VERDICT_COLORS}, code=_JS_VERDICT))
+        model.on_change("tags", self._on_tags)
+        if doc is not None:
+            args = {
+                "dropper": model,
+                "exts": list(uploads.EXTENSIONS),
+                "wrong": WRONG_KIND,
+                "limit": f"Maximum file size is {uploads.limit_words(self._cfg.max_upload_bytes)}",
+            }
+            doc.js_on_event("document_ready", CustomJS(args=args, code=_JS_KIND))
         return model
+
+    def _on_tags(self, attr, old, new) -> None:
+        """The page refused a file by its kind (:data:`WRONG_KIND`, its name) without
+        sending it: the owner is told why, in the words of a sent file's refusal."""
+        if not new or new[0] != WRONG_KIND or len(new) < 2:
+            return
+        name = str(new[1])
+        try:
+            uploads.check_name(name)
+        except uploads.UploadError as exc:
+            self.file_name = name
+            self._drop(name)
+            self.on_refused(str(exc))
 
     @with_document_lock
     def verdict(self, state: str, name: str = "", main: str = "", sub: str = "") -> None:

@@ -64,7 +64,7 @@ class InputsView:
             width=260,
         )
         self.sample.param.watch(self._on_sample, "value")
-        limit = f"{cfg.max_upload_bytes / 2**20:.0f} MiB"
+        limit = uploads.limit_words(cfg.max_upload_bytes)
         self.body_file = TakeDropper(
             cfg, css_classes=["hs-upload-body"], width=320, label="body take"
         )
@@ -96,6 +96,8 @@ class InputsView:
         #: what the last opening did with the side (followed the hand file's name)
         self._side_note = ""
         self._droppers = {"body": self.body_file, "hand": self.hand_file}
+        #: each field's refused file's reason (shown one line a field, body first)
+        self._refusals: dict[str, str] = {}
         self._inputs_key = self._session_key()
         self.roles_body = pn.widgets.TextAreaInput(
             label="Body take",
@@ -236,6 +238,7 @@ class InputsView:
     def _forget_uploads(self):
         """Other takes are open: the uploads' line, message and fields are cleared."""
         self._pending, self._open = {}, {}
+        self._refusals = {}
         self.session.waiting = ""
         self.uploaded.object = ""
         self.message.visible = False
@@ -274,7 +277,8 @@ class InputsView:
         frames = kept.summary.get("frames", 0)
         self._droppers[which].verdict("ok", tile, "Checked", f"{frames} frames")
         self._pending[which] = kept
-        self.message.visible = False
+        self._refusals.pop(which, None)
+        self._show_refusals()
         self._show_uploaded()
         if len(self._pending) == 2:
             await self._open_pair()
@@ -294,7 +298,18 @@ class InputsView:
         else:
             self._pending.pop(which, None)
         self._show_uploaded()
-        self._show_error(text)
+        self._refusals[which] = text
+        self._show_refusals()
+
+    def _show_refusals(self) -> None:
+        """The reasons of the fields whose file was refused, one line each (body first;
+        each names its file); hidden when none is."""
+        lines = [self._refusals[w] for w in ("body", "hand") if w in self._refusals]
+        if lines:
+            self.message.object = "\n\n".join(safe_text.markdown(t) for t in lines)
+            self.message.visible = True
+        else:
+            self.message.visible = False
 
     def _show_uploaded(self, opened: bool = False, failed: bool = False):
         parts = []
