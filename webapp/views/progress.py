@@ -3,7 +3,7 @@
 Shown while :attr:`webapp.state.Session.busy` is set (takes being opened, an
 alignment being solved on the worker: :mod:`webapp.solves`): a moving progress bar,
 the engine's stage (pass 1, pass 2, merge) and the seconds since it started, updated
-twice a second; hidden when the path on screen is the current one. The rest of the
+when its text changes (looked at twice a second); hidden when the path on screen is the current one. The rest of the
 page stays usable meanwhile (edits made then are solved next, the newest wins).
 """
 
@@ -17,11 +17,13 @@ from webapp import safe_text
 from webapp.state import Session
 from webapp.views._dispatch import after, after_path
 
-#: how often the line's stage and seconds are refreshed while busy, ms
-TICK_MS = 250
-#: work shorter than this shows no line (a drag's re-solve on a short pair): no flicker,
-#: and no page update that the new path would wait behind
-SHOW_AFTER_S = 0.3
+#: how often the line's stage and seconds are looked at while busy, ms (the page gets a
+#: message only when the line's text changed: whole seconds, a new stage)
+TICK_MS = 500
+#: work shorter than this shows no line (a drag's re-solve, even a long pair's on a busy
+#: machine): no flicker, and no page update that the new path would wait behind (each
+#: showing re-renders the pane on the server and lays the page out again in the browser)
+SHOW_AFTER_S = 1.0
 #: the line keeps its height when empty, so showing it never lays the page out again
 HEIGHT_PX = 24
 
@@ -66,7 +68,8 @@ class BusyLine:
 
     def _show(self, text: str) -> None:
         self._shown = bool(text)
-        self.pane.object = text
+        if self.pane.object != text:
+            self.pane.object = text
 
     def _on_busy(self, *_):
         busy = bool(self.session.busy or self.session.opening)
