@@ -27,8 +27,10 @@ from webapp.state import Session
 from webapp.views._dispatch import after, after_path, next_tick
 
 #: a preview following edits is rendered once edits have paused this long, ms (a render
-#: started between two drags ran beside the next drag's solve)
-FOLLOW_PAUSE_MS = 400
+#: started between two drags ran beside the next drag's solve: on a 2-minute pair it is
+#: ~0.3 s of CPU, most of it holding the interpreter, and its first steps cannot stop);
+#: the trust assessment waits for the same pause (``webapp.views.trust.DEBOUNCE_MS``)
+FOLLOW_PAUSE_MS = 1000
 #: how often the player looks at the clock, ms (each look shows the frame of that moment)
 PLAY_TICK_MS = 30
 #: a render this long (s) holds Play visibly: the page says it waits for it
@@ -48,9 +50,11 @@ _RENDERS = ThreadPoolExecutor(max_workers=1, thread_name_prefix="hs-preview")
 def _render_images(prepared, solution, frame, camera, trails, size, closeup_size, stale=None):
     """``(png, close-up png, (body, hand, spliced frame), ms)`` of one moment (run on the
     render worker, or at once without a server). ``stale``: a callable; when it returns
-    True before a step (the spliced take and full view, the close-up) the render stops
+    True before a step (the spliced take, the full view, the close-up) the render stops
     with ``engine.base.errors.Cancelled``."""
     t0 = time.perf_counter()
+    check_cancelled(stale)
+    backend.splice(prepared, solution)  # the whole spliced take (cached): a step of its own
     check_cancelled(stale)
     image = backend.render_frame(prepared, solution, frame, camera, trails, size)
     check_cancelled(stale)
