@@ -144,9 +144,7 @@ def test_a_cancelled_spread_stops_between_its_sweeps_and_a_kept_one_is_unchanged
     # a newer edit arrives during the work: the second look stops it
     looks = iter([False, True])
     with pytest.raises(Cancelled):
-        row_spread(
-            a, b, band, "sqeuclidean", col, 0.7, 0.0, cancelled=lambda: next(looks, True)
-        )
+        row_spread(a, b, band, "sqeuclidean", col, 0.7, 0.0, cancelled=lambda: next(looks, True))
 
 
 def _open_gamma(cost, skip, max_body, max_hand):
