@@ -11,13 +11,17 @@ from engine.gesture.phases import Phase, marker_phase_labels
 from engine.splice import uncertainty
 
 
-def assess_splice(features, alignment, body_phases=None) -> uncertainty.Assessment:
+def assess_splice(features, alignment, body_phases=None, cancelled=None) -> uncertainty.Assessment:
     """``uncertainty.Assessment`` of a splice alignment.
 
     features : pipeline.SpliceFeatures; alignment : pipeline.SpliceAlignment
     body_phases : (n,) phase codes of the body take when already known (the app has them),
         else segmented from the first spliced arm's wrist markers
+    cancelled : callable or None; once it returns True the assessment stops with
+        ``engine.base.errors.Cancelled`` (the app: a newer edit made it stale)
     """
     if body_phases is None:
         body_phases = marker_phase_labels(features.body_markers, features.fps)
-    return uncertainty.assess(features, alignment, body_phases, int(Phase.STROKE))
+    return uncertainty.assess(
+        features, alignment, body_phases, int(Phase.STROKE), cancelled=cancelled
+    )

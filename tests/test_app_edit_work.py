@@ -63,7 +63,10 @@ class _AtOnce:
         from concurrent.futures import Future
 
         future = Future()
-        future.set_result(fn(*args))
+        try:
+            future.set_result(fn(*args))
+        except Exception as exc:  # as a pool does: the future holds it
+            future.set_exception(exc)
         return future
 
 
@@ -91,7 +94,7 @@ def test_trust_is_assessed_once_edits_pause_never_beside_a_solve(session, monkey
     view._doc = doc
     assessed: list[int] = []
     real = session.assess
-    monkeypatch.setattr(session, "assess", lambda: assessed.append(session.revision) or real())
+    monkeypatch.setattr(session, "assess", lambda *a: assessed.append(session.revision) or real(*a))
 
     session.busy = "aligning"  # the solve of a next edit is running
     _nudge(session)
@@ -165,3 +168,63 @@ def test_a_shared_alignment_no_page_shows_lets_go_of_its_spliced_take_and_previe
     session.add_point(session.n // 3, session.hand_frame_for(session.n // 3), 1)
     gc.collect()
     assert backend._SHOWN.get(session) is session.solution is not edited
+
+
+class _Runner:
+    """The session's solve runner as the trust view sees it: ``solving()`` is set by the test."""
+
+    def __init__(self):
+        self.now = False
+
+    def solving(self) -> bool:
+        return self.now
+
+
+def test_an_assessment_is_given_up_when_a_newer_edit_is_being_solved(session, monkeypatch):
+    """drag150: an assessment (about four solves) that runs when the next drag's edit arrives
+    stops at its next look (between its γ sweeps) instead of taking a core from that edit's
+    solve; the newer edit is assessed once it is drawn and edits pause."""
+    from webapp.views import trust as trust_view
+    from webapp.views.cost_matrix import CostMatrixView
+
+    monkeypatch.setattr(trust_view, "DEBOUNCE_MS", 0)
+    monkeypatch.setattr(trust_view, "_POOL", _AtOnce())
+    runner = _Runner()
+    view = trust_view.TrustView(session, CostMatrixView(session))
+    doc = _LoopDoc()
+    view._doc = doc
+    looks: list[bool] = []
+    real = session.assess
+
+    def assess(cancelled=None):
+        def look():  # the next drag's edit arrives after the assessment's first look
+            looks.append(runner.now)
+            stop = cancelled()
+            runner.now = True
+            return stop
+
+        return real(look)
+
+    monkeypatch.setattr(session, "assess", assess)
+    # the module's earlier trust views (built without a served page) would assess at once
+    real_update = session.update_trust
+    monkeypatch.setattr(
+        session,
+        "update_trust",
+        lambda assessment=None, revision=None: (
+            assessment is not None and real_update(assessment, revision)
+        ),
+    )
+    _nudge(session)  # solved at once (no runner); its assessment is due
+    monkeypatch.setattr(session, "runner", runner)
+    doc.run()
+    assert looks[:2] == [False, True] and len(looks) == 2  # stopped at its second look
+    assert view.cancelled == 1 and session.trust is None
+    # the newer edit is solved and drawn: it is assessed (the stopped one is not "failed")
+    runner.now = False
+    monkeypatch.setattr(session, "assess", real)
+    monkeypatch.setattr(session, "runner", None)
+    _nudge(session)
+    monkeypatch.setattr(session, "runner", runner)
+    doc.run()
+    assert session.trust is not None and view._failed != session.revision

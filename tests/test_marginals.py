@@ -123,6 +123,30 @@ def test_open_ends_through_costs_match_brute_force(seed):
     assert np.allclose(rs.spread, np.sqrt((w * d**2).sum(1) / w.sum(1)))
 
 
+def test_a_cancelled_spread_stops_between_its_sweeps_and_a_kept_one_is_unchanged():
+    """drag150: the app gives up a trust assessment once a newer edit is being solved;
+    ``cancelled`` is asked between the γ sweeps (and rows of the subtraction) and stops the
+    work with ``Cancelled``; asked and never true, it changes nothing."""
+    from engine.base.errors import Cancelled
+
+    rng = np.random.default_rng(7)
+    a, b = rng.normal(size=(40, 2)), rng.normal(size=(35, 2))
+    band = Band.full(40, 35)
+    col = np.asarray(align_features(a, b, band).path)[:, 1][:40].astype(float)
+    col = np.resize(col, 40)
+    plain = row_spread(a, b, band, "sqeuclidean", col, 0.7, 0.0)
+    asked = []
+    kept = row_spread(
+        a, b, band, "sqeuclidean", col, 0.7, 0.0, cancelled=lambda: asked.append(1) and False
+    )
+    assert len(asked) >= 3  # before each sweep and before the subtraction at least
+    assert np.array_equal(kept.spread, plain.spread) and kept.total == plain.total
+    # a newer edit arrives during the work: the second look stops it
+    looks = iter([False, True])
+    with pytest.raises(Cancelled):
+        row_spread(a, b, band, "sqeuclidean", col, 0.7, 0.0, cancelled=lambda: next(looks, True))
+
+
 def _open_gamma(cost, skip, max_body, max_hand):
     """γ of every cell with open starts (naive.dtw_banded_open's virtual row and column)."""
     n, m = cost.shape

@@ -739,11 +739,14 @@ def _skeleton_key(skeleton) -> tuple:
     )
 
 
-def assess(prepared: Prepared, solution: Solution):
+def assess(prepared: Prepared, solution: Solution, cancelled=None):
     """Trust in ``solution`` (``engine.splice.uncertainty.Assessment``), cached per solution.
 
     About four solves' time (forward and backward γ of both passes): the app runs it
-    off the event loop after an edit has been drawn."""
+    off the event loop after an edit has been drawn. ``cancelled``: a callable; once it
+    returns True the assessment stops (``engine.base.errors.Cancelled``, nothing cached):
+    the app gives up an assessment as soon as a newer edit is being solved, so it never
+    competes with that edit for the cores."""
     cached = solution.cache.get("trust")
     if cached is not None:
         return cached
@@ -757,6 +760,7 @@ def assess(prepared: Prepared, solution: Solution):
                 prepared.features,
                 _with_cost_table(prepared, solution.cache["engine"]),
                 body_phases=prepared.body_phases,
+                cancelled=cancelled,
             )
             solution.cache["trust"] = cached
     return cached

@@ -973,12 +973,15 @@ class Session(param.Parameterized):
             self._slider_run = None
             self._update_history_flags()
 
-    def assess(self):
+    def assess(self, cancelled=None):
         """Trust in the current solution (uncertainty per body frame, strokes, suggestions),
-        or None without one. Pure: safe to call off the event loop (``update_trust``)."""
-        if self.prepared is None or self.solution is None:
+        or None without one. Pure: safe to call off the event loop (``update_trust``).
+        ``cancelled``: a callable; once it returns True the assessment stops
+        (``engine.base.errors.Cancelled``)."""
+        prepared, solution = self.prepared, self.solution
+        if prepared is None or solution is None:
             return None
-        return backend.assess(self.prepared, self.solution)
+        return backend.assess(prepared, solution, cancelled=cancelled)
 
     def update_trust(self, assessment=None, revision: int | None = None) -> bool:
         """Set ``trust`` for the current solution (computing it unless given); an assessment

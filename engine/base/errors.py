@@ -13,6 +13,17 @@ class HandSpliceError(Exception):
     """Base class: a user-facing problem with input or parameters (CLI exit 2)."""
 
 
+class Cancelled(Exception):  # noqa: N818 (what happened, not an error)
+    """Work given up because its result is no longer wanted: ``cancelled()`` said so (the
+    app's trust assessment of an alignment that a newer edit replaces)."""
+
+
+def check_cancelled(cancelled) -> None:
+    """Raise :class:`Cancelled` when ``cancelled`` (a callable or None) says so."""
+    if cancelled is not None and cancelled():
+        raise Cancelled("no longer wanted")
+
+
 class MotionFormatError(HandSpliceError, ValueError):
     """A capture file does not follow its format.
 

@@ -29,12 +29,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from engine.base.errors import check_cancelled
 from engine.base.tolerances import TRUST_BLOCK_CELLS
 
 from . import kernels as K
 from ._config import njit_cached
 from .align import FIXED, Ends, Problem, check_total
 from .band import Band
+
+#: rows of the Python subtraction loop between two looks at ``cancelled`` (:func:`row_spread`)
+CANCEL_ROWS = 1024
 
 
 @dataclass(frozen=True, eq=False)
@@ -168,6 +172,7 @@ def row_spread(
     ends: Ends = FIXED,
     costs=None,
     block_cells: int = TRUST_BLOCK_CELLS,
+    cancelled=None,
 ) -> RowSpread:
     """Per-row spread of the cheap cells around ``centre`` for features ``a``, ``b``.
 
@@ -184,6 +189,9 @@ def row_spread(
     block_cells : band cells whose γ is held at once (both ways, 17 bytes a cell); the
         result does not depend on it (the forward γ is kept at block boundaries and made
         again block by block while the backward pass runs: three sweeps instead of two)
+    cancelled : a callable or None; when it returns True between the steps (each block's
+        sweep, every ``CANCEL_ROWS`` rows of the subtraction) ``engine.base.errors.Cancelled``
+        is raised: the app gives up an assessment that a newer edit has made stale
     """
     if costs is not None:
         problem = Problem.from_cost(costs)
@@ -201,6 +209,7 @@ def row_spread(
     checkpoints: dict[int, np.ndarray] = {}
     before = None
     for r0, r1 in blocks:
+        check_cancelled(cancelled)
         gamma, start = _sweep(problem, band, r0, r1, before, e, last_col, last_row)
         before = checkpoints[r1 - 1] = _row_of(gamma, start, r1 - 1)
         del gamma
@@ -218,16 +227,20 @@ def row_spread(
     centre = np.ascontiguousarray(np.broadcast_to(np.asarray(centre, np.float64), (n,)))
     rbefore = None
     for r0, r1 in reversed(blocks):
+        check_cancelled(cancelled)
         gb, rstart = _sweep(rproblem, rband, n - r1, n - r0, rbefore, e, rlast_col, rlast_row)
         rbefore = _row_of(gb, rstart, n - r0 - 1)
         gf, start = _sweep(
             problem, band, r0, r1, checkpoints.pop(r0 - 1, None), e, last_col, last_row
         )
+        check_cancelled(cancelled)
         # γf - D: subtract each cell's local cost once, row by row (no n x m array)
         if problem.kind == "matrix":
             _subtract_band(gf, problem.cost, band.lo, band.hi, start, r0, r1)
         else:
             for i in range(r0, r1):
+                if i % CANCEL_ROWS == 0:
+                    check_cancelled(cancelled)
                 lo, hi = int(band.lo[i]), int(band.hi[i])
                 s = int(start[i])
                 gf[s : s + hi - lo + 1] -= problem.cost_row(i, lo, hi)

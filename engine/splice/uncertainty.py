@@ -225,11 +225,12 @@ def typical_level(ms: np.ndarray, matched: np.ndarray | None = None) -> float:
     return float(np.median(ms)) if len(ms) else 0.0
 
 
-def pass_spread(result, warp: np.ndarray, kappa: float = KAPPA) -> np.ndarray:
+def pass_spread(result, warp: np.ndarray, kappa: float = KAPPA, cancelled=None) -> np.ndarray:
     """(n,) grid columns: the weighted spread of one pass's cheap cells around ``warp``.
 
     result : pipeline.PassResult (rows, metric, band, path, cost)
     warp : (n,) float, grid hand frame per body frame
+    cancelled : callable or None: ``engine.base.errors.Cancelled`` once it returns True
     """
     a, b = result.rows
     temperature = kappa * max(float(result.cost) / max(len(result.path), 1), TEMPERATURE_FLOOR)
@@ -237,7 +238,16 @@ def pass_spread(result, warp: np.ndarray, kappa: float = KAPPA) -> np.ndarray:
     costs = getattr(result, "cost_table", None)  # the app's tabulated pass-1 costs
     band = weighed_band(result.band, np.asarray(result.path))
     return row_spread(
-        a, b, band, result.metric, warp, temperature, margin=0.0, ends=ends, costs=costs
+        a,
+        b,
+        band,
+        result.metric,
+        warp,
+        temperature,
+        margin=0.0,
+        ends=ends,
+        costs=costs,
+        cancelled=cancelled,
     ).spread
 
 
@@ -321,7 +331,9 @@ def blend_reach(values: np.ndarray, sigma: float) -> np.ndarray:
     return maximum_filter1d(np.asarray(values, np.float64), 2 * half + 1, mode="nearest")
 
 
-def alignment_uncertainty(features, alignment, bend_s: float = BEND_S) -> Uncertainty:
+def alignment_uncertainty(
+    features, alignment, bend_s: float = BEND_S, cancelled=None
+) -> Uncertainty:
     """Uncertainty per body frame of a :class:`~engine.splice.pipeline.SpliceAlignment`.
 
     Both passes count, also where pass 1 is the alignment (a hand take without a
@@ -330,14 +342,16 @@ def alignment_uncertainty(features, alignment, bend_s: float = BEND_S) -> Uncert
     families pass 1's spread alone ranks their frames well within a take, but makes
     the whole take look far more certain than its errors are). ``bend_s``: half-window
     (seconds) of the bend term (:func:`warp_bend`). The local evidence is the path cost
-    of the pass whose path the map follows (:func:`aligned_by_pass1`).
+    of the pass whose path the map follows (:func:`aligned_by_pass1`). ``cancelled``: a
+    callable; once it returns True, ``engine.base.errors.Cancelled`` is raised (between
+    the γ sweeps).
     """
     warp = np.asarray(alignment.warp, np.float64)
     p1, p2 = alignment.pass1, alignment.pass2
     n = len(warp)
     frame_ms = 1000.0 / float(features.fps)
-    ms1 = pass_spread(p1, warp) * frame_ms
-    ms2 = pass_spread(p2, warp) * frame_ms
+    ms1 = pass_spread(p1, warp, cancelled=cancelled) * frame_ms
+    ms2 = pass_spread(p2, warp, cancelled=cancelled) * frame_ms
     half = max(1, int(round(bend_s * float(features.fps))))
     bend = warp_bend(warp, half) * frame_ms
     sigma = float(getattr(alignment, "blend", 0.0) or 0.0)
@@ -453,15 +467,18 @@ class Assessment:
         }
 
 
-def assess(features, alignment, stroke_labels: np.ndarray, stroke_code: int) -> Assessment:
+def assess(
+    features, alignment, stroke_labels: np.ndarray, stroke_code: int, cancelled=None
+) -> Assessment:
     """Uncertainty, strokes and suggested points of a splice alignment.
 
     features : pipeline.SpliceFeatures; alignment : pipeline.SpliceAlignment
     stroke_labels : (n,) gesture phase codes of the body take, one per body frame
         (``engine.gesture.phases.marker_phase_labels(features.body_markers, features.fps)``)
     stroke_code : int, the code of a stroke in ``stroke_labels`` (``Phase.STROKE``)
+    cancelled : callable or None (:func:`alignment_uncertainty`)
     """
-    unc = alignment_uncertainty(features, alignment)
+    unc = alignment_uncertainty(features, alignment, cancelled=cancelled)
     hand_map = np.asarray(alignment.map, np.float64)
     picks = [(i, float(hand_map[i])) for i in unc.suggestions()]
     return Assessment(

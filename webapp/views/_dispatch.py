@@ -36,6 +36,7 @@ from collections.abc import Callable
 
 import panel as pn
 from bokeh.model import Model
+from panel.io import unlocked
 
 
 class _Hold:
@@ -56,14 +57,21 @@ _HELD: contextvars.ContextVar[tuple[_Hold, ...]] = contextvars.ContextVar(
 
 def under_lock(doc, callback: Callable) -> Callable:
     """``callback``, marked as running under ``doc``'s lock while it runs. Only for a
-    callback that Bokeh runs under that lock: use :func:`next_tick` or :func:`after`."""
+    callback that Bokeh runs under that lock: use :func:`next_tick` or :func:`after`.
+
+    Every model change the callback makes goes to the page in **one** message (Panel's
+    ``unlocked``: the document's events are held and written together when it returns,
+    repeated changes of one property combined). Bokeh's own dispatch sends one message
+    per change, and each message costs a pass over every model of the document (about
+    600 in this page) to serialise: a drag's ~20 changes were ~20 such passes."""
 
     @functools.wraps(callback)
     def run(*args, **kwargs):
         hold = _Hold(doc)
         token = _HELD.set((*_HELD.get(), hold))
         try:
-            return callback(*args, **kwargs)
+            with unlocked():
+                return callback(*args, **kwargs)
         finally:
             hold.active = False
             _HELD.reset(token)
@@ -125,6 +133,12 @@ def with_document_lock(method):
     return wrapper
 
 
+#: ms of quiet after an edit's path before the rest of that edit's work (points table,
+#: status line, link, trust layers, the other pass's path) starts: the next edit of a drag
+#: usually arrives within it, and is then solved and drawn first (the rest waits for its path)
+AFTER_PATH_MS = 250
+
+
 class _AfterPath:
     """One session's views' work that waits until an edit's path is in the page."""
 
@@ -132,6 +146,8 @@ class _AfterPath:
         self.session, self.doc = session, doc
         self.due: dict = {}  # key -> callback, first asked first run
         self.armed = False
+        #: bumped by every arming: a timer of an older arming runs nothing
+        self._generation = 0
         session.param.watch(lambda *_: self._arm(), ["busy"])
 
     def add(self, key, callback: Callable[[], object]) -> None:
@@ -146,19 +162,38 @@ class _AfterPath:
         if self.armed or not self.due or self._solving():
             return
         self.armed = True
-        next_tick(self.doc, self._run)
+        self._generation += 1
+        generation = self._generation
+        after(self.doc, lambda: self._run(generation), AFTER_PATH_MS)
 
-    def _run(self) -> None:
-        self.armed = False
-        if self._solving():  # a newer edit is being solved: after its path (``busy`` re-arms)
-            return
+    def _alive(self) -> bool:
         session = _session_of(self.doc)
         if session is None or session.destroyed:
             self.due.clear()
+            return False
+        return True
+
+    def _run(self, generation: int) -> None:
+        """One callback a tick, the first asked first, while no newer edit is being
+        solved: an edit that arrives meanwhile is handled between them (its solve starts,
+        and the rest waits for its path: ``busy`` re-arms)."""
+        if generation != self._generation:
             return
-        due, self.due = self.due, {}
-        for callback in due.values():
+        if self._solving() or not self._alive():
+            self.armed = False
+            return
+        if not self.due:
+            self.armed = False
+            return
+        key = next(iter(self.due))
+        callback = self.due.pop(key)
+        try:
             callback()
+        finally:
+            if self.due:
+                next_tick(self.doc, lambda: self._run(generation))
+            else:
+                self.armed = False
 
 
 def after_path(session, key, callback: Callable[[], object], doc=None) -> None:
@@ -169,9 +204,10 @@ def after_path(session, key, callback: Callable[[], object], doc=None) -> None:
     browser applies them in order, so work done in the tick that draws an edit's path
     (or while its solve runs, delaying that tick) delays the path: on a 2-core machine
     the table, status line, link and trust took ~0.4 s of the loop per edit and their
-    widget changes hundreds of ms of the page's. Here it runs in a later tick, once no
-    solve is running or queued (an edit during a drag supersedes it; only the last
-    state's work is done), ``key`` coalescing repeats. Without a server session (tests,
+    widget changes hundreds of ms of the page's. Here it runs :data:`AFTER_PATH_MS` after
+    the path, once no solve is running or queued (an edit during a drag supersedes it;
+    only the last state's work is done), one callback a tick (an edit arriving meanwhile
+    goes first), ``key`` coalescing repeats. Without a server session (tests,
     scripts, the page being built) ``callback`` runs at once.
     """
     doc = doc if doc is not None else pn.state.curdoc

@@ -153,7 +153,12 @@ def parameter_widgets(session: Session) -> pn.viewable.Viewable:
         placement.object, placement.visible = text, bool(text)
         unmatched_note.object = session.unmatched_note()
 
-    session.param.watch(open_end_notes, ["inputs_revision", "revision", "max_unmatched_s"])
+    session.param.watch(open_end_notes, ["inputs_revision", "max_unmatched_s"])
+    doc = pn.state.curdoc
+    session.param.watch(  # an edit's: after its path is in the page (``after_path``)
+        lambda *_: after_path(session, ("open-end-notes", id(placement)), open_end_notes, doc),
+        ["revision"],
+    )
     open_end_notes()
     widgets = params._widgets  # linked to the session by pn.Param; laid out here
     return pn.Column(

@@ -51,7 +51,7 @@ from bokeh.plotting import figure
 
 from webapp.state import Session
 from webapp.views import decimate, page_js
-from webapp.views._dispatch import after, next_tick, with_document_lock
+from webapp.views._dispatch import after, after_path, next_tick, with_document_lock
 
 PATH_COLOR = "#ff3b30"
 OTHER_PATH_COLOR = "#ffffff"
@@ -297,6 +297,7 @@ class CostMatrixView:
         self._pending_range: tuple[float, float, float, float] | None = None
         self._range_timer = False
         self._image_key = None
+        self._doc = pn.state.curdoc  # the tab's document (``after_path``)
         #: the lines drawn thinned to the screen (``show_line``): source name -> (source,
         #: x, {column: values}, axis) at full resolution, thinned again when the view moves
         self._lines: dict[str, tuple] = {}
@@ -658,7 +659,7 @@ class CostMatrixView:
         fig.on_event(RangesUpdate, self._on_range)
         fig.on_event(Tap, self._on_tap)
         fig.on_event(DoubleTap, self._on_tap)
-        session.param.watch(self._on_result, ["revision"])
+        session.param.watch(lambda *_: self._on_result(rest_later=True), ["revision"])
         # points set by the session (an edit solved off the loop, or put back when its solve
         # was refused) show at once; the path follows with the next revision
         session.param.watch(lambda *_: self._sync_points(), ["points", "tolerance"])
@@ -733,7 +734,12 @@ class CostMatrixView:
             self.legend.object = html
 
     @with_document_lock
-    def _on_result(self, *_):
+    def _on_result(self, *_, rest_later: bool = False):
+        """Draw the session's solution: the red path and the band at once; the other
+        pass's path, the unmatched ends, the frame marker and the legend with them, or
+        (``rest_later``: a new edit's solution) once its path is in the page
+        (``after_path``): the tick that draws a drag's path sends its messages when it
+        returns, so it holds only what the drag waits for."""
         s = self.session
         sol = s.solution
         self._sync_points()
@@ -747,8 +753,7 @@ class CostMatrixView:
         # the red path is the alignment used (the splice, preview and status follow it) in
         # every view; the band is the shown pass's; the other pass's path is dashed
         shown = sol.pass2 if s.matrix in ("pass2", "cumulative2") else sol.pass1
-        used, other = (sol.pass1, sol.pass2) if self._used_pass() == 1 else (sol.pass2, sol.pass1)
-        self._show_legend()
+        used = sol.pass1 if self._used_pass() == 1 else sol.pass2
         r = s.hand_scale  # grid columns -> hand-file frames
         # the path first: it is what a drag is waiting for; compact dtypes keep messages small,
         # and every line is thinned to the screen's columns (``decimate``)
@@ -763,15 +768,32 @@ class CostMatrixView:
             np.arange(len(lo), dtype=np.int32),
             {"lo": ((lo - 0.5) * r).astype(np.float32), "hi": ((hi + 0.5) * r).astype(np.float32)},
         )
+        if rest_later:
+            after_path(s, ("matrix-rest", id(self)), self._draw_rest, self._doc)
+        else:
+            self._draw_rest()
+
+    @with_document_lock
+    def _draw_rest(self) -> None:
+        """The solution's lines besides the red path and the band (see ``_on_result``), of
+        the session's solution as it is now."""
+        s = self.session
+        sol = s.solution
+        if sol is None:
+            return
+        shown = sol.pass2 if s.matrix in ("pass2", "cumulative2") else sol.pass1
+        used, other = (sol.pass1, sol.pass2) if self._used_pass() == 1 else (sol.pass2, sol.pass1)
+        r = s.hand_scale
         self.show_line(
             self.other_path_source,
             other.path[:, 0].astype(np.int32),
             {"y": (other.path[:, 1] * r).astype(np.float32)},
         )
-        quads = _unmatched_quads(used.path, len(lo), shown.band.m)
+        quads = _unmatched_quads(used.path, len(shown.band.lo), shown.band.m)
         quads["bottom"] = [v * r for v in quads["bottom"]]
         quads["top"] = [v * r for v in quads["top"]]
         self.unmatched_source.data = quads
+        self._show_legend()
         self._on_frame()
         if s.matrix.startswith("cumulative"):  # the cumulative cost depends on band and points
             self._image_key = None

@@ -21,13 +21,16 @@ from concurrent.futures import ThreadPoolExecutor
 
 import panel as pn
 
+from engine.base.errors import Cancelled, check_cancelled
 from webapp import backend, safe_text
 from webapp.state import Session
-from webapp.views._dispatch import after, next_tick
+from webapp.views._dispatch import after, after_path, next_tick
 
 #: a preview following edits is rendered once edits have paused this long, ms (a render
-#: started between two drags ran beside the next drag's solve)
-FOLLOW_PAUSE_MS = 400
+#: started between two drags ran beside the next drag's solve: on a 2-minute pair it is
+#: ~0.3 s of CPU, most of it holding the interpreter, and its first steps cannot stop);
+#: the trust assessment waits for the same pause (``webapp.views.trust.DEBOUNCE_MS``)
+FOLLOW_PAUSE_MS = 1000
 #: how often the player looks at the clock, ms (each look shows the frame of that moment)
 PLAY_TICK_MS = 30
 #: a render this long (s) holds Play visibly: the page says it waits for it
@@ -46,11 +49,17 @@ PENDING = "the first frame of these takes is drawn once they are aligned…"
 _RENDERS = ThreadPoolExecutor(max_workers=1, thread_name_prefix="hs-preview")
 
 
-def _render_images(prepared, solution, frame, camera, trails, size, closeup_size):
+def _render_images(prepared, solution, frame, camera, trails, size, closeup_size, stale=None):
     """``(png, close-up png, (body, hand, spliced frame), ms)`` of one moment (run on the
-    render worker, or at once without a server)."""
+    render worker, or at once without a server). ``stale``: a callable; when it returns
+    True before a step (the spliced take, the full view, the close-up) the render stops
+    with ``engine.base.errors.Cancelled``."""
     t0 = time.perf_counter()
+    check_cancelled(stale)
+    backend.splice(prepared, solution)  # the whole spliced take (cached): a step of its own
+    check_cancelled(stale)
     image = backend.render_frame(prepared, solution, frame, camera, trails, size)
+    check_cancelled(stale)
     closeup = backend.render_closeup(prepared, solution, frame, closeup_size)
     pngs = backend.png_bytes(image), backend.png_bytes(closeup)
     frames = backend.frame_triplet(prepared, solution, frame)
@@ -145,6 +154,7 @@ class PreviewView:
         self._after_solve = False  # a solution to render once edits pause and solves end
         self._follow_due = 0.0  # monotonic s of that pause's end
         self._follow_timer = False
+        self._doc = pn.state.curdoc  # the tab's document (callbacks may run outside it)
         session.param.watch(lambda *_: self._render_soon(), ["camera", "trails"])
         self._rendered_key = None
         self._takes = session.takes_key  # the takes of the pictures shown
@@ -198,7 +208,7 @@ class PreviewView:
             self._points_seen = self.session.points
 
     def _follow_later(self, ms: float) -> None:
-        doc = pn.state.curdoc
+        doc = pn.state.curdoc or self._doc
         if doc is None or doc.session_context is None:
             self._after_solve = False
             self._follow_edit()
@@ -330,7 +340,11 @@ class PreviewView:
         self._since = time.perf_counter()
         if frame is not None:
             self._played = key  # shown, it moves the session to its frame
-        future = _RENDERS.submit(_render_images, *job, self.size, self.closeup_size)
+        # a render of an edit's alignment is given up when a newer edit is being solved
+        # (it would take a core from that solve; the newer one is rendered when drawn)
+        runner = s.runner
+        stale = None if self.play.value or runner is None else runner.solving
+        future = _RENDERS.submit(_render_images, *job, self.size, self.closeup_size, stale)
 
         def done(f):
             try:
@@ -342,12 +356,32 @@ class PreviewView:
         return True
 
     def _finish(self, key: tuple, future) -> None:
-        """Show a worker's render (on the event loop, under the document lock)."""
+        """Show a worker's render (on the event loop, under the document lock); while an
+        edit is being solved, once its path is in the page (the images' messages are the
+        largest of an edit: they went out before the path)."""
+        runner = self.session.runner
+        if runner is not None and runner.solving() and not self.play.value:
+            after_path(
+                self.session,
+                ("preview", id(self)),
+                lambda: self._finish_now(key, future),
+                pn.state.curdoc or self._doc,
+            )
+            return
+        self._finish_now(key, future)
+
+    def _finish_now(self, key: tuple, future) -> None:
         self._inflight = False
         if self.waiting.object:
             self.waiting.object = ""
         try:
             result = future.result()
+        except Cancelled:  # a newer edit: rendered once it is drawn and edits pause
+            self._played = None
+            self._after_solve = True
+            self._follow_due = time.monotonic() + FOLLOW_PAUSE_MS / 1000.0
+            self._follow_later(FOLLOW_PAUSE_MS)
+            return
         except Exception as exc:  # the worker's own failure: shown like any other
             result = exc
         shown = self._show(key, result)

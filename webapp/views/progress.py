@@ -3,7 +3,7 @@
 Shown while :attr:`webapp.state.Session.busy` is set (takes being opened, an
 alignment being solved on the worker: :mod:`webapp.solves`): a moving progress bar,
 the engine's stage (pass 1, pass 2, merge) and the seconds since it started, updated
-twice a second; hidden when the path on screen is the current one. The rest of the
+when its text changes (looked at twice a second); hidden when the path on screen is the current one. The rest of the
 page stays usable meanwhile (edits made then are solved next, the newest wins).
 """
 
@@ -15,12 +15,15 @@ import panel as pn
 
 from webapp import safe_text
 from webapp.state import Session
+from webapp.views._dispatch import after, after_path
 
-#: how often the line's stage and seconds are refreshed while busy, ms
-TICK_MS = 250
-#: work shorter than this shows no line (a drag's re-solve on a short pair): no flicker,
-#: and no page update that the new path would wait behind
-SHOW_AFTER_S = 0.3
+#: how often the line's stage and seconds are looked at while busy, ms (the page gets a
+#: message only when the line's text changed: whole seconds, a new stage)
+TICK_MS = 500
+#: work shorter than this shows no line (a drag's re-solve, even a long pair's on a busy
+#: machine): no flicker, and no page update that the new path would wait behind (each
+#: showing re-renders the pane on the server and lays the page out again in the browser)
+SHOW_AFTER_S = 1.0
 #: the line keeps its height when empty, so showing it never lays the page out again
 HEIGHT_PX = 24
 
@@ -38,7 +41,8 @@ class BusyLine:
             sizing_mode="stretch_width",
             styles={"font-family": "monospace", "font-size": "13px", "color": "#1d3557"},
         )
-        self._timer = None
+        self._timer = False  # a tick is due (``_tick``)
+        self._doc = None
         self._shown = False
         session.param.watch(self._on_busy, ["busy", "opening"])
         self._on_busy()
@@ -64,7 +68,8 @@ class BusyLine:
 
     def _show(self, text: str) -> None:
         self._shown = bool(text)
-        self.pane.object = text
+        if self.pane.object != text:
+            self.pane.object = text
 
     def _on_busy(self, *_):
         busy = bool(self.session.busy or self.session.opening)
@@ -72,23 +77,34 @@ class BusyLine:
         if doc is None or doc.session_context is None:  # no server: shown as it is
             self._show(self._line() if busy else "")
             return
-        if busy and self._timer is None:
+        self._doc = doc
+        if busy and not self._timer:
             if self.session.opening or not self.session.busy.startswith("align"):  # at once
                 self._show(self._line())
-            self._timer = pn.state.add_periodic_callback(self._tick, period=TICK_MS)
-        elif not busy:
-            if self._timer is not None:
-                self._timer.stop()
-                self._timer = None
-            if self._shown:
-                self._show("")
+            # Bokeh timeouts, not Panel's periodic callbacks: each run of one of those
+            # toggles Panel's busy state, a message to the page during every solve
+            self._timer = True
+            after(doc, self._tick, TICK_MS)
+        elif not busy and self._shown:
+            # a solve's line goes once its path is in the page: hiding it in the tick that
+            # draws the path sent the pane's change before the path
+            after_path(self.session, ("busy-line", id(self)), self._hide, doc)
+
+    def _hide(self) -> None:
+        if self._shown and not (self.session.busy or self.session.opening):
+            self._show("")
 
     def _tick(self):
-        runner = self.session.runner
-        if self.session.opening:
+        self._timer = False
+        s, runner = self.session, self.session.runner
+        if not (s.busy or s.opening):
+            return
+        self._timer = True
+        after(self._doc, self._tick, TICK_MS)
+        if s.opening:
             self._show(self._line())
             return
-        if not self.session.busy or runner is None:
+        if runner is None:
             return
         if self._shown or time.monotonic() - runner.started >= SHOW_AFTER_S:
             self._show(self._line())

@@ -117,6 +117,8 @@ class SharingView:
     def __init__(self, session: Session):
         self.session = session
         self.message = refusal_box("hs-share-error", into_view=True)
+
+        self._names = None  # (inputs, (body file name, hand file name)): ``_take_names``
         self.bvh = _Download(
             callback=self._bvh,
             filename="spliced.bvh",
@@ -412,6 +414,17 @@ class SharingView:
         self._frame_due = False
         self._link_soon()
 
+    def _take_names(self) -> tuple[str, str]:
+        """The takes' file names in the commands (``take_paths`` reads the samples' manifest
+        and looks at the files: once per pair, not once per edit)."""
+        s = self.session
+        key = (s.sample, s.body_sha256, s.hand_sha256, s.body_name, s.hand_name)
+        if self._names is None or self._names[0] != key:
+            paths = s.take_paths()
+            names = (s.body_name or paths[0].name, s.hand_name or paths[1].name)
+            self._names = (key, names)
+        return self._names[1]
+
     def _update_link(self, *_):
         query = self.session.share_url()
         self.link.value = self._base_url() + query
@@ -420,9 +433,7 @@ class SharingView:
             loc.param.update(search=query)
         s = self.session
         if s.prepared is not None:
-            paths = s.take_paths()
-            body = s.body_name or paths[0].name
-            hand = s.hand_name or paths[1].name
+            body, hand = self._take_names()
             session_cmd = backend.cli_session_command(body, hand, SESSION_FILENAME)
             flags_cmd = backend.cli_command(
                 body, hand, s.side, *s.chosen_widths(), s.user_points(), s.roles, s.max_unmatched_s

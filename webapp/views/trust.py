@@ -18,7 +18,9 @@ The assessment costs about four solves (tens of solves' CPU on a long pair's ban
 it runs off the event loop once edits pause: ``DEBOUNCE_MS`` after the last edit was
 drawn, never while the session is solving or opening takes, and one at a time per page
 (an edit made meanwhile is assessed when the running one ends; a result for an older edit
-is dropped). Assessments started during a drag competed with the drag's own solves for
+is dropped). A running assessment is given up as soon as a newer edit is being solved
+(``engine.base.errors.Cancelled``, looked at between its γ sweeps), so it never holds a
+core the next drag's solve needs. Assessments started during a drag competed with the drag's own solves for
 the CPU and the GIL (benchmarks/RESULTS.md, section app).
 """
 
@@ -32,6 +34,7 @@ import numpy as np
 import panel as pn
 from bokeh.models import ColumnDataSource, HoverTool
 
+from engine.base.errors import Cancelled
 from webapp.state import Session
 from webapp.views._dispatch import after, after_path, next_tick, with_document_lock
 
@@ -116,6 +119,8 @@ class TrustView:
         self._due = 0.0  # monotonic s before which no assessment starts (edits still coming)
         self._running = False  # an assessment of this page is on the pool
         self._failed = -1  # the revision whose assessment failed (not tried again)
+        #: assessments given up because a newer edit made them stale (read by tests)
+        self.cancelled = 0
         self._armed: int | None = None  # suggestion index whose moment is being shown
         self._takes = session.takes_key  # the takes the layers and suggestions are of
         fig = matrix.figure
@@ -225,10 +230,12 @@ class TrustView:
         """An assessment is due: a solution without one, no solve or opening running, none
         of this page's assessments running."""
         s = self.session
+        runner = s.runner
         return (
             s.solution is not None
             and s.trust is None
             and not s.busy
+            and not (runner is not None and runner.solving())
             and not self._running
             and s.revision != self._failed
         )
@@ -254,13 +261,22 @@ class TrustView:
             return
         s = self.session
         revision = s.revision
+        runner = s.runner
         self._running = True
-        future = _POOL.submit(s.assess)
+
+        def stale() -> bool:  # on the worker: a newer edit is being solved, or was drawn
+            return s.revision != revision or (runner is not None and runner.solving())
+
+        # given up as soon as it is stale: an assessment (about four solves' work) beside
+        # the next drag's solve would take a core from it and slow its path
+        future = _POOL.submit(s.assess, stale)
         doc = self._doc
 
         def finished(result):  # on the event loop
             self._running = False
-            if result is None:
+            if result is Cancelled:
+                self.cancelled += 1  # the newer edit is assessed once it is drawn
+            elif result is None:
                 self._failed = revision
             else:
                 s.update_trust(result, revision)
@@ -269,6 +285,8 @@ class TrustView:
         def done(f):
             try:
                 result = f.result()
+            except Cancelled:
+                result = Cancelled
             except Exception:  # an assessment that fails leaves the page as it is
                 result = None
             try:
