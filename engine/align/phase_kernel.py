@@ -209,7 +209,7 @@ def cell_theta_sums(body_row, hand_row, half):
 @numba.njit(cache=True, nogil=True)
 def _scan(rows, half, width, window, step):
     """One pass over a take's rows (each row's cache lines once): the masks Z = P ∨ Q and
-    G = P (``(width, F, 2)`` uint64, bin by bin, see :func:`zg_cost`), the yaw bins and
+    G = P (``(F, width, 2)`` uint64, frame by frame, see :func:`zg_cost`), the yaw bins and
     steps ``(F,)``, and, when ``window``, the frames the eq.-7 windows hold: ``(2, (F + 4) K)``
     float64 (x, then z; padded frame ``p``'s ``K`` markers at ``p K``: row ``r``'s own frame
     at ``p = r + 2``, two frames beyond each end from the end rows' windows) if slot ``d``
@@ -221,7 +221,7 @@ def _scan(rows, half, width, window, step):
     padded frame ``s + 4``), while its lines are still in cache."""
     f = rows.shape[0]
     k = half // WINDOW
-    pq = np.empty((width, f, 2), np.uint64)
+    pq = np.empty((f, width, 2), np.uint64)
     yaw = np.empty(f, np.int64)
     cost = np.empty(f)
     pad = np.empty((2, (f + 4) * k if window else 0))
@@ -247,10 +247,12 @@ def _scan(rows, half, width, window, step):
         if r < f:
             yaw[r] = int(rows[r, 3])
             cost[r] = rows[r, 4]
-            for b in range(width):
-                p = np.uint64(rows[r, off + 2 * b])
-                pq[b, r, 0] = p | np.uint64(rows[r, off + 2 * b + 1])
-                pq[b, r, 1] = p
+            src = rows[r, off : off + 2 * width]
+            dst = pq[r]
+            for b in range(width):  # (contiguous in and out: vectorises)
+                p = np.uint64(src[2 * b])
+                dst[b, 0] = p | np.uint64(src[2 * b + 1])
+                dst[b, 1] = p
             if window:
                 for x in range(2):
                     for c in range(k):
@@ -259,6 +261,12 @@ def _scan(rows, half, width, window, step):
         if window and s >= 0:
             bad = 0
             for x in range(2):
+                if step == 1:  # slots 0..4 = padded frames s..s+4: one contiguous run
+                    got = rows[s, HEADER + x * half : HEADER + (x + 1) * half]
+                    want = pad[x, s * k : s * k + half]
+                    for t in range(half):
+                        bad += got[t] != want[t]
+                    continue
                 for d in range(WINDOW):
                     src = HEADER + x * half + d * k
                     dst = (s + 2 + step * (d - 2)) * k
@@ -303,7 +311,7 @@ def _take_arrays(rows: np.ndarray, half: int, width: int, window: bool):
     """Per-frame arrays of one take's rows: ``(x, z, mx, mz, pq, yaw, step)`` with the
     padded frame coordinates ``x``, ``z`` ``(K, F + 4)`` float32 (marker by marker; zeros
     unless ``window``), the window centroids ``mx``, ``mz`` ``(F,)`` float32, the masks
-    ``pq`` ``(width, F, 2)`` and the yaw bins and step costs ``(F,)``; None when ``window``
+    ``pq`` ``(F, width, 2)`` and the yaw bins and step costs ``(F,)``; None when ``window``
     and the rows' windows are not those of consecutive frames.
 
     Rows of a whole take, of a contiguous part of one, or of either reversed (the
@@ -356,11 +364,11 @@ class PhaseProblem:
             return
         bx, bz, bmx, bmz, bpq, byaw, bstep = body
         hx, hz, hmx, hmz, hpq, hyaw, _ = hand
-        bnz = np.ascontiguousarray(bpq[0, :, 0])  # Z: code ≠ 0
-        bpos = np.ascontiguousarray(bpq[0, :, 1])  # G: code = +1
+        bnz = np.ascontiguousarray(bpq[:, 0, 0])  # Z: code ≠ 0
+        bpos = np.ascontiguousarray(bpq[:, 0, 1])  # G: code = +1
         # body frames (n + 4, K), hand frames (K, m + 4): each kernel's reads contiguous
         self.body = (bx.T.copy(), bz.T.copy(), bmx, bmz, bnz, bpos, byaw, bstep)
-        self.hand = (hx, hz, hmx, hmz, hpq.reshape(-1), hyaw)  # (Z, G) flat: (nb m 2,)
+        self.hand = (hx, hz, hmx, hmz, hpq.reshape(-1), hyaw)  # (Z, G) flat: (m nb 2,)
 
     def args(self) -> tuple:
         return (*self.body, *self.hand, self.mode, self.nb, self.half)
@@ -378,7 +386,7 @@ class PhaseProblem:
         out.fallback = False
         out.body = tuple(np.ascontiguousarray(x[::-1]) for x in self.body)
         hx, hz, hmx, hmz, hpq, hyaw = self.hand
-        pq = hpq.reshape(self.nb, self.m, 2)[:, ::-1]
+        pq = hpq.reshape(self.m, self.nb, 2)[::-1]
         out.hand = (
             np.ascontiguousarray(hx[:, ::-1]),
             np.ascontiguousarray(hz[:, ::-1]),
@@ -519,10 +527,10 @@ def _ensure_c(i, next_p, i0, i1, lo, hi, bx, bz, hx, hz, cre, cim):
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _mask_index(b, j, m):
+def _mask_index(b, j, nb):
     """Index in ``codes`` of hand column ``j``'s Z mask turned to θ bin ``b`` (its G mask
-    follows): ``2 (b m + j)``, int32 (:class:`PhaseProblem` checks that it fits)."""
-    return np.int32(2) * (np.int32(b) * np.int32(m) + np.int32(j))
+    follows): ``2 (j nb + b)``, int32 (:class:`PhaseProblem` checks that it fits)."""
+    return np.int32(2) * (np.int32(j) * np.int32(nb) + np.int32(b))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -563,7 +571,7 @@ def _theta_cells(i, lo_i, hi_i, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, 
             out[k] = np.int32((yb - hy[k]) % nb)
     j = np.int32(lo_i)  # bins -> mask indices (a second loop: both vectorise)
     for k in range(w):
-        out[k] = _mask_index(out[k], j, m)
+        out[k] = _mask_index(out[k], j, nb)
         j += np.int32(1)
 
 
@@ -586,8 +594,9 @@ def _index_cost(z, g, tab, codes, u):
     :func:`_cost_table`) against the hand's masks at ``codes[u], codes[u + 1]`` (``u`` from
     :func:`_mask_index`): Σ (s − s')² + step cost.
 
-    ``codes``: the hand's (Z, G) masks flat, bin by bin, so neighbouring cells, which mostly
-    share a bin, read neighbouring words; unsigned indices (no wraparound code). The only
+    ``codes``: the hand's (Z, G) masks flat, frame by frame (``(m, n_bins, 2)``: the rows'
+    own order, so ``prepare`` converts them in one contiguous pass; a band row's cells read
+    one line per hand frame, and the next band rows read the same lines); unsigned indices (no wraparound code). The only
     place a pass-1 cell's cost is formed.
     """
     v = np.uint64(u)
