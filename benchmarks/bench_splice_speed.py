@@ -353,10 +353,10 @@ def bench_pass1_problems(body_p, hand_p, reps: int) -> dict:
     return {name: _pass1_ab(old_k, now_k, *pr, reps) for name, pr in problems.items()}
 
 
-def report_pass1_problems(res: dict, load) -> str:
-    """The ``--pass1-problems`` section."""
+def report_pass1_problems(res: dict, load, tag: str = "pass1ns") -> str:
+    """The ``--pass1-problems`` section (``tag``: the step named in its title)."""
     lines = [
-        "## Splice speed: pass 1 per band cell on the splice's own problems (pass1ns, issue 13)",
+        f"## Splice speed: pass 1 per band cell on the splice's own problems ({tag}, issue 13)",
         "",
         f"*before* = `engine/align/phase_kernel.py` at `{STAGE_BASE}`, *now* = this checkout's, "
         "both in this process (`bench_splice_speed --pass1-problems`), on the problems pass 1 "
@@ -395,8 +395,8 @@ def report_pass1_problems(res: dict, load) -> str:
     return "\n".join(lines)
 
 
-def report_pass1(k, load) -> str:
-    """The ``--pass1`` section."""
+def report_pass1(k, load, tag: str = "") -> str:
+    """The ``--pass1`` section (``tag`` unused: its title names no step)."""
     return "\n".join(
         [
             "## Splice speed: the pass-1 row kernel (issue 13)",
@@ -839,6 +839,11 @@ def main(argv=None) -> int:
         help="only pass 1's row kernel beside STAGE_BASE's on the splice's coarse, fine and "
         "W1 problems (section splice_speed_pass1_problems)",
     )
+    ap.add_argument(
+        "--tag",
+        help="--pass1/--pass1-problems: write section splice_speed_pass1[_problems]_TAG, titled "
+        "by TAG (an earlier step's section and its notes stay)",
+    )
     args = ap.parse_args(argv)
     fps = 120.0
     # the two pass-1 kernel benches: (flag, bench, report, RESULTS section)
@@ -851,9 +856,11 @@ def main(argv=None) -> int:
             files = LP.pair_files(120.0, fps)
             res = bench(files[0], files[1], max(args.reps, 1))
             print(json.dumps(res), flush=True)
-            text = report(res, (load0, os.getloadavg()[0]))
+            load = (load0, os.getloadavg()[0])
+            text = report(res, load, args.tag) if args.tag else report(res, load)
             print(text)
-            write_section(f"splice_speed_pass1{section}", text)
+            tail = f"_{args.tag}" if args.tag else ""
+            write_section(f"splice_speed_pass1{section}{tail}", text)
             return 0
     if args.stages:
         load0 = os.getloadavg()[0]
