@@ -406,3 +406,19 @@ def test_phase_rows_write_the_same_hand_masks_as_rotated_packed_codes(feats):
     off = PK.HEADER + int(b[0, 0]) * 2
     assert np.array_equal(b[:, off : off + 2 * feats.n_bins : 2], hp)
     assert np.array_equal(b[:, off + 1 : off + 2 * feats.n_bins : 2], hq)
+
+
+def test_prepared_hand_masks_are_the_rows_masks_at_every_bin_and_frame(feats):
+    """Each (θ bin, hand frame)'s masks in the prepared table, where the kernel reads them
+    (``_mask_index``), are the rows' (P ∨ Q, P), forward and reversed."""
+    a, b = feats.pass1_rows
+    nb, off = int(b[0, 1]), PK.HEADER + 2 * int(b[0, 0])
+    p = b[:, off : off + 2 * nb : 2].astype(np.uint64)  # (m, nb)
+    q = b[:, off + 1 : off + 2 * nb : 2].astype(np.uint64)
+    m = b.shape[0]
+    bins, frames = np.meshgrid(np.arange(nb), np.arange(m))
+    for state, sl in ((PK.prepare(a, b), slice(None)), (PK.prepare(a, b).reversed(), slice(None, None, -1))):
+        codes = state.hand[4]
+        at = PK._mask_index.py_func(bins, frames, nb).astype(np.int64)
+        assert np.array_equal(codes[at], (p | q)[sl])
+        assert np.array_equal(codes[at + 1], p[sl])
