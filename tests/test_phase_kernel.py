@@ -417,7 +417,10 @@ def test_prepared_hand_masks_are_the_rows_masks_at_every_bin_and_frame(feats):
     q = b[:, off + 1 : off + 2 * nb : 2].astype(np.uint64)
     m = b.shape[0]
     bins, frames = np.meshgrid(np.arange(nb), np.arange(m))
-    for state, sl in ((PK.prepare(a, b), slice(None)), (PK.prepare(a, b).reversed(), slice(None, None, -1))):
+    for state, sl in (
+        (PK.prepare(a, b), slice(None)),
+        (PK.prepare(a, b).reversed(), slice(None, None, -1)),
+    ):
         codes = state.hand[4]
         at = PK._mask_index.py_func(bins, frames, nb).astype(np.int64)
         assert np.array_equal(codes[at], (p | q)[sl])

@@ -21,9 +21,10 @@ a band row at a time, with the same arithmetic, in about a tenth of the time:
   slots of the serial min/add chain, and prefetches the masks 64 cells ahead (θ drifts,
   so the reads wander over the table where the hardware prefetchers miss them).
 * **Bit-parallel codes.** Each frame's 6K ternary sign codes are two bit masks
-  (P: +1, Q: −1); the hand take's are precomputed for every θ bin and stored bin
-  by bin (``(n_bins, m)``) so neighbouring cells, which mostly share a bin, read
-  neighbouring words. ``Σ (s − s')² = |P ⊕ P'| + |Q ⊕ Q'| + 2 |(P ∧ Q') ∨ (Q ∧ P')|``
+  (P: +1, Q: −1); the hand take's are precomputed for every θ bin and stored frame
+  by frame (``(m, n_bins)``, the rows' own order: ``prepare`` converts them in one
+  contiguous pass; a band row reads one line per hand frame, and the rows after it
+  read the same lines). ``Σ (s − s')² = |P ⊕ P'| + |Q ⊕ Q'| + 2 |(P ∧ Q') ∨ (Q ∧ P')|``
   with a hardware popcount.
 
 Exactness: :func:`theta_bin` and :func:`cell_cost` are the *only* θ and cost
@@ -540,7 +541,6 @@ def _theta_cells(i, lo_i, hi_i, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, 
     only: it vectorises."""
     w = hi_i - lo_i + 1
     out = cells[lo_i : hi_i + 1]
-    m = hmx.shape[0]
     if mode == MODE_WINDOW:
         # ring rows i..i+4 at columns j..j+4, as slices from lo_i (no wraparound code)
         r0 = cre[i & (_RING - 1), lo_i:]
