@@ -296,14 +296,15 @@ class SharingView:
         widget.filename = f"{s.output_stem()}.{fmt}"
         prepared, solution = s.prepared, s.solution  # this state, whatever is edited meanwhile
         start = s.frame  # a long take's video starts at the frame the preview shows
+        camera = s.camera  # and shows it with the preview's camera (hands: close up)
         try:
             shown, fps = backend.video_frames(prepared.n, float(prepared.body.fps), start)
         except Exception as exc:  # no takes open: shown in the page
             self.message.object = safe_text.markdown(f"{what}: {backend.one_line(exc)}")
             self.message.visible = True
             return None
-        span = f"body frames {shown.start}–{shown[-1]} at {fps:.3g} fps"
-        made = backend.made_video(solution, fmt, backend.video_key(prepared, start))
+        span = f"body frames {shown.start}–{shown[-1]} at {fps:.3g} fps, {camera} camera"
+        made = backend.made_video(solution, fmt, backend.video_key(prepared, start, camera))
         if made is not None:  # nothing changed since it was made: the same file again
             self.message.visible = False
             self.progress.value = 100
@@ -340,7 +341,9 @@ class SharingView:
         loop = asyncio.get_running_loop()
         job = loop.run_in_executor(
             _EXPORTS,
-            lambda: backend.preview_video(prepared, solution, fmt, progress=progress, start=start),
+            lambda: backend.preview_video(
+                prepared, solution, fmt, camera=camera, progress=progress, start=start
+            ),
         )
         try:
             while True:
