@@ -407,6 +407,10 @@ FLAG_REFUSALS = [
         "--warp: expected a flexion scale factor >= 0 (1: as captured), got -1.0",
     ),
     (
+        ["render", "{body}", "-o", "{tmp}/o.png", "--size=-5x10"],
+        "--size '-5x10': expected WIDTHxHEIGHT, e.g. 640x480",
+    ),
+    (
         ["synthesize", "{body}", "-o", "{tmp}/o.bvh", "--poses", "fist@x"],
         "pose key 'fist@x': frame 'x' is not an integer",
     ),
@@ -453,6 +457,19 @@ def test_a_frame_beyond_the_take_says_what_the_take_has(tmp_path, capsys, args, 
     err = capsys.readouterr().err
     assert err.startswith(f"handsplice: error: {message}") and err.count("\n") == 1, err
     assert not out.exists()
+
+
+def test_a_value_starting_with_a_dash_is_told_how_to_be_given(capsys):
+    """argparse takes ``-5x10`` for a flag ("--size: expected one argument"): the line says
+    how to give such a value, which is then judged (``--size=-5x10`` above)."""
+    with pytest.raises(SystemExit) as info:
+        main(["render", str(BODY), "-o", "o.png", "--size", "-5x10"])
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert err == (
+        "handsplice: error: --size: expected a value (one that starts with '-' goes as "
+        "--size=VALUE)\n"
+    )
 
 
 def test_a_value_named_like_a_flag_not_given_keeps_its_name():
