@@ -79,3 +79,25 @@ def test_without_a_server_the_work_runs_at_once():
     after_path(_Session(), "a", lambda: ran.append("a"), SimpleNamespace(session_context=None))
     assert ran == ["a"]
     assert _dispatch._session_of(SimpleNamespace(session_context=None)) is None
+
+
+def test_settle_runs_once_the_value_has_stood_still(monkeypatch):
+    """``Settle`` (the link's frame): one timer at a time; a move while it waits re-arms
+    it for the time left; the callback runs once, after the last move's quiet time."""
+    clock = [100.0]
+    monkeypatch.setattr(_dispatch.time, "monotonic", lambda: clock[0])
+    doc, ran = _Doc(), []
+    settle = _dispatch.Settle(doc, lambda: ran.append("link"), 300)
+    settle.moved()
+    clock[0] += 0.2
+    settle.moved()  # moved again 200 ms later: still one timer
+    assert [(k, ms) for k, ms, _ in doc.queue] == [("timeout", 300)]
+    clock[0] += 0.1
+    doc.step()  # 100 ms after the last move: 200 ms left
+    assert ran == [] and [(k, round(ms)) for k, ms, _ in doc.queue] == [("timeout", 200)]
+    clock[0] += 0.2
+    doc.step()
+    assert ran == ["link"] and doc.queue == []
+    at_once = _dispatch.Settle(None, lambda: ran.append("at once"), 300)
+    at_once.moved()  # no server session: at once
+    assert ran == ["link", "at once"]

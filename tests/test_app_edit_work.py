@@ -168,6 +168,11 @@ def test_a_shared_alignment_no_page_shows_lets_go_of_its_spliced_take_and_previe
     session.add_point(session.n // 3, session.hand_frame_for(session.n // 3), 1)
     gc.collect()
     assert backend._SHOWN.get(session) is session.solution is not edited
+    # the page closes: it shows nothing, even when a solve begun before lands afterwards
+    session.page_closed()
+    assert session not in backend._SHOWN
+    session.solution = edited
+    assert session not in backend._SHOWN
 
 
 class _Runner:

@@ -129,7 +129,8 @@ def test_a_link_with_a_bad_camera_keeps_the_rest_and_says_why(browser_and_url):
         alert = page.locator(".hs-error")
         alert.wait_for(state="visible", timeout=30_000)
         text = pane_text(alert)
-        assert "shared link: URL: view.camera: expected one of three-quarter, front, side" in text
+        expected = "view.camera: expected one of three-quarter, front, side, hands"
+        assert f"shared link: URL: {expected}" in text
         assert "<b>" in text  # shown as text, never as markup
         assert _controls(page)["camera"] == "three-quarter"
         # only the bad value is left out: the link's pair and its good values open

@@ -348,51 +348,76 @@ def test_an_end_cut_by_max_unmatched_is_named_in_the_unmatched_sentence(tmp_path
     assert "15 frames (0.5 s) at an end is the open-end limit (--max-unmatched)" in line
 
 
-@pytest.mark.parametrize(
-    "args, message",
-    [
-        (  # stranger R4-6: it named the engine's field max_unmatched_s
-            ["splice", "{body}", "{hand}", "-o", "{tmp}/o.bvh", "--max-unmatched", "-1"],
-            "--max-unmatched: expected a number of seconds from 0 to 3600, got -1",
-        ),
-        (  # argparse's "invalid float value" before
-            ["splice", "{body}", "{hand}", "-o", "{tmp}/o.bvh", "--max-unmatched=abc"],
-            "--max-unmatched: expected a number of seconds from 0 to 3600, got 'abc'",
-        ),
-        (  # a prefix argparse takes for the flag
-            ["splice", "{body}", "{hand}", "-o", "{tmp}/o.bvh", "--max-unm", "1e9"],
-            "--max-unmatched: expected a number of seconds from 0 to 3600, got 1e+09",
-        ),
-        (
-            ["splice", "{body}", "{hand}", "-o", "{tmp}/o.bvh", "--band", "5"],
-            "--band: expected a fraction of the body take from 0.02 to 1",
-        ),
-        (
-            ["splice", "{body}", "{hand}", "-o", "{tmp}/o.bvh", "--refine-band", "0s"],
-            "--refine-band: expected a fraction of the body take from 0.01 to 1",
-        ),
-        (
-            ["render", "{body}", "-o", "{tmp}/o.png", "--size", "0x0"],
-            "--size 0x0: width and height must lie in 16..4096",
-        ),
-        (  # "phase parameter hold_speed: ..." before
-            ["analyze", "{body}", "--hold-speed", "-5"],
-            "--hold-speed: expected a positive number (phase parameter), got -5.0",
-        ),
-        (  # "handedness threshold: ..." before
-            ["analyze", "{body}", "--threshold", "-1"],
-            "--threshold: expected a handedness threshold >= 0 (m/s), got -1.0",
-        ),
-        (
-            ["batch", "{tmp}/pairs.csv", "-o", "{tmp}/out", "--pair-seconds", "-1"],
-            "--pair-seconds: expected a number >= 0 (0: no limit), got -1.0",
-        ),
-        (
-            ["batch", "{tmp}/pairs.csv", "-o", "{tmp}/out", "--pair-memory-mb", "nan"],
-            "--pair-memory-mb: expected a number >= 0 (0: no limit), got nan",
-        ),
-    ],
-)
+#: a refused flag value and its message: the flag as typed (``engine.cli.flag_for``)
+FLAG_REFUSALS = [
+    (  # stranger R4-6: it named the engine's field max_unmatched_s
+        ["splice", "{body}", "{hand}", "-o", "{tmp}/o.bvh", "--max-unmatched", "-1"],
+        "--max-unmatched: expected a number of seconds from 0 to 3600, got -1",
+    ),
+    (  # argparse's "invalid float value" before
+        ["splice", "{body}", "{hand}", "-o", "{tmp}/o.bvh", "--max-unmatched=abc"],
+        "--max-unmatched: expected a number of seconds from 0 to 3600, got 'abc'",
+    ),
+    (  # a prefix argparse takes for the flag
+        ["splice", "{body}", "{hand}", "-o", "{tmp}/o.bvh", "--max-unm", "1e9"],
+        "--max-unmatched: expected a number of seconds from 0 to 3600, got 1e+09",
+    ),
+    (
+        ["splice", "{body}", "{hand}", "-o", "{tmp}/o.bvh", "--band", "5"],
+        "--band: expected a fraction of the body take from 0.02 to 1",
+    ),
+    (
+        ["splice", "{body}", "{hand}", "-o", "{tmp}/o.bvh", "--refine-band", "0s"],
+        "--refine-band: expected a fraction of the body take from 0.01 to 1",
+    ),
+    (
+        ["render", "{body}", "-o", "{tmp}/o.png", "--size", "0x0"],
+        "--size 0x0: width and height must lie in 16..4096",
+    ),
+    (  # "phase parameter hold_speed: ..." before
+        ["analyze", "{body}", "--hold-speed", "-5"],
+        "--hold-speed: expected a positive number (phase parameter), got -5.0",
+    ),
+    (  # "handedness threshold: ..." before
+        ["analyze", "{body}", "--threshold", "-1"],
+        "--threshold: expected a handedness threshold >= 0 (m/s), got -1.0",
+    ),
+    (
+        ["batch", "{tmp}/pairs.csv", "-o", "{tmp}/out", "--pair-seconds", "-1"],
+        "--pair-seconds: expected a number >= 0 (0: no limit), got -1.0",
+    ),
+    (
+        ["batch", "{tmp}/pairs.csv", "-o", "{tmp}/out", "--pair-memory-mb", "nan"],
+        "--pair-memory-mb: expected a number >= 0 (0: no limit), got nan",
+    ),
+    (  # accepted silently before (a Python index from the end)
+        ["render", "{body}", "-o", "{tmp}/o.png", "--frame", "-1"],
+        "--frame -1: expected a frame from 0 (the first) to the take's last",
+    ),
+    (
+        ["render", "{body}", "-o", "{tmp}/o.gif", "--frames", "5:x"],
+        "--frames '5:x': A and B must be integers",
+    ),
+    (  # "slice step cannot be zero" before
+        ["render", "{body}", "-o", "{tmp}/o.glb", "--frames", "0:9:0"],
+        "--frames '0:9:0': the step must be a whole number >= 1",
+    ),
+    (  # "flexion warp factor: ..." before
+        ["synthesize", "{body}", "-o", "{tmp}/o.bvh", "--warp", "-1"],
+        "--warp: expected a flexion scale factor >= 0 (1: as captured), got -1.0",
+    ),
+    (
+        ["render", "{body}", "-o", "{tmp}/o.png", "--size=-5x10"],
+        "--size '-5x10': expected WIDTHxHEIGHT, e.g. 640x480",
+    ),
+    (
+        ["synthesize", "{body}", "-o", "{tmp}/o.bvh", "--poses", "fist@x"],
+        "pose key 'fist@x': frame 'x' is not an integer",
+    ),
+]
+
+
+@pytest.mark.parametrize("args, message", FLAG_REFUSALS)
 def test_a_bad_flag_value_names_the_flag_typed(tmp_path, capsys, args, message):
     """A refused flag value is named by the flag the user typed (one rule,
     ``engine.cli.flag_for``), never by the engine's name of the value; one line, exit 2."""
@@ -402,6 +427,49 @@ def test_a_bad_flag_value_names_the_flag_typed(tmp_path, capsys, args, message):
     assert err.startswith(f"handsplice: error: {message}") and err.count("\n") == 1, err
     assert "Traceback" not in err and "_s:" not in err and "pair_" not in err
     assert not (tmp_path / "o.bvh").exists() and not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("args, message", FLAG_REFUSALS)
+def test_a_bad_flag_value_is_refused_before_any_take_is_read(tmp_path, capsys, args, message):
+    """Stranger R5-9: a mistyped flag value cost the wait for the takes to be read (15-20 s
+    on long takes). With takes that do not exist, the flag's own message still comes: it is
+    checked before any take is opened, in the same words."""
+    body, hand = tmp_path / "absent_body.bvh", tmp_path / "absent_hand.bvh"
+    argv = [a.format(body=body, hand=hand, tmp=tmp_path) for a in args]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"handsplice: error: {message}") and err.count("\n") == 1, err
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--frame", "201"], "--frame 201: expected a frame from 0 to 200 (the take has 201"),
+        (["--frames", "300:400"], "--frames '300:400': selects no frame of a take with 201"),
+    ],
+)
+def test_a_frame_beyond_the_take_says_what_the_take_has(tmp_path, capsys, args, message):
+    """A frame past the take's end is refused in one line that names the flag and the
+    take's frames (201 here)."""
+    take = MOCAP / "bandai-namco" / "dataset-2_wave-both-hands_normal_001.bvh"
+    out = tmp_path / ("o.png" if args[0] == "--frame" else "o.gif")
+    assert main(["render", str(take), "-o", str(out), *args]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"handsplice: error: {message}") and err.count("\n") == 1, err
+    assert not out.exists()
+
+
+def test_a_value_starting_with_a_dash_is_told_how_to_be_given(capsys):
+    """argparse takes ``-5x10`` for a flag ("--size: expected one argument"): the line says
+    how to give such a value, which is then judged (``--size=-5x10`` above)."""
+    with pytest.raises(SystemExit) as info:
+        main(["render", str(BODY), "-o", "o.png", "--size", "-5x10"])
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert err == (
+        "handsplice: error: --size: expected a value (one that starts with '-' goes as "
+        "--size=VALUE)\n"
+    )
 
 
 def test_a_value_named_like_a_flag_not_given_keeps_its_name():

@@ -933,11 +933,44 @@ def test_video_export_runs_off_the_event_loop_with_progress(session, monkeypatch
     assert len(gaps) > 10 and max(gaps) < max(0.5, 0.5 * took), (max(gaps), took)
     # buttons off, progress text on, naming the frames and their rate (every frame: 30 fps)
     # (this test renders 12 of them; the text names the frames a real export renders)
-    assert (True, "preview GIF (body frames 0–186 at 30 fps): rendering") in shown, shown
+    assert (
+        True,
+        "preview GIF (body frames 0–186 at 30 fps, three-quarter camera): rendering",
+    ) in shown, shown
     frames = iio.imread(data.getvalue(), index=None)
     assert frames.shape[0] >= 10 and not view.gif.disabled
     assert view.progress.value == 100 and "KiB" in view.progress_text.object
     assert view.gif.filename == f"{DEMO}-spliced.gif"
+
+
+def test_the_video_export_uses_the_preview_camera_hands_close_up(session, monkeypatch):
+    """Stranger R5-6: the app's GIF/MP4 had no close-up of the spliced fingers. The preview's
+    camera (``hands`` too, as ``handsplice render --camera hands``) is the video's: its
+    frames are the preview's pictures with that camera, and the page says which camera."""
+    import asyncio
+
+    import imageio.v3 as iio
+
+    from webapp.views import sharing
+
+    real = backend.preview_video
+    monkeypatch.setattr(
+        backend, "preview_video", lambda *a, **k: real(*a, **{**k, "max_frames": 2})
+    )
+    session.camera = "hands"  # as the preview's Camera select sets it
+    view = sharing.SharingView(session)
+    data = asyncio.run(view._gif())
+    assert data is not None, view.message.object
+    first = iio.imread(data.getvalue(), index=0)[..., :3].astype(float)
+    prepared, solution = session.prepared, session.solution
+
+    def rendered(camera):
+        image = backend.render_frame(prepared, solution, 0, camera, False, backend.VIDEO_SIZE)
+        return image[..., :3].astype(float)
+
+    close, far = rendered("hands"), rendered(backend.VIDEO_CAMERA)
+    assert np.abs(first - close).mean() < 0.5 * np.abs(first - far).mean()
+    assert "hands camera" in view.progress_text.object
 
 
 def test_failed_exports_download_nothing_and_say_why(session, monkeypatch):

@@ -186,8 +186,8 @@ def create_app() -> pn.viewable.Viewable:
         # nothing and builds no more than the shell)
         session.compute_off_loop(doc)
         pn.state.onload(lambda: fill_page(page, session, first, args))
-        # the page closed: the alignment it showed is no longer shown (backend.showing)
-        doc.on_session_destroyed(lambda _: backend.showing(session, None))
+        # the page closed: the alignment it showed is no longer shown (Session.page_closed)
+        doc.on_session_destroyed(lambda _: session.page_closed())
     else:
         fill_page(page, session, first, args)
     connection.install(doc if served else None)

@@ -856,7 +856,8 @@ def png_bytes(image: np.ndarray) -> bytes:
 #: most this many frames (10 s at 30 fps; a longer take gives the 10 s from a start frame)
 VIDEO_MAX_FPS = 30.0
 VIDEO_MAX_FRAMES = 300
-#: the preview videos' camera and size (pixels)
+#: the preview videos' default camera (the page's videos use its preview's camera) and size
+#: (pixels)
 VIDEO_CAMERA = "three-quarter"
 VIDEO_SIZE = (720, 272)
 
@@ -950,10 +951,11 @@ def made_video(solution: Solution, fmt: str, key: tuple) -> bytes | None:
     return kept[1] if kept is not None and kept[0] == key else None
 
 
-def video_key(prepared: Prepared, start: int = 0) -> tuple:
-    """The key :func:`preview_video` keeps its file under (its defaults, from ``start``)."""
+def video_key(prepared: Prepared, start: int = 0, camera: str = VIDEO_CAMERA) -> tuple:
+    """The key :func:`preview_video` keeps its file under (its default size, from
+    ``start``, with ``camera``)."""
     indices, _ = video_frames(prepared.n, float(prepared.body.fps), start)
-    return _video_key(VIDEO_CAMERA, VIDEO_SIZE, indices)
+    return _video_key(camera, VIDEO_SIZE, indices)
 
 
 def _video_key(camera: str, size: tuple[int, int], indices: range) -> tuple:

@@ -278,7 +278,8 @@ class Session(param.Parameterized):
         self._accepted_automatic = self.automatic  # that of the solution shown
 
         # the alignment shown: a shared one no page shows lets go of its preview (backend)
-        self.param.watch(lambda e: backend.showing(self, e.new), "solution")
+        self._page_closed = False
+        self.param.watch(self._tell_showing, "solution")
         self.param.watch(self._on_edit, list(EDIT_PARAMS))
         self.param.watch(self._on_inputs, list(INPUT_PARAMS))
 
@@ -308,6 +309,18 @@ class Session(param.Parameterized):
 
     def end_opening(self) -> None:
         self.opening = ""
+
+    def _tell_showing(self, *_) -> None:
+        """Tell the backend which alignment this page shows (:func:`backend.showing`): its
+        solution, or none once the page closed. The one place the page's part of that rule
+        lives: every new solution and the page's close come here."""
+        backend.showing(self, None if self._page_closed else self.solution)
+
+    def page_closed(self) -> None:
+        """The page closed (its tab is gone): it shows no alignment from now on, even when
+        a solve started before lands later."""
+        self._page_closed = True
+        self._tell_showing()
 
     def compute_off_loop(self, doc) -> None:
         """Open takes and solve on a worker thread from now on, applying results in

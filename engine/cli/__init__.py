@@ -110,6 +110,11 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message: str) -> None:  # argparse's own exit status is already 2
         message = re.sub(r"^argument ([^:]+): ", r"\1: ", " ".join(message.split()))
+        # a value that starts with "-" (--size -5x10, --frames -9:) is taken for a flag
+        missing = re.fullmatch(r"(?:\S+/)?(--\S+): expected one argument", message)
+        if missing:
+            flag = missing.group(1)
+            message = f"{flag}: expected a value (one that starts with '-' goes as {flag}=VALUE)"
         self.exit(2, f"handsplice: error: {message}\n")
 
 

@@ -69,9 +69,6 @@ def run(args: argparse.Namespace) -> int:
     from engine.gesture.phases import PhaseParameters
     from engine.model.motion import Motion
 
-    take = load_take(args.file)
-    if not isinstance(take, Motion):
-        raise MotionFormatError(args.file, "analyze needs a skeletal take (.bvh), not markers")
     params = PhaseParameters()
     changes = {
         k: v
@@ -83,14 +80,18 @@ def run(args: argparse.Namespace) -> int:
         )
         if v is not None
     }
-    params = replace(params, **changes)
+    params = replace(params, **changes)  # the flags' values, checked before the take is read
+    handedness = HandednessParameters(threshold=args.threshold)
+    take = load_take(args.file)
+    if not isinstance(take, Motion):
+        raise MotionFormatError(args.file, "analyze needs a skeletal take (.bvh), not markers")
     overrides = None
     if args.roles:
         from engine.model.roles import load_role_overrides
 
         overrides = load_role_overrides(args.roles)
     arms = find_arms(take.skeleton, overrides)
-    result = analyze_take(take, params, HandednessParameters(threshold=args.threshold), arms=arms)
+    result = analyze_take(take, params, handedness, arms=arms)
     if args.eaf:
         from engine.io.eaf import write_eaf
 

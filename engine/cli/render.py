@@ -86,7 +86,14 @@ def run(args: argparse.Namespace) -> int:
 
     from engine.base.errors import ParameterError
     from engine.render.offscreen import parse_size
-    from engine.render.video import FORMATS, frame_range, progress_printer, render_to_file
+    from engine.render.video import (
+        FORMATS,
+        check_frame,
+        frame_range,
+        parse_frames,
+        progress_printer,
+        render_to_file,
+    )
 
     out = Path(args.output)
     if out.suffix.lower() == ".glb":
@@ -97,14 +104,21 @@ def run(args: argparse.Namespace) -> int:
         raise ParameterError(
             f"--frame picks the frame of a .png; use --frames A:B for a {out.suffix} clip"
         )
+    # every flag value is checked before a take is read (a long take takes seconds)
     size = parse_size(args.size)
     if args.fps is not None and not args.fps > 0:
         raise ParameterError(f"--fps {args.fps}: must be positive")
+    if args.frame is not None:
+        check_frame(args.frame)  # beyond the take: refused once it is read
+    if args.frames:
+        parse_frames(args.frames)
     view = args.view or ("side-by-side" if args.compare else "single")
     if view != "single" and not args.compare:
         raise ParameterError(f"--view {view} needs --compare OTHER")
 
     takes, labels = [_load(args.file)], [Path(args.file).stem]
+    if args.frame is not None:
+        check_frame(args.frame, takes[0].n_frames)  # before the preview is built
     if args.compare:
         takes.append(_load(args.compare))
         labels.append(Path(args.compare).stem)
@@ -140,7 +154,7 @@ def _export_glb(args: argparse.Namespace, out) -> int:
     """``-o OUT.glb``: the take in 3D; the picture options do not apply."""
     from engine.base.errors import ParameterError
     from engine.export.glb import write_glb
-    from engine.render.video import frame_range
+    from engine.render.video import frame_range, parse_frames
 
     for flag, given in (
         ("--frame", args.frame is not None),
@@ -154,6 +168,8 @@ def _export_glb(args: argparse.Namespace, out) -> int:
                 f"{flag} does not apply to a .glb (a 3D file of one take at "
                 "its own rate); use --frames A:B to cut it"
             )
+    if args.frames:
+        parse_frames(args.frames)  # before the take is read
     take = _load(args.file)
     frames = frame_range(take.n_frames, args.frames) if args.frames else None
     if frames is not None and frames.step != 1:

@@ -64,10 +64,19 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from engine.base.errors import MotionFormatError, ParameterError
     from engine.cli import load_take
-    from engine.gesture.synthesis import synthesize_from_clip, synthesize_from_poses
+    from engine.gesture.synthesis import (
+        check_warp,
+        parse_pose_keys,
+        synthesize_from_clip,
+        synthesize_from_poses,
+    )
     from engine.io.bvh import write_bvh
     from engine.model.motion import Motion
 
+    # the flags' values are checked before a take is read (a long take takes seconds)
+    check_warp(args.warp)
+    if args.poses:
+        parse_pose_keys(args.poses, None)  # their frames against the take once it is read
     body = load_take(args.body)
     if not isinstance(body, Motion):
         raise MotionFormatError(args.body, "synthesize needs a skeletal body take (.bvh)")

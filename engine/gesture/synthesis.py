@@ -278,9 +278,16 @@ def warp_flexion(angles: np.ndarray, factor: float) -> np.ndarray:
 
     ``angles (..., 5, 3)`` degrees; NaN (missing joints) stays NaN.
     """
+    return np.asarray(angles, dtype=float) * check_warp(factor)
+
+
+def check_warp(factor: float) -> float:
+    """``factor`` if it can scale flexion angles (a finite number >= 0)."""
     if not (np.isfinite(factor) and factor >= 0):
-        raise ParameterError(f"flexion warp factor: expected a number >= 0, got {factor!r}")
-    return np.asarray(angles, dtype=float) * float(factor)
+        raise ParameterError(
+            f"warp: expected a flexion scale factor >= 0 (1: as captured), got {factor!r}"
+        )
+    return float(factor)
 
 
 def couple_dip(angles: np.ndarray) -> np.ndarray:
@@ -643,10 +650,12 @@ class SynthesisResult:
     clip_time: dict = field(default_factory=dict)
 
 
-def parse_pose_keys(specs, n_frames: int) -> list[tuple[int, str]]:
+def parse_pose_keys(specs, n_frames: int | None) -> list[tuple[int, str]]:
     """``["fist@0", "open@30", ...]`` -> sorted ``[(0, "fist"), (30, "open")]``.
 
-    Frames may be negative (counted from the end). Errors name the bad item.
+    Frames may be negative (counted from the end). Errors name the bad item. With
+    ``n_frames`` None (the take not read yet) only the form and the pose names are
+    checked, and the frames are returned as written.
     """
     out = []
     for spec in specs:
@@ -659,11 +668,16 @@ def parse_pose_keys(specs, n_frames: int) -> list[tuple[int, str]]:
             k = int(frame)
         except ValueError:
             raise ParameterError(f"pose key {text!r}: frame {frame!r} is not an integer") from None
+        if n_frames is None:
+            out.append((k, name.strip().lower()))
+            continue
         if k < 0:
             k += n_frames
         if not 0 <= k < n_frames:
             raise ParameterError(f"pose key {text!r}: frame outside 0..{n_frames - 1}")
         out.append((k, name.strip().lower()))
+    if n_frames is None:
+        return out
     out.sort()
     for (a, _), (b, _) in zip(out, out[1:]):
         if a == b:

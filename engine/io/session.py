@@ -67,8 +67,9 @@ VERSION = 2
 HAND_FRAMES = {1: "grid", 2: "file"}
 SIDES = ("right", "left", "both")
 MATRIX_VIEWS = ("pass1", "pass2", "cumulative1", "cumulative2")
-#: the preview's cameras (engine.render.scene's, less the hands close-up the page always shows)
-PREVIEW_CAMERAS = ("three-quarter", "front", "side")
+#: the preview's cameras (engine.render.scene's; ``hands``: every panel close up on the hands,
+#: as ``handsplice render --camera hands``); the app's GIF/MP4 use the preview's camera
+PREVIEW_CAMERAS = ("three-quarter", "front", "side", "hands")
 #: the app's view state a session file or link may carry, with its defaults (a field left
 #: out, as in files and links made before it existed, takes its default)
 VIEW_DEFAULTS = {"camera": "three-quarter", "trails": False, "follow": True, "pick": False}

@@ -269,27 +269,45 @@ def write_mp4(
     return path
 
 
+def parse_frames(frames: str) -> slice:
+    """The slice of a frames text ``A:B`` (Python slice, B exclusive, either may be empty;
+    ``A:B:STEP``), checked before any take is read; which frames it selects needs the
+    take (:func:`frame_range`)."""
+    parts = str(frames).split(":")
+    if len(parts) not in (2, 3):
+        raise ParameterError(f"frames {frames!r}: expected A:B (e.g. 0:90)")
+    try:
+        vals = [int(p) if p.strip() else None for p in parts]
+    except ValueError:
+        raise ParameterError(f"frames {frames!r}: A and B must be integers") from None
+    if len(vals) == 3 and vals[2] is not None and vals[2] <= 0:
+        raise ParameterError(f"frames {frames!r}: the step must be a whole number >= 1")
+    return slice(*vals)
+
+
 def frame_range(n_frames: int, frames: str | tuple[int, int] | None = None) -> range:
     """Frames ``A:B`` (Python slice, B exclusive, either may be empty) of a take."""
     if frames is None:
         return range(n_frames)
-    if isinstance(frames, str):
-        parts = frames.split(":")
-        if len(parts) not in (2, 3):
-            raise ParameterError(f"frames {frames!r}: expected A:B (e.g. 0:90)")
-        try:
-            vals = [int(p) if p.strip() else None for p in parts]
-        except ValueError:
-            raise ParameterError(f"frames {frames!r}: A and B must be integers") from None
-        sl = slice(*vals)
-    else:
-        sl = slice(*frames)
+    sl = parse_frames(frames) if isinstance(frames, str) else slice(*frames)
     out = range(n_frames)[sl]
     if len(out) == 0:
         raise ParameterError(
             f"frames {frames!r}: selects no frame of a take with {n_frames} frames"
         )
     return out
+
+
+def check_frame(frame: int, n_frames: int | None = None) -> int:
+    """``frame`` if it is a frame of a take of ``n_frames`` frames (0 the first); with
+    ``n_frames`` None (the take not read yet) only a negative frame is refused. The one
+    rule of a picked frame (the CLI's ``--frame``, :func:`render_to_file`)."""
+    last = "the take's last" if n_frames is None else f"{n_frames - 1}"
+    first = "0 (the first)" if n_frames is None else "0"
+    has = "" if n_frames is None else f" (the take has {n_frames} frames)"
+    if not (frame >= 0 and (n_frames is None or frame < n_frames)):
+        raise ParameterError(f"frame {frame}: expected a frame from {first} to {last}{has}")
+    return int(frame)
 
 
 def render_to_file(
@@ -317,9 +335,7 @@ def render_to_file(
     n = preview.n_frames
     if suffix == ".png":
         if frame is not None or frames is None:
-            f = frame if frame is not None else 0
-            if not -n <= f < n:
-                raise ParameterError(f"frame {f}: outside 0..{n - 1}")
+            f = check_frame(frame if frame is not None else 0, n)
             image = preview.frame(f, **frame_kwargs)
             if progress:
                 progress(1, 1)

@@ -9,7 +9,8 @@ it, a worker thread never holds it, and a model change there raises
 Bokeh has no public way to ask whether the running code holds a document's lock, so
 the app keeps that knowledge itself: :func:`next_tick` and :func:`after` schedule a
 callback through Bokeh (which runs it under the document's lock) and mark the
-document as held while it runs. :func:`with_document_lock` runs a change at once when
+document as held while it runs; :class:`Settle` runs a callback once a value has stood
+still a while (through :func:`after`). :func:`with_document_lock` runs a change at once when
 the running code holds the lock by such a mark (or when there is no server session:
 tests, page creation) and otherwise schedules it with :func:`next_tick`. A context the
 app did not mark (a Panel widget callback, a worker thread) is treated as unlocked:
@@ -32,6 +33,7 @@ from __future__ import annotations
 
 import contextvars
 import functools
+import time
 from collections.abc import Callable
 
 import panel as pn
@@ -88,6 +90,40 @@ def next_tick(doc, callback: Callable[[], object]) -> None:
 def after(doc, callback: Callable[[], object], ms: float) -> None:
     """Run ``callback`` ``ms`` milliseconds from now, under ``doc``'s lock."""
     doc.add_timeout_callback(under_lock(doc, callback), ms)
+
+
+class Settle:
+    """Runs ``callback`` once a changing value has stood still ``ms`` milliseconds: each
+    :meth:`moved` restarts the quiet time, and one timer at a time waits for it (re-armed
+    for the time left when the value moved meanwhile), under ``doc``'s lock
+    (:func:`after`). Without a server session (``doc`` None or without a session
+    context: tests, scripts, the page being built) ``callback`` runs at once.
+
+    >>> settle = Settle(doc, update_link, 300)   # the link takes the frame once it rests
+    >>> session.param.watch(lambda *_: settle.moved(), ["frame"])
+    """
+
+    def __init__(self, doc, callback: Callable[[], object], ms: float):
+        self.doc, self.callback, self.ms = doc, callback, float(ms)
+        self._moved_at = 0.0  # monotonic s of the last move
+        self._due = False  # a timer is waiting
+
+    def moved(self) -> None:
+        self._moved_at = time.monotonic()
+        if self.doc is None or self.doc.session_context is None:
+            self.callback()
+            return
+        if not self._due:
+            self._due = True
+            after(self.doc, self._stood, self.ms)
+
+    def _stood(self) -> None:
+        left_ms = 1000.0 * (self._moved_at - time.monotonic()) + self.ms
+        if left_ms > 1.0:  # moved again meanwhile: wait for it to stand
+            after(self.doc, self._stood, left_ms)
+            return
+        self._due = False
+        self.callback()
 
 
 def _view_document(view):

@@ -25,6 +25,7 @@ from engine.base.errors import Cancelled, check_cancelled
 from webapp import backend, safe_text
 from webapp.state import Session
 from webapp.views._dispatch import after, after_path, next_tick
+from webapp.views.checkbox import Checkbox
 
 #: a preview following edits is rendered once edits have paused this long, ms (a render
 #: started between two drags ran beside the next drag's solve: on a 2-minute pair it is
@@ -138,10 +139,10 @@ class PreviewView:
             css_classes=["hs-camera"],
             description=None,  # no tooltip from the parameter's doc (the page looks as before)
         )
-        self.trails = pn.widgets.Checkbox.from_param(
+        self.trails = Checkbox.from_param(
             session.param.trails, name="Hand trails", width=110, css_classes=["hs-trails"]
         )
-        self.auto = pn.widgets.Checkbox.from_param(
+        self.auto = Checkbox.from_param(
             session.param.follow, name="Follow edits", width=110, css_classes=["hs-follow"]
         )
         self.slider.param.watch(self._on_slider, "value")

@@ -31,7 +31,7 @@ from engine.render.video import remaining_text
 from webapp import backend, safe_text
 from webapp.served_files import STORE, ServedFile
 from webapp.state import VIEW_STATE, Session
-from webapp.views._dispatch import after, after_path, with_document_lock
+from webapp.views._dispatch import Settle, after_path, with_document_lock
 from webapp.views.refusal import refusal_box
 
 #: exports of all sessions share these threads (renders take turns on the OpenGL lock)
@@ -197,9 +197,8 @@ class SharingView:
             ["revision", "inputs_revision", "matrix", *VIEW_STATE],
         )
         # the preview's frame (slider, Play, a picked cell) is in the link too, once it stands
-        self._frame_moved_at = 0.0
-        self._frame_due = False
-        session.param.watch(self._on_frame, ["frame"])
+        self._frame_settle = Settle(doc, self._link_soon, FRAME_LINK_MS)
+        session.param.watch(lambda *_: self._frame_settle.moved(), ["frame"])
         self._update_link()
         doc = pn.state.curdoc
         if doc is not None and doc.session_context is not None:
@@ -296,14 +295,15 @@ class SharingView:
         widget.filename = f"{s.output_stem()}.{fmt}"
         prepared, solution = s.prepared, s.solution  # this state, whatever is edited meanwhile
         start = s.frame  # a long take's video starts at the frame the preview shows
+        camera = s.camera  # and shows it with the preview's camera (hands: close up)
         try:
             shown, fps = backend.video_frames(prepared.n, float(prepared.body.fps), start)
         except Exception as exc:  # no takes open: shown in the page
             self.message.object = safe_text.markdown(f"{what}: {backend.one_line(exc)}")
             self.message.visible = True
             return None
-        span = f"body frames {shown.start}–{shown[-1]} at {fps:.3g} fps"
-        made = backend.made_video(solution, fmt, backend.video_key(prepared, start))
+        span = f"body frames {shown.start}–{shown[-1]} at {fps:.3g} fps, {camera} camera"
+        made = backend.made_video(solution, fmt, backend.video_key(prepared, start, camera))
         if made is not None:  # nothing changed since it was made: the same file again
             self.message.visible = False
             self.progress.value = 100
@@ -340,7 +340,9 @@ class SharingView:
         loop = asyncio.get_running_loop()
         job = loop.run_in_executor(
             _EXPORTS,
-            lambda: backend.preview_video(prepared, solution, fmt, progress=progress, start=start),
+            lambda: backend.preview_video(
+                prepared, solution, fmt, camera=camera, progress=progress, start=start
+            ),
         )
         try:
             while True:
@@ -393,26 +395,6 @@ class SharingView:
 
     def _link_soon(self) -> None:
         after_path(self.session, ("link", id(self)), self._update_link, self._doc)
-
-    def _on_frame(self, *_) -> None:
-        """The frame moved: the link follows once it has stood still ``FRAME_LINK_MS``
-        (at once without a server session: tests, scripts)."""
-        doc = self._doc
-        self._frame_moved_at = time.monotonic()
-        if doc is None or doc.session_context is None:
-            self._update_link()
-            return
-        if not self._frame_due:
-            self._frame_due = True
-            after(doc, self._frame_stood, FRAME_LINK_MS)
-
-    def _frame_stood(self) -> None:
-        left_ms = 1000.0 * (self._frame_moved_at - time.monotonic()) + FRAME_LINK_MS
-        if left_ms > 1.0:  # moved again meanwhile: wait for it to stand
-            after(self._doc, self._frame_stood, left_ms)
-            return
-        self._frame_due = False
-        self._link_soon()
 
     def _take_names(self) -> tuple[str, str]:
         """The takes' file names in the commands (``take_paths`` reads the samples' manifest

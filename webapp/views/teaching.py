@@ -26,6 +26,7 @@ from engine.base.errors import HandSpliceError
 from engine.dtw import Aligner, Band
 from engine.dtw.views import local_cost_image
 from webapp.views._dispatch import with_document_lock
+from webapp.views.checkbox import Checkbox
 
 EXAMPLE_FPS = 10.0
 
@@ -447,7 +448,9 @@ class TeachingView:
             pn.widgets.FloatSlider.from_param(
                 mdl.param.width, label="Band width W (fraction of n)", tooltips=False
             ),
-            pn.widgets.Checkbox.from_param(mdl.param.use_point, label="Matching point"),
+            Checkbox.from_param(
+                mdl.param.use_point, label="Matching point", css_classes=["hs-teach-point"]
+            ),
             pn.Row(
                 pn.widgets.IntSlider.from_param(
                     mdl.param.point_body, label="body frame x", width=130, tooltips=False
