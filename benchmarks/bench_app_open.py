@@ -68,7 +68,13 @@ def by_link(browser, url: str, body: Path, hand: Path, n: int) -> dict:
     app_long.demo_n(page)
     page.locator(".hs-upload-body input[type=file]").set_input_files(str(body))
     page.locator(".hs-upload-hand input[type=file]").set_input_files(str(hand))
+    for which in ("body", "hand"):
+        page.locator(f".hs-upload-{which} .filepond--item[data-hs-verdict='ok']").wait_for(
+            timeout=1_800_000
+        )
+    print("by link: files in", flush=True)
     app_long._wait(page, app_long.PATH_OF, n, timeout=1800)
+    print("by link: path drawn", flush=True)
     box = page.locator(".hs-share-url input")
     deadline = time.monotonic() + 600
     while "body=" not in (link := box.input_value()) and time.monotonic() < deadline:
