@@ -72,9 +72,13 @@ def by_link(browser, url: str, body: Path, hand: Path, n: int) -> dict:
         page.locator(f".hs-upload-{which} .filepond--item[data-hs-verdict='ok']").wait_for(
             timeout=1_800_000
         )
-    print("by link: files in", flush=True)
-    app_long._wait(page, app_long.PATH_OF, n, timeout=1800)
-    print("by link: path drawn", flush=True)
+    try:
+        app_long._wait(page, app_long.PATH_OF, n, timeout=300)
+    except TimeoutError:  # the uploaded pair never opened: say so, with the page as it is
+        shot = Path(tempfile.gettempdir()) / "bench_app_open_by_link.png"
+        page.screenshot(path=str(shot), full_page=True)
+        context.close()
+        return {"error": f"the uploaded pair's path never came (page: {shot})"}
     box = page.locator(".hs-share-url input")
     deadline = time.monotonic() + 600
     while "body=" not in (link := box.input_value()) and time.monotonic() < deadline:
