@@ -1,7 +1,7 @@
 """Opening a long pair in Chromium: first byte, first text, first matrix (issue 13, R3-1).
 
-Run: ``.venv/bin/python -m benchmarks.bench_app_open [--by-path-only | --by-upload-only] CODE
-[CODE ...]`` where CODE is
+Run: ``.venv/bin/python -m benchmarks.bench_app_open [--by-path-only | --by-upload-only |
+--by-link-only] CODE [CODE ...]`` where CODE is
 ``now`` (this checkout) or a commit (its ``engine``, ``webapp``, ``sample_data``), each on
 its own ``handsplice serve`` one after the other in the same run.
 
@@ -11,7 +11,11 @@ contexts) by path: seconds from navigation to the page's HTTP answer (``byte``),
 header's text on screen (``text``), to the cost image (``image``) and to band and path
 (``path``), as ``bench_app_long`` waits for them; then by upload (a server without a
 pair): seconds until both files are checked (``in_s``) and from then to the image and to
-band and path. Prints one JSON line per code with the load average before and after;
+band and path; then by link (R5-2: the same server, the pair uploaded again, the page's
+*Link to this session* copied once the path is drawn and opened in a new tab of the same
+browser): seconds from navigation to the image and to band and path (``link``; the
+uploading tab stays open). ``--by-path-only`` / ``--by-upload-only`` / ``--by-link-only``
+run one part. Prints one JSON line per code with the load average before and after;
 writes nothing (the machine is shared: compare codes within one run).
 """
 
@@ -55,10 +59,44 @@ def _tab(browser, url: str, n: int) -> tuple[dict, object]:
     return times, page
 
 
+def by_link(browser, url: str, body: Path, hand: Path, n: int) -> dict:
+    """Upload the pair, copy the page's share link and open it in a new tab: seconds from
+    that tab's navigation to the image and to band and path (R5-2)."""
+    context = app_long._context(browser)
+    page = context.new_page()
+    page.goto(url)
+    app_long.demo_n(page)
+    page.locator(".hs-upload-body input[type=file]").set_input_files(str(body))
+    page.locator(".hs-upload-hand input[type=file]").set_input_files(str(hand))
+    for which in ("body", "hand"):
+        page.locator(f".hs-upload-{which} .filepond--item[data-hs-verdict='ok']").wait_for(
+            timeout=1_800_000
+        )
+    try:
+        app_long._wait(page, app_long.PATH_OF, n, timeout=300)
+    except TimeoutError:  # the uploaded pair never opened: say so, with the page as it is
+        shot = Path(tempfile.gettempdir()) / "bench_app_open_by_link.png"
+        page.screenshot(path=str(shot), full_page=True)
+        context.close()
+        return {"error": f"the uploaded pair's path never came (page: {shot})"}
+    box = page.locator(".hs-share-url input")
+    deadline = time.monotonic() + 600
+    while "body=" not in (link := box.input_value()) and time.monotonic() < deadline:
+        time.sleep(0.2)  # the link follows the path once it is drawn
+    tab = context.new_page()
+    t0 = time.monotonic()
+    tab.evaluate(f"location.href = {link!r}")
+    t_image = app_long._wait(tab, app_long.IMAGE_OF, n) - t0
+    t_path = app_long._wait(tab, app_long.PATH_OF, n) - t0
+    context.close()
+    return {"image_s": t_image, "path_s": t_path, "link": link.split("?", 1)[-1][:300]}
+
+
 def main(argv=None) -> int:
     args = list(argv if argv is not None else sys.argv[1:])
     by_path_only = "--by-path-only" in args  # no upload server (a shorter run)
     by_upload_only = "--by-upload-only" in args  # no server of the pair by path
+    by_link_only = "--by-link-only" in args  # only the reopening of an upload by its link
     codes = [a for a in args if not a.startswith("--")] or ["now"]
     from playwright.sync_api import sync_playwright
 
@@ -76,7 +114,7 @@ def main(argv=None) -> int:
             )
             out: dict = {"code": code, "load_before": app_long.loadavg()}
             up = Path(tmp) / f"up-{code}-{len(out_rows)}"
-            if not by_upload_only:
+            if not (by_upload_only or by_link_only):
                 with app_long.serve(tree, str(body), str(hand), "--upload-dir", str(up)) as (
                     url,
                     started,
@@ -88,7 +126,10 @@ def main(argv=None) -> int:
                     tab2.context.close()
             if not by_path_only:
                 with app_long.serve(tree, "--upload-dir", str(up)) as (url, _):
-                    out["upload"] = app_long.by_upload(browser, url, body, hand, n)
+                    if not by_link_only:
+                        out["upload"] = app_long.by_upload(browser, url, body, hand, n)
+                    if not by_upload_only:
+                        out["link"] = by_link(browser, url, body, hand, n)
             out["load_after"] = app_long.loadavg()
             out_rows.append(out)
             print(json.dumps(out), flush=True)

@@ -1,7 +1,11 @@
 """The 10-minute pair in the app, end to end, with the server's memory over time (issue 13).
 
 Run: ``python -m benchmarks.bench_app_tenmin OUT [--seconds 600] [--drags 3]
-[--steps bvh,glb,drag]``
+[--steps bvh,glb,drag] [--code REF]``
+
+``--code REF`` serves a commit's ``engine``, ``webapp`` and ``sample_data`` (made once by
+``benchmarks.long_pairs.baseline_tree``) instead of this checkout: run it and ``now`` one
+after the other, alternating, to compare the two within one run.
 
 ``handsplice serve BODY HAND`` (at ``nice -n 19``) on ``benchmarks.long_pairs.pair_files
 (seconds)`` (made once under ``$TMPDIR/handsplice-long-pairs``), one Chromium tab, and
@@ -29,7 +33,7 @@ import urllib.request
 from pathlib import Path
 
 from benchmarks.bench_app import WATCH, drag_once
-from benchmarks.long_pairs import pair_files
+from benchmarks.long_pairs import baseline_tree, pair_files
 from webapp.launch import PAGE_HELPERS, free_port, launch_chromium
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -171,14 +175,18 @@ def drags(page, count: int, rec: Recorder, out: Path) -> None:
     page.screenshot(path=str(out / "shot_dragged.png"), full_page=True)
 
 
-def run(out: Path, body: Path, hand: Path, steps: list[str], count: int) -> dict:
+def run(
+    out: Path, body: Path, hand: Path, steps: list[str], count: int, tree: Path | None = None
+) -> dict:
+    """Serve the pair from ``tree`` (None: this checkout), open one tab, run ``steps``."""
     from playwright.sync_api import sync_playwright
 
     rec = Recorder(out)
+    tree = tree or ROOT
     env = dict(
         os.environ,
-        PYTHONPATH=str(ROOT),
-        NUMBA_CACHE_DIR=str(ROOT / ".numba_cache"),
+        PYTHONPATH=str(tree),
+        NUMBA_CACHE_DIR=str(tree / ".numba_cache"),
         PYOPENGL_PLATFORM="egl",
     )
     exe = Path(sys.executable).with_name("handsplice")
@@ -187,7 +195,7 @@ def run(out: Path, body: Path, hand: Path, steps: list[str], count: int) -> dict
     with (out / "serve.log").open("w") as log:
         server = subprocess.Popen(
             [*cmd, "--upload-dir", str(out / "uploads")],
-            cwd=ROOT,
+            cwd=tree,
             env=env,
             stdout=log,
             stderr=subprocess.STDOUT,
@@ -237,10 +245,17 @@ def main(argv=None) -> int:
     parser.add_argument("--seconds", type=float, default=600.0, help="pair length (120 fps)")
     parser.add_argument("--drags", type=int, default=3)
     parser.add_argument("--steps", default="bvh,glb,drag", help="after opening: bvh,glb,drag")
+    parser.add_argument("--code", default="now", help="now (this checkout) or a commit")
     args = parser.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     body, hand, _truth = pair_files(args.seconds)
-    run(args.out, body, hand, args.steps.split(","), args.drags)
+    tree = (
+        None
+        if args.code == "now"
+        else baseline_tree(args.code, ("engine", "webapp", "sample_data"), name="tenmin")
+    )
+    peaks = run(args.out, body, hand, args.steps.split(","), args.drags, tree)
+    print(json.dumps({"code": args.code, **peaks}), flush=True)
     return 0
 
 

@@ -154,16 +154,30 @@ def test_a_shared_alignment_no_page_shows_lets_go_of_its_spliced_take_and_previe
     backend.showing(b, None)  # that page closed: nobody shows it
     assert "preview" not in shared.cache and "spliced" not in shared.cache
     assert all(p is not preview for p in backend._PREVIEWS.values())
+    # a render asked for it meanwhile (a job queued before the page moved on): not kept
     again = backend.render_frame(prepared, shared, 3, "front", False, size=(96, 64))
-    assert again.shape == (64, 96, 3) and "preview" in shared.cache  # made again when shown
-    backend.showing(a, shared)
+    assert again.shape == (64, 96, 3) and "preview" not in shared.cache
+    assert "spliced" not in shared.cache
+    backend.showing(a, shared)  # shown again: made again and kept while shown
+    backend.render_frame(prepared, shared, 3, "front", False, size=(96, 64))
+    assert "preview" in shared.cache and "spliced" in shared.cache
     backend.showing(a, None)
     assert "preview" not in shared.cache
-    # an alignment of one page only is left alone (it goes with the page)
+    # an alignment of one page only goes with the page when it closes
     backend.preview_for(prepared, edited)
     backend.showing(a, edited)
     backend.showing(a, None)
     assert "preview" in edited.cache
+    # and lets go of its spliced take and preview when its page moves on to an edit (during
+    # drags the render worker or a trust being given up could still hold it: tenmin2)
+    mine, newer = (backend.solve(prepared, edited.band, edited.refine_band, []) for _ in "ab")
+    backend.showing(a, mine)
+    backend.preview_for(prepared, mine)
+    backend.showing(a, newer)
+    assert "preview" not in mine.cache and "spliced" not in mine.cache
+    backend.splice(prepared, mine)  # a render queued before the move: not kept
+    assert "spliced" not in mine.cache
+    backend.showing(a, None)
     # the session tells the registry what it shows after every edit
     session.add_point(session.n // 3, session.hand_frame_for(session.n // 3), 1)
     gc.collect()

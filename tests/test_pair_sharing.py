@@ -6,12 +6,14 @@ what another tab starts from. Also the BVH reader's number parser
 
 from __future__ import annotations
 
+from urllib.parse import parse_qsl, urlsplit
+
 import numpy as np
 import pytest
 from conftest import demo_config
 
 from engine.io.numbers import parse_rows
-from webapp import backend, config
+from webapp import backend, config, uploads
 from webapp.state import Session
 
 DEMO = "wave-ok"
@@ -68,6 +70,37 @@ def test_edits_from_the_shared_alignment_stay_in_their_session(cfg):
     c.add_point(*p_a)
     np.testing.assert_array_equal(c.solution.warp, a.solution.warp)
     assert shared.cache["engine"].pass1.solver.band == shared.pass1.band
+
+
+def _query(s: Session) -> dict:
+    return dict(parse_qsl(urlsplit(s.share_url("/")).query))
+
+
+def test_an_uploaded_pair_reopened_by_its_link_shows_its_alignment_without_solving(cfg):
+    """Stranger R5-2: a tab opening an uploaded pair's share link solved both passes again
+    (the link's opening called ``backend.solve``, never the shared first alignment)."""
+    pair = cfg.sample(DEMO)
+    body, _ = uploads.store(cfg, "body.bvh", pair.body.read_bytes())
+    hand, _ = uploads.store(cfg, "hand.bvh", pair.hand.read_bytes())
+    s = Session(cfg)
+    s.load_uploads(body, hand, "body.bvh", "hand.bvh")
+    assert s.error == "" and s.solution is not None
+    solved = backend.FIRST_STATS["solved"]
+    other = Session(cfg)
+    other.open_link(_query(s))
+    assert other.error == "" and backend.FIRST_STATS["solved"] == solved
+    assert other.solution is s.solution and not other.aligned_here()
+    # an edit of the reopened tab is its own and what a fresh solve gives
+    other.add_point(*_mid_point(other, 6))
+    assert other.error == "" and s.solution is not other.solution
+    band, refine = other.widths()
+    fresh = backend.solve(other.prepared, band, refine, other.constraint_points())
+    np.testing.assert_array_equal(other.solution.warp, fresh.warp)
+    # a link with points is solved for the tab that opens it, as before
+    third = Session(cfg)
+    third.open_link(_query(other))
+    assert third.error == "" and third.aligned_here()
+    np.testing.assert_array_equal(third.solution.warp, fresh.warp)
 
 
 def test_copied_solvers_hold_their_own_rows(cfg):

@@ -593,7 +593,8 @@ def splice(prepared: Prepared, solution: Solution):
             )
         else:
             motion = pipeline.transfer(prepared.features, solution.cache["engine"])
-    solution.cache["spliced"] = motion
+    if not solution.cache.get("let go"):  # no page shows it: not kept (see showing)
+        solution.cache["spliced"] = motion
     return motion
 
 
@@ -679,7 +680,8 @@ def _new_preview(prepared: Prepared, solution: Solution):
     for label, view in zip(labels[:-1], preview.views[:-1], strict=True):
         prepared.views.setdefault((label, sides), view)
     prepared.views[("spliced mesh", sides)] = (skeleton, preview.views[-1].mesh)
-    solution.cache["preview"] = preview
+    if not solution.cache.get("let go"):  # no page shows it: not kept (see showing)
+        solution.cache["preview"] = preview
     with _PREVIEW_LOCK:  # close the previous solutions' OpenGL contexts of this pair
         old = _PREVIEWS.pop(id(prepared), None)
         _PREVIEWS[id(prepared)] = preview
@@ -700,20 +702,27 @@ def showing(page, solution: Solution | None) -> None:
     and so were its spliced take and preview: 0.14 GB at 10 minutes beside the edited
     alignment's own. Once no page shows it, it lets go of them (:func:`_let_go`); a page
     that shows it again makes them again (seconds for a long take). Its solve and trust
-    stay, and any other alignment is freed with the page that showed it."""
+    stay. An edit's alignment that its page moved on from lets go of them too: during a
+    run of drags the render worker, a trust assessment being given up or a queued job
+    could still hold it, and with it a spliced take each (three of them, 0.43 GB, at
+    once on the 10-minute pair: RESULTS.md, tenmin2); one whose page closed goes with it."""
     with _SHOWN_LOCK:
         old = _SHOWN.pop(page, None)
         if solution is not None:
             _SHOWN[page] = solution
         unseen = old is not None and all(s is not old for s in _SHOWN.values())
-    if unseen and old is not solution and old.cache.get("shared"):
+    if solution is not None:
+        solution.cache.pop("let go", None)  # shown (again): kept while shown
+    if unseen and old is not solution and (solution is not None or old.cache.get("shared")):
         _let_go(old)
 
 
 def _let_go(solution: Solution) -> None:
-    """Drop ``solution``'s spliced take and preview (made again when asked for). Never
-    waits: while its preview is being made (a render asked before the page moved on) it is
-    kept."""
+    """Drop ``solution``'s spliced take and preview (made again when asked for, and then
+    not kept until a page shows it again). Never waits: while its preview is being made (a
+    render asked before the page moved on) that render keeps it."""
+    solution.cache["let go"] = True
+    solution.cache.pop("spliced", None)
     lock = solution.cache.setdefault("preview lock", threading.Lock())
     if not lock.acquire(blocking=False):
         return

@@ -1358,13 +1358,20 @@ class Session(param.Parameterized):
         band = spec.band or defaults["band"]
         refine = spec.refine_band or defaults["refine_band"]
         grid = backend.points_to_grid(prepared, [p.resolved(spec.tolerance) for p in points])
-        solution = backend.solve(
-            prepared,
-            band=band,
-            refine_band=refine,
-            points=grid,
-            progress=progress,
-            max_unmatched_s=spec.max_unmatched_s,
+        # a link or file without points, at settings another tab (or the warm-up) aligned
+        # the pair with, shows that alignment, as a tab opening the pair does
+        # (backend.first_solution; one kept per pair and settings, so not per set of points)
+        solution = (
+            backend.first_solution(prepared, band, refine, grid, progress=progress, owner=id(self))
+            if not grid and spec.max_unmatched_s is None
+            else backend.solve(
+                prepared,
+                band=band,
+                refine_band=refine,
+                points=grid,
+                progress=progress,
+                max_unmatched_s=spec.max_unmatched_s,
+            )
         )
         widths = _width_values({"band": band, "refine_band": refine}, dict(WIDTHS))
         values = dict(
