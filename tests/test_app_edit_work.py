@@ -271,3 +271,20 @@ def test_an_edit_is_solved_while_a_preview_splices_the_previous_alignment(sessio
     finally:
         release.set()
         splicer.join(60)
+
+
+def test_a_splice_that_starts_while_a_solve_runs_waits_for_it(session):
+    """The other way round, the solve goes first: a preview's splice asked for while a
+    drag's solve runs (it holds the pair's lock) starts once the solve is done, instead
+    of sharing the CPU with it."""
+    import threading
+
+    prepared, solution = session.prepared, session.solution
+    solution.cache.pop("spliced", None)
+    splicer = threading.Thread(target=backend.splice, args=(prepared, solution))
+    with prepared.lock:  # a solve running
+        splicer.start()
+        splicer.join(0.5)
+        assert splicer.is_alive() and "spliced" not in solution.cache
+    splicer.join(60)
+    assert not splicer.is_alive() and "spliced" in solution.cache

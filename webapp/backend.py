@@ -113,7 +113,8 @@ class Prepared:
     lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
     #: held by the spliced takes (:func:`splice`): they read only the takes, the
     #: transfer plan and the solution's map, so a drag's solve never waits for a
-    #: preview's or download's splice (~0.2-0.9 s on a 2-minute pair) to finish
+    #: preview's or download's splice (~0.2-0.9 s on a 2-minute pair) to finish; a
+    #: splice that starts while a solve runs waits for it (``lock``)
     splice_lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     @property
@@ -589,6 +590,8 @@ def splice(prepared: Prepared, solution: Solution):
     cached = solution.cache.get("spliced")
     if cached is not None:
         return cached
+    with prepared.lock:  # a solve that runs (a drag's) goes first: they would share the CPU
+        pass
     with prepared.splice_lock:
         if marker_body(prepared):
             from engine.splice.retime import retimed_hand
