@@ -6,6 +6,7 @@ of the server's CPU after each edit, beside the next edit's solve; an edit's tru
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 from conftest import open_demo_session
 
@@ -247,3 +248,62 @@ def test_an_assessment_is_given_up_when_a_newer_edit_is_being_solved(session, mo
     monkeypatch.setattr(session, "runner", runner)
     doc.run()
     assert session.trust is not None and view._failed != session.revision
+
+
+def test_an_edit_is_solved_while_a_preview_splices_the_previous_alignment(session, monkeypatch):
+    """A drag's solve does not wait for the splice of the previous alignment (the preview's
+    or a download's: 0.2-0.9 s on a 2-minute pair): they hold different locks."""
+    import threading
+
+    from engine.splice import pipeline
+
+    inside, release = threading.Event(), threading.Event()
+    transfer = pipeline.transfer
+
+    def slow_transfer(*args, **kwargs):
+        inside.set()
+        release.wait(60)
+        return transfer(*args, **kwargs)
+
+    monkeypatch.setattr(pipeline, "transfer", slow_transfer)
+    prepared, previous = session.prepared, session.solution
+    previous.cache.pop("spliced", None)
+    splicer = threading.Thread(target=backend.splice, args=(prepared, previous))
+    splicer.start()
+    try:
+        assert inside.wait(60)
+        x = session.n // 2
+        points = [(x, int(previous.cache["engine"].warp[x]) + 2, 1.0)]
+        band, refine = session.widths()
+        solved = []
+        solver = threading.Thread(
+            target=lambda: solved.append(
+                backend.solve(prepared, band, refine, points, previous=previous)
+            )
+        )
+        solver.start()
+        solver.join(60)
+        assert solved, "the edit's solve waited for the splice"
+        fresh = backend.solve(prepared, band, refine, points)
+        assert np.array_equal(solved[0].pass2.path, fresh.pass2.path)
+        np.testing.assert_array_equal(solved[0].warp, fresh.warp)
+    finally:
+        release.set()
+        splicer.join(60)
+
+
+def test_a_splice_that_starts_while_a_solve_runs_waits_for_it(session):
+    """The other way round, the solve goes first: a preview's splice asked for while a
+    drag's solve runs (it holds the pair's lock) starts once the solve is done, instead
+    of sharing the CPU with it."""
+    import threading
+
+    prepared, solution = session.prepared, session.solution
+    solution.cache.pop("spliced", None)
+    splicer = threading.Thread(target=backend.splice, args=(prepared, solution))
+    with prepared.lock:  # a solve running
+        splicer.start()
+        splicer.join(0.5)
+        assert splicer.is_alive() and "spliced" not in solution.cache
+    splicer.join(60)
+    assert not splicer.is_alive() and "spliced" in solution.cache

@@ -117,3 +117,32 @@ def test_a_failure_on_the_backward_thread_reaches_the_caller():
     solver._backward = broken
     with pytest.raises(MemoryError, match="backward rows"):
         solver.solve(Band.from_constraints(n, m, 0.3, [[n // 2, m // 2 + 4, 0]]))
+
+
+def test_an_edit_with_few_rows_on_each_side_stays_on_one_thread():
+    """The second thread is for edits with many cells on both sides of the junction: an
+    edit of a large band that recomputes a few rows does not wait for a thread to start
+    (on a loaded machine, longer than its rows take); the junction is the same either way."""
+    rng = np.random.default_rng(13)
+    n = m = 240
+    cost = rng.random((n, m))
+    solver = _pair(True, lambda: Aligner.from_cost(cost))
+    reference = _pair(True, lambda: Aligner.from_cost(cost))
+    reference.PARALLEL_MIN_CELLS = 0
+    names = _threads_of_backward(solver)
+    lone = Band.from_constraints(n, m, 0.3, [[n // 2, m // 2, 0]], open_ends=True)
+    solver.PARALLEL_MIN_CELLS = lone.area // 2
+    points = [[n // 5, m // 5, 0], [n // 2, m // 2, 0], [3 * n // 4, 3 * m // 4, 0]]
+    late = [*points, [9 * n // 10, 9 * m // 10, 0]]
+    nudged = [*points, [9 * n // 10, 9 * m // 10 + 3, 0]]
+    ends = Ends(skip=0.5)
+    for k, pts in enumerate(([[n // 2, m // 2, 0]], [[n // 2, m // 2 + 6, 0]], late, nudged)):
+        band = Band.from_constraints(n, m, 0.3, pts, open_ends=True)
+        before = len(names)
+        got, want = solver.solve(band, ends), reference.solve(band, ends)
+        assert got.path.tolist() == want.path.tolist(), k
+        assert solver.last_stats.junction_row == reference.last_stats.junction_row, k
+        if k == 1:  # the lone point dragged: every row, half on each side, two threads
+            assert names[before:] and names[-1] != threading.current_thread().name
+        if k == 3:  # the last point nudged: a quarter of the rows, one thread
+            assert names[before:] == [threading.current_thread().name], names[before:]

@@ -61,3 +61,24 @@ def test_dragging_a_point_equals_a_fresh_solve_and_recomputes_a_part(feats):
             assert res.pass2.solver.last_stats.fraction < 0.7
             partial += 1
     assert reused >= 3 and partial >= 3
+
+
+def test_an_edit_that_keeps_pass_2_rows_does_not_sample_their_chance_cost_again(feats, monkeypatch):
+    """Pass 2's chance cost (its open ends' skip) is kept with the rows it was sampled
+    from: an edit that keeps the rows reads it, and gives a fresh solve's pass 2."""
+    ref = P.align_passes(feats)
+    res = P.align_passes(feats, points=_points(feats, ref.pass2.path), incremental=True)
+    calls = []
+    chance = P.chance_cost
+    monkeypatch.setattr(P, "chance_cost", lambda *a, **k: calls.append(1) or chance(*a, **k))
+    pts = _points(feats, ref.pass2.path, 3)
+    res2 = P.align_passes(feats, points=pts, previous=res, incremental=True)
+    assert res2.pass2.rows[0] is res.pass2.rows[0]  # the headings stayed: the same rows
+    assert calls == []
+    monkeypatch.setattr(P, "chance_cost", chance)
+    feats.params.pop("_chance2")
+    fresh = P.align_passes(feats, points=pts, incremental=False)
+    assert np.array_equal(res2.pass2.path, fresh.pass2.path)
+    assert res2.pass2.ends == fresh.pass2.ends and res2.pass2.cost == pytest.approx(
+        fresh.pass2.cost
+    )

@@ -109,7 +109,13 @@ class Prepared:
     pass1_cost: np.ndarray | None = None  # (n, m) D1 of every cell, when small enough
     #: the preview's TakeViews of the body and hand takes (the same for every alignment)
     views: dict = field(default_factory=dict, repr=False)
+    #: held by the solves (they reuse and extend the features' caches) and the cumulative views
     lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+    #: held by the spliced takes (:func:`splice`): they read only the takes, the
+    #: transfer plan and the solution's map, so a drag's solve never waits for a
+    #: preview's or download's splice (~0.2-0.9 s on a 2-minute pair) to finish; a
+    #: splice that starts while a solve runs waits for it (``lock``)
+    splice_lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     @property
     def m_hand(self) -> int:
@@ -584,7 +590,9 @@ def splice(prepared: Prepared, solution: Solution):
     cached = solution.cache.get("spliced")
     if cached is not None:
         return cached
-    with prepared.lock:
+    with prepared.lock:  # a solve that runs (a drag's) goes first: they would share the CPU
+        pass
+    with prepared.splice_lock:
         if marker_body(prepared):
             from engine.splice.retime import retimed_hand
 

@@ -312,7 +312,7 @@ class Aligner:
             # cumulative_cost() is in use, the end of the edited rows: γ is
             # needed up to the last row anyway)
             pref = split if self._every > 1 else n - 1
-            if self._every > 1 and f_valid < b_valid and self._parallel(band):
+            if self._every > 1 and f_valid < b_valid and self._halves(band):
                 # rows on both sides of J are computed, on two threads at once: the J
                 # that gives each thread half the cells (an edit waits for the longer side)
                 mid = (int(band.start[f_valid]) + int(band.start[b_valid])) // 2
@@ -363,9 +363,21 @@ class Aligner:
             self._reverse = self._problem.reversed()
         return self._reverse
 
-    def _parallel(self, band: Band) -> bool:
-        """Forward and backward rows of a solve of ``band`` run on two threads."""
+    def _halves(self, band: Band) -> bool:
+        """An edit of ``band`` joins its rows where each direction gets half the cells
+        (from ``PARALLEL_MIN_CELLS`` band cells on); the junction decides how exact ties
+        break, so it depends on the band only, not on whether a thread is used."""
         return self.PARALLEL_DIRECTIONS and band.area >= self.PARALLEL_MIN_CELLS
+
+    def _parallel(self, forward_cells: int, backward_cells: int) -> bool:
+        """Forward and backward rows of a solve run on two threads: both directions have
+        at least half ``PARALLEL_MIN_CELLS`` cells to compute in this call (an edit of a
+        large band that recomputes a few rows on each side would wait longer for the
+        thread to start, on a loaded machine, than for its rows)."""
+        return (
+            self.PARALLEL_DIRECTIONS
+            and 2 * min(forward_cells, backward_cells) >= self.PARALLEL_MIN_CELLS
+        )
 
     def _both_directions(
         self, band: Band, f0: int, f1: int, rband: Band, first_backward: int | None
@@ -380,7 +392,10 @@ class Aligner:
         if first_backward is None:
             return self._compute(self._problem, self._fwd, band, f0, f1), 0
         backward_rows = self.n - first_backward
-        if not self._parallel(band) or f1 <= f0 or self._bwd.valid >= backward_rows:
+        r0 = self._bwd.resume_row(min(self._bwd.valid, backward_rows))
+        backward_cells = int(rband.start[backward_rows] - rband.start[r0])
+        forward_cells = int(band.start[f1] - band.start[f0]) if f1 > f0 else 0
+        if not self._parallel(forward_cells, backward_cells) or self._bwd.valid >= backward_rows:
             cells = self._compute(self._problem, self._fwd, band, f0, f1)
             return cells, self._backward(rband, first_backward)
         self._reversed_problem()  # made here, not on both threads

@@ -828,9 +828,10 @@ def _solve_pass2(
     metric: str = DEFAULT_METRICS[1],
     probe=None,
     exact: bool = False,
+    chance: float | None = None,
 ):
     """Pass 2 with open ends (when ``pass1`` is open): returns (Alignment, solver, Ends,
-    probe solver).
+    probe solver). ``chance``: :func:`chance_cost` of ``rows`` when known.
 
     ``skip`` is the smaller of half the chance cost and the mean local cost per cell of
     the open path found with it (rounded down by :func:`skip_step`). Pass 2's angle costs
@@ -849,7 +850,8 @@ def _solve_pass2(
         al, solver = _solve(rows, metric, band, solver, incremental, Ends(), exact)
         return al, solver, Ends(), None
     n, m = len(rows[0]), len(rows[1])
-    first = Ends(pass1.body, pass1.hand, 0.5 * chance_cost(rows, metric))
+    chance = chance_cost(rows, metric) if chance is None else chance
+    first = Ends(pass1.body, pass1.hand, 0.5 * chance)
     # one-shot (the CLI): both solves share one computation of the band's costs
     shared = None if incremental else SharedCosts(*rows, metric=metric)
     al, probe = _solve(rows, metric, band, probe or shared, incremental, first, exact)
@@ -864,6 +866,17 @@ def _solve_pass2(
         solver = None
     al, solver = _solve(rows, metric, band, solver or shared, incremental, ends, exact)
     return al, (None if shared is not None else solver), ends, probe
+
+
+def _pass2_chance(features: SpliceFeatures, rows, metric: str) -> float:
+    """:func:`chance_cost` of pass 2's ``rows``, kept with the features for the rows
+    objects it was made of (an edit that keeps pass 2's rows does not sample them again)."""
+    kept = features.params.get("_chance2")
+    if kept is not None and kept[0] is rows[0] and kept[1] is rows[1] and kept[2] == metric:
+        return kept[3]
+    value = chance_cost(rows, metric)
+    features.params["_chance2"] = (rows[0], rows[1], metric, value)
+    return value
 
 
 def _same_headings(previous, body_heading: np.ndarray, hand_heading: np.ndarray) -> bool:
@@ -1047,7 +1060,15 @@ def align_passes(
     if prev2 is not None and prev2.rows[1] is not None and np.array_equal(prev2.rows[1], hand2):
         solver2, probe2 = prev2.solver, getattr(prev2, "probe", None)
     al2, solver2, ends2, probe2 = _solve_pass2(
-        (body2, hand2), band2, solver2, incremental, ends1, metric2, probe2, exact
+        (body2, hand2),
+        band2,
+        solver2,
+        incremental,
+        ends1,
+        metric2,
+        probe2,
+        exact,
+        None if ends1.fixed else _pass2_chance(features, (body2, hand2), metric2),
     )
     t2 = time.perf_counter()
     timings["pass2"] = t2 - t1
