@@ -38,7 +38,6 @@ from collections.abc import Callable
 
 import panel as pn
 from bokeh.model import Model
-from panel.io import unlocked
 
 
 class _Hold:
@@ -61,24 +60,38 @@ def under_lock(doc, callback: Callable) -> Callable:
     """``callback``, marked as running under ``doc``'s lock while it runs. Only for a
     callback that Bokeh runs under that lock: use :func:`next_tick` or :func:`after`.
 
-    Every model change the callback makes goes to the page in **one** message (Panel's
-    ``unlocked``: the document's events are held and written together when it returns,
-    repeated changes of one property combined). Bokeh's own dispatch sends one message
-    per change, and each message costs a pass over every model of the document (about
-    600 in this page) to serialise: a drag's ~20 changes were ~20 such passes."""
+    The document's change events are held while it runs and sent when it returns, repeated
+    changes of one property combined into one (Bokeh's ``Document.hold("combine")``): a
+    drag's callbacks set some properties several times. They go out through Bokeh's own
+    dispatch, one message each, in order. (Panel's ``unlocked`` wrote them as one message
+    straight to the websocket: that raced with the messages Bokeh was writing, so a
+    message's binary buffers could arrive inside another's and the page failed with
+    "Size mismatch" or hung, seen on every upload of a pair: stop 26.)"""
 
     @functools.wraps(callback)
     def run(*args, **kwargs):
         hold = _Hold(doc)
         token = _HELD.set((*_HELD.get(), hold))
+        combine = _hold_events(doc)
         try:
-            with unlocked():
-                return callback(*args, **kwargs)
+            return callback(*args, **kwargs)
         finally:
             hold.active = False
             _HELD.reset(token)
+            if combine:
+                doc.unhold()
 
     return run
+
+
+def _hold_events(doc) -> bool:
+    """Hold ``doc``'s change events (combined) unless they are held already (a callback
+    inside another); True if this call holds them (and its caller must ``unhold``)."""
+    callbacks = getattr(doc, "callbacks", None)
+    if callbacks is None or getattr(callbacks, "hold_value", None) is not None:
+        return False
+    doc.hold("combine")
+    return True
 
 
 def next_tick(doc, callback: Callable[[], object]) -> None:
