@@ -107,6 +107,7 @@ def test_keys_are_inert_on_the_old_pair_while_a_new_pair_opens(
         handle = group.locator(".noUi-handle").first
         before = title.inner_text()
         title.evaluate(_RECORD)
+        old_frames = page.evaluate("hs.frames()")
 
         page.locator(".hs-upload-body input[type=file]").set_input_files(str(long_body))
         page.locator(".hs-upload-hand input[type=file]").set_input_files(str(LONG_HAND))
@@ -126,13 +127,19 @@ def test_keys_are_inert_on_the_old_pair_while_a_new_pair_opens(
         still_opening = "opening" in busy_line(page)
         # up to 2 s for anything they sent to reach the server and come back; the old pair's
         # point stays while the old pair is shown (the new pair may open meanwhile on a fast
-        # machine: it has no point, so only the veiled moments are counted)
+        # machine: it has no point, and its matrix and empty table come in under the veil
+        # before its first path: only the moments the old pair's matrix is shown count)
         veiled_points = []
         for _ in range(10):
             page.wait_for_timeout(200)
             if page.locator(".hs-inactive").count() < 2:
                 break
-            veiled_points.append(_points(page))
+            frames, points = page.evaluate(
+                "[hs.frames(), hs.cols('hs-points-source', ['x']).x.length]"
+            )
+            if frames != old_frames:
+                break
+            veiled_points.append(points)
         # the page sent nothing: the slider's label never moved, no button was pressed, and
         # the server had no edit to refuse ("not taken: ... is opening")
         titles = page.evaluate("window.__hsTitles")

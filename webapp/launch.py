@@ -8,6 +8,7 @@ that turn matrix cells into screen coordinates.
 
 from __future__ import annotations
 
+import os
 import socket
 import subprocess
 import sys
@@ -71,7 +72,11 @@ def running_server(
     """``handsplice serve --port FREE *serve_args`` in a child process, output to ``log``.
 
     ``env``, ``cwd``: the child's environment and folder (default: this one's, the
-    repository root); benchmarks run another version of the code this way.
+    repository root); benchmarks run another version of the code this way. By default
+    the child imports this checkout's ``engine`` and ``webapp`` (its folder first on
+    ``PYTHONPATH``), not whichever checkout the environment's ``handsplice`` was
+    installed from: a second worktree sharing one virtual environment tests its own
+    server.
 
     Yields ``(url, seconds until it answered)``; the server is stopped on exit.
     Raises ``RuntimeError`` (with the end of the log) if it exits or does not answer
@@ -79,6 +84,9 @@ def running_server(
     """
     port = free_port()
     exe = Path(sys.executable).with_name("handsplice")
+    if env is None:
+        env = dict(os.environ)
+        env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), env.get("PYTHONPATH")) if p)
     t0 = time.monotonic()
     proc = subprocess.Popen(
         [str(exe), "serve", "--port", str(port), *serve_args],
