@@ -70,6 +70,21 @@ def _order(page) -> list[str]:
     return page.evaluate("() => window.hsOrder")
 
 
+def _link_settled(page, must: str, still_s: float = 1.5) -> None:
+    """Wait until the share link contains ``must`` and has not changed for ``still_s``."""
+    box = page.locator(".hs-share-url input")
+    last, since = None, time.monotonic()
+    deadline = since + 120.0
+    while True:
+        link = box.input_value()
+        if link != last:
+            last, since = link, time.monotonic()
+        elif must in link and time.monotonic() - since >= still_s:
+            return
+        assert time.monotonic() < deadline, f"the link did not settle: {link!r}"
+        page.wait_for_timeout(100)
+
+
 def test_drag_sends_the_path_first_and_it_is_the_sessions_path(page, tmp_path):
     n = page.evaluate("hs.frames()")
     path = page.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
@@ -87,6 +102,9 @@ def test_drag_sends_the_path_first_and_it_is_the_sessions_path(page, tmp_path):
     )
     pts = page.evaluate("hs.cols('hs-points-source', ['x', 'y'])")
     assert len(pts["x"]) == 1
+    # the click's own follow-up work is done: its link names the point, and it has stood
+    # still longer than the link's wait for a picked frame and the after-path delay
+    _link_settled(page, "pts=")
 
     page.evaluate(_JS_RECORD)
     rev = revision(page)
