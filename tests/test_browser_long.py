@@ -144,7 +144,9 @@ def test_second_tab_answers_while_first_tab_aligns_a_long_pair(tabs, tmp_path):
     # adds a matching point with one click. On a quiet machine A's re-solve can end
     # before B's round trip does, which proves nothing either way, so each try widens
     # A's band further (a longer solve). With A's solve on the loop, B's answer would
-    # always come after A's, and every try would fail.
+    # always come after A's, and every try would fail. (A's busy line is no sign: it
+    # shows only once a solve has run a second, and A's re-solve is shorter than that on
+    # a quiet machine; A is still solving while its revision is the one before.)
     width = a.locator(".hs-params input").nth(0)  # "W1 in seconds" (a long take has one)
     tries: list[str] = []
     for k, extra_s in enumerate((3, 15, 40, 90)):
@@ -154,18 +156,10 @@ def test_second_tab_answers_while_first_tab_aligns_a_long_pair(tabs, tmp_path):
         old = float(width.input_value())
         width.fill(f"{old + extra_s:g}")
         width.press("Enter")
-        # A's busy line shows once its re-solve runs 0.3 s; a quicker one proves nothing
-        deadline = time.monotonic() + 30
-        while not busy_line(a) and revision(a) == a_rev:
-            assert time.monotonic() < deadline, "tab A neither got busy nor re-solved"
-            a.wait_for_timeout(20)
-        if not busy_line(a):
-            tries.append(f"W1 +{extra_s} s: A's re-solve ended before its busy line showed")
-            continue
         t_a = time.monotonic()
         _click_b(b, 0.5 + 0.1 * k)
         t_b = time.monotonic()
-        a_still_busy = bool(busy_line(a)) and revision(a) == a_rev
+        a_still_busy = revision(a) == a_rev
         # A's new alignment arrives in its turn, with the width typed
         deadline = time.monotonic() + 120
         while revision(a) <= a_rev:
