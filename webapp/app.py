@@ -241,9 +241,19 @@ def _work_sections(session: Session) -> tuple[list, object]:
     trust = TrustView(session, matrix)
     status = controls.status_line(session)
     # matrix, its controls and the preview side by side on a wide screen (they wrap below
-    # one another on a narrow one); the trust layers sit under the matrix
+    # one another on a narrow one); the trust layers sit under the matrix. A refusal shows
+    # right under the matrix, never above it: a box (or a status line wrapping to a second
+    # line) above the matrix moved it down under the pointer, and the next click landed on
+    # another frame (stranger 6)
     views = pn.FlexBox(
-        pn.Column(matrix.panel(), trust.panel(), margin=0, sizing_mode=None, width=trust.width),
+        pn.Column(
+            matrix.panel(),
+            controls.error_alert(session),
+            trust.panel(),
+            margin=0,
+            sizing_mode=None,
+            width=trust.width,
+        ),
         flex_wrap="wrap",
         align_items="flex-start",
         sizing_mode="stretch_width",
@@ -254,7 +264,6 @@ def _work_sections(session: Session) -> tuple[list, object]:
         ALIGN_TEXT,
         status,
         BusyLine(session).panel(),
-        controls.error_alert(session),
         views,
     )
     takes = _section("1 · Takes", "")

@@ -509,8 +509,15 @@ class PointsTable:
         return pn.Column(self.refusal, self._holder, margin=0, sizing_mode="stretch_width")
 
 
+#: the status line's height: two lines of its text, so that an edit whose line wraps to a
+#: second line (unmatched body frames named) does not move the matrix below it, px
+STATUS_MIN_PX = 48
+
+
 def status_line(session: Session) -> pn.viewable.Viewable:
-    """One line: path costs, compute time, band cells, points; the error when one is set."""
+    """One line: path costs, compute time, band cells, points; the error when one is set.
+    It keeps the height of two lines (:data:`STATUS_MIN_PX`), so the matrix under it stays
+    where it is under the pointer."""
     pane = pn.pane.HTML(
         "",
         css_classes=["hs-status"],
@@ -518,6 +525,9 @@ def status_line(session: Session) -> pn.viewable.Viewable:
         styles={
             "font-family": "monospace",
             "font-size": "13px",
+            "line-height": "17px",
+            "box-sizing": "border-box",
+            "min-height": f"{STATUS_MIN_PX}px",
             "padding": "6px 10px",
             "background": "#f3f5f7",
             "border-radius": "4px",
