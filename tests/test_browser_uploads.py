@@ -473,3 +473,15 @@ def test_a_file_named_like_html_runs_no_script(page):
 
 def test_server_log_has_no_tracebacks(served):
     assert_no_traceback(served[2])
+
+
+def test_a_hand_take_in_the_body_field_turns_its_tile_red(page):
+    """The file reads (its tile said *Checked*), but the pair is refused for it: its tile
+    turns red *Not used* next to the reason, the other take's tile stays green (stranger 6)."""
+    _upload(page, "body", HAND_BVH)
+    _tile(page, "body", "ok")
+    _upload(page, "hand", MOCAP / "manipnet" / "mug1_rightHand.bvh")
+    assert _tile(page, "body", "refused") == ("Not used", "see below")
+    alert = page.locator(".hs-upload-error")
+    assert pane_text(alert).startswith(HAND_BVH.name), pane_text(alert)
+    assert page.locator(".hs-upload-hand .filepond--item[data-hs-verdict='ok']").count() == 1

@@ -459,14 +459,27 @@ class InputsView:
         self._inputs_key: tuple | None = None
         if s.body_sha256 != body.digest or s.hand_sha256 != hand.digest:
             self._show_uploaded(failed=True)
-            self._show_error(
-                s.error
-                if s.error and s.error != before
-                else "the uploaded pair could not be opened"
-            )
+            reason = s.error if s.error and s.error != before else ""
+            self._show_error(reason or "the uploaded pair could not be opened")
+            if not s.waits_for_side:
+                self._mark_unusable(reason, body.name, hand.name)
         else:
             self._open = dict(self._pending)
             self._show_uploaded(opened=True)
+
+    def _mark_unusable(self, reason: str, body_name: str, hand_name: str) -> None:
+        """The pair was refused for one of its takes (a hand take in the body field, a body
+        take in the hand field): that take's tile, green *Checked* (the file reads), turns
+        red *Not used*, pointing to the reason below (stranger 6). Only when the reason
+        names one of the two files."""
+        named = [
+            which
+            for which, name in (("body", body_name), ("hand", hand_name))
+            if name and name in reason
+        ]
+        if len(named) == 1 and body_name != hand_name:
+            dropper = self._droppers[named[0]]
+            dropper.verdict("refused", dropper.file_name, "Not used", "see below")
 
     def _open_is_shown(self) -> bool:
         s, opened = self.session, self._open
