@@ -484,4 +484,4 @@ def test_a_hand_take_in_the_body_field_turns_its_tile_red(page):
     assert _tile(page, "body", "refused") == ("Not used", "see below")
     alert = page.locator(".hs-upload-error")
     assert pane_text(alert).startswith(HAND_BVH.name), pane_text(alert)
-    assert page.locator(".hs-upload-hand .filepond--item[data-hs-verdict='ok']").count() == 1
+    assert _tile(page, "hand", "ok")[0] == "Checked"
