@@ -57,6 +57,9 @@ PATH_COLOR = "#ff3b30"
 OTHER_PATH_COLOR = "#ffffff"
 BAND_COLOR = "#4fc3f7"
 POINT_COLOR = "#ffd60a"
+#: the ring of the selected matching point (the one Backspace deletes): magenta, unlike
+#: the matrix's colours, the path, the band and the points' yellow
+SELECTED_POINT_RING = "#e040fb"
 #: a matching point's marker, pixels across, and how near (pixels from its centre) the
 #: pointer shows the point's tooltip instead of the cell's
 POINT_SIZE = 13
@@ -488,6 +491,12 @@ class CostMatrixView:
             fill_color=POINT_COLOR,
             line_color="black",
             line_width=1.5,
+            # the point a click selected (what Backspace deletes) has a thick magenta ring; the
+            # others stay as they are (Bokeh would fade them)
+            selection_line_color=SELECTED_POINT_RING,
+            selection_line_width=4,
+            nonselection_fill_alpha=1.0,
+            nonselection_line_alpha=1.0,
             name="hs-points-glyph",
         )
         self.point_tool = PointDrawTool(
