@@ -34,6 +34,35 @@ def cropped_bvh(src: Path, dest: Path, frames: int) -> Path:
     return dest
 
 
+LONG_BODY = MOCAP / "lafan1" / "multipleActions1_subject1.bvh"
+MUG_HAND = MOCAP / "manipnet" / "mug1_rightHand.bvh"
+
+
+@pytest.fixture(scope="session")
+def long_pair(tmp_path_factory):
+    """``long_pair(seconds, fps=120.0) -> (body, hand)``: a long real pair on disk, made once
+    per session for each length: LAFAN1 ``multipleActions1`` resampled to ``fps`` and cut to
+    its first ``seconds`` (``seconds * fps`` frames), with ManipNet's mug hand take (33 s at
+    120 fps)."""
+    made: dict[tuple[float, float], tuple[Path, Path]] = {}
+
+    def make(seconds: float, fps: float = 120.0) -> tuple[Path, Path]:
+        key = (float(seconds), float(fps))
+        if key not in made:
+            from engine.io import load_take
+            from engine.io.bvh import write_bvh
+            from engine.model.kinematics import resample
+
+            body = resample(load_take(LONG_BODY), fps)
+            folder = tmp_path_factory.mktemp(f"long{int(seconds)}s")
+            path = folder / f"multipleActions1_{int(seconds)}s_{int(fps)}fps.bvh"
+            write_bvh(body.frames(0, int(seconds * fps)), path)
+            made[key] = (path, MUG_HAND)
+        return made[key]
+
+    return make
+
+
 @pytest.fixture(scope="session")
 def mocap_dir() -> Path:
     if not MOCAP.is_dir():

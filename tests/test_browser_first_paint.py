@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import HAS_PATH, MOCAP, open_tab, served_chromium
+from conftest import HAS_PATH, open_tab, served_chromium
 
 pytestmark = pytest.mark.browser
 
@@ -31,16 +31,8 @@ FPS = 120.0
 
 
 @pytest.fixture(scope="module")
-def pair(tmp_path_factory) -> tuple[Path, Path]:
-    from engine.io import load_take
-    from engine.io.bvh import write_bvh
-    from engine.model.kinematics import resample
-
-    folder = tmp_path_factory.mktemp("pair")
-    body = resample(load_take(MOCAP / "lafan1" / "multipleActions1_subject1.bvh"), FPS)
-    path = folder / "multipleActions1_30s_120fps.bvh"
-    write_bvh(body.frames(0, int(SECONDS * FPS)), path)
-    return path, MOCAP / "manipnet" / "mug1_rightHand.bvh"
+def pair(long_pair) -> tuple[Path, Path]:
+    return long_pair(SECONDS, FPS)
 
 
 @pytest.fixture(scope="module")

@@ -27,12 +27,10 @@ from __future__ import annotations
 
 import re
 import time
-from pathlib import Path
 
 import pytest
 from conftest import (
     HAS_PATH,
-    MOCAP,
     assert_no_traceback,
     band_cells,
     busy_line,
@@ -48,19 +46,6 @@ pytestmark = pytest.mark.browser
 BODY_SECONDS = 120
 FPS = 120.0
 SERVER_START_S = 400
-
-
-@pytest.fixture(scope="module")
-def long_pair(tmp_path_factory) -> tuple[Path, Path]:
-    from engine.io import load_take
-    from engine.io.bvh import write_bvh
-    from engine.model.kinematics import resample
-
-    folder = tmp_path_factory.mktemp("long")
-    body = resample(load_take(MOCAP / "lafan1" / "multipleActions1_subject1.bvh"), FPS)
-    body_path = folder / "multipleActions1_120fps.bvh"
-    write_bvh(body.frames(0, int(BODY_SECONDS * FPS)), body_path)
-    return body_path, MOCAP / "manipnet" / "mug1_rightHand.bvh"
 
 
 def _page(context, url: str):
@@ -81,7 +66,7 @@ def tabs(browser, long_pair, tmp_path_factory):
     """``(tab A on the long pair, aligned; tab B on the demo pair, aligned; log path)``."""
     from webapp.config import SAMPLE_DIR, demo_sample_name
 
-    body, hand = long_pair
+    body, hand = long_pair(BODY_SECONDS, FPS)
     demo = demo_sample_name(SAMPLE_DIR)
     with (
         served_app(tmp_path_factory, str(body), str(hand), "--no-warm", timeout=SERVER_START_S) as (

@@ -8,10 +8,14 @@ import re
 import time
 
 import pytest
-from conftest import MOCAP, busy_line, click_path_mid_take, open_page, pane_text
-
-LONG_BODY = MOCAP / "lafan1" / "multipleActions1_subject1.bvh"
-LONG_HAND = MOCAP / "manipnet" / "mug1_rightHand.bvh"
+from conftest import (
+    LONG_BODY,
+    MUG_HAND,
+    busy_line,
+    click_path_mid_take,
+    open_page,
+    pane_text,
+)
 
 pytestmark = pytest.mark.browser
 
@@ -110,7 +114,7 @@ def test_keys_are_inert_on_the_old_pair_while_a_new_pair_opens(
         old_frames = page.evaluate("hs.frames()")
 
         page.locator(".hs-upload-body input[type=file]").set_input_files(str(long_body))
-        page.locator(".hs-upload-hand input[type=file]").set_input_files(str(LONG_HAND))
+        page.locator(".hs-upload-hand input[type=file]").set_input_files(str(MUG_HAND))
         deadline = time.monotonic() + 300
         while "opening multipleActions1_subject1.bvh" not in busy_line(page):
             assert time.monotonic() < deadline, "the upload did not start opening"

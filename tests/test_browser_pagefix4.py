@@ -31,7 +31,9 @@ import pytest
 from conftest import (
     BODY_BVH,
     HAND_BVH,
+    LONG_BODY,
     MOCAP,
+    MUG_HAND,
     busy_line,
     cropped_bvh,
     pane_text,
@@ -40,8 +42,6 @@ from conftest import (
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(1500)]
 
 BUSY_S = 300.0
-MUG = MOCAP / "manipnet" / "mug1_rightHand.bvh"
-LAFAN = MOCAP / "lafan1" / "multipleActions1_subject1.bvh"
 BODY_C3D = MOCAP / "pyomeca" / "markers_analogs.c3d"
 #: a 64-digit hex name: the server's kept file of an upload
 KEPT_NAME = re.compile(r"[0-9a-f]{64}")
@@ -92,7 +92,7 @@ def _cli(page, pattern: str) -> str:
 
 
 def test_an_uploaded_hand_takes_the_side_its_file_name_says(page, tmp_path):
-    hand = cropped_bvh(MUG, tmp_path / "mug_leftHand.bvh", 480)  # 4 s at 120 fps
+    hand = cropped_bvh(MUG_HAND, tmp_path / "mug_leftHand.bvh", 480)  # 4 s at 120 fps
     assert _active_side(page) == "right"  # the demo pair's side
     _upload(page, "body", BODY_BVH)
     _wait_line(page, r"Uploaded body:.*now the other take")
@@ -124,15 +124,15 @@ RECORD = """() => {
 
 
 def test_a_large_upload_says_how_much_has_arrived(page):
-    assert LAFAN.stat().st_size > 3e6
+    assert LONG_BODY.stat().st_size > 3e6
     page.evaluate(RECORD)
-    _upload(page, "body", LAFAN)
+    _upload(page, "body", LONG_BODY)
     _wait_line(page, r"Uploaded body:.*multipleActions1_subject1\.bvh.*now the other take")
     tags = page.evaluate("window.hsTags")
     receiving = [t for t in tags if t[0] == "receiving"]
     assert receiving, tags  # the tile said how much the server has, before "Checking…"
     for _, name, main, sub, _serial in receiving:
-        assert name == LAFAN.name
+        assert name == LONG_BODY.name
         assert re.fullmatch(r"Receiving \d{1,2} %", main), main
         assert re.match(r"\d+\.\d of \d+\.\d MB", sub), sub
     assert [t[0] for t in tags][-2:] == ["checking", "ok"], tags
@@ -153,7 +153,7 @@ def _link(page, pattern: str) -> dict:
 
 
 def test_a_hand_with_only_the_other_side_waits_and_the_side_chosen_opens_it(page, tmp_path):
-    left = cropped_bvh(MUG, tmp_path / "mug_leftHand.bvh", 480)  # as the R3-7 test's
+    left = cropped_bvh(MUG_HAND, tmp_path / "mug_leftHand.bvh", 480)  # as the R3-7 test's
     _upload(page, "body", BODY_BVH)
     _wait_line(page, r"Uploaded body:.*now the other take")
     _upload(page, "hand", left)

@@ -15,15 +15,13 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import busy_line, click_path_mid_take
+from conftest import LONG_BODY, MUG_HAND, busy_line, click_path_mid_take
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(1500)]
 
 MOCAP = Path(__file__).resolve().parents[2] / "shared" / "data" / "mocap"
 #: a long pair (4,587 body frames at 30 fps, 4,000 hand frames at 120 fps): its opening
 #: takes seconds, long enough to look at the page meanwhile
-LONG_BODY = MOCAP / "lafan1" / "multipleActions1_subject1.bvh"
-LONG_HAND = MOCAP / "manipnet" / "mug1_rightHand.bvh"
 BUSY_S = 300
 
 
@@ -62,7 +60,7 @@ def test_old_pair_is_inactive_while_a_new_upload_opens(page, tmp_path):
     assert demo and "uploaded" not in demo
     n_demo = page.evaluate("hs.frames()")
     page.locator(".hs-upload-body input[type=file]").set_input_files(str(LONG_BODY))
-    page.locator(".hs-upload-hand input[type=file]").set_input_files(str(LONG_HAND))
+    page.locator(".hs-upload-hand input[type=file]").set_input_files(str(MUG_HAND))
     # the pair starts opening once both takes are checked: one progress line says so
     _until(
         page,

@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import HAS_PATH, MOCAP, band_cells, busy_line, open_tab, served_chromium, status_line
+from conftest import HAS_PATH, band_cells, busy_line, open_tab, served_chromium, status_line
 
 pytestmark = pytest.mark.browser
 
@@ -25,16 +25,8 @@ COSTS = re.compile(r"pass 1 cost \S+ · pass 2 cost \S+")
 
 
 @pytest.fixture(scope="module")
-def pair(tmp_path_factory) -> tuple[Path, Path]:
-    from engine.io import load_take
-    from engine.io.bvh import write_bvh
-    from engine.model.kinematics import resample
-
-    folder = tmp_path_factory.mktemp("pair")
-    body = resample(load_take(MOCAP / "lafan1" / "multipleActions1_subject1.bvh"), FPS)
-    path = folder / "multipleActions1_30s_120fps.bvh"
-    write_bvh(body.frames(0, int(SECONDS * FPS)), path)
-    return path, MOCAP / "manipnet" / "mug1_rightHand.bvh"
+def pair(long_pair) -> tuple[Path, Path]:
+    return long_pair(SECONDS, FPS)
 
 
 def _open(browser, url: str):
