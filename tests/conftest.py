@@ -123,6 +123,22 @@ def open_demo_session(upload_dir: Path, sample: str = DEMO_SAMPLE):
     return session
 
 
+def demo_pair_uploaded(cfg, session=None):
+    """``(session, body_hash, hand_hash)``: the demo pair's two takes stored as uploads in
+    ``cfg``'s upload folder (as ``body.bvh`` and ``hand.bvh``) and opened in ``session`` (a
+    new ``webapp.state.Session`` if None), aligned."""
+    from webapp import uploads
+    from webapp.state import Session
+
+    pair = cfg.sample(DEMO_SAMPLE)
+    body, _ = uploads.store(cfg, "body.bvh", pair.body.read_bytes())
+    hand, _ = uploads.store(cfg, "hand.bvh", pair.hand.read_bytes())
+    session = session if session is not None else Session(cfg)
+    session.load_uploads(body, hand, "body.bvh", "hand.bvh")
+    assert session.error == "" and session.solution is not None, session.error
+    return session, body, hand
+
+
 # --- browser tests (tests/test_browser*.py): one copy of each page helper -----------------
 
 #: the demo-sized pair the browser tests upload through the page's file fields

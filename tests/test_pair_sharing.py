@@ -10,10 +10,10 @@ from urllib.parse import parse_qsl, urlsplit
 
 import numpy as np
 import pytest
-from conftest import demo_config
+from conftest import demo_config, demo_pair_uploaded
 
 from engine.io.numbers import parse_rows
-from webapp import backend, config, uploads
+from webapp import backend, config
 from webapp.state import Session
 
 DEMO = "wave-ok"
@@ -79,12 +79,7 @@ def _query(s: Session) -> dict:
 def test_an_uploaded_pair_reopened_by_its_link_shows_its_alignment_without_solving(cfg):
     """Stranger R5-2: a tab opening an uploaded pair's share link solved both passes again
     (the link's opening called ``backend.solve``, never the shared first alignment)."""
-    pair = cfg.sample(DEMO)
-    body, _ = uploads.store(cfg, "body.bvh", pair.body.read_bytes())
-    hand, _ = uploads.store(cfg, "hand.bvh", pair.hand.read_bytes())
-    s = Session(cfg)
-    s.load_uploads(body, hand, "body.bvh", "hand.bvh")
-    assert s.error == "" and s.solution is not None
+    s, body, hand = demo_pair_uploaded(cfg)
     solved = backend.FIRST_STATS["solved"]
     other = Session(cfg)
     other.open_link(_query(s))

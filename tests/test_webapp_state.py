@@ -7,7 +7,7 @@ from urllib.parse import parse_qsl, urlsplit
 
 import numpy as np
 import pytest
-from conftest import demo_config
+from conftest import demo_config, demo_pair_uploaded
 
 from engine.base.errors import HandSpliceError
 from engine.dtw import constraints as C
@@ -480,12 +480,7 @@ def test_the_printed_url_of_a_pair_opened_from_disk_opens_it(tmp_path):
 
 
 def test_session_on_uploaded_files(cfg):
-    pair = cfg.sample(DEMO)
-    body, _ = uploads.store(cfg, "body.bvh", pair.body.read_bytes())
-    hand, _ = uploads.store(cfg, "hand.bvh", pair.hand.read_bytes())
-    s = Session(cfg)
-    s.load_uploads(body, hand, "body.bvh", "hand.bvh")
-    assert s.error == "" and s.solution is not None
+    s, body, hand = demo_pair_uploaded(cfg)
     query = s.to_query()
     assert query["body"] == body and "sample" not in query
     other = Session(cfg)
@@ -1181,12 +1176,8 @@ def test_a_new_pair_drops_the_old_pairs_matching_points(cfg, session):
     session.load_sample("wave-hello")
     assert session.error == "" and session.points == ()
     session.add_point(30, 10, 2)
-    pair = cfg.sample(DEMO)
-    body, _ = uploads.store(cfg, "body.bvh", pair.body.read_bytes())
-    hand, _ = uploads.store(cfg, "hand.bvh", pair.hand.read_bytes())
-    session.load_uploads(body, hand, "body.bvh", "hand.bvh")
-    assert session.error == "" and session.points == ()
-    assert session.solution is not None
+    demo_pair_uploaded(cfg, session)
+    assert session.points == ()
 
 
 def test_a_hand_take_uploaded_as_the_body_is_refused_and_the_pair_stays(cfg, session):

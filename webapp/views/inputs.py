@@ -322,13 +322,7 @@ class InputsView:
         """A take was refused: its tile turns red with ``words`` under "Refused", the
         reason is shown, and the take of the open uploaded pair (if any) is the one the next
         upload pairs with."""
-        dropper = self._droppers[which]
-        dropper.verdict(
-            "refused",
-            dropper.file_name if tile is None else tile,
-            "Refused",
-            words,
-        )
+        self._red_tile(which, "Refused", words, tile)
         if which in self._open:
             self._pending[which] = self._open[which]
         else:
@@ -478,8 +472,13 @@ class InputsView:
             if name and name in reason
         ]
         if len(named) == 1 and body_name != hand_name:
-            dropper = self._droppers[named[0]]
-            dropper.verdict("refused", dropper.file_name, "Not used", "see below")
+            self._red_tile(named[0], "Not used", "see below")
+
+    def _red_tile(self, which: str, title: str, words: str, tile: str | None = None) -> None:
+        """``which`` field's tile turns red: ``title`` ("Refused", "Not used") over ``words``,
+        named ``tile`` (default: the file the field holds)."""
+        dropper = self._droppers[which]
+        dropper.verdict("refused", dropper.file_name if tile is None else tile, title, words)
 
     def _open_is_shown(self) -> bool:
         s, opened = self.session, self._open
