@@ -8,10 +8,8 @@ others ``moving (F, K, 3)`` (``joints (K,)`` ascending), and behaves as that arr
 reading: indexing, ``np.asarray``, arithmetic and numpy functions give plain arrays
 whose values are those of the whole array, bit for bit (only the frames and joints
 indexed are made). It is not written through: ``copy()`` gives a plain array to change.
-
-Element-wise arithmetic with scalars or values broadcast along the last axis (``t *
-flip``, ``t * 100``) is made on ``fixed`` and ``moving`` alone and gives a
-``Translations`` again (the same floats as on the whole array).
+``frames`` and ``scaled`` give a ``Translations`` again (a take's frames, a take mirrored
+or in other units) without making the whole array.
 """
 
 from __future__ import annotations
@@ -130,9 +128,9 @@ class Translations(NDArrayOperatorsMixin):
         out[..., self.joints, :] = moving
         return out
 
-    def frames(self, start: int | None, stop: int | None = None) -> Translations:
-        """Frames ``[start, stop)``, stored as compactly (``moving`` is a view)."""
-        return Translations(self.fixed, self.joints, self.moving[start:stop])
+    def frames(self, start: int | None, stop: int | None = None, step: int | None = None):
+        """Frames ``[start:stop:step]`` as a ``Translations`` (``moving`` is a view)."""
+        return Translations(self.fixed, self.joints, self.moving[start:stop:step])
 
     def __getitem__(self, key):
         key = key if isinstance(key, tuple) else (key,)
@@ -163,25 +161,21 @@ class Translations(NDArrayOperatorsMixin):
         return out[(slice(None),) * (lead + chosen.ndim) + rest[1:]]
 
     def __array_ufunc__(self, ufunc, method, *inputs, **kwargs):
-        if method == "__call__" and not kwargs:
-            others = [x for x in inputs if not isinstance(x, Translations)]
-            if len(others) == len(inputs) - 1 and all(np.ndim(x) <= 1 for x in others):
-                fixed = ufunc(*(self.fixed if x is self else x for x in inputs))
-                moving = ufunc(*(self.moving if x is self else x for x in inputs))
-                if (
-                    isinstance(fixed, np.ndarray)
-                    and fixed.shape == self.fixed.shape
-                    and moving.shape == self.moving.shape
-                ):
-                    if fixed.dtype == np.float64:
-                        return Translations(fixed, self.joints, moving)
-                    return self._assemble(fixed, moving)
+        """numpy's functions and operators see the whole array (a plain one is returned)."""
         inputs = tuple(np.asarray(x) if isinstance(x, Translations) else x for x in inputs)
         if "out" in kwargs:
             kwargs["out"] = tuple(
                 np.asarray(x) if isinstance(x, Translations) else x for x in kwargs["out"]
             )
         return getattr(ufunc, method)(*inputs, **kwargs)
+
+    def scaled(self, factor) -> Translations:
+        """``self * factor`` (a scalar or per-axis ``(3,)``) stored as compactly: the same
+        floats as the whole array times ``factor``."""
+        factor = np.asarray(factor, dtype=np.float64)
+        if factor.ndim > 1:
+            raise ValueError(f"translations: factor must be a scalar or (3,), got {factor.shape}")
+        return Translations(self.fixed * factor, self.joints, self.moving * factor)
 
     def __repr__(self) -> str:
         return (
