@@ -82,7 +82,9 @@ def geometric_side(motion: Motion, arm, fk=None) -> SideVote:
         step = max(1, motion.n_frames // MAX_FRAMES)
         pos = forward_kinematics(
             replace(
-                motion, rotations=motion.rotations[::step], translations=motion.translations.frames(None, None, step)
+                motion,
+                rotations=motion.rotations[::step],
+                translations=motion.translations.frames(None, None, step),
             )
         )[0]
     else:

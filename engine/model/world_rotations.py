@@ -62,7 +62,11 @@ class WorldRotations:
         for a in range(0, max(frames.size, 1), CHUNK):
             part = frames[a : a + CHUNK]
             step = part[1] - part[0] if part.size > 1 else 1
-            if part.size and step > 0 and np.array_equal(part, part[0] + step * np.arange(part.size)):
+            if (
+                part.size
+                and step > 0
+                and np.array_equal(part, part[0] + step * np.arange(part.size))
+            ):
                 which = slice(int(part[0]), int(part[-1]) + 1, int(step))
             else:
                 which = part

@@ -47,8 +47,8 @@ from engine.model.fastkin import (
 )
 from engine.model.kinematics import rest_positions
 from engine.model.motion import Motion, Skeleton
-from engine.model.translations import Translations
 from engine.model.roles import FINGERS
+from engine.model.translations import Translations
 
 
 @dataclass(frozen=True)
