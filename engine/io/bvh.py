@@ -89,6 +89,7 @@ from engine.model.motion import (
     MotionMeta,
     Skeleton,
 )
+from engine.model.translations import Translations
 
 _CHANNEL_NAMES = POSITION_CHANNELS + ROTATION_CHANNELS
 _CHANNEL_LOOKUP = {c.lower(): c for c in _CHANNEL_NAMES}
@@ -452,7 +453,7 @@ def _finite_numbers(vals: list[str], where: str | None, i: int, field: str) -> n
 
 def _parse_motion(
     lines: list[str], motion_line: int, skeleton: Skeleton, where: str | None, text_bytes: int = 0
-) -> tuple[float, np.ndarray, np.ndarray]:
+) -> tuple[float, np.ndarray, Translations | np.ndarray]:
     """fps, local quaternions ``(F, J, 4)`` and translations ``(F, J, 3)`` of the MOTION
     section (``_read_rows``).
 
@@ -556,7 +557,7 @@ def _parse_motion(
         raise short
     if len(row_lines) == n_frames + 1 and first_zero:
         # gestification: a zero row before the take
-        rotations, translations = rotations[1:], translations[1:]
+        rotations, translations = rotations[1:], translations.frames(1)
     return fps, rotations, translations
 
 
@@ -576,9 +577,11 @@ def _read_rows(
     skeleton: Skeleton,
     where: str | None,
     short: MotionFormatError | None = None,
-) -> tuple[np.ndarray, np.ndarray, bool]:
+) -> tuple[np.ndarray, Translations, bool]:
     """Local quaternions ``(R, J, 4)`` and translations ``(R, J, 3)`` of the ``R`` data
-    rows ``lines[row_lines]``, and whether the first row is all zeros.
+    rows ``lines[row_lines]``, and whether the first row is all zeros. The translations
+    are a :class:`Translations`: a joint without position channels (its OFFSET every
+    frame), or whose position channels never change, is stored once.
 
     Rows are split and converted ``ROWS_PER_CHUNK`` at a time straight into the pose
     arrays: no list of every value, no ``(R, C)`` copy of the whole take. A chunk with
@@ -591,7 +594,9 @@ def _read_rows(
     n_rows = len(row_lines)
     n_joints = skeleton.n_joints
     rotations = np.empty((n_rows, n_joints, 4))
-    translations = np.empty((n_rows, n_joints, 3))
+    # only joints with position channels can move: the others keep their OFFSET, stored once
+    moving = [j for j in range(n_joints) if skeleton.has_position_channels(j)]
+    positions = np.empty((n_rows, len(moving), 3))
     first_zero = False
     try:
         for start in range(0, n_rows, ROWS_PER_CHUNK):
@@ -599,11 +604,13 @@ def _read_rows(
             if start == 0 and n_rows:
                 first_zero = not block[0].any()
             stop = start + block.shape[0]
-            rotations[start:stop], translations[start:stop] = _channels_to_pose(skeleton, block)
-            del block
+            rotations[start:stop], trans = _channels_to_pose(skeleton, block)
+            positions[start:stop] = trans[:, moving]
+            del block, trans
     except _RowTrouble:
-        del rotations, translations
+        del rotations, positions
         raise _explain_rows(lines, row_lines, n_values, where, short) from None
+    translations = Translations(skeleton.offsets, moving, positions).compact()
     return rotations, translations, first_zero
 
 

@@ -18,6 +18,7 @@ import numpy as np
 
 from engine.base.jit import FASTMATH
 from engine.model.motion import Motion
+from engine.model.translations import Translations
 
 _FASTMATH = set(FASTMATH)  # engine.base.jit: the one place for numba options
 
@@ -68,18 +69,23 @@ def forward_kinematics(motion: Motion, frames=None) -> tuple[np.ndarray, np.ndar
     ``frames``: only these frames (a slice, an int array, or an int: then ``(1, J, ...)``);
     each frame's values are the same floats as in the whole take's (frames are independent),
     and a slice of a contiguous take is read in place (no copy of the take)."""
-    rot, trans = motion.rotations, motion.translations
+    trans = motion.translations
+    if not isinstance(trans, Translations):  # a plain array is the caller's: not written
+        trans = np.array(trans, dtype=np.float64)
+    rot = motion.rotations
     if frames is not None:
         if isinstance(frames, (int, np.integer)):
             f = int(frames) % max(rot.shape[0], 1)
             frames = slice(f, f + 1)
         rot, trans = rot[frames], trans[frames]
     rot = np.ascontiguousarray(rot, dtype=np.float64)
-    trans = np.ascontiguousarray(trans, dtype=np.float64)
+    # ``trans``: the local translations of the frames asked for, a fresh array (Translations
+    # makes one when read). The kernel reads trans[f, j] before it writes wpos[f, j] and
+    # never after, so they become the world positions in place (no second (F, J, 3) array)
+    wpos = np.ascontiguousarray(np.asarray(trans), dtype=np.float64)
     parents = np.ascontiguousarray(motion.skeleton.parents, dtype=np.int64)
-    wpos = np.zeros(trans.shape)
     wrot = np.zeros(rot.shape)
-    _fk_kernel(rot, trans, parents, wpos, wrot)
+    _fk_kernel(rot, wpos, parents, wpos, wrot)
     return wpos, wrot
 
 

@@ -82,7 +82,9 @@ def geometric_side(motion: Motion, arm, fk=None) -> SideVote:
         step = max(1, motion.n_frames // MAX_FRAMES)
         pos = forward_kinematics(
             replace(
-                motion, rotations=motion.rotations[::step], translations=motion.translations[::step]
+                motion,
+                rotations=motion.rotations[::step],
+                translations=motion.translations.frames(None, None, step),
             )
         )[0]
     else:
@@ -179,7 +181,7 @@ def mirror_take(motion: Motion, axis: int = 0) -> Motion:
         motion,
         skeleton=mirror_skeleton(motion.skeleton, axis),
         rotations=motion.rotations * qflip,
-        translations=motion.translations * flip,
+        translations=motion.translations.scaled(flip),
     )
 
 

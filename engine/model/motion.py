@@ -14,6 +14,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from engine.model import rotations as rot
+from engine.model.translations import Translations
 
 POSITION_CHANNELS = ("Xposition", "Yposition", "Zposition")
 ROTATION_CHANNELS = ("Xrotation", "Yrotation", "Zrotation")
@@ -134,6 +135,9 @@ class Motion:
     translations : (F, J, 3) float array, file units
         Local joint translations: the position channels where a joint has them
         (the root's path, or every joint in 6-channel files), else the rest offset.
+        Held as a :class:`~engine.model.translations.Translations` (an array given is
+        converted): a joint constant over the take is stored once, not per frame; it
+        reads as the ``(F, J, 3)`` array (indexing, ``np.asarray``, arithmetic).
     fps : float
         Frames per second.
     meta : MotionMeta
@@ -147,14 +151,16 @@ class Motion:
 
     def __post_init__(self) -> None:
         r = np.asarray(self.rotations, dtype=float)
-        t = np.asarray(self.translations, dtype=float)
-        object.__setattr__(self, "rotations", r)
-        object.__setattr__(self, "translations", t)
+        t = self.translations
+        if not isinstance(t, Translations):
+            t = np.asarray(t, dtype=float)
         j = self.skeleton.n_joints
         if r.ndim != 3 or r.shape[1:] != (j, 4):
             raise ValueError(f"motion: rotations must be (frames, {j}, 4), got {r.shape}")
         if t.shape != r.shape[:2] + (3,):
             raise ValueError(f"motion: translations must be {r.shape[:2] + (3,)}, got {t.shape}")
+        object.__setattr__(self, "rotations", r)
+        object.__setattr__(self, "translations", Translations.of(t))
         if not (np.isfinite(self.fps) and self.fps > 0):
             raise ValueError(f"motion: fps must be positive, got {self.fps}")
 
@@ -180,7 +186,9 @@ class Motion:
     def frames(self, start: int, stop: int | None = None) -> Motion:
         """The frame range ``[start, stop)`` as a new Motion."""
         return replace(
-            self, rotations=self.rotations[start:stop], translations=self.translations[start:stop]
+            self,
+            rotations=self.rotations[start:stop],
+            translations=self.translations.frames(start, stop),
         )
 
     @classmethod
@@ -193,7 +201,7 @@ class Motion:
     ) -> Motion:
         """A take that holds the rest pose for ``n_frames`` frames."""
         rots = rot.identity((n_frames, skeleton.n_joints))
-        trans = np.broadcast_to(skeleton.offsets, (n_frames, skeleton.n_joints, 3)).copy()
+        trans = Translations(skeleton.offsets, [], np.zeros((n_frames, 0, 3)))
         return cls(skeleton, rots, trans, fps, meta or MotionMeta(format="derived"))
 
 

@@ -52,6 +52,7 @@ from engine.dtw.align import SharedCosts
 from engine.dtw.kernels import get_metric, metric_names
 from engine.model.hand_side import match_chirality, undecided_message
 from engine.model.motion import MarkerSet, Motion
+from engine.model.world_rotations import WorldRotations
 from engine.splice import coarse as CO
 from engine.splice import merge as MG
 from engine.splice import point_rate as PR
@@ -462,8 +463,9 @@ def _check_body_arms(rb, sides, body_name: str) -> None:
 class _ArmMarkers:
     """Both takes' virtual arm markers of ``sides`` side by side, ``(frames, markers, 3)``
     (the hand take at the body's rate ``fps``), their trunk headings (radians, None without
-    a trunk; the hand's at its own rate) and the hand frames of BVH takes; ``body_fk`` keeps
-    the body's world rotations for the transfer."""
+    a trunk; the hand's at its own rate) and the hand frames of BVH takes; ``body_fk`` gives
+    the body's world rotations for the transfer (``WorldRotations``: made when read, the
+    same floats as the features' forward kinematics)."""
 
     body_markers: np.ndarray
     hand_markers: np.ndarray
@@ -475,16 +477,16 @@ class _ArmMarkers:
 
 
 def _arm_markers(body, hand, rb, rh, sides, fps: float) -> _ArmMarkers:
-    """Forward kinematics by blocks of frames (features.take_markers): the body keeps its
-    world rotations for the transfer, the hand take keeps nothing; marker sets give their
-    markers as they are."""
+    """Forward kinematics by blocks of frames (features.take_markers): neither take keeps
+    its world rotations (the body's are posed again when the transfer reads them); marker
+    sets give their markers as they are."""
     body_frames: dict[str, HandFrame] = {}
     hand_frames: dict[str, HandFrame] = {}
     body_fk = None
     if isinstance(body, Motion):
         body_frames = {s: hand_frame(body, rb, s) for s in sides}
-        bmk, body_yaw, body_rot = take_markers(body, rb, body_frames, keep_rotations=True)
-        body_fk = (None, body_rot)
+        bmk, body_yaw, _ = take_markers(body, rb, body_frames)
+        body_fk = (None, WorldRotations(body))  # posed again when read: nothing kept
         bm = [bmk[s] for s in sides]
     else:
         bm = [marker_set_markers(body, s).markers for s in sides]

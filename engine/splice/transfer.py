@@ -48,6 +48,7 @@ from engine.model.fastkin import (
 from engine.model.kinematics import rest_positions
 from engine.model.motion import Motion, Skeleton
 from engine.model.roles import FINGERS
+from engine.model.translations import Translations
 
 
 @dataclass(frozen=True)
@@ -552,7 +553,8 @@ def apply_transfer(
 
     Returns a Motion on ``plan.skeleton`` at the body's frame rate and units.
 
-    Memory: the output's rotations and translations plus temporaries for
+    Memory: the output's rotations and its moving joints' translations (the body's
+    moving joints: the root's path; the others stored once) plus temporaries for
     ``TRANSFER_CHUNK`` frames at a time (sampling, forward kinematics of the hand
     take, relative rotations); every step is per frame except the sign continuity of
     the quaternions, done in place at the end.
@@ -565,7 +567,14 @@ def apply_transfer(
     jn = plan.skeleton.n_joints
     nb = plan.n_body_joints
     rots = np.empty((n, jn, 4))
-    trans = np.empty((n, jn, 3))
+    # only the body's moving joints move in the output (the others keep their offsets):
+    # their frames are kept, the rest once (Translations)
+    bi = np.arange(nb) if plan.body_index is None else np.asarray(plan.body_index)
+    moving = bi[body.translations.joints]
+    order = np.argsort(moving)
+    moving = moving[order]
+    positions = np.empty((n, moving.size, 3))
+    fixed = np.asarray(plan.skeleton.offsets, dtype=float)
     used = hand_joints_read(plan, hand.skeleton)
     for f0 in range(0, n, TRANSFER_CHUNK):
         f1 = min(n, f0 + TRANSFER_CHUNK)
@@ -573,9 +582,15 @@ def apply_transfer(
             gb = forward_kinematics(body.frames(f0, f1))[1]
         else:
             gb = g_b[f0:f1]
-        _transfer_block(plan, body, hand, t[f0:f1], gb, f0, f1, rots[f0:f1], trans[f0:f1], nb, used)
+        trans = np.empty((f1 - f0, jn, 3))
+        _transfer_block(plan, body, hand, t[f0:f1], gb, f0, f1, rots[f0:f1], trans, nb, used)
+        positions[f0:f1] = trans[:, moving]
+        if f0 == 0:
+            fixed = trans[0].copy()
+        del trans
     continuous_inplace(rots)
-    return Motion(plan.skeleton, rots, trans, body.fps, replace(body.meta, format="derived"))
+    translations = Translations(fixed, moving, positions)
+    return Motion(plan.skeleton, rots, translations, body.fps, replace(body.meta, format="derived"))
 
 
 def hand_joints_read(plan: TransferPlan, hand_skeleton: Skeleton) -> np.ndarray:
