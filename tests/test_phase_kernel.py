@@ -425,11 +425,12 @@ def test_converted_hand_masks_are_the_rows_masks_at_every_bin_and_frame(feats):
         (PK.prepare(a, b).reversed(), slice(None, None, -1)),
     ):
         want_z, want_g = (p | q)[sl], p[sl]
+        rows_ = PK._mask_rows(state.hand[4])
         codes = np.zeros((rmask + 1) * nb * 2, np.uint64)
         done = 0
         for top in range(rmask // 2, m + rmask // 2, rmask // 2):  # a ring's worth at a time
             first = done
-            done = PK._convert(state.hand[4], nb, done, min(top, m - 1), codes, rmask)
+            done = PK._convert(rows_, nb, done, min(top, m - 1), codes, rmask)
             frames = np.arange(max(done - rmask - 1, 0), done)
             assert frames[0] <= first
             bins, fr = np.meshgrid(np.arange(nb), frames)

@@ -379,6 +379,22 @@ class PhaseProblem:
     def args(self) -> tuple:
         return (*self.body, *self.hand, self.mode, self.nb, self.half)
 
+    def kernel_args(self) -> tuple:
+        """:meth:`args` with the hand's masks as :func:`_convert` reads them."""
+        hx, hz, hmx, hmz, masks, hyaw = self.hand
+        return (
+            *self.body,
+            hx,
+            hz,
+            hmx,
+            hmz,
+            _mask_rows(masks),
+            hyaw,
+            self.mode,
+            self.nb,
+            self.half,
+        )
+
     def reversed(self) -> PhaseProblem | None:
         """The state of both takes' rows reversed (a backward pass), made from this one
         without the rows: every array is per frame (the padded coordinates keep two
@@ -434,7 +450,7 @@ def forward(
             last_row,
         )
     return _forward(
-        *state.args(), lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col, last_row
+        *state.kernel_args(), lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col, last_row
     )
 
 
@@ -444,7 +460,7 @@ def cost_rows(state: PhaseProblem, lo, hi, rows) -> list[np.ndarray]:
     hi = np.ascontiguousarray(hi, np.int64)
     out = []
     for i in rows:
-        crow = _one_row(*state.args(), lo, hi, int(i))
+        crow = _one_row(*state.kernel_args(), lo, hi, int(i))
         out.append(crow[lo[i] : hi[i] + 1].copy())
     return out
 
@@ -541,30 +557,51 @@ def _ring_mask(frames):
     return r - 1
 
 
+def _mask_rows(masks: np.ndarray) -> tuple:
+    """The hand's masks view ``(m, 2 nb)`` (``PhaseProblem.hand[4]``, rows of a contiguous
+    buffer, row stride positive or, reversed, negative) as :func:`_convert` reads it:
+    ``(flat, start, row_stride)``, a contiguous 1-D view of the rows' span, frame ``j``'s
+    values at ``flat[start + j row_stride :][: 2 nb]`` (contiguous: the conversion
+    vectorises)."""
+    m, w = masks.shape
+    if m == 0 or masks.strides[1] != masks.itemsize or masks.strides[0] % masks.itemsize:
+        masks = np.ascontiguousarray(masks)
+    rs = masks.strides[0] // masks.itemsize
+    if m <= 1:
+        return np.ascontiguousarray(masks).reshape(-1), 0, w
+    first = masks[m - 1] if rs < 0 else masks[0]  # the row lowest in memory
+    span = (m - 1) * abs(rs) + w  # inside the rows' buffer: from that row to the other end
+    flat = np.lib.stride_tricks.as_strided(first, shape=(span,), strides=(masks.itemsize,))
+    return flat, (m - 1) * -rs if rs < 0 else 0, rs
+
+
 @numba.njit(cache=True, nogil=True)
 def _convert(masks, nb, j0, j1, codes, rmask):
     """Hand frames ``j0..j1``'s masks Z = P ∨ Q and G = P of every θ bin into ring slot
     ``j & rmask`` of ``codes`` (``(R, nb, 2)`` uint64 flat, frame by frame; indexed by
-    :func:`_mask_index`), from ``masks`` ``(m, 2 nb)`` float64 (the rows' P, Q of every
-    bin; any row stride: a reversed take's is negative). Returns the next frame to convert.
+    :func:`_mask_index`), from ``masks`` = :func:`_mask_rows` of the rows' P, Q of every
+    bin. Returns the next frame to convert.
 
     The forward pass converts the frames its band reaches as it goes, instead of a
     ``(m, nb, 2)`` table in ``prepare``: the ring stays in cache, and a splice writes no
     16.6 MB table to fresh pages (a 2-minute hand take at 72 bins; ~4,000 page faults).
-    Rows :data:`ROWS_AHEAD` ahead are prefetched (a row's 18 lines of masks)."""
-    f = masks.shape[0]
-    rs = masks.strides[0] // 8  # elements between rows (negative for a reversed take)
+    A frame's 2 nb values convert in one contiguous loop (vectorised); rows
+    :data:`ROWS_AHEAD` ahead are prefetched (18 lines of masks each)."""
+    flat, start, rs = masks
+    n = 2 * nb
     for j in range(j0, j1 + 1):
-        if j + ROWS_AHEAD < f:
-            ahead = (j + ROWS_AHEAD) * rs
-            for t in range(0, 2 * nb, 8):
-                prefetch(masks, np.int64(ahead + t))
-        src = masks[j]
-        base = (j & rmask) * nb * 2
-        dst = codes[base : base + 2 * nb]
+        ahead = start + (j + ROWS_AHEAD) * rs  # (past the take's end: a prefetch never faults)
+        for t in range(0, n, 8):
+            prefetch(flat, np.int64(ahead + t))
+        s0 = start + j * rs
+        src = flat[s0 : s0 + n]
+        d0 = (j & rmask) * n
+        dst = codes[d0 : d0 + n]
+        for t in range(n):
+            dst[t] = np.uint64(src[t])
         for b in range(nb):
-            p = np.uint64(src[2 * b])
-            dst[2 * b] = p | np.uint64(src[2 * b + 1])
+            p = dst[2 * b]
+            dst[2 * b] = p | dst[2 * b + 1]
             dst[2 * b + 1] = p
     return max(j0, j1 + 1)
 
