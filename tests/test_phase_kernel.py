@@ -408,20 +408,33 @@ def test_phase_rows_write_the_same_hand_masks_as_rotated_packed_codes(feats):
     assert np.array_equal(b[:, off + 1 : off + 2 * feats.n_bins : 2], hq)
 
 
-def test_prepared_hand_masks_are_the_rows_masks_at_every_bin_and_frame(feats):
-    """Each (θ bin, hand frame)'s masks in the prepared table, where the kernel reads them
-    (``_mask_index``), are the rows' (P ∨ Q, P), forward and reversed."""
+def test_converted_hand_masks_are_the_rows_masks_at_every_bin_and_frame(feats):
+    """Each (θ bin, hand frame)'s masks in the forward pass's ring, where the kernel reads
+    them (``_convert``, then ``_mask_index`` of the frame's ring slot), are the rows'
+    (P ∨ Q, P), forward and reversed, in a ring smaller than the take (slots reused) and
+    converted in pieces as the forward pass does."""
     a, b = feats.pass1_rows
     nb, off = int(b[0, 1]), PK.HEADER + 2 * int(b[0, 0])
     p = b[:, off : off + 2 * nb : 2].astype(np.uint64)  # (m, nb)
     q = b[:, off + 1 : off + 2 * nb : 2].astype(np.uint64)
     m = b.shape[0]
-    bins, frames = np.meshgrid(np.arange(nb), np.arange(m))
+    rmask = PK._ring_mask(m // 3)
+    assert rmask + 1 < m
     for state, sl in (
         (PK.prepare(a, b), slice(None)),
         (PK.prepare(a, b).reversed(), slice(None, None, -1)),
     ):
-        codes = state.hand[4]
-        at = PK._mask_index.py_func(bins, frames, nb).astype(np.int64)
-        assert np.array_equal(codes[at], (p | q)[sl])
-        assert np.array_equal(codes[at + 1], p[sl])
+        want_z, want_g = (p | q)[sl], p[sl]
+        rows_ = PK._mask_rows(state.hand[4])
+        codes = np.zeros((rmask + 1) * nb * 2, np.uint64)
+        done = 0
+        for top in range(rmask // 2, m + rmask // 2, rmask // 2):  # a ring's worth at a time
+            first = done
+            done = PK._convert(rows_, nb, done, min(top, m - 1), codes, rmask)
+            frames = np.arange(max(done - rmask - 1, 0), done)
+            assert frames[0] <= first
+            bins, fr = np.meshgrid(np.arange(nb), frames)
+            at = PK._mask_index.py_func(bins, fr & rmask, nb).astype(np.int64)
+            assert np.array_equal(codes[at], want_z[frames])
+            assert np.array_equal(codes[at + 1], want_g[frames])
+        assert done == m

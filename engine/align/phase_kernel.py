@@ -21,10 +21,11 @@ a band row at a time, with the same arithmetic, in about a tenth of the time:
   slots of the serial min/add chain, and prefetches the masks 64 cells ahead (θ drifts,
   so the reads wander over the table where the hardware prefetchers miss them).
 * **Bit-parallel codes.** Each frame's 6K ternary sign codes are two bit masks
-  (P: +1, Q: −1); the hand take's are precomputed for every θ bin and stored frame
-  by frame (``(m, n_bins)``, the rows' own order: ``prepare`` converts them in one
-  contiguous pass; a band row reads one line per hand frame, and the rows after it
-  read the same lines). ``Σ (s − s')² = |P ⊕ P'| + |Q ⊕ Q'| + 2 |(P ∧ Q') ∨ (Q ∧ P')|``
+  (P: +1, Q: −1); the hand take's, for every θ bin, are in its rows (float64). The
+  forward pass converts the hand frames its band reaches, as it reaches them, into a
+  ring of frames (``(R, n_bins, 2)``, frame by frame: a band row reads one line per
+  hand frame, and the rows after it read the same lines), so no ``(m, n_bins, 2)``
+  table is written (16.6 MB for a 2-minute take: fresh pages cost a splice ~11 ms). ``Σ (s − s')² = |P ⊕ P'| + |Q ⊕ Q'| + 2 |(P ∧ Q') ∨ (Q ∧ P')|``
   with a hardware popcount.
 
 Exactness: :func:`theta_bin` and :func:`cell_cost` are the *only* θ and cost
@@ -359,20 +360,40 @@ class PhaseProblem:
             return
         window = mode == MODE_WINDOW
         body = _take_arrays(a, half, 1, window)
-        hand = _take_arrays(b, half, nb, window) if body is not None else None
+        b = np.ascontiguousarray(b, dtype=np.float64)
+        hand = _take_arrays(b, half, 0, window) if body is not None else None
         if body is None or hand is None:
             self.fallback, self.a, self.b = True, a, b
             return
         bx, bz, bmx, bmz, bpq, byaw, bstep = body
-        hx, hz, hmx, hmz, hpq, hyaw, _ = hand
+        hx, hz, hmx, hmz, _, hyaw, _ = hand
         bnz = np.ascontiguousarray(bpq[:, 0, 0])  # Z: code ≠ 0
         bpos = np.ascontiguousarray(bpq[:, 0, 1])  # G: code = +1
         # body frames (n + 4, K), hand frames (K, m + 4): each kernel's reads contiguous
         self.body = (bx.T.copy(), bz.T.copy(), bmx, bmz, bnz, bpos, byaw, bstep)
-        self.hand = (hx, hz, hmx, hmz, hpq.reshape(-1), hyaw)  # (Z, G) flat: (m nb 2,)
+        # the hand's masks stay in its rows: (m, 2 nb) float64 (P, Q of every bin), a view
+        # (the forward pass converts the frames its band reaches, see _convert)
+        off = HEADER + 2 * half
+        self.hand = (hx, hz, hmx, hmz, b[:, off : off + 2 * nb], hyaw)
 
     def args(self) -> tuple:
         return (*self.body, *self.hand, self.mode, self.nb, self.half)
+
+    def kernel_args(self) -> tuple:
+        """:meth:`args` with the hand's masks as :func:`_convert` reads them."""
+        hx, hz, hmx, hmz, masks, hyaw = self.hand
+        return (
+            *self.body,
+            hx,
+            hz,
+            hmx,
+            hmz,
+            _mask_rows(masks),
+            hyaw,
+            self.mode,
+            self.nb,
+            self.half,
+        )
 
     def reversed(self) -> PhaseProblem | None:
         """The state of both takes' rows reversed (a backward pass), made from this one
@@ -386,14 +407,13 @@ class PhaseProblem:
         out.half, out.nb, out.mode, out.n, out.m = self.half, self.nb, self.mode, self.n, self.m
         out.fallback = False
         out.body = tuple(np.ascontiguousarray(x[::-1]) for x in self.body)
-        hx, hz, hmx, hmz, hpq, hyaw = self.hand
-        pq = hpq.reshape(self.m, self.nb, 2)[::-1]
+        hx, hz, hmx, hmz, masks, hyaw = self.hand
         out.hand = (
             np.ascontiguousarray(hx[:, ::-1]),
             np.ascontiguousarray(hz[:, ::-1]),
             np.ascontiguousarray(hmx[::-1]),
             np.ascontiguousarray(hmz[::-1]),
-            np.ascontiguousarray(pq).reshape(-1),
+            masks[::-1],  # a view with a negative row stride: no copy
             np.ascontiguousarray(hyaw[::-1]),
         )
         return out
@@ -430,7 +450,7 @@ def forward(
             last_row,
         )
     return _forward(
-        *state.args(), lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col, last_row
+        *state.kernel_args(), lo, hi, start, i0, i1, bp, gamma, keep_gamma, ends, last_col, last_row
     )
 
 
@@ -440,7 +460,7 @@ def cost_rows(state: PhaseProblem, lo, hi, rows) -> list[np.ndarray]:
     hi = np.ascontiguousarray(hi, np.int64)
     out = []
     for i in rows:
-        crow = _one_row(*state.args(), lo, hi, int(i))
+        crow = _one_row(*state.kernel_args(), lo, hi, int(i))
         out.append(crow[lo[i] : hi[i] + 1].copy())
     return out
 
@@ -527,6 +547,65 @@ def _ensure_c(i, next_p, i0, i1, lo, hi, bx, bz, hx, hz, cre, cim):
     return next_p
 
 
+@numba.njit(cache=True, nogil=True)
+def _ring_mask(frames):
+    """``R - 1`` for the ring of hand frames' masks: ``R`` the power of two above ``frames``
+    (the most hand frames in use at once: a frame's slot is not reused while in use)."""
+    r = 1
+    while r <= frames:
+        r *= 2
+    return r - 1
+
+
+def _mask_rows(masks: np.ndarray) -> tuple:
+    """The hand's masks view ``(m, 2 nb)`` (``PhaseProblem.hand[4]``, rows of a contiguous
+    buffer, row stride positive or, reversed, negative) as :func:`_convert` reads it:
+    ``(flat, start, row_stride)``, a contiguous 1-D view of the rows' span, frame ``j``'s
+    values at ``flat[start + j row_stride :][: 2 nb]`` (contiguous: the conversion
+    vectorises)."""
+    m, w = masks.shape
+    if m == 0 or masks.strides[1] != masks.itemsize or masks.strides[0] % masks.itemsize:
+        masks = np.ascontiguousarray(masks)
+    rs = masks.strides[0] // masks.itemsize
+    if m <= 1:
+        return np.ascontiguousarray(masks).reshape(-1), 0, w
+    first = masks[m - 1] if rs < 0 else masks[0]  # the row lowest in memory
+    span = (m - 1) * abs(rs) + w  # inside the rows' buffer: from that row to the other end
+    flat = np.lib.stride_tricks.as_strided(first, shape=(span,), strides=(masks.itemsize,))
+    return flat, (m - 1) * -rs if rs < 0 else 0, rs
+
+
+@numba.njit(cache=True, nogil=True)
+def _convert(masks, nb, j0, j1, codes, rmask):
+    """Hand frames ``j0..j1``'s masks Z = P ∨ Q and G = P of every θ bin into ring slot
+    ``j & rmask`` of ``codes`` (``(R, nb, 2)`` uint64 flat, frame by frame; indexed by
+    :func:`_mask_index`), from ``masks`` = :func:`_mask_rows` of the rows' P, Q of every
+    bin. Returns the next frame to convert.
+
+    The forward pass converts the frames its band reaches as it goes, instead of a
+    ``(m, nb, 2)`` table in ``prepare``: the ring stays in cache, and a splice writes no
+    16.6 MB table to fresh pages (a 2-minute hand take at 72 bins; ~4,000 page faults).
+    A frame's 2 nb values convert in one contiguous loop (vectorised); rows
+    :data:`ROWS_AHEAD` ahead are prefetched (18 lines of masks each)."""
+    flat, start, rs = masks
+    n = 2 * nb
+    for j in range(j0, j1 + 1):
+        ahead = start + (j + ROWS_AHEAD) * rs  # (past the take's end: a prefetch never faults)
+        for t in range(0, n, 8):
+            prefetch(flat, np.int64(ahead + t))
+        s0 = start + j * rs
+        src = flat[s0 : s0 + n]
+        d0 = (j & rmask) * n
+        dst = codes[d0 : d0 + n]
+        for t in range(n):
+            dst[t] = np.uint64(src[t])
+        for b in range(nb):
+            p = dst[2 * b]
+            dst[2 * b] = p | dst[2 * b + 1]
+            dst[2 * b + 1] = p
+    return max(j0, j1 + 1)
+
+
 @numba.njit(cache=True, nogil=True, inline="always")
 def _mask_index(b, j, nb):
     """Index in ``codes`` of hand column ``j``'s Z mask turned to θ bin ``b`` (its G mask
@@ -535,8 +614,11 @@ def _mask_index(b, j, nb):
 
 
 @numba.njit(cache=True, nogil=True)
-def _theta_cells(i, lo_i, hi_i, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, cells):
+def _theta_cells(
+    i, lo_i, hi_i, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, cells, rmask
+):
     """``cells[lo_i..hi_i]`` = :func:`_mask_index` of each cell's θ bin in band row ``i``
+    (hand frame ``j`` at ring slot ``j & rmask``, see :func:`_convert`)
     (ring rows ``i..i+4`` ready in window mode). A loop of selects and float32 arithmetic
     only: it vectorises."""
     w = hi_i - lo_i + 1
@@ -570,8 +652,9 @@ def _theta_cells(i, lo_i, hi_i, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, 
         for k in range(w):
             out[k] = np.int32((yb - hy[k]) % nb)
     j = np.int32(lo_i)  # bins -> mask indices (a second loop: both vectorise)
+    rm = np.int32(rmask)
     for k in range(w):
-        out[k] = _mask_index(out[k], j, nb)
+        out[k] = _mask_index(out[k], j & rm, nb)
         j += np.int32(1)
 
 
@@ -594,10 +677,10 @@ def _index_cost(z, g, tab, codes, u):
     :func:`_cost_table`) against the hand's masks at ``codes[u], codes[u + 1]`` (``u`` from
     :func:`_mask_index`): Σ (s − s')² + step cost.
 
-    ``codes``: the hand's (Z, G) masks flat, frame by frame (``(m, n_bins, 2)``: the rows'
-    own order, so ``prepare`` converts them in one contiguous pass; a band row's cells read
-    one line per hand frame, and the next band rows read the same lines); unsigned indices (no wraparound code). The only
-    place a pass-1 cell's cost is formed.
+    ``codes``: the ring of the hand's (Z, G) masks flat, frame by frame (``(R, n_bins, 2)``,
+    :func:`_convert`; a band row's cells read one line per hand frame, and the next band
+    rows read the same lines); unsigned indices (no wraparound code). The only place a
+    pass-1 cell's cost is formed.
     """
     v = np.uint64(u)
     return tab[zg_cost(z, g, codes[v], codes[v + np.uint64(1)])]
@@ -638,10 +721,14 @@ def _fill(
     cim,
     cells,
     crow,
+    rmask,
 ):
-    """``crow[lo_i..hi_i]`` = local costs of band row ``i`` (ring rows ``i..i+4`` ready):
-    the row's θ bins as mask indices, then the popcount costs."""
-    _theta_cells(i, lo_i, hi_i, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, cells)
+    """``crow[lo_i..hi_i]`` = local costs of band row ``i`` (ring rows ``i..i+4`` ready, the
+    hand's masks of frames ``lo_i..hi_i`` in ``codes``, see :func:`_convert`): the row's θ
+    bins as mask indices, then the popcount costs."""
+    _theta_cells(
+        i, lo_i, hi_i, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, cells, rmask
+    )
     _code_costs(lo_i, hi_i, bnz[i], bpos[i], bstep[i], codes, cells, crow)
 
 
@@ -659,7 +746,7 @@ def _one_row(
     hz,
     hmx,
     hmz,
-    codes,
+    masks,
     hyaw,
     mode,
     nb,
@@ -669,6 +756,9 @@ def _one_row(
     i,
 ):
     m = hmx.shape[0]
+    rmask = _ring_mask(hi[i] - lo[i] + 1)
+    codes = np.empty((rmask + 1) * nb * 2, np.uint64)
+    _convert(masks, nb, lo[i], hi[i], codes, rmask)
     cre = np.zeros((_RING, m + 4), np.float32)
     cim = np.zeros((_RING, m + 4), np.float32)
     cells = np.zeros(m, np.int32)
@@ -696,6 +786,7 @@ def _one_row(
         cim,
         cells,
         crow,
+        rmask,
     )
     return crow
 
@@ -858,7 +949,7 @@ def _forward(
     hz,
     hmx,
     hmz,
-    codes,
+    masks,
     hyaw,
     mode,
     nb,
@@ -879,6 +970,12 @@ def _forward(
     mask indices by :func:`_theta_cells`, its costs formed inside the recurrence
     (:func:`_dp_pair_codes`, :func:`_dp_row_codes`)."""
     m = hmx.shape[0]
+    reach = 1  # the hand frames two band rows reach: the ring's size (the band is monotone)
+    for r in range(i0, i1):
+        reach = max(reach, hi[min(r + 1, i1 - 1)] - lo[r] + 1)
+    rmask = _ring_mask(reach)
+    codes = np.empty((rmask + 1) * nb * 2, np.uint64)
+    done = lo[i0] if i1 > i0 else 0  # the next hand frame to convert
     prev = np.empty(m + 1)
     mid = np.full(m + 1, K.INF)
     cur = np.full(m + 1, K.INF)
@@ -896,16 +993,47 @@ def _forward(
     K._init_prev(prev, gamma, lo, hi, start, i0, ends)
     i = i0
     while i < i1:
+        done = _convert(masks, nb, done, hi[i + 1] if i + 1 < i1 else hi[i], codes, rmask)
         if K._use_pair(lo, hi, i, i1):
             if window:
                 next_p = _ensure_c(i + 1, next_p, i0, i1, lo, hi, bx, bz, hx, hz, cre, cim)
             lo_a, hi_a = lo[i], hi[i]
             lo_b, hi_b = lo[i + 1], hi[i + 1]
             _theta_cells(
-                i, lo_a, hi_a, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, cells_a
+                i,
+                lo_a,
+                hi_a,
+                bmx,
+                bmz,
+                byaw,
+                hmx,
+                hmz,
+                hyaw,
+                mode,
+                nb,
+                half,
+                cre,
+                cim,
+                cells_a,
+                rmask,
             )
             _theta_cells(
-                i + 1, lo_b, hi_b, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, cells_b
+                i + 1,
+                lo_b,
+                hi_b,
+                bmx,
+                bmz,
+                byaw,
+                hmx,
+                hmz,
+                hyaw,
+                mode,
+                nb,
+                half,
+                cre,
+                cim,
+                cells_b,
+                rmask,
             )
             if not (bstep[i] == st_a):
                 st_a = bstep[i]
@@ -951,7 +1079,22 @@ def _forward(
             if window:
                 next_p = _ensure_c(i, next_p, i0, i1, lo, hi, bx, bz, hx, hz, cre, cim)
             _theta_cells(
-                i, lo[i], hi[i], bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, cells_a
+                i,
+                lo[i],
+                hi[i],
+                bmx,
+                bmz,
+                byaw,
+                hmx,
+                hmz,
+                hyaw,
+                mode,
+                nb,
+                half,
+                cre,
+                cim,
+                cells_a,
+                rmask,
             )
             if not (bstep[i] == st_a):
                 st_a = bstep[i]
