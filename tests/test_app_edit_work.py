@@ -307,3 +307,37 @@ def test_a_splice_that_starts_while_a_solve_runs_waits_for_it(session):
         assert splicer.is_alive() and "spliced" not in solution.cache
     splicer.join(60)
     assert not splicer.is_alive() and "spliced" in solution.cache
+
+
+def test_a_preview_splice_is_given_up_between_blocks_once_a_newer_edit_is_solved(
+    session, monkeypatch
+):
+    """drag11: the preview's splice of the whole take (0.7 s of CPU at 72,000 frames) is
+    given up at its next block of frames once a newer edit is being solved, instead of
+    running beside that edit's solve to the end (it had no look inside: the drags it
+    overlapped on the 10-minute pair took 3.4-3.9 s instead of 1.1-2.4 s); nothing is
+    kept, and a splice that is still wanted makes the whole take."""
+    from engine.base.errors import Cancelled
+    from engine.splice import transfer as TR
+    from webapp.views import preview
+
+    prepared, solution = session.prepared, session.solution
+    monkeypatch.setattr(TR, "TRANSFER_CHUNK", 32)
+    assert session.n > 3 * 32
+    blocks: list[int] = []
+    block = TR._transfer_block
+    monkeypatch.setattr(TR, "_transfer_block", lambda *a: (blocks.append(a[5]), block(*a))[1])
+    rendered: list[int] = []
+    monkeypatch.setattr(backend, "render_frame", lambda *a, **k: rendered.append(1))
+
+    def stale() -> bool:  # the next drag's edit arrives during the splice's first block
+        return len(blocks) >= 1
+
+    solution.cache.pop("spliced", None)
+    with pytest.raises(Cancelled):
+        preview._render_images(prepared, solution, 0, "front", False, (64, 64), (64, 64), stale)
+    assert blocks == [0] and not rendered and "spliced" not in solution.cache
+    blocks.clear()
+    whole = backend.splice(prepared, solution, cancelled=lambda: False)
+    assert blocks == list(range(0, session.n, 32)) and whole.n_frames == session.n
+    assert backend.splice(prepared, solution) is whole  # kept: the downloads' take

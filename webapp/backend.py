@@ -579,12 +579,17 @@ def marker_body(prepared: Prepared) -> bool:
     return not hasattr(prepared.body, "skeleton")
 
 
-def splice(prepared: Prepared, solution: Solution):
+def splice(prepared: Prepared, solution: Solution, cancelled=None):
     """The spliced Motion (body take with the hand take's wrist and fingers).
 
     A marker body (C3D/TRC) cannot receive fingers: then it is the hand take retimed
     to the body (one frame per body frame, at the body's rate), which is what such a
-    pair gives (``engine.splice.retime``)."""
+    pair gives (``engine.splice.retime``).
+
+    ``cancelled``: a callable, asked between blocks of frames of the transfer; once it
+    returns True the splice stops (``engine.base.errors.Cancelled``, nothing cached): a
+    preview's splice of a long take (0.7 s of CPU at 72,000 frames) is given up when a
+    newer edit is being solved, instead of sharing the cores with that edit's solve."""
     from engine.splice import pipeline
 
     cached = solution.cache.get("spliced")
@@ -600,7 +605,9 @@ def splice(prepared: Prepared, solution: Solution):
                 prepared.hand, solution.cache["engine"].map, prepared.features.fps
             )
         else:
-            motion = pipeline.transfer(prepared.features, solution.cache["engine"])
+            motion = pipeline.transfer(
+                prepared.features, solution.cache["engine"], cancelled=cancelled
+            )
     if not solution.cache.get("let go"):  # no page shows it: not kept (see showing)
         solution.cache["spliced"] = motion
     return motion

@@ -57,7 +57,9 @@ def _render_images(prepared, solution, frame, camera, trails, size, closeup_size
     with ``engine.base.errors.Cancelled``."""
     t0 = time.perf_counter()
     check_cancelled(stale)
-    backend.splice(prepared, solution)  # the whole spliced take (cached): a step of its own
+    # the whole spliced take (cached): a step of its own, given up between its blocks of
+    # frames when stale
+    backend.splice(prepared, solution, cancelled=stale)
     check_cancelled(stale)
     image = backend.render_frame(prepared, solution, frame, camera, trails, size)
     check_cancelled(stale)
