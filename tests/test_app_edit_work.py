@@ -341,3 +341,32 @@ def test_a_preview_splice_is_given_up_between_blocks_once_a_newer_edit_is_solved
     whole = backend.splice(prepared, solution, cancelled=lambda: False)
     assert blocks == list(range(0, session.n, 32)) and whole.n_frames == session.n
     assert backend.splice(prepared, solution) is whole  # kept: the downloads' take
+
+
+def test_a_preview_of_a_new_alignment_is_given_up_while_its_view_is_posed(session, monkeypatch):
+    """drag11: the preview's view of an edit's spliced take (every frame posed for the
+    framing: 0.75 s of CPU at 72,000 frames) is given up at its next block once a newer
+    edit is being solved; no preview is kept, and the next render builds it whole."""
+    from engine.base.errors import Cancelled
+    from engine.render import scene
+    from webapp.views import preview
+
+    prepared = session.prepared
+    _nudge(session)  # a new alignment: its spliced take's view is built by the next render
+    solution = session.solution
+    backend.splice(prepared, solution)  # made already (the step before the view)
+    monkeypatch.setattr(scene, "BLOCK_FRAMES", 32)
+    posed: list = []
+    fk = scene.forward_kinematics
+    monkeypatch.setattr(scene, "forward_kinematics", lambda *a: (posed.append(a[1]), fk(*a))[1])
+
+    def stale() -> bool:  # the next drag's edit arrives while the first block is posed
+        return len(posed) >= 2  # the bind frame, then the first block
+
+    with pytest.raises(Cancelled):
+        preview._render_images(prepared, solution, 0, "front", False, (64, 64), (64, 64), stale)
+    assert len(posed) == 2 and "preview" not in solution.cache
+    png, close_png, _frames, _ms = preview._render_images(
+        prepared, solution, 0, "front", False, (64, 64), (64, 64), lambda: False
+    )
+    assert png and close_png and solution.cache["preview"].views[2].n_frames == session.n

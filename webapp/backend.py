@@ -653,8 +653,10 @@ _PREVIEWS: dict[int, object] = {}
 _PREVIEW_LOCK = threading.Lock()
 
 
-def preview_for(prepared: Prepared, solution: Solution):
-    """An ``engine.render.offscreen.Preview`` of body | hand | spliced (cached per solution)."""
+def preview_for(prepared: Prepared, solution: Solution, cancelled=None):
+    """An ``engine.render.offscreen.Preview`` of body | hand | spliced (cached per solution).
+    ``cancelled``: a callable; once it returns True the spliced take and its view (posed
+    block by block) are given up (``engine.base.errors.Cancelled``, nothing kept)."""
 
     cached = solution.cache.get("preview")
     if cached is not None:
@@ -662,13 +664,13 @@ def preview_for(prepared: Prepared, solution: Solution):
     # one preview per alignment, whichever tabs show it (a shared first alignment)
     with solution.cache.setdefault("preview lock", threading.Lock()):
         cached = solution.cache.get("preview")
-        return cached if cached is not None else _new_preview(prepared, solution)
+        return cached if cached is not None else _new_preview(prepared, solution, cancelled)
 
 
-def _new_preview(prepared: Prepared, solution: Solution):
+def _new_preview(prepared: Prepared, solution: Solution, cancelled=None):
     from engine.render.offscreen import Preview
 
-    spliced = splice(prepared, solution)
+    spliced = splice(prepared, solution, cancelled)
     if marker_body(prepared):  # the markers are drawn apart (no mesh): hand | retimed hand
         takes, labels = [prepared.hand, spliced], ["hand take", "hand retimed to the body"]
     else:
@@ -690,7 +692,13 @@ def _new_preview(prepared: Prepared, solution: Solution):
     kept = prepared.views.get(("spliced mesh", sides))
     meshes = [None] * (len(takes) - 1) + [kept[1] if kept and kept[0] == skeleton else None]
     preview = Preview(
-        takes, labels=labels, size=(960, 360), close_up_sides=sides, views=views, meshes=meshes
+        takes,
+        labels=labels,
+        size=(960, 360),
+        close_up_sides=sides,
+        views=views,
+        meshes=meshes,
+        cancelled=cancelled,
     )
     for label, view in zip(labels[:-1], preview.views[:-1], strict=True):
         prepared.views.setdefault((label, sides), view)
@@ -820,9 +828,11 @@ def render_frame(
     camera: str,
     trails: bool,
     size: tuple[int, int] = (960, 360),
+    cancelled=None,
 ) -> np.ndarray:
-    """(H, W, 3) uint8: body take, hand take and spliced result side by side."""
-    preview = preview_for(prepared, solution)
+    """(H, W, 3) uint8: body take, hand take and spliced result side by side. ``cancelled``:
+    see :func:`preview_for` (the render itself is not given up once it has begun)."""
+    preview = preview_for(prepared, solution, cancelled)
     frames = frame_triplet(prepared, solution, body_frame)
     if marker_body(prepared):
         return _marker_body_frame(prepared, preview, frames, camera, trails, size)

@@ -53,15 +53,17 @@ _RENDERS = ThreadPoolExecutor(max_workers=1, thread_name_prefix="hs-preview")
 def _render_images(prepared, solution, frame, camera, trails, size, closeup_size, stale=None):
     """``(png, close-up png, (body, hand, spliced frame), ms)`` of one moment (run on the
     render worker, or at once without a server). ``stale``: a callable; when it returns
-    True before a step (the spliced take, the full view, the close-up) the render stops
-    with ``engine.base.errors.Cancelled``."""
+    True before a step (the spliced take, the full view, the close-up), or between the
+    blocks of frames of the spliced take and of its view, the render stops with
+    ``engine.base.errors.Cancelled``."""
     t0 = time.perf_counter()
     check_cancelled(stale)
     # the whole spliced take (cached): a step of its own, given up between its blocks of
     # frames when stale
     backend.splice(prepared, solution, cancelled=stale)
     check_cancelled(stale)
-    image = backend.render_frame(prepared, solution, frame, camera, trails, size)
+    # the preview's views of the new spliced take (posed block by block): given up too
+    image = backend.render_frame(prepared, solution, frame, camera, trails, size, stale)
     check_cancelled(stale)
     closeup = backend.render_closeup(prepared, solution, frame, closeup_size)
     pngs = backend.png_bytes(image), backend.png_bytes(closeup)
