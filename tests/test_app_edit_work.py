@@ -370,3 +370,52 @@ def test_a_preview_of_a_new_alignment_is_given_up_while_its_view_is_posed(sessio
         prepared, solution, 0, "front", False, (64, 64), (64, 64), lambda: False
     )
     assert png and close_png and solution.cache["preview"].views[2].n_frames == session.n
+
+
+def test_a_drag_under_way_holds_back_the_previous_edits_assessment(session, monkeypatch):
+    """drag11: from the moment the page says a matching point is being dragged
+    (``hs-drag-press``; its edit comes on release) the previous edit's assessment does not
+    start, and one running stops at its next look; the preview's renders are stale
+    meanwhile (``edit_coming``). Once the drag ends the assessment goes on."""
+    from webapp.views import trust as trust_view
+    from webapp.views.cost_matrix import CostMatrixView
+
+    monkeypatch.setattr(trust_view, "DEBOUNCE_MS", 0)
+    monkeypatch.setattr(trust_view, "_POOL", _AtOnce())
+    matrix = CostMatrixView(session)
+    view = trust_view.TrustView(session, matrix)
+    doc = _LoopDoc()
+    view._doc = doc
+    real = session.assess
+    looks: list[bool] = []
+
+    def assess(cancelled=None):
+        def look():  # the drag begins after the assessment's first look
+            looks.append(session.dragging)
+            stop = cancelled()
+            matrix.press_source.data = {"down": [1]}
+            return stop
+
+        return real(look)
+
+    monkeypatch.setattr(session, "assess", assess)
+    # the module's earlier trust views (built without a served page) would assess at once
+    real_update = session.update_trust
+    monkeypatch.setattr(
+        session,
+        "update_trust",
+        lambda assessment=None, revision=None: (
+            assessment is not None and real_update(assessment, revision)
+        ),
+    )
+    _nudge(session)  # an edit, solved and drawn: its assessment is due
+    doc.run()
+    assert looks[:2] == [False, True] and len(looks) == 2 and view.cancelled == 1
+    assert session.dragging and session.edit_coming() and session.trust is None
+    doc.run()  # nothing starts while the drag is under way
+    assert len(looks) == 2
+    monkeypatch.setattr(session, "assess", real)
+    matrix.press_source.data = {"down": [0]}  # released without moving the point
+    assert not session.dragging and not session.edit_coming()
+    doc.run()
+    assert session.trust is not None
