@@ -307,3 +307,115 @@ def test_a_splice_that_starts_while_a_solve_runs_waits_for_it(session):
         assert splicer.is_alive() and "spliced" not in solution.cache
     splicer.join(60)
     assert not splicer.is_alive() and "spliced" in solution.cache
+
+
+def test_a_preview_splice_is_given_up_between_blocks_once_a_newer_edit_is_solved(
+    session, monkeypatch
+):
+    """drag11: the preview's splice of the whole take (0.7 s of CPU at 72,000 frames) is
+    given up at its next block of frames once a newer edit is being solved, instead of
+    running beside that edit's solve to the end (it had no look inside: the drags it
+    overlapped on the 10-minute pair took 3.4-3.9 s instead of 1.1-2.4 s); nothing is
+    kept, and a splice that is still wanted makes the whole take."""
+    from engine.base.errors import Cancelled
+    from engine.splice import transfer as TR
+    from webapp.views import preview
+
+    prepared, solution = session.prepared, session.solution
+    monkeypatch.setattr(TR, "TRANSFER_CHUNK", 32)
+    assert session.n > 3 * 32
+    blocks: list[int] = []
+    block = TR._transfer_block
+    monkeypatch.setattr(TR, "_transfer_block", lambda *a: (blocks.append(a[5]), block(*a))[1])
+    rendered: list[int] = []
+    monkeypatch.setattr(backend, "render_frame", lambda *a, **k: rendered.append(1))
+
+    def stale() -> bool:  # the next drag's edit arrives during the splice's first block
+        return len(blocks) >= 1
+
+    solution.cache.pop("spliced", None)
+    with pytest.raises(Cancelled):
+        preview._render_images(prepared, solution, 0, "front", False, (64, 64), (64, 64), stale)
+    assert blocks == [0] and not rendered and "spliced" not in solution.cache
+    blocks.clear()
+    whole = backend.splice(prepared, solution, cancelled=lambda: False)
+    assert blocks == list(range(0, session.n, 32)) and whole.n_frames == session.n
+    assert backend.splice(prepared, solution) is whole  # kept: the downloads' take
+
+
+def test_a_preview_of_a_new_alignment_is_given_up_while_its_view_is_posed(session, monkeypatch):
+    """drag11: the preview's view of an edit's spliced take (every frame posed for the
+    framing: 0.75 s of CPU at 72,000 frames) is given up at its next block once a newer
+    edit is being solved; no preview is kept, and the next render builds it whole."""
+    from engine.base.errors import Cancelled
+    from engine.render import scene
+    from webapp.views import preview
+
+    prepared = session.prepared
+    _nudge(session)  # a new alignment: its spliced take's view is built by the next render
+    solution = session.solution
+    backend.splice(prepared, solution)  # made already (the step before the view)
+    monkeypatch.setattr(scene, "BLOCK_FRAMES", 32)
+    posed: list = []
+    fk = scene.forward_kinematics
+    monkeypatch.setattr(scene, "forward_kinematics", lambda *a: (posed.append(a[1]), fk(*a))[1])
+
+    def stale() -> bool:  # the next drag's edit arrives while the first block is posed
+        return len(posed) >= 2  # the bind frame, then the first block
+
+    with pytest.raises(Cancelled):
+        preview._render_images(prepared, solution, 0, "front", False, (64, 64), (64, 64), stale)
+    assert len(posed) == 2 and "preview" not in solution.cache
+    png, close_png, _frames, _ms = preview._render_images(
+        prepared, solution, 0, "front", False, (64, 64), (64, 64), lambda: False
+    )
+    assert png and close_png and solution.cache["preview"].views[2].n_frames == session.n
+
+
+def test_a_drag_under_way_holds_back_the_previous_edits_assessment(session, monkeypatch):
+    """drag11: from the moment the page says a matching point is being dragged
+    (``hs-drag-press``; its edit comes on release) the previous edit's assessment does not
+    start, and one running stops at its next look; the preview's renders are stale
+    meanwhile (``edit_coming``). Once the drag ends the assessment goes on."""
+    from webapp.views import trust as trust_view
+    from webapp.views.cost_matrix import CostMatrixView
+
+    monkeypatch.setattr(trust_view, "DEBOUNCE_MS", 0)
+    monkeypatch.setattr(trust_view, "_POOL", _AtOnce())
+    matrix = CostMatrixView(session)
+    view = trust_view.TrustView(session, matrix)
+    doc = _LoopDoc()
+    view._doc = doc
+    real = session.assess
+    looks: list[bool] = []
+
+    def assess(cancelled=None):
+        def look():  # the drag begins after the assessment's first look
+            looks.append(session.dragging)
+            stop = cancelled()
+            matrix.press_source.data = {"down": [1]}
+            return stop
+
+        return real(look)
+
+    monkeypatch.setattr(session, "assess", assess)
+    # the module's earlier trust views (built without a served page) would assess at once
+    real_update = session.update_trust
+    monkeypatch.setattr(
+        session,
+        "update_trust",
+        lambda assessment=None, revision=None: (
+            assessment is not None and real_update(assessment, revision)
+        ),
+    )
+    _nudge(session)  # an edit, solved and drawn: its assessment is due
+    doc.run()
+    assert looks[:2] == [False, True] and len(looks) == 2 and view.cancelled == 1
+    assert session.dragging and session.edit_coming() and session.trust is None
+    doc.run()  # nothing starts while the drag is under way
+    assert len(looks) == 2
+    monkeypatch.setattr(session, "assess", real)
+    matrix.press_source.data = {"down": [0]}  # released without moving the point
+    assert not session.dragging and not session.edit_coming()
+    doc.run()
+    assert session.trust is not None

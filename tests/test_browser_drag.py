@@ -194,3 +194,31 @@ def test_stale_suggestions_are_greyed_by_the_page_not_by_model_changes(page):
     # ...then usable again, with the buttons' models never changed
     _wait(page, lambda: (s := shown())[1] and not s[0] and not any(s[1]), "still greyed")
     assert page.evaluate("() => window.hsButtonChanges") == 0
+
+
+def test_the_page_tells_the_server_when_a_drag_of_a_point_begins_and_ends(page):
+    """drag11: the page says at once that a matching point is being dragged
+    (``hs-drag-press``, synced to the server: the previous edit's preview and trust give
+    way before the drag's edit arrives on release), and that it ended."""
+    press = "() => Bokeh.documents[0].get_model_by_name('hs-drag-press').data.down[0]"
+    pts = page.evaluate("hs.cols('hs-points-source', ['x', 'y'])")
+    if not pts["x"]:  # run alone: a point on the path first
+        n = page.evaluate("hs.frames()")
+        path = page.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
+        k = path["x"].index(n // 2)
+        rev = revision(page)
+        page.mouse.click(*page.evaluate("([a, b]) => hs.xy(a, b)", [path["x"][k], path["y"][k]]))
+        _wait(page, lambda: revision(page) > rev, "the click's point was not solved")
+        pts = page.evaluate("hs.cols('hs-points-source', ['x', 'y'])")
+    a = page.evaluate("([a, b]) => hs.xy(a, b)", [pts["x"][0], pts["y"][0]])
+    b = page.evaluate("([a, b]) => hs.xy(a, b)", [pts["x"][0], pts["y"][0] + 6])
+    rev = revision(page)
+    assert page.evaluate(press) == 0
+    page.mouse.move(*a)
+    page.mouse.down()
+    page.mouse.move(*b, steps=4)
+    assert page.evaluate(press) == 1  # held: the drag is under way
+    page.mouse.up()
+    assert page.evaluate(press) == 0
+    _wait(page, lambda: revision(page) > rev, "the drag was not solved")
+    assert not page.errors, page.errors

@@ -579,12 +579,17 @@ def marker_body(prepared: Prepared) -> bool:
     return not hasattr(prepared.body, "skeleton")
 
 
-def splice(prepared: Prepared, solution: Solution):
+def splice(prepared: Prepared, solution: Solution, cancelled=None):
     """The spliced Motion (body take with the hand take's wrist and fingers).
 
     A marker body (C3D/TRC) cannot receive fingers: then it is the hand take retimed
     to the body (one frame per body frame, at the body's rate), which is what such a
-    pair gives (``engine.splice.retime``)."""
+    pair gives (``engine.splice.retime``).
+
+    ``cancelled``: a callable, asked between blocks of frames of the transfer; once it
+    returns True the splice stops (``engine.base.errors.Cancelled``, nothing cached): a
+    preview's splice of a long take (0.7 s of CPU at 72,000 frames) is given up when a
+    newer edit is being solved, instead of sharing the cores with that edit's solve."""
     from engine.splice import pipeline
 
     cached = solution.cache.get("spliced")
@@ -600,7 +605,9 @@ def splice(prepared: Prepared, solution: Solution):
                 prepared.hand, solution.cache["engine"].map, prepared.features.fps
             )
         else:
-            motion = pipeline.transfer(prepared.features, solution.cache["engine"])
+            motion = pipeline.transfer(
+                prepared.features, solution.cache["engine"], cancelled=cancelled
+            )
     if not solution.cache.get("let go"):  # no page shows it: not kept (see showing)
         solution.cache["spliced"] = motion
     return motion
@@ -646,8 +653,10 @@ _PREVIEWS: dict[int, object] = {}
 _PREVIEW_LOCK = threading.Lock()
 
 
-def preview_for(prepared: Prepared, solution: Solution):
-    """An ``engine.render.offscreen.Preview`` of body | hand | spliced (cached per solution)."""
+def preview_for(prepared: Prepared, solution: Solution, cancelled=None):
+    """An ``engine.render.offscreen.Preview`` of body | hand | spliced (cached per solution).
+    ``cancelled``: a callable; once it returns True the spliced take and its view (posed
+    block by block) are given up (``engine.base.errors.Cancelled``, nothing kept)."""
 
     cached = solution.cache.get("preview")
     if cached is not None:
@@ -655,13 +664,13 @@ def preview_for(prepared: Prepared, solution: Solution):
     # one preview per alignment, whichever tabs show it (a shared first alignment)
     with solution.cache.setdefault("preview lock", threading.Lock()):
         cached = solution.cache.get("preview")
-        return cached if cached is not None else _new_preview(prepared, solution)
+        return cached if cached is not None else _new_preview(prepared, solution, cancelled)
 
 
-def _new_preview(prepared: Prepared, solution: Solution):
+def _new_preview(prepared: Prepared, solution: Solution, cancelled=None):
     from engine.render.offscreen import Preview
 
-    spliced = splice(prepared, solution)
+    spliced = splice(prepared, solution, cancelled)
     if marker_body(prepared):  # the markers are drawn apart (no mesh): hand | retimed hand
         takes, labels = [prepared.hand, spliced], ["hand take", "hand retimed to the body"]
     else:
@@ -683,7 +692,13 @@ def _new_preview(prepared: Prepared, solution: Solution):
     kept = prepared.views.get(("spliced mesh", sides))
     meshes = [None] * (len(takes) - 1) + [kept[1] if kept and kept[0] == skeleton else None]
     preview = Preview(
-        takes, labels=labels, size=(960, 360), close_up_sides=sides, views=views, meshes=meshes
+        takes,
+        labels=labels,
+        size=(960, 360),
+        close_up_sides=sides,
+        views=views,
+        meshes=meshes,
+        cancelled=cancelled,
     )
     for label, view in zip(labels[:-1], preview.views[:-1], strict=True):
         prepared.views.setdefault((label, sides), view)
@@ -813,9 +828,11 @@ def render_frame(
     camera: str,
     trails: bool,
     size: tuple[int, int] = (960, 360),
+    cancelled=None,
 ) -> np.ndarray:
-    """(H, W, 3) uint8: body take, hand take and spliced result side by side."""
-    preview = preview_for(prepared, solution)
+    """(H, W, 3) uint8: body take, hand take and spliced result side by side. ``cancelled``:
+    see :func:`preview_for` (the render itself is not given up once it has begun)."""
+    preview = preview_for(prepared, solution, cancelled)
     frames = frame_triplet(prepared, solution, body_frame)
     if marker_body(prepared):
         return _marker_body_frame(prepared, preview, frames, camera, trails, size)

@@ -229,6 +229,11 @@ class Session(param.Parameterized):
     busy = param.String(
         default="", doc="what runs off the event loop now (opening takes, aligning), or empty"
     )
+    dragging = param.Boolean(
+        default=False,
+        doc="the page says a matching point is being dragged (its edit comes on release): "
+        "the previous edit's preview and trust work give way (``edit_coming``)",
+    )
     inputs_revision = param.Integer(default=0, doc="bumped after the takes change")
     opening = param.String(
         default="",
@@ -985,6 +990,14 @@ class Session(param.Parameterized):
             del self._undo[self._accepted_undo :]
             self._slider_run = None
             self._update_history_flags()
+
+    def edit_coming(self) -> bool:
+        """True while an edit's solve runs or waits, or a drag of a matching point is under
+        way in the page (its edit arrives on release): the previous edit's follow-up work
+        (the preview's splice and views, the trust assessment) is given up or not started,
+        so it never shares the cores with the edit's solve. Safe on a worker thread."""
+        runner = self.runner
+        return self.dragging or (runner is not None and runner.solving())
 
     def assess(self, cancelled=None):
         """Trust in the current solution (uncertainty per body frame, strokes, suggestions),

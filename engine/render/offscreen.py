@@ -96,6 +96,7 @@ class Preview:
         roles: Sequence | None = None,
         close_up_sides: Sequence | None = None,
         views: Sequence[TakeView | None] | None = None,
+        cancelled=None,
     ):
         takes = [takes] if isinstance(takes, Motion) else list(takes)
         if not takes:
@@ -123,7 +124,14 @@ class Preview:
         self.views = [
             v
             if v is not None
-            else TakeView.from_motion(t, mesh=m, label=lab, roles=r, close_up_sides=close_up_sides)
+            else TakeView.from_motion(
+                t,
+                mesh=m,
+                label=lab,
+                roles=r,
+                close_up_sides=close_up_sides,
+                cancelled=cancelled,
+            )
             for t, m, lab, r, v in zip(takes, meshes, labels, roles, given, strict=True)
         ]
         if phases is not None and not (

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.base.errors import ParameterError, RoleError
+from engine.base.errors import ParameterError, RoleError, check_cancelled
 from engine.mesh.anatomy import Anatomy, find_anatomy
 from engine.mesh.mannequin import build_mannequin
 from engine.mesh.skinning import SkinnedMesh
@@ -230,6 +230,7 @@ class TakeView:
         bind_frame: int = 0,
         roles=None,
         close_up_sides=None,
+        cancelled=None,
     ) -> TakeView:
         """Prepare ``motion``; the mannequin is bound in captured frame ``bind_frame``.
 
@@ -239,7 +240,10 @@ class TakeView:
         (default all).
 
         The take's frames are posed :data:`BLOCK_FRAMES` at a time for the framing
-        (per-frame bounds of the visible and the hand joints, the anchor's rotation)."""
+        (per-frame bounds of the visible and the hand joints, the anchor's rotation).
+        ``cancelled``: a callable asked before each block; once it returns True the view
+        is given up (``engine.base.errors.Cancelled``: the app's preview of an edit's
+        spliced take, 0.75 s of CPU at 72,000 frames, when a newer edit is being solved)."""
         if motion.n_frames < 1:
             raise ValueError(f"{label or 'take'}: has no frames to render")
         if not 0 <= bind_frame < motion.n_frames:
@@ -280,7 +284,7 @@ class TakeView:
                 for d in motion.skeleton.descendants(h.wrist)
             }
         )
-        track = _Framing.of(motion, scale, axes, visible, anchor, hand_joints)
+        track = _Framing.of(motion, scale, axes, visible, anchor, hand_joints, cancelled)
         if not (track.extent > 0).any():
             raise ParameterError(
                 f"{name}: every joint sits at one point in every frame (all "
@@ -498,13 +502,14 @@ class _Framing:
     extent: np.ndarray
 
     @classmethod
-    def of(cls, motion, scale, axes, visible, anchor: int, hand_joints) -> _Framing:
+    def of(cls, motion, scale, axes, visible, anchor: int, hand_joints, cancelled=None) -> _Framing:
         frames = motion.n_frames
         lo, hi = np.empty((frames, 3)), np.empty((frames, 3))
         hands = np.empty((2, frames, 3)) if hand_joints else None
         turn = np.empty((frames, 4))
         low, high = np.full(3, np.inf), np.full(3, -np.inf)
         for a in range(0, frames, BLOCK_FRAMES):
+            check_cancelled(cancelled)
             b = min(a + BLOCK_FRAMES, frames)
             pos, wrot = forward_kinematics(motion, slice(a, b))
             low = np.minimum(low, pos.min(axis=(0, 1)))

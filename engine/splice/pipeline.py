@@ -1140,15 +1140,22 @@ def align_passes(
 
 
 def transfer(
-    features: SpliceFeatures, result: SpliceAlignment, progress: Progress | None = None
+    features: SpliceFeatures,
+    result: SpliceAlignment,
+    progress: Progress | None = None,
+    cancelled=None,
 ) -> Motion:
-    """The body take with the hand take's wrists and fingers sampled at ``result.map``."""
+    """The body take with the hand take's wrists and fingers sampled at ``result.map``.
+    ``cancelled``: a callable; once it returns True the transfer stops between blocks of
+    frames (``engine.base.errors.Cancelled``; ``transfer.apply_transfer``)."""
     progress = progress or _noop
     body, hand = features.body, features.hand
     require_skeletal(body, hand)
     progress("transfer", 0.0)
     plan = plan_for(features)
-    out = TR.apply_transfer(plan, body, hand, result.map, body_fk=features.body_fk)
+    out = TR.apply_transfer(
+        plan, body, hand, result.map, body_fk=features.body_fk, cancelled=cancelled
+    )
     progress("transfer", 1.0)
     return out
 

@@ -34,7 +34,7 @@ import json
 
 import numpy as np
 import panel as pn
-from bokeh.events import DoubleTap, RangesUpdate, Tap
+from bokeh.events import DoubleTap, PanEnd, PanStart, RangesUpdate, Tap
 from bokeh.models import (
     ColorBar,
     ColumnDataSource,
@@ -182,6 +182,18 @@ tool_view._tap({type: "tap", sx: cb_obj.sx, sy: cb_obj.sy,
 _JS_NO_PRESS = """
 const gestures = Bokeh.require("core/ui_gestures").UIGestures;
 gestures.press_threshold = 60000;
+"""
+
+#: a drag of a matching point begins (the point tool has taken hold of the selected point:
+#: Bokeh's tool drags the selection) or ends: the page tells the server at once
+#: (``hs-drag-press``), so the previous edit's follow-up work (preview, trust) gives way
+#: before the drag's edit arrives on release (``Session.edit_coming``)
+_JS_DRAG_PRESS = """
+const view = Bokeh.index.find_one(fig);
+const tool_view = view?.tool_views?.get(tool);
+const held = tool_view != null && tool_view._basepoint != null && src.selected.indices.length > 0;
+const down = on && held ? 1 : 0;
+if ((press.data.down ?? [0])[0] !== down) press.data = {down: [down]};
 """
 
 #: the page adopts the session's points once the server has answered every edit it sent
@@ -662,6 +674,18 @@ class CostMatrixView:
         self.server_points.js_on_change("data", reconcile)
         self.server_points.js_on_change("tags", reconcile)
         self.edit_source.on_change("data", self._on_edits)
+        # a drag under way (``_JS_DRAG_PRESS``): 1 from the drag's start to its release
+        self.press_source = ColumnDataSource({"down": [0]}, name="hs-drag-press")
+        for event, on in ((PanStart, True), (PanEnd, False)):
+            press = {
+                "press": self.press_source,
+                "src": self.points_source,
+                "fig": fig,
+                "tool": self.point_tool,
+                "on": on,
+            }
+            fig.js_on_event(event, CustomJS(args=press, code=_JS_DRAG_PRESS))
+        self.press_source.on_change("data", self._on_press)
 
     def _watch(self, session: Session, fig) -> None:
         """Page events (visible range, clicks) and session changes this view follows."""
@@ -955,6 +979,21 @@ class CostMatrixView:
             self._apply_edits()
         else:
             next_tick(doc, self._apply_edits)
+
+    def _on_press(self, attr, old, new) -> None:
+        """A drag of a matching point began or ended in the page (``Session.dragging``).
+        Its end is taken after the edit queued with it (the release sends the edit first):
+        the edit's solve is then already submitted, so the follow-up work never starts in
+        between."""
+        down = bool((new.get("down") or [0])[0])
+        doc = pn.state.curdoc
+        if down or doc is None or doc.session_context is None:
+            self.session.dragging = down
+        else:
+            next_tick(
+                doc,
+                lambda: setattr(self.session, "dragging", bool(self.press_source.data["down"][0])),
+            )
 
     def _apply_edits(self) -> None:
         try:

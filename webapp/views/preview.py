@@ -53,13 +53,17 @@ _RENDERS = ThreadPoolExecutor(max_workers=1, thread_name_prefix="hs-preview")
 def _render_images(prepared, solution, frame, camera, trails, size, closeup_size, stale=None):
     """``(png, close-up png, (body, hand, spliced frame), ms)`` of one moment (run on the
     render worker, or at once without a server). ``stale``: a callable; when it returns
-    True before a step (the spliced take, the full view, the close-up) the render stops
-    with ``engine.base.errors.Cancelled``."""
+    True before a step (the spliced take, the full view, the close-up), or between the
+    blocks of frames of the spliced take and of its view, the render stops with
+    ``engine.base.errors.Cancelled``."""
     t0 = time.perf_counter()
     check_cancelled(stale)
-    backend.splice(prepared, solution)  # the whole spliced take (cached): a step of its own
+    # the whole spliced take (cached): a step of its own, given up between its blocks of
+    # frames when stale
+    backend.splice(prepared, solution, cancelled=stale)
     check_cancelled(stale)
-    image = backend.render_frame(prepared, solution, frame, camera, trails, size)
+    # the preview's views of the new spliced take (posed block by block): given up too
+    image = backend.render_frame(prepared, solution, frame, camera, trails, size, stale)
     check_cancelled(stale)
     closeup = backend.render_closeup(prepared, solution, frame, closeup_size)
     pngs = backend.png_bytes(image), backend.png_bytes(closeup)
@@ -150,7 +154,7 @@ class PreviewView:
         session.param.watch(self._on_frame, ["frame"])
         session.param.watch(self._on_inputs, ["inputs_revision"])
         session.param.watch(self._on_solution, ["revision"])
-        session.param.watch(self._on_busy, ["busy"])
+        session.param.watch(self._on_busy, ["busy", "dragging"])
         self._points_seen = session.points  # the points of the alignment last followed
         self._after_solve = False  # a solution to render once edits pause and solves end
         self._follow_due = 0.0  # monotonic s of that pause's end
@@ -218,9 +222,10 @@ class PreviewView:
             after(doc, self._on_busy, max(ms, 0.0))
 
     def _on_busy(self, *_):
-        """Render the newest solution once no solve runs and edits have paused."""
+        """Render the newest solution once no solve runs, no drag is under way and edits
+        have paused."""
         self._follow_timer = False
-        if not self._after_solve or self.session.busy:
+        if not self._after_solve or self.session.busy or self.session.dragging:
             return
         wait = self._follow_due - time.monotonic()
         if wait > 0.005:
@@ -341,10 +346,10 @@ class PreviewView:
         self._since = time.perf_counter()
         if frame is not None:
             self._played = key  # shown, it moves the session to its frame
-        # a render of an edit's alignment is given up when a newer edit is being solved
-        # (it would take a core from that solve; the newer one is rendered when drawn)
-        runner = s.runner
-        stale = None if self.play.value or runner is None else runner.solving
+        # a render of an edit's alignment is given up when a newer edit is being solved or
+        # a drag is under way (it would take a core from that solve; the newer one is
+        # rendered when drawn)
+        stale = None if self.play.value or s.runner is None else s.edit_coming
         future = _RENDERS.submit(_render_images, *job, self.size, self.closeup_size, stale)
 
         def done(f):

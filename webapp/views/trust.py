@@ -210,7 +210,8 @@ class TrustView:
         session.param.watch(self._on_revision, ["revision"])
         session.param.watch(self._on_trust, ["trust"])
         session.param.watch(self._on_takes, ["inputs_revision"])
-        session.param.watch(lambda *_: self._schedule(0), ["busy"])  # a solve ended
+        # a solve or a drag ended
+        session.param.watch(lambda *_: self._schedule(0), ["busy", "dragging"])
         self._on_revision()
 
     # ------------------------------------------------------------ computing
@@ -227,15 +228,14 @@ class TrustView:
         self._schedule(DEBOUNCE_MS)
 
     def _wanted(self) -> bool:
-        """An assessment is due: a solution without one, no solve or opening running, none
-        of this page's assessments running."""
+        """An assessment is due: a solution without one, no solve or opening running, no
+        drag under way, none of this page's assessments running."""
         s = self.session
-        runner = s.runner
         return (
             s.solution is not None
             and s.trust is None
             and not s.busy
-            and not (runner is not None and runner.solving())
+            and not s.edit_coming()
             and not self._running
             and s.revision != self._failed
         )
@@ -261,11 +261,10 @@ class TrustView:
             return
         s = self.session
         revision = s.revision
-        runner = s.runner
         self._running = True
 
-        def stale() -> bool:  # on the worker: a newer edit is being solved, or was drawn
-            return s.revision != revision or (runner is not None and runner.solving())
+        def stale() -> bool:  # on the worker: a newer edit is coming or solved, or was drawn
+            return s.revision != revision or s.edit_coming()
 
         # given up as soon as it is stale: an assessment (about four solves' work) beside
         # the next drag's solve would take a core from it and slow its path
