@@ -403,6 +403,20 @@ class Session(param.Parameterized):
             **({"side": side} if side else {}),
         )
 
+    def rename_takes(self, body_name: str, hand_name: str) -> None:
+        """The open uploaded takes were uploaded again under other names (the same content,
+        so the same hashes): the newest names are theirs from now on, in every place that
+        names them (credits, command line, link, session file, download names). Nothing is
+        opened or solved again."""
+        names = {"body_name": body_name, "hand_name": hand_name}
+        shown = self._shown
+        if shown is not None and (shown["body_sha256"], shown["hand_sha256"]) == (
+            self.body_sha256,
+            self.hand_sha256,
+        ):
+            self._shown = {**shown, **names}
+        self.param.update(**names)
+
     def set_roles(self, roles: dict) -> bool:
         """Joint-role overrides per take (validated like the session file); False if rejected."""
         try:

@@ -422,6 +422,8 @@ class InputsView:
         s = self.session
         body, hand = self._pending["body"], self._pending["hand"]
         if (s.body_sha256, s.hand_sha256) == (body.digest, hand.digest) and not s.sample:
+            # the same content again, maybe under another name: the newest name is used
+            s.rename_takes(body.name, hand.name)
             self._open = dict(self._pending)
             self._show_uploaded(opened=True)
             return

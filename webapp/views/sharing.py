@@ -194,7 +194,7 @@ class SharingView:
         self._doc = doc
         session.param.watch(  # after the edit's path is in the page (``after_path``)
             lambda *_: self._link_soon(),
-            ["revision", "inputs_revision", "matrix", *VIEW_STATE],
+            ["revision", "inputs_revision", "matrix", "body_name", "hand_name", *VIEW_STATE],
         )
         # the preview's frame (slider, Play, a picked cell) is in the link too, once it stands
         self._frame_settle = Settle(doc, self._link_soon, FRAME_LINK_MS)
