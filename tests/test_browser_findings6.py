@@ -62,6 +62,39 @@ def _select_the_point(page) -> None:
     page.mouse.move(5, 5)
 
 
+# ---------------------------------------------------------------- finding 4
+
+
+def test_backspace_deletes_the_selected_point_from_anywhere_but_a_field(demo_page):
+    page = demo_page
+    click_path_mid_take(page, timeout_s=BUSY_S)
+    _select_the_point(page)
+    # typing in a field: Backspace is the field's (the point stays, still selected)
+    page.locator(".hs-share-url input").click()
+    page.keyboard.press("End")
+    page.keyboard.press("Backspace")
+    assert page.evaluate(_POINTS) == 1 and page.evaluate(_SELECTED) == 1
+    # out of the field (a click on the status line's text), the pointer far from the matrix
+    page.locator(".hs-status").click()
+    page.mouse.move(5, 5)
+    rev = revision(page)
+    page.keyboard.press("Backspace")
+    page.wait_for_function(f"() => {_POINTS} === 0", timeout=BUSY_S * 1000)
+    # the server deleted it too: its points come back empty with a new alignment
+    page.wait_for_function(
+        "() => hs.cols('hs-server-points', ['x']).x.length === 0", timeout=BUSY_S * 1000
+    )
+    deadline = time.monotonic() + BUSY_S
+    while revision(page) <= rev:
+        assert time.monotonic() < deadline, "no new alignment after the delete"
+        page.wait_for_timeout(50)
+    # nothing selected: Backspace does nothing more (and Delete works as Backspace does)
+    click_path_mid_take(page, timeout_s=BUSY_S)
+    _select_the_point(page)
+    page.keyboard.press("Delete")
+    page.wait_for_function(f"() => {_POINTS} === 0", timeout=BUSY_S * 1000)
+
+
 # ---------------------------------------------------------------- finding 3
 
 

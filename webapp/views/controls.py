@@ -648,6 +648,22 @@ document.addEventListener('keydown', (ev) => {
   queue.push(redo ? '.hs-redo' : '.hs-undo');
   if (queue.length === 1) next(100);
 }, true);
+// Backspace and Delete delete the selected matching point (the one with the magenta ring)
+// wherever the pointer is (Bokeh's point tool does it only while the pointer is over the
+// matrix, and then finds none left to delete), never while typing in a field
+window.addEventListener('keyup', (ev) => {
+  if (!['Delete', 'Backspace'].includes(ev.key) || ev.ctrlKey || ev.metaKey || ev.altKey
+      || typing(ev.composedPath()[0]) || opening()) return;
+  const src = window.Bokeh?.documents[0]?.get_model_by_name('hs-points-source');
+  const picked = src == null ? [] : Array.from(src.selected.indices);
+  if (!picked.length) return;
+  ev.stopImmediatePropagation();
+  ev.preventDefault();
+  const kept = (k) => Array.from(src.data[k] ?? []).filter((_, i) => !picked.includes(i));
+  const data = Object.fromEntries(Object.keys(src.data).map((k) => [k, kept(k)]));
+  src.selected.indices = [];
+  src.data = data;  // the matrix's edit queue sends it as one edit (a delete), as a tool's
+}, true);
 const queue = [];
 const next = (tries) => {
   if (opening()) queue.length = 0;  // a press queued before a new pair began to open
