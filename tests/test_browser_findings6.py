@@ -95,6 +95,79 @@ def test_backspace_deletes_the_selected_point_from_anywhere_but_a_field(demo_pag
     page.wait_for_function(f"() => {_POINTS} === 0", timeout=BUSY_S * 1000)
 
 
+# ---------------------------------------------------------------- finding 8: undo, redo
+
+
+def test_undo_and_redo_say_what_they_did_and_have_tooltips(demo_page):
+    from webapp.views.controls import UNDO_TIP
+
+    page = demo_page
+    click_path_mid_take(page, timeout_s=BUSY_S)
+    pts = page.evaluate("hs.cols('hs-points-source', ['x', 'y'])")
+    body = int(pts["x"][0])
+    page.locator(".hs-undo button").click()
+    note = _wait_text(page, ".hs-history-note", r"Undid")
+    assert re.fullmatch(rf"\s*Undid: matching point 1 added \(body {body}, hand \d+\)\s*", note)
+    page.wait_for_function(f"() => {_POINTS} === 0", timeout=BUSY_S * 1000)
+    page.locator(".hs-status").click()  # the keyboard's redo, as a person presses it
+    page.keyboard.press("Control+y")
+    redid = _wait_text(page, ".hs-history-note", r"Redid")
+    assert redid.replace("Redid", "Undid") == note
+    page.wait_for_function(f"() => {_POINTS} === 1", timeout=BUSY_S * 1000)
+    # a tooltip on the button says what it does
+    page.locator(".hs-undo button").hover()
+    page.get_by_text(UNDO_TIP).first.wait_for(state="visible", timeout=10_000)
+
+
+# ---------------------------------------------------------------- finding 8: tile, selector
+
+#: a page function: whether the selector's chosen entry fits its box (its text's width in
+#: the selector's font, against the box less its padding and the arrow's ~20 px)
+_FITS = """() => {
+  let sel = null;
+  for (const host of document.querySelectorAll('.hs-sample'))
+    sel = (host.shadowRoot ?? host).querySelector('select') ?? sel;
+  if (sel == null) return null;
+  const style = getComputedStyle(sel);
+  const ctx = document.createElement('canvas').getContext('2d');
+  ctx.font = style.font;
+  const text = sel.options[sel.selectedIndex]?.text ?? '';
+  const room = sel.clientWidth - parseFloat(style.paddingLeft) - parseFloat(style.paddingRight) - 20;
+  return {text, width: ctx.measureText(text).width, room};
+}"""
+
+
+def test_the_waiting_entry_reads_whole_and_a_refused_text_tile_says_so_at_once(demo_page):
+    page = demo_page
+    page.locator(".hs-upload-body input[type=file]").set_input_files(str(BODY_BVH))
+    _wait_text(page, ".hs-upload-status", r"now the other take")
+    page.wait_for_function(
+        "() => { const f = " + _FITS + "; const r = f(); return r && r.text.includes('upload'); }",
+        timeout=BUSY_S * 1000,
+    )
+    fit = page.evaluate(_FITS)
+    assert fit["width"] <= fit["room"], fit
+    # a text file in the hand field: its tile says "Refused" once the reason is shown, not
+    # FilePond's "Uploading %" still counting
+    page.locator(".hs-upload-hand input[type=file]").set_input_files(
+        {"name": "notes.bvh", "mimeType": "text/plain", "buffer": b"Meeting notes\nnone\n"}
+    )
+    alert = page.locator(".hs-upload-error")
+    alert.wait_for(state="visible", timeout=BUSY_S * 1000)
+    assert "notes.bvh line 1" in pane_text(alert)
+    tile = page.locator(".hs-upload-hand .filepond--item")
+    page.wait_for_function(
+        "e => e.querySelector('.filepond--file-status-main')?.textContent === 'Refused'",
+        arg=tile.element_handle(),
+        timeout=400,
+    )
+    seen = []
+    for _ in range(10):  # and it stays so while FilePond finishes its own count
+        seen.append(tile.locator(".filepond--file-status-main").inner_text())
+        page.wait_for_timeout(100)
+    assert set(seen) == {"Refused"}, seen
+
+
 # ---------------------------------------------------------------- finding 3
 
 

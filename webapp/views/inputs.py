@@ -36,10 +36,11 @@ _WORKERS = ThreadPoolExecutor(max_workers=2, thread_name_prefix="hs-upload")
 #: the sample selector's entry while an uploaded pair is open
 UPLOADED = "(your uploaded pair)"
 #: the sample selector's entry while one uploaded take waits for its partner (the views
-#: still show the pair open before, which the selector must not claim is the one chosen)
-WAITING = "(your upload: waiting for its partner)"
+#: still show the pair open before, which the selector must not claim is the one chosen);
+#: short enough to be read whole in the selector (stranger 6 saw "…waiting for its partn…")
+WAITING = "(upload: needs its partner)"
 #: and while an uploaded pair waits for the Side its hand has (Session.waits_for_side)
-WAITING_SIDE = "(your upload: waiting for its side)"
+WAITING_SIDE = "(upload: needs its side)"
 #: the "Uploaded …" line's tail while the pair opens
 OPENING = " <span class='hs-opening'>— opening (progress below)</span>"
 
