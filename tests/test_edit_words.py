@@ -50,3 +50,22 @@ def test_widths_tolerance_and_open_ends_are_named_as_the_page_labels_them():
     assert describe(_with(tolerance=6.0), _with()) == "tolerance T 6 → 2"
     assert describe(_with(), _with(max_unmatched_s=1.5)) == "open ends default → 1.5 s"
     assert describe(_with(), _with()) == "no change"
+
+
+def _trust(pinned: bool, frames=(141, 261)):
+    return SimpleNamespace(
+        uncertainty=SimpleNamespace(pinned=pinned, typical_ms=705.4),
+        suggestions=[(f, 3.0) for f in frames],
+    )
+
+
+def test_the_downloads_warn_only_when_the_timing_is_not_pinned():
+    from webapp.views.trust import unpinned_words
+
+    assert unpinned_words(None) == ""
+    assert unpinned_words(_trust(True)) == ""
+    words = unpinned_words(_trust(False))
+    assert "does not pin the timing" in words and "±705 ms" in words
+    assert "Check body frames 141, 261 in the preview" in words
+    assert "Check body frame 141 in" in unpinned_words(_trust(False, (141,)))
+    assert "Check it in the preview" in unpinned_words(_trust(False, ()))
