@@ -103,8 +103,11 @@ def test_undo_and_redo_say_what_they_did_and_have_tooltips(demo_page):
 
     page = demo_page
     click_path_mid_take(page, timeout_s=BUSY_S)
-    pts = page.evaluate("hs.cols('hs-points-source', ['x', 'y'])")
-    body = int(pts["x"][0])
+    # the point as the server took it (whole frames)
+    page.wait_for_function(
+        "() => hs.cols('hs-server-points', ['x']).x.length === 1", timeout=BUSY_S * 1000
+    )
+    body = int(page.evaluate("hs.cols('hs-server-points', ['x']).x[0]"))
     page.locator(".hs-undo button").click()
     note = _wait_text(page, ".hs-history-note", r"Undid")
     assert re.fullmatch(rf"\s*Undid: matching point 1 added \(body {body}, hand \d+\)\s*", note)
