@@ -122,3 +122,26 @@ def test_the_line_names_the_stage_and_seconds_until_the_matrix_then_the_rest_com
     errors = page.errors
     context.close()
     assert not errors, errors
+
+
+def test_a_side_against_the_hand_files_name_is_warned_for_a_pair_from_disk(served):
+    """Stranger 6, finding 7: ``serve BODY mug1_rightHand.bvh`` and Side *left* chosen in
+    the page: the page says what an upload's line says (the same rule and words), not
+    only the server's stderr; back to *right*, the warning goes."""
+    from engine.model.roles import side_name_conflict
+
+    browser, url = served
+    context = browser.new_context(viewport={"width": 1300, "height": 1000})
+    page = open_tab(context, url, timeout_s=300)
+    warning = page.locator(".hs-local-side .hs-side-warning")
+    assert warning.count() == 0  # the side the name says: nothing to warn of
+    side = page.locator(".hs-side").first
+    side.locator("button", has_text="left").click()
+    warning.wait_for(state="visible", timeout=60_000)
+    text = warning.inner_text()
+    assert text == f"⚠ {side_name_conflict('mug1_rightHand.bvh', 'left')}", text
+    side.locator("button", has_text="right").click()
+    warning.wait_for(state="detached", timeout=60_000)
+    errors = page.errors
+    context.close()
+    assert not errors, errors

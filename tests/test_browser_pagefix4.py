@@ -134,11 +134,13 @@ def test_a_large_upload_says_how_much_has_arrived(page):
     for _, name, main, sub, _serial in receiving:
         assert name == LONG_BODY.name
         assert re.fullmatch(r"Receiving \d{1,2} %", main), main
-        assert re.match(r"\d+\.\d of \d+\.\d MB", sub), sub
+        assert re.match(r"\d+\.\d of \d+\.\d MiB", sub), sub
     assert [t[0] for t in tags][-2:] == ["checking", "ok"], tags
     lines = [html.unescape(x) for x in page.evaluate("window.hsLines")]  # the model's text
     assert any(
-        re.search(r"receiving <b>multipleActions1_subject1\.bvh</b>: \d+ %, [\d.]+ of [\d.]+ MB", x)
+        re.search(
+            r"receiving <b>multipleActions1_subject1\.bvh</b>: \d+ %, [\d.]+ of [\d.]+ MiB", x
+        )
         for x in lines
     ), lines
 

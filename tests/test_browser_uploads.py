@@ -330,6 +330,10 @@ def test_a_file_over_the_limit_is_refused_by_the_browser(page, served):
     # "Maximum file size is 209.7 MB" under "up to 200 MiB")
     sub = page.locator(".hs-upload-body .filepond--file-status-sub").first.inner_text()
     assert sub == f"Maximum file size is {MAX_UPLOAD_MB} MiB", sub
+    # and the file's own size beside it, in the same units (stranger 6: "220.2 MB" next to
+    # "Maximum file size is 200 MiB")
+    size = page.locator(".hs-upload-body .filepond--file-info-sub").first.inner_text()
+    assert size == f"{len(big['buffer']) / 2**20:.1f} MiB", size
     page.get_by_text(f"up to {MAX_UPLOAD_MB} MiB each").first.wait_for(timeout=5000)
     page.wait_for_timeout(1000)
     assert sorted(p.name for p in uploads.iterdir()) == before  # nothing was sent

@@ -141,6 +141,19 @@ def test_undo_redo_across_points_and_parameters(session):
     assert not session.can_redo and not session.redo()
 
 
+def test_undo_and_redo_say_what_they_did(session):
+    """Stranger 6, finding 8: the page says what an Undo or Redo did (``history_note``)."""
+    session.add_point(50, 20)
+    session.move_point(0, 60, 25)
+    assert session.history_note == ""
+    assert session.undo()
+    assert session.history_note == "Undid: matching point 1 moved (body 50 → 60, hand 20 → 25)"
+    assert session.redo()
+    assert session.history_note == "Redid: matching point 1 moved (body 50 → 60, hand 20 → 25)"
+    session.tolerance = 3  # an edit of its own: the words go
+    assert session.history_note == ""
+
+
 def test_json_round_trip_restores_the_same_alignment(session, cfg):
     session.add_point(70, 30, 2)
     session.refine_band = 0.05

@@ -32,7 +32,7 @@ from engine.base.errors import HandSpliceError, SideError
 from engine.dtw import constraints as C
 from engine.io import session as session_io
 from engine.io.session import MatchPoint, SessionSpec, TakeRef
-from webapp import backend, config
+from webapp import backend, config, edit_words
 from webapp.solves import Job, SolveRunner
 
 EDIT_PARAMS = (
@@ -248,6 +248,11 @@ class Session(param.Parameterized):
     )
     can_undo = param.Boolean(default=False)
     can_redo = param.Boolean(default=False)
+    history_note = param.String(
+        default="",
+        doc="what the last Undo or Redo did ('Undid: matching point 2 moved (body 471 → "
+        "402)'), or empty once another edit or pair came",
+    )
 
     def __init__(self, cfg: config.AppConfig | None = None, **params):
         self._cfg = cfg or config.get()
@@ -408,6 +413,20 @@ class Session(param.Parameterized):
             **({"side": side} if side else {}),
         )
 
+    def rename_takes(self, body_name: str, hand_name: str) -> None:
+        """The open uploaded takes were uploaded again under other names (the same content,
+        so the same hashes): the newest names are theirs from now on, in every place that
+        names them (credits, command line, link, session file, download names). Nothing is
+        opened or solved again."""
+        names = {"body_name": body_name, "hand_name": hand_name}
+        shown = self._shown
+        if shown is not None and (shown["body_sha256"], shown["hand_sha256"]) == (
+            self.body_sha256,
+            self.hand_sha256,
+        ):
+            self._shown = {**shown, **names}
+        self.param.update(**names)
+
     def set_roles(self, roles: dict) -> bool:
         """Joint-role overrides per take (validated like the session file); False if rejected."""
         try:
@@ -557,7 +576,7 @@ class Session(param.Parameterized):
         self.prepared = prepared
         self._shown = self._current(SHOWN_INPUTS)
         self._chain = None
-        self.param.update(solution=None, trust=None)
+        self.param.update(solution=None, trust=None, history_note="")
         self._undo.clear()
         self._redo.clear()
         self._set_sizes(prepared)
@@ -651,6 +670,7 @@ class Session(param.Parameterized):
             del self._undo[:-UNDO_LIMIT]
         self._slider_run = None if name is None else (name, time.monotonic())
         self._redo.clear()
+        self.history_note = ""  # an edit of its own: the last undo's words are old
         self._update_history_flags()
 
     def _apply(self, values: dict) -> None:
@@ -676,9 +696,14 @@ class Session(param.Parameterized):
             return False
         snap = source.pop()
         self._slider_run = None
+        now = self._current(EDIT_PARAMS)
         target.append(Snapshot(self._current(snap.values), self.automatic))
         self.automatic = snap.automatic  # first: the values' watchers read it
         self._apply(snap.values)
+        # the edit undone went from the snapshot's values to those shown; a redone one back
+        undo = source is self._undo
+        edit = ({**now, **snap.values}, now) if undo else (now, {**now, **snap.values})
+        self.history_note = f"{'Undid' if undo else 'Redid'}: {edit_words.describe(*edit)}"
         self._solve()
         self._update_history_flags()
         return True
@@ -1415,7 +1440,12 @@ class Session(param.Parameterized):
         self.end_opening()
         self.prepared = prepared
         self._set_sizes(prepared)
-        self.param.update(solution=staged["solution"], trust=None, compute_ms=staged["compute_ms"])
+        self.param.update(
+            solution=staged["solution"],
+            trust=None,
+            compute_ms=staged["compute_ms"],
+            history_note="",
+        )
         self.automatic = staged["automatic"]  # first: the values' watchers read it
         self._apply(staged["values"])
         self._shown = self._current(SHOWN_INPUTS)

@@ -579,30 +579,61 @@ class _UndoButton(pn.widgets.Button):
         return model
 
 
+#: the history buttons' tooltips
+UNDO_TIP = "Undo the last edit: a matching point added, moved or deleted, a band width, a tolerance (Ctrl+Z)"
+REDO_TIP = "Redo the edit last undone (Ctrl+Shift+Z or Ctrl+Y)"
+CLEAR_TIP = "Delete every matching point (one edit: Undo brings them back)"
+
+
 def undo_redo(session: Session) -> pn.viewable.Viewable:
+    """Undo, Redo and Clear points, with the words of what the last Undo or Redo did
+    (``Session.history_note``, a line of its own under the buttons)."""
     undo = _UndoButton(
-        label="↶ Undo", disabled=not session.can_undo, width=90, css_classes=["hs-undo"]
+        label="↶ Undo",
+        disabled=not session.can_undo,
+        width=90,
+        css_classes=["hs-undo"],
+        description=UNDO_TIP,
     )
     redo = pn.widgets.Button(
-        label="↷ Redo", disabled=not session.can_redo, width=90, css_classes=["hs-redo"]
+        label="↷ Redo",
+        disabled=not session.can_redo,
+        width=90,
+        css_classes=["hs-redo"],
+        description=REDO_TIP,
     )
-    clear = pn.widgets.Button(label="Clear points", width=110, css_classes=["hs-clear"])
+    clear = pn.widgets.Button(
+        label="Clear points", width=110, css_classes=["hs-clear"], description=CLEAR_TIP
+    )
     undo.on_click(lambda e: session.undo())
     redo.on_click(lambda e: session.redo())
     clear.on_click(lambda e: session.set_points([]))
+    note = pn.pane.HTML(
+        "",
+        css_classes=["hs-history-note"],
+        styles={"font-size": "12px", "color": "#444"},
+        margin=(0, 10),
+        min_height=18,  # the line is there empty too: its words never move the page below
+        sizing_mode="stretch_width",
+    )
 
     def flags(*_):
         undo.disabled = not session.can_undo
         redo.disabled = not session.can_redo
 
+    def words(*_):
+        note.object = safe_text.html(session.history_note)
+
     session.param.watch(flags, ["can_undo", "can_redo"])
-    return pn.Row(undo, redo, clear)
+    session.param.watch(words, ["history_note"])
+    return pn.Column(pn.Row(undo, redo, clear), note, sizing_mode="stretch_width")
 
 
 #: The page's keyboard handling. Ctrl+Z undoes, Ctrl+Shift+Z and Ctrl+Y redo (Cmd on a
 #: Mac), anywhere in the page except while typing in a text field (where the field's own
 #: undo applies): they press the page's Undo and Redo buttons, so keyboard and mouse do
-#: the same thing. While a new pair opens (the old pair's views veiled, ``.hs-inactive``:
+#: the same thing. Backspace and Delete delete the selected matching point, likewise from
+#: anywhere but a text field (stranger 6: only with the pointer over the matrix before). While a new pair opens (the old pair's views veiled, ``.hs-inactive``:
 #: webapp.views.veil, which blocks the mouse) the keyboard is inert there too: no key
 #: reaches a veiled view (a focused slider, table cell or field), and no edit shortcut
 #: (undo, redo, Delete/Backspace on the matrix's points) acts, before the server would
@@ -647,6 +678,22 @@ document.addEventListener('keydown', (ev) => {
   // server's answer to the edit before (a redo re-enables Undo): each waits up to 10 s
   queue.push(redo ? '.hs-redo' : '.hs-undo');
   if (queue.length === 1) next(100);
+}, true);
+// Backspace and Delete delete the selected matching point (the one with the magenta ring)
+// wherever the pointer is (Bokeh's point tool does it only while the pointer is over the
+// matrix, and then finds none left to delete), never while typing in a field
+window.addEventListener('keyup', (ev) => {
+  if (!['Delete', 'Backspace'].includes(ev.key) || ev.ctrlKey || ev.metaKey || ev.altKey
+      || typing(ev.composedPath()[0]) || opening()) return;
+  const src = window.Bokeh?.documents[0]?.get_model_by_name('hs-points-source');
+  const picked = src == null ? [] : Array.from(src.selected.indices);
+  if (!picked.length) return;
+  ev.stopImmediatePropagation();
+  ev.preventDefault();
+  const kept = (k) => Array.from(src.data[k] ?? []).filter((_, i) => !picked.includes(i));
+  const data = Object.fromEntries(Object.keys(src.data).map((k) => [k, kept(k)]));
+  src.selected.indices = [];
+  src.data = data;  // the matrix's edit queue sends it as one edit (a delete), as a tool's
 }, true);
 const queue = [];
 const next = (tries) => {

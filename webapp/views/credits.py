@@ -76,7 +76,8 @@ def credits_pane(session: Session) -> pn.viewable.Viewable:
     def update(*_):
         pane.object = credits_html(session)
 
-    session.param.watch(update, ["inputs_revision", "sample"])
+    # names too: the same takes uploaded again under other names (Session.rename_takes)
+    session.param.watch(update, ["inputs_revision", "sample", "body_name", "hand_name"])
     return pane
 
 

@@ -64,10 +64,11 @@ const paint = () => {
   const item = pond.getFiles().find(f => f.filename === name.split(/[\\\\/]/).pop());
   // "receiving" (the server's count of the bytes on its disk) also while FilePond still
   // sends (status 3: its ring counts what the browser queued, not what arrived)
-  // "refused" also on a file FilePond did not send (status 8: refused by its kind)
+  // "refused" also on a file FilePond did not send (status 8: refused by its kind), and
+  // while FilePond still counts its "Uploading %" (status 3: the server refused it already)
   const shown = item != null && (
     item.status === 5 || (state === 'receiving' && item.status === 3) ||
-    (state === 'refused' && item.status === 8));
+    (state === 'refused' && (item.status === 8 || item.status === 3)));
   if (!shown) return false;
   const li = pond.element.querySelector('#filepond--item-' + item.id);
   if (li == null) return false;
@@ -106,7 +107,7 @@ _SERIAL = itertools.count(1)
 WRONG_KIND = "wrong-kind"
 
 #: the page side of the kind check (once per field, when the page is ready; it also has
-#: FilePond say the size limit as the page does, in MiB): FilePond
+#: FilePond say the size limit and file sizes as the page does, in MiB): FilePond
 #: checks a file's type against the field's ``accept`` list; browsers give .bvh/.c3d/.trc
 #: files no MIME type (or a guess), so the "type" it checks is the name's extension. A
 #: file it refuses is not sent; the field's model's ``tags`` tell the server its name
@@ -122,6 +123,12 @@ const setup = () => {
     fileValidateTypeLabelExpectedTypes: 'not sent: expected {allButLastType} or {lastType}',
     // FilePond would say the limit in decimal MB (209.7 MB for 200 MiB)
     labelMaxFileSize: limit,
+    // and a file's size too (220.2 MB beside "200 MiB"): in binary units, as the page
+    // (only what FilePond shows: the size limit it checks is parsed in bytes as before)
+    fileSizeBase: 1024,
+    labelFileSizeKilobytes: 'KiB',
+    labelFileSizeMegabytes: 'MiB',
+    labelFileSizeGigabytes: 'GiB',
   });
 };
 setup();
@@ -157,9 +164,10 @@ class Receipt:
         return min(99, int(100 * self.received / max(self.expected, 1)))
 
     def words(self) -> tuple[str, str]:
-        """(main, sub) texts: ``Receiving 42 %``, ``1.3 of 3.2 MB · about 4 s left``."""
+        """(main, sub) texts: ``Receiving 42 %``, ``1.3 of 3.2 MiB · about 4 s left`` (in
+        binary units, as the page says the limit and FilePond the file's size)."""
         main = f"Receiving {self.percent} %"
-        sub = f"{self.received / 1e6:.1f} of {self.expected / 1e6:.1f} MB"
+        sub = f"{self.received / 2**20:.1f} of {self.expected / 2**20:.1f} MiB"
         if 0 < self.received < self.expected and self.seconds > 0.5:
             left = (self.expected - self.received) * self.seconds / self.received
             sub += f" · about {left:.0f} s left"

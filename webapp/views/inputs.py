@@ -36,10 +36,11 @@ _WORKERS = ThreadPoolExecutor(max_workers=2, thread_name_prefix="hs-upload")
 #: the sample selector's entry while an uploaded pair is open
 UPLOADED = "(your uploaded pair)"
 #: the sample selector's entry while one uploaded take waits for its partner (the views
-#: still show the pair open before, which the selector must not claim is the one chosen)
-WAITING = "(your upload: waiting for its partner)"
+#: still show the pair open before, which the selector must not claim is the one chosen);
+#: short enough to be read whole in the selector (stranger 6 saw "…waiting for its partn…")
+WAITING = "(upload: needs its partner)"
 #: and while an uploaded pair waits for the Side its hand has (Session.waits_for_side)
-WAITING_SIDE = "(your upload: waiting for its side)"
+WAITING_SIDE = "(upload: needs its side)"
 #: the "Uploaded …" line's tail while the pair opens
 OPENING = " <span class='hs-opening'>— opening (progress below)</span>"
 
@@ -89,6 +90,10 @@ class InputsView:
         self.uploaded = pn.pane.HTML(
             "", css_classes=["hs-upload-status"], sizing_mode="stretch_width"
         )
+        #: the pair opened from disk: its Side against its hand file's name
+        self.local_side = pn.pane.HTML(
+            "", css_classes=["hs-local-side"], sizing_mode="stretch_width", visible=False
+        )
         self.note = pn.pane.Alert(
             "",
             alert_type="info",
@@ -131,6 +136,7 @@ class InputsView:
         )
         session.param.watch(self._show_note, ["inputs_revision"])
         session.param.watch(self._on_pair_shown, ["inputs_revision"])
+        session.param.watch(self._show_local_side, ["inputs_revision", "sample"])
         session.param.watch(self._on_side, ["side"])
         # a side the takes lack is refused here, under the Side control that asked for it
         # (the page's error line is far below it)
@@ -145,6 +151,7 @@ class InputsView:
             styles={"color": "#555", "font-size": "12px"},
         )
         self._on_session_inputs()
+        self._show_local_side()
 
     # ------------------------------------------------------------ the sample selector
 
@@ -382,14 +389,26 @@ class InputsView:
         if self._open and self._pending == self._open and self._open_is_shown():
             self._side_note = ""
             self._show_uploaded(opened=True)
+        self._show_local_side()
+
+    def _show_local_side(self, *_):
+        """The pair of ``handsplice serve BODY HAND`` (opened from disk, not uploaded): the
+        same warning as an upload's when the Side in force contradicts the hand file's name
+        (the CLI's stderr says it too), on a line of its own; hidden otherwise."""
+        s = self.session
+        local = s.config.local
+        shown = local is not None and s.sample == local.name
+        warning = side_warning(local.hand.name, s.side) if shown else ""
+        self.local_side.object = warning
+        self.local_side.visible = bool(warning)
 
     def _side_words(self) -> str:
         """``; side right, as the hand file's name says`` when the opening followed the
         name, or the warning when the side in force contradicts it (escaped)."""
         hand = self._pending.get("hand")
-        conflict = side_name_conflict(hand.name, self.session.side) if hand else None
-        if conflict:
-            return f"; <span class='hs-side-warning'>⚠ {safe_text.html(conflict)}</span>"
+        warning = side_warning(hand.name, self.session.side) if hand else ""
+        if warning:
+            return f"; {warning}"
         if self._side_note:
             return f"; <span class='hs-side-from-name'>{safe_text.html(self._side_note)}</span>"
         return ""
@@ -416,6 +435,8 @@ class InputsView:
         s = self.session
         body, hand = self._pending["body"], self._pending["hand"]
         if (s.body_sha256, s.hand_sha256) == (body.digest, hand.digest) and not s.sample:
+            # the same content again, maybe under another name: the newest name is used
+            s.rename_takes(body.name, hand.name)
             self._open = dict(self._pending)
             self._show_uploaded(opened=True)
             return
@@ -553,6 +574,7 @@ class InputsView:
             ),
             self.limit_note,
             self.uploaded,
+            self.local_side,
             self.message,
             self.note,
             pn.Card(
@@ -572,6 +594,14 @@ class InputsView:
             ),
             sizing_mode="stretch_width",
         )
+
+
+def side_warning(hand_name: str, side: str) -> str:
+    """The page's warning (HTML, escaped) when ``side`` contradicts what the hand file's
+    name says (the rule: ``engine.model.roles.side_name_conflict``), else ''. The one
+    wording for an uploaded pair and for a pair opened from disk."""
+    conflict = side_name_conflict(hand_name, side) if hand_name else None
+    return f"<span class='hs-side-warning'>⚠ {safe_text.html(conflict)}</span>" if conflict else ""
 
 
 def _own_notes(kept: uploads.Kept) -> list[str]:

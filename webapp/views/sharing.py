@@ -194,7 +194,7 @@ class SharingView:
         self._doc = doc
         session.param.watch(  # after the edit's path is in the page (``after_path``)
             lambda *_: self._link_soon(),
-            ["revision", "inputs_revision", "matrix", *VIEW_STATE],
+            ["revision", "inputs_revision", "matrix", "body_name", "hand_name", *VIEW_STATE],
         )
         # the preview's frame (slider, Play, a picked cell) is in the link too, once it stands
         self._frame_settle = Settle(doc, self._link_soon, FRAME_LINK_MS)
@@ -429,9 +429,11 @@ class SharingView:
 
     def panel(self) -> pn.viewable.Viewable:
         from webapp.views.credits import no_share_alert
+        from webapp.views.trust import unpinned_alert
 
         return pn.Column(
             no_share_alert(self.session),
+            unpinned_alert(self.session),
             pn.Row(self.bvh, self.glb, self.session_file, self.gif, self.mp4),
             pn.Row(self.progress, self.progress_text),
             self.prepare_text,

@@ -35,6 +35,7 @@ import panel as pn
 from bokeh.models import ColumnDataSource, HoverTool
 
 from engine.base.errors import Cancelled
+from webapp import safe_text
 from webapp.state import Session
 from webapp.views._dispatch import after, after_path, next_tick, with_document_lock
 
@@ -419,3 +420,54 @@ class TrustView:
             width=width,
             margin=0,
         )
+
+
+def unpinned_words(trust) -> str:
+    """What the downloads say about an alignment the motion does not pin
+    (``Uncertainty.pinned`` false: the trust panel's "do not pin the timing"), with the
+    body frames the trust panel suggests checking; '' for a pinned one or none yet. The
+    alignment itself is as the aligner left it: a person who downloads without reading
+    the trust panel is told here."""
+    if trust is None or trust.uncertainty.pinned:
+        return ""
+    frames = [int(body) for body, _ in trust.suggestions]
+    text = (
+        "⚠ The motion does not pin the timing of this splice (typical uncertainty "
+        f"±{trust.uncertainty.typical_ms:.0f} ms): the fingers may land on the wrong moment."
+    )
+    if frames:
+        where = ", ".join(str(f) for f in frames)
+        text += (
+            f" Check body frame{'s' if len(frames) > 1 else ''} {where} in the preview (the "
+            "Check buttons under the matrix)"
+        )
+    else:
+        text += " Check it in the preview"
+    return text + " and place matching points by eye before downloading."
+
+
+def unpinned_alert(session: Session) -> pn.viewable.Viewable:
+    """:func:`unpinned_words` next to the downloads: follows each assessment; hidden when
+    other takes are shown until theirs arrives (meanwhile an edit's assessment keeps the
+    last words: showing and hiding lays the page out again)."""
+    alert = pn.pane.Alert(
+        "",
+        alert_type="warning",
+        css_classes=["hs-unpinned-alert"],
+        sizing_mode="stretch_width",
+        visible=False,
+    )
+
+    def update(*events):
+        if any(e.name == "inputs_revision" for e in events):
+            alert.visible = False
+        if session.trust is None:
+            return
+        words = unpinned_words(session.trust)
+        if words:
+            alert.object = safe_text.markdown(words)
+        alert.visible = bool(words)
+
+    session.param.watch(update, ["trust", "inputs_revision"])
+    update()
+    return alert
