@@ -284,7 +284,7 @@ def _work_sections(session: Session) -> tuple[list, object]:
         # the mode applies in the browser at once (a click made before the server's answer
         # arrives must not add a point); the server sets the same (CostMatrixView.set_pick_mode)
         pick.jscallback(
-            value="tool.add = cb_obj.labels[cb_obj.active] !== 'Pick frames'",
+            value="tool.add = cb_obj.labels[cb_obj.active] !== 'Pick frames'; tool.active = true",
             args={"tool": matrix.point_tool},
         )
         work = [

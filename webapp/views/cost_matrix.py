@@ -36,6 +36,7 @@ import numpy as np
 import panel as pn
 from bokeh.events import DoubleTap, PanEnd, PanStart, RangesUpdate, Tap
 from bokeh.models import (
+    BoxZoomTool,
     ColorBar,
     ColumnDataSource,
     CustomJS,
@@ -68,6 +69,11 @@ AXIS_SIGNAL_SIZE = 90
 #: pixels right of the matrix's frame, for its colour bar (labels up to 5 digits) and its
 #: toolbar: reserved, so that the frame's width never depends on the colour bar's labels
 MATRIX_RIGHT_BORDER = 105
+
+
+#: after the box zoom's gesture (its PanEnd), the matching-point tool is the active one again
+#: (once the zoom has applied its box: the next tick)
+_JS_ZOOM_ONCE = "if (zoom.active) setTimeout(() => { tool.active = true }, 0)"
 
 
 def _phase_quads(labels: np.ndarray | None, colors: dict) -> dict:
@@ -522,6 +528,15 @@ class CostMatrixView:
         fig.add_tools(self.point_tool)
         fig.toolbar.active_drag = self.point_tool
         fig.toolbar.active_tap = self.point_tool
+        # a box zoom is one gesture: once its box is drawn the point tool is back, so the
+        # next click adds a point again (stranger 7: after a zoom, clicks silently added
+        # nothing until the toolbar's point icon was chosen again)
+        box_zoom = fig.select_one(BoxZoomTool)
+        if box_zoom is not None:
+            fig.js_on_event(
+                PanEnd,
+                CustomJS(args={"zoom": box_zoom, "tool": self.point_tool}, code=_JS_ZOOM_ONCE),
+            )
         return points
 
     def _add_hovers(self, fig, image, points) -> None:
