@@ -951,6 +951,29 @@ def test_video_export_runs_off_the_event_loop_with_progress(session, monkeypatch
     assert view.gif.filename == f"{DEMO}-spliced.gif"
 
 
+def test_a_video_export_stops_when_its_page_closes(session, monkeypatch):
+    """Stranger 7: an MP4 kept rendering (and ffmpeg encoding) for minutes after its tab
+    was closed. Now the rendering stops at the next frame once the page has closed."""
+    import asyncio
+
+    from webapp.views import sharing
+
+    rendered = []
+    real = backend.render_frame
+
+    def counted(*args, **kwargs):
+        rendered.append(1)
+        if len(rendered) == 3:  # the tab closes while the third frame renders
+            session.page_closed()
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(backend, "render_frame", counted)
+    view = sharing.SharingView(session)
+    data = asyncio.run(view._mp4())
+    assert data is None and len(rendered) == 3  # given up, not the 186 frames of the take
+    assert not view.mp4.disabled  # the next export may start
+
+
 def test_the_video_export_uses_the_preview_camera_hands_close_up(session, monkeypatch):
     """Stranger R5-6: the app's GIF/MP4 had no close-up of the spliced fingers. The preview's
     camera (``hands`` too, as ``handsplice render --camera hands``) is the video's: its
@@ -1054,7 +1077,7 @@ def test_a_run_of_one_slider_is_one_undo_step(session, monkeypatch):
 
 
 def test_lesson_next_row_finishes_the_current_row():
-    from webapp.views.teaching import TeachingModel, short_number
+    from webapp.views.teaching import TeachingModel, example_signals, local_costs, short_number
 
     mdl = TeachingModel()
     rows = [sum(1 for i, _ in mdl.order if i == r) for r in range(mdl.n)]
@@ -1067,6 +1090,11 @@ def test_lesson_next_row_finishes_the_current_row():
     mdl.step = len(mdl.order)
     texts = [short_number(g) for g in mdl.gamma[np.isfinite(mdl.gamma)].ravel()]
     assert texts and max(map(len, texts)) <= 4
+    # value costs in cm²: every cell's label a plain number a class can read (stranger 7 saw
+    # "2e-3" in the cells), as are the γ of this example
+    costs = local_costs(*example_signals(), "value")
+    labels = [short_number(c, 3) for c in costs.ravel()] + texts
+    assert all("e" not in t for t in labels), [t for t in labels if "e" in t]
     assert [short_number(x) for x in (0, 0.1234, 3.5, 12.34, 340.2, 2345, 23456, 0.004)] == [
         "0",
         "0.12",
@@ -1443,3 +1471,14 @@ def test_every_number_of_the_status_says_what_it_is(session):
     assert re.search(r"solved in [\d,]+ ms", text), text
     costs_and_time = text.split(" · ")[:4]
     assert [part.split()[0] for part in costs_and_time] == ["pass", "pass", "solved", "band"]
+
+
+def test_the_status_of_a_page_whose_first_pair_is_opening_says_so(cfg):
+    """Stranger 7: while a page's first pair opened, its status line said "no takes loaded"
+    under the first matrix already drawn."""
+    s = Session(cfg)
+    assert s.solution is None
+    s.opening = "walk.bvh + mug1_rightHand.bvh"
+    assert s.status_text() == "opening walk.bvh + mug1_rightHand.bvh: no alignment yet"
+    s.opening = ""
+    assert s.status_text() == "no takes loaded"

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from engine.base import tolerances as T
-from engine.base.errors import HandSpliceError
+from engine.base.errors import HandSpliceError, check_cancelled
 
 #: command-line wording in engine messages -> what the page calls the same control
 _PAGE_WORDS = (
@@ -926,14 +926,17 @@ def preview_video(
     size: tuple[int, int] = VIDEO_SIZE,
     progress=None,
     start: int = 0,
+    cancelled=None,
 ) -> bytes:
     """An animated preview (GIF or MP4 bytes) at the take's speed: the body frames of
     :func:`video_frames` (at most 30 fps, at most ``max_frames`` frames from body frame
     ``start`` of a long take).
 
     ``progress(done, total)`` is called after each rendered frame and once more (total,
-    total) when the file is encoded. Safe to call from a worker thread (the renderer
-    serialises OpenGL calls), which is how the app runs it.
+    total) when the file is encoded. ``cancelled()`` (if given) is asked before each frame:
+    True gives the video up (``engine.base.errors.Cancelled``, nothing kept; the app's
+    page was closed). Safe to call from a worker thread (the renderer serialises OpenGL
+    calls), which is how the app runs it.
     """
     import tempfile
 
@@ -954,6 +957,7 @@ def preview_video(
 
     def rendered():
         for done, i in enumerate(indices, 1):
+            check_cancelled(cancelled)
             yield render_frame(prepared, solution, i, camera, False, size)
             if progress is not None:
                 progress(done, total)

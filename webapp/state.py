@@ -326,6 +326,11 @@ class Session(param.Parameterized):
         lives: every new solution and the page's close come here."""
         backend.showing(self, None if self._page_closed else self.solution)
 
+    @property
+    def page_is_closed(self) -> bool:
+        """True once the session's page (its tab) has closed: work for it is wasted."""
+        return self._page_closed
+
     def page_closed(self) -> None:
         """The page closed (its tab is gone): it shows no alignment from now on, even when
         a solve started before lands later."""
@@ -1090,6 +1095,8 @@ class Session(param.Parameterized):
     def status_text(self) -> str:
         sol = self.solution
         if sol is None:
+            if self.opening and not self.error:  # the first pair of this page, on its way
+                return f"opening {self.opening}: no alignment yet"
             return self.error or "no takes loaded"
         from engine.splice.report import unmatched_summary
 

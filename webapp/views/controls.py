@@ -550,7 +550,7 @@ def status_line(session: Session) -> pn.viewable.Viewable:
     doc = pn.state.curdoc
     session.param.watch(  # after the edit's path is in the page (``after_path``)
         lambda *_: after_path(session, ("status", id(pane)), update, doc),
-        ["revision", "compute_ms", "error", "waiting"],
+        ["revision", "compute_ms", "error", "waiting", "opening"],
     )
     update()
     return pane

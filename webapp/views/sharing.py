@@ -341,7 +341,13 @@ class SharingView:
         job = loop.run_in_executor(
             _EXPORTS,
             lambda: backend.preview_video(
-                prepared, solution, fmt, camera=camera, progress=progress, start=start
+                prepared,
+                solution,
+                fmt,
+                camera=camera,
+                progress=progress,
+                start=start,
+                cancelled=lambda: s.page_is_closed,  # its tab is gone: nobody will get it
             ),
         )
         try:

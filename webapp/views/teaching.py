@@ -29,6 +29,10 @@ from webapp.views._dispatch import with_document_lock
 from webapp.views.checkbox import Checkbox
 
 EXAMPLE_FPS = 10.0
+#: centimetres per unit of the example's wrist heights (a stroke rises about 30 cm): the
+#: value-based costs are squared differences in cm² (0-900), whole numbers a cell can show,
+#: not the 0.002-0.9 of unit heights (stranger 7: "2e-3" in a teaching grid)
+HEIGHT_CM = 30.0
 
 
 def _gesture(t: np.ndarray, amplitude: float, offset: float) -> np.ndarray:
@@ -47,10 +51,12 @@ def example_signals(n: int = 12, m: int = 10) -> tuple[np.ndarray, np.ndarray]:
 
 def local_costs(body: np.ndarray, hand: np.ndarray, metric: str) -> np.ndarray:
     """(n, m) local cost of the example: ``"value"`` squared difference of heights, or
-    ``"sign"`` eq. 6 on this one coordinate (signs of velocity and acceleration)."""
+    ``"sign"`` eq. 6 on this one coordinate (signs of velocity and acceleration). Value
+    costs are in cm² (heights × ``HEIGHT_CM``)."""
     n, m = len(body), len(hand)
     if metric == "value":
-        return local_cost_image(body[:, None], hand[:, None], "sqeuclidean", (n, m)).image
+        body_cm, hand_cm = body[:, None] * HEIGHT_CM, hand[:, None] * HEIGHT_CM
+        return local_cost_image(body_cm, hand_cm, "sqeuclidean", (n, m)).image
     codes = []
     for x in (body, hand):
         v, a = metrics.derivatives(x[:, None], EXAMPLE_FPS, window_s=0.3)
@@ -291,11 +297,11 @@ class TeachingView:
                 label="Step", color="primary", width=80, css_classes=["hs-teach-step"]
             ),
             "row": pn.widgets.Button(
-                label="Next row i",
-                width=100,
+                label="Next body frame i",
+                width=140,
                 css_classes=["hs-teach-row"],
-                description="compute the rest of this body frame's row "
-                "(drawn upright: one x) of the matrix",
+                description="compute the rest of this body frame's cells: the paper's row i "
+                "of the matrix, drawn upright here (one column, one x)",
             ),
             "end": pn.widgets.Button(label="Finish", width=80),
         }
