@@ -75,7 +75,9 @@ def test_the_sample_picker_does_not_name_the_sample_while_an_upload_waits(page):
     page.locator(".hs-upload-body input[type=file]").set_input_files(str(BODY_BVH))
     _until(lambda: "waiting for a hand take" in status_line(page), "no waiting status")
     shown = _until(lambda: _picker(page) if _picker(page) != demo else "", "picker kept the sample")
-    assert "waiting" in shown and demo not in shown, shown
+    from webapp.views.inputs import WAITING
+
+    assert shown == WAITING and demo not in shown, shown  # "(upload: needs its partner)"
     # choosing the sample that is shown drops the waiting upload
     page.locator(".hs-sample select").first.select_option(demo)
     _until(lambda: "waiting" not in status_line(page), "the upload still waits")
