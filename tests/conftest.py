@@ -6,6 +6,7 @@ import contextlib
 import dataclasses
 import os
 import re
+import time
 from pathlib import Path
 
 import pytest
@@ -365,6 +366,15 @@ def pane_text(locator) -> str:
         ".filter(c => c.tagName !== 'STYLE' && c.tagName !== 'LINK')"
         ".map(c => c.innerText).join(' ')"
     )
+
+
+def wait_pane_text(locator, *words: str, timeout_s: float = 30.0) -> str:
+    """:func:`pane_text` of ``locator`` once it holds every one of ``words`` (polled)."""
+    deadline = time.monotonic() + timeout_s
+    while not all(w in (text := pane_text(locator)) for w in words):
+        assert time.monotonic() < deadline, f"{words} not all in {text!r}"
+        locator.page.wait_for_timeout(50)
+    return text
 
 
 def revision(page) -> int:

@@ -21,6 +21,7 @@ from conftest import (
     pane_text,
     revision,
     status_line,
+    wait_pane_text,
 )
 
 pytestmark = pytest.mark.browser
@@ -372,6 +373,15 @@ def test_a_bad_link_opens_the_demo_and_says_why(browser, demo_url):
         other.wait_for_function("() => !location.search.includes('nope')", timeout=30_000)
         assert "sample=nope" not in other.url and "band=0.5" not in other.url
         assert other.locator(".hs-share-url input").input_value().find("nope") < 0
+        # the page's top says it too, above the matrix, with the link as sent (stranger 8:
+        # the demo pair at the top read as the link's own pair, the sent link was gone)
+        notice = other.locator(".hs-link-notice")
+        said = wait_pane_text(notice, "did not open as it was sent", "nope")
+        assert "not the link's" in said and "?sample=nope&band=0.5&pts=3%3A4" in said
+        matrix = other.locator(".hs-matrix-title").first.bounding_box()
+        assert notice.bounding_box()["y"] + notice.bounding_box()["height"] <= matrix["y"]
+        other.locator(".hs-link-notice-close button").click()
+        notice.wait_for(state="hidden", timeout=30_000)
         assert not other.errors, other.errors
     finally:
         other.context.close()

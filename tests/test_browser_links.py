@@ -13,7 +13,15 @@ from pathlib import Path
 from urllib.parse import parse_qsl, urlsplit
 
 import pytest
-from conftest import BODY_BVH, HAND_BVH, XSS_PAYLOAD, open_page, pane_text, xss_ran
+from conftest import (
+    BODY_BVH,
+    HAND_BVH,
+    XSS_PAYLOAD,
+    open_page,
+    pane_text,
+    wait_pane_text,
+    xss_ran,
+)
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(1500)]
 
@@ -96,6 +104,12 @@ def test_one_bad_link_value_keeps_the_takes_and_the_good_values(served, tmp_path
         text = pane_text(alert)
         assert "shared link: URL: band: expected a fraction of the body take" in text
         assert "got 99" in text and "\n" not in text.strip()
+        wait_pane_text(  # and at the page's top, with the link as sent (the address bar
+            page.locator(".hs-link-notice"),  # drops the band)
+            "band: expected a fraction",
+            "the rest of the link opened",
+            "band=99",
+        )
         # the address bar and the link box show what is open: the refused band is gone
         page.wait_for_function("() => !location.search.includes('band=99')", timeout=30_000)
         query = dict(parse_qsl(urlsplit(page.locator(".hs-share-url input").input_value()).query))

@@ -110,6 +110,7 @@ def _initial_state(session: Session, args: dict[str, str] | None = None) -> None
 
     def link_refused(exc):  # the link's takes cannot be opened: the default pair opens
         session.keep_error(f"shared link: {one_line(exc)}", exc)
+        session.link_not_opened(_not_opened(exc))
         if session.prepared is None:
             open_default()
 
@@ -132,6 +133,13 @@ def _initial_state(session: Session, args: dict[str, str] | None = None) -> None
             session.open_link(args)
         except Exception as exc:  # nothing was applied: the reason is shown
             session.refuse(exc, f"shared link: {one_line(exc)}")
+            session.link_not_opened(_not_opened(exc))
+
+
+def _not_opened(exc: BaseException) -> str:
+    """The page's top line for a link whose takes could not be opened: why, and that the
+    pair the page shows (the default one) is not the link's."""
+    return f"{one_line(exc)} (the pair below is not the link's)"
 
 
 def _local_stylesheets(doc) -> None:
@@ -200,7 +208,12 @@ def fill_page(page: pn.Column, session: Session, first, args: dict[str, str] | N
     matrix's controls and the preview in the next tick (so the matrix goes to the browser
     first), share and lesson once the first matrix is drawn (``first.built``); without a
     server all at once."""
+    from webapp.views.link_notice import link_notice
+
     first.building()
+    if args is None:
+        args = _link_args()
+    page.append(link_notice(session, args))  # before the link opens: it may refuse
     _initial_state(session, args)  # served: the pair opens on the worker from here on
     first.update()  # "building the page · opening NAME: …" goes out with the matrix
     try:

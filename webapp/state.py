@@ -225,6 +225,11 @@ class Session(param.Parameterized):
     )
     compute_ms = param.Number(default=0.0, doc="wall time of the last recompute, ms")
     error = param.String(default="", doc="why the last edit or input was rejected")
+    link_notice = param.String(
+        default="",
+        doc="what of the page's shared link could not be opened, and what is shown instead "
+        "(the page's top says it until closed: :meth:`link_not_opened`)",
+    )
     revision = param.Integer(default=0, doc="bumped after every recompute")
     busy = param.String(
         default="", doc="what runs off the event loop now (opening takes, aligning), or empty"
@@ -521,6 +526,12 @@ class Session(param.Parameterized):
                 dropped=lambda: self._open_dropped(then),
             )
         )
+
+    def link_not_opened(self, text: str) -> None:
+        """Add ``text`` (one line: what of the page's shared link was left out, and what
+        the page shows instead) to :attr:`link_notice`, said at the page's top: a link's
+        refusal under the matrix alone was read as the link's own pair (stranger 8)."""
+        self.link_notice = "; ".join(t for t in (self.link_notice, text) if t)
 
     def keep_error(self, text: str, exc: BaseException | None = None) -> None:
         """Show ``text`` now and keep it shown after the next solve (a shared link that
@@ -1464,8 +1475,10 @@ class Session(param.Parameterized):
         self.inputs_revision += 1
         self.error, self._carry_error = self._carry_error, ""
         if staged.get("refused") is not None:  # a link's points left out: say why too
-            text = f"shared link: {backend.one_line(staged['refused'])}"
+            left_out = backend.one_line(staged["refused"])
+            text = f"shared link: {left_out}"
             self.refuse(staged["refused"], "; ".join(t for t in (self.error, text) if t))
+            self.link_not_opened(f"{left_out} (left out; the rest of the link opened)")
         self.revision += 1
         self._update_history_flags()
 
@@ -1505,4 +1518,5 @@ class Session(param.Parameterized):
         if problems:
             text = "; ".join(backend.one_line(p) for p in problems)
             self.keep_error(f"shared link: {text}", problems[0])
+            self.link_not_opened(f"{text} (left out; the rest of the link opened)")
         self.apply_spec(spec, failed, keep_takes=True)
