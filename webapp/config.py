@@ -8,6 +8,7 @@ only from ``sample_dir`` and ``upload_dir``.
 from __future__ import annotations
 
 import json
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -186,10 +187,27 @@ def file_credits(sample_dir: Path) -> dict[str, dict]:
     return {e["file"]: e for e in files if isinstance(e, dict) and isinstance(e.get("file"), str)}
 
 
-def no_share(pair: SamplePair) -> bool:
-    """True when a pair's licence forbids sharing spliced results (``"no_share": true`` in
-    samples.json, or its description says "do not share")."""
-    return bool(pair.extra.get("no_share")) or "do not share" in pair.description.lower()
+#: a licence that forbids adapted material (CC BY-NC-ND, CC BY-ND...), named in a take's
+#: ``licence`` in samples.json
+_NO_DERIVATIVES = re.compile(r"\bBY(-NC)?-ND\b")
+
+
+def no_share(pair: SamplePair, sample_dir: Path) -> bool:
+    """True when spliced results of ``pair`` must not be shared: ``"no_share": true`` in
+    samples.json, or a take's licence (its per-file entry in ``sample_dir``'s
+    samples.json) names a no-derivatives licence, even as a caveat (the one rule: a pair's
+    description and its warning said different things, stranger 8)."""
+    if pair.extra.get("no_share"):
+        return True
+    files = file_credits(sample_dir)
+    for path in (pair.body, pair.hand):
+        try:
+            rel = path.resolve().relative_to(Path(sample_dir).resolve()).as_posix()
+        except ValueError:  # not a bundled file
+            continue
+        if _NO_DERIVATIVES.search(str(files.get(rel, {}).get("licence", ""))):
+            return True
+    return False
 
 
 def demo_sample_name(sample_dir: Path) -> str | None:

@@ -57,7 +57,7 @@ def credits_html(session: Session) -> str:
     warning = (
         f"<div class='hs-no-share' style='color:#b71c1c;font-weight:600'>"
         f"{html.escape(NO_SHARE_TEXT)}</div>"
-        if config.no_share(pair)
+        if config.no_share(pair, cfg.sample_dir)
         else ""
     )
     return (
@@ -94,7 +94,7 @@ def no_share_alert(session: Session) -> pn.viewable.Viewable:
     def update(*_):
         try:
             alert.visible = bool(session.sample) and config.no_share(
-                session.config.sample(session.sample)
+                session.config.sample(session.sample), session.config.sample_dir
             )
         except KeyError:
             alert.visible = False
