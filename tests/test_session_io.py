@@ -289,7 +289,15 @@ def test_a_link_keeps_the_uploaded_files_names():
     # a bad name loses only the name: the take still opens by its hash
     spec, problems = read_query({**q, "bname": "x\x00y"})
     assert spec.body == TakeRef(sha256=HASH) and spec.hand == up.hand
-    assert [p.field for p in problems] == ["inputs.body.name"]
+    assert [p.field for p in problems] == ["bname"]  # the link's own key
+    # a bad hash is said once, by its link key (stranger 8 read each twice, as
+    # "inputs.body.sha256"); its name is not read
+    spec, problems = read_query({**q, "body": "deadbeef", "hand": "00"})
+    assert spec.body is None and spec.hand is None
+    assert [str(p) for p in problems] == [
+        'URL: body: expected 64 lowercase hex digits, got "deadbeef"',
+        'URL: hand: expected 64 lowercase hex digits, got "00"',
+    ]
 
 
 @pytest.mark.parametrize(
@@ -347,3 +355,12 @@ def test_a_bad_link_value_is_left_out_and_the_rest_kept(bad, field):
     }
     # only the bad value differs from the good link's (it takes its default)
     assert [k for k, differs in kept.items() if differs] == [key.get(field, field)]
+
+
+def test_a_truncated_file_says_where_it_ends_in_a_whole_sentence():
+    """Stranger 8 read "line 1: not valid JSON (Unterminated string starting at)"."""
+    with pytest.raises(SessionError) as err:
+        parse_session('{"format": "handsplice-sess', "cut.json")
+    text = str(err.value)
+    assert "cut.json" in text and "\n" not in text
+    assert text.endswith("line 1, column 12: not valid JSON (unterminated string starting)")

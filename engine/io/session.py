@@ -434,7 +434,14 @@ def parse_session(text: str | bytes, source: str | None = None) -> SessionSpec:
     try:
         data = json.loads(text, parse_constant=_reject_constant)
     except json.JSONDecodeError as exc:
-        raise SessionError(source, "", f"line {exc.lineno}: not valid JSON ({exc.msg})") from None
+        # json's messages end in " at" where it gives the place ("Unterminated string
+        # starting at"): the place is said first, whole (stranger 8 read a cut-off sentence)
+        raise SessionError(
+            source,
+            "",
+            f"line {exc.lineno}, column {exc.colno}: not valid JSON "
+            f"({exc.msg.removesuffix(' at').lower()})",
+        ) from None
     except RecursionError:
         raise SessionError(source, "", "JSON nested too deeply") from None
     except ValueError as exc:
@@ -537,12 +544,15 @@ def read_query(query: dict[str, str]) -> tuple[SessionSpec, tuple[SessionError, 
     version = 2 if q.get("frames") == "hand" else 1
     problems: list[SessionError] = []
 
-    def checked(part: dict) -> bool:
-        """Whether ``part`` (a few top-level fields) passes the session rules alone."""
+    def checked(part: dict, key: str | None = None) -> bool:
+        """Whether ``part`` (a few top-level fields) passes the session rules alone; a
+        refusal is named by the link's ``key`` where given (``body``, not the file's
+        ``inputs.body.sha256``)."""
         try:
             from_dict({"version": version, **part}, source)
         except SessionError as exc:
-            problems.append(exc)
+            named = key is not None and exc.constraint is None
+            problems.append(SessionError(source, key, exc.detail) if named else exc)
             return False
         return True
 
@@ -566,11 +576,12 @@ def read_query(query: dict[str, str]) -> tuple[SessionSpec, tuple[SessionError, 
             if not q.get(key):
                 continue
             take = {"sha256": str(q[key]).lower()}
+            if not checked({"inputs": {key: take}}, key):  # said once (stranger 8: twice)
+                continue
             name = q.get(QUERY_NAMES[key])
-            if name and checked({"inputs": {key: {**take, "name": name}}}):
+            if name and checked({"inputs": {key: {**take, "name": name}}}, QUERY_NAMES[key]):
                 take["name"] = name
-            if (name and "name" in take) or checked({"inputs": {key: take}}):
-                inputs[key] = take
+            inputs[key] = take
         if inputs:
             data["inputs"] = inputs
     if "side" in q and checked({"side": q["side"]}):
