@@ -147,6 +147,8 @@ def test_roles_file_maps_an_unusual_name(tmp_path):
         # a hand take given as the body (Leap: forearm, hand, fingers; ManipNet: no forearm)
         (["{hand}", "{hand}"], "no right shoulder or clavicle above the elbow"),
         ([str(MOCAP / "manipnet/mug1_rightHand.bvh"), "{hand}"], "looks like a hand take"),
+        # the two swapped: the fingerless body as the hand (stranger 8 wanted the hint)
+        (["{hand}", "{body}"], "has fingers: are body and hand swapped?"),
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, args, message):
