@@ -22,6 +22,9 @@ This module imports only numba: every layer (``engine.dtw`` included) may use it
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 import numba
 
 FASTMATH = {"nsz", "arcp", "contract", "afn"}
@@ -39,3 +42,15 @@ def njit(**overrides):
 def njit_cached(**overrides):
     """``numba.njit`` with the defaults and ``cache=True``; ``overrides`` win."""
     return numba.njit(**{**JIT_CACHED, **overrides})
+
+
+def kernels_cached() -> bool:
+    """Whether this machine's numba cache holds compiled kernels (``*.nbi`` index files in
+    ``NUMBA_CACHE_DIR``, else in the engine's ``__pycache__`` folders): False on a first
+    run, which compiles them (about a minute) before its first stage can run."""
+    where = os.environ.get("NUMBA_CACHE_DIR")
+    root = Path(where) if where else Path(__file__).resolve().parents[1]
+    try:
+        return next(root.rglob("*.nbi"), None) is not None
+    except OSError:
+        return False

@@ -41,6 +41,7 @@ import argparse
 import sys
 import time
 
+from engine.base.jit import kernels_cached
 from engine.cli import output_file
 
 
@@ -298,6 +299,13 @@ def run(args: argparse.Namespace) -> int:
     from engine.splice.report import build_report, dumps
 
     progress = _Progress(args.quiet)
+    if not args.quiet and not kernels_cached():  # else pass 1 seemed to take a minute
+        print(
+            "splice: first run on this machine: compiling the kernels (about a minute, "
+            "counted in the first stages' times; later runs reuse them)",
+            file=sys.stderr,
+            flush=True,
+        )
     from engine.splice.retime import splice_takes
 
     result, retimed = splice_takes(

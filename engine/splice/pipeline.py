@@ -431,16 +431,13 @@ def _sides_to_align(body, hand, rb, rh, side: str, body_name: str, hand_name: st
             undecided = undecided_message(hand_name, hand, rh)
             if undecided:
                 raise RoleError(undecided)
-            swapped = isinstance(body, Motion) and any(
-                rb.side(s).has_fingers for s in body_sides
-            )
+            swapped = isinstance(body, Motion) and any(rb.side(s).has_fingers for s in body_sides)
             raise RoleError(
                 f"{hand_name} has no finger joints (hands found: "
                 f"{', '.join(hand_sides) or 'none'}); the hand take must carry "
                 "the fingers to splice"
                 + (
-                    f" ({body_name}, given as the body, has fingers: are body and hand "
-                    "swapped?)"
+                    f" ({body_name}, given as the body, has fingers: are body and hand swapped?)"
                     if swapped
                     else ""
                 )
