@@ -64,7 +64,11 @@ SELECTED_POINT_RING = "#e040fb"
 #: a matching point's marker, pixels across, and how near (pixels from its centre) the
 #: pointer shows the point's tooltip instead of the cell's
 POINT_SIZE = 13
-POINT_HOVER_PX = POINT_SIZE / 2 + 2
+#: pixels across of the area round a point where a click selects (or drags) the point
+#: instead of adding one beside it (stranger 8: a click 10 px off a 13 px point added a
+#: near-duplicate point); the point's tooltip shows over the same area
+POINT_HIT_SIZE = 24
+POINT_HOVER_PX = POINT_HIT_SIZE / 2
 AXIS_SIGNAL_SIZE = 90
 #: pixels right of the matrix's frame, for its colour bar (labels up to 5 digits) and its
 #: toolbar: reserved, so that the frame's width never depends on the colour bar's labels
@@ -497,11 +501,12 @@ class CostMatrixView:
         )
 
     def _add_points(self, fig):
-        """The matching points and the tool that adds, drags and deletes them."""
+        """The matching points and the tool that adds, drags and deletes them; returns the
+        renderer a click hits (larger than the points drawn: ``POINT_HIT_SIZE``)."""
         self.points_source = ColumnDataSource(
             {"x": [], "y": [], "tol": []}, name="hs-points-source"
         )
-        points = fig.scatter(
+        fig.scatter(
             x="x",
             y="y",
             source=self.points_source,
@@ -517,8 +522,23 @@ class CostMatrixView:
             nonselection_line_alpha=1.0,
             name="hs-points-glyph",
         )
+        # the tool's own renderer: the same points, drawn invisibly larger (what a click
+        # hits); the visible points above follow the same source and its selection
+        hit = fig.scatter(
+            x="x",
+            y="y",
+            source=self.points_source,
+            size=POINT_HIT_SIZE,
+            fill_alpha=0,
+            line_alpha=0,
+            selection_fill_alpha=0,
+            selection_line_alpha=0,
+            nonselection_fill_alpha=0,
+            nonselection_line_alpha=0,
+            name="hs-points-hit",
+        )
         self.point_tool = PointDrawTool(
-            renderers=[points],
+            renderers=[hit],
             add=not self.session.pick,
             drag=True,
             default_overrides={"tol": float("nan")},
@@ -537,7 +557,7 @@ class CostMatrixView:
                 PanEnd,
                 CustomJS(args={"zoom": box_zoom, "tool": self.point_tool}, code=_JS_ZOOM_ONCE),
             )
-        return points
+        return hit
 
     def _add_hovers(self, fig, image, points) -> None:
         """Tooltips: a matching point's own, else the cell's (frames, times, cost, band)."""
