@@ -683,7 +683,7 @@ def _theta_bin(body_row, hand_row):
     costs the same here and there, bit for bit."""
     half = int(body_row[0])
     nb = int(body_row[1])
-    if body_row[2] != PK.MODE_YAW:  # window θ (exact also for MODE_WINDOW_LATTICE)
+    if body_row[2] == 0.0:
         num, den = PK.cell_theta_sums(body_row, hand_row, half)
         return PK.theta_bin(num, den, nb)
     return int(body_row[3] - hand_row[3]) % nb

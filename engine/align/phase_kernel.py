@@ -58,10 +58,6 @@ WINDOW = 5
 HEADER = 5
 MODE_WINDOW = 0
 MODE_YAW = 1
-#: eq. 7's window θ on a lattice of rows (:func:`_lattice_cells`): a speed option, not exact
-MODE_WINDOW_LATTICE = 2
-#: rows between two lattice rows of :data:`MODE_WINDOW_LATTICE`
-LATTICE_ROWS = 4
 
 _TWO_PI = 2.0 * np.pi
 _RING = 8  # ring-buffer rows of C (five in use; a power of two)
@@ -359,14 +355,10 @@ class PhaseProblem:
         self.half, self.nb, self.mode = half, nb, mode
         self.n, self.m = a.shape[0], b.shape[0]
         self.fallback = False
-        # the lattice's rows (0: exact θ), and [band cells, cells whose θ was computed]
-        self.lattice = LATTICE_ROWS if mode == MODE_WINDOW_LATTICE else 0
-        self.anchor = 0
-        self.stats = np.zeros(2, np.int64)
         if 2 * nb * self.m >= 2**31:  # a mask index (_mask_index) would not fit int32
             self.fallback, self.a, self.b = True, a, b
             return
-        window = mode in (MODE_WINDOW, MODE_WINDOW_LATTICE)
+        window = mode == MODE_WINDOW
         body = _take_arrays(a, half, 1, window)
         b = np.ascontiguousarray(b, dtype=np.float64)
         hand = _take_arrays(b, half, 0, window) if body is not None else None
@@ -398,12 +390,9 @@ class PhaseProblem:
             hmz,
             _mask_rows(masks),
             hyaw,
-            MODE_WINDOW if self.lattice else self.mode,
+            self.mode,
             self.nb,
             self.half,
-            self.lattice,
-            self.anchor,
-            self.stats,
         )
 
     def reversed(self) -> PhaseProblem | None:
@@ -417,9 +406,6 @@ class PhaseProblem:
         out = PhaseProblem.__new__(PhaseProblem)
         out.half, out.nb, out.mode, out.n, out.m = self.half, self.nb, self.mode, self.n, self.m
         out.fallback = False
-        out.lattice = self.lattice
-        out.anchor = (self.n - 1 - self.anchor) % self.lattice if self.lattice else 0
-        out.stats = np.zeros(2, np.int64)
         out.body = tuple(np.ascontiguousarray(x[::-1]) for x in self.body)
         hx, hz, hmx, hmz, masks, hyaw = self.hand
         out.hand = (
@@ -627,151 +613,9 @@ def _mask_index(b, j, nb):
     return np.int32(2) * (np.int32(j) * np.int32(nb) + np.int32(b))
 
 
-# --------------------------------------------------------------------------------------------
-# θ on a lattice of rows (MODE_WINDOW_LATTICE): exact bins on every LATTICE_ROWS-th row; a row
-# between two lattice rows takes a column's bin where both have that column and agree on its
-# bin, and the exact bin elsewhere. Not exact (a bin may turn between lattice rows and back):
-# a speed option, checked by the final path (see METHOD.md §2)
-# --------------------------------------------------------------------------------------------
-
-
-@numba.njit(cache=True, nogil=True)
-def _direct_bins(i, a, b, bx, bz, hx, hz, bmx, bmz, hmx, hmz, nb, half, acc, out):
-    """``out[a..b]`` = the θ bins of cells ``(i, a..b)`` with each cell's five ``C`` values
-    formed on their own (no ring of C rows): the operands and order of :func:`_c_row` and
-    :func:`_theta_cells`, so their bins. ``acc``: ``(10, ≥ b - a + 1)`` float32 scratch."""
-    w = b - a + 1
-    if w <= 0:
-        return
-    k = bx.shape[1]
-    for d in range(WINDOW):
-        p = i + d
-        re = acc[d, :w]
-        im = acc[WINDOW + d, :w]
-        for q in range(w):
-            re[q] = _F0
-            im[q] = _F0
-        for c in range(k):  # markers one after another from 0 (_c_row's order)
-            xa = bx[p, c]
-            za = bz[p, c]
-            hxa = hx[c, a + d : a + d + w]
-            hza = hz[c, a + d : a + d + w]
-            for q in range(w):
-                re[q] = re[q] + (xa * hxa[q] + za * hza[q])
-                im[q] = im[q] + (xa * hza[q] - hxa[q] * za)
-    r0, r1, r2, r3, r4 = acc[0, :w], acc[1, :w], acc[2, :w], acc[3, :w], acc[4, :w]
-    s0, s1, s2, s3, s4 = acc[5, :w], acc[6, :w], acc[7, :w], acc[8, :w], acc[9, :w]
-    mx = hmx[a : b + 1]
-    mz = hmz[a : b + 1]
-    dst = out[a : b + 1]
-    mbx = bmx[i]
-    mbz = bmz[i]
-    n = np.float32(half)
-    for q in range(w):
-        re = ((r0[q] + r4[q]) + (r1[q] + r3[q])) + r2[q]
-        im = ((s0[q] + s4[q]) + (s1[q] + s3[q])) + s2[q]
-        den = re - n * (mbx * mx[q] + mbz * mz[q])
-        num = im - n * (mbx * mz[q] - mx[q] * mbz)
-        dst[q] = theta_bin(num, den, nb)
-
-
-@numba.njit(cache=True, nogil=True)
-def _lattice_state(lattice, anchor, m, bx, bz, hx, hz, stats, lo, hi):
-    """What :func:`_theta_cells` needs for :data:`MODE_WINDOW_LATTICE` (``lattice`` > 0; 0:
-    exact θ, empty arrays): ``(lattice, anchor, held, bins, acc, bx, bz, hx, hz, stats, lo,
-    hi)`` with the exact bins of two lattice rows by column ``bins`` ``(2, m)`` int32, the
-    rows they hold ``held`` ``(2,)`` (-1: none), scratch ``acc``, the counts ``stats``
-    (``[band cells, cells whose θ was computed]``, int64) and the band ``lo``, ``hi``."""
-    w = m if lattice else 0
-    held = np.full(2, -1, np.int64)
-    bins = np.zeros((2, w), np.int32)
-    acc = np.empty((2 * WINDOW, w), np.float32)
-    return (np.int64(lattice), np.int64(anchor), held, bins, acc, bx, bz, hx, hz, stats, lo, hi)
-
-
-@numba.njit(cache=True, nogil=True)
-def _lattice_span(i, n, step, anchor):
-    """The lattice rows ``l0 ≤ i ≤ l1`` around body row ``i`` of ``n``: rows ``≡ anchor``
-    (mod ``step``), and the first and last row (so a reversed problem's lattice is this
-    one's rows reversed, with ``anchor`` = ``(n - 1 - anchor) mod step``)."""
-    l0 = anchor + ((i - anchor) // step) * step
-    return max(l0, 0), min(l0 + step, n - 1)
-
-
-@numba.njit(cache=True, nogil=True)
-def _lattice_slot(r, lo, hi, lat, bmx, bmz, hmx, hmz, nb, half, keep):
-    """The slot of ``lat``'s bins holding lattice row ``r``'s exact bins, computed into the
-    slot other than ``keep`` when not held."""
-    held, bins, acc, bx, bz, hx, hz, stats = (
-        lat[2],
-        lat[3],
-        lat[4],
-        lat[5],
-        lat[6],
-        lat[7],
-        lat[8],
-        lat[9],
-    )
-    for s in range(2):
-        if held[s] == r:
-            return s
-    s = 1 - keep if keep >= 0 else 0
-    _direct_bins(r, lo[r], hi[r], bx, bz, hx, hz, bmx, bmz, hmx, hmz, nb, half, acc, bins[s])
-    stats[1] += hi[r] - lo[r] + 1
-    held[s] = r
-    return s
-
-
-@numba.njit(cache=True, nogil=True, inline="always")
-def _copy_bins(src, a, b, out):
-    """``out[a..b] = src[a..b]`` (nothing when ``b < a``)."""
-    dst = out[a : b + 1]
-    got = src[a : b + 1]
-    for q in range(b - a + 1):
-        dst[q] = got[q]
-
-
-@numba.njit(cache=True, nogil=True)
-def _lattice_bins(i, lo, hi, bmx, bmz, hmx, hmz, nb, half, out, lat):
-    """``out[lo_i..hi_i]`` = band row ``i``'s θ bins on the lattice ``lat``
-    (:func:`_lattice_state`): a lattice row's exact bins; between lattice rows, the bin of
-    the same column in the nearer lattice row around it (the farther one where the nearer
-    one's band lacks the column; the exact bin where both lack it: :func:`_direct_bins`,
-    counted in ``stats[1]``; ``stats[0]`` counts cells)."""
-    step, anchor, bins, acc = lat[0], lat[1], lat[3], lat[4]
-    bx, bz, hx, hz, stats = lat[5], lat[6], lat[7], lat[8], lat[9]
-    l0, l1 = _lattice_span(i, bmx.shape[0], step, anchor)
-    s0 = _lattice_slot(l0, lo, hi, lat, bmx, bmz, hmx, hmz, nb, half, -1)
-    s1 = _lattice_slot(l1, lo, hi, lat, bmx, bmz, hmx, hmz, nb, half, s0)
-    lo_i, hi_i = lo[i], hi[i]
-    stats[0] += hi_i - lo_i + 1
-    b0 = bins[s0]
-    b1 = bins[s1]
-    if i == l0 or i == l1:
-        _copy_bins(b0 if i == l0 else b1, lo_i, hi_i, out)
-        return
-    if i - l0 > l1 - i:  # the nearer lattice row first
-        b0, b1, l0, l1 = b1, b0, l1, l0
-    # the row's columns as intervals (bands are intervals): the nearer row's, then on each
-    # side of it the farther row's, then exact
-    x0, x1 = max(lo_i, lo[l0]), min(hi_i, hi[l0])
-    if x0 > x1:  # (no shared column: all of the row on the "left" side)
-        x0, x1 = hi_i + 1, hi_i
-    _copy_bins(b0, x0, x1, out)
-    for y0, y1 in ((lo_i, x0 - 1), (x1 + 1, hi_i)):
-        z0, z1 = max(y0, lo[l1]), min(y1, hi[l1])
-        if z0 > z1:
-            z0, z1 = y1 + 1, y1
-        _copy_bins(b1, z0, z1, out)
-        for e0, e1 in ((y0, z0 - 1), (z1 + 1, y1)):
-            if e1 >= e0:
-                _direct_bins(i, e0, e1, bx, bz, hx, hz, bmx, bmz, hmx, hmz, nb, half, acc, out)
-                stats[1] += e1 - e0 + 1
-
-
 @numba.njit(cache=True, nogil=True)
 def _theta_cells(
-    i, lo_i, hi_i, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, cells, rmask, lat
+    i, lo_i, hi_i, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, cells, rmask
 ):
     """``cells[lo_i..hi_i]`` = :func:`_mask_index` of each cell's θ bin in band row ``i``
     (hand frame ``j`` at ring slot ``j & rmask``, see :func:`_convert`)
@@ -779,9 +623,7 @@ def _theta_cells(
     only: it vectorises."""
     w = hi_i - lo_i + 1
     out = cells[lo_i : hi_i + 1]
-    if lat[0] > 0:  # MODE_WINDOW_LATTICE
-        _lattice_bins(i, lat[10], lat[11], bmx, bmz, hmx, hmz, nb, half, cells, lat)
-    elif mode == MODE_WINDOW:
+    if mode == MODE_WINDOW:
         # ring rows i..i+4 at columns j..j+4, as slices from lo_i (no wraparound code)
         r0 = cre[i & (_RING - 1), lo_i:]
         r1 = cre[(i + 1) & (_RING - 1), lo_i + 1 :]
@@ -880,13 +722,12 @@ def _fill(
     cells,
     crow,
     rmask,
-    lat,
 ):
     """``crow[lo_i..hi_i]`` = local costs of band row ``i`` (ring rows ``i..i+4`` ready, the
     hand's masks of frames ``lo_i..hi_i`` in ``codes``, see :func:`_convert`): the row's θ
     bins as mask indices, then the popcount costs."""
     _theta_cells(
-        i, lo_i, hi_i, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, cells, rmask, lat
+        i, lo_i, hi_i, bmx, bmz, byaw, hmx, hmz, hyaw, mode, nb, half, cre, cim, cells, rmask
     )
     _code_costs(lo_i, hi_i, bnz[i], bpos[i], bstep[i], codes, cells, crow)
 
@@ -910,9 +751,6 @@ def _one_row(
     mode,
     nb,
     half,
-    lattice,
-    anchor,
-    stats,
     lo,
     hi,
     i,
@@ -925,9 +763,8 @@ def _one_row(
     cim = np.zeros((_RING, m + 4), np.float32)
     cells = np.zeros(m, np.int32)
     crow = np.zeros(m)
-    if mode == MODE_WINDOW and lattice == 0:
+    if mode == MODE_WINDOW:
         _ensure_c(i, i, i, i + 1, lo, hi, bx, bz, hx, hz, cre, cim)
-    lat = _lattice_state(lattice, anchor, m, bx, bz, hx, hz, stats, lo, hi)
     _fill(
         i,
         lo[i],
@@ -950,7 +787,6 @@ def _one_row(
         cells,
         crow,
         rmask,
-        lat,
     )
     return crow
 
@@ -1118,9 +954,6 @@ def _forward(
     mode,
     nb,
     half,
-    lattice,
-    anchor,
-    stats,
     lo,
     hi,
     start,
@@ -1134,8 +967,7 @@ def _forward(
     last_row,
 ):
     """As ``engine.dtw.kernels.forward_builtin`` (open ends included): a row's θ bins as
-    mask indices by :func:`_theta_cells` (or, ``lattice`` > 0, by :func:`_lattice_row` on
-    rows ``≡ anchor`` mod ``lattice``), its costs formed inside the recurrence
+    mask indices by :func:`_theta_cells`, its costs formed inside the recurrence
     (:func:`_dp_pair_codes`, :func:`_dp_row_codes`)."""
     m = hmx.shape[0]
     reach = 1  # the hand frames two band rows reach: the ring's size (the band is monotone)
@@ -1151,11 +983,10 @@ def _forward(
     cells_b = np.zeros(m + AHEAD, np.int32)
     tab_a = np.empty(_TABLE)
     tab_b = np.empty(_TABLE)
-    window = mode == MODE_WINDOW and lattice == 0
+    window = mode == MODE_WINDOW
     ring_w = m + 4 if window else 1
     cre = np.empty((_RING, ring_w), np.float32)
     cim = np.empty((_RING, ring_w), np.float32)
-    lat = _lattice_state(lattice, anchor, m, bx, bz, hx, hz, stats, lo, hi)
     st_a = np.nan  # the step costs tab_a and tab_b hold (NaN: none yet; rebuilt when they differ)
     st_b = np.nan
     next_p = i0
@@ -1185,7 +1016,6 @@ def _forward(
                 cim,
                 cells_a,
                 rmask,
-                lat,
             )
             _theta_cells(
                 i + 1,
@@ -1204,7 +1034,6 @@ def _forward(
                 cim,
                 cells_b,
                 rmask,
-                lat,
             )
             if not (bstep[i] == st_a):
                 st_a = bstep[i]
@@ -1266,7 +1095,6 @@ def _forward(
                 cim,
                 cells_a,
                 rmask,
-                lat,
             )
             if not (bstep[i] == st_a):
                 st_a = bstep[i]
