@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+import struct
 import subprocess
 import sys
 from pathlib import Path
@@ -200,6 +201,12 @@ def _make_bad_inputs(folder: Path) -> dict[str, tuple[Path, str]]:
     path = folder / "picture.glb"
     path.write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(64))
     out["not a GLB"] = (path, "picture.glb: not a GLB file (no binary glTF header)")
+    text = b'{"nodes":[{"name":"a","children":7}],"skins":[{"joints":[0]}]}  '
+    path = folder / "broken.glb"
+    path.write_bytes(
+        b"glTF" + struct.pack("<IIII", 2, 20 + len(text), len(text), 0x4E4F534A) + text
+    )
+    out["broken GLB"] = (path, "broken.glb: ")
     path = folder / "walk.fbx"
     path.write_text("FBX")
     out["unknown extension"] = (path, "walk.fbx: unknown file type (.fbx): expected .bvh, .c3d")
@@ -219,6 +226,7 @@ BAD_CASES = [
     "bad TRC value",
     "unknown extension",
     "not a GLB",
+    "broken GLB",
     "missing file",
     "empty BVH",
 ]

@@ -95,7 +95,8 @@ def _list(path: Path, doc: dict, key: str) -> list:
 
 def _index(path: Path, value, count: int, where: str) -> int:
     if not isinstance(value, int) or isinstance(value, bool) or not 0 <= value < count:
-        raise MotionFormatError(path, f"{where}: {value!r} is not an index below {count}")
+        shown = repr(value) if len(repr(value)) <= 40 else repr(value)[:40] + "…"
+        raise MotionFormatError(path, f"{where}: {shown} is not an index below {count}")
     return value
 
 
@@ -171,6 +172,13 @@ def read_glb_summary(path: str | Path) -> GlbSummary:
     if path.is_dir():
         raise MotionFormatError(path, "is a folder, expected a .glb file")
     doc = _json_chunk(path)
+    try:
+        return _summary(path, doc)
+    except (AttributeError, TypeError, KeyError) as exc:  # a field of another type than glTF's
+        raise MotionFormatError(path, f"JSON chunk: not glTF's layout ({exc})") from None
+
+
+def _summary(path: Path, doc: dict) -> GlbSummary:
     nodes = _list(path, doc, "nodes")
     skins = _list(path, doc, "skins")
     meshes = _list(path, doc, "meshes")
