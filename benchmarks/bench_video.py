@@ -13,7 +13,8 @@ user reported (Bandai ``dataset-1_call_normal_001.bvh``, 171 frames at 30 fps):
   take), wall time of the process and its CPU time (all threads: llvmpipe's, the GIF
   quantiser's; ffmpeg's for MP4);
 * ``app gif`` / ``app mp4``: the download buttons' ``webapp.backend.preview_video`` on
-  the pair call + ``gestification/fingers-ok.bvh`` (three panels, 720x272), timed inside
+  the pair call + ``gestification/fingers-ok.bvh`` (three panels and the spliced hands
+  close up, 1020x300; three panels, 720x272, before findings7), timed inside
   the process after the pair is opened and one frame rendered (as the server has).
 
 The pictures: every frame of the two trees' CLI GIFs is compared pixel by pixel, and
@@ -51,6 +52,7 @@ body, hand, fmt = Path(sys.argv[1]), Path(sys.argv[2]), sys.argv[3]
 prepared = backend.prepare(body, hand, "right")
 solution = backend.solve(prepared, None, None, [])
 backend.render_frame(prepared, solution, 0, backend.VIDEO_CAMERA, False, backend.VIDEO_SIZE)
+backend.render_closeup(prepared, solution, 0)  # the page's preview has drawn both
 def cpu():
     own = resource.getrusage(resource.RUSAGE_SELF)
     kids = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -195,7 +197,8 @@ def main(argv=None) -> None:
         f"## GIF/MP4 renders: this tree against {args.reference}, side by side\n\n"
         f"`{TAKE.name}` (171 frames at 30 fps). CLI: `handsplice render TAKE -o OUT --quiet`, "
         "640x480, the whole process. App: `webapp.backend.preview_video` on the pair with "
-        f"`{HAND.name}` (three panels, 720x272), after the pair is open. Median of {rounds} "
+        f"`{HAND.name}` (three panels, and since findings7 the spliced hands close up right "
+        f"of them: 720x272 before, 1020x300 after), after the pair is open. Median of {rounds} "
         "interleaved rounds (fresh processes); CPU counts every thread and child (llvmpipe, "
         "the GIF quantiser, ffmpeg).\n\n"
         f"| render | {args.reference} wall, s | this tree wall, s | ratio | "

@@ -325,8 +325,13 @@ def test_download_preview_gif(browser, demo_url, tmp_path):
     info.value.save_as(path)
     import imageio.v3 as iio
 
+    from webapp.backend import VIDEO_CLOSEUP_WIDTH, VIDEO_SIZE
+
     frames = iio.imread(path, index=None)
     assert frames.ndim == 4 and frames.shape[0] > 10 and frames.shape[3] in (3, 4)
+    # stranger 7: the three views and, right of them, the spliced hands close up (the
+    # default camera's fingers were a few pixels of a 720x272 video)
+    assert frames.shape[1:3] == (VIDEO_SIZE[1], VIDEO_SIZE[0] + VIDEO_CLOSEUP_WIDTH)
     # a second click with nothing changed: the same file at once, not a second render
     status = page.locator(".hs-export-status")
     with page.expect_download(timeout=60_000) as again:

@@ -72,7 +72,26 @@ FIRST_DOCUMENT = """
 })();
 """
 #: the stage a line's HTML names (its ``data-stage``), with its seconds
-STAGE = re.compile(r'data-stage="([^"]*)".*?… (\d+) s<', re.S)
+STAGE = re.compile(r'data-stage="([^"]*)".*?… <span class="hs-first-s">(\d+) s<', re.S)
+#: ``[the seconds the first line shows, the browser's seconds since the page was asked for]``
+#: once the line shows its seconds (in the page's shadow roots), else null
+SHOWN_SECONDS = """
+() => {
+  const find = (root) => {
+    const el = root.querySelector('.hs-first-s');
+    if (el) { return el; }
+    for (const e of root.querySelectorAll('*')) {
+      const f = e.shadowRoot && find(e.shadowRoot);
+      if (f) { return f; }
+    }
+    return null;
+  };
+  const el = find(document);
+  return el ? [el.textContent, performance.now() / 1000] : null;
+}
+"""
+#: the server's first answer comes this late (s): a loaded server
+LATE_S = 3.0
 
 
 def test_the_first_answer_is_a_light_shell_with_the_line(served):
@@ -81,10 +100,21 @@ def test_the_first_answer_is_a_light_shell_with_the_line(served):
     browser, url = served
     context = browser.new_context(viewport={"width": 1300, "height": 1000})
     context.add_init_script(FIRST_DOCUMENT)
+
+    def late(route):  # the page's request is answered LATE_S late, as by a loaded server
+        time.sleep(LATE_S)
+        route.continue_()
+
+    context.route(lambda u: u.split("?")[0].rstrip("/") == url.split("?")[0].rstrip("/"), late)
     page = open_tab(context, url, timeout_s=300, ready="() => window.__hs_first !== undefined")
     first = page.evaluate("window.__hs_first")
     assert not first["matrix"], first
     assert first["line"] and "opening the page" in first["line"], first
+    # stranger 7: "opening the page… 0 s" 3 s after the request. The seconds count from
+    # the request (the browser's clock), not from when the server began the page
+    text, since = page.wait_for_function(SHOWN_SECONDS, timeout=60_000).json_value()
+    shown = int(re.fullmatch(r"(\d+) s", text).group(1))
+    assert since >= LATE_S and abs(shown - since) <= 1.5, (text, since)
     page.wait_for_function(HAS_PATH, timeout=300_000)  # the rest of the page follows
     errors = page.errors
     context.close()

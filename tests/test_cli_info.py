@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+import struct
 import subprocess
 import sys
 from pathlib import Path
@@ -123,6 +124,39 @@ def test_sample_data_is_described(capsys):
     assert total < 10 * 1024 * 1024
 
 
+def test_info_describes_a_glb_export(tmp_path, capsys):
+    """Stranger 7: ``info`` refused the app's own GLB ("unknown file type (.glb)"). It
+    describes one now: frames, rate, duration, the skin and animation, the skin's joints
+    and their roles; the thumb chain lists every joint (ManipNet's THUMB_CMC_AA was
+    left out of BVH and GLB listings alike)."""
+    hand = SAMPLE_DATA / "manipnet/mug1_rightHand.bvh"
+    glb = tmp_path / "mug1_rightHand.glb"
+    assert main(["render", str(hand), "-o", str(glb), "--frames", "0:30", "--quiet"]) == 0
+    capsys.readouterr()
+    code, out, err = _info(capsys, glb)
+    assert code == 0 and err == "", err
+    text = " ".join(out.split())
+    for line in (
+        "format GLB (binary glTF 2.0)",
+        "frames 30",
+        "fps 120",
+        "duration 0.250 s",
+        "joints 17 (the skin's)",
+        "animation take: ",
+        "30 frames at 120 fps",
+        "right fingers thumb[THUMB_CMC_FE THUMB_CMC_AA THUMB_MCP_FE THUMB_IP_FE]",
+    ):
+        assert line in text, (line, out)
+    code, out, _ = _info(capsys, "--json", glb)
+    report = json.loads(out)
+    assert report["format"] == "glb" and report["hand_sides"] == ["right"]
+    assert report["joints"]["names"] == list(load_take(hand).skeleton.names)
+    assert report["skin"]["vertices"] > 1000 and report["animations"][0]["channels"] >= 17
+    # the BVH's listing names the same chain
+    code, out, _ = _info(capsys, hand)
+    assert "thumb[THUMB_CMC_FE THUMB_CMC_AA THUMB_MCP_FE THUMB_IP_FE]" in out
+
+
 # --------------------------------------------------------------------------- bad input
 
 
@@ -164,6 +198,15 @@ def _make_bad_inputs(folder: Path) -> dict[str, tuple[Path, str]]:
     path = folder / "bad.trc"
     path.write_text((MOCAP / "pyomeca/markers.trc").read_text().replace("733.7041", "7x3"))
     out["bad TRC value"] = (path, "bad.trc line 7: ASISl X: '7x3' is not a number")
+    path = folder / "picture.glb"
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(64))
+    out["not a GLB"] = (path, "picture.glb: not a GLB file (no binary glTF header)")
+    text = b'{"nodes":[{"name":"a","children":7}],"skins":[{"joints":[0]}]}  '
+    path = folder / "broken.glb"
+    path.write_bytes(
+        b"glTF" + struct.pack("<IIII", 2, 20 + len(text), len(text), 0x4E4F534A) + text
+    )
+    out["broken GLB"] = (path, "broken.glb: ")
     path = folder / "walk.fbx"
     path.write_text("FBX")
     out["unknown extension"] = (path, "walk.fbx: unknown file type (.fbx): expected .bvh, .c3d")
@@ -182,6 +225,8 @@ BAD_CASES = [
     "binary garbage c3d",
     "bad TRC value",
     "unknown extension",
+    "not a GLB",
+    "broken GLB",
     "missing file",
     "empty BVH",
 ]

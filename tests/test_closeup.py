@@ -15,7 +15,7 @@ import pytest
 from engine.cli import main
 from engine.io.bvh import read_bvh
 from engine.render.offscreen import Preview
-from engine.render.scene import HANDS_DIRECTIONS
+from engine.render.scene import HANDS_DIRECTIONS, HANDS_SWITCH_GAIN
 
 #: the app's close-up size (webapp.views.preview), pixels
 SIZE = (330, 300)
@@ -136,7 +136,14 @@ def test_the_closeup_sees_a_hand_the_body_hides_from_the_front(case, mocap_dir, 
     preview = Preview(read_bvh(out), close_up_sides=(side,))
     view = preview.views[0]
     aspect, yfov = SIZE[0] / SIZE[1], np.radians(35.0)
-    front = {f: view.hand_seen(f, aspect, yfov)[0] for f in range(0, 201, 5)}
+    every = {f: view.hand_seen(f, aspect, yfov) for f in range(0, 201, 5)}
+    front = {f: seen[0] for f, seen in every.items()}
+    # the rule, from every direction's share (hands_direction skips the others when the
+    # front's share is within HANDS_SWITCH_GAIN of all: no other can then gain that much)
+    for f, seen in every.items():
+        best = int(np.argmax(seen))
+        want = HANDS_DIRECTIONS[best if seen[best] >= seen[0] + HANDS_SWITCH_GAIN else 0]
+        assert view.hands_direction(f, aspect, yfov) == want, f
     hidden = min(front, key=front.get)
     assert front[hidden] < 0.3  # the body hides the hand from the front there
     seen, area, cut = hand_seen_in_closeup(preview, hidden, side)

@@ -156,6 +156,15 @@ def test_wrist_rooted_hand_take_keeps_the_body_wrist():
     assert not sp.wrist
     w = body.skeleton.index("Hand_L")
     assert np.allclose(res.motion.rotations[:, w], body.rotations[:, w])
+    # the joint inserted in the body's thumb (ManipNet's THUMB_CMC_AA) is in the thumb's
+    # chain that ``handsplice info`` lists (stranger 7: it was carried but not listed)
+    from engine.cli.info import describe_motion, format_text
+
+    report = describe_motion(res.motion, "spliced.bvh")
+    thumb = report["finger_chains"]["left"]["thumb"]
+    inserted = [n for n in thumb if n.endswith("THUMB_CMC_AA")]
+    assert len(inserted) == 1 and 0 < thumb.index(inserted[0]) < len(thumb) - 1, thumb
+    assert f"thumb[{' '.join(thumb)}]" in " ".join(format_text(report).split())
 
 
 # ------------------------------------------------------------------------ points and errors

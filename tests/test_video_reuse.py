@@ -33,7 +33,11 @@ def renders(monkeypatch) -> list[int]:
         image[..., 0], image[..., 1] = body_frame % 256, hand % 256
         return image
 
+    def closeup(prepared, solution, body_frame, size):  # the videos' close-up: as cheap
+        return np.full((size[1], size[0], 3), body_frame % 256, np.uint8)
+
     monkeypatch.setattr(backend, "render_frame", counted)
+    monkeypatch.setattr(backend, "render_closeup", closeup)
     return seen
 
 

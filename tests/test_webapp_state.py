@@ -1002,6 +1002,21 @@ def test_the_video_export_uses_the_preview_camera_hands_close_up(session, monkey
     close, far = rendered("hands"), rendered(backend.VIDEO_CAMERA)
     assert np.abs(first - close).mean() < 0.5 * np.abs(first - far).mean()
     assert "hands camera" in view.progress_text.object
+    # stranger 7: on the default camera the spliced fingers were a few pixels of a whole
+    # body; the video now shows, right of the three views, the spliced hands close up
+    session.camera = backend.VIDEO_CAMERA
+    data = asyncio.run(view._gif())
+    assert data is not None, view.message.object
+    first = iio.imread(data.getvalue(), index=0)[..., :3].astype(float)
+    w, h = backend.VIDEO_SIZE
+    assert first.shape[:2] == (h, w + backend.VIDEO_CLOSEUP_WIDTH), first.shape
+    assert np.abs(first[:, :w] - far).mean() < 3.0  # the three views (GIF colours)
+    near = backend.render_closeup(prepared, solution, 0, (backend.VIDEO_CLOSEUP_WIDTH, h))
+    right = first[:, w + 2 :]
+    assert (
+        np.abs(right - near[:, 2:, :3]).mean()
+        < 0.5 * np.abs(right - far[:, -right.shape[1] :]).mean()
+    )
 
 
 def test_failed_exports_download_nothing_and_say_why(session, monkeypatch):

@@ -890,10 +890,43 @@ def png_bytes(image: np.ndarray) -> bytes:
 #: most this many frames (10 s at 30 fps; a longer take gives the 10 s from a start frame)
 VIDEO_MAX_FPS = 30.0
 VIDEO_MAX_FRAMES = 300
-#: the preview videos' default camera (the page's videos use its preview's camera) and size
-#: (pixels)
+#: the preview videos' default camera (the page's videos use its preview's camera) and the
+#: size of their three panels (body take, hand take, spliced; pixels)
 VIDEO_CAMERA = "three-quarter"
-VIDEO_SIZE = (720, 272)
+VIDEO_SIZE = (720, 300)
+#: width (pixels) of the spliced hands' close-up right of the three panels, as the page
+#: shows it beside its preview: on the default camera the spliced fingers are a few pixels
+#: of a whole body (stranger 7). The *hands* camera's panels are close-ups already: none.
+VIDEO_CLOSEUP_WIDTH = 300
+#: the close-up's label in the videos
+CLOSEUP_LABEL = "spliced hands"
+
+
+def video_frame(
+    prepared: Prepared,
+    solution: Solution,
+    body_frame: int,
+    camera: str = VIDEO_CAMERA,
+    size: tuple[int, int] = VIDEO_SIZE,
+    closeup: int = VIDEO_CLOSEUP_WIDTH,
+) -> np.ndarray:
+    """(H, W, 3) uint8: one frame of the preview videos: :func:`render_frame`'s three
+    panels (``size``) and, right of them, the spliced hands close up (:func:`render_closeup`,
+    ``closeup`` pixels wide, as tall, labelled), unless the camera is ``hands`` (its panels
+    are close-ups already) or ``closeup`` is 0."""
+    image = np.ascontiguousarray(
+        render_frame(prepared, solution, body_frame, camera, False, size)[..., :3]
+    )
+    if camera == "hands" or closeup <= 0:
+        return image
+    from engine.render.offscreen import label_image
+
+    near = render_closeup(prepared, solution, body_frame, (int(closeup), image.shape[0]))
+    near = label_image(np.ascontiguousarray(near[..., :3]), CLOSEUP_LABEL)
+    out = np.concatenate([image, near], axis=1)
+    x = image.shape[1]
+    out[:, x - 1 : x + 1] = 255  # the panels' white line
+    return out
 
 
 def video_frames(
@@ -927,10 +960,12 @@ def preview_video(
     progress=None,
     start: int = 0,
     cancelled=None,
+    closeup: int = VIDEO_CLOSEUP_WIDTH,
 ) -> bytes:
     """An animated preview (GIF or MP4 bytes) at the take's speed: the body frames of
     :func:`video_frames` (at most 30 fps, at most ``max_frames`` frames from body frame
-    ``start`` of a long take).
+    ``start`` of a long take), each drawn by :func:`video_frame` (three panels of ``size``
+    and the spliced hands close up, ``closeup`` pixels wide).
 
     ``progress(done, total)`` is called after each rendered frame and once more (total,
     total) when the file is encoded. ``cancelled()`` (if given) is asked before each frame:
@@ -948,7 +983,7 @@ def preview_video(
         raise ValueError(f"format: expected gif or mp4, got {fmt!r}")
     indices, fps = video_frames(prepared.n, float(prepared.body.fps), start, max_frames=max_frames)
     total = len(indices) + 1  # + encoding
-    key = _video_key(camera, size, indices)
+    key = _video_key(camera, size, indices, closeup)
     made = made_video(solution, fmt, key)
     if made is not None:  # nothing changed since this file was made: the same file
         if progress is not None:
@@ -958,7 +993,7 @@ def preview_video(
     def rendered():
         for done, i in enumerate(indices, 1):
             check_cancelled(cancelled)
-            yield render_frame(prepared, solution, i, camera, False, size)
+            yield video_frame(prepared, solution, i, camera, size, closeup)
             if progress is not None:
                 progress(done, total)
 
@@ -993,11 +1028,12 @@ def video_key(prepared: Prepared, start: int = 0, camera: str = VIDEO_CAMERA) ->
     """The key :func:`preview_video` keeps its file under (its default size, from
     ``start``, with ``camera``)."""
     indices, _ = video_frames(prepared.n, float(prepared.body.fps), start)
-    return _video_key(camera, VIDEO_SIZE, indices)
+    return _video_key(camera, VIDEO_SIZE, indices, VIDEO_CLOSEUP_WIDTH)
 
 
-def _video_key(camera: str, size: tuple[int, int], indices: range) -> tuple:
-    return (camera, tuple(size), indices.start, indices.stop, indices.step)
+def _video_key(camera: str, size: tuple[int, int], indices: range, closeup: int) -> tuple:
+    near = 0 if camera == "hands" else int(max(closeup, 0))
+    return (camera, tuple(size), near, indices.start, indices.stop, indices.step)
 
 
 #: the command line's program as a user who followed the README has it: ``make demo``

@@ -63,6 +63,8 @@ MAX_SESSION_BYTES = 4 * 1024 * 1024
 MAX_ROLES_BYTES = 1024 * 1024
 #: bytes of one ELAN annotation file (a take's phases: a few kB).
 MAX_EAF_BYTES = 16 * 1024 * 1024
+#: bytes of a GLB's JSON chunk read by ``handsplice info`` (HandSplice's: tens of kB).
+MAX_GLB_JSON_BYTES = 64 * 1024 * 1024
 #: rows of a batch manifest.
 MAX_MANIFEST_ROWS = 100_000
 #: default limits of one batch pair (``handsplice batch --pair-seconds/--pair-memory-mb``):

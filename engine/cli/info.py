@@ -2,13 +2,20 @@
 
 Prints what a capture file holds: format, frames, fps, duration, joints, units and
 up axis, and the joint roles found per side (BVH), or the markers with their gap
-percentages (C3D, TRC). ``--json`` prints one JSON object instead (schema below).
+percentages (C3D, TRC); of a GLB (the app's or ``render``'s 3D export, any binary glTF
+2.0), its skin, animations and the skin's joints with their roles. Each finger is listed
+with its whole chain (a joint between the numbered ones, such as the ``THUMB_CMC_AA`` a
+splice inserts, too). ``--json`` prints one JSON object instead (schema below).
 
 JSON keys: ``file``, ``format`` ("bvh", "c3d", "trc"), ``frames``, ``fps``,
 ``duration_s``, ``units``, ``up_axis``; BVH: ``joints`` {``count``, ``names``},
 ``roles`` (``Roles.to_dict()``: per side role -> joint name or null, ``fingers``
 lists, ``tips``, ``metacarpals``; ``unsided``; ``side_source``), ``sides`` (sides
-with a wrist), ``hand_sides`` (sides with finger joints); C3D/TRC: ``markers``
+with a wrist), ``hand_sides`` (sides with finger joints), ``finger_chains`` (per side
+and ``unsided``: finger -> every joint name of its chain); GLB: as BVH (``format``
+"glb", ``units`` "m", ``up_axis`` "y") plus ``generator``, ``nodes``, ``skin``
+{``meshes``, ``vertices``}, ``animations`` [{``name``, ``channels``, ``frames``, ``fps``}]
+(the frames are the first animation's); C3D/TRC: ``markers``
 {``count``, ``labels``, ``gap_percent`` (all samples), ``gaps`` {label: percent}},
 ``roles`` (``MarkerRoles.to_dict()``: per side shoulder, elbow, forearm, wrist_radial,
 wrist_ulnar, hand -> label or null; ``unsided``; ``side_source``), ``sides``.
@@ -24,11 +31,12 @@ import sys
 def add_parser(subparsers) -> None:
     p = subparsers.add_parser(
         "info",
-        help="describe a capture file (.bvh, .c3d, .trc)",
+        help="describe a capture file (.bvh, .c3d, .trc) or a 3D export (.glb)",
         description="Describe a capture file: format, frames, fps, duration, joints, "
-        "units, up axis, and the arm/hand joint roles per side.",
+        "units, up axis, and the arm/hand joint roles per side; or a GLB (the app's or "
+        "render's 3D export): its skin, animation, joints and their roles.",
     )
-    p.add_argument("file", help="a .bvh, .c3d or .trc file")
+    p.add_argument("file", help="a .bvh, .c3d or .trc file, or a .glb")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument(
         "--roles",
@@ -53,18 +61,22 @@ def run(args: argparse.Namespace) -> int:
         from engine.model.roles import load_role_overrides
 
         overrides = load_role_overrides(args.roles)
-    take = load_take(args.file)
-    warn_side(args.file, args.side)
-    if isinstance(take, MarkerSet):
-        if overrides:
-            from engine.base.errors import ParameterError
-
-            raise ParameterError(
-                f"--roles applies to skeletal takes (.bvh); {args.file} holds markers"
-            )
-        report = describe_markers(take, args.file, side=args.side)
+    if str(args.file).lower().endswith(".glb"):  # a 3D export (the app's, render's)
+        report = describe_glb(args.file, overrides=overrides, side=args.side)
+        warn_side(args.file, args.side)
     else:
-        report = describe_motion(take, args.file, overrides=overrides, side=args.side)
+        take = load_take(args.file)
+        warn_side(args.file, args.side)
+        if isinstance(take, MarkerSet):
+            if overrides:
+                from engine.base.errors import ParameterError
+
+                raise ParameterError(
+                    f"--roles applies to skeletal takes (.bvh); {args.file} holds markers"
+                )
+            report = describe_markers(take, args.file, side=args.side)
+        else:
+            report = describe_motion(take, args.file, overrides=overrides, side=args.side)
     if args.json:
         json.dump(report, sys.stdout, indent=2)
         sys.stdout.write("\n")
@@ -100,6 +112,68 @@ def describe_motion(motion, path, overrides=None, side=None) -> dict:
         "notes": list(motion.meta.notes),  # also printed on stderr (engine.cli.load_take)
         "joints": {"count": motion.skeleton.n_joints, "names": list(motion.skeleton.names)},
         "roles": roles.to_dict(),
+        "finger_chains": finger_chains(motion.skeleton, roles),
+        "sides": roles.sides_found(),
+        "hand_sides": [s for s in SIDES if roles.side(s).has_fingers],
+    }
+
+
+def finger_chains(skeleton, roles) -> dict:
+    """Per side (and ``unsided``) each finger's whole chain of joint names under the hand,
+    proximal first (``ArmRoles.finger_chain``: metacarpal, the numbered joints, any joint
+    between them such as a splice's inserted ``THUMB_CMC_AA``, the tip); ``[]`` for a
+    finger the arm lacks. The role joints alone are in ``roles``."""
+    from engine.model.roles import FINGERS, SIDES
+
+    arms = {side: roles.side(side) for side in SIDES}
+    if roles.unsided is not None:
+        arms["unsided"] = roles.unsided
+    return {
+        key: {
+            f: [skeleton.names[j] for j in arm.finger_chain(skeleton, f) or arm.fingers[f]]
+            for f in FINGERS
+        }
+        for key, arm in arms.items()
+    }
+
+
+def describe_glb(path, overrides=None, side=None) -> dict:
+    """The ``info`` report of a GLB (``engine.io.glb``): its skin's joints and roles as a
+    BVH's, the first animation's frames, and ``skin`` {``meshes``, ``vertices``} and
+    ``animations`` [{``name``, ``channels``, ``frames``, ``fps``}]. Units metres, Y up
+    (glTF's)."""
+    from engine.io.glb import read_glb_summary
+    from engine.model.roles import SIDES, find_roles, side_from_name
+
+    glb = read_glb_summary(path)
+    first = glb.animations[0] if glb.animations else None
+    frames, fps = (first.frames, first.fps) if first is not None else (0, 0.0)
+    report = {
+        "file": str(path),
+        "format": "glb",
+        "generator": glb.generator,
+        "frames": frames,
+        "fps": _number(fps),
+        "duration_s": _number(frames / fps if fps > 0 else 0.0),
+        "units": "m",
+        "up_axis": "y",
+        "notes": [],
+        "nodes": glb.nodes,
+        "skin": {"meshes": glb.skinned_meshes, "vertices": glb.skinned_vertices},
+        "animations": [
+            {"name": a.name, "channels": a.channels, "frames": a.frames, "fps": _number(a.fps)}
+            for a in glb.animations
+        ],
+    }
+    sk = glb.skeleton
+    if sk is None:
+        return {**report, "joints": {"count": 0, "names": []}}
+    roles = find_roles(sk, overrides=overrides, side_hint=side or side_from_name(path))
+    return {
+        **report,
+        "joints": {"count": sk.n_joints, "names": list(sk.names)},
+        "roles": roles.to_dict(),
+        "finger_chains": finger_chains(sk, roles),
         "sides": roles.sides_found(),
         "hand_sides": [s for s in SIDES if roles.side(s).has_fingers],
     }
@@ -166,7 +240,13 @@ def format_text(report: dict) -> str:
     up = report["up_axis"]
     if report["format"] == "trc":
         up += " (assumed: TRC does not record it)"
-    if "joints" in report:
+    if report["format"] == "glb":
+        rows[1] = ("format", "GLB (binary glTF 2.0)")
+        rows += _glb_rows(report)
+        rows += [("units", units), ("up axis", up)]
+        if "roles" in report:
+            rows += _role_rows(report)
+    elif "joints" in report:
         rows.append(("joints", str(report["joints"]["count"])))
         rows += [("units", units), ("up axis", up)]
         rows += _role_rows(report)
@@ -207,7 +287,7 @@ def _role_rows(report: dict) -> list[tuple[str, str]]:
         if source and source != "names":
             found.append(f"(side from {'the file name/--side' if source == 'hint' else source})")
         rows += [(f"{side} arm", line) for line in _wrap(found, 72)]
-        fingers = [f"{f}[{' '.join(js)}]" for f, js in arm["fingers"].items() if js]
+        fingers = _finger_items(report, side)
         tips = [f"{f}={j}" for f, j in arm["tips"].items() if j]
         rows += [(f"{side} fingers", line) for line in _wrap(fingers or ["none"], 72)]
         if tips:
@@ -215,10 +295,39 @@ def _role_rows(report: dict) -> list[tuple[str, str]]:
     if roles.get("unsided"):
         arm = roles["unsided"]
         found = [f"{k}={arm[k]}" for k in _ARM_KEYS if arm[k] is not None]
-        fingers = [f"{f}[{' '.join(js)}]" for f, js in arm["fingers"].items() if js]
+        fingers = _finger_items(report, "unsided")
         rows += [("no side", line) for line in _wrap(found + fingers, 72)]
         rows.append(("", "(names carry no side: pass --side right|left)"))
     return rows
+
+
+def _glb_rows(report: dict) -> list[tuple[str, str]]:
+    """A GLB's joints, skin and animations (``describe_glb``)."""
+    joints = report["joints"]["count"]
+    skin = report["skin"]
+    rows = [("joints", f"{joints} (the skin's)" if joints else "none (the file has no skin)")]
+    if skin["meshes"]:
+        meshes = ", ".join(skin["meshes"])
+        rows.append(("skin", f"{meshes}: {skin['vertices']:,} vertices on {joints} joints"))
+    else:
+        rows.append(("skin", "no skinned mesh"))
+    for a in report["animations"] or [None]:
+        if a is None:
+            rows.append(("animation", "none"))
+            continue
+        rate = f" at {a['fps']:g} fps" if a["fps"] else ""
+        rows.append(
+            ("animation", f"{a['name']}: {a['channels']} channels, {a['frames']} frames{rate}")
+        )
+    rows.append(("nodes", str(report["nodes"])))
+    return rows
+
+
+def _finger_items(report: dict, side: str) -> list[str]:
+    """``thumb[j1 j2 ...]`` per finger of ``side``: its whole chain (``finger_chains``)."""
+    arm = report["roles"][side]
+    chains = report.get("finger_chains", {}).get(side) or arm["fingers"]
+    return [f"{f}[{' '.join(chains[f] or js)}]" for f, js in arm["fingers"].items() if js]
 
 
 def _marker_role_rows(roles: dict) -> list[tuple[str, str]]:

@@ -351,6 +351,29 @@ class ArmRoles:
     def has_fingers(self) -> bool:
         return any(self.fingers[f] for f in FINGERS)
 
+    def finger_chain(self, sk: Skeleton, finger: str, hand_joint: int | None = None) -> list[int]:
+        """Every joint of ``finger``'s chain below ``hand_joint`` (default this arm's hand
+        joint, else its wrist), proximal first: from the joint below the hand (metacarpal,
+        unnamed or joint 1) to the deepest role joint (tip, else the last numbered one),
+        then on through single children (unnamed tips). Joints between the numbered ones
+        (ManipNet's ``THUMB_CMC_AA``, a splice's inserted joints) are in it; ``[]`` when
+        the finger has no joint under ``hand_joint``."""
+        if hand_joint is None:
+            hand_joint = self.hand if self.hand is not None else self.wrist
+        if hand_joint is None:
+            return []
+        named = [j for j in self.fingers[finger] if hand_joint in sk.chain_to_root(j)]
+        if not named:
+            return []
+        last = named[-1]
+        tip = self.tips[finger]
+        if tip is not None and last in sk.chain_to_root(tip):
+            last = tip
+        while len(sk.children(last)) == 1:
+            last = sk.children(last)[0]
+        path = sk.chain_to_root(last)
+        return path[: path.index(hand_joint)][::-1]
+
     @property
     def found(self) -> bool:
         """True when any role is present."""

@@ -436,6 +436,8 @@ class TakeView:
         if key not in self._hands_dirs:
             if self.hand_vertices is None or not self.hand_vertices.any():
                 choice = _CAMERA_ANGLES["hands"]
+            elif self.hand_seen(i, aspect, yfov, first=1)[0] + HANDS_SWITCH_GAIN > 1.0:
+                choice = HANDS_DIRECTIONS[0]  # no direction can see the gain more than it
             else:
                 seen = self.hand_seen(i, aspect, yfov)
                 best = int(np.argmax(seen))
@@ -445,9 +447,12 @@ class TakeView:
             self._hands_dirs[key] = choice
         return self._hands_dirs[key]
 
-    def hand_seen(self, i: int, aspect: float = 1.1, yfov: float = np.radians(35.0)) -> np.ndarray:
+    def hand_seen(
+        self, i: int, aspect: float = 1.1, yfov: float = np.radians(35.0), first: int | None = None
+    ) -> np.ndarray:
         """Fraction of the close-up hand's mesh vertices seen from each of
-        :data:`HANDS_DIRECTIONS` at frame ``i`` (a coarse depth test: every vertex of the
+        :data:`HANDS_DIRECTIONS` (the ``first`` of them only, if given) at frame ``i``
+        (a coarse depth test: every vertex of the
         posed mesh is projected into a grid of about :data:`_OCCLUSION_CELLS` cells a
         side; a hand vertex is seen when no other vertex of its cell or the 8 around it
         lies more than :data:`_OCCLUSION_SLACK` in front of it, and it is in the picture).
@@ -460,9 +465,10 @@ class TakeView:
         f = 1.0 / np.tan(0.5 * yfov)
         rows = _OCCLUSION_CELLS
         cols = max(int(round(rows * aspect)), 1)
-        seen = np.zeros(len(HANDS_DIRECTIONS))
+        directions = HANDS_DIRECTIONS[:first] if first is not None else HANDS_DIRECTIONS
+        seen = np.zeros(len(directions))
         rel = verts - target
-        for k, (az, el) in enumerate(HANDS_DIRECTIONS):
+        for k, (az, el) in enumerate(directions):
             pose = look_at(dist * self._direction(az, el), np.zeros(3), self.view_up)
             cam = (rel - pose[:3, 3]) @ pose[:3, :3]
             depth = -cam[:, 2]

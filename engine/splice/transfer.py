@@ -163,23 +163,6 @@ def _quat(m: np.ndarray) -> np.ndarray:
     return rot.from_matrix(m)
 
 
-def _finger_chain(sk: Skeleton, arm, finger: str, hand_joint: int) -> list[int]:
-    """Every joint of ``finger``'s chain below ``hand_joint``, proximal first: from the
-    joint below the hand (metacarpal, unnamed or joint 1) to the deepest role joint
-    (tip, else the last numbered one), then on through single children (unnamed tips)."""
-    named = [j for j in arm.fingers[finger] if hand_joint in sk.chain_to_root(j)]
-    if not named:
-        return []
-    last = named[-1]
-    tip = arm.tips[finger]
-    if tip is not None and last in sk.chain_to_root(tip):
-        last = tip
-    while len(sk.children(last)) == 1:
-        last = sk.children(last)[0]
-    path = sk.chain_to_root(last)
-    return path[: path.index(hand_joint)][::-1]
-
-
 def _anchors(sk: Skeleton, arm, finger: str, chain: list[int]) -> dict[int, int]:
     """Role number -> joint on ``chain``: metacarpal 0, joints 1..3, tip 4."""
     out = {
@@ -303,10 +286,10 @@ def plan_transfer(
         order = _rotation_order(sk_b, fb.wrist)
         wrist_name = sk_b.names[fb.wrist]
         for finger in FINGERS:
-            chain_h = _finger_chain(sk_h, arm_h, finger, hand_h)
+            chain_h = arm_h.finger_chain(sk_h, finger, hand_h)
             if not chain_h:
                 continue
-            chain_b = _finger_chain(sk_b, arm_b, finger, hand_b)
+            chain_b = arm_b.finger_chain(sk_b, finger, hand_b)
             if chain_b:
                 _carry_chain(
                     bld,

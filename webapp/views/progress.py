@@ -118,10 +118,42 @@ class BusyLine:
 LATER_MS = 300
 
 
+#: the first line's seconds, counted in the browser from the moment the page was asked
+#: for (``performance.now()``: milliseconds since the navigation began), so they include
+#: the wait for the server's first answer and for the page's scripts. The server's own
+#: count starts when it builds the page: a loaded server's shell read "0 s" 3 s after the
+#: request (stranger 7), and stayed so until the server's first tick. Rewritten whenever
+#: the server sends the line again and every quarter second; stops once the line is empty.
+_JS_CLOCK = """
+if (window.__hs_first_clock) { return; }
+window.__hs_first_clock = true;
+const doc = Bokeh.documents[0];
+const line = doc && [...doc._all_models.values()].find(
+  m => (m.css_classes || []).includes(CLASS));
+if (!line) { return; }
+const fix = () => {
+  const view = Bokeh.index.find_one(line);
+  const root = view && (view.shadow_el || view.el);
+  const clock = root && root.querySelector('.' + CLOCK);
+  if (clock) { clock.textContent = `${Math.round(performance.now() / 1000)} s`; }
+};
+const timer = setInterval(() => {
+  if (!line.text || line.document == null) { clearInterval(timer); return; }
+  fix();
+}, 250);
+line.properties.text.change.connect(() => { fix(); queueMicrotask(fix); });
+fix();
+"""
+#: the classes of the first line's pane and of its seconds
+FIRST_LINE_CLASS, CLOCK_CLASS = "hs-first-line", "hs-first-s"
+
+
 class FirstLine:
     """The page's first line, sent with its first answer: what the server does for this
     page and the seconds since it was asked for it (building the page, opening the takes
     and the engine's stage, aligning), until the first matrix is in the page; then empty.
+    In the browser the seconds count from the request (:data:`_JS_CLOCK`); the server's
+    text counts from its building the page (a page without a browser: tests, scripts).
 
     ``building()`` when the page's sections are being built; ``built(then)`` once they
     are in the page: ``then()`` runs once nothing is opening or aligning any more (the
@@ -137,12 +169,17 @@ class FirstLine:
         self.done = False
         self.pane = pn.pane.HTML(
             self._html(self._phase),
-            css_classes=["hs-first-line"],
+            css_classes=[FIRST_LINE_CLASS],
             height=HEIGHT_PX,
             margin=(6, 10, 0, 10),
             sizing_mode="stretch_width",
             styles={"font-family": "monospace", "font-size": "13px", "color": "#1d3557"},
         )
+        if self._served():
+            from bokeh.models import CustomJS
+
+            args = {"CLASS": FIRST_LINE_CLASS, "CLOCK": CLOCK_CLASS}
+            self._doc.js_on_event("document_ready", CustomJS(args=args, code=_JS_CLOCK))
 
     def _served(self) -> bool:
         doc = self._doc
@@ -154,7 +191,8 @@ class FirstLine:
             f'<div class="hs-first" data-stage="{safe_text.html(stage)}" '
             'style="display:flex;gap:10px;align-items:center">'
             '<progress style="width:140px;height:12px"></progress>'
-            f"<span>{safe_text.html(stage)}… {seconds:.0f} s</span></div>"
+            f'<span>{safe_text.html(stage)}… <span class="{CLOCK_CLASS}">{seconds:.0f} s</span>'
+            "</span></div>"
         )
 
     def _stage(self) -> str | None:
