@@ -57,8 +57,14 @@ def _tooltips_at(page, body: float, hand: float, needle: str) -> list[str]:
         assert time.monotonic() < deadline, f"no tooltip with {needle!r}: {shown}"
 
 
-def test_one_tooltip_over_a_matching_point(page, tmp_path):
+def test_one_tooltip_over_a_matching_point_and_the_points_table_shows_every_column(page, tmp_path):
+    """Both rough edges on one placed point, in one tab (one tab fewer per run)."""
     body, hand = _add_point(page)
+    _one_tooltip_over_the_point(page, body, hand, tmp_path)
+    _the_points_table_shows_every_column(page, tmp_path)
+
+
+def _one_tooltip_over_the_point(page, body: int, hand: float, tmp_path) -> None:
     shown = _tooltips_at(page, body, hand, "matching point")
     assert len(shown) == 1, shown  # the cell's tooltip used to overlap the point's
     assert f"body frame {body} · hand frame {round(hand)}" in shown[0]
@@ -69,8 +75,8 @@ def test_one_tooltip_over_a_matching_point(page, tmp_path):
     assert len(shown) == 1 and "hand frame:" in shown[0] and "matching point" not in shown[0]
 
 
-def test_points_table_shows_every_column(page, tmp_path):
-    _add_point(page)
+def _the_points_table_shows_every_column(page, tmp_path) -> None:
+    """The one point's row shows every column, its delete button included, which works."""
     table = page.locator(".hs-points").first
     table.scroll_into_view_if_needed()
     delete = page.locator(".hs-points .tabulator-row").first.locator(
