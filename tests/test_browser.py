@@ -287,7 +287,8 @@ SHORT_SAMPLE = "raise-pointing"
 
 
 def test_download_preview_gif(browser, demo_url, tmp_path):
-    """The export shows its progress, and another session stays responsive meanwhile."""
+    """The export shows its progress, another session stays responsive meanwhile, and the
+    GIF plays every frame of the 30 fps take at its rate."""
     page = _open(browser, demo_url + f"?sample={SHORT_SAMPLE}")
     assert page.evaluate("hs.frames()") == 59
     other = _open(browser, demo_url)
@@ -328,15 +329,28 @@ def test_download_preview_gif(browser, demo_url, tmp_path):
     from webapp.backend import VIDEO_CLOSEUP_WIDTH, VIDEO_SIZE
 
     frames = iio.imread(path, index=None)
-    assert frames.ndim == 4 and frames.shape[0] > 10 and frames.shape[3] in (3, 4)
+    assert frames.ndim == 4 and frames.shape[3] in (3, 4)
     # stranger 7: the three views and, right of them, the spliced hands close up (the
     # default camera's fingers were a few pixels of a 720x272 video)
     assert frames.shape[1:3] == (VIDEO_SIZE[1], VIDEO_SIZE[0] + VIDEO_CLOSEUP_WIDTH)
+    # every frame of the 30 fps take, each shown for its own time (the GIF was thinned to
+    # 10 fps before: stranger's rough edge)
+    fps = page.evaluate("hs.cols('hs-rates', ['fps']).fps[0]")
+    assert fps == 30 and frames.shape[0] == 59, (fps, frames.shape)
+    from PIL import Image
+
+    with Image.open(path) as gif:
+        delays = []
+        for k in range(gif.n_frames):
+            gif.seek(k)
+            delays.append(gif.info["duration"])
+    assert set(delays) <= {30, 40} and abs(sum(delays) - 1000 * 59 / fps) <= 10, delays
     # a second click with nothing changed: the same file at once, not a second render
     status = page.locator(".hs-export-status")
     with page.expect_download(timeout=60_000) as again:
         page.locator(".hs-download-gif button").click()
     assert "unchanged since it was made" in pane_text(status), pane_text(status)
+    assert "body frames 0–58 at 30 fps" in pane_text(status), pane_text(status)
     again.value.save_as(tmp_path / "again.gif")
     assert (tmp_path / "again.gif").read_bytes() == path.read_bytes()
     page.context.close()
@@ -609,11 +623,58 @@ def _png_coverage(src: str) -> float:
     return float((np.abs(img - img[0, 0]).sum(axis=2) > 40).mean())
 
 
+def _legends_close_up_and_play(page) -> None:
+    """The legends, the hand close-up at the frame shown (mid-wave: the hand is up) and
+    Play (it runs at the take's rate with the one slider on the frame shown); saves the
+    gallery's close-up picture."""
+    legend = pane_text(page.locator(".hs-legends"))
+    for words in (
+        "P preparation",
+        "S stroke",
+        "H hold",
+        "R retraction",
+        "wrist speed",
+        "colour bar",
+        "band",
+        "optimal path",
+        "matching points",
+    ):
+        assert words in legend, (words, legend)
+    assert page.evaluate("hs.model('hs-colorbar').title") == "cost"
+    keys = page.locator(".hs-legend .hs-phase-key")
+    assert keys.count() == 5
+    # the close-up: the spliced hands fill the frame, unlike the full-body panel
+    closeup = page.locator(".hs-closeup-image img")
+    closeup.wait_for(timeout=120_000)
+    full = page.locator(".hs-preview-image img").get_attribute("src")
+    near = closeup.get_attribute("src")
+    assert _png_coverage(near) > 1.5 * _png_coverage(full), (
+        _png_coverage(near),
+        _png_coverage(full),
+    )
+    page.locator(".hs-preview").first.scroll_into_view_if_needed()
+    page.wait_for_timeout(500)
+    page.locator(".hs-preview").first.screenshot(path=str(FIGURES / "gallery_hand_closeup.png"))
+    # play runs at the take's rate with the one slider on the frame shown
+    sliders = page.locator(".hs-frame-slider")
+    assert sliders.count() == 1
+    page.locator(".hs-play button").click()
+    page.wait_for_timeout(3000)
+    page.locator(".hs-play button").click()
+    page.wait_for_timeout(1000)
+    caption = page.locator(".hs-preview-info span")
+    frame = int(caption.get_attribute("data-frame"))
+    assert frame > 5  # it played
+
+
 def test_one_frame_numbering_from_hover_to_session_file(browser, demo_url, tmp_path):
     """A point placed on the matrix is named by the same hand frame (the hand file's own,
     not the alignment grid's) in the hover, the table, the command line and the session
     file; the preview caption names the frame the matrix marker shows. Saves the gallery's
-    first view (mid-wave: a link may name the frame) and its dragged-point picture."""
+    first view (mid-wave: a link may name the frame) and its dragged-point picture.
+
+    The same wide tab (one tab less per run) first checks the legends and the hand
+    close-up at frame 75 (mid-wave: the hand is up) and that Play runs."""
     page = _open_wide(browser, demo_url + "?frame=75")
     try:
         page.locator(".hs-preview-image img").wait_for(timeout=120_000)  # rendered on load
@@ -635,6 +696,7 @@ def test_one_frame_numbering_from_hover_to_session_file(browser, demo_url, tmp_p
         page.mouse.move(*page.evaluate("hs.xy(90, 120)"))
         _hover_text(page, 90, 120, "hand frame")
         page.screenshot(path=str(FIGURES / "gallery_first_view.png"))
+        _legends_close_up_and_play(page)
         rates = page.evaluate("hs.cols('hs-rates', ['fps', 'hand_fps'])")
         assert rates["hand_fps"][0] != rates["fps"][0]  # the demo pair: 30 vs 40 fps
         # a point at hand frame y of the hand file: beyond the grid's last column if the
@@ -693,52 +755,6 @@ def test_one_frame_numbering_from_hover_to_session_file(browser, demo_url, tmp_p
         _wait_revision(page, rev)
         page.wait_for_timeout(1500)
         page.screenshot(path=str(FIGURES / "gallery_point_dragged.png"))
-        assert not page.errors, page.errors
-    finally:
-        page.context.close()
-
-
-def test_legends_and_hand_closeup(browser, demo_url):
-    page = _open_wide(browser, demo_url + "?frame=75")  # mid-wave: the hand is up
-    try:
-        legend = pane_text(page.locator(".hs-legends"))
-        for words in (
-            "P preparation",
-            "S stroke",
-            "H hold",
-            "R retraction",
-            "wrist speed",
-            "colour bar",
-            "band",
-            "optimal path",
-            "matching points",
-        ):
-            assert words in legend, (words, legend)
-        assert page.evaluate("hs.model('hs-colorbar').title") == "cost"
-        keys = page.locator(".hs-legend .hs-phase-key")
-        assert keys.count() == 5
-        # the close-up: the spliced hands fill the frame, unlike the full-body panel
-        closeup = page.locator(".hs-closeup-image img")
-        closeup.wait_for(timeout=120_000)
-        full = page.locator(".hs-preview-image img").get_attribute("src")
-        near = closeup.get_attribute("src")
-        assert _png_coverage(near) > 1.5 * _png_coverage(full), (
-            _png_coverage(near),
-            _png_coverage(full),
-        )
-        page.locator(".hs-preview").first.scroll_into_view_if_needed()
-        page.wait_for_timeout(500)
-        page.locator(".hs-preview").first.screenshot(path=str(FIGURES / "gallery_hand_closeup.png"))
-        # play runs at the take's rate with the one slider on the frame shown
-        sliders = page.locator(".hs-frame-slider")
-        assert sliders.count() == 1
-        page.locator(".hs-play button").click()
-        page.wait_for_timeout(3000)
-        page.locator(".hs-play button").click()
-        page.wait_for_timeout(1000)
-        caption = page.locator(".hs-preview-info span")
-        frame = int(caption.get_attribute("data-frame"))
-        assert frame > 5  # it played
         assert not page.errors, page.errors
     finally:
         page.context.close()

@@ -63,11 +63,37 @@ def _select_the_point(page, off_px: float = 0.0) -> None:
     page.mouse.move(5, 5)
 
 
+# ---------------------------------------------------------------- finding 2
+
+
+def _the_downloads_warn_when_the_motion_does_not_pin_the_timing(page) -> None:
+    """The demo pair is not pinned (tests/test_uncertainty.py): next to the Spliced BVH
+    and GLB buttons the page says so, with the body frames the trust panel suggests."""
+    alert = page.locator(".hs-unpinned-alert")
+    alert.wait_for(state="visible", timeout=BUSY_S * 1000)
+    text = pane_text(alert)
+    assert "does not pin the timing of this splice" in text, text
+    buttons = page.locator(".hs-suggestion button")
+    buttons.filter(has_text="Check body frame").first.wait_for(timeout=BUSY_S * 1000)
+    labels = [t for t in buttons.all_inner_texts() if t.startswith("Check body frame")]
+    frames = [re.match(r"Check body frame (\d+)", t).group(1) for t in labels]
+    assert frames and re.search(r"Check body frames? " + ", ".join(frames) + " ", text), (
+        frames,
+        text,
+    )
+    # it sits with the downloads: right above the Spliced BVH button
+    box, bvh = alert.bounding_box(), page.locator(".hs-download-bvh button").bounding_box()
+    assert box["y"] + box["height"] <= bvh["y"] <= box["y"] + box["height"] + 60, (box, bvh)
+
+
 # ---------------------------------------------------------------- finding 4
 
 
 def test_backspace_deletes_the_selected_point_from_anywhere_but_a_field(demo_page):
+    """Finding 4; before it, in the same fresh tab (one tab fewer per run), finding 2:
+    the downloads' warning (the tab's first look, before any point is placed)."""
     page = demo_page
+    _the_downloads_warn_when_the_motion_does_not_pin_the_timing(page)
     click_path_mid_take(page, timeout_s=BUSY_S)
     _select_the_point(page)
     # typing in a field: Backspace is the field's (the point stays, still selected)
@@ -222,27 +248,3 @@ def test_the_same_take_uploaded_under_a_new_name_is_named_so_everywhere(demo_pag
     assert new in json.dumps(json.loads(text), ensure_ascii=False), text[:600]
     assert HAND_BVH.name not in text
     assert not xss_ran(page)
-
-
-# ---------------------------------------------------------------- finding 2
-
-
-def test_the_downloads_warn_when_the_motion_does_not_pin_the_timing(demo_page):
-    """The demo pair is not pinned (tests/test_uncertainty.py): next to the Spliced BVH
-    and GLB buttons the page says so, with the body frames the trust panel suggests."""
-    page = demo_page
-    alert = page.locator(".hs-unpinned-alert")
-    alert.wait_for(state="visible", timeout=BUSY_S * 1000)
-    text = pane_text(alert)
-    assert "does not pin the timing of this splice" in text, text
-    buttons = page.locator(".hs-suggestion button")
-    buttons.filter(has_text="Check body frame").first.wait_for(timeout=BUSY_S * 1000)
-    labels = [t for t in buttons.all_inner_texts() if t.startswith("Check body frame")]
-    frames = [re.match(r"Check body frame (\d+)", t).group(1) for t in labels]
-    assert frames and re.search(r"Check body frames? " + ", ".join(frames) + " ", text), (
-        frames,
-        text,
-    )
-    # it sits with the downloads: right above the Spliced BVH button
-    box, bvh = alert.bounding_box(), page.locator(".hs-download-bvh button").bounding_box()
-    assert box["y"] + box["height"] <= bvh["y"] <= box["y"] + box["height"] + 60, (box, bvh)

@@ -81,7 +81,14 @@ def test_follow_edits_moves_the_preview_to_the_edited_point(page):
     assert _caption_frame(page) == moved
 
 
-def test_a_refused_band_entry_stays_to_be_corrected(page):
+def test_a_refused_band_entry_stays_and_a_missing_side_is_refused_under_its_control(page):
+    """Two refusals in one tab (one tab less per run): a band-width entry, kept as typed
+    and then corrected; then a side the takes lack, said under the Side control."""
+    _a_refused_band_entry_stays_to_be_corrected(page)
+    _a_missing_side_is_refused_under_the_side_control(page)
+
+
+def _a_refused_band_entry_stays_to_be_corrected(page) -> None:
     field = page.locator(".hs-band-s input").first
     field.scroll_into_view_if_needed()
     before = field.input_value()
@@ -99,7 +106,7 @@ def test_a_refused_band_entry_stays_to_be_corrected(page):
     assert field.input_value() in ("1.5", "1.5s") and before != "1.5x"
 
 
-def test_a_missing_side_is_refused_under_the_side_control(page):
+def _a_missing_side_is_refused_under_the_side_control(page) -> None:
     side = page.locator(".hs-side").first
     side.scroll_into_view_if_needed()
     side.locator("button", has_text="left").click()

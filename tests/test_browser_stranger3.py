@@ -86,7 +86,14 @@ def _assert_aligned(page) -> None:
     assert _hovered_body_frame(page, px["strip_x"], mid_y) == n - 1
 
 
-def test_a_body_frame_is_the_same_pixel_in_the_matrix_and_in_the_strips(page):
+def test_a_body_frame_is_one_pixel_in_every_view_and_one_take_makes_the_status_wait(page):
+    """Both findings in one tab (one tab fewer per run): the matrix's view changes nothing
+    of the status line, which the upload then changes."""
+    _a_body_frame_is_the_same_pixel_in_the_matrix_and_in_the_strips(page)
+    _one_uploaded_take_says_the_status_waits_for_the_other(page)
+
+
+def _a_body_frame_is_the_same_pixel_in_the_matrix_and_in_the_strips(page) -> None:
     _assert_aligned(page)
     # the cumulative view's colour bar has 4-digit labels: the frame keeps its width
     page.get_by_role("button", name="Cumulative 1").click()
@@ -98,7 +105,7 @@ def test_a_body_frame_is_the_same_pixel_in_the_matrix_and_in_the_strips(page):
     _assert_aligned(page)
 
 
-def test_one_uploaded_take_says_the_status_waits_for_the_other(page):
+def _one_uploaded_take_says_the_status_waits_for_the_other(page) -> None:
     before = status_line(page)
     assert "waiting" not in before
     # open ends on the demo: the remedy is named as the command line's, not as a flag
