@@ -44,8 +44,10 @@ def main(argv=None) -> int:
     from engine.base.errors import Cancelled, run_cancellable
     from engine.dtw import constraints as C
     from webapp import backend
+    from webapp.heap import give_back_large_blocks
     from webapp.views import preview
 
+    give_back_large_blocks()  # as ``handsplice serve`` does
     peak = [0]
 
     def sample():
