@@ -343,6 +343,42 @@ def test_a_preview_splice_is_given_up_between_blocks_once_a_newer_edit_is_solved
     assert backend.splice(prepared, solution) is whole  # kept: the downloads' take
 
 
+def test_a_given_up_preview_keeps_no_spliced_arrays_while_its_future_lives(session, monkeypatch):
+    """mem29: a worker's future keeps the exception it ended with, and the exception every
+    frame it passed through: a preview's splice given up mid-way kept its spliced take's
+    rotations (81 MB at 10 minutes) alive while the page held the future (until the next
+    edit's path is drawn: under that edit's solve). Run as the page runs it
+    (``run_cancellable``), the future's Cancelled holds none of them."""
+    import concurrent.futures
+    import weakref
+
+    from engine.base.errors import Cancelled, run_cancellable
+    from engine.splice import transfer as TR
+    from webapp.views import preview
+
+    prepared, solution = session.prepared, session.solution
+    monkeypatch.setattr(TR, "TRANSFER_CHUNK", 32)
+    made: list = []
+    block = TR._transfer_block
+    monkeypatch.setattr(
+        TR, "_transfer_block", lambda *a: (made.append(weakref.ref(a[7].base)), block(*a))[1]
+    )
+    job = (prepared, solution, 0, "front", False, (64, 64), (64, 64), lambda: len(made) >= 1)
+    with concurrent.futures.ThreadPoolExecutor(1) as pool:
+        for wrap, kept in ((False, True), (True, False)):
+            made.clear()
+            solution.cache.pop("spliced", None)
+            future = (
+                pool.submit(run_cancellable, preview._render_images, *job)
+                if wrap
+                else pool.submit(preview._render_images, *job)
+            )
+            with pytest.raises(Cancelled):
+                future.result()
+            assert made and (made[0]() is not None) is kept  # the rotations (n, J, 4)
+            del future
+
+
 def test_a_preview_of_a_new_alignment_is_given_up_while_its_view_is_posed(session, monkeypatch):
     """drag11: the preview's view of an edit's spliced take (every frame posed for the
     framing: 0.75 s of CPU at 72,000 frames) is given up at its next block once a newer

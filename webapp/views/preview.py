@@ -21,7 +21,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import panel as pn
 
-from engine.base.errors import Cancelled, check_cancelled
+from engine.base.errors import Cancelled, check_cancelled, run_cancellable
 from webapp import backend, safe_text
 from webapp.state import Session
 from webapp.views._dispatch import after, after_path, next_tick
@@ -350,7 +350,9 @@ class PreviewView:
         # a drag is under way (it would take a core from that solve; the newer one is
         # rendered when drawn)
         stale = None if self.play.value or s.runner is None else s.edit_coming
-        future = _RENDERS.submit(_render_images, *job, self.size, self.closeup_size, stale)
+        future = _RENDERS.submit(
+            run_cancellable, _render_images, *job, self.size, self.closeup_size, stale
+        )
 
         def done(f):
             try:

@@ -34,7 +34,7 @@ import numpy as np
 import panel as pn
 from bokeh.models import ColumnDataSource, HoverTool
 
-from engine.base.errors import Cancelled
+from engine.base.errors import Cancelled, run_cancellable
 from webapp import safe_text
 from webapp.state import Session
 from webapp.views._dispatch import after, after_path, next_tick, with_document_lock
@@ -269,7 +269,7 @@ class TrustView:
 
         # given up as soon as it is stale: an assessment (about four solves' work) beside
         # the next drag's solve would take a core from it and slow its path
-        future = _POOL.submit(s.assess, stale)
+        future = _POOL.submit(run_cancellable, s.assess, stale)
         doc = self._doc
 
         def finished(result):  # on the event loop
