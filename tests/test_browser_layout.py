@@ -39,11 +39,12 @@ def test_a_point_and_a_refusal_leave_the_matrix_where_it_was(browser, demo_url):
         page.wait_for_timeout(1500)  # the status line follows the path (after-path work)
         status_h = page.locator(".hs-status").first.bounding_box()["height"]
         assert _top(page, matrix) == before, (before, _top(page, matrix), status_h)
-        # a second click on the same body frame, 12 px lower: refused (one point per body
+        # a second click on the same body frame, 18 px lower (beyond the point's 12 px hit
+        # area, where a click selects it): refused (one point per body
         # frame); the refusal is under the matrix and the matrix stays
         pts = page.evaluate("hs.cols('hs-points-source', ['x', 'y'])")
         x, y = page.evaluate("([a, b]) => hs.xy(a, b)", [pts["x"][0], pts["y"][0]])
-        page.mouse.click(x, y - 12)
+        page.mouse.click(x, y - 18)
         alert = page.locator(".hs-error").first
         alert.wait_for(state="visible", timeout=120_000)
         assert "same body frame" in pane_text(alert), pane_text(alert)

@@ -8,7 +8,6 @@ only from ``sample_dir`` and ``upload_dir``.
 from __future__ import annotations
 
 import json
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -187,16 +186,11 @@ def file_credits(sample_dir: Path) -> dict[str, dict]:
     return {e["file"]: e for e in files if isinstance(e, dict) and isinstance(e.get("file"), str)}
 
 
-#: a licence that forbids adapted material (CC BY-NC-ND, CC BY-ND...), named in a take's
-#: ``licence`` in samples.json
-_NO_DERIVATIVES = re.compile(r"\bBY(-NC)?-ND\b")
-
-
 def no_share(pair: SamplePair, sample_dir: Path) -> bool:
-    """True when spliced results of ``pair`` must not be shared: ``"no_share": true`` in
-    samples.json, or a take's licence (its per-file entry in ``sample_dir``'s
-    samples.json) names a no-derivatives licence, even as a caveat (the one rule: a pair's
-    description and its warning said different things, stranger 8)."""
+    """True when spliced results of ``pair`` must not be shared: ``"no_share": true`` on the
+    pair in samples.json, or ``"no_derivatives": true`` on a take's own entry there (its
+    licence forbids adapted material). The one rule behind the credits' and the downloads'
+    warnings (stranger 8: a pair's description and its warning said different things)."""
     if pair.extra.get("no_share"):
         return True
     files = file_credits(sample_dir)
@@ -205,7 +199,7 @@ def no_share(pair: SamplePair, sample_dir: Path) -> bool:
             rel = path.resolve().relative_to(Path(sample_dir).resolve()).as_posix()
         except ValueError:  # not a bundled file
             continue
-        if _NO_DERIVATIVES.search(str(files.get(rel, {}).get("licence", ""))):
+        if files.get(rel, {}).get("no_derivatives") is True:
             return True
     return False
 

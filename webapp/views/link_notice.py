@@ -18,9 +18,15 @@ def link_notice(session: Session, args: dict[str, str]) -> pn.viewable.Viewable:
     alert = pn.pane.Alert(
         "", alert_type="warning", css_classes=["hs-link-notice"], sizing_mode="stretch_width"
     )
-    close = pn.widgets.Button(name="Close", width=80, css_classes=["hs-link-notice-close"])
+    close = pn.widgets.Button(label="Close", width=80, css_classes=["hs-link-notice-close"])
     box = pn.Row(alert, close, visible=False, sizing_mode="stretch_width", margin=(0, 10))
     sent = "?" + urlencode(args)
+    # the files a link of uploads names: what to ask its sender for (stranger 9)
+    named = ", ".join(
+        f"{args[key]} ({role})"
+        for key, role in (("bname", "body"), ("hname", "hand"))
+        if args.get(key)
+    )
 
     def update(*_):
         text = session.link_notice
@@ -28,6 +34,7 @@ def link_notice(session: Session, args: dict[str, str]) -> pn.viewable.Viewable:
             alert.object = (
                 "**This page's link did not open as it was sent:** "
                 + safe_text.markdown(text)
+                + ("<br>The files it names: " + safe_text.markdown(named) if named else "")
                 + "<br>The link as sent: <code style='word-break: break-all'>"
                 + safe_text.markdown(sent)
                 + "</code>"
