@@ -1523,6 +1523,8 @@ def test_a_link_that_did_not_open_is_said_at_the_top_with_its_files_escaped(sess
         assert box.visible and "did not open as it was sent" in alert.object
         named = safe_text.markdown("<b>their</b>_body.bvh (body), hand.bvh (hand)")
         assert "&lt;b&gt;their&lt;/b&gt;" in named and named in alert.object
+        # and what its receiver does next (stranger 10): ask, upload, open the link again
+        assert "Ask its sender for them" in alert.object and "open the link again" in alert.object
         assert "<b>their" not in alert.object and "bname=%3Cb%3Etheir" in alert.object
         close.clicks += 1
         assert not box.visible

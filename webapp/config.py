@@ -186,6 +186,15 @@ def file_credits(sample_dir: Path) -> dict[str, dict]:
     return {e["file"]: e for e in files if isinstance(e, dict) and isinstance(e.get("file"), str)}
 
 
+def sample_path(path: Path, sample_dir: Path) -> str | None:
+    """``path``'s name in samples.json (relative to ``sample_dir``, POSIX), or None for a
+    file outside the bundled samples. The one rule the credits and ``no_share`` read."""
+    try:
+        return Path(path).resolve().relative_to(Path(sample_dir).resolve()).as_posix()
+    except ValueError:
+        return None
+
+
 def no_share(pair: SamplePair, sample_dir: Path) -> bool:
     """True when spliced results of ``pair`` must not be shared: ``"no_share": true`` on the
     pair in samples.json, or ``"no_derivatives": true`` on a take's own entry there (its
@@ -195,11 +204,8 @@ def no_share(pair: SamplePair, sample_dir: Path) -> bool:
         return True
     files = file_credits(sample_dir)
     for path in (pair.body, pair.hand):
-        try:
-            rel = path.resolve().relative_to(Path(sample_dir).resolve()).as_posix()
-        except ValueError:  # not a bundled file
-            continue
-        if files.get(rel, {}).get("no_derivatives") is True:
+        rel = sample_path(path, sample_dir)
+        if rel is not None and files.get(rel, {}).get("no_derivatives") is True:
             return True
     return False
 

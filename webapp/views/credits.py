@@ -41,7 +41,7 @@ def credits_html(session: Session) -> str:
     files = config.file_credits(cfg.sample_dir)
     rows = []
     for role, path in (("body", pair.body), ("hand", pair.hand)):
-        rel = path.resolve().relative_to(cfg.sample_dir.resolve()).as_posix()
+        rel = config.sample_path(path, cfg.sample_dir) or path.name
         entry = files.get(rel, {})
         rows.append(
             f"<li><b>{role}</b> <code>{html.escape(rel)}</code>"

@@ -6,6 +6,7 @@ from urllib.parse import urlencode
 
 import panel as pn
 
+from engine.io.session import QUERY_NAMES
 from webapp import safe_text
 from webapp.state import Session
 
@@ -22,11 +23,7 @@ def link_notice(session: Session, args: dict[str, str]) -> pn.viewable.Viewable:
     box = pn.Row(alert, close, visible=False, sizing_mode="stretch_width", margin=(0, 10))
     sent = "?" + urlencode(args)
     # the files a link of uploads names: what to ask its sender for (stranger 9)
-    named = ", ".join(
-        f"{args[key]} ({role})"
-        for key, role in (("bname", "body"), ("hname", "hand"))
-        if args.get(key)
-    )
+    named = ", ".join(f"{args[key]} ({role})" for role, key in QUERY_NAMES.items() if args.get(key))
 
     def update(*_):
         text = session.link_notice
@@ -34,7 +31,15 @@ def link_notice(session: Session, args: dict[str, str]) -> pn.viewable.Viewable:
             alert.object = (
                 "**This page's link did not open as it was sent:** "
                 + safe_text.markdown(text)
-                + ("<br>The files it names: " + safe_text.markdown(named) if named else "")
+                + (
+                    "<br>The files it names: "
+                    + safe_text.markdown(named)
+                    + ". Ask its sender for them, upload them below (Body take, Hand"
+                    " take), then open the link again: its matching points and bands"
+                    " apply to those files."
+                    if named
+                    else ""
+                )
                 + "<br>The link as sent: <code style='word-break: break-all'>"
                 + safe_text.markdown(sent)
                 + "</code>"
