@@ -1208,22 +1208,33 @@ def test_the_page_shows_the_constraints_one_text(session, cfg):
 
 
 def test_sample_credits_and_the_no_share_warning(session):
-    from webapp.views.credits import NO_SHARE_TEXT, credits_html, no_share_alert
+    from webapp.views.credits import NO_SHARE_TEXT, credits_html, share_terms, share_terms_alert
 
     text = credits_html(session)
     assert "wave-ok" in text and "CC BY-NC 4.0" in text and "MIT" in text
     assert "jaanga/gestification" in text and NO_SHARE_TEXT not in text
-    alert = no_share_alert(session)
-    assert not alert.visible  # Bandai dataset-2: CC BY-NC, adaptations allowed
+    alert = share_terms_alert(session)
+    # Bandai dataset-2 (CC BY-NC) + a Leap hand (MIT): shareable, non-commercially, with
+    # credit; said in one plain line beside the downloads (stranger 10)
+    assert alert.visible and alert.alert_type == "info"
+    assert alert.object.startswith("Licences: body CC BY-NC 4.0, credit: Bandai-Namco")
+    assert "; hand MIT, credit: jaanga/gestification" in alert.object
+    assert "may be shared for non-commercial use only, crediting both sources" in alert.object
     # one rule, the takes' own licences: every pair with a dataset-1 body (CC BY-NC-ND per
     # the data set's manifest) carries the warning in its credits and by the downloads
     # alike, whatever its description says (stranger 8: bye-ok had none)
     for name in ("bye-hello", "bye-ok"):
         session.load_sample(name)
-        assert alert.visible and NO_SHARE_TEXT in credits_html(session), name
+        assert alert.visible and alert.alert_type == "warning", name
+        assert alert.object == NO_SHARE_TEXT and NO_SHARE_TEXT in credits_html(session)
         assert "CC BY-NC-ND 4.0" in credits_html(session)
-    session.load_sample("dab-swiping")  # MIT body and hand
-    assert not alert.visible and NO_SHARE_TEXT not in credits_html(session)
+    session.load_sample("dab-swiping")  # MIT body and hand: no non-commercial clause
+    assert NO_SHARE_TEXT not in credits_html(session)
+    assert alert.alert_type == "info" and "non-commercial" not in alert.object
+    assert alert.object.endswith("Spliced results may be shared, crediting both sources.")
+    session.load_sample("beat-self")  # BEAT's "CC BY-NC 4.0 (BEAT); ..." read to its name
+    assert share_terms(session)[1].count("CC BY-NC 4.0") >= 1
+    assert "non-commercial use only" in share_terms(session)[1]
 
 
 def test_a_new_pair_drops_the_old_pairs_matching_points(cfg, session):
