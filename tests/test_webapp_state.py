@@ -1607,3 +1607,18 @@ def test_a_link_waiting_for_its_uploads_opens_once_they_are_uploaded(cfg, tmp_pa
     assert "outside" in late.error and "\n" not in late.error
     assert "left out; the rest of the link opened" in late.link_notice and lbox.visible
     assert "uploading them applies" not in lbox.objects[0].object  # its takes are open now
+
+    # a link that cannot open on its uploaded takes (a side they lack): they open plainly,
+    # the notice says why, naming the files as uploaded, and the link waits no more
+    right = cropped_bvh(MOCAP / "gestification" / "hello-world.bvh", tmp_path / "r.bvh", 64)
+    right_sha = uploads.sha256(right.read_bytes())
+    wrong = Session(cfg)
+    app._initial_state(wrong, {**link, "hand": right_sha, "side": "left"})
+    right_hand, _ = uploads.store(cfg, "r.bvh", right.read_bytes())
+    wrong.load_uploads(stored_body, right_hand, "their-body.bvh", "hand-from-sender.bvh")
+    assert (wrong.hand_sha256, wrong.side, wrong.points) == (right_sha, "right", ())
+    assert wrong.link_notice == (
+        "hand-from-sender.bvh has no left hand (hands found: right); choose side right in "
+        "the page (your uploads opened without the link's values)"
+    )
+    assert not wrong.link_applied and not wrong.link_waits_for(body_sha, right_sha)

@@ -447,9 +447,10 @@ class Session(param.Parameterized):
     def _keep_waiting_link(self, spec: SessionSpec, left_out: str = "") -> None:
         """A shared link did not open: keep ``spec`` for an upload of its takes when it
         names uploaded takes of which this server lacks one or both (only then can an
-        upload open it). It waits until those takes are uploaded, or the page closes: an
-        upload of other files first (a wrong file picked) does not lose it, and the notice
-        at the page's top keeps saying that uploading the named files applies the link.
+        upload open it). It waits until those takes are uploaded (then it opens, or is
+        dropped when it cannot open on them), or the page closes: an upload of other files
+        first (a wrong file picked) does not lose it, and the notice at the page's top keeps
+        saying that uploading the named files applies the link.
         ``left_out``: the link's bad values' refusals (said again once it opens)."""
         if spec.body is None or spec.hand is None:
             return
@@ -486,9 +487,11 @@ class Session(param.Parameterized):
             then(opened)
 
         def plainly(exc: BaseException) -> None:
+            self._link_waits = None  # tried on its own takes: uploading them again is plain
+            named = ((link.body.sha256, body_name), (link.hand.sha256, hand_name))
             self.link_not_opened(
-                f"{self._named_uploads(backend.one_line(exc))} (your uploads opened without "
-                "the link's values)"
+                f"{self._named_uploads(backend.one_line(exc), named)} (your uploads opened "
+                "without the link's values)"
             )
             self._set_inputs(
                 then=then,
@@ -657,10 +660,13 @@ class Session(param.Parameterized):
             self.waiting = self._side_wait[1]
         then(False)
 
-    def _named_uploads(self, text: str) -> str:
+    def _named_uploads(self, text: str, takes=None) -> str:
         """``text`` with the uploaded takes' kept file names (``<sha256>.bvh``, what the
-        engine read) given as the person's own file names (``walk.bvh``)."""
-        for sha, name in ((self.body_sha256, self.body_name), (self.hand_sha256, self.hand_name)):
+        engine read) given as the person's own file names (``walk.bvh``); ``takes``:
+        ``((sha256, name), ...)`` to name (default: the session's own two)."""
+        if takes is None:
+            takes = ((self.body_sha256, self.body_name), (self.hand_sha256, self.hand_name))
+        for sha, name in takes:
             if sha and name:
                 text = re.sub(rf"\b{sha}\.(bvh|c3d|trc)\b", lambda _m, n=name: n, text)
         return text
