@@ -92,9 +92,9 @@ def test_one_bad_link_value_keeps_the_takes_and_the_good_values(served, tmp_path
     (not the demo), its points, matrix view and frame open."""
     browser, url = served
     link = (
-        "?sample=bye-hello&side=right&band=99&refine=0.1&tol=0&pts=30:20:3,60:50"
-        "&frames=hand&view=pass2&frame=40"
-    )
+        "?sample=bye-hello&side=right&band=99&refine=0.1&tol=0&pts=30:20:3,60:50,70:x"
+        "&frames=hand&view=pass2&frame=40&camra=hands"
+    )  # and a bad third point, a typo of a key (stranger 11: all points lost, typo unsaid)
     page = _open(browser, url + link)
     try:
         alert = page.locator(".hs-error")
@@ -109,6 +109,8 @@ def test_one_bad_link_value_keeps_the_takes_and_the_good_values(served, tmp_path
         wait_pane_text(  # and at the page's top, with the link as sent (the address bar
             page.locator(".hs-link-notice"),  # drops the band)
             "band: expected a fraction",
+            "matching point 3 (body 70): expected a whole hand frame",
+            "camra: not a link parameter (did you mean 'camera'?",
             "the rest of the link opened",
             "band=99",
         )

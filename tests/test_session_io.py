@@ -357,6 +357,39 @@ def test_a_bad_link_value_is_left_out_and_the_rest_kept(bad, field):
     assert [k for k, differs in kept.items() if differs] == [key.get(field, field)]
 
 
+def test_a_links_bad_point_leaves_out_only_itself_and_a_typo_key_is_said():
+    """Stranger 11: ``pts=59:95,124:abc`` said point 2 was left out but dropped point 1 too;
+    ``camra=hands`` (for camera) was dropped in silence."""
+    spec, problems = read_query({"sample": "demo", "pts": "59:95,124:abc,130:140:2"})
+    assert [(p.body, p.hand, p.tolerance) for p in spec.points] == [(59, 95, None), (130, 140, 2)]
+    assert [str(p) for p in problems] == [
+        "URL: matching point 2 (body 124): expected a whole hand frame number >= 0, got 'abc'"
+    ]
+    # the kept points still keep the order rules: out of order, none is kept and it is said
+    spec, problems = read_query({"sample": "demo", "pts": "59:95,x:1,40:20"})
+    assert spec.points == () and len(problems) == 2 and "after" in str(problems[1])
+    spec, problems = read_query({"sample": "demo", "camra": "hands", "frame": "50"})
+    assert spec.sample == "demo" and spec.view == {"frame": 50}
+    assert len(problems) == 1 and str(problems[0]).startswith(
+        "URL: camra: not a link parameter (did you mean 'camera'? known: sample, body, hand,"
+    )
+    with pytest.raises(SessionError, match="camra"):
+        from_query({"sample": "demo", "camra": "hands"})
+    # every key a link is made with is known
+    full = SessionSpec(
+        body=TakeRef(sha256=HASH, name="b.bvh"),
+        hand=TakeRef(sha256=HASH, name="h.bvh"),
+        tolerance=1.0,
+        points=(MatchPoint(1, 2, 0),),
+        roles={"hand": {"right.wrist": "rHand"}},
+        view={"matrix": "pass2", "frame": 3, "camera": "front", "trails": True, "pick": True},
+        max_unmatched_s=2.0,
+    )
+    query = to_query(full)
+    assert {"bname", "hname", "unmatched", "frames", "pick", "trails"} <= set(query)
+    assert read_query(query)[1] == ()
+
+
 def test_a_truncated_file_says_where_it_ends_in_a_whole_sentence():
     """Stranger 8 read "line 1: not valid JSON (Unterminated string starting at)"."""
     with pytest.raises(SessionError) as err:

@@ -1208,7 +1208,13 @@ def test_the_page_shows_the_constraints_one_text(session, cfg):
 
 
 def test_sample_credits_and_the_no_share_warning(session):
-    from webapp.views.credits import NO_SHARE_TEXT, credits_html, share_terms, share_terms_alert
+    from webapp.views.credits import (
+        NO_SHARE_TEXT,
+        OWN_TAKES_TEXT,
+        credits_html,
+        share_terms,
+        share_terms_alert,
+    )
 
     text = credits_html(session)
     assert "wave-ok" in text and "CC BY-NC 4.0" in text and "MIT" in text
@@ -1232,6 +1238,8 @@ def test_sample_credits_and_the_no_share_warning(session):
     assert NO_SHARE_TEXT not in credits_html(session)
     assert alert.alert_type == "info" and "non-commercial" not in alert.object
     assert alert.object.endswith("Spliced results may be shared, crediting both sources.")
+    demo_pair_uploaded(session.config, session)  # the user's own takes: theirs to check
+    assert alert.visible and alert.alert_type == "info" and alert.object == OWN_TAKES_TEXT
     session.load_sample("beat-self")  # BEAT's "CC BY-NC 4.0 (BEAT); ..." read to its name
     assert share_terms(session)[1].count("CC BY-NC 4.0") >= 1
     assert "non-commercial use only" in share_terms(session)[1]

@@ -63,25 +63,6 @@ def _section(title: str, text: str, *objects) -> pn.Column:
     return pn.Column(*head, *objects, sizing_mode="stretch_width")
 
 
-SHARE_KEYS = (
-    "sample",
-    "body",
-    "hand",
-    "side",
-    "band",
-    "refine",
-    "tol",
-    "pts",
-    "roles",
-    "view",
-    "frame",
-    "camera",
-    "trails",
-    "follow",
-    "pick",
-)
-
-
 def _link_args() -> dict[str, str]:
     """The page address's query (a shared link), decoded."""
     if not pn.state.session_args:
@@ -116,7 +97,7 @@ def _initial_state(session: Session, args: dict[str, str] | None = None) -> None
 
     # a link of parameters only (``?frame=75``) opens the default pair with them: the
     # session's rule for a spec without takes (Session.apply_spec)
-    linked = any(k in args for k in SHARE_KEYS)
+    linked = bool(args)  # a key that is not a link's is said too (read_query)
     if session.runner is not None:  # off the loop: the link's opening supersedes the default
         if linked:
             try:

@@ -49,6 +49,7 @@ Ranges, defaults and the error text of bands, tolerances and points are
 
 from __future__ import annotations
 
+import difflib
 import json
 import re
 from dataclasses import dataclass, field
@@ -519,11 +520,29 @@ def to_query(spec: SessionSpec) -> dict[str, str]:
 
 #: the link keys of the uploaded takes' original names
 QUERY_NAMES = {"body": "bname", "hand": "hname"}
+#: every key a link may hold (:func:`to_query`); any other is said as a typo
+QUERY_KEYS = (
+    "sample",
+    "body",
+    "hand",
+    *QUERY_NAMES.values(),
+    "side",
+    "band",
+    "refine",
+    "tol",
+    "unmatched",
+    "pts",
+    "frames",
+    "roles",
+    "view",
+    "frame",
+    *VIEW_DEFAULTS,
+)
 
 
 def from_query(query: dict[str, str]) -> SessionSpec:
-    """Inverse of :func:`to_query`; unknown keys are ignored, bad values raise SessionError
-    (the first one; :func:`read_query` keeps the good values of a link with bad ones)."""
+    """Inverse of :func:`to_query`; an unknown key or a bad value raises SessionError (the
+    first one; :func:`read_query` keeps the good values of a link with bad ones)."""
     spec, problems = read_query(query)
     if problems:
         raise problems[0]
@@ -537,7 +556,9 @@ def read_query(query: dict[str, str]) -> tuple[SessionSpec, tuple[SessionError, 
     widths, tolerances and points of :mod:`engine.dtw.constraints`): a bad one (``band=99``,
     ``pts=abc:1``, an unknown ``view``) is left out, with its one-line :class:`SessionError`,
     and the rest (the takes above all) is kept. A bad file name (``bname``, ``hname``)
-    loses only the name, not its take.
+    loses only the name, not its take; a bad matching point only itself (the others are
+    kept when their order holds); a key that is not a link's (``camra=hands``) is said,
+    with the key it may have meant (stranger 11: a typo was dropped in silence).
     """
     source = "URL"
     q = {k: (v[0] if isinstance(v, list | tuple) and v else v) for k, v in query.items()}
@@ -600,7 +621,15 @@ def read_query(query: dict[str, str]) -> tuple[SessionSpec, tuple[SessionError, 
         if limit is not None:
             data["max_unmatched"] = limit
     if q.get("pts"):
-        points = constraint("pts", lambda: C.parse_points(str(q["pts"])))
+        items = C.split_points_text(str(q["pts"]))
+        if len(items) > C.MAX_POINTS:  # refused whole, as every front does
+            points = constraint("pts", lambda: C.parse_points(items))
+        else:  # each point alone: a bad one is left out by itself, then the order is checked
+            read = (
+                constraint("pts", lambda k=k, p=p: C.parse_point(p, k)) for k, p in enumerate(items)
+            )
+            good = [p for p in read if p is not None]
+            points = constraint("pts", lambda: C.parse_points(good)) if good else None
         if points is not None:
             data["points"] = [[p.body, p.hand, p.tolerance] for p in points]
     if q.get("roles"):
@@ -625,6 +654,17 @@ def read_query(query: dict[str, str]) -> tuple[SessionSpec, tuple[SessionError, 
     view = {k: v for k, v in view.items() if checked({"view": {k: v}})}
     if view:
         data["view"] = view
+    for key in q:
+        if key not in QUERY_KEYS:
+            near = difflib.get_close_matches(str(key), QUERY_KEYS, n=1)
+            hint = f"did you mean {near[0]!r}? " if near else ""
+            problems.append(
+                SessionError(
+                    source,
+                    str(key)[:40],
+                    f"not a link parameter ({hint}known: {', '.join(QUERY_KEYS)})",
+                )
+            )
     return from_dict(data, source), tuple(problems)
 
 

@@ -14,6 +14,10 @@ import panel as pn
 from webapp import config
 from webapp.state import Session
 
+#: the share terms of the user's own takes (stranger 11: silence read as "no restriction")
+OWN_TAKES_TEXT = (
+    "Your own takes: their licences are yours to check before you share spliced results."
+)
 NO_SHARE_TEXT = (
     "Do not share spliced results of this pair: its licence forbids adapted "
     "material (CC BY-NC-ND). Downloads are for your own use."
@@ -93,14 +97,15 @@ def share_terms(session: Session) -> tuple[str, str]:
     plain licence line where one shares): ``("warning", NO_SHARE_TEXT)`` for a pair whose
     licence forbids sharing (:func:`webapp.config.no_share`), ``("info", text)`` naming each
     take's licence and credit for another bundled pair (non-commercial only where a
-    licence is NC), ``("", "")`` for the user's own takes. ``text`` is escaped HTML."""
+    licence is NC), ``("info", OWN_TAKES_TEXT)`` for the user's own takes (uploads, or
+    ``serve BODY HAND``). ``text`` is escaped HTML."""
     cfg = session.config
     try:
         pair = cfg.sample(session.sample) if session.sample else None
     except KeyError:
         pair = None
     if pair is None or pair.extra.get("local"):
-        return "", ""
+        return "info", html.escape(OWN_TAKES_TEXT)
     if config.no_share(pair, cfg.sample_dir):
         return "warning", html.escape(NO_SHARE_TEXT)
     files = config.file_credits(cfg.sample_dir)
@@ -120,7 +125,7 @@ def share_terms(session: Session) -> tuple[str, str]:
 
 def share_terms_alert(session: Session) -> pn.viewable.Viewable:
     """The pair's share terms beside the downloads (:func:`share_terms`): a warning for a
-    no-share pair, a plain licence line for other bundled pairs, nothing for own takes."""
+    no-share pair, a plain licence line for other bundled pairs and for own takes."""
     alert = pn.pane.Alert(
         "",
         alert_type="info",
