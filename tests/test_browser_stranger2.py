@@ -154,7 +154,14 @@ def _refusal_in_view(page, value: str, timeout: float = 30.0) -> str:
     return _text(alert.first)
 
 
-def test_refused_table_edit_is_said_next_to_the_table(page, tmp_path):
+def test_refused_table_edit_then_the_matrix_legend_and_a_downloads_line(page, tmp_path):
+    """Two findings in one tab (one tab fewer per run): refused table edits (they leave one
+    point, accepted), then the matrix legend, a download's line and the session chooser."""
+    _refused_table_edit_is_said_next_to_the_table(page, tmp_path)
+    _matrix_legend_follows_the_view_and_a_download_ends_its_line(page, tmp_path)
+
+
+def _refused_table_edit_is_said_next_to_the_table(page, tmp_path) -> None:
     n = click_path_mid_take(page)
     page.wait_for_timeout(800)
     _edit(page, "body frame", "9999")
@@ -177,7 +184,7 @@ def test_refused_table_edit_is_said_next_to_the_table(page, tmp_path):
     assert not page.locator(".hs-table-error").first.is_visible()
 
 
-def test_matrix_legend_follows_the_view_and_a_download_ends_its_line(page, tmp_path):
+def _matrix_legend_follows_the_view_and_a_download_ends_its_line(page, tmp_path) -> None:
     legend = page.locator(".hs-matrix-colour").first
     assert "local cost" in legend.inner_text()
     page.locator(".hs-matrix-choice button", has_text="Cumulative 2").first.click()
