@@ -226,6 +226,9 @@ def test_click_on_the_path_in_pick_mode_shows_that_frame_pair(page):
 
 
 def test_download_bvh_and_session(page, tmp_path):
+    # beside the downloads, the pair's licences in one plain line (stranger 10)
+    terms = page.locator(".hs-share-terms")
+    assert "Licences: body CC BY-NC 4.0" in wait_pane_text(terms, "non-commercial use only")
     with page.expect_download(timeout=60_000) as info:
         page.locator(".hs-download-bvh button").click()
     path = tmp_path / "out.bvh"

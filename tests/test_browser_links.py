@@ -7,16 +7,18 @@ Screenshots of each opened link go to the test's tmp folder (``links-*.png``).
 
 from __future__ import annotations
 
+import hashlib
 import json
 import time
 from pathlib import Path
-from urllib.parse import parse_qsl, urlsplit
+from urllib.parse import parse_qsl, urlencode, urlsplit
 
 import pytest
 from conftest import (
     BODY_BVH,
     HAND_BVH,
     XSS_PAYLOAD,
+    cropped_bvh,
     open_page,
     pane_text,
     wait_pane_text,
@@ -137,29 +139,70 @@ def test_one_bad_link_value_keeps_the_takes_and_the_good_values(served, tmp_path
 
 
 def test_a_link_of_an_uploaded_pair_keeps_the_file_names(served, tmp_path):
-    """Upload a pair through the page (a hostile body file name), share its link, open it
-    in a fresh tab: the takes, the CLI line, the BVH download and the session file name
-    the files as uploaded, shown literally (no script runs)."""
+    """A colleague's link of a pair this server does not have (a hostile body file name):
+    the demo opens under the notice naming the files; upload those files through the
+    page's fields and the link opens on them (its points, band, view) and the notice goes.
+    Then its link, opened in a fresh tab: the takes, the CLI line, the BVH download and the
+    session file name the files as uploaded, shown literally (no script runs)."""
     browser, url = served
     body_name, hand_name = f"{XSS_PAYLOAD}walk.bvh", "hello world.bvh"
-    page = _open(browser, url)
+    # a real hand take cut short: bytes no test uploaded before, so not on this server
+    hand_path = cropped_bvh(HAND_BVH, tmp_path / "hello-75.bvh", 75)
+    files = (
+        ("body", BODY_BVH.read_bytes(), body_name),
+        ("hand", hand_path.read_bytes(), hand_name),
+    )
+    sha = {which: hashlib.sha256(data).hexdigest() for which, data, _ in files}
+    sent = "?" + urlencode(
+        {
+            "body": sha["body"],
+            "bname": body_name,
+            "hand": sha["hand"],
+            "hname": hand_name,
+            "side": "right",
+            "band": "0.4",
+            "tol": "1",
+            "pts": "40:30:2,80:60",
+            "frames": "hand",
+            "view": "pass2",
+        }
+    )
+    page = _open(browser, url + sent)
     try:
-        for which, path, name in (("body", BODY_BVH, body_name), ("hand", HAND_BVH, hand_name)):
+        notice = page.locator(".hs-link-notice")
+        wait_pane_text(notice, "no such file", "hello world.bvh (hand)", "uploading them applies")
+        for which, data, name in files:
             page.locator(f".hs-upload-{which} input[type=file]").set_input_files(
-                {"name": name, "mimeType": "application/octet-stream", "buffer": path.read_bytes()}
+                {"name": name, "mimeType": "application/octet-stream", "buffer": data}
             )
             page.locator(f".hs-upload-{which} .filepond--item[data-hs-verdict='ok']").wait_for(
                 timeout=BUSY_S * 1000
             )
+        wait_pane_text(
+            page.locator(".hs-upload-status"),
+            "matching points and bands now apply to your uploads",
+            timeout_s=BUSY_S,
+        )
+        assert _table_rows(page, 2) == [("40", "30", "2"), ("80", "60", "")]
+        notice.wait_for(state="hidden", timeout=30_000)
+        page.screenshot(path=str(tmp_path / "links-waited.png"), full_page=True)
         box, deadline = page.locator(".hs-share-url input"), time.monotonic() + BUSY_S
         while "hname=" not in (link := box.input_value()):  # the pair opens, then its link
             assert time.monotonic() < deadline, link
             page.wait_for_timeout(200)
+        assert not xss_ran(page)
     finally:
         page.context.close()
 
     query = dict(parse_qsl(urlsplit(link).query))
     assert (query["bname"], query["hname"]) == (body_name, hand_name)
+    assert (query["body"], query["hand"]) == (sha["body"], sha["hand"])
+    assert (query["pts"], query["band"], query["tol"], query["view"]) == (
+        "40:30:2,80:60",
+        "0.4",
+        "1",
+        "pass2",
+    )
     page = _open(browser, link)
     try:
         credits = page.locator(".hs-credits")

@@ -280,6 +280,12 @@ class Session(param.Parameterized):
         #: the ``waiting`` text); the next side chosen opens it (:meth:`_side_chosen`)
         self._side_wait: tuple[dict, str] | None = None
         self._shown: dict | None = None  # SHOWN_INPUTS of the pair shown, once one is
+        #: a shared link that could not open because its uploaded takes are not on this
+        #: server (its spec): the page's upload of those files opens it (:meth:`load_uploads`)
+        #: ``(spec, the refusals of its values left out)``
+        self._link_waits: tuple[SessionSpec, str] | None = None
+        #: the link that waited opened on the uploads last opened (the page says so)
+        self.link_applied = False
         super().__init__(**params)
         #: the band widths ("band", "refine_band") whose width in force is the automatic
         #: default (``rule.default_for`` the open takes: 17.2 s on a long take), not one the
@@ -410,7 +416,15 @@ class Session(param.Parameterized):
         When the hand (or body) has no arm on that side while another pair is open, the
         new pair waits for the side: ``error`` says which side it has (naming the files as
         uploaded), ``waiting`` says that it waits, the open pair stays, and the next side
-        chosen opens the new pair (any other takes chosen drop it)."""
+        chosen opens the new pair (any other takes chosen drop it).
+
+        The takes of a shared link that could not open for want of them (:meth:`open_link`)
+        open that link instead, its points, bands, side, roles and view with them
+        (:meth:`apply_spec`; ``link_applied`` says so): :meth:`_open_waiting_link`."""
+        self.link_applied = False
+        if self.link_waits_for(body_sha256, hand_sha256):
+            self._open_waiting_link(body_name, hand_name, then, side, takes)
+            return
         self._set_inputs(
             then=then,
             new_pair=True,
@@ -422,6 +436,79 @@ class Session(param.Parameterized):
             hand_name=hand_name,
             **({"side": side} if side else {}),
         )
+
+    def link_waits_for(self, body_sha256: str | None, hand_sha256: str | None) -> bool:
+        """Whether uploading these takes opens the shared link that waits for them."""
+        if self._link_waits is None:
+            return False
+        link = self._link_waits[0]
+        return (link.body.sha256, link.hand.sha256) == (body_sha256, hand_sha256)
+
+    def _keep_waiting_link(self, spec: SessionSpec, left_out: str = "") -> None:
+        """A shared link did not open: keep ``spec`` for an upload of its takes when it
+        names uploaded takes of which this server lacks one or both (only then can an
+        upload open it). It waits until those takes are uploaded (then it opens, or is
+        dropped when it cannot open on them), or the page closes: an upload of other files
+        first (a wrong file picked) does not lose it, and the notice at the page's top keeps
+        saying that uploading the named files applies the link.
+        ``left_out``: the link's bad values' refusals (said again once it opens)."""
+        if spec.body is None or spec.hand is None:
+            return
+        from webapp import uploads
+
+        for take in (spec.body, spec.hand):
+            try:
+                uploads.path_for(self._cfg, take.sha256)
+            except uploads.UploadError:
+                self._link_waits = (spec, left_out)
+                return
+
+    def _open_waiting_link(self, body_name, hand_name, then, side, takes) -> None:
+        """The takes a waiting link names were uploaded: open the link on them, as a link
+        opens (:meth:`apply_spec`; a point outside the takes is left out and said, the
+        undo history starts anew), under the names they were uploaded with. The link's
+        notice goes (a value or point left out says so there again); a link that still
+        cannot open (its side or roles do not fit the takes) opens the uploads plainly, as
+        :meth:`load_uploads` (``side``), and the notice says why."""
+        link, left_out = self._link_waits
+        spec = replace(
+            link,
+            body=replace(link.body, name=body_name or link.body.name),
+            hand=replace(link.hand, name=hand_name or link.hand.name),
+        )
+        then = then or (lambda opened: None)
+        self.link_notice = ""
+        if left_out:
+            self.link_not_opened(f"{left_out} (left out; the rest of the link opened)")
+
+        def applied(opened: bool) -> None:
+            if opened:
+                self._link_waits, self.link_applied = None, True
+            then(opened)
+
+        def plainly(exc: BaseException) -> None:
+            self._link_waits = None  # tried on its own takes: uploading them again is plain
+            named = ((link.body.sha256, body_name), (link.hand.sha256, hand_name))
+            self.link_not_opened(
+                f"{self._named_uploads(backend.one_line(exc), named)} (your uploads opened "
+                "without the link's values)"
+            )
+            self._set_inputs(
+                then=then,
+                new_pair=True,
+                takes=takes,
+                sample=None,
+                body_sha256=link.body.sha256,
+                hand_sha256=link.hand.sha256,
+                body_name=body_name,
+                hand_name=hand_name,
+                **({"side": side} if side else {}),
+            )
+
+        try:
+            self.apply_spec(spec, plainly, keep_takes=True, then=applied, takes=takes)
+        except (HandSpliceError, ValueError, KeyError, OSError) as exc:  # without a runner
+            plainly(exc)
 
     def rename_takes(self, body_name: str, hand_name: str) -> None:
         """The open uploaded takes were uploaded again under other names (the same content,
@@ -573,10 +660,13 @@ class Session(param.Parameterized):
             self.waiting = self._side_wait[1]
         then(False)
 
-    def _named_uploads(self, text: str) -> str:
+    def _named_uploads(self, text: str, takes=None) -> str:
         """``text`` with the uploaded takes' kept file names (``<sha256>.bvh``, what the
-        engine read) given as the person's own file names (``walk.bvh``)."""
-        for sha, name in ((self.body_sha256, self.body_name), (self.hand_sha256, self.hand_name)):
+        engine read) given as the person's own file names (``walk.bvh``); ``takes``:
+        ``((sha256, name), ...)`` to name (default: the session's own two)."""
+        if takes is None:
+            takes = ((self.body_sha256, self.body_name), (self.hand_sha256, self.hand_name))
+        for sha, name in takes:
             if sha and name:
                 text = re.sub(rf"\b{sha}\.(bvh|c3d|trc)\b", lambda _m, n=name: n, text)
         return text
@@ -1281,7 +1371,9 @@ class Session(param.Parameterized):
             view={"matrix": self.matrix, "frame": self.frame, **self._current(VIEW_STATE)},
         )
 
-    def apply_spec(self, spec: SessionSpec, failed=None, keep_takes: bool = False) -> None:
+    def apply_spec(
+        self, spec: SessionSpec, failed=None, keep_takes: bool = False, then=None, takes=None
+    ) -> None:
         """Restore inputs, parameters and points (one recompute; clears undo history).
 
         Off the event loop (:meth:`compute_off_loop`) the work runs on the worker and a
@@ -1295,13 +1387,22 @@ class Session(param.Parameterized):
         ``?frame=75``, a session file of parameters only) applies to the takes already
         open, or to the default pair when none are (:meth:`_takes_for`). ``keep_takes`` (a
         shared link): points that do not fit the takes are left out, with their refusal in
-        ``error``, and the rest opens.
+        ``error``, and the rest opens. ``then(opened: bool)``: called once it is installed
+        (not after a refusal: that goes to ``failed``); ``takes``: ``(body, hand)`` as an
+        upload's check read them (:meth:`load_uploads`).
         """
         self.drop_side_wait()  # the takes chosen now are the link's or the file's
         spec = self._takes_for(spec)
         if self.runner is None:
-            self._commit(self._stage(spec, keep_takes=keep_takes))
+            self._commit(self._stage(spec, keep_takes=keep_takes, takes=takes))
+            if then is not None:
+                then(True)
             return
+
+        def done(staged):
+            self._commit(staged)
+            if then is not None:
+                then(True)
 
         def refused(exc):
             self.end_opening()
@@ -1314,10 +1415,10 @@ class Session(param.Parameterized):
             Job(
                 "inputs",
                 "opening the session",
-                lambda progress: self._stage(spec, progress, keep_takes),
-                done=self._commit,
+                lambda progress: self._stage(spec, progress, keep_takes, takes),
+                done=done,
                 failed=refused,
-                dropped=lambda: self._open_dropped(lambda opened: None),
+                dropped=lambda: self._open_dropped(then or (lambda opened: None)),
             )
         )
 
@@ -1331,9 +1432,11 @@ class Session(param.Parameterized):
             return spec
         return replace(spec, sample=self._cfg.default_sample)
 
-    def _stage(self, spec: SessionSpec, progress=None, keep_takes: bool = False) -> dict:
+    def _stage(
+        self, spec: SessionSpec, progress=None, keep_takes: bool = False, takes=None
+    ) -> dict:
         """Everything ``spec`` needs, computed without touching the session (safe on a
-        worker thread)."""
+        worker thread); ``takes``: as for :meth:`apply_spec`."""
         t0 = time.perf_counter()
         if spec.side not in ("right", "left"):
             raise session_io.SessionError(None, "side", "the app aligns one side: right or left")
@@ -1382,7 +1485,7 @@ class Session(param.Parameterized):
                     "server has no default pair)",
                 )
         roles = dict(spec.roles)
-        prepared = backend.prepare(paths[0], paths[1], spec.side, roles)
+        prepared = backend.prepare(paths[0], paths[1], spec.side, roles, takes=takes)
         points = tuple(spec.points)  # checked by engine.dtw.constraints when the spec was made
         if spec.hand_frames == "grid":  # an old file or link: hand frames on the grid
             points = C.sort_points(
@@ -1513,10 +1616,22 @@ class Session(param.Parameterized):
         one (``band=99``, ``pts=abc:1``): ``error`` says why in one line, shown on after the
         link's solve (:func:`engine.io.session.read_query`). What cannot be opened at all
         (unknown takes, points outside the matrix) goes to ``failed`` as in
-        :meth:`apply_spec`."""
+        :meth:`apply_spec`; a link whose uploaded takes are not on this server then waits
+        for them: uploading them through the page opens it (:meth:`load_uploads`)."""
         spec, problems = session_io.read_query(query)
         if problems:
             text = "; ".join(backend.one_line(p) for p in problems)
             self.keep_error(f"shared link: {text}", problems[0])
             self.link_not_opened(f"{text} (left out; the rest of the link opened)")
-        self.apply_spec(spec, failed, keep_takes=True)
+
+        left_out = "; ".join(backend.one_line(p) for p in problems)
+
+        def refused(exc):
+            self._keep_waiting_link(spec, left_out)
+            (failed or self.refuse)(exc)
+
+        try:
+            self.apply_spec(spec, refused, keep_takes=True)
+        except Exception:  # without a runner: raised to the caller, as before
+            self._keep_waiting_link(spec, left_out)
+            raise

@@ -7,6 +7,7 @@ All text comes from ``sample_data/samples.json`` and is escaped before it reache
 from __future__ import annotations
 
 import html
+import re
 
 import panel as pn
 
@@ -81,23 +82,59 @@ def credits_pane(session: Session) -> pn.viewable.Viewable:
     return pane
 
 
-def no_share_alert(session: Session) -> pn.viewable.Viewable:
-    """The no-share warning shown next to the downloads (only for pairs that carry it)."""
+def _short_licence(text: str) -> str:
+    """A samples.json licence's name alone (``CC BY-NC 4.0`` of ``CC BY-NC 4.0 per the
+    included licence file ...``)."""
+    return re.split(r" per | \(|;", text, maxsplit=1)[0].strip()
+
+
+def share_terms(session: Session) -> tuple[str, str]:
+    """What the open pair's downloads may be used for, said beside them (stranger 10: no
+    plain licence line where one shares): ``("warning", NO_SHARE_TEXT)`` for a pair whose
+    licence forbids sharing (:func:`webapp.config.no_share`), ``("info", text)`` naming each
+    take's licence and credit for another bundled pair (non-commercial only where a
+    licence is NC), ``("", "")`` for the user's own takes. ``text`` is escaped HTML."""
+    cfg = session.config
+    try:
+        pair = cfg.sample(session.sample) if session.sample else None
+    except KeyError:
+        pair = None
+    if pair is None or pair.extra.get("local"):
+        return "", ""
+    if config.no_share(pair, cfg.sample_dir):
+        return "warning", html.escape(NO_SHARE_TEXT)
+    files = config.file_credits(cfg.sample_dir)
+    parts, non_commercial = [], False
+    for role, path in (("body", pair.body), ("hand", pair.hand)):
+        entry = files.get(config.sample_path(path, cfg.sample_dir) or "", {})
+        licence = _short_licence(str(entry.get("licence", ""))) or "licence not stated"
+        non_commercial |= "NC" in licence.replace("-", " ").split()  # CC BY-NC 4.0
+        source = f", credit: {entry['source']}" if entry.get("source") else ""
+        parts.append(html.escape(f"{role} {licence}{source}"))
+    use = " for non-commercial use only" if non_commercial else ""
+    return (
+        "info",
+        f"Licences: {'; '.join(parts)}. Spliced results may be shared{use}, crediting both sources.",
+    )
+
+
+def share_terms_alert(session: Session) -> pn.viewable.Viewable:
+    """The pair's share terms beside the downloads (:func:`share_terms`): a warning for a
+    no-share pair, a plain licence line for other bundled pairs, nothing for own takes."""
     alert = pn.pane.Alert(
-        NO_SHARE_TEXT,
-        alert_type="warning",
-        css_classes=["hs-no-share-alert"],
+        "",
+        alert_type="info",
+        css_classes=["hs-share-terms"],
         sizing_mode="stretch_width",
         visible=False,
     )
 
     def update(*_):
-        try:
-            alert.visible = bool(session.sample) and config.no_share(
-                session.config.sample(session.sample), session.config.sample_dir
-            )
-        except KeyError:
-            alert.visible = False
+        kind, text = share_terms(session)
+        if kind:
+            alert.alert_type = kind
+            alert.object = text
+        alert.visible = bool(kind)
 
     session.param.watch(update, ["inputs_revision", "sample"])
     update()

@@ -6,7 +6,8 @@ and the pair's features are computed on a worker thread, so a large or hostile f
 never holds up this or any other session. A refused file shows the reader's one-line
 reason and the pair that is open stays open; a new pair whose hand has only the other
 side waits for the Side chosen (the question names the files as uploaded), and choosing
-it opens that pair (:meth:`webapp.state.Session.load_uploads`). Each field's tile says
+it opens that pair (:meth:`webapp.state.Session.load_uploads`); the takes a shared link
+waited for open that link (its points, bands, view), and the line says so. Each field's tile says
 what the server made of its file (checking, checked, refused:
 :meth:`TakeDropper.verdict`), and the "Uploaded …" line names only takes that are open or
 waiting for their partner: a sample, a session file or a link that opens other takes
@@ -43,6 +44,8 @@ WAITING = "(upload: needs its partner)"
 WAITING_SIDE = "(upload: needs its side)"
 #: the "Uploaded …" line's tail while the pair opens
 OPENING = " <span class='hs-opening'>— opening (progress below)</span>"
+#: and once the uploads opened the shared link that waited for them (Session.load_uploads)
+LINK_APPLIED = "The shared link's matching points and bands now apply to your uploads."
 
 MARKER_BODY_NOTE = (
     "The body take holds **markers** (C3D/TRC): it has no skeleton to receive fingers. "
@@ -107,6 +110,8 @@ class InputsView:
         self._opening = False
         #: what the last opening did with the side (followed the hand file's name)
         self._side_note = ""
+        #: the last opening opened the shared link that waited for these uploads
+        self._link_applied = False
         self._droppers = {"body": self.body_file, "hand": self.hand_file}
         #: each field's refused file's reason (shown one line a field, body first)
         self._refusals: dict[str, str] = {}
@@ -280,6 +285,7 @@ class InputsView:
         """Other takes are open: the uploads' line, message and fields are cleared."""
         self._pending, self._open = {}, {}
         self._refusals = {}
+        self._link_applied = False
         self.session.drop_side_wait()
         self.session.waiting = ""
         self.uploaded.object = ""
@@ -368,8 +374,9 @@ class InputsView:
         if not opened and len(parts) == 2:
             opened = self._pending == self._open and self._open_is_shown()
         side = self._side_words() if len(parts) == 2 and (opened or failed) else ""
+        link = f" <span class='hs-link-applied'>{LINK_APPLIED}</span>"
         tail = (
-            f" — open{side}."
+            f" — open{side}." + (link if self._link_applied else "")
             if opened
             else " — waiting for the side you choose (its question is below)."
             if self.session.waits_for_side
@@ -447,6 +454,7 @@ class InputsView:
         self._side_note = (
             f"side {side}, as the hand file's name says" if named and named != s.side else ""
         )
+        self._link_applied = False
         self.uploaded.object += OPENING
         # the session holds the takes from now on (the engine's cache once they are open):
         # this view keeps only their names
@@ -480,6 +488,8 @@ class InputsView:
                 self._mark_unusable(reason, body.name, hand.name)
         else:
             self._open = dict(self._pending)
+            if s.link_applied:  # the shared link that waited for them: its side is used
+                self._link_applied, self._side_note = True, ""
             self._show_uploaded(opened=True)
 
     def _mark_unusable(self, reason: str, body_name: str, hand_name: str) -> None:

@@ -27,6 +27,10 @@ def link_notice(session: Session, args: dict[str, str]) -> pn.viewable.Viewable:
 
     def update(*_):
         text = session.link_notice
+        # once the link's own takes are open (uploaded: Session.load_uploads opened the
+        # link on them), what is left to say is only what of it was left out
+        link_takes = tuple(str(args.get(k, "")).lower() for k in ("body", "hand"))
+        wanted = named and (session.body_sha256, session.hand_sha256) != link_takes
         if text:
             alert.object = (
                 "**This page's link did not open as it was sent:** "
@@ -34,10 +38,10 @@ def link_notice(session: Session, args: dict[str, str]) -> pn.viewable.Viewable:
                 + (
                     "<br>The files it names: "
                     + safe_text.markdown(named)
-                    + ". Ask its sender for them, upload them below (Body take, Hand"
-                    " take), then open the link again: its matching points and bands"
-                    " apply to those files."
-                    if named
+                    + ". Ask its sender for them and upload them below (Body take, Hand"
+                    " take): uploading them applies the link, its matching points and"
+                    " bands, to those files."
+                    if wanted
                     else ""
                 )
                 + "<br>The link as sent: <code style='word-break: break-all'>"

@@ -435,11 +435,11 @@ class SharingView:
             )
 
     def panel(self) -> pn.viewable.Viewable:
-        from webapp.views.credits import no_share_alert
+        from webapp.views.credits import share_terms_alert
         from webapp.views.trust import unpinned_alert
 
         return pn.Column(
-            no_share_alert(self.session),
+            share_terms_alert(self.session),
             unpinned_alert(self.session),
             pn.Row(self.bvh, self.glb, self.session_file, self.gif, self.mp4),
             pn.Row(self.progress, self.progress_text),
