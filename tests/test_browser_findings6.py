@@ -89,11 +89,27 @@ def _the_downloads_warn_when_the_motion_does_not_pin_the_timing(page) -> None:
 # ---------------------------------------------------------------- finding 4
 
 
-def test_backspace_deletes_the_selected_point_from_anywhere_but_a_field(demo_page):
-    """Finding 4; before it, in the same fresh tab (one tab fewer per run), finding 2:
-    the downloads' warning (the tab's first look, before any point is placed)."""
+def test_the_four_findings_in_one_tab(demo_page, tmp_path):
+    """All four findings in one fresh tab (three tabs fewer per run), each where the one
+    before left the page: finding 2, the downloads' warning (the tab's first look, before
+    any point is placed); finding 4, Backspace (it leaves no point); finding 8, Undo and
+    Redo, then the sample selector's waiting entry and a refused text file's tile (a body
+    uploaded, the hand refused); finding 3, the hand uploaded to that body and then the same
+    bytes under a new name."""
     page = demo_page
     _the_downloads_warn_when_the_motion_does_not_pin_the_timing(page)
+    _backspace_deletes_the_selected_point_from_anywhere_but_a_field(page)
+    # the server took the last delete too (the next part places a point again)
+    page.wait_for_function(
+        "() => hs.cols('hs-server-points', ['x']).x.length === 0", timeout=BUSY_S * 1000
+    )
+    _undo_and_redo_say_what_they_did_and_have_tooltips(page)
+    _the_waiting_entry_reads_whole_and_a_refused_text_tile_says_so_at_once(page)
+    _the_same_take_uploaded_under_a_new_name_is_named_so_everywhere(page, tmp_path)
+
+
+def _backspace_deletes_the_selected_point_from_anywhere_but_a_field(page) -> None:
+    """Finding 4 (on the demo pair with no point)."""
     click_path_mid_take(page, timeout_s=BUSY_S)
     _select_the_point(page)
     # typing in a field: Backspace is the field's (the point stays, still selected)
@@ -128,10 +144,10 @@ def test_backspace_deletes_the_selected_point_from_anywhere_but_a_field(demo_pag
 # ---------------------------------------------------------------- finding 8: undo, redo
 
 
-def test_undo_and_redo_say_what_they_did_and_have_tooltips(demo_page):
+def _undo_and_redo_say_what_they_did_and_have_tooltips(page) -> None:
+    """Finding 8's Undo and Redo (on a pair with no point)."""
     from webapp.views.controls import UNDO_TIP
 
-    page = demo_page
     click_path_mid_take(page, timeout_s=BUSY_S)
     # the point as the server took it (whole frames)
     page.wait_for_function(
@@ -176,7 +192,7 @@ _RECORD = """() => {
       if (el.shadowRoot) { const f = find(sel, el.shadowRoot); if (f) return f; }
     return null;
   };
-  setInterval(() => {
+  window.__hs_tilesTimer = setInterval(() => {
     const alert = find('.hs-upload-error');
     const field = find('.hs-upload-hand');
     const main = field && find('.filepond--item .filepond--file-status-main',
@@ -187,8 +203,9 @@ _RECORD = """() => {
 }"""
 
 
-def test_the_waiting_entry_reads_whole_and_a_refused_text_tile_says_so_at_once(demo_page):
-    page = demo_page
+def _the_waiting_entry_reads_whole_and_a_refused_text_tile_says_so_at_once(page) -> None:
+    """Finding 8's selector and tile (no take uploaded yet): it leaves the body uploaded
+    and the hand refused."""
     page.locator(".hs-upload-body input[type=file]").set_input_files(str(BODY_BVH))
     _wait_text(page, ".hs-upload-status", r"now the other take")
     select = page.locator(".hs-sample select").first.element_handle()
@@ -216,14 +233,15 @@ def test_the_waiting_entry_reads_whole_and_a_refused_text_tile_says_so_at_once(d
     # the reason and the verdict arrive together; a few samples' grace for their order
     late = [r["tile"] for r in shown[5:] if r["tile"] != "Refused"]
     assert not late, [r["tile"] for r in shown]
+    page.evaluate("clearInterval(window.__hs_tilesTimer)")
 
 
 # ---------------------------------------------------------------- finding 3
 
 
-def test_the_same_take_uploaded_under_a_new_name_is_named_so_everywhere(demo_page, tmp_path):
-    page = demo_page
-    page.locator(".hs-upload-body input[type=file]").set_input_files(str(BODY_BVH))
+def _the_same_take_uploaded_under_a_new_name_is_named_so_everywhere(page, tmp_path) -> None:
+    """Finding 3, after the part above: its body (``BODY_BVH``) is uploaded and waits for
+    the other take; the hand goes into the field whose text file was refused."""
     _wait_text(page, ".hs-upload-status", r"now the other take")
     page.locator(".hs-upload-hand input[type=file]").set_input_files(str(HAND_BVH))
     _wait_text(page, ".hs-upload-status", r"hand:.*open")

@@ -81,9 +81,14 @@ def test_follow_edits_moves_the_preview_to_the_edited_point(page):
     assert _caption_frame(page) == moved
 
 
-def test_a_refused_band_entry_stays_and_a_missing_side_is_refused_under_its_control(page):
-    """Two refusals in one tab (one tab less per run): a band-width entry, kept as typed
-    and then corrected; then a side the takes lack, said under the Side control."""
+def test_the_times_column_wraps_and_a_refused_band_entry_stays_and_a_missing_side_is_refused(
+    page,
+):
+    """Three checks in one tab (the times column had a tab of its own: one tab less per
+    run): the points table's times column (one point placed), then two refusals: a
+    band-width entry, kept as typed and then corrected; then a side the takes lack, said
+    under the Side control."""
+    _the_times_column_wraps_a_long_takes_times(page)
     _a_refused_band_entry_stays_to_be_corrected(page)
     _a_missing_side_is_refused_under_the_side_control(page)
 
@@ -123,7 +128,8 @@ def _a_missing_side_is_refused_under_the_side_control(page) -> None:
     box.wait_for(state="hidden", timeout=BUSY_S * 1000)
 
 
-def test_the_times_column_wraps_a_long_takes_times(page):
+def _the_times_column_wraps_a_long_takes_times(page) -> None:
+    """On the demo pair with no point: one placed, its times drawn as a long take's."""
     rev = revision(page)
     path = page.evaluate("hs.cols('hs-path-source', ['x', 'y'])")
     k = len(path["x"]) // 2

@@ -64,7 +64,15 @@ def _uploaded_line(page) -> str:
         return ""
 
 
-def test_the_sample_picker_does_not_name_the_sample_while_an_upload_waits(page):
+def test_the_picker_while_an_upload_waits_then_the_open_end_band_and_its_limit(page, tmp_path):
+    """Both findings in one tab (one tab fewer per run): the sample picker while an upload
+    waits (which ends with the demo pair shown again, nothing uploaded waiting), then an
+    uploaded pair's open-end band and its limit."""
+    _the_sample_picker_does_not_name_the_sample_while_an_upload_waits(page)
+    _the_open_end_band_is_explained_under_w1_and_its_limit_has_a_field(page, tmp_path)
+
+
+def _the_sample_picker_does_not_name_the_sample_while_an_upload_waits(page) -> None:
     # the demo's hand take runs at 40 fps, its body at 30: a point's hand frame snaps to
     # the body's rate, said under the points' heading (a stranger's R3-4)
     note = page.locator(".hs-hand-rate-note").first
@@ -101,7 +109,7 @@ def _type(page, css: str, text: str) -> None:
     field.press("Enter")
 
 
-def test_the_open_end_band_is_explained_under_w1_and_its_limit_has_a_field(page, tmp_path):
+def _the_open_end_band_is_explained_under_w1_and_its_limit_has_a_field(page, tmp_path) -> None:
     _upload_pair(page)  # a 6.7 s body, a 2.2 s hand: the hand may start in a span of seconds
     note = page.locator(".hs-band-placement").first
     note.wait_for(state="visible", timeout=BUSY_S * 1000)

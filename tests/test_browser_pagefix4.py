@@ -123,7 +123,9 @@ RECORD = """() => {
 }"""
 
 
-def test_a_large_upload_says_how_much_has_arrived(page):
+def _a_large_upload_says_how_much_has_arrived(page) -> None:
+    """R3-6, on the demo pair with nothing uploaded: it leaves the long body uploaded,
+    waiting for the other take (the demo pair still shown)."""
     assert LONG_BODY.stat().st_size > 3e6
     page.evaluate(RECORD)
     _upload(page, "body", LONG_BODY)
@@ -232,7 +234,15 @@ RECORD_VIEWS = """() => {
 }"""
 
 
-def test_nothing_of_the_previous_pair_is_shown_as_a_marker_pairs(page):
+def test_a_large_upload_says_how_much_has_arrived_and_then_a_marker_pair_opens_veiled(page):
+    """R3-6 and then R4-9 in the same tab (one tab fewer per run): the large body upload
+    leaves the demo pair shown, which the marker pair then replaces."""
+    _a_large_upload_says_how_much_has_arrived(page)
+    _nothing_of_the_previous_pair_is_shown_as_a_marker_pairs(page)
+
+
+def _nothing_of_the_previous_pair_is_shown_as_a_marker_pairs(page) -> None:
+    """R4-9, on the demo pair shown (a body upload may wait for its hand)."""
     # the demo pair shown with its picture and its suggested points
     page.locator(".hs-preview-image img").wait_for(timeout=BUSY_S * 1000)
     page.locator(".hs-suggestion button", has_text="Check body frame").first.wait_for(
@@ -242,7 +252,7 @@ def test_nothing_of_the_previous_pair_is_shown_as_a_marker_pairs(page):
     old = page.evaluate("window.hsRec[0]")
     assert old["picture"] and old["labels"] and not old["previewDim"], old
     _upload(page, "body", BODY_C3D)
-    _wait_line(page, r"Uploaded body:.*now the other take")
+    _wait_line(page, r"Uploaded body:.*markers_analogs\.c3d.*now the other take")
     _upload(page, "hand", HAND_BVH)
     frames = 580  # markers_analogs.c3d
     page.wait_for_function(

@@ -1,5 +1,6 @@
-"""The splice metrics' path and grid kernels (``metrics.path_values``, ``metrics.cost_grid``)
-are cached on disk: a fresh process (a batch worker's pair, a server, the CLI) loads their
+"""The splice metrics' path, grid and row kernels (``metrics.path_values``, ``metrics.cost_grid``,
+the registered metrics' ``row``: the uncertainty sweep's cost rows), and the path values of
+the built-in cells (the hand-spin pass's ``euclidean``) are cached on disk: a fresh process (a batch worker's pair, a server, the CLI) loads their
 machine code from ``NUMBA_CACHE_DIR`` and compiles nothing for them (it compiled them anew in
 every process, seconds each, when they took the metric as an argument)."""
 
@@ -13,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from engine.align import metrics as M
+from engine.dtw import kernels as K
 from engine.splice import pipeline as P
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -23,6 +25,7 @@ _CHILD = """
 import numpy as np
 from numba.core import event
 from engine.align import metrics as M
+from engine.dtw import kernels as K
 
 rows = np.load({rows!r})
 a, b = rows["pa"], rows["pb"]
@@ -33,6 +36,11 @@ with event.install_recorder("numba:compile") as rec:
     M.cost_grid(M.splice_phase, a, b, np.arange(3), np.arange(4))
     M.path_values(M.splice_angle, c, d, path)
     M.cost_grid(M.splice_angle, c, d, np.arange(3), np.arange(4))
+    M.path_values(K.euclidean, c, d, path)
+    M.path_values(K.sqeuclidean, c, d, path)
+    M.register_metrics()
+    K.get_metric("splice_phase").row(a, b, 1, 0, 3)
+    K.get_metric("splice_angle").row(c, d, 1, 0, 3)
 print(sum(1 for _, ev in rec.buffer if ev.is_start))
 """
 
@@ -55,6 +63,14 @@ def test_a_fresh_process_compiles_no_path_or_grid_kernel_of_the_splice_metrics(
         # the same numbers as the metric cell by cell
         assert np.array_equal(values, [metric(a[i], b[j]) for i, j in path])
         assert np.array_equal(grid, [[metric(a[i], b[j]) for j in range(4)] for i in range(3)])
+        # the uncertainty sweep's cost row (columns 0..3 of row 1)
+        M.register_metrics()
+        row = K.get_metric(metric).row(a, b, 1, 0, 3)
+        assert np.array_equal(row, [metric(a[1], b[j]) for j in range(4)])
+    for cell in (K.euclidean, K.sqeuclidean):
+        assert np.array_equal(
+            M.path_values(cell, aa, ab, path), [cell(aa[i], ab[j]) for i, j in path]
+        )
     rows = tmp_path / "rows.npz"
     np.savez(rows, pa=pa, pb=pb, aa=aa, ab=ab)
     env = {

@@ -509,10 +509,15 @@ def _seed(prepared: Prepared) -> _Seed:
 
 
 def _local_costs(rows_ab, metric: str, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-    """Local costs ``metric(a[r], b[c])`` on the grid ``rows`` x ``cols`` (float64), through
-    the DTW engine's cost view at one cell per pixel."""
+    """Local costs ``metric(a[r], b[c])`` on the grid ``rows`` x ``cols`` (float64): the
+    splice metrics through the pipeline's grid (kernels cached on disk; the cost view's
+    kernel takes the metric as an argument, so it compiled anew in every server), others
+    (the built-in cells) through the DTW engine's cost view at one cell per pixel."""
     from engine.dtw.views import local_cost_image
+    from engine.splice import pipeline
 
+    if metric in pipeline.DEFAULT_METRICS:
+        return pipeline.local_cost_grid(rows_ab, metric, rows, cols)
     a, b = rows_ab
     sub_a = np.ascontiguousarray(a[rows])
     sub_b = np.ascontiguousarray(b[cols])

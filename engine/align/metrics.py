@@ -53,6 +53,7 @@ from engine.align import angle_kernel as AK
 from engine.align import phase_kernel as PK
 from engine.base.errors import ParameterError
 from engine.base.jit import FASTMATH_REASSOC
+from engine.dtw import kernels as DK
 
 # numba options: engine.base.jit (no nnan/ninf: NaN gaps in capture data are real)
 _FASTMATH = set(FASTMATH_REASSOC)
@@ -964,11 +965,45 @@ def register_metrics() -> None:
     from engine.dtw import register_metric
 
     register_metric(
-        "splice_phase", splice_phase, replace=True, prepare=PK.prepare, forward=PK.forward
+        "splice_phase",
+        splice_phase,
+        replace=True,
+        prepare=PK.prepare,
+        forward=PK.forward,
+        row=_cost_row_phase,
     )
     register_metric(
-        "splice_angle", splice_angle, replace=True, prepare=AK.prepare, forward=AK.forward
+        "splice_angle",
+        splice_angle,
+        replace=True,
+        prepare=AK.prepare,
+        forward=AK.forward,
+        row=_cost_row_angle,
     )
+
+
+# the DTW engine's cost row (``kernels.cost_row_metric``: the uncertainty sweep's local costs,
+# row by row) for the two splice metrics, each calling its metric by name: cached on disk
+
+
+@numba.njit(cache=True, nogil=True)
+def _cost_row_phase(a, b, i, lo, hi):
+    """``splice_phase(a[i], b[j])`` for ``j`` in ``lo..hi``: ``(hi - lo + 1,)`` float64."""
+    out = np.empty(hi - lo + 1)
+    ai = a[i]
+    for j in range(lo, hi + 1):
+        out[j - lo] = splice_phase(ai, b[j])
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _cost_row_angle(a, b, i, lo, hi):
+    """``splice_angle(a[i], b[j])`` for ``j`` in ``lo..hi``: ``(hi - lo + 1,)`` float64."""
+    out = np.empty(hi - lo + 1)
+    ai = a[i]
+    for j in range(lo, hi + 1):
+        out[j - lo] = splice_angle(ai, b[j])
+    return out
 
 
 @numba.njit(nogil=True)  # no cache: a dispatcher argument breaks numba's cache
@@ -989,6 +1024,17 @@ def _path_kernel_angle(a, b, path, out):  # _path_kernel for splice_angle, cache
         out[k] = splice_angle(a[path[k, 0]], b[path[k, 1]])
 
 
+@numba.njit(cache=True, nogil=True)
+def _path_kernel_builtin(root, a, b, path, out):
+    """_path_kernel for the DTW engine's built-in cells (``euclidean`` if ``root``, else
+    ``sqeuclidean``; the hand-spin pass's metric), cached (see above)."""
+    for k in range(path.shape[0]):
+        if root:
+            out[k] = DK.euclidean(a[path[k, 0]], b[path[k, 1]])
+        else:
+            out[k] = DK.sqeuclidean(a[path[k, 0]], b[path[k, 1]])
+
+
 def path_values(metric, a: np.ndarray, b: np.ndarray, path: np.ndarray) -> np.ndarray:
     """``metric(a[i], b[j])`` for every cell ``(i, j)`` of ``path (k, 2)``, as ``(k,)`` float64."""
     path = np.ascontiguousarray(path, dtype=np.int64).reshape(-1, 2)
@@ -997,6 +1043,8 @@ def path_values(metric, a: np.ndarray, b: np.ndarray, path: np.ndarray) -> np.nd
         _path_kernel_phase(a, b, path, out)
     elif metric is splice_angle:
         _path_kernel_angle(a, b, path, out)
+    elif metric is DK.euclidean or metric is DK.sqeuclidean:
+        _path_kernel_builtin(metric is DK.euclidean, a, b, path, out)
     else:
         _path_kernel(metric, a, b, path, out)
     return out

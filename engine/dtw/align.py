@@ -366,6 +366,8 @@ class Problem:
             return self.cost[i, lo : hi + 1].copy()
         if self.kind == "builtin":
             return K.cost_row_builtin(self.a, self.bT, self.metric.kind, i, lo, hi)
+        if self.metric.row is not None:  # the metric's own row kernel, cached on disk
+            return self.metric.row(self.a, self.b, i, lo, hi)
         return K.cost_row_metric(self.metric.cell, self.a, self.b, i, lo, hi)
 
     def bad_cost_error(self, i: int, band: Band, reversed_: bool = False) -> ValueError:

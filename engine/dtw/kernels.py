@@ -649,6 +649,10 @@ class Metric:
     #: last_row)`` as the ``forward_*`` kernels (open ends included); must give exactly ``cell``'s costs (see engine.align.phase_kernel)
     prepare: object = None
     forward: object = None
+    #: optional ``row(a, b, i, lo, hi) -> (hi - lo + 1,)``: ``cell(a[i], b[j])`` for columns
+    #: ``lo..hi``, exactly; a kernel cached on disk that calls ``cell`` by name, where
+    #: ``cost_row_metric`` (the metric as an argument) compiles anew in every process
+    row: object = None
 
 
 _METRICS: dict[str, Metric] = {
@@ -658,7 +662,13 @@ _METRICS: dict[str, Metric] = {
 
 
 def register_metric(
-    name: str, fn: Dispatcher | None = None, *, replace: bool = False, prepare=None, forward=None
+    name: str,
+    fn: Dispatcher | None = None,
+    *,
+    replace: bool = False,
+    prepare=None,
+    forward=None,
+    row=None,
 ):
     """Register a numba metric ``fn(a_row, b_row) -> float`` under ``name``.
 
@@ -678,13 +688,13 @@ def register_metric(
             raise ValueError(f"metric name must be a non-empty string, got {name!r}")
         known = _METRICS.get(name)
         if known is not None and (known.kind >= 0 or not replace):
-            if known.cell is f and known.forward is forward:
+            if known.cell is f and known.forward is forward and known.row is row:
                 return f
             raise ValueError(
                 f"metric {name!r} is already registered"
                 + ("" if known.kind >= 0 else "; pass replace=True to replace it")
             )
-        _METRICS[name] = Metric(name, f, prepare=prepare, forward=forward)
+        _METRICS[name] = Metric(name, f, prepare=prepare, forward=forward, row=row)
         return f
 
     return _register if fn is None else _register(fn)

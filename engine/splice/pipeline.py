@@ -621,11 +621,10 @@ class PassResult:
 
     def local_costs(self, rows_idx=None, cols_idx=None) -> np.ndarray:
         """Local costs on a grid of cells (all cells by default: small takes only)."""
-        fn = get_metric(self.metric).cell
         a, b = self.rows
         r = np.arange(len(a)) if rows_idx is None else np.asarray(rows_idx)
         c = np.arange(len(b)) if cols_idx is None else np.asarray(cols_idx)
-        return M.cost_grid(fn, a, b, r, c)
+        return local_cost_grid(self.rows, self.metric, r, c)
 
     def path_costs(self) -> np.ndarray:
         """(k,) local cost of every path cell."""
@@ -1320,6 +1319,14 @@ def wrist_speeds(features: SpliceFeatures) -> tuple[np.ndarray, np.ndarray]:
     return speed(features.body_phase), speed(features.hand_phase)
 
 
+def local_cost_grid(rows_ab, metric: str, rows, cols) -> np.ndarray:
+    """Local costs ``metric(a[r], b[c])`` of the feature rows ``rows_ab = (a, b)`` on the
+    grid body frames ``rows`` × grid hand frames ``cols``: ``(len(rows), len(cols))``
+    float64 (``metrics.cost_grid``: for the splice metrics, machine code cached on disk)."""
+    a, b = rows_ab
+    return M.cost_grid(get_metric(metric).cell, a, b, rows, cols)
+
+
 def cost_image(
     features: SpliceFeatures, kind: str, rows, cols, result: SpliceAlignment | None = None
 ) -> np.ndarray:
@@ -1335,15 +1342,16 @@ def cost_image(
     cols = np.asarray(cols, dtype=np.int64)
     metric1, metric2 = DEFAULT_METRICS if result is None else result.metrics
     if kind == "pass1":
-        a, b = features.pass1_rows
-        return M.cost_grid(get_metric(metric1).cell, a, b, rows, cols)
+        return local_cost_grid(features.pass1_rows, metric1, rows, cols)
     if kind == "pass2":
         if result is not None:
-            a, b = result.pass2.rows
+            ab = result.pass2.rows
         else:
-            a = M.angle_features(features.body_markers).rows()
-            b = M.angle_features(features.hand_markers).rows()
-        return M.cost_grid(get_metric(metric2).cell, a, b, rows, cols)
+            ab = (
+                M.angle_features(features.body_markers).rows(),
+                M.angle_features(features.hand_markers).rows(),
+            )
+        return local_cost_grid(ab, metric2, rows, cols)
     if kind in ("cumulative1", "cumulative2"):
         if result is None:
             return np.full((rows.size, cols.size), np.nan)
