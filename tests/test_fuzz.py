@@ -43,7 +43,13 @@ from hypothesis import strategies as st
 from engine.base.errors import HandSpliceError, MotionFormatError
 from engine.io import load_take
 from engine.io.bvh import parse_bvh, read_bvh
-from engine.io.session import SessionError, SessionSpec, from_query, parse_session
+from engine.io.session import (
+    QUERY_KEYS,
+    SessionError,
+    SessionSpec,
+    from_query,
+    parse_session,
+)
 from engine.io.trc import parse_trc
 from engine.model.motion import MarkerSet, Motion
 
@@ -649,19 +655,7 @@ def test_session_mutations(seed, ops):
     expect_valid_or(SessionError, lambda: parse_session(data, "fuzz.json"), _check_session)
 
 
-_QUERY_KEYS = [
-    "sample",
-    "body",
-    "hand",
-    "side",
-    "band",
-    "refine",
-    "tol",
-    "pts",
-    "view",
-    "frame",
-    "x",
-]
+_QUERY_KEYS = [*QUERY_KEYS, "x"]  # every key a link may hold, and one it may not
 _query_value = st.sampled_from(
     SESSION_GARBAGE
     + ["demo", "right", "0.3", "1:2,5:9:1", "ab" * 32, "1:2:3:4", "5:5,3:9", "pass2", "-1:2"]
