@@ -630,6 +630,23 @@ def test_opening_a_bad_session_file_in_the_page_keeps_the_session(session, cfg):
     assert inputs.sample.value == "wave-hello" and "wave-hello" in view.link.value
 
 
+def test_a_finished_downloads_line_goes_with_its_pair(session):
+    """Stranger 11: "spliced BVH: ... handed to your browser" stayed under another pair's
+    buttons after the Sample pair changed; it goes with its pair."""
+    import asyncio
+
+    from webapp.views.sharing import SENT, SharingView
+
+    view = SharingView(session)
+    data = asyncio.run(view._bvh())  # the BVH button's own coroutine
+    assert data is not None and data.size > 0
+    assert view.prepare_text.visible and SENT in view.prepare_text.object
+    session.add_point(40, 20, 0)  # an edit of the same pair keeps it
+    assert view.prepare_text.visible
+    session.load_sample("wave-hello")
+    assert not view.prepare_text.visible
+
+
 def test_the_link_follows_the_preview_frame(session):
     """Stranger R4-5: the frame moved (the preview's slider writes ``frame``) is in the
     link field at once (without a server; a page's link follows it

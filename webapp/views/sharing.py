@@ -197,6 +197,7 @@ class SharingView:
             lambda *_: self._link_soon(),
             ["revision", "inputs_revision", "matrix", "body_name", "hand_name", *VIEW_STATE],
         )
+        session.param.watch(lambda *_: self._new_pair(), ["inputs_revision"])
         # the preview's frame (slider, Play, a picked cell) is in the link too, once it stands
         self._frame_settle = Settle(doc, self._link_soon, FRAME_LINK_MS)
         session.param.watch(lambda *_: self._frame_settle.moved(), ["frame"])
@@ -211,6 +212,16 @@ class SharingView:
             pn.state.onload(self._update_link)
 
     # ---------------------------------------------------------------- downloads
+
+    def _new_pair(self) -> None:
+        """Other takes are open: the lines of downloads that ended (and their refusals) were
+        of the pair before, so they go (stranger 11: "spliced GLB: 444 KiB ... handed to
+        your browser" stayed under another pair's buttons); one still running stays."""
+        if SENT in self.prepare_text.object:
+            self.prepare_text.visible = False
+        if not self._exporting:
+            self.progress.visible = self.progress_text.visible = False
+        self.message.visible = False
 
     def _guard(self, make, what: str):
         try:
