@@ -1396,6 +1396,13 @@ def test_a_link_with_points_outside_its_takes_opens_the_takes_without_them(cfg):
         f"frames 0 to {s.n - 1} and hand frames 0 to "
     )
     assert s.refusal() is not None and s.refusal().field == "points[1]"
+    # a frame past the take shows the last one and says so (stranger 11: silently clamped)
+    s.open_link({"sample": "bye-hello", "frame": "9999"})
+    assert s.frame == s.n - 1 and s.error == (
+        f"shared link: URL: frame: 9999 is past the body take's last frame, {s.n - 1}: "
+        f"{s.n - 1} is shown"
+    )
+    assert "9999 is past" in s.link_notice and "the rest of the link opened" in s.link_notice
 
 
 def test_points_table_refuses_a_fraction_of_a_frame_with_the_rules_one_text(session):

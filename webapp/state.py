@@ -1533,6 +1533,13 @@ class Session(param.Parameterized):
             )
         )
         widths = _width_values({"band": band, "refine_band": refine}, dict(WIDTHS))
+        frame, last = int(spec.view.get("frame", 0)), max(prepared.n - 1, 0)
+        if frame > last and keep_takes and refused is None:  # a link's: said, not silent
+            refused = session_io.SessionError(  # (stranger 11: frame=9999 became 186 unsaid)
+                "URL",
+                "frame",
+                f"{frame} is past the body take's last frame, {last}: {last} is shown",
+            )
         values = dict(
             inputs,
             side=spec.side,
@@ -1542,7 +1549,7 @@ class Session(param.Parameterized):
             points=points,
             max_unmatched_s=spec.max_unmatched_s,
             matrix=spec.view.get("matrix", self.matrix),
-            frame=int(min(spec.view.get("frame", 0), max(prepared.n - 1, 0))),
+            frame=min(frame, last),
             **{k: spec.view.get(k, session_io.VIEW_DEFAULTS[k]) for k in VIEW_STATE},
         )
         return {
@@ -1577,7 +1584,7 @@ class Session(param.Parameterized):
         self._accepted_automatic = self.automatic
         self.inputs_revision += 1
         self.error, self._carry_error = self._carry_error, ""
-        if staged.get("refused") is not None:  # a link's points left out: say why too
+        if staged.get("refused") is not None:  # a link's points (or frame) left out: say why
             left_out = backend.one_line(staged["refused"])
             text = f"shared link: {left_out}"
             self.refuse(staged["refused"], "; ".join(t for t in (self.error, text) if t))
