@@ -24,6 +24,17 @@ NO_SHARE_TEXT = (
 )
 
 
+def _take_entries(pair: config.SamplePair, cfg: config.AppConfig) -> list[tuple[str, str, dict]]:
+    """``(role, samples.json name, its entry)`` of the pair's body and hand takes (an empty
+    entry for a file samples.json does not list): what the credits and share terms read."""
+    files = config.file_credits(cfg.sample_dir)
+    out = []
+    for role, path in (("body", pair.body), ("hand", pair.hand)):
+        rel = config.sample_path(path, cfg.sample_dir) or path.name
+        out.append((role, rel, files.get(rel, {})))
+    return out
+
+
 def credits_html(session: Session) -> str:
     """The open pair's description and, per take, its file, source and licence (HTML)."""
     cfg = session.config
@@ -43,11 +54,8 @@ def credits_html(session: Session) -> str:
             f"opened from disk: {html.escape(pair.body.name)} and "
             f"{html.escape(pair.hand.name)}.</div>"
         )
-    files = config.file_credits(cfg.sample_dir)
     rows = []
-    for role, path in (("body", pair.body), ("hand", pair.hand)):
-        rel = config.sample_path(path, cfg.sample_dir) or path.name
-        entry = files.get(rel, {})
+    for role, rel, entry in _take_entries(pair, cfg):
         rows.append(
             f"<li><b>{role}</b> <code>{html.escape(rel)}</code>"
             + (f" — {html.escape(str(entry['description']))}" if entry.get("description") else "")
@@ -108,10 +116,8 @@ def share_terms(session: Session) -> tuple[str, str]:
         return "info", html.escape(OWN_TAKES_TEXT)
     if config.no_share(pair, cfg.sample_dir):
         return "warning", html.escape(NO_SHARE_TEXT)
-    files = config.file_credits(cfg.sample_dir)
     parts, non_commercial = [], False
-    for role, path in (("body", pair.body), ("hand", pair.hand)):
-        entry = files.get(config.sample_path(path, cfg.sample_dir) or "", {})
+    for role, _rel, entry in _take_entries(pair, cfg):
         licence = _short_licence(str(entry.get("licence", ""))) or "licence not stated"
         non_commercial |= "NC" in licence.replace("-", " ").split()  # CC BY-NC 4.0
         source = f", credit: {entry['source']}" if entry.get("source") else ""
@@ -131,15 +137,10 @@ def share_terms_alert(session: Session) -> pn.viewable.Viewable:
         alert_type="info",
         css_classes=["hs-share-terms"],
         sizing_mode="stretch_width",
-        visible=False,
     )
 
     def update(*_):
-        kind, text = share_terms(session)
-        if kind:
-            alert.alert_type = kind
-            alert.object = text
-        alert.visible = bool(kind)
+        alert.alert_type, alert.object = share_terms(session)
 
     session.param.watch(update, ["inputs_revision", "sample"])
     update()
