@@ -18,6 +18,9 @@ DEMO_PACKAGES := libgl1 libegl1 libegl-mesa0 libgl1-mesa-dri libosmesa6
 # and npm (tests/js).
 TEST_PACKAGES := $(DEMO_PACKAGES) chromium fonts-dejavu-core libatomic1 npm
 PORT ?= 5006
+# Two pytest-xdist workers: the browser tests one after another in one lane, every other
+# module in the other (tests/conftest.py); `make test TEST_LANES=` runs them in one process.
+TEST_LANES ?= -n 2 --dist loadgroup --no-loadscope-reorder
 
 export PYOPENGL_PLATFORM ?= egl
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.numba_cache
@@ -31,7 +34,7 @@ test: test-deps venv js
 	$(BIN)/ruff check engine webapp tests benchmarks
 	$(BIN)/ruff format --check engine webapp tests benchmarks
 	$(BIN)/lint-imports
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q $(TEST_LANES)
 
 lint: venv
 	$(BIN)/ruff check engine webapp tests benchmarks

@@ -217,13 +217,34 @@ def pytest_sessionfinish(session, exitstatus):
     stop_shared_browser()
 
 
+#: the xdist group of the browser tests (``make test`` runs two workers)
+BROWSER_LANE = "browser"
+
+
+def pytest_collection_modifyitems(config, items):
+    """Two lanes under pytest-xdist (``make test``: ``-n 2 --dist loadgroup``): every
+    browser test in one group, run one after another on one worker (they share the run's
+    Chromium and demo server, and each one loads the machine as a user's page does), first
+    in the order so that the longest lane starts at once; every other module whole on
+    whichever worker is free (its module fixtures computed once). Without xdist the marks
+    change nothing."""
+    for item in items:
+        lane = BROWSER_LANE if _is_browser_test(item) else item.nodeid.split("::")[0]
+        item.add_marker(pytest.mark.xdist_group(lane))
+    items.sort(key=lambda item: not _is_browser_test(item))  # stable: module order kept
+
+
+def _is_browser_test(item) -> bool:
+    return item.get_closest_marker("browser") is not None or "browser" in getattr(
+        item, "fixturenames", ()
+    )
+
+
 @pytest.fixture(autouse=True)
 def _no_playwright_outside_browser_tests(request):
     """A test that drives no browser (no ``browser`` mark, no ``browser`` fixture) runs with
     Playwright stopped, so that its ``asyncio.run`` works."""
-    if request.node.get_closest_marker("browser") is None and "browser" not in (
-        request.fixturenames
-    ):
+    if not _is_browser_test(request.node):
         stop_shared_browser()
 
 

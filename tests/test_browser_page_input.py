@@ -134,9 +134,11 @@ def test_keys_are_inert_on_the_old_pair_while_a_new_pair_opens(
         # point stays while the old pair is shown (the new pair may open meanwhile on a fast
         # machine: it has no point, and its matrix and empty table come in under the veil
         # before its first path: only the moments the old pair's matrix is shown count)
+        # (the first look is taken at once: a key's effect in the page is synchronous, so
+        # a point Delete removed would already be gone; CI at stop 30 saw the new pair
+        # open within the first 200 ms wait, which left nothing to look at)
         veiled_points = []
         for _ in range(10):
-            page.wait_for_timeout(200)
             if page.locator(".hs-inactive").count() < 2:
                 break
             frames, points = page.evaluate(
@@ -145,6 +147,7 @@ def test_keys_are_inert_on_the_old_pair_while_a_new_pair_opens(
             if frames != old_frames:
                 break
             veiled_points.append(points)
+            page.wait_for_timeout(200)
         # the page sent nothing: the slider's label never moved, no button was pressed, and
         # the server had no edit to refuse ("not taken: ... is opening")
         titles = page.evaluate("window.__hsTitles")
