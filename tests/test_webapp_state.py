@@ -1403,6 +1403,14 @@ def test_a_link_with_points_outside_its_takes_opens_the_takes_without_them(cfg):
         f"{s.n - 1} is shown"
     )
     assert "9999 is past" in s.link_notice and "the rest of the link opened" in s.link_notice
+    # both at once: the points' refusal and the frame's, each said (one was dropped)
+    s.open_link({**link, "frame": "9999"})
+    assert s.points == () and s.frame == s.n - 1
+    assert "matching point 2 (body 900, hand 50): outside the takes" in s.error
+    assert s.error.endswith(
+        f"9999 is past the body take's last frame, {s.n - 1}: {s.n - 1} is shown"
+    )
+    assert s.refusal() is not None and s.refusal().field == "points[1]"
 
 
 def test_points_table_refuses_a_fraction_of_a_frame_with_the_rules_one_text(session):

@@ -1493,7 +1493,7 @@ class Session(param.Parameterized):
                     prepared, [(p.body, p.hand, p.tolerance) for p in points]
                 )
             )
-        refused = None
+        refused: list[BaseException] = []  # what of a link is left out, each said
         try:
             C.check_points(
                 [p.resolved(spec.tolerance) for p in points],
@@ -1505,7 +1505,8 @@ class Session(param.Parameterized):
         except C.ConstraintError as exc:
             if not keep_takes:
                 raise
-            refused, points = exc, ()  # the link's takes and other values open without them
+            refused.append(exc)  # the link's takes and other values open without them
+            points = ()
         defaults = {
             name: rule.default_for(prepared.n, prepared.features.fps) for name, rule in WIDTHS
         }
@@ -1534,11 +1535,13 @@ class Session(param.Parameterized):
         )
         widths = _width_values({"band": band, "refine_band": refine}, dict(WIDTHS))
         frame, last = int(spec.view.get("frame", 0)), max(prepared.n - 1, 0)
-        if frame > last and keep_takes and refused is None:  # a link's: said, not silent
-            refused = session_io.SessionError(  # (stranger 11: frame=9999 became 186 unsaid)
-                "URL",
-                "frame",
-                f"{frame} is past the body take's last frame, {last}: {last} is shown",
+        if frame > last and keep_takes:  # a link's: said, not silent (stranger 11:
+            refused.append(  # frame=9999 became 186 unsaid)
+                session_io.SessionError(
+                    "URL",
+                    "frame",
+                    f"{frame} is past the body take's last frame, {last}: {last} is shown",
+                )
             )
         values = dict(
             inputs,
@@ -1584,10 +1587,10 @@ class Session(param.Parameterized):
         self._accepted_automatic = self.automatic
         self.inputs_revision += 1
         self.error, self._carry_error = self._carry_error, ""
-        if staged.get("refused") is not None:  # a link's points (or frame) left out: say why
-            left_out = backend.one_line(staged["refused"])
+        if staged["refused"]:  # a link's points or frame left out: say each and why
+            left_out = "; ".join(backend.one_line(exc) for exc in staged["refused"])
             text = f"shared link: {left_out}"
-            self.refuse(staged["refused"], "; ".join(t for t in (self.error, text) if t))
+            self.refuse(staged["refused"][0], "; ".join(t for t in (self.error, text) if t))
             self.link_not_opened(f"{left_out} (left out; the rest of the link opened)")
         self.revision += 1
         self._update_history_flags()
