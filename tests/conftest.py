@@ -221,6 +221,7 @@ def pytest_sessionfinish(session, exitstatus):
 BROWSER_LANE = "browser"
 
 
+@pytest.hookimpl(tryfirst=True)  # before xdist's own hook, which reads the groups
 def pytest_collection_modifyitems(config, items):
     """Two lanes under pytest-xdist (``make test``: ``-n 2 --dist loadgroup``): every
     browser test in one group, run one after another on one worker (they share the run's
