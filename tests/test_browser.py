@@ -195,6 +195,15 @@ def test_undo_and_redo_the_tolerance_edit(page):
     _wait_tolerances(page, [None])
     page.locator(".hs-redo button:enabled").click()
     _wait_tolerances(page, [6])
+    # a value typed into a cell that holds one replaces it, as in a spreadsheet (stranger
+    # 12: "40" typed over 25 became 2540): keys as a person types them, no fill()
+    _edit_cell(page, "tolerance")
+    page.keyboard.type("4")
+    page.keyboard.press("Enter")
+    _close_editors(page)
+    _wait_tolerances(page, [4])
+    page.locator(".hs-undo button").click()
+    _wait_tolerances(page, [6])
 
 
 def test_render_preview(page):

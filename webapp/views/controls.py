@@ -427,9 +427,11 @@ class PointsTable:
             editors={
                 "effective": None,
                 "seconds": None,
-                "tolerance": {"type": "input"},
-                "body frame": {"type": "number", "min": 0, "step": 1},
-                "hand frame": {"type": "number", "min": 0, "step": 1},
+                # a value typed into a cell replaces the one there (stranger 12: "40" typed
+                # over 25 became 2540): the editor opens with its text selected
+                "tolerance": {"type": "input", "selectContents": True},
+                "body frame": {"type": "number", "min": 0, "step": 1, "selectContents": True},
+                "hand frame": {"type": "number", "min": 0, "step": 1, "selectContents": True},
             },
             text_align={"tolerance": "right"},
             buttons={"delete": '<span title="delete this point" style="color:#c62828">✕</span>'},
