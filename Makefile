@@ -20,7 +20,7 @@ TEST_PACKAGES := $(DEMO_PACKAGES) chromium fonts-dejavu-core libatomic1 npm
 PORT ?= 5006
 # Two pytest-xdist workers: the browser tests one after another in one lane, every other
 # module in the other (tests/conftest.py); `make test TEST_LANES=` runs them in one process.
-TEST_LANES ?= -n 2 --dist loadgroup --no-loadscope-reorder
+TEST_LANES ?= -n 2 --dist loadscope --no-loadscope-reorder
 
 export PYOPENGL_PLATFORM ?= egl
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.numba_cache

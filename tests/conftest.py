@@ -217,22 +217,38 @@ def pytest_sessionfinish(session, exitstatus):
     stop_shared_browser()
 
 
-#: the xdist group of the browser tests (``make test`` runs two workers)
+#: the lane of the browser modules (``make test`` runs two pytest-xdist workers)
 BROWSER_LANE = "browser"
 
 
-@pytest.hookimpl(tryfirst=True)  # before xdist's own hook, which reads the groups
+def test_lane(nodeid: str) -> str:
+    """The lane a test runs in under ``make test``: every ``tests/test_browser*.py`` module
+    in one (one after another on one worker: they share the run's Chromium and demo server,
+    and each loads the machine as a user's page does), every other module whole in a lane
+    of its own (its module fixtures computed once), on whichever worker is free."""
+    module = nodeid.split("::", 1)[0]
+    return BROWSER_LANE if Path(module).name.startswith("test_browser") else module
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config, log):
+    """``--dist loadscope`` schedules by :func:`test_lane` (xdist's ``loadgroup`` cannot
+    mark groups under pytest 9.2, whose node ids are read-only)."""
+    if config.getvalue("dist") != "loadscope":
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class Lanes(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            return test_lane(nodeid)
+
+    return Lanes(config, log)
+
+
 def pytest_collection_modifyitems(config, items):
-    """Two lanes under pytest-xdist (``make test``: ``-n 2 --dist loadgroup``): every
-    browser test in one group, run one after another on one worker (they share the run's
-    Chromium and demo server, and each one loads the machine as a user's page does), first
-    in the order so that the longest lane starts at once; every other module whole on
-    whichever worker is free (its module fixtures computed once). Without xdist the marks
-    change nothing."""
-    for item in items:
-        lane = BROWSER_LANE if _is_browser_test(item) else item.nodeid.split("::")[0]
-        item.add_marker(pytest.mark.xdist_group(lane))
-    items.sort(key=lambda item: not _is_browser_test(item))  # stable: module order kept
+    """The browser lane first (stable: the modules' order is kept otherwise), so that the
+    longest lane starts at once (``--no-loadscope-reorder``)."""
+    items.sort(key=lambda item: test_lane(item.nodeid) != BROWSER_LANE)
 
 
 def _is_browser_test(item) -> bool:
