@@ -477,9 +477,9 @@ class InputsView:
             await opened
         finally:
             self._opening = False
-            # none yet: the first look (below, or once an opening ends) shows what is open; the
-        # page's takes section is built after the first pair began to open (webapp.app)
-        self._inputs_key: tuple | None = None
+            # the takes now shown (the new pair, or the one that stayed open) are the ones
+            # this view has seen: the uploads' fields and line are not cleared for them
+            self._inputs_key = self._session_key()
         if s.body_sha256 != body.digest or s.hand_sha256 != hand.digest:
             self._show_uploaded(failed=True)
             reason = s.error if s.error and s.error != before else ""
