@@ -60,3 +60,22 @@ def test_a_refused_file_after_a_refused_pair_keeps_the_other_fields_tile(view):
     line = view.uploaded.object
     assert "hello-world.bvh" in line and "now the other take" in line, line
     assert "binary data" in view.message.object and view.message.visible
+
+
+def test_a_hand_take_in_the_body_field_says_so_at_once(view):
+    """Stranger 11 F10: a hand take uploaded as the body was a green "Checked" and was
+    refused only once a hand was added. It is kept (a role override naming its shoulder
+    makes it a body), but its tile is amber and the line says at once what will happen;
+    a body take in the body field, or a hand take in the hand field, is plain "Checked"."""
+    _upload(view, "body", "fingers-ok.bvh", FINGERS.read_bytes())
+    assert view.tiles["body"][-1] == ("doubt", "fingers-ok.bvh", "Checked", "245 frames · a hand?")
+    line = view.uploaded.object
+    assert "looks like a hand take" in line and "role override" in line, line
+    assert "now the other take" in line and not view.message.visible
+    assert "body" in view._pending  # kept for the pair, not refused
+    body = view.session.config.sample("wave-ok").body
+    _upload(view, "body", "my-body.bvh", body.read_bytes())
+    assert view.tiles["body"][-1][:3] == ("ok", "my-body.bvh", "Checked")
+    assert "looks like a hand take" not in view.uploaded.object
+    _upload(view, "hand", "fingers-ok.bvh", FINGERS.read_bytes())
+    assert view.tiles["hand"][0][:3] == ("ok", "fingers-ok.bvh", "Checked")
