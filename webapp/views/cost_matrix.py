@@ -50,6 +50,7 @@ from bokeh.models import (
 from bokeh.palettes import Viridis256
 from bokeh.plotting import figure
 
+from webapp.matrix_frames import JS_VIEW_FRAME
 from webapp.state import Session
 from webapp.views import decimate, page_js
 from webapp.views._dispatch import after, after_path, next_tick, with_document_lock
@@ -113,6 +114,18 @@ def _phase_colors() -> dict:
         return {int(k): v for k, v in PHASE_COLORS.items()}
     except ImportError:
         return {}
+
+
+def _rates(session: Session) -> dict:
+    """The page's ``hs-rates``: both frame rates (times beside frames), both takes' frame
+    counts (the frame under a position: ``webapp.matrix_frames``), the global tolerance."""
+    return {
+        "fps": [session.fps],
+        "hand_fps": [session.hand_fps],
+        "n": [session.n],
+        "m_hand": [session.m_hand],
+        "tol": [session.tolerance],
+    }
 
 
 def _rows(cols) -> list[tuple[float, float, float]]:
@@ -216,14 +229,23 @@ adopt();
 
 
 #: hover and axis texts: frames with their times (``rates`` holds both frame rates)
-_JS_BODY_FRAME = """
-const i = Math.round(value);
+#: the frame under a position is the one rule's (``webapp.matrix_frames``), as stored
+_JS_BODY_FRAME = (
+    JS_VIEW_FRAME
+    + """
+const i = view_frame(value, rates.data.n[0]);
 return `${i} · ${(i / rates.data.fps[0]).toFixed(2)} s`;
 """
-_JS_HAND_FRAME = """
-const h = Math.round(value);
+)
+_JS_HAND_FRAME = (
+    JS_VIEW_FRAME
+    + """
+const h = view_frame(value, rates.data.m_hand[0]);
 return `${h} · ${(h / rates.data.hand_fps[0]).toFixed(2)} s`;
 """
+)
+#: a matching point's frames in its tooltip (during a drag too): the same rule
+_JS_POINT_FRAME = JS_VIEW_FRAME + "return `${view_frame(value, rates.data[count][0])}`;"
 _JS_IN_BAND = """
 // the band's vertices are thinned to the screen's columns: its edges at x are
 // interpolated between the nearest two (exact where the view shows every frame)
@@ -331,7 +353,7 @@ class CostMatrixView:
         lo, hi = self._hand_extent()
         # frame rates for the axes and hover (seconds next to frames)
         self.rates = ColumnDataSource(
-            {"fps": [session.fps], "hand_fps": [session.hand_fps], "tol": [session.tolerance]},
+            _rates(session),
             name="hs-rates",
         )
 
@@ -566,13 +588,19 @@ class CostMatrixView:
                 renderers=[points],
                 name="hs-point-hover",
                 tooltips=[
-                    ("matching point", "body frame @x{0} · hand frame @y{0}"),
+                    ("matching point", "body frame @x{custom} · hand frame @y{custom}"),
                     ("tolerance", "$index{custom}"),
                 ],
                 formatters={
                     "$index": CustomJSHover(
                         args={"rates": self.rates, "src": self.points_source}, code=_JS_TOL
-                    )
+                    ),
+                    **{
+                        f"@{axis}": CustomJSHover(
+                            args={"rates": self.rates, "count": count}, code=_JS_POINT_FRAME
+                        )
+                        for axis, count in (("x", "n"), ("y", "m_hand"))
+                    },
                 },
             )
         )
@@ -756,7 +784,7 @@ class CostMatrixView:
         n = max(s.n, 1)
         r = s.hand_scale
         lo, hi = self._hand_extent()
-        self.rates.data = {"fps": [s.fps], "hand_fps": [s.hand_fps], "tol": [s.tolerance]}
+        self.rates.data = _rates(s)
         # the toolbar's reset shows the whole matrix of these takes (not the empty one the
         # page began with when the pair was opened off the loop)
         self.x_range.update(
