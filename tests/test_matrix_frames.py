@@ -46,7 +46,7 @@ def test_a_points_tooltip_says_the_frame_the_session_stores(tmp_path):
     assert "@y{custom}" in hover.tooltips[0][1]
     for axis, count in (("x", session.n), ("y", session.m_hand)):
         code = hover.formatters[f"@{axis}"].code
-        args = {"rates": {"data": rates}, **hover.formatters[f"@{axis}"].args}
+        args = {**hover.formatters[f"@{axis}"].args, "rates": {"data": rates}}
         shown = _run_js(code, args, POSITIONS)
         assert shown == [str(view_frame(v, count)) for v in POSITIONS], axis
     # the cell's tooltip too
