@@ -184,6 +184,8 @@ if (JSON.stringify(before) !== JSON.stringify(after)) {
   st.pending.push({seq: st.seq, before: before, after: after});
   st.shown = after;
   queue.data = {edits: [JSON.stringify(st.pending)]};
+  // the views that show the edit's result are stale from now on (the status line dims)
+  document.dispatchEvent(new CustomEvent('hs-edit-sent', {detail: st.seq}));
 }
 adopt();
 """
@@ -219,10 +221,18 @@ const down = on && held ? 1 : 0;
 if ((press.data.down ?? [0])[0] !== down) press.data = {down: [down]};
 """
 
-#: the page adopts the session's points once the server has answered every edit it sent
+#: the page adopts the session's points once the server has answered every edit it sent;
+#: an answer with no solve to follow (``hs-server-points``' second tag 0: the edit was
+#: refused, or changed nothing) ends the edit's wait at once (``hs-edit-answered``)
 _JS_RECONCILE = (
     _JS_STATE
     + """
+const [acked, solving] = server.tags;
+if ((acked ?? 0) > (st.answered ?? 0)) {
+  st.answered = acked;
+  if (!solving && acked >= st.seq)
+    document.dispatchEvent(new CustomEvent('hs-edit-answered', {detail: acked}));
+}
 adopt();
 """
 )
@@ -931,8 +941,11 @@ class CostMatrixView:
         # once nothing it sent is still unanswered (a newer click is never overwritten)
         if self._sent_points is None or self._sent_points[0] != data:
             self.server_points.data = data
-        if self.server_points.tags != [self._acked]:
-            self.server_points.tags = [self._acked]
+        # and whether a solve follows (the page's status line waits for it, or not)
+        runner = self.session.runner
+        tags = [self._acked, int(runner is not None and runner.solving())]
+        if self.server_points.tags != tags:
+            self.server_points.tags = tags
         if not self._page_up:  # the page is not up yet: its first points are the session's
             self.points_source.data = dict(data)
         if self._sent_points is None or self._sent_points[2] != bars:
