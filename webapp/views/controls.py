@@ -524,8 +524,11 @@ _JS_STALE = """
 const mark = (on) => {
   const view = Bokeh.index.find_one(status);
   if (view == null) return;
-  view.el.style.opacity = on ? String(opacity) : '';
-  view.el.style.transition = 'opacity 0.15s';
+  // the text's own box inside the pane: the pane's styles (the veil's greying while a
+  // new pair opens: webapp.views.veil) are the element's, and stay as they are
+  const text = view.container ?? view.el;
+  text.style.opacity = on ? String(opacity) : '';
+  text.style.transition = 'opacity 0.15s';
   if (on) view.el.dataset.hsStale = '1'; else delete view.el.dataset.hsStale;
 };
 document.addEventListener('hs-edit-sent', () => mark(true));
