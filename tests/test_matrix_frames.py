@@ -55,6 +55,12 @@ def test_a_points_tooltip_says_the_frame_the_session_stores(tmp_path):
     assert [s.split(" · ")[0] for s in shown] == [
         str(view_frame(v, session.m_hand)) for v in POSITIONS
     ]
+    # and its band line reads the band at that body frame (the take's last, past its end)
+    band = {"data": {"x": [0, session.n - 1], "lo": [0, 0], "hi": [10, 10]}}
+    args = {**cell.formatters["$sx"].args, "band": band, "rates": {"data": rates}}
+    for x, said in ((session.n - 1.4, "inside (searched)"), (1e9, "inside (searched)")):
+        args["special_vars"] = {"x": x, "y": 3.0}
+        assert _run_js(cell.formatters["$sx"].code, args, [0.0]) == [said], x
     # a point dragged to each position is stored at the frame its tooltip said
     x = 60
     for y in (12.5, 30.5, -2.0, 1e9):

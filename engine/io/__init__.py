@@ -49,7 +49,7 @@ def load_take(path: str | Path) -> Motion | MarkerSet:
         raise FileNotFoundError(2, "no such file", str(path))
     if path.is_dir():
         raise MotionFormatError(path, "is a folder, expected a .bvh, .c3d or .trc file")
-    if path.stat().st_size == 0:  # one wording for every format (each reader's own differs)
+    if path.is_file() and path.stat().st_size == 0:  # one wording for every format
         raise MotionFormatError.empty(path)
     if kind == "bvh":
         from engine.io.bvh import read_bvh

@@ -256,10 +256,12 @@ return `${h} · ${(h / rates.data.hand_fps[0]).toFixed(2)} s`;
 )
 #: a matching point's frames in its tooltip (during a drag too): the same rule
 _JS_POINT_FRAME = JS_VIEW_FRAME + "return `${view_frame(value, rates.data[count][0])}`;"
-_JS_IN_BAND = """
+_JS_IN_BAND = (
+    JS_VIEW_FRAME
+    + """
 // the band's vertices are thinned to the screen's columns: its edges at x are
 // interpolated between the nearest two (exact where the view shows every frame)
-const x = Math.round(special_vars.x), y = special_vars.y;
+const x = view_frame(special_vars.x, rates.data.n[0]), y = special_vars.y;
 const xs = band.data.x, n = xs.length;
 if (n === 0 || x < xs[0] || x > xs[n - 1]) return "outside (no band)";
 let a = 0, b = n - 1;
@@ -272,6 +274,7 @@ const at = (col) => {
 };
 return (at("lo") <= y && y <= at("hi")) ? "inside (searched)" : "outside (never searched)";
 """
+)
 #: the cell hover's filter: false (no cell tooltip) within ``radius`` pixels of a matching
 #: point, where the point's own tooltip shows
 _JS_NOT_ON_A_POINT = """
@@ -635,7 +638,9 @@ class CostMatrixView:
                 formatters={
                     "$x": CustomJSHover(args={"rates": self.rates}, code=_JS_BODY_FRAME),
                     "$y": CustomJSHover(args={"rates": self.rates}, code=_JS_HAND_FRAME),
-                    "$sx": CustomJSHover(args={"band": self.band_source}, code=_JS_IN_BAND),
+                    "$sx": CustomJSHover(
+                        args={"band": self.band_source, "rates": self.rates}, code=_JS_IN_BAND
+                    ),
                 },
             )
         )
