@@ -15,6 +15,7 @@ on a long pair), as if the server had failed.
 
 from __future__ import annotations
 
+import socket
 import threading
 import time
 from collections import deque
@@ -85,7 +86,12 @@ class WarmPage:
             def log_message(self, *args):  # the console is the warm-up's own
                 pass
 
-        self._server = ThreadingHTTPServer((address, port), Handler)
+        server = type(
+            "Server",
+            (ThreadingHTTPServer,),
+            {"address_family": socket.AF_INET6 if ":" in address else socket.AF_INET},
+        )
+        self._server = server((address, port), Handler)
         self._server.daemon_threads = True
         self._thread = threading.Thread(
             target=self._server.serve_forever, daemon=True, name="hs-warm-page"
