@@ -58,6 +58,19 @@ def page(browser, demo_url):
     p.context.close()
 
 
+#: the page records each time the status line is dimmed or shown again (stranger 11 F6),
+#: with the revision the line shows then (its text as the model holds it: escaped HTML)
+_JS_RECORD_STALE = """() => {
+  const doc = Bokeh.documents[0];
+  const status = [...doc.all_models].find(m => (m.css_classes ?? []).includes('hs-status'));
+  const el = Bokeh.index.find_one(status).el;
+  const rev = () => Number(/data-revision=(?:"|&quot;)(\\d+)/.exec(status.text)[1]);
+  window.hsStale = [];
+  new MutationObserver(() => window.hsStale.push([el.dataset.hsStale === '1', rev()]))
+    .observe(el, {attributes: true, attributeFilter: ['data-hs-stale']});
+}"""
+
+
 def _wait(page, cond, what: str, timeout: float = 120.0) -> None:
     deadline = time.monotonic() + timeout
     while not cond():
@@ -107,6 +120,7 @@ def test_drag_sends_the_path_first_and_it_is_the_sessions_path(page, tmp_path):
     _link_settled(page, "pts=")
 
     page.evaluate(_JS_RECORD)
+    page.evaluate(_JS_RECORD_STALE)
     rev = revision(page)
     target = pts["y"][0] + max(8, n // 8)
     a = page.evaluate("([a, b]) => hs.xy(a, b)", [pts["x"][0], pts["y"][0]])
@@ -124,6 +138,11 @@ def test_drag_sends_the_path_first_and_it_is_the_sessions_path(page, tmp_path):
     # the path and the band came before any of the rest
     for what in ("status", "table", "link", "trust"):
         assert first["path"] < first[what] and first["band"] < first[what], order
+    # the status line was dimmed from the release on, while it still said the old points,
+    # and shown again with the edit's own line (stranger 11 F6)
+    _wait(page, lambda: page.evaluate("window.hsStale").count([False, revision(page)]), "dim")
+    stale = page.evaluate("window.hsStale")
+    assert stale[0] == [True, rev] and stale[-1] == [False, revision(page)], stale
 
     # the path shown is the session's for the points the page shows: every vertex the
     # page draws (thinned to the screen's columns) is a cell of the engine's path

@@ -498,11 +498,25 @@ def test_server_log_has_no_tracebacks(served):
 
 def test_a_hand_take_in_the_body_field_turns_its_tile_red(page):
     """The file reads (its tile said *Checked*), but the pair is refused for it: its tile
-    turns red *Not used* next to the reason, the other take's tile stays green (stranger 6)."""
+    turns red *Not used* next to the reason, the other take's tile stays green (stranger 6).
+    Before the hand is added, its tile is amber and the line says it looks like a hand
+    take (stranger 11 F10). A refused file in the body field then turns the body's tile red
+    *Refused* and the hand's tile stays (stranger 11 F4: both fields were emptied)."""
     _upload(page, "body", HAND_BVH)
-    _tile(page, "body", "ok")
-    _upload(page, "hand", MOCAP / "manipnet" / "mug1_rightHand.bvh")
+    main, sub = _tile(page, "body", "doubt")
+    assert (main, sub.endswith(" frames · a hand?")) == ("Checked", True), sub
+    assert "looks like a hand take" in _wait_uploaded(page, r"Uploaded body:.*now the other")
+    hand = MOCAP / "manipnet" / "mug1_rightHand.bvh"
+    _upload(page, "hand", hand)
     assert _tile(page, "body", "refused") == ("Not used", "see below")
     alert = page.locator(".hs-upload-error")
     assert pane_text(alert).startswith(HAND_BVH.name), pane_text(alert)
     assert _tile(page, "hand", "ok")[0] == "Checked"
+    png = {"name": "picture.bvh", "mimeType": "image/png", "buffer": b"\x89PNG\r\n\x1a\n" * 8}
+    _upload(page, "body", png)
+    tile = page.locator(".hs-upload-body .filepond--item[data-hs-verdict='refused']")
+    tile.filter(has_text="Refused").wait_for(timeout=BUSY_S * 1000)
+    assert _tile(page, "hand", "ok")[0] == "Checked"
+    assert page.locator(".hs-upload-hand .filepond--item").count() == 1
+    text = _wait_uploaded(page, r"Uploaded hand:.*now the other take")
+    assert hand.name in text and "picture.bvh" in pane_text(alert)

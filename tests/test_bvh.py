@@ -560,8 +560,6 @@ def test_too_many_joints_refused():
 @pytest.mark.parametrize(
     ("name", "data", "line", "fragment"),
     [
-        ("empty", b"", 1, "empty file"),
-        ("blank", b"  \r\n\t\n", 1, "empty file"),
         ("garbage", bytes(range(256)) * 4, 1, "binary data"),
         ("garbage-late", b"HIERARCHY\nROOT a\n{\n\x00\x01\x02\xff", 4, "binary data"),
         ("latin-1", b"HIERARCHY\nROOT caf\xe9\n{", 2, "not UTF-8"),
@@ -576,6 +574,17 @@ def test_bad_bytes_name_file_and_line(name, data, line, fragment, tmp_path: Path
     assert err.value.line == line
     assert str(err.value).startswith(f"{name}.bvh line {line}: ")
     assert fragment in str(err.value)
+
+
+@pytest.mark.parametrize("data", [b"", b"  \r\n\t\n"], ids=["empty", "blank"])
+def test_an_empty_file_is_refused_in_the_one_wording(data, tmp_path: Path):
+    """No line and no format's word (stranger 11 F11: the page and the CLI said it in two
+    ways): ``MotionFormatError.empty``."""
+    f = tmp_path / "empty.bvh"
+    f.write_bytes(data)
+    with pytest.raises(MotionFormatError) as err:
+        read_bvh(f)
+    assert str(err.value) == "empty.bvh: the file is empty" and err.value.line is None
 
 
 def test_missing_file_is_oserror(tmp_path: Path):

@@ -213,7 +213,7 @@ def _make_bad_inputs(folder: Path) -> dict[str, tuple[Path, str]]:
     out["missing file"] = (folder / "missing.bvh", "missing.bvh")
     path = folder / "empty.bvh"
     path.write_text("")
-    out["empty BVH"] = (path, "empty.bvh line 1: empty file")
+    out["empty BVH"] = (path, "empty.bvh: the file is empty")
     return out
 
 

@@ -8,11 +8,12 @@ from __future__ import annotations
 import io
 import os
 import re
-import socket
 import subprocess
 import sys
 import threading
 import time
+import urllib.error
+import urllib.request
 from pathlib import Path
 
 from conftest import MOCAP
@@ -26,12 +27,21 @@ HAND = MOCAP / "gestification" / "fingers-ok.bvh"
 WARM_UP_S = 600.0
 
 
-def _listening(port: int) -> bool:
-    with socket.socket() as sock:
-        return sock.connect_ex(("127.0.0.1", port)) == 0
+def _get(port: int) -> tuple[int, str, str]:
+    """``(status, X-HandSplice header, text)`` of the server's page; status 0: no answer."""
+    try:
+        with urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=60) as reply:
+            return reply.status, reply.headers.get("X-HandSplice", ""), reply.read().decode()
+    except urllib.error.HTTPError as err:
+        return err.code, err.headers.get("X-HandSplice", ""), err.read().decode()
+    except OSError:
+        return 0, "", ""
 
 
 def test_serve_body_hand_prints_its_warm_up_stages_on_stderr():
+    """The stages on the console; and from the start a light page on the app's port that
+    says them (stranger 11 F3: "This site can't be reached" for the whole warm-up), then
+    the app on the same port."""
     exe = Path(sys.executable).with_name("handsplice")
     port = free_port()
     proc = subprocess.Popen(
@@ -50,11 +60,17 @@ def test_serve_body_hand_prints_its_warm_up_stages_on_stderr():
 
     reader = threading.Thread(target=read, daemon=True)
     reader.start()
+    warming = app = (0, "", "")
     try:
         deadline = time.monotonic() + WARM_UP_S
         while not any("warm-up done in" in line for line in lines):
-            if proc.poll() is not None or time.monotonic() > deadline or _listening(port):
-                break  # (a server listening has warmed up: its console said what it said)
+            if proc.poll() is not None or time.monotonic() > deadline:
+                break
+            if not warming[0] and any("reading the takes" in line for line in lines):
+                warming = _get(port)
+            time.sleep(0.2)
+        while app[0] != 200 and proc.poll() is None and time.monotonic() < deadline:
+            app = _get(port)
             time.sleep(0.2)
     finally:
         stop_process(proc, timeout=20)
@@ -75,6 +91,10 @@ def test_serve_body_hand_prints_its_warm_up_stages_on_stderr():
         at.append(start)
     assert at == sorted(at), text
     assert re.search(r"warm-up done in \d+\.\d s", text), text
+    status, header, page = warming
+    assert (status, header) == (503, "warming-up"), warming
+    assert "HandSplice is warming up" in page and "reading the takes" in page, page
+    assert app[0] == 200 and app[1] == "" and "warming up" not in app[2], app[:2]
 
 
 def test_a_long_stage_says_again_that_it_is_running():
@@ -153,3 +173,19 @@ def test_show_url_labels_the_users_own_pair_as_theirs():
     link = sample_url(url, local_pair(BODY, HAND, "right").name)
     assert f"your pair's link: {link}" in lines, lines
     assert not any(line.startswith("demo pair") for line in lines), lines
+
+
+def test_the_warm_up_page_shows_file_names_as_text():
+    """A stage line names the user's files: the warm-up page escapes them."""
+    from webapp.warm_page import WarmPage
+
+    page = WarmPage("127.0.0.1", 0)
+    try:
+        page.note("reading <img src=x onerror=alert(1)>.bvh ...")
+        port = page._server.server_address[1]
+        status, header, text = _get(port)
+    finally:
+        page.close()
+    assert (status, header) == (503, "warming-up")
+    assert "reading &lt;img src=x onerror=alert(1)&gt;.bvh ..." in text
+    assert "<img" not in text

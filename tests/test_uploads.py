@@ -299,3 +299,19 @@ def test_opening_an_upload_again_finds_its_pair_still_prepared(cfg):
     assert after.st_mtime_ns == before.st_mtime_ns
     assert after.st_atime_ns > before.st_atime_ns  # marked used
     assert backend.prepare(*paths, "auto", {}) is first
+
+
+@pytest.mark.parametrize("ext", [".bvh", ".c3d", ".trc"])
+def test_an_empty_file_is_said_in_one_wording_by_the_page_and_the_cli(cfg, ext, tmp_path, capsys):
+    """Stranger 11 F11: the page said "empty.bvh: the file is empty", the CLI "empty.bvh line
+    1: empty file (expected 'HIERARCHY')" (and other words for C3D and TRC): one text,
+    ``MotionFormatError.empty``, from the upload fields and every command."""
+    from engine.cli import main
+
+    with pytest.raises(uploads.UploadError) as page:
+        uploads.stage_bytes(cfg, f"empty{ext}", b"")
+    assert str(page.value) == f"empty{ext}: the file is empty"
+    path = tmp_path / f"empty{ext}"
+    path.write_bytes(b"")
+    assert main(["info", str(path)]) == 2
+    assert capsys.readouterr().err == f"handsplice: error: {page.value}\n"

@@ -359,6 +359,8 @@ class ConsoleStages:
 
         self.out = out
         self.heartbeat_s = heartbeat_s
+        #: also told each line (``webapp.warm_page.WarmPage.note``: the browser's page)
+        self.also = None
         self.started = time.perf_counter()
         self._lock = threading.Lock()
         self._running: dict[str, float] = {}
@@ -370,6 +372,8 @@ class ConsoleStages:
         import sys
 
         print(f"HandSplice: {text}", file=self.out or sys.stderr, flush=True)
+        if self.also is not None:
+            self.also(text)
 
     def __call__(self, stage: str, fraction: float) -> None:
         words = _STAGE_WORDS.get(stage, stage)

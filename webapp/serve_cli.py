@@ -6,7 +6,9 @@ engine's CLI finds it by name at run time (``engine.cli.PLUGINS``).
 Listens on 127.0.0.1 by default; ``--address 0.0.0.0`` exposes it on every
 interface (explicit opt-in). ``handsplice serve BODY HAND`` opens the user's own
 takes from disk (any size the engine reads; nothing is uploaded): the pair is read
-and prepared before the server listens, and is the page's default pair. Never opens a browser; prints the URL. Every
+and prepared before the app's server listens, and is the page's default pair; meanwhile a
+light page on the same port says what the warm-up does and turns into the app when it is
+ready (:mod:`webapp.warm_page`). Never opens a browser; prints the URL. Every
 browser session builds its own page and session state, so several users (or
 tabs) never share matching points or parameters.
 """
@@ -180,17 +182,28 @@ def run(args: argparse.Namespace) -> int:
     from webapp import config, served_files
     from webapp.app import ConsoleStages, create_app, warm_up
     from webapp.launch import free_port
+    from webapp.warm_page import WarmPage
 
     if args.sample_dir is not None and not (args.sample_dir / "samples.json").is_file():
         raise ValueError(f"--sample-dir: {args.sample_dir} has no samples.json")
-    stages = None
+    host = "127.0.0.1" if args.address in ("0.0.0.0", "::", "") else args.address
+    if args.port == 0:  # pick the port now so the websocket origin check can name it
+        args.port = free_port(args.address)
+    url = f"http://{host}:{args.port}/"
+    stages = warm = None
     if not args.no_warm:
+        try:  # a light page on the app's port until the app listens (stranger 11 F3)
+            warm = WarmPage(args.address, args.port)
+        except OSError as exc:
+            raise ValueError(f"--port {args.port}: cannot listen ({exc.strerror or exc})") from None
         print(
             "HandSplice: warming up (reading the takes, aligning, compiling; a minute or two "
             "the first time, longer for long takes; each stage is listed below) ...",
             flush=True,
         )
+        print(f"HandSplice: {url} shows the warm-up meanwhile, then the app", flush=True)
         stages = ConsoleStages()  # stage lines on stderr until the server listens
+        stages.also = warm.note
     try:
         local = None
         if args.body is not None:
@@ -215,13 +228,13 @@ def run(args: argparse.Namespace) -> int:
     except BaseException:
         if stages is not None:
             stages.close(done=False)
+        if warm is not None:
+            warm.close()
         raise
     if stages is not None:
         stages.close()
-
-    host = "127.0.0.1" if args.address in ("0.0.0.0", "::", "") else args.address
-    if args.port == 0:  # pick the port now so the websocket origin check can name it
-        args.port = free_port(args.address)
+    if warm is not None:
+        warm.close()  # the port is the app's now: its page reloads into the app
     server = pn.serve(
         {"/": create_app},
         port=args.port,
@@ -247,7 +260,6 @@ def run(args: argparse.Namespace) -> int:
     # full collection walked all of it, about 12 % of the server's time during page loads)
     gc.collect()
     gc.freeze()
-    url = f"http://{host}:{args.port}/"
     print(f"HandSplice app: {url}", flush=True)
     if local is not None:
         print(f"your pair:      {local.body} + {local.hand} ({local.side} hand)", flush=True)

@@ -33,6 +33,7 @@ from engine.dtw import constraints as C
 from engine.io import session as session_io
 from engine.io.session import MatchPoint, SessionSpec, TakeRef
 from webapp import backend, config, edit_words
+from webapp.matrix_frames import view_frame
 from webapp.solves import Job, SolveRunner
 
 EDIT_PARAMS = (
@@ -918,8 +919,7 @@ class Session(param.Parameterized):
         for x, y, tol in edited:
             if x is None or y is None or not (np.isfinite(x) and np.isfinite(y)):
                 continue
-            body = int(np.clip(round(x), 0, max(self.n - 1, 0)))
-            hand = int(np.clip(round(y), 0, max(self.m_hand - 1, 0)))
+            body, hand = view_frame(x, self.n), view_frame(y, self.m_hand)
             tol = None if tol is None or (isinstance(tol, float) and np.isnan(tol)) else float(tol)
             pts.append(MatchPoint(body, hand, tol))
         before = self.points
@@ -952,20 +952,14 @@ class Session(param.Parameterized):
         return changed
 
     def _view_cells(self, edited) -> list[tuple[int, int, float | None]]:
-        """The page's ``(x, y, tol)`` floats as matrix cells (rounded, clipped; NaN tol = None)."""
+        """The page's ``(x, y, tol)`` floats as matrix cells (``view_frame``; NaN tol = None)."""
         cells = []
         for x, y, *rest in edited:
             if x is None or y is None or not (np.isfinite(x) and np.isfinite(y)):
                 continue
             tol = rest[0] if rest else None
             tol = None if tol is None or not np.isfinite(tol) else float(tol)
-            cells.append(
-                (
-                    int(np.clip(round(x), 0, max(self.n - 1, 0))),
-                    int(np.clip(round(y), 0, max(self.m_hand - 1, 0))),
-                    tol,
-                )
-            )
+            cells.append((view_frame(x, self.n), view_frame(y, self.m_hand), tol))
         return cells
 
     @staticmethod
@@ -1309,7 +1303,7 @@ class Session(param.Parameterized):
     def pick_cell(self, x: float, y: float) -> None:
         """A click on the matrix: show that body frame (and the hand frame the path gives it)."""
         if self.n:
-            self.frame = int(np.clip(round(x), 0, self.n - 1))
+            self.frame = view_frame(x, self.n)
 
     def cost_view(self, ranges, max_pixels: int):
         """The visible part of the shown matrix, or None (no takes, or a view that is refused,

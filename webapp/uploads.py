@@ -30,7 +30,7 @@ import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from engine.base.errors import HandSpliceError
+from engine.base.errors import HandSpliceError, MotionFormatError
 from webapp.config import AppConfig
 
 EXTENSIONS = (".bvh", ".c3d", ".trc")
@@ -59,7 +59,8 @@ class Staged:
 @dataclass(frozen=True)
 class Kept:
     """A checked upload kept by content hash; ``summary`` describes the take
-    (``kind`` "skeleton" or "markers", ``frames``, ``fps``, ``joints``/``markers``) and
+    (``kind`` "skeleton" or "markers", ``frames``, ``fps``, ``joints``/``markers``; a
+    skeleton's ``hand_take``: ``engine.model.roles.Roles.looks_like_hand_take``) and
     ``take`` is what the reader read (handed over by the child: not read twice)."""
 
     digest: str
@@ -207,7 +208,7 @@ class Incoming:
         self._close()
         if self.size == 0:
             self.discard()
-            raise UploadError(f"{self.name}: the file is empty")
+            raise UploadError(str(MotionFormatError.empty(self.name)))
         return Staged(self.path, self.name, self.size)
 
     def discard(self) -> None:
@@ -234,7 +235,7 @@ def stage_bytes(cfg: AppConfig, filename: str | None, data: bytes | None) -> Sta
     name = display_name(filename)
     _extension(name)
     if not data:
-        raise UploadError(f"{name}: the file is empty")
+        raise UploadError(str(MotionFormatError.empty(name)))
     if len(data) > cfg.max_upload_bytes:
         raise UploadError(
             f"{name}: {len(data) / 2**20:.1f} MiB is over the "
@@ -307,7 +308,9 @@ def child_context():
     global _CONTEXT
     if _CONTEXT is None:
         ctx = multiprocessing.get_context("forkserver")
-        ctx.set_forkserver_preload(["engine.io", "engine.io.bvh", "engine.io.c3d", "engine.io.trc"])
+        ctx.set_forkserver_preload(
+            ["engine.io", "engine.io.bvh", "engine.io.c3d", "engine.io.trc", "engine.model.roles"]
+        )
         _CONTEXT = ctx
     return _CONTEXT
 
@@ -361,12 +364,18 @@ def _child_read(path: str, memory: int, conn) -> None:  # runs in the child proc
     try:
         from engine.io import load_take
         from engine.model.motion import MarkerSet
+        from engine.model.roles import find_roles
 
         take = load_take(path)
         if isinstance(take, MarkerSet):
             summary = {"kind": "markers", "markers": len(take.labels)}
         else:
-            summary = {"kind": "skeleton", "joints": int(take.skeleton.n_joints)}
+            summary = {
+                "kind": "skeleton",
+                "joints": int(take.skeleton.n_joints),
+                # by its joint names, as a pair opens it without role overrides
+                "hand_take": find_roles(take.skeleton).looks_like_hand_take,
+            }
         summary.update(frames=int(take.n_frames), fps=float(take.fps))
         conn.send(("ok", summary, take))
     except MemoryError:

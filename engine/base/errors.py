@@ -55,6 +55,13 @@ class MotionFormatError(HandSpliceError, ValueError):
             where = f"{where} line {line}"
         super().__init__(f"{where}: {message}")
 
+    @classmethod
+    def empty(cls, path: str | Path | None) -> MotionFormatError:
+        """The one refusal of a take file with nothing in it (no bytes; a text take of
+        blank lines): ``empty.bvh: the file is empty``, from every reader and front (the
+        CLI, the page's upload fields)."""
+        return cls(path, "the file is empty")
+
 
 class RoleError(HandSpliceError, KeyError):
     """A joint role (e.g. right wrist) cannot be found in a skeleton."""

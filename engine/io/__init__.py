@@ -37,8 +37,9 @@ def load_take(path: str | Path) -> Motion | MarkerSet:
     Raises
     ------
     MotionFormatError
-        Unknown extension, a directory, or a file that breaks its format (the
-        message names the file and, for text formats, the line).
+        Unknown extension, a directory, an empty file (``MotionFormatError.empty``), or
+        a file that breaks its format (the message names the file and, for text
+        formats, the line).
     FileNotFoundError
         The file does not exist (``str(err)`` names the path).
     """
@@ -48,6 +49,8 @@ def load_take(path: str | Path) -> Motion | MarkerSet:
         raise FileNotFoundError(2, "no such file", str(path))
     if path.is_dir():
         raise MotionFormatError(path, "is a folder, expected a .bvh, .c3d or .trc file")
+    if path.is_file() and path.stat().st_size == 0:  # one wording for every format
+        raise MotionFormatError.empty(path)
     if kind == "bvh":
         from engine.io.bvh import read_bvh
 

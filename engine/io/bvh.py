@@ -123,7 +123,7 @@ def read_bvh(path: str | Path) -> Motion:
 def _decode(data: bytes, source: str) -> str:
     """UTF-8 text of a BVH file, or ``MotionFormatError`` for empty/binary/non-UTF-8."""
     if not data.strip():
-        raise MotionFormatError(source, "empty file (expected 'HIERARCHY')", line=1)
+        raise MotionFormatError.empty(source)
     nul = data.find(b"\x00")
     if nul >= 0:
         line = data.count(b"\n", 0, nul) + 1
@@ -177,7 +177,7 @@ def _parse_lines(lines: list[str], n_chars: int, source: str) -> Motion:
     """``parse_bvh`` on the file's lines (``n_chars``: its size, for the limits)."""
     where = source or None
     if not any(s.strip() for s in lines):
-        raise MotionFormatError(where, "empty file (expected 'HIERARCHY')", line=1)
+        raise MotionFormatError.empty(where)
     skeleton, motion_line = _parse_hierarchy(lines, where)
     fps, rotations, translations = _parse_motion(lines, motion_line, skeleton, where, n_chars)
     probe = _probe_positions(skeleton, rotations, translations)

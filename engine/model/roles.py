@@ -351,6 +351,12 @@ class ArmRoles:
     def has_fingers(self) -> bool:
         return any(self.fingers[f] for f in FINGERS)
 
+    @property
+    def has_shoulder(self) -> bool:
+        """A shoulder or clavicle above the elbow: an arm of a body rig. A hand take's arm
+        (a forearm, the hand and its fingers) has neither, and cannot be a body's arm."""
+        return self.shoulder is not None or self.clavicle is not None
+
     def finger_chain(self, sk: Skeleton, finger: str, hand_joint: int | None = None) -> list[int]:
         """Every joint of ``finger``'s chain below ``hand_joint`` (default this arm's hand
         joint, else its wrist), proximal first: from the joint below the hand (metacarpal,
@@ -426,6 +432,18 @@ class Roles:
     def sides_found(self) -> list[str]:
         """Sides that have a wrist."""
         return [s for s in SIDES if self.side(s).wrist is not None]
+
+    @property
+    def looks_like_hand_take(self) -> bool:
+        """The rig has hands (a wrist or fingers, sided or not) and none has a shoulder
+        or clavicle above its elbow (``ArmRoles.has_shoulder``): a hand take, which the
+        splice refuses as the body take unless a role override names its shoulder."""
+        arms = [
+            arm
+            for arm in (self.right, self.left, self.unsided)
+            if arm is not None and (arm.wrist is not None or arm.has_fingers)
+        ]
+        return bool(arms) and not any(arm.has_shoulder for arm in arms)
 
     def require(self, side: str, role: str) -> int:
         """Joint index of ``role`` on ``side``; ``RoleError`` naming the nearest

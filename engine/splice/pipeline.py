@@ -455,8 +455,7 @@ def _check_body_arms(rb, sides, body_name: str) -> None:
     body rig we know names both shoulders; a hand take given as the body would otherwise
     align and splice into a floating forearm."""
     for s in sides:
-        arm = rb.side(s)
-        if arm.shoulder is None and arm.clavicle is None:
+        if not rb.side(s).has_shoulder:
             raise RoleError(
                 f"{body_name}: the body take has no {s} shoulder or clavicle above the elbow "
                 f"(it looks like a hand take); the body take must be a full- or "

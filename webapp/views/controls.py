@@ -514,13 +514,51 @@ class PointsTable:
 #: the status line's height: two lines of its text, so that an edit whose line wraps to a
 #: second line (unmatched body frames named) does not move the matrix below it, px
 STATUS_MIN_PX = 48
+#: the status line's opacity while it is stale (an edit sent, its line not back yet)
+STALE_OPACITY = 0.45
+
+#: the page dims the status line from the moment the matrix sends an edit (the page event
+#: ``hs-edit-sent``: ``webapp.views.cost_matrix``) until the line is written again, or
+#: the server answers that no solve follows the edit (``hs-edit-answered``: a refused or
+#: empty edit); no message to or from the server (stranger 11 F6: on a long pair the line
+#: said the old points for seconds, and nothing said work was under way)
+_JS_STALE = """
+const mark = (on) => {
+  const view = Bokeh.index.find_one(status);
+  if (view == null) return;
+  // the text's own box inside the pane: the pane's styles (the veil's greying while a
+  // new pair opens: webapp.views.veil) are the element's, and stay as they are
+  const text = view.container ?? view.el;
+  text.style.opacity = on ? String(opacity) : '';
+  text.style.transition = 'opacity 0.15s';
+  if (on) view.el.dataset.hsStale = '1'; else delete view.el.dataset.hsStale;
+};
+document.addEventListener('hs-edit-sent', () => mark(true));
+document.addEventListener('hs-edit-answered', () => mark(false));
+status.properties.text.change.connect(() => mark(false));
+"""
+
+
+class _StatusPane(pn.pane.HTML):
+    """The status line's pane: an HTML pane that the page dims while it is stale
+    (:data:`_JS_STALE`). Never chosen by ``pn.panel`` for a text (``priority`` 0)."""
+
+    priority = 0
+
+    def _get_model(self, doc, root=None, parent=None, comm=None):
+        model = super()._get_model(doc, root, parent, comm)
+        if doc is not None:
+            args = {"status": model, "opacity": STALE_OPACITY}
+            page_js.run_once(model, _JS_STALE, args, doc=doc)
+        return model
 
 
 def status_line(session: Session) -> pn.viewable.Viewable:
     """One line: path costs, compute time, band cells, points; the error when one is set.
     It keeps the height of two lines (:data:`STATUS_MIN_PX`), so the matrix under it stays
-    where it is under the pointer."""
-    pane = pn.pane.HTML(
+    where it is under the pointer. The page dims it while an edit it sent is not yet in it
+    (:data:`_JS_STALE`)."""
+    pane = _StatusPane(
         "",
         css_classes=["hs-status"],
         sizing_mode="stretch_width",

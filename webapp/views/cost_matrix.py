@@ -50,6 +50,7 @@ from bokeh.models import (
 from bokeh.palettes import Viridis256
 from bokeh.plotting import figure
 
+from webapp.matrix_frames import JS_VIEW_FRAME
 from webapp.state import Session
 from webapp.views import decimate, page_js
 from webapp.views._dispatch import after, after_path, next_tick, with_document_lock
@@ -115,6 +116,18 @@ def _phase_colors() -> dict:
         return {}
 
 
+def _rates(session: Session) -> dict:
+    """The page's ``hs-rates``: both frame rates (times beside frames), both takes' frame
+    counts (the frame under a position: ``webapp.matrix_frames``), the global tolerance."""
+    return {
+        "fps": [session.fps],
+        "hand_fps": [session.hand_fps],
+        "n": [session.n],
+        "m_hand": [session.m_hand],
+        "tol": [session.tolerance],
+    }
+
+
 def _rows(cols) -> list[tuple[float, float, float]]:
     """The page's ``{"x": [...], "y": [...], "tol": [...]}`` as ``(x, y, tol)`` rows."""
     if not isinstance(cols, dict):
@@ -171,6 +184,8 @@ if (JSON.stringify(before) !== JSON.stringify(after)) {
   st.pending.push({seq: st.seq, before: before, after: after});
   st.shown = after;
   queue.data = {edits: [JSON.stringify(st.pending)]};
+  // the views that show the edit's result are stale from now on (the status line dims)
+  document.dispatchEvent(new CustomEvent('hs-edit-sent', {detail: st.seq}));
 }
 adopt();
 """
@@ -206,28 +221,47 @@ const down = on && held ? 1 : 0;
 if ((press.data.down ?? [0])[0] !== down) press.data = {down: [down]};
 """
 
-#: the page adopts the session's points once the server has answered every edit it sent
+#: the page adopts the session's points once the server has answered every edit it sent;
+#: an answer with no solve to follow (``hs-server-points``' second tag 0: the edit was
+#: refused, or changed nothing) ends the edit's wait at once (``hs-edit-answered``)
 _JS_RECONCILE = (
     _JS_STATE
     + """
+const [acked, solving] = server.tags;
+if ((acked ?? 0) > (st.answered ?? 0)) {
+  st.answered = acked;
+  if (!solving && acked >= st.seq)
+    document.dispatchEvent(new CustomEvent('hs-edit-answered', {detail: acked}));
+}
 adopt();
 """
 )
 
 
 #: hover and axis texts: frames with their times (``rates`` holds both frame rates)
-_JS_BODY_FRAME = """
-const i = Math.round(value);
+#: the frame under a position is the one rule's (``webapp.matrix_frames``), as stored
+_JS_BODY_FRAME = (
+    JS_VIEW_FRAME
+    + """
+const i = view_frame(value, rates.data.n[0]);
 return `${i} · ${(i / rates.data.fps[0]).toFixed(2)} s`;
 """
-_JS_HAND_FRAME = """
-const h = Math.round(value);
+)
+_JS_HAND_FRAME = (
+    JS_VIEW_FRAME
+    + """
+const h = view_frame(value, rates.data.m_hand[0]);
 return `${h} · ${(h / rates.data.hand_fps[0]).toFixed(2)} s`;
 """
-_JS_IN_BAND = """
+)
+#: a matching point's frames in its tooltip (during a drag too): the same rule
+_JS_POINT_FRAME = JS_VIEW_FRAME + "return `${view_frame(value, rates.data[count][0])}`;"
+_JS_IN_BAND = (
+    JS_VIEW_FRAME
+    + """
 // the band's vertices are thinned to the screen's columns: its edges at x are
 // interpolated between the nearest two (exact where the view shows every frame)
-const x = Math.round(special_vars.x), y = special_vars.y;
+const x = view_frame(special_vars.x, rates.data.n[0]), y = special_vars.y;
 const xs = band.data.x, n = xs.length;
 if (n === 0 || x < xs[0] || x > xs[n - 1]) return "outside (no band)";
 let a = 0, b = n - 1;
@@ -240,6 +274,7 @@ const at = (col) => {
 };
 return (at("lo") <= y && y <= at("hi")) ? "inside (searched)" : "outside (never searched)";
 """
+)
 #: the cell hover's filter: false (no cell tooltip) within ``radius`` pixels of a matching
 #: point, where the point's own tooltip shows
 _JS_NOT_ON_A_POINT = """
@@ -331,7 +366,7 @@ class CostMatrixView:
         lo, hi = self._hand_extent()
         # frame rates for the axes and hover (seconds next to frames)
         self.rates = ColumnDataSource(
-            {"fps": [session.fps], "hand_fps": [session.hand_fps], "tol": [session.tolerance]},
+            _rates(session),
             name="hs-rates",
         )
 
@@ -566,13 +601,19 @@ class CostMatrixView:
                 renderers=[points],
                 name="hs-point-hover",
                 tooltips=[
-                    ("matching point", "body frame @x{0} · hand frame @y{0}"),
+                    ("matching point", "body frame @x{custom} · hand frame @y{custom}"),
                     ("tolerance", "$index{custom}"),
                 ],
                 formatters={
                     "$index": CustomJSHover(
                         args={"rates": self.rates, "src": self.points_source}, code=_JS_TOL
-                    )
+                    ),
+                    **{
+                        f"@{axis}": CustomJSHover(
+                            args={"rates": self.rates, "count": count}, code=_JS_POINT_FRAME
+                        )
+                        for axis, count in (("x", "n"), ("y", "m_hand"))
+                    },
                 },
             )
         )
@@ -597,7 +638,9 @@ class CostMatrixView:
                 formatters={
                     "$x": CustomJSHover(args={"rates": self.rates}, code=_JS_BODY_FRAME),
                     "$y": CustomJSHover(args={"rates": self.rates}, code=_JS_HAND_FRAME),
-                    "$sx": CustomJSHover(args={"band": self.band_source}, code=_JS_IN_BAND),
+                    "$sx": CustomJSHover(
+                        args={"band": self.band_source, "rates": self.rates}, code=_JS_IN_BAND
+                    ),
                 },
             )
         )
@@ -756,7 +799,7 @@ class CostMatrixView:
         n = max(s.n, 1)
         r = s.hand_scale
         lo, hi = self._hand_extent()
-        self.rates.data = {"fps": [s.fps], "hand_fps": [s.hand_fps], "tol": [s.tolerance]}
+        self.rates.data = _rates(s)
         # the toolbar's reset shows the whole matrix of these takes (not the empty one the
         # page began with when the pair was opened off the loop)
         self.x_range.update(
@@ -903,8 +946,11 @@ class CostMatrixView:
         # once nothing it sent is still unanswered (a newer click is never overwritten)
         if self._sent_points is None or self._sent_points[0] != data:
             self.server_points.data = data
-        if self.server_points.tags != [self._acked]:
-            self.server_points.tags = [self._acked]
+        # and whether a solve follows (the page's status line waits for it, or not)
+        runner = self.session.runner
+        tags = [self._acked, int(runner is not None and runner.solving())]
+        if self.server_points.tags != tags:
+            self.server_points.tags = tags
         if not self._page_up:  # the page is not up yet: its first points are the session's
             self.points_source.data = dict(data)
         if self._sent_points is None or self._sent_points[2] != bars:

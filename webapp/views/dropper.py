@@ -9,8 +9,9 @@ the finished :class:`webapp.uploads.Staged` file to its owner.
 
 FilePond marks a file "Upload complete" as soon as its last chunk is sent; whether the
 server then accepts it is told by :meth:`TakeDropper.verdict`, which rewrites the
-file's tile in the page: grey "Checking…", green "Checked" with what was read, or red
-"Refused" (the reason is in the page's message), or empties the field. Text reaches
+file's tile in the page: grey "Checking…", green "Checked" with what was read (amber
+when it reads but does not look like its field's take: the page's line says why), or
+red "Refused" (the reason is in the page's message), or empties the field. Text reaches
 the tile through ``textContent`` only.
 
 A file of a kind the server does not read (by its name's extension,
@@ -46,6 +47,8 @@ VERDICT_COLORS = {
     "receiving": "#64605e",
     "checking": "#64605e",
     "ok": "#369763",
+    # read, but it will not fit its field as it is (a hand take in the body field)
+    "doubt": "#b26b00",
     "refused": "#c44e47",
 }
 #: the page is told how much has arrived at most this often (and at the last chunk)
@@ -229,7 +232,8 @@ class TakeDropper(pn.widgets.FileDropper):
     @with_document_lock
     def verdict(self, state: str, name: str = "", main: str = "", sub: str = "") -> None:
         """Show the server's word on file ``name`` in its tile: ``state`` "checking",
-        "ok" or "refused" with a main and a sub text, or "clear" (empty the field)."""
+        "ok", "doubt" or "refused" with a main and a sub text, or "clear" (empty the
+        field)."""
         tags = [state, name, main, sub, next(_SERIAL)]
         for model, _ in list(self._models.values()):
             model.tags = tags

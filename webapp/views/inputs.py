@@ -47,6 +47,15 @@ OPENING = " <span class='hs-opening'>— opening (progress below)</span>"
 #: and once the uploads opened the shared link that waited for them (Session.load_uploads)
 LINK_APPLIED = "The shared link's matching points and bands now apply to your uploads."
 
+#: the "Uploaded …" line's word on a body take that looks like a hand take, until a pair
+#: with it opens or is refused (the refusal then says it: engine.splice.pipeline)
+HAND_AS_BODY = (
+    "<span class='hs-hand-as-body'>⚠ it looks like a hand take (no shoulder or clavicle "
+    "above the elbow): a pair with it as the body take is refused unless a role override "
+    "names its shoulder (Joint-role overrides, below); a hand take goes in the hand "
+    "field</span>"
+)
+
 MARKER_BODY_NOTE = (
     "The body take holds **markers** (C3D/TRC): it has no skeleton to receive fingers. "
     "The alignment, matching points and bands work as for any pair; *Spliced BVH* gives the "
@@ -323,7 +332,10 @@ class InputsView:
             return
         # the tile is narrow: the frame count there, the whole description in the line below
         frames = kept.summary.get("frames", 0)
-        self._droppers[which].verdict("ok", tile, "Checked", f"{frames} frames")
+        if _hand_as_body(which, kept):  # read, but a pair will refuse it (stranger 11 F10)
+            self._droppers[which].verdict("doubt", tile, "Checked", f"{frames} frames · a hand?")
+        else:
+            self._droppers[which].verdict("ok", tile, "Checked", f"{frames} frames")
         self._pending[which] = kept
         self._refusals.pop(which, None)
         self._show_refusals()
@@ -363,6 +375,8 @@ class InputsView:
                     f"; <span class='hs-reader-note'>note: {safe_text.html(n)}</span>"
                     for n in _own_notes(kept)
                 )
+                if _hand_as_body(which, kept) and not (opened or failed):
+                    notes += f"; {HAND_AS_BODY}"
                 parts.append(
                     f"{which}: <b>{safe_text.html(kept.name)}</b> "
                     f"({safe_text.html(_describe(kept.summary))}{notes})"
@@ -477,9 +491,9 @@ class InputsView:
             await opened
         finally:
             self._opening = False
-            # none yet: the first look (below, or once an opening ends) shows what is open; the
-        # page's takes section is built after the first pair began to open (webapp.app)
-        self._inputs_key: tuple | None = None
+            # the takes now shown (the new pair, or the one that stayed open) are the ones
+            # this view has seen: the uploads' fields and line are not cleared for them
+            self._inputs_key = self._session_key()
         if s.body_sha256 != body.digest or s.hand_sha256 != hand.digest:
             self._show_uploaded(failed=True)
             reason = s.error if s.error and s.error != before else ""
@@ -612,6 +626,13 @@ def side_warning(hand_name: str, side: str) -> str:
     wording for an uploaded pair and for a pair opened from disk."""
     conflict = side_name_conflict(hand_name, side) if hand_name else None
     return f"<span class='hs-side-warning'>⚠ {safe_text.html(conflict)}</span>" if conflict else ""
+
+
+def _hand_as_body(which: str, kept: uploads.Kept) -> bool:
+    """A take in the body field that looks like a hand take by its joint names (no
+    shoulder above any hand's elbow: ``Roles.looks_like_hand_take``). It is kept, not
+    refused: a role override naming its shoulder makes it a body."""
+    return which == "body" and bool(kept.summary.get("hand_take"))
 
 
 def _own_notes(kept: uploads.Kept) -> list[str]:

@@ -1,0 +1,81 @@
+"""The takes section (webapp.views.inputs.InputsView) without a browser: uploads go
+through its own steps (staged, checked, paired) and each field's tile is read from the
+verdicts it was given."""
+
+from __future__ import annotations
+
+import asyncio
+
+import pytest
+from conftest import MOCAP, demo_config
+
+from webapp import uploads
+from webapp.state import Session
+from webapp.views.inputs import InputsView
+
+FINGERS = MOCAP / "gestification" / "fingers-ok.bvh"
+HELLO = MOCAP / "gestification" / "hello-world.bvh"
+#: a PNG's first bytes under a .bvh name
+PICTURE = b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR" + bytes(64)
+
+
+@pytest.fixture(scope="module")
+def cfg(sample_dir, tmp_path_factory):
+    return demo_config(sample_dir, tmp_path_factory)
+
+
+@pytest.fixture
+def view(cfg):
+    session = Session(cfg)
+    session.load_sample("wave-ok")
+    inputs = InputsView(session)
+    inputs.tiles = {"body": [], "hand": []}  # each field's verdicts, in order
+    for which, dropper in inputs._droppers.items():
+        dropper.verdict = lambda *a, w=which: inputs.tiles[w].append(a)
+    return inputs
+
+
+def _upload(view: InputsView, which: str, name: str, data: bytes) -> None:
+    """``data`` as the file ``name`` in ``which`` field: staged, then checked (and the pair
+    opened once both fields hold a checked take), as the page's dropper hands it over."""
+    cfg = view.session.config
+    view._droppers[which].file_name = name
+    staged = uploads.stage_bytes(cfg, name, data)
+    asyncio.run(view._check(which, staged, name))
+
+
+def test_a_refused_file_after_a_refused_pair_keeps_the_other_fields_tile(view):
+    """Stranger 11 F4: after a pair was refused (a hand take in the body field), a new
+    refused body file emptied both fields while the line still named the hand; the body
+    tile turns red "Refused" and the hand's stays "Checked"."""
+    _upload(view, "body", "fingers-ok.bvh", FINGERS.read_bytes())
+    _upload(view, "hand", "hello-world.bvh", HELLO.read_bytes())
+    assert "looks like a hand take" in view.message.object
+    assert view.tiles["body"][-1][:3] == ("refused", "fingers-ok.bvh", "Not used")
+    assert view.tiles["hand"][-1][:3] == ("ok", "hello-world.bvh", "Checked")
+    _upload(view, "body", "picture.bvh", PICTURE)
+    assert view.tiles["body"][-1][:3] == ("refused", "picture.bvh", "Refused")
+    assert ("clear",) not in view.tiles["hand"], view.tiles["hand"]
+    assert view.tiles["hand"][-1][:3] == ("ok", "hello-world.bvh", "Checked")
+    line = view.uploaded.object
+    assert "hello-world.bvh" in line and "now the other take" in line, line
+    assert "binary data" in view.message.object and view.message.visible
+
+
+def test_a_hand_take_in_the_body_field_says_so_at_once(view):
+    """Stranger 11 F10: a hand take uploaded as the body was a green "Checked" and was
+    refused only once a hand was added. It is kept (a role override naming its shoulder
+    makes it a body), but its tile is amber and the line says at once what will happen;
+    a body take in the body field, or a hand take in the hand field, is plain "Checked"."""
+    _upload(view, "body", "fingers-ok.bvh", FINGERS.read_bytes())
+    assert view.tiles["body"][-1] == ("doubt", "fingers-ok.bvh", "Checked", "245 frames · a hand?")
+    line = view.uploaded.object
+    assert "looks like a hand take" in line and "role override" in line, line
+    assert "now the other take" in line and not view.message.visible
+    assert "body" in view._pending  # kept for the pair, not refused
+    body = view.session.config.sample("wave-ok").body
+    _upload(view, "body", "my-body.bvh", body.read_bytes())
+    assert view.tiles["body"][-1][:3] == ("ok", "my-body.bvh", "Checked")
+    assert "looks like a hand take" not in view.uploaded.object
+    _upload(view, "hand", "fingers-ok.bvh", FINGERS.read_bytes())
+    assert view.tiles["hand"][0][:3] == ("ok", "fingers-ok.bvh", "Checked")
