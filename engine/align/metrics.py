@@ -971,6 +971,7 @@ def register_metrics() -> None:
         prepare=PK.prepare,
         forward=PK.forward,
         row=_cost_row_phase,
+        exact=_phase_costs_exact,
     )
     register_metric(
         "splice_angle",
@@ -980,6 +981,15 @@ def register_metrics() -> None:
         forward=AK.forward,
         row=_cost_row_angle,
     )
+
+
+def _phase_costs_exact(a, b) -> bool:
+    """``splice_phase`` costs of rows ``a``, ``b`` are whole multiples of
+    ``engine.dtw.fixed.QUANTUM``: sums of squared sign differences (whole numbers) plus
+    the rows' step cost (header column 4), so when the step costs are."""
+    from engine.dtw.fixed import is_on_grid
+
+    return is_on_grid(a[:, 4]) and is_on_grid(b[:, 4])
 
 
 # the DTW engine's cost row (``kernels.cost_row_metric``: the uncertainty sweep's local costs,

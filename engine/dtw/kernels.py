@@ -653,6 +653,9 @@ class Metric:
     #: ``lo..hi``, exactly; a kernel cached on disk that calls ``cell`` by name, where
     #: ``cost_row_metric`` (the metric as an argument) compiles anew in every process
     row: object = None
+    #: optional ``exact(a, b) -> bool``: True when every local cost of these rows is a whole
+    #: multiple of ``engine.dtw.fixed.QUANTUM`` (``Aligner`` then reuses settled rows)
+    exact: object = None
 
 
 _METRICS: dict[str, Metric] = {
@@ -669,13 +672,14 @@ def register_metric(
     prepare=None,
     forward=None,
     row=None,
+    exact=None,
 ):
     """Register a numba metric ``fn(a_row, b_row) -> float`` under ``name``.
 
     Use as ``register_metric("name", fn)`` or as a decorator
     ``@register_metric("name")`` above ``@numba.njit``. Re-registering a name
     raises ``ValueError`` unless ``replace=True``; built-in names cannot be
-    replaced.
+    replaced. ``exact``: see :class:`Metric`.
     """
 
     def _register(f):
@@ -688,13 +692,18 @@ def register_metric(
             raise ValueError(f"metric name must be a non-empty string, got {name!r}")
         known = _METRICS.get(name)
         if known is not None and (known.kind >= 0 or not replace):
-            if known.cell is f and known.forward is forward and known.row is row:
+            if (
+                known.cell is f
+                and known.forward is forward
+                and known.row is row
+                and known.exact is exact
+            ):
                 return f
             raise ValueError(
                 f"metric {name!r} is already registered"
                 + ("" if known.kind >= 0 else "; pass replace=True to replace it")
             )
-        _METRICS[name] = Metric(name, f, prepare=prepare, forward=forward, row=row)
+        _METRICS[name] = Metric(name, f, prepare=prepare, forward=forward, row=row, exact=exact)
         return f
 
     return _register if fn is None else _register(fn)
