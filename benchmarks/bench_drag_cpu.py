@@ -2,7 +2,7 @@
 reference tree beside this checkout (issue 13, drag31).
 
 Run: ``.venv/bin/python -m benchmarks.bench_drag_cpu [--ref d84f2f0] [--edits 8]
-[--rounds 2] [--pairs mug,synthetic]`` (prints a Markdown table; RESULTS.md's ``drag31``
+[--rounds 2] [--pairs mug,synthetic] [--now COMMIT]`` (prints a Markdown table; RESULTS.md's ``drag31``
 section was written from it by hand, with the load).
 
 Pairs (2 minutes at 120 fps):
@@ -90,12 +90,16 @@ def _median(values):
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--ref", default="d84f2f0", help="reference commit (main before drag31)")
+    ap.add_argument(
+        "--now", default=None, help="measure this commit instead of the checkout (git archive)"
+    )
     ap.add_argument("--edits", type=int, default=8)
     ap.add_argument("--rounds", type=int, default=2)
     ap.add_argument("--pairs", default="mug,synthetic")
     args = ap.parse_args(argv)
     mocap = os.environ.get("HANDSPLICE_MOCAP", str(LP.ROOT.parent / "shared" / "data" / "mocap"))
     tree = LP.baseline_tree(args.ref, name="drag31-ref")
+    now = LP.baseline_tree(args.now, name="drag31-now") if args.now else None
     rows = []
     for pair in args.pairs.split(","):
         runs: dict[str, list[dict]] = {"ref": [], "now": []}
@@ -108,7 +112,7 @@ def main(argv=None) -> None:
                     str(args.edits),
                     mocap,
                     *extra,
-                    tree=tree if code == "ref" else None,
+                    tree=tree if code == "ref" else now,
                 )
                 runs[code].append(out)
         ref_cpu = _median([c for o in runs["ref"] for c in o["cpu"]])
