@@ -47,6 +47,14 @@ cost of an edit does not depend on where ``J`` lies, but the next edit does.
   (still inside the edited rows) is the row that splits the rows to compute into
   two halves of equal cells instead: a lone point's drag changes the band in every
   row (its two segments are the whole take), and then waits for half of them.
+* A forward-only re-solve (``solve(forward_only=True)``: a fresh solve's path, ties
+  included) recomputes forward rows from the first edited row. When every local cost and
+  the open-end skip are whole multiples of ``fixed.QUANTUM`` (the pass-1 sign costs;
+  ``Problem.exact_costs``), γ sums are exact, and once a row after the edited ones has
+  γ = old γ + C in every cell (one constant C), every later row is the old row + C with
+  the same backpointers: the solve stops there and keeps them (``SETTLE``,
+  ``_forward_settling``; ``SolveStats.settled_row``). A lone point dragged in a narrow
+  band (the fine pass 1 around the coarse path) then costs the rows near it only.
 * γ (and β) are stored for every ``GAMMA_EVERY``-th row and the last row of
   each pass only; a pass resumes from the nearest stored row (fewer than
   ``GAMMA_EVERY`` rows recomputed). Backpointers are kept for every cell.
