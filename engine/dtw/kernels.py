@@ -60,6 +60,7 @@ import numpy as np
 from numba.core.dispatcher import Dispatcher
 
 from ._config import njit, njit_cached
+from .fixed import QUANTUM
 
 DIAGONAL = np.uint8(0)  # came from (i-1, j-1)
 VERTICAL = np.uint8(1)  # came from (i-1, j)
@@ -68,6 +69,9 @@ HORIZONTAL = np.uint8(2)  # came from (i, j-1)
 # built-in metric kinds for the cached feature kernels
 SQEUCLIDEAN = 0
 EUCLIDEAN = 1
+#: Euclidean rounded to ``fixed.QUANTUM`` (exact sums: ``engine.dtw.fixed``)
+EUCLIDEAN_FIXED = 2
+_PER_QUANTUM = 1.0 / QUANTUM
 
 INF = np.inf
 NEG_INF = -np.inf
@@ -291,6 +295,9 @@ def fill_builtin(a, bT, kind, i, lo, hi, crow):
     if kind == EUCLIDEAN:
         for k in range(w):
             out[k] = np.sqrt(out[k])
+    elif kind == EUCLIDEAN_FIXED:
+        for k in range(w):
+            out[k] = np.rint(np.sqrt(out[k]) * _PER_QUANTUM) * QUANTUM
 
 
 @njit()
@@ -636,6 +643,17 @@ def euclidean(x, y):
     return np.sqrt(sqeuclidean(x, y))
 
 
+@njit_cached()
+def euclidean_fixed(x, y):
+    """Euclidean distance of two feature rows rounded to the nearest multiple of
+    ``fixed.QUANTUM`` (2**-24; exact sums, ``engine.dtw.fixed``)."""
+    return np.rint(np.sqrt(sqeuclidean(x, y)) * _PER_QUANTUM) * QUANTUM
+
+
+def _always_exact(a, b) -> bool:
+    return True
+
+
 @dataclass(frozen=True)
 class Metric:
     """A registered local-cost metric: ``cell(a_row, b_row) -> float`` plus an optional
@@ -661,6 +679,9 @@ class Metric:
 _METRICS: dict[str, Metric] = {
     "sqeuclidean": Metric("sqeuclidean", sqeuclidean, SQEUCLIDEAN),
     "euclidean": Metric("euclidean", euclidean, EUCLIDEAN),
+    "euclidean_fixed": Metric(
+        "euclidean_fixed", euclidean_fixed, EUCLIDEAN_FIXED, exact=_always_exact
+    ),
 }
 
 

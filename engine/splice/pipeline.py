@@ -854,19 +854,21 @@ def _solve_pass2(
 
     Incremental (the app): both solves keep an ``Aligner`` (``probe`` for the first), so
     an edit recomputes only the rows its band change touches in each, as long as the
-    rounded skip stays the same (``exact``: as :func:`_solve`).
+    rounded skip stays the same (``exact``: as :func:`_solve`). Both skips are multiples of
+    ``engine.dtw.fixed.QUANTUM``: with exact costs (the hand-spin pass's) every γ sum is
+    exact and an edit's forward re-solve keeps the rows that settle.
     """
     if pass1.fixed:
         al, solver = _solve(rows, metric, band, solver, incremental, Ends(), exact)
         return al, solver, Ends(), None
     n, m = len(rows[0]), len(rows[1])
     chance = chance_cost(rows, metric) if chance is None else chance
-    first = Ends(pass1.body, pass1.hand, 0.5 * chance)
+    first = Ends(pass1.body, pass1.hand, float(fixed.on_grid(0.5 * chance)))
     # one-shot (the CLI): both solves share one computation of the band's costs
     shared = None if incremental else SharedCosts(*rows, metric=metric)
     al, probe = _solve(rows, metric, band, probe or shared, incremental, first, exact)
     matched = al.cost - first.skip * unmatched_frames(al.path, n, m)
-    typical = skip_step(max(matched, 0.0) / len(al.path))
+    typical = float(fixed.on_grid(skip_step(max(matched, 0.0) / len(al.path))))
     ends = Ends(pass1.body, pass1.hand, min(first.skip, typical))
     if shared is not None:
         probe = None
