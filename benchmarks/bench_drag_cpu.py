@@ -11,6 +11,8 @@ Pairs (2 minutes at 120 fps):
   ManipNet's ``mug1_rightHand`` (``tests/conftest.py``'s ``long_pair``): a hand take
   without a forearm, whose re-solves are forward-only (a fresh solve's path).
 * ``synthetic``: ``long_pairs.pair_files(120)`` (a re-timed hand take with fingers).
+* ``mug+2``: the mug pair with a second point at two thirds of the overlap, kept, while
+  the one at a third is dragged (the rows after the kept point can settle).
 
 Each code runs in its own child process (``long_pairs.run_child``; the reference from
 ``git archive``), the two taking turns ``--rounds`` times. In a child: the pair is
@@ -39,7 +41,7 @@ from engine.splice import pipeline as P
 
 pair, edits = sys.argv[1], int(sys.argv[2])
 mocap = Path(sys.argv[3])
-if pair == "mug":
+if pair.startswith("mug"):
     body = resample(load_take(mocap / "lafan1/multipleActions1_subject1.bvh"), 120.0)
     body = body.frames(0, 120 * 120)
     hand = load_take(mocap / "manipnet/mug1_rightHand.bvh")
@@ -50,9 +52,17 @@ else:
 f = P.prepare(body, hand, side="auto")
 r = P.align_passes(f, incremental=True)
 (b0, b1), _ = r.overlap
-x = (b0 + b1) // 2
-y = int(r.pass2.path[np.searchsorted(r.pass2.path[:, 0], x), 1])
-r = P.align_passes(f, points=[(x, y, 0)], incremental=True)
+
+def on_path(x):
+    return int(r.pass2.path[np.searchsorted(r.pass2.path[:, 0], x), 1])
+
+if pair.endswith("+2"):  # a point at a third of the overlap dragged, one at two thirds kept
+    x, x2 = b0 + (b1 - b0) // 3, b0 + 2 * (b1 - b0) // 3
+    later = [(x2, on_path(x2), 0)]
+else:
+    x, later = (b0 + b1) // 2, []
+y = on_path(x)
+r = P.align_passes(f, points=[(x, y, 0)] + later, incremental=True)
 
 def cells(solver):
     st = getattr(solver, "last_stats", None)
@@ -60,7 +70,7 @@ def cells(solver):
 
 cpu, wall, fine, coarse, second = [], [], [], [], []
 for k in range(edits + 2):
-    pts = [(x, y + (3 if k % 2 == 0 else -3), 0)]
+    pts = [(x, y + (3 if k % 2 == 0 else -3), 0)] + later
     c0, t0 = time.process_time(), time.perf_counter()
     r = P.align_passes(f, points=pts, previous=r, incremental=True)
     c1, t1 = time.process_time(), time.perf_counter()
@@ -95,7 +105,7 @@ def main(argv=None) -> None:
     )
     ap.add_argument("--edits", type=int, default=8)
     ap.add_argument("--rounds", type=int, default=2)
-    ap.add_argument("--pairs", default="mug,synthetic")
+    ap.add_argument("--pairs", default="mug,mug+2,synthetic")
     args = ap.parse_args(argv)
     mocap = os.environ.get("HANDSPLICE_MOCAP", str(LP.ROOT.parent / "shared" / "data" / "mocap"))
     tree = LP.baseline_tree(args.ref, name="drag31-ref")
