@@ -386,7 +386,8 @@ class Aligner:
         band's, stopping at the first settled row; ``(cells computed, rows computed up to)``.
 
         The old forward rows from ``tail`` on (every one valid for ``old``) move to the
-        new band's offsets first. Rows are then computed in chunks ending at a row whose
+        new band's offsets first (backpointers by one memmove, the stored γ rows by
+        ``kernels.move_rows``). Rows are then computed in chunks ending at a row whose
         old γ is stored (chunks of 8, 16, 32, ... rows); when a chunk's last row ``s``
         has γ = old γ + C in every cell (C one constant; exact: ``fixed``), every later
         row is the old row + C with the same backpointers (the recurrence adds and
@@ -398,16 +399,15 @@ class Aligner:
         delta = int(band.start[tail]) - int(old.start[tail])
         old_bp, old_gamma = side.bp, side.gamma
         kept = tail + np.flatnonzero(side.has[tail:n])  # old stored rows, unchanged band
-        widths = band.hi[kept] - band.lo[kept] + 1
-        cum = np.cumsum(widths)
-        src = np.arange(int(cum[-1]) if cum.size else 0) + np.repeat(
-            old.start[kept] - (cum - widths), widths
-        )
-        values = old_gamma[src]  # a copy: the moves below may overlap
+        old_bp, old_gamma = side.bp, side.gamma
         side.ensure(band.area, band.start)  # may reallocate (keeps rows below valid)
         a0, a1 = int(old.start[tail]), int(old.area)
-        side.bp[a0 + delta : a1 + delta] = old_bp[a0:a1]
-        side.gamma[src + delta] = values
+        side.bp[a0 + delta : a1 + delta] = old_bp[a0:a1]  # a memmove (ranges may overlap)
+        if delta != 0 or side.gamma is not old_gamma:
+            K.move_rows(
+                old_gamma, side.gamma, side.has, band.lo, band.hi, old.start, band.start,
+                tail, n, 0.0,
+            )  # fmt: skip
         # candidates: old stored rows after which no row has a finite open-start edge
         edge = np.flatnonzero((band.lo == 0) & (np.arange(n) + 1 <= self._ends.body))
         first = max(tail, int(edge[-1]) if edge.size else 0)
@@ -425,8 +425,10 @@ class Aligner:
             shift = _constant_shift(side.gamma[off : off + w], before)
             if shift is not None:
                 if shift != 0.0:
-                    later = src[np.repeat(kept, widths) > s] + delta
-                    side.gamma[later] += shift
+                    K.move_rows(
+                        side.gamma, side.gamma, side.has, band.lo, band.hi, band.start,
+                        band.start, s + 1, n, shift,
+                    )  # fmt: skip
                     side.last_col[s + 1 : n] += shift
                 side.valid = n  # ``has`` of the later rows is the old one
                 return cells, s + 1

@@ -264,6 +264,30 @@ def _pad_row(buf, lo, hi, i, ends):
 
 
 @njit_cached()
+def move_rows(src, gamma, has, lo, hi, old_start, new_start, r0, r1, shift):
+    """γ of the stored rows ``r0..r1-1`` (``has``) from ``src`` at their ``old_start`` offsets
+    to ``gamma`` at ``new_start`` (the same widths ``hi - lo + 1``, one offset difference for
+    all), plus ``shift``; in the order that never overwrites a value not yet moved (``src``
+    may be ``gamma``, the ranges overlapping). ``Aligner._forward_settling``: rows kept
+    after an edit."""
+    if r1 <= r0:
+        return
+    d = new_start[r0] - old_start[r0]
+    if d > 0:
+        for r in range(r1 - 1, r0 - 1, -1):
+            if has[r]:
+                a, b = old_start[r], new_start[r]
+                for k in range(hi[r] - lo[r], -1, -1):
+                    gamma[b + k] = src[a + k] + shift
+    else:
+        for r in range(r0, r1):
+            if has[r]:
+                a, b = old_start[r], new_start[r]
+                for k in range(hi[r] - lo[r] + 1):
+                    gamma[b + k] = src[a + k] + shift
+
+
+@njit_cached()
 def _keep(every, i, i1):
     """Store γ of row ``i`` (of a pass over rows ``..i1-1``)? ``every``: 0 never, 1 always,
     k > 1 every k-th row (``i % k == 0``) and the pass's last row."""
