@@ -167,7 +167,8 @@ def test_app_edit_chain_equals_fresh_splices_on_a_real_60_120fps_forearmless_pai
 ):
     """LAFAN1 dance1 at 60 fps (body) with ManipNet mug1 at 120 fps (a hand without a
     forearm, whose edits re-solve forward only): every edit of the app's chain gives the
-    fresh CLI solve's paths, coarse ones included, and keeps its coarse solver."""
+    fresh CLI solve's paths and costs, coarse ones included, keeps its coarse solver, and
+    its fine pass 1 stops at the first settled row."""
     body = resample(lafan.frames(0, 300), 60.0)
     hand = read_bvh(sample_dir / "manipnet" / "mug1_rightHand.bvh").frames(0, 1300)
     prep = backend.prepare(*_files(tmp_path, body, hand), "right")
@@ -178,6 +179,7 @@ def test_app_edit_chain_equals_fresh_splices_on_a_real_60_120fps_forearmless_pai
     x, y = n // 2, int(sol.cache["engine"].warp[n // 2])
     edits = [[(x, y + dy, 0.0)] for dy in (0, 10, -10, 5)]
     edits += [[(n // 4, m // 4, 2.0), (x, y + dy, 0.0)] for dy in (5, -5)]
+    settled = 0
     for k, points in enumerate(edits):
         before = sol.cache["engine"]
         sol = backend.solve(prep, None, None, points, previous=sol)
@@ -188,6 +190,11 @@ def test_app_edit_chain_equals_fresh_splices_on_a_real_60_120fps_forearmless_pai
             assert np.array_equal(getattr(got, name).path, getattr(fresh, name).path), (k, name)
         assert np.array_equal(got.map, fresh.map), k
         assert got.pass1.coarse.solver is before.pass1.coarse.solver  # kept between edits
+        assert got.pass1.cost == fresh.pass1.cost and got.pass2.cost == fresh.pass2.cost, k
+        # pass 1's sign costs are exact (engine.dtw.fixed): its rows after the edit settle
+        stats = got.pass1.solver.last_stats
+        settled += stats.settled_row < n and stats.cells_computed < got.pass1.solver.band.area
+    assert settled >= 3
 
 
 def test_app_edit_chain_on_a_real_120fps_pair_with_forearms(pair120, tmp_path):

@@ -66,17 +66,21 @@ def prepared(sample_dir):
 def _drag(prepared) -> list[list[tuple[int, int, float]]]:
     """Grid points of drags: a point mid-take moved up and down, then a second point
     before it added and the later one moved (its edits leave the rows before the first
-    point as they were)."""
+    point as they were), then the earlier one moved (the rows after the later one
+    settle: ``engine.dtw.fixed``)."""
     n, m = prepared.n, prepared.features.m
     x, y = n // 2, m // 2
     edits = [[(x, y + dy, 0.0)] for dy in (0, 12, -12, 6)]
     edits += [[(n // 4, m // 4, 2.0), (x, y + dy, 0.0)] for dy in (6, -6, 0, 9)]
+    # the earlier point moved before the later one: the rows after the later point settle
+    edits += [[(n // 4, m // 4 + dy, 2.0), (x, y + 9, 0.0)] for dy in (4, 0, 4)]
     return edits
 
 
 def test_app_edits_of_a_forearmless_pair_equal_fresh_solves_and_reuse_both_passes(prepared):
     sol = backend.solve(prepared, None, None, [])
     reused_partly = 0
+    settled = {True: 0, False: 0}  # pass 1's solver, pass 2's
     for k, points in enumerate(_drag(prepared)):
         before = sol.cache["engine"]
         sol = backend.solve(prepared, None, None, points, previous=sol)
@@ -103,7 +107,13 @@ def test_app_edits_of_a_forearmless_pair_equal_fresh_solves_and_reuse_both_passe
             assert stats.cells_computed <= band.area
             assert stats.backward_rows[0] == stats.backward_rows[1]
         reused_partly += got.pass1.solver.last_stats.cells_computed < got.pass1.band.area
+        # both passes' costs are exact (sign costs, fixed-point spin costs): a solver stops
+        # at the first settled row after the edit, and still gives the fresh solve's path
+        for solver in (got.pass1.solver, got.pass2.solver, got.pass2.probe):
+            if solver is not None and solver.last_stats.settled_row < solver.n:
+                settled[solver is got.pass1.solver] += 1
     assert reused_partly >= 2
+    assert settled[True] >= 2 and settled[False] >= 1  # pass 1's and pass 2's
 
 
 def test_headings_from_remembered_cell_thetas_equal_the_fresh_ones(prepared):

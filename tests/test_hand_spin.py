@@ -100,7 +100,7 @@ def test_a_forearmless_rig_is_timed_by_its_turning(kind):
     case = make_rig_case(kind, 1)
     res = P.splice(case.body, case.hand, transfer_fingers=False)
     assert P.hand_lacks_forearm(res.features) and P.uses_spin(res.features)
-    assert res.alignment.pass2.metric == "euclidean"
+    assert res.alignment.pass2.metric == "euclidean_fixed"
     e, e1 = _timing_ms(case, res), _pass1_ms(case, res)
     assert np.median(e) <= 1000.0 / case.body.fps
     assert np.percentile(e, 95) < 100.0

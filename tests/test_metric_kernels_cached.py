@@ -1,6 +1,6 @@
 """The splice metrics' path, grid and row kernels (``metrics.path_values``, ``metrics.cost_grid``,
 the registered metrics' ``row``: the uncertainty sweep's cost rows), and the path values of
-the built-in cells (the hand-spin pass's ``euclidean``) are cached on disk: a fresh process (a batch worker's pair, a server, the CLI) loads their
+the built-in cells (the hand-spin pass's ``euclidean_fixed``) are cached on disk: a fresh process (a batch worker's pair, a server, the CLI) loads their
 machine code from ``NUMBA_CACHE_DIR`` and compiles nothing for them (it compiled them anew in
 every process, seconds each, when they took the metric as an argument)."""
 
@@ -37,6 +37,7 @@ with event.install_recorder("numba:compile") as rec:
     M.path_values(M.splice_angle, c, d, path)
     M.cost_grid(M.splice_angle, c, d, np.arange(3), np.arange(4))
     M.path_values(K.euclidean, c, d, path)
+    M.path_values(K.euclidean_fixed, c, d, path)
     M.path_values(K.sqeuclidean, c, d, path)
     M.register_metrics()
     K.get_metric("splice_phase").row(a, b, 1, 0, 3)
@@ -67,7 +68,7 @@ def test_a_fresh_process_compiles_no_path_or_grid_kernel_of_the_splice_metrics(
         M.register_metrics()
         row = K.get_metric(metric).row(a, b, 1, 0, 3)
         assert np.array_equal(row, [metric(a[1], b[j]) for j in range(4)])
-    for cell in (K.euclidean, K.sqeuclidean):
+    for cell in (K.euclidean, K.euclidean_fixed, K.sqeuclidean):
         assert np.array_equal(
             M.path_values(cell, aa, ab, path), [cell(aa[i], ab[j]) for i, j in path]
         )

@@ -971,6 +971,7 @@ def register_metrics() -> None:
         prepare=PK.prepare,
         forward=PK.forward,
         row=_cost_row_phase,
+        exact=_phase_costs_exact,
     )
     register_metric(
         "splice_angle",
@@ -980,6 +981,15 @@ def register_metrics() -> None:
         forward=AK.forward,
         row=_cost_row_angle,
     )
+
+
+def _phase_costs_exact(a, b) -> bool:
+    """``splice_phase`` costs of rows ``a``, ``b`` are whole multiples of
+    ``engine.dtw.fixed.QUANTUM``: sums of squared sign differences (whole numbers) plus
+    the rows' step cost (header column 4), so when the step costs are."""
+    from engine.dtw.fixed import is_on_grid
+
+    return is_on_grid(a[:, 4]) and is_on_grid(b[:, 4])
 
 
 # the DTW engine's cost row (``kernels.cost_row_metric``: the uncertainty sweep's local costs,
@@ -1025,12 +1035,15 @@ def _path_kernel_angle(a, b, path, out):  # _path_kernel for splice_angle, cache
 
 
 @numba.njit(cache=True, nogil=True)
-def _path_kernel_builtin(root, a, b, path, out):
-    """_path_kernel for the DTW engine's built-in cells (``euclidean`` if ``root``, else
-    ``sqeuclidean``; the hand-spin pass's metric), cached (see above)."""
+def _path_kernel_builtin(kind, a, b, path, out):
+    """_path_kernel for the DTW engine's built-in cells (``kind``: ``kernels.EUCLIDEAN``,
+    ``EUCLIDEAN_FIXED``, the hand-spin pass's metric, or ``SQEUCLIDEAN``), cached (see
+    above)."""
     for k in range(path.shape[0]):
-        if root:
+        if kind == DK.EUCLIDEAN:
             out[k] = DK.euclidean(a[path[k, 0]], b[path[k, 1]])
+        elif kind == DK.EUCLIDEAN_FIXED:
+            out[k] = DK.euclidean_fixed(a[path[k, 0]], b[path[k, 1]])
         else:
             out[k] = DK.sqeuclidean(a[path[k, 0]], b[path[k, 1]])
 
@@ -1043,8 +1056,8 @@ def path_values(metric, a: np.ndarray, b: np.ndarray, path: np.ndarray) -> np.nd
         _path_kernel_phase(a, b, path, out)
     elif metric is splice_angle:
         _path_kernel_angle(a, b, path, out)
-    elif metric is DK.euclidean or metric is DK.sqeuclidean:
-        _path_kernel_builtin(metric is DK.euclidean, a, b, path, out)
+    elif metric is DK.euclidean or metric is DK.sqeuclidean or metric is DK.euclidean_fixed:
+        _path_kernel_builtin(DK.get_metric(metric).kind, a, b, path, out)
     else:
         _path_kernel(metric, a, b, path, out)
     return out

@@ -23,6 +23,7 @@ from numba.core.dispatcher import Dispatcher
 
 from engine.base.errors import ParameterError
 
+from . import fixed
 from . import kernels as K
 from .band import Band
 
@@ -223,6 +224,7 @@ class Problem:
         self.bT = arrays.get("bT")
         self.metric: K.Metric | None = arrays.get("metric")
         self._rows_state = None  # a metric's row-kernel data (Metric.prepare), made once
+        self._exact: bool | None = None  # exact_costs(), asked once
         self.keep_costs = False  # SharedCosts: the row state keeps whole-band costs
 
     @classmethod
@@ -294,6 +296,17 @@ class Problem:
         b = np.ascontiguousarray(self.b[::-1])
         extra = {"bT": np.ascontiguousarray(b.T)} if self.kind == "builtin" else {}
         return Problem(self.kind, self.n, self.m, self.what, a=a, b=b, metric=self.metric, **extra)
+
+    def exact_costs(self) -> bool:
+        """True when every local cost is a whole multiple of ``fixed.QUANTUM`` (the
+        metric's ``exact`` says so for these rows; a cost matrix is checked)."""
+        if self._exact is None:
+            if self.kind == "matrix":
+                self._exact = fixed.is_on_grid(self.cost)
+            else:
+                claim = getattr(self.metric, "exact", None)
+                self._exact = bool(claim is not None and claim(self.a, self.b))
+        return self._exact
 
     # -- kernels ---------------------------------------------------------
     def forward(self, lo, hi, start, i0, i1, bp, gamma, keep_gamma: int, ends, last_col, last_row):

@@ -47,6 +47,14 @@ cost of an edit does not depend on where ``J`` lies, but the next edit does.
   (still inside the edited rows) is the row that splits the rows to compute into
   two halves of equal cells instead: a lone point's drag changes the band in every
   row (its two segments are the whole take), and then waits for half of them.
+* A forward-only re-solve (``solve(forward_only=True)``: a fresh solve's path, ties
+  included) recomputes forward rows from the first edited row. When every local cost and
+  the open-end skip are whole multiples of ``fixed.QUANTUM`` (the pass-1 sign costs;
+  ``Problem.exact_costs``), γ sums are exact, and once a row after the edited ones has
+  γ = old γ + C in every cell (one constant C), every later row is the old row + C with
+  the same backpointers: the solve stops there and keeps them (``SETTLE``,
+  ``_forward_settling``; ``SolveStats.settled_row``). A lone point dragged in a narrow
+  band (the fine pass 1 around the coarse path) then costs the rows near it only.
 * γ (and β) are stored for every ``GAMMA_EVERY``-th row and the last row of
   each pass only; a pass resumes from the nearest stored row (fewer than
   ``GAMMA_EVERY`` rows recomputed). Backpointers are kept for every cell.
@@ -78,6 +86,7 @@ from numba.core.dispatcher import Dispatcher
 
 from engine.base import tolerances as T
 
+from . import fixed
 from . import kernels as K
 from .align import FIXED, Alignment, Ends, Problem, as_ends, check_band, check_ends, check_total
 from .band import Band
@@ -99,6 +108,9 @@ class SolveStats:
     cells_in_band: int
     junction_row: int
     seconds: float
+    #: an edit's forward rows stopped here: rows from it on are the old ones plus a
+    #: constant (``Aligner._forward_settling``); ``n`` when every row was computed
+    settled_row: int = -1
 
     @property
     def fraction(self) -> float:
@@ -187,6 +199,8 @@ class Aligner:
     #: than it saves
     PARALLEL_DIRECTIONS = True
     PARALLEL_MIN_CELLS = T.PARALLEL_MIN_CELLS
+    #: a forward-only edit of exact costs (``fixed``) stops at the first settled row
+    SETTLE = True
 
     def __init__(self, a, b, metric: str | Dispatcher = "sqeuclidean"):
         self._init(Problem.from_features(a, b, metric))
@@ -293,6 +307,7 @@ class Aligner:
                 )
                 return self._last
         fwd, bwd = self._fwd, self._bwd
+        complete = old is not None and fwd.valid >= n  # forward rows of every old row
         # stored rows keep their flat offsets: widths before r0 (forward) and
         # after r1 (backward, counted from the end) did not change
         fwd.valid = min(fwd.valid, r0)
@@ -325,7 +340,16 @@ class Aligner:
         f0 = fwd.resume_row(min(f_valid, junction + 1))
         forward = (f0, max(f0, junction + 1))
         backward = (junction + 1, junction + 1)
-        if junction == n - 1:
+        settled = n
+        if forward_only and complete and r1 < n - 1 and self._exact():
+            # rows after the first settled one are the old rows plus a constant (fixed.py)
+            cells, settled = self._forward_settling(band, old, f0, r1 + 1)
+            total, i_end, j_end = K.best_end(
+                self._fwd_last_row(band), fwd.last_col, band.lo, band.hi, self._ends.array(), n - 1
+            )
+            path = K.backtrack(fwd.bp, band.lo, band.start, i_end, j_end)
+            forward = (f0, settled)
+        elif junction == n - 1:
             # a full solve also computes the backward rows of the last third (cheap first
             # edits there): they do not depend on the forward rows, so both run at once
             suffix = full and split < n - 1 and not forward_only
@@ -348,9 +372,68 @@ class Aligner:
         path.flags.writeable = False
         self._last = Alignment(path=path, cost=float(total), band=band, ends=self._ends)
         self.last_stats = SolveStats(
-            forward, backward, cells, band.area, junction, time.perf_counter() - t0
+            forward, backward, cells, band.area, junction, time.perf_counter() - t0, settled
         )
         return self._last
+
+    def _exact(self) -> bool:
+        """Sums of this problem's costs and open-end skips are exact (``fixed``): an
+        edit's forward rows may stop at the first settled row."""
+        return self.SETTLE and self._problem.exact_costs() and fixed.is_on_grid(self._ends.skip)
+
+    def _forward_settling(self, band: Band, old: Band, f0: int, tail: int) -> tuple[int, int]:
+        """Forward rows from ``f0`` after an edit whose band rows ``tail..n-1`` are the old
+        band's, stopping at the first settled row; ``(cells computed, rows computed up to)``.
+
+        The old forward rows from ``tail`` on (every one valid for ``old``) move to the
+        new band's offsets first (backpointers by one memmove, the stored γ rows by
+        ``kernels.move_rows``). Rows are then computed in chunks ending at a row whose
+        old γ is stored (chunks of 8, 16, 32, ... rows); when a chunk's last row ``s``
+        has γ = old γ + C in every cell (C one constant; exact: ``fixed``), every later
+        row is the old row + C with the same backpointers (the recurrence adds and
+        compares only), so they are kept: stored γ and the last column's γ get + C.
+        Rows whose open-start edge γ(i, -1) is finite (``Ends.body``) do not shift with
+        C and are always computed. The result is a fresh forward solve's, ties included."""
+        n = self.n
+        side = self._fwd
+        delta = int(band.start[tail]) - int(old.start[tail])
+        old_bp, old_gamma = side.bp, side.gamma
+        kept = tail + np.flatnonzero(side.has[tail:n])  # old stored rows, unchanged band
+        old_bp, old_gamma = side.bp, side.gamma
+        side.ensure(band.area, band.start)  # may reallocate (keeps rows below valid)
+        a0, a1 = int(old.start[tail]), int(old.area)
+        side.bp[a0 + delta : a1 + delta] = old_bp[a0:a1]  # a memmove (ranges may overlap)
+        if delta != 0 or side.gamma is not old_gamma:
+            K.move_rows(
+                old_gamma, side.gamma, side.has, band.lo, band.hi, old.start, band.start,
+                tail, n, 0.0,
+            )  # fmt: skip
+        # candidates: old stored rows after which no row has a finite open-start edge
+        edge = np.flatnonzero((band.lo == 0) & (np.arange(n) + 1 <= self._ends.body))
+        first = max(tail, int(edge[-1]) if edge.size else 0)
+        cands = kept[kept >= first]
+        problem = self._problem
+        i, cells, step, target = f0, 0, self.GAMMA_EVERY, first
+        while True:
+            k = int(np.searchsorted(cands, target))
+            if k >= cands.size or cands[k] >= n - 1:
+                return cells + self._compute(problem, side, band, i, n), n
+            s = int(cands[k])
+            off, w = int(band.start[s]), int(band.hi[s] - band.lo[s] + 1)
+            before = side.gamma[off : off + w].copy()
+            cells += self._compute(problem, side, band, i, s + 1)
+            shift = _constant_shift(side.gamma[off : off + w], before)
+            if shift is not None:
+                if shift != 0.0:
+                    K.move_rows(
+                        side.gamma, side.gamma, side.has, band.lo, band.hi, band.start,
+                        band.start, s + 1, n, shift,
+                    )  # fmt: skip
+                    side.last_col[s + 1 : n] += shift
+                side.valid = n  # ``has`` of the later rows is the old one
+                return cells, s + 1
+            i, step = s + 1, 2 * step
+            target = s + step
 
     def _split_row(self, band: Band) -> int:
         """Last row before the band's final ``SUFFIX_SHARE`` of cells (0..n-1)."""
@@ -477,3 +560,17 @@ class Aligner:
             bwd.gamma, bwd.bp, rband.lo, rband.hi, rband.start, J,
             self._ends.array(), fwd.last_col, bwd.last_col,
         )  # fmt: skip
+
+
+def _constant_shift(new: np.ndarray, old: np.ndarray) -> float | None:
+    """C when ``new`` = ``old`` + C in every cell (the same cells infinite, every γ
+    below ``fixed.LIMIT / 4``), else None."""
+    finite = np.isfinite(old)
+    if not finite.any() or not np.array_equal(finite, np.isfinite(new)):
+        return None
+    a, b = new[finite], old[finite]
+    if max(np.abs(a).max(), np.abs(b).max()) >= fixed.LIMIT / 4:
+        return None
+    d = a - b
+    c = d[0]
+    return float(c) if np.all(d == c) else None

@@ -60,6 +60,7 @@ import numpy as np
 from numba.core.dispatcher import Dispatcher
 
 from ._config import njit, njit_cached
+from .fixed import QUANTUM
 
 DIAGONAL = np.uint8(0)  # came from (i-1, j-1)
 VERTICAL = np.uint8(1)  # came from (i-1, j)
@@ -68,6 +69,9 @@ HORIZONTAL = np.uint8(2)  # came from (i, j-1)
 # built-in metric kinds for the cached feature kernels
 SQEUCLIDEAN = 0
 EUCLIDEAN = 1
+#: Euclidean rounded to ``fixed.QUANTUM`` (exact sums: ``engine.dtw.fixed``)
+EUCLIDEAN_FIXED = 2
+_PER_QUANTUM = 1.0 / QUANTUM
 
 INF = np.inf
 NEG_INF = -np.inf
@@ -260,6 +264,30 @@ def _pad_row(buf, lo, hi, i, ends):
 
 
 @njit_cached()
+def move_rows(src, gamma, has, lo, hi, old_start, new_start, r0, r1, shift):
+    """γ of the stored rows ``r0..r1-1`` (``has``) from ``src`` at their ``old_start`` offsets
+    to ``gamma`` at ``new_start`` (the same widths ``hi - lo + 1``, one offset difference for
+    all), plus ``shift``; in the order that never overwrites a value not yet moved (``src``
+    may be ``gamma``, the ranges overlapping). ``Aligner._forward_settling``: rows kept
+    after an edit."""
+    if r1 <= r0:
+        return
+    d = new_start[r0] - old_start[r0]
+    if d > 0:
+        for r in range(r1 - 1, r0 - 1, -1):
+            if has[r]:
+                a, b = old_start[r], new_start[r]
+                for k in range(hi[r] - lo[r], -1, -1):
+                    gamma[b + k] = src[a + k] + shift
+    else:
+        for r in range(r0, r1):
+            if has[r]:
+                a, b = old_start[r], new_start[r]
+                for k in range(hi[r] - lo[r] + 1):
+                    gamma[b + k] = src[a + k] + shift
+
+
+@njit_cached()
 def _keep(every, i, i1):
     """Store γ of row ``i`` (of a pass over rows ``..i1-1``)? ``every``: 0 never, 1 always,
     k > 1 every k-th row (``i % k == 0``) and the pass's last row."""
@@ -291,6 +319,9 @@ def fill_builtin(a, bT, kind, i, lo, hi, crow):
     if kind == EUCLIDEAN:
         for k in range(w):
             out[k] = np.sqrt(out[k])
+    elif kind == EUCLIDEAN_FIXED:
+        for k in range(w):
+            out[k] = np.rint(np.sqrt(out[k]) * _PER_QUANTUM) * QUANTUM
 
 
 @njit()
@@ -636,6 +667,17 @@ def euclidean(x, y):
     return np.sqrt(sqeuclidean(x, y))
 
 
+@njit_cached()
+def euclidean_fixed(x, y):
+    """Euclidean distance of two feature rows rounded to the nearest multiple of
+    ``fixed.QUANTUM`` (2**-24; exact sums, ``engine.dtw.fixed``)."""
+    return np.rint(np.sqrt(sqeuclidean(x, y)) * _PER_QUANTUM) * QUANTUM
+
+
+def _always_exact(a, b) -> bool:
+    return True
+
+
 @dataclass(frozen=True)
 class Metric:
     """A registered local-cost metric: ``cell(a_row, b_row) -> float`` plus an optional
@@ -653,11 +695,17 @@ class Metric:
     #: ``lo..hi``, exactly; a kernel cached on disk that calls ``cell`` by name, where
     #: ``cost_row_metric`` (the metric as an argument) compiles anew in every process
     row: object = None
+    #: optional ``exact(a, b) -> bool``: True when every local cost of these rows is a whole
+    #: multiple of ``engine.dtw.fixed.QUANTUM`` (``Aligner`` then reuses settled rows)
+    exact: object = None
 
 
 _METRICS: dict[str, Metric] = {
     "sqeuclidean": Metric("sqeuclidean", sqeuclidean, SQEUCLIDEAN),
     "euclidean": Metric("euclidean", euclidean, EUCLIDEAN),
+    "euclidean_fixed": Metric(
+        "euclidean_fixed", euclidean_fixed, EUCLIDEAN_FIXED, exact=_always_exact
+    ),
 }
 
 
@@ -669,13 +717,14 @@ def register_metric(
     prepare=None,
     forward=None,
     row=None,
+    exact=None,
 ):
     """Register a numba metric ``fn(a_row, b_row) -> float`` under ``name``.
 
     Use as ``register_metric("name", fn)`` or as a decorator
     ``@register_metric("name")`` above ``@numba.njit``. Re-registering a name
     raises ``ValueError`` unless ``replace=True``; built-in names cannot be
-    replaced.
+    replaced. ``exact``: see :class:`Metric`.
     """
 
     def _register(f):
@@ -688,13 +737,18 @@ def register_metric(
             raise ValueError(f"metric name must be a non-empty string, got {name!r}")
         known = _METRICS.get(name)
         if known is not None and (known.kind >= 0 or not replace):
-            if known.cell is f and known.forward is forward and known.row is row:
+            if (
+                known.cell is f
+                and known.forward is forward
+                and known.row is row
+                and known.exact is exact
+            ):
                 return f
             raise ValueError(
                 f"metric {name!r} is already registered"
                 + ("" if known.kind >= 0 else "; pass replace=True to replace it")
             )
-        _METRICS[name] = Metric(name, f, prepare=prepare, forward=forward, row=row)
+        _METRICS[name] = Metric(name, f, prepare=prepare, forward=forward, row=row, exact=exact)
         return f
 
     return _register if fn is None else _register(fn)

@@ -46,7 +46,7 @@ from engine.align.features import (
 from engine.base import limits
 from engine.base import tolerances as T
 from engine.base.errors import HandSpliceError, ParameterError, RoleError, SideError
-from engine.dtw import Aligner, Band, Ends, align_features
+from engine.dtw import Aligner, Band, Ends, align_features, fixed
 from engine.dtw import constraints as C
 from engine.dtw.align import SharedCosts
 from engine.dtw.kernels import get_metric, metric_names
@@ -799,7 +799,10 @@ def pass1_ends(features: SpliceFeatures, kind: str, max_unmatched_s: float | Non
     cost (:func:`chance_cost`) an end stretch is left out only when its cells are no
     better than matching random frames (a diagonal cell covers a frame of each take).
     Pass 1's sign costs are coarse, so nothing stricter is safe there. Cached on
-    ``features`` (it depends on the pair and the limits only).
+    ``features`` (it depends on the pair and the limits only). The skip is rounded to a
+    multiple of ``engine.dtw.fixed.QUANTUM`` (3e-8 at most): with the whole-number sign
+    costs every γ sum is exact, so an edit's re-solve reuses the rows that settle
+    (``engine.dtw.fixed``).
     """
     if kind == "fixed":
         return Ends()
@@ -807,7 +810,7 @@ def pass1_ends(features: SpliceFeatures, kind: str, max_unmatched_s: float | Non
     cache = features.params.setdefault("_ends", {})
     if "chance1" not in cache:
         cache["chance1"] = chance_cost(features.pass1_rows, "splice_phase")
-    return Ends(limits[0], limits[1], 0.5 * cache["chance1"])
+    return Ends(limits[0], limits[1], float(fixed.on_grid(0.5 * cache["chance1"])))
 
 
 #: pass 2's skip per unmatched frame is rounded down to this many steps per octave, so
@@ -850,19 +853,21 @@ def _solve_pass2(
 
     Incremental (the app): both solves keep an ``Aligner`` (``probe`` for the first), so
     an edit recomputes only the rows its band change touches in each, as long as the
-    rounded skip stays the same (``exact``: as :func:`_solve`).
+    rounded skip stays the same (``exact``: as :func:`_solve`). Both skips are multiples of
+    ``engine.dtw.fixed.QUANTUM``: with exact costs (the hand-spin pass's) every γ sum is
+    exact and an edit's forward re-solve keeps the rows that settle.
     """
     if pass1.fixed:
         al, solver = _solve(rows, metric, band, solver, incremental, Ends(), exact)
         return al, solver, Ends(), None
     n, m = len(rows[0]), len(rows[1])
     chance = chance_cost(rows, metric) if chance is None else chance
-    first = Ends(pass1.body, pass1.hand, 0.5 * chance)
+    first = Ends(pass1.body, pass1.hand, float(fixed.on_grid(0.5 * chance)))
     # one-shot (the CLI): both solves share one computation of the band's costs
     shared = None if incremental else SharedCosts(*rows, metric=metric)
     al, probe = _solve(rows, metric, band, probe or shared, incremental, first, exact)
     matched = al.cost - first.skip * unmatched_frames(al.path, n, m)
-    typical = skip_step(max(matched, 0.0) / len(al.path))
+    typical = float(fixed.on_grid(skip_step(max(matched, 0.0) / len(al.path))))
     ends = Ends(pass1.body, pass1.hand, min(first.skip, typical))
     if shared is not None:
         probe = None
@@ -1025,7 +1030,7 @@ def align_passes(
             is_open,
             unmatched_limits(n, m, features.fps, max_unmatched_s) if is_open else None,
             ends1,
-            0.5 * cr.chance if is_open else 0.0,
+            float(fixed.on_grid(0.5 * cr.chance)) if is_open else 0.0,
             _solve,
             metric1,
             previous=getattr(previous.pass1, "coarse", None) if same else None,
