@@ -1552,10 +1552,8 @@ def test_the_status_of_a_page_whose_first_pair_is_opening_says_so(cfg):
 def test_a_link_that_did_not_open_is_said_at_the_top_with_its_files_escaped(session):
     """The page's top notice (stranger 8, 9): the reason, the files a link of uploads names
     (what to ask its sender for) and the link as sent, all escaped; Close hides it."""
-    from webapp import safe_text
+    from webapp import app, safe_text
     from webapp.views.link_notice import link_notice
-
-    from webapp import app
 
     args = {
         "body": "ab" * 32,
