@@ -1456,7 +1456,7 @@ class Session(param.Parameterized):
         worker thread); ``takes``: as for :meth:`apply_spec`."""
         t0 = time.perf_counter()
         side = self._side_for(spec)
-        if side not in ("right", "left"):
+        if side not in session_io.LINK_SIDES:
             raise session_io.SessionError(None, "side", "the app aligns one side: right or left")
         for k, take in (("body", spec.body), ("hand", spec.hand)):
             if take is not None and not take.sha256:

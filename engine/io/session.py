@@ -67,7 +67,7 @@ VERSION = 2
 #: what the points' hand frames count, per file version
 HAND_FRAMES = {1: "grid", 2: "file"}
 SIDES = ("right", "left", "both")
-#: the sides a link may name: the app aligns one side (its Side control's values)
+#: the sides the app aligns (its Side control's values), so the sides a link may name
 LINK_SIDES = ("right", "left")
 MATRIX_VIEWS = ("pass1", "pass2", "cumulative1", "cumulative2")
 #: the preview's cameras (engine.render.scene's; ``hands``: every panel close up on the hands,
