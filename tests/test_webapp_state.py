@@ -1589,6 +1589,7 @@ def test_a_link_of_uploads_opens_on_a_server_started_on_the_same_files(cfg, tmp_
     showed the pair without the link's points. The server's files with the link's bytes
     open it (``uploads.file_for``): points, tolerance and view, no notice, nothing copied."""
     from webapp import app
+    from webapp.views.inputs import InputsView
     from webapp.views.link_notice import link_notice
 
     s, body, hand = demo_pair_uploaded(cfg)
@@ -1606,9 +1607,13 @@ def test_a_link_of_uploads_opens_on_a_server_started_on_the_same_files(cfg, tmp_
         sample_dir=cfg.sample_dir, upload_dir=empty, default_sample=local.name, local=local
     )
     other = Session(served)
-    box = link_notice(other, link)
+    box, inputs = link_notice(other, link), InputsView(other)
     app._initial_state(other, dict(link))
     assert other.error == "" and other.link_notice == "" and not box.visible
+    # said as what they are: not "kept on this server from an earlier upload"
+    assert "this server's own files with these contents, opened from disk" in (
+        inputs.uploaded.object
+    )
     assert (other.sample, other.body_sha256, other.hand_sha256) == (None, body, hand)
     assert other.take_paths() == (local.body, local.hand)
     assert other.points == s.points and other.points[0].tolerance == 2
