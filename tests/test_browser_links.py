@@ -174,6 +174,15 @@ def test_a_link_of_an_uploaded_pair_keeps_the_file_names(served, tmp_path):
     try:
         notice = page.locator(".hs-link-notice")
         wait_pane_text(notice, "no such file", "hello world.bvh (hand)", "uploading them applies")
+        # the missing hand is named by its own hash (stranger 12: only the body's was), and
+        # the sender's link stays in the address bar while it waits (a reload lost it)
+        assert f"upload {sha['hand'][:12]}" in pane_text(notice)
+        box, deadline = page.locator(".hs-share-url input"), time.monotonic() + BUSY_S
+        while "sample=" not in box.input_value():  # the demo's own link is made ...
+            assert time.monotonic() < deadline, box.input_value()
+            page.wait_for_timeout(200)
+        page.wait_for_timeout(500)
+        assert sha["hand"] in page.url and "sample=" not in page.url  # ... not put there
         for which, data, name in files:
             page.locator(f".hs-upload-{which} input[type=file]").set_input_files(
                 {"name": name, "mimeType": "application/octet-stream", "buffer": data}

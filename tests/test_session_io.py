@@ -365,9 +365,10 @@ def test_a_links_bad_point_leaves_out_only_itself_and_a_typo_key_is_said():
     assert [str(p) for p in problems] == [
         "URL: matching point 2 (body 124): expected a whole hand frame number >= 0, got 'abc'"
     ]
-    # the kept points still keep the order rules: out of order, none is kept and it is said
+    # the kept points still keep the order rules: one out of order is left out alone
     spec, problems = read_query({"sample": "demo", "pts": "59:95,x:1,40:20"})
-    assert spec.points == () and len(problems) == 2 and "after" in str(problems[1])
+    assert spec.points == (MatchPoint(59, 95),) and len(problems) == 2
+    assert "matching point 3 (body 40, hand 20): body frame 40 is not after" in str(problems[1])
     spec, problems = read_query({"sample": "demo", "camra": "hands", "frame": "50"})
     assert spec.sample == "demo" and spec.view == {"frame": 50}
     assert len(problems) == 1 and str(problems[0]).startswith(
@@ -388,6 +389,35 @@ def test_a_links_bad_point_leaves_out_only_itself_and_a_typo_key_is_said():
     query = to_query(full)
     assert {"bname", "hname", "unmatched", "frames", "pick", "trails"} <= set(query)
     assert read_query(query)[1] == ()
+
+
+def test_a_links_point_out_of_order_leaves_out_only_itself():
+    """Stranger 12: ``pts=649:1149,429:1799`` said point 2 was left out and dropped point 1
+    too; each point is checked against the last one kept and named by its own number."""
+    spec, problems = read_query({"sample": "demo", "pts": "649:1149,429:1799"})
+    assert spec.points == (MatchPoint(649, 1149),)
+    assert [str(p) for p in problems] == [
+        "URL: matching point 2 (body 429, hand 1799): body frame 429 is not after matching "
+        "point 1's body frame 649; body frames must increase from one point to the next"
+    ]
+    spec, problems = read_query({"sample": "demo", "pts": "1:1,5:5,3:3,7:7:2"})
+    assert spec.points == (MatchPoint(1, 1), MatchPoint(5, 5), MatchPoint(7, 7, 2.0))
+    assert [p.field for p in problems] == ["points[2]"]
+    assert "matching point 2's body frame 5" in str(problems[0])
+    assert to_query(spec)["pts"] == "1:1,5:5,7:7:2"
+
+
+@pytest.mark.parametrize("bad", ["middle", "both"])
+def test_a_links_bad_side_is_left_out_for_the_app_to_choose(bad):
+    """Stranger 12: ``side=middle`` became right, and its message offered "both", which the
+    page's Side control cannot show. Left out (like a missing side): the spec's side is
+    None, the app's to choose (``Session._side_for``); a link without one names none."""
+    spec, problems = read_query({"sample": "demo", "side": bad, "frame": "3"})
+    assert spec.side is None and spec.view == {"frame": 3} and spec.sample == "demo"
+    assert [str(p) for p in problems] == [f'URL: side: expected right or left, got "{bad}"']
+    assert "side" not in to_query(spec) and "side" not in to_dict(spec)
+    assert read_query({"sample": "demo"})[0].side is None
+    assert read_query({"sample": "demo", "side": "left"})[0].side == "left"
 
 
 def test_a_truncated_file_says_where_it_ends_in_a_whole_sentence():

@@ -1560,16 +1560,23 @@ def test_the_status_of_a_page_whose_first_pair_is_opening_says_so(cfg):
 def test_a_link_that_did_not_open_is_said_at_the_top_with_its_files_escaped(session):
     """The page's top notice (stranger 8, 9): the reason, the files a link of uploads names
     (what to ask its sender for) and the link as sent, all escaped; Close hides it."""
-    from webapp import safe_text
+    from webapp import app, safe_text
     from webapp.views.link_notice import link_notice
 
-    args = {"body": "ab" * 32, "bname": "<b>their</b>_body.bvh", "hname": "hand.bvh"}
+    args = {
+        "body": "ab" * 32,
+        "bname": "<b>their</b>_body.bvh",
+        "hand": "cd" * 32,
+        "hname": "hand.bvh",
+    }
     box = link_notice(session, args)
     assert not box.visible
     try:
-        session.link_not_opened(
-            "URL: body: no uploaded take abab… (the pair below is not the link's)"
-        )
+        app._initial_state(session, dict(args))  # not on this server: the link waits
+        assert session.link_waiting
+        # each missing take is named (stranger 12: only the body was)
+        assert "upload ababababab" in session.link_notice
+        assert "upload cdcdcdcdcd" in session.link_notice
         alert, close = box.objects
         assert box.visible and "did not open as it was sent" in alert.object
         named = safe_text.markdown("<b>their</b>_body.bvh (body), hand.bvh (hand)")
@@ -1582,6 +1589,84 @@ def test_a_link_that_did_not_open_is_said_at_the_top_with_its_files_escaped(sess
         assert not box.visible
     finally:
         session.link_notice = ""
+
+
+def test_a_link_of_uploads_opens_on_a_server_started_on_the_same_files(cfg, tmp_path):
+    """Stranger 12: a link (or session file) of an uploaded pair, opened on a server started
+    with ``serve BODY HAND`` on the very same files, said "no such file on this server" and
+    showed the pair without the link's points. The server's files with the link's bytes
+    open it (``uploads.file_for``): points, tolerance and view, no notice, nothing copied."""
+    from webapp import app
+    from webapp.views.inputs import InputsView
+    from webapp.views.link_notice import link_notice
+
+    s, body, hand = demo_pair_uploaded(cfg)
+    s.add_point(40, 20, 2)
+    s.tolerance = 1
+    s.matrix, s.frame = "pass2", 40
+    link = dict(parse_qsl(urlsplit(s.share_url("/")).query))
+    pair = cfg.sample(DEMO)
+    disk, empty = tmp_path / "disk", tmp_path / "uploads"
+    disk.mkdir(), empty.mkdir()
+    (disk / "my body.bvh").write_bytes(pair.body.read_bytes())
+    (disk / "my hand.bvh").write_bytes(pair.hand.read_bytes())
+    local = config.local_pair(disk / "my body.bvh", disk / "my hand.bvh", "right")
+    served = config.AppConfig(
+        sample_dir=cfg.sample_dir, upload_dir=empty, default_sample=local.name, local=local
+    )
+    other = Session(served)
+    box, inputs = link_notice(other, link), InputsView(other)
+    app._initial_state(other, dict(link))
+    assert other.error == "" and other.link_notice == "" and not box.visible
+    # said as what they are: not "kept on this server from an earlier upload"
+    assert "this server's own files with these contents, opened from disk" in (
+        inputs.uploaded.object
+    )
+    assert (other.sample, other.body_sha256, other.hand_sha256) == (None, body, hand)
+    assert other.take_paths() == (local.body, local.hand)
+    assert other.points == s.points and other.points[0].tolerance == 2
+    assert (other.tolerance, other.matrix, other.frame) == (1, "pass2", 40)
+    assert not other.link_waiting
+    assert other.solution.pass1.cost == pytest.approx(s.solution.pass1.cost)
+    # the session file the same (Open a session file)
+    from_file = Session(served)
+    from_file.from_json(s.to_json(), "handsplice-session.json")
+    assert from_file.error == "" and from_file.points == s.points
+    assert list(empty.iterdir()) == []  # read where it is: nothing uploaded
+    # bytes no file here has: each missing take named, as before
+    with pytest.raises(uploads.UploadError) as missing:
+        uploads.files_for(served, (("0" * 64, "x.bvh"), (hand, None), ("1" * 64, None)))
+    assert str(missing.value).startswith(
+        "upload 000000000000... (x.bvh) and upload 111111111111...: no such file on this server"
+    )
+
+
+def test_a_links_bad_side_takes_the_side_the_hand_files_name_says(cfg, tmp_path):
+    """Stranger 12: ``side=middle`` in a link of a ``...leftHand`` take fell back to right;
+    left out, the side is the one an upload of that hand takes (its name's). Both takes are
+    open here, so the notice does not tell the colleague to ask for them and upload them."""
+    from conftest import cropped_bvh
+
+    from webapp.views.link_notice import link_notice
+
+    take = cropped_bvh(cfg.sample("beat-self").body, tmp_path / "wayne.bvh", 120).read_bytes()
+    digest, _ = uploads.store(cfg, "wayne.bvh", take)
+    link = {
+        "body": digest,
+        "bname": "wayne.bvh",
+        "hand": digest,
+        "hname": "wayne_leftHand.bvh",
+        "side": "middle",
+        "frame": "5",
+    }
+    s = Session(cfg)
+    s.load_sample(DEMO)
+    box = link_notice(s, link)
+    s.open_link(link)
+    assert (s.body_sha256, s.side, s.frame) == (digest, "left", 5)
+    assert s.error == 'shared link: URL: side: expected right or left, got "middle"'
+    alert = box.objects[0].object
+    assert box.visible and "middle" in alert and "Ask its sender" not in alert
 
 
 def test_a_link_waiting_for_its_uploads_opens_once_they_are_uploaded(cfg, tmp_path):
@@ -1619,6 +1704,7 @@ def test_a_link_waiting_for_its_uploads_opens_once_they_are_uploaded(cfg, tmp_pa
     box = link_notice(s, link)
     app._initial_state(s, dict(link))
     assert s.sample == DEMO and s.points == () and "no such file" in s.link_notice
+    assert "(their-hand.bvh)" in s.link_notice and s.link_waiting  # named as sent
     alert = box.objects[0]
     assert box.visible and "uploading them applies the link" in alert.object
     assert "open the link again" not in alert.object

@@ -32,6 +32,7 @@ from engine.base.errors import HandSpliceError, SideError
 from engine.dtw import constraints as C
 from engine.io import session as session_io
 from engine.io.session import MatchPoint, SessionSpec, TakeRef
+from engine.model.roles import side_from_name
 from webapp import backend, config, edit_words
 from webapp.matrix_frames import view_frame
 from webapp.solves import Job, SolveRunner
@@ -377,9 +378,9 @@ class Session(param.Parameterized):
         if self.body_sha256 and self.hand_sha256:
             from webapp import uploads
 
-            return (
-                uploads.path_for(self._cfg, self.body_sha256),
-                uploads.path_for(self._cfg, self.hand_sha256),
+            return uploads.files_for(
+                self._cfg,
+                ((self.body_sha256, self.body_name), (self.hand_sha256, self.hand_name)),
             )
         return None
 
@@ -438,6 +439,12 @@ class Session(param.Parameterized):
             **({"side": side} if side else {}),
         )
 
+    @property
+    def link_waiting(self) -> bool:
+        """Whether a shared link waits for its takes (:meth:`_keep_waiting_link`); the
+        page's address bar then keeps that link, so a reload does not lose it."""
+        return self._link_waits is not None
+
     def link_waits_for(self, body_sha256: str | None, hand_sha256: str | None) -> bool:
         """Whether uploading these takes opens the shared link that waits for them."""
         if self._link_waits is None:
@@ -457,12 +464,10 @@ class Session(param.Parameterized):
             return
         from webapp import uploads
 
-        for take in (spec.body, spec.hand):
-            try:
-                uploads.path_for(self._cfg, take.sha256)
-            except uploads.UploadError:
-                self._link_waits = (spec, left_out)
-                return
+        try:
+            uploads.files_for(self._cfg, ((t.sha256, t.name) for t in (spec.body, spec.hand)))
+        except uploads.UploadError:
+            self._link_waits = (spec, left_out)
 
     def _open_waiting_link(self, body_name, hand_name, then, side, takes) -> None:
         """The takes a waiting link names were uploaded: open the link on them, as a link
@@ -1426,13 +1431,26 @@ class Session(param.Parameterized):
             return spec
         return replace(spec, sample=self._cfg.default_sample)
 
+    def _side_for(self, spec: SessionSpec) -> str:
+        """The side ``spec`` aligns: its own, else (a link whose ``side`` was bad or absent)
+        the side the page chooses without one: a sample pair's own, an uploaded hand's from
+        its file name (as an upload through the page does, ``views.inputs``), else the
+        side in force (stranger 12: ``side=middle`` put a leftHand take on the right)."""
+        if spec.side is not None:
+            return spec.side
+        if spec.sample is not None:
+            return self._cfg.sample(spec.sample).side
+        named = side_from_name(spec.hand.name) if spec.hand and spec.hand.name else None
+        return named or self.side
+
     def _stage(
         self, spec: SessionSpec, progress=None, keep_takes: bool = False, takes=None
     ) -> dict:
         """Everything ``spec`` needs, computed without touching the session (safe on a
         worker thread); ``takes``: as for :meth:`apply_spec`."""
         t0 = time.perf_counter()
-        if spec.side not in ("right", "left"):
+        side = self._side_for(spec)
+        if side not in session_io.LINK_SIDES:
             raise session_io.SessionError(None, "side", "the app aligns one side: right or left")
         for k, take in (("body", spec.body), ("hand", spec.hand)):
             if take is not None and not take.sha256:
@@ -1462,9 +1480,8 @@ class Session(param.Parameterized):
                 body_name=spec.body.name or "",
                 hand_name=spec.hand.name or "",
             )
-            paths = (
-                uploads.path_for(self._cfg, spec.body.sha256),
-                uploads.path_for(self._cfg, spec.hand.sha256),
+            paths = uploads.files_for(
+                self._cfg, ((t.sha256, t.name) for t in (spec.body, spec.hand))
             )
         else:  # parameters only: applied to the takes already open (see _takes_for)
             inputs = self._current(
@@ -1479,7 +1496,7 @@ class Session(param.Parameterized):
                     "server has no default pair)",
                 )
         roles = dict(spec.roles)
-        prepared = backend.prepare(paths[0], paths[1], spec.side, roles, takes=takes)
+        prepared = backend.prepare(paths[0], paths[1], side, roles, takes=takes)
         points = tuple(spec.points)  # checked by engine.dtw.constraints when the spec was made
         if spec.hand_frames == "grid":  # an old file or link: hand frames on the grid
             points = C.sort_points(
@@ -1539,7 +1556,7 @@ class Session(param.Parameterized):
             )
         values = dict(
             inputs,
-            side=spec.side,
+            side=side,
             roles=roles,
             **widths,
             tolerance=spec.tolerance,

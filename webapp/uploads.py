@@ -140,6 +140,66 @@ def path_for(cfg: AppConfig, digest: str) -> Path:
     )
 
 
+def file_for(cfg: AppConfig, digest: str) -> Path:
+    """The file on this server whose bytes have the SHA-256 ``digest``: the upload kept
+    under that hash (:func:`path_for`), else the file of ``handsplice serve BODY HAND``
+    (``cfg.local``) with those bytes. The one rule by which a link or session file that
+    names takes by content finds them (stranger 12: a link of an upload did not open on a
+    server started on the very same files); only the hash is taken from the link, never a
+    path, and only the files the server was given are read. UploadError as
+    :func:`path_for`'s when no file has those bytes."""
+    try:
+        return path_for(cfg, digest)
+    except UploadError:
+        local = cfg.local
+        for path in (local.body, local.hand) if local is not None else ():
+            if _content_sha256(path) == digest:
+                return path
+        raise
+
+
+def files_for(cfg: AppConfig, takes) -> tuple[Path, ...]:
+    """:func:`file_for` of each ``(digest, name)`` in ``takes`` (``name``: the person's
+    file name, or None); one UploadError naming every take that is not on this server
+    (stranger 12: only the body was named when both were missing)."""
+    paths, missing = [], []
+    for digest, name in takes:
+        try:
+            paths.append(file_for(cfg, digest))
+        except UploadError:
+            if not isinstance(digest, str) or not _HEX64.match(digest):
+                raise
+            missing.append(f"upload {digest[:12]}..." + (f" ({name})" if name else ""))
+    if missing:
+        raise UploadError(
+            f"{' and '.join(missing)}: no such file on this server (uploads are kept per "
+            f"server; upload the {'takes' if len(missing) > 1 else 'take'} again)"
+        )
+    return tuple(paths)
+
+
+def is_kept(cfg: AppConfig, path: Path) -> bool:
+    """Whether ``path`` (from :func:`file_for`) is an upload kept in the upload folder
+    (not a file the server was started on)."""
+    return Path(path).parent == cfg.upload_dir
+
+
+#: content hashes of the server's own files by (path, size, modification time)
+_LOCAL_HASHES: dict[tuple, str] = {}
+
+
+def _content_sha256(path: Path) -> str | None:
+    """``path``'s SHA-256, read once per size and modification time; None if unreadable."""
+    try:
+        st = os.stat(path)
+        key = (str(path), st.st_size, st.st_mtime_ns)
+        if key not in _LOCAL_HASHES:
+            _LOCAL_HASHES[key] = _file_sha256(path)
+        return _LOCAL_HASHES[key]
+    except OSError:
+        return None
+
+
 def _mark_used(path: Path) -> None:
     """Set ``path``'s access time to now, the time the quota orders by (:func:`_last_used`).
     Its modification time stays: the server's cache of opened pairs knows a file by it

@@ -708,15 +708,36 @@ def parse_points(items, field: str = "points") -> tuple[MatchPoint, ...]:
     return points
 
 
-def _order_reason(k: int, x, y, px, py) -> str | None:
-    """Why point ``k`` at ``(x, y)`` cannot follow point ``k - 1`` at ``(px, py)`` (the
-    order rules every front shares), or None."""
-    before = point_label(k - 1)
+def ordered_points(indexed, field: str = "points"):
+    """``(kept, refusals)``: of ``indexed``, ``(index, MatchPoint)`` pairs in the user's
+    order (``index`` 0-based in their list), the points kept in order and the refusal of
+    each point left out because it cannot follow the last one kept (:func:`parse_points`'
+    order rules and words). A front that leaves a bad point out alone (a link) uses it:
+    one point out of order loses only itself (stranger 12: ``pts=649:1149,429:1799``
+    said point 2 was left out and dropped point 1 too)."""
+    kept: list[tuple[int, MatchPoint]] = []
+    refusals: list[ConstraintError] = []
+    for k, p in indexed:
+        if kept:
+            j, a = kept[-1]
+            reason = _order_reason(k, p.body, p.hand, a.body, a.hand, prev=j)
+            if reason is not None:
+                refusals.append(_point_refusal(k, (p.body, p.hand), reason, p, (a,), field))
+                continue
+        kept.append((k, p))
+    return tuple(p for _, p in kept), tuple(refusals)
+
+
+def _order_reason(k: int, x, y, px, py, prev: int | None = None) -> str | None:
+    """Why point ``k`` at ``(x, y)`` cannot follow point ``prev`` (0-based; default
+    ``k - 1``) at ``(px, py)`` (the order rules every front shares), or None."""
+    j = k - 1 if prev is None else prev
+    before = point_label(j)
     if x == px and y == py:
-        return f"the same frames as {point_label(k - 1, px, py)}; give each point once"
+        return f"the same frames as {point_label(j, px, py)}; give each point once"
     if x == px:
         return (
-            f"on the same body frame as {point_label(k - 1, px, py)}; expected one point per "
+            f"on the same body frame as {point_label(j, px, py)}; expected one point per "
             "body frame (a larger tolerance covers a range of hand frames)"
         )
     if x < px:

@@ -52,7 +52,7 @@ from __future__ import annotations
 import difflib
 import json
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -67,6 +67,8 @@ VERSION = 2
 #: what the points' hand frames count, per file version
 HAND_FRAMES = {1: "grid", 2: "file"}
 SIDES = ("right", "left", "both")
+#: the sides the app aligns (its Side control's values), so the sides a link may name
+LINK_SIDES = ("right", "left")
 MATRIX_VIEWS = ("pass1", "pass2", "cumulative1", "cumulative2")
 #: the preview's cameras (engine.render.scene's; ``hands``: every panel close up on the hands,
 #: as ``handsplice render --camera hands``); the app's GIF/MP4 use the preview's camera
@@ -127,7 +129,8 @@ class SessionSpec:
     sample: str | None = None
     body: TakeRef | None = None
     hand: TakeRef | None = None
-    side: str = "right"
+    #: None (a link with a bad or no ``side``): the side the app chooses for the takes
+    side: str | None = "right"
     band: Width | None = None
     refine_band: Width | None = None
     tolerance: float = 0.0
@@ -170,7 +173,7 @@ def to_dict(spec: SessionSpec) -> dict:
         "format": FORMAT,
         "version": 1 if spec.hand_frames == "grid" else VERSION,
         "inputs": inputs,
-        "side": spec.side,
+        **({"side": spec.side} if spec.side is not None else {}),
         "tolerance": _num_out(spec.tolerance),
         "points": [
             {
@@ -493,7 +496,8 @@ def to_query(spec: SessionSpec) -> dict[str, str]:
                 q[key] = take.sha256
                 if take.name:
                     q[QUERY_NAMES[key]] = take.name
-    q["side"] = spec.side
+    if spec.side is not None:
+        q["side"] = spec.side
     if spec.band is not None:
         q["band"] = spec.band.text()
     if spec.refine_band is not None:
@@ -605,8 +609,17 @@ def read_query(query: dict[str, str]) -> tuple[SessionSpec, tuple[SessionError, 
             inputs[key] = take
         if inputs:
             data["inputs"] = inputs
-    if "side" in q and checked({"side": q["side"]}):
-        data["side"] = q["side"]
+    if "side" in q:  # a side the app cannot align is left out: the app then chooses
+        if q["side"] in LINK_SIDES:
+            data["side"] = q["side"]
+        else:
+            problems.append(
+                SessionError(
+                    source,
+                    "side",
+                    f"expected {' or '.join(LINK_SIDES)}, got {_show(q['side'])}",
+                )
+            )
     for key, rule in (("band", C.BAND), ("refine", C.REFINE_BAND)):  # every front's parsers
         if key in q:
             width = constraint(key, lambda rule=rule, key=key: rule.parse(str(q[key])))
@@ -624,13 +637,15 @@ def read_query(query: dict[str, str]) -> tuple[SessionSpec, tuple[SessionError, 
         items = C.split_points_text(str(q["pts"]))
         if len(items) > C.MAX_POINTS:  # refused whole, as every front does
             points = constraint("pts", lambda: C.parse_points(items))
-        else:  # each point alone: a bad one is left out by itself, then the order is checked
+        else:  # each point alone: a bad one is left out by itself, then one out of order
             read = (
-                constraint("pts", lambda k=k, p=p: C.parse_point(p, k)) for k, p in enumerate(items)
+                (k, constraint("pts", lambda k=k, p=p: C.parse_point(p, k)))
+                for k, p in enumerate(items)
             )
-            good = [p for p in read if p is not None]
-            points = constraint("pts", lambda: C.parse_points(good)) if good else None
-        if points is not None:
+            points, disorder = C.ordered_points((k, p) for k, p in read if p is not None)
+            for exc in disorder:  # each refused alone, in the user's numbering
+                problems.append(SessionError(source, exc.field, exc.detail, exc.named("pts")))
+        if points:
             data["points"] = [[p.body, p.hand, p.tolerance] for p in points]
     if q.get("roles"):
         try:
@@ -665,7 +680,10 @@ def read_query(query: dict[str, str]) -> tuple[SessionSpec, tuple[SessionError, 
                     f"not a link parameter ({hint}known: {', '.join(QUERY_KEYS)})",
                 )
             )
-    return from_dict(data, source), tuple(problems)
+    spec = from_dict(data, source)
+    if "side" not in data:  # none given, or a bad one: the app's choice (Session._side_for)
+        spec = replace(spec, side=None)
+    return spec, tuple(problems)
 
 
 #: a link's on/off values (anything else reaches from_dict as text, which refuses it)

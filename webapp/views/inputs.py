@@ -250,10 +250,21 @@ class InputsView:
             f"{which}: <b>{safe_text.html(name or f'{which} take (name unknown)')}</b>"
             for which, name in (("body", s.body_name), ("hand", s.hand_name))
         ]
+        try:
+            paths = s.take_paths()
+        except uploads.UploadError:
+            paths = ()
+        # the files of ``serve BODY HAND`` with the link's bytes (uploads.file_for)
+        own = any(not uploads.is_kept(s.config, p) for p in paths)
         self.uploaded.object = (
             "<span class='hs-uploaded hs-kept-pair'>Open: "
             + ", ".join(parts)
-            + " (kept on this server from an earlier upload).</span>"
+            + (
+                " (this server's own files with these contents, opened from disk)."
+                if own
+                else " (kept on this server from an earlier upload)."
+            )
+            + "</span>"
         )
 
     def _show_note(self, *_):

@@ -27,10 +27,15 @@ def link_notice(session: Session, args: dict[str, str]) -> pn.viewable.Viewable:
 
     def update(*_):
         text = session.link_notice
-        # once the link's own takes are open (uploaded: Session.load_uploads opened the
-        # link on them), what is left to say is only what of it was left out
+        # what to ask the sender for only while the link waits for takes this server
+        # lacks (stranger 12: said with both files open here); once they are open, what
+        # is left to say is only what of it was left out
         link_takes = tuple(str(args.get(k, "")).lower() for k in ("body", "hand"))
-        wanted = named and (session.body_sha256, session.hand_sha256) != link_takes
+        wanted = (
+            named
+            and session.link_waits_for(*link_takes)
+            and (session.body_sha256, session.hand_sha256) != link_takes
+        )
         if text:
             alert.object = (
                 "**This page's link did not open as it was sent:** "

@@ -429,7 +429,9 @@ class SharingView:
         query = self.session.share_url()
         self.link.value = self._base_url() + query
         loc = pn.state.location
-        if loc is not None and loc.search != query:
+        # a shared link waiting for its takes stays in the address bar (stranger 12: a
+        # reload lost it): the address follows the page again once the link opened
+        if loc is not None and loc.search != query and not self.session.link_waiting:
             loc.param.update(search=query)
         s = self.session
         if s.prepared is not None:
