@@ -24,6 +24,8 @@ from pathlib import Path
 
 import panel as pn
 
+from engine.model.hand_side import unnamed_side_warning
+from engine.model.motion import Motion
 from engine.model.roles import side_from_name, side_name_conflict
 from webapp import backend, safe_text, uploads
 from webapp.backend import one_line
@@ -110,6 +112,8 @@ class InputsView:
         self._opening = False
         #: what the last opening did with the side (followed the hand file's name)
         self._side_note = ""
+        #: the last opening's hand take had no side in its names: the engine's warning
+        self._side_guess = ""
         #: the last opening opened the shared link that waited for these uploads
         self._link_applied = False
         self._droppers = {"body": self.body_file, "hand": self.hand_file}
@@ -394,7 +398,7 @@ class InputsView:
         """The Side changed on the open uploaded pair: the line says whether it now
         contradicts the hand file's name."""
         if self._open and self._pending == self._open and self._open_is_shown():
-            self._side_note = ""
+            self._side_note = self._side_guess = ""  # the side is the one chosen now
             self._show_uploaded(opened=True)
         self._show_local_side()
 
@@ -416,6 +420,8 @@ class InputsView:
         warning = side_warning(hand.name, self.session.side) if hand else ""
         if warning:
             return f"; {warning}"
+        if self._side_guess:  # no side in the hand's names: never silent
+            return f"; <span class='hs-side-warning'>⚠ {safe_text.html(self._side_guess)}</span>"
         if self._side_note:
             return f"; <span class='hs-side-from-name'>{safe_text.html(self._side_note)}</span>"
         return ""
@@ -454,6 +460,7 @@ class InputsView:
         self._side_note = (
             f"side {side}, as the hand file's name says" if named and named != s.side else ""
         )
+        self._side_guess = _unnamed_side(hand, side) if not named else ""
         self._link_applied = False
         self.uploaded.object += OPENING
         # the session holds the takes from now on (the engine's cache once they are open):
@@ -612,6 +619,15 @@ def side_warning(hand_name: str, side: str) -> str:
     wording for an uploaded pair and for a pair opened from disk."""
     conflict = side_name_conflict(hand_name, side) if hand_name else None
     return f"<span class='hs-side-warning'>⚠ {safe_text.html(conflict)}</span>" if conflict else ""
+
+
+def _unnamed_side(hand: uploads.Kept, side: str) -> str:
+    """The engine's warning (plain text) when the uploaded hand take's file name and joint
+    names carry no side and it opens as ``side`` (the rule:
+    ``engine.model.hand_side.unnamed_side_warning``), else ''."""
+    if not isinstance(hand.take, Motion):
+        return ""
+    return unnamed_side_warning(hand.name, hand.take, side, "choose Side {side}") or ""
 
 
 def _own_notes(kept: uploads.Kept) -> list[str]:
