@@ -450,6 +450,7 @@ class InputsView:
         if (s.body_sha256, s.hand_sha256) == (body.digest, hand.digest) and not s.sample:
             # the same content again, maybe under another name: the newest name is used
             s.rename_takes(body.name, hand.name)
+            self._side_guess = "" if side_from_name(hand.name) else _unnamed_side(hand, s.side)
             self._open = dict(self._pending)
             self._show_uploaded(opened=True)
             return
