@@ -79,3 +79,15 @@ def test_cli_says_the_side_it_guessed_and_the_flag(tmp_path, capsys, monkeypatch
     # a side given is the user's: no warning
     main(["splice", str(BODY), str(hand), "-o", str(tmp_path / "o.bvh"), "--quiet", "--side", side])
     assert "handsplice: warning" not in capsys.readouterr().err
+
+
+def test_batch_notes_carry_the_warning_unless_the_manifest_gives_the_side(tmp_path):
+    from engine.jobs.batch import PairJob, side_notes
+
+    hand = tmp_path / "mug1.bvh"
+    shutil.copyfile(MOCAP / "manipnet" / "mug1_leftHand.bvh", hand)
+    take = read_bvh(hand)
+    job = PairJob(line=2, name="p", body=str(BODY), hand=str(hand), side="auto")
+    (note,) = side_notes(job, take)
+    assert note.startswith("mug1.bvh: ") and note.endswith("set its side column to left")
+    assert side_notes(PairJob(2, "p", str(BODY), str(hand), "left"), take) == ()

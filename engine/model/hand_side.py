@@ -17,7 +17,12 @@ hand that never flexes, no thumb and no flexion) is undecided.
 
 Captures exported from left-handed engines (Unity: ManipNet's ``mug1_rightHand.bvh``)
 read as the *other* hand in BVH's right-handed axes; :func:`mirror_take` turns such a
-take into the hand it was (reflection across the file's ``x = 0`` plane).
+take into the hand it was (reflection across the file's ``x = 0`` plane). ManipNet's own
+viewer (``Data/SimpleVisualizer``) applies the files' offsets and ``AngleAxis`` rotations
+as they are in Unity's left-handed axes. Nothing inside a hand take tells its axes'
+handedness (a mirrored left hand is a right hand in every measure), so a side that only
+the geometry gives is always said, with how to give the other one
+(:func:`unnamed_side_warning`).
 """
 
 from __future__ import annotations

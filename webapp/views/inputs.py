@@ -450,7 +450,7 @@ class InputsView:
         if (s.body_sha256, s.hand_sha256) == (body.digest, hand.digest) and not s.sample:
             # the same content again, maybe under another name: the newest name is used
             s.rename_takes(body.name, hand.name)
-            self._side_guess = "" if side_from_name(hand.name) else _unnamed_side(hand, s.side)
+            self._side_guess = _unnamed_side(hand.name, hand.take, s.side)
             self._open = dict(self._pending)
             self._show_uploaded(opened=True)
             return
@@ -461,7 +461,9 @@ class InputsView:
         self._side_note = (
             f"side {side}, as the hand file's name says" if named and named != s.side else ""
         )
-        self._side_guess = _unnamed_side(hand, side) if not named else ""
+        self._side_guess = ""
+        # a hand take whose name says no side: warned about once open, as the side then in force
+        unnamed = hand.take if not named else None
         self._link_applied = False
         self.uploaded.object += OPENING
         # the session holds the takes from now on (the engine's cache once they are open):
@@ -498,6 +500,7 @@ class InputsView:
             self._open = dict(self._pending)
             if s.link_applied:  # the shared link that waited for them: its side is used
                 self._link_applied, self._side_note = True, ""
+            self._side_guess = _unnamed_side(hand.name, unnamed, s.side)
             self._show_uploaded(opened=True)
 
     def _mark_unusable(self, reason: str, body_name: str, hand_name: str) -> None:
@@ -622,13 +625,13 @@ def side_warning(hand_name: str, side: str) -> str:
     return f"<span class='hs-side-warning'>⚠ {safe_text.html(conflict)}</span>" if conflict else ""
 
 
-def _unnamed_side(hand: uploads.Kept, side: str) -> str:
-    """The engine's warning (plain text) when the uploaded hand take's file name and joint
-    names carry no side and it opens as ``side`` (the rule:
-    ``engine.model.hand_side.unnamed_side_warning``), else ''."""
-    if not isinstance(hand.take, Motion):
+def _unnamed_side(hand_name: str, take, side: str) -> str:
+    """The engine's warning (plain text) when an uploaded hand take (``take``, Motion; None
+    or markers: '') whose file name and joint names carry no side opens as ``side`` (the
+    rule: ``engine.model.hand_side.unnamed_side_warning``), else ''."""
+    if not isinstance(take, Motion):
         return ""
-    return unnamed_side_warning(hand.name, hand.take, side, "choose Side {side}") or ""
+    return unnamed_side_warning(hand_name, take, side, "choose Side {side}") or ""
 
 
 def _own_notes(kept: uploads.Kept) -> list[str]:
