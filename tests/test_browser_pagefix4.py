@@ -106,6 +106,14 @@ def test_an_uploaded_hand_takes_the_side_its_file_name_says(page, tmp_path):
     text = _wait_line(page, r"the file name says left")
     assert "mug_leftHand.bvh: the file name says left" in text and "right hand" in text, text
     assert "--side right" in _cli(page, r"--side right")
+    # stranger 12 (F2): the same hand named without a side opens as the Side in force (right)
+    # with a warning, never silently: its geometry forms a left hand here (ManipNet's
+    # left-handed axes), so it is mirrored, and the line says how to take it as the left hand
+    _upload(page, "hand", cropped_bvh(MUG_HAND, tmp_path / "mug.bvh", 400))
+    text = _wait_line(page, r"mug\.bvh: its file name and joint names carry no side")
+    warned = text[text.index("⚠ mug.bvh") :]  # the warning's mark, as a contradicting name's
+    assert "spliced as the right hand (the side given), mirrored" in warned, text
+    assert "if it is the left hand, choose Side left" in warned, text
     assert not page.errors, page.errors
 
 

@@ -276,6 +276,13 @@ def run(args: argparse.Namespace) -> int:
     # retimed to it (engine.splice.retime), as the app's download of such a pair
     retimed = pipeline.marker_body(body)
     pipeline.require_skeletal(body, hand, marker_body_ok=True)
+    if args.side not in ("right", "left"):
+        from engine.cli import warn
+        from engine.model.hand_side import unnamed_side_warning
+
+        guessed = unnamed_side_warning(Path(args.hand).name, hand, None, "pass --side {side}")
+        if guessed:  # a side from the geometry alone: say it, with the flag that overrides it
+            warn(guessed)
     body_roles = hand_roles = None
     if args.roles:
         from engine.model.roles import read_roles_json

@@ -404,7 +404,7 @@ def _run_pair_here(
 
         body = load_take(job.body)
         hand = load_take(job.hand)
-        notes = reader_notes(body, hand)
+        notes = reader_notes(body, hand) + side_notes(job, hand)
         if notes:  # kept on a failed pair too: they may say why it failed
             record["notes"] = NOTE_SEPARATOR.join(notes)
         motion, report = (splice or splice_pair)(body, hand, job)
@@ -463,6 +463,19 @@ def _run_pair_here(
 
 #: between a pair's reader notes in its one summary cell
 NOTE_SEPARATOR = " | "
+
+
+def side_notes(job: PairJob, hand) -> tuple[str, ...]:
+    """The warning for a hand take whose names carry no side, spliced (side ``auto``) as
+    the hand its geometry forms (``engine.model.hand_side.unnamed_side_warning``, as
+    ``handsplice splice`` says it on stderr), carried as the reader notes are."""
+    from engine.model.hand_side import unnamed_side_warning
+    from engine.model.motion import Motion
+
+    if job.side in ("right", "left") or not isinstance(hand, Motion):
+        return ()
+    text = unnamed_side_warning(Path(job.hand).name, hand, None, "set its side column to {side}")
+    return (text,) if text else ()
 
 
 def reader_notes(*takes) -> tuple[str, ...]:

@@ -17,7 +17,12 @@ hand that never flexes, no thumb and no flexion) is undecided.
 
 Captures exported from left-handed engines (Unity: ManipNet's ``mug1_rightHand.bvh``)
 read as the *other* hand in BVH's right-handed axes; :func:`mirror_take` turns such a
-take into the hand it was (reflection across the file's ``x = 0`` plane).
+take into the hand it was (reflection across the file's ``x = 0`` plane). ManipNet's own
+viewer (``Data/SimpleVisualizer``) applies the files' offsets and ``AngleAxis`` rotations
+as they are in Unity's left-handed axes. Nothing inside a hand take tells its axes'
+handedness (a mirrored left hand is a right hand in every measure), so a side that only
+the geometry gives is always said, with how to give the other one
+(:func:`unnamed_side_warning`).
 """
 
 from __future__ import annotations
@@ -226,6 +231,61 @@ def undecided_message(take_name: str, take: Motion, roles) -> str | None:
         f"{take_name}: cannot tell which hand this is: its joint names and file name carry "
         f"no side and its geometry is ambiguous ({vote.reason}); give it with --side right "
         f"or --side left"
+    )
+
+
+#: why a side read from a hand's geometry alone may be the wrong one (every message says it)
+AXES_CAVEAT = (
+    "a take written in left-handed axes (a Unity export, as ManipNet's) forms the other hand"
+)
+
+
+def unnamed_side_warning(take_name: str, take: Motion, side: str | None, fix: str) -> str | None:
+    """The one-line warning for a hand take whose file name and joint names carry no side,
+    spliced as ``side`` (None: the side its geometry forms, as the CLI without ``--side``
+    does), else None.
+
+    The geometry (:func:`geometric_side`) tells which hand the fingers form *in the file's
+    axes*; whether the file's axes are right-handed, as BVH's are meant to be, nothing in
+    a hand take tells (a mirror image of a left hand is a right hand in every measure), and
+    real takes are not (ManipNet's files are read by its own Unity viewer in Unity's
+    left-handed axes: its ``mug1_rightHand`` forms a left hand here). So a side that no name
+    gives is never silent. ``fix`` words how to give the other side: ``"pass --side {side}"``
+    (``{side}`` is filled with the other side) or ``"choose Side {side}"``. Returns None
+    when the names give the side, when the take has no unsided fingers, and when ``side``
+    is None and the geometry is undecided (the caller refuses: :func:`undecided_message`).
+    """
+    from engine.model.roles import find_roles, side_from_name
+
+    if side_from_name(take_name) is not None:
+        return None
+    arm = find_roles(take.skeleton).unsided
+    if arm is None or not arm.has_fingers:
+        return None
+    vote = geometric_side(take, arm)
+    if side is None:
+        if vote.side is None:
+            return None
+        side = vote.side
+        how = f"spliced as the {side} hand, the hand its geometry forms in the file's axes"
+    elif vote.side is None:
+        how = f"spliced as the {side} hand (the side given); its geometry does not tell ({vote.reason})"
+    elif vote.side == side:
+        how = f"spliced as the {side} hand (the side given), the hand its geometry forms in the file's axes"
+    elif not _both_cues(vote):  # match_chirality mirrors on clear evidence only
+        how = (
+            f"spliced as the {side} hand (the side given); its geometry leans to a "
+            f"{vote.side} hand in the file's axes (one cue only: not mirrored)"
+        )
+    else:  # match_chirality mirrors it
+        how = (
+            f"spliced as the {side} hand (the side given), mirrored: its geometry forms a "
+            f"{vote.side} hand in the file's axes"
+        )
+    other = "left" if side == "right" else "right"
+    return (
+        f"{take_name}: its file name and joint names carry no side; {how}; "
+        f"{AXES_CAVEAT}: if it is the {other} hand, {fix.format(side=other)}"
     )
 
 

@@ -24,6 +24,8 @@ from pathlib import Path
 
 import panel as pn
 
+from engine.model.hand_side import unnamed_side_warning
+from engine.model.motion import Motion
 from engine.model.roles import side_from_name, side_name_conflict
 from webapp import backend, safe_text, uploads
 from webapp.backend import one_line
@@ -119,6 +121,8 @@ class InputsView:
         self._opening = False
         #: what the last opening did with the side (followed the hand file's name)
         self._side_note = ""
+        #: the last opening's hand take had no side in its names: the engine's warning
+        self._side_guess = ""
         #: the last opening opened the shared link that waited for these uploads
         self._link_applied = False
         self._droppers = {"body": self.body_file, "hand": self.hand_file}
@@ -419,7 +423,7 @@ class InputsView:
         """The Side changed on the open uploaded pair: the line says whether it now
         contradicts the hand file's name."""
         if self._open and self._pending == self._open and self._open_is_shown():
-            self._side_note = ""
+            self._side_note = self._side_guess = ""  # the side is the one chosen now
             self._show_uploaded(opened=True)
         self._show_local_side()
 
@@ -441,6 +445,8 @@ class InputsView:
         warning = side_warning(hand.name, self.session.side) if hand else ""
         if warning:
             return f"; {warning}"
+        if self._side_guess:  # no side in the hand's names: never silent
+            return f"; <span class='hs-side-warning'>⚠ {safe_text.html(self._side_guess)}</span>"
         if self._side_note:
             return f"; <span class='hs-side-from-name'>{safe_text.html(self._side_note)}</span>"
         return ""
@@ -469,6 +475,7 @@ class InputsView:
         if (s.body_sha256, s.hand_sha256) == (body.digest, hand.digest) and not s.sample:
             # the same content again, maybe under another name: the newest name is used
             s.rename_takes(body.name, hand.name)
+            self._side_guess = _unnamed_side(hand.name, hand.take, s.side)
             self._open = dict(self._pending)
             self._show_uploaded(opened=True)
             return
@@ -479,6 +486,9 @@ class InputsView:
         self._side_note = (
             f"side {side}, as the hand file's name says" if named and named != s.side else ""
         )
+        self._side_guess = ""
+        # a hand take whose name says no side: warned about once open, as the side then in force
+        unnamed = hand.take if not named else None
         self._link_applied = False
         self.uploaded.object += OPENING
         # the session holds the takes from now on (the engine's cache once they are open):
@@ -515,6 +525,7 @@ class InputsView:
             self._open = dict(self._pending)
             if s.link_applied:  # the shared link that waited for them: its side is used
                 self._link_applied, self._side_note = True, ""
+            self._side_guess = _unnamed_side(hand.name, unnamed, s.side)
             self._show_uploaded(opened=True)
 
     def _mark_unusable(self, reason: str, body_name: str, hand_name: str) -> None:
@@ -644,6 +655,15 @@ def _hand_as_body(which: str, kept: uploads.Kept) -> bool:
     shoulder above any hand's elbow: ``Roles.looks_like_hand_take``). It is kept, not
     refused: a role override naming its shoulder makes it a body."""
     return which == "body" and bool(kept.summary.get("hand_take"))
+
+
+def _unnamed_side(hand_name: str, take, side: str) -> str:
+    """The engine's warning (plain text) when an uploaded hand take (``take``, Motion; None
+    or markers: '') whose file name and joint names carry no side opens as ``side`` (the
+    rule: ``engine.model.hand_side.unnamed_side_warning``), else ''."""
+    if not isinstance(take, Motion):
+        return ""
+    return unnamed_side_warning(hand_name, take, side, "choose Side {side}") or ""
 
 
 def _own_notes(kept: uploads.Kept) -> list[str]:
