@@ -6,6 +6,7 @@ import json
 from urllib.parse import parse_qsl, urlsplit
 
 import numpy as np
+import param
 import pytest
 from conftest import demo_config, demo_pair_uploaded
 
@@ -1759,3 +1760,23 @@ def test_a_link_waiting_for_its_uploads_opens_once_they_are_uploaded(cfg, tmp_pa
         "the page (your uploads opened without the link's values)"
     )
     assert not wrong.link_applied and not wrong.link_waits_for(body_sha, right_sha)
+
+
+def test_the_hand_rate_note_fits_the_rates(session):
+    """Under the points' heading: a hand take much faster than the body says its step in
+    hand frames; one barely faster says a frame may be one off, not "1 frames per body
+    frame ... up to 0.501" (stranger 12, a 120 fps hand on a 119.875 fps body); the same
+    rate says nothing."""
+    assert "(40 vs 30 fps)" in session.hand_rate_note()
+    assert "1.33 frames per body frame" in session.hand_rate_note()
+    with param.edit_constant(session):
+        session.param.update(fps=119.875, hand_fps=120.0)
+        slight = session.hand_rate_note()
+        session.param.update(fps=120.0, hand_fps=120.0)
+        same = session.hand_rate_note()
+    assert slight == (
+        "The hand take runs a little faster than the body (120 vs 119.875 fps) and is aligned "
+        "at the body's rate: the preview at a point's body frame may name a hand frame one off "
+        "the table's."
+    )
+    assert same == ""

@@ -1279,6 +1279,12 @@ class Session(param.Parameterized):
         if not (self.prepared is not None and self.fps and self.hand_fps > self.fps * 1.001):
             return ""
         ratio = self.hand_fps / self.fps
+        if ratio < 1.1:  # nearly one rate: its step said in frames read as noise (stranger 12:
+            return (  # "1 frames per body frame ... up to 0.501" at 120 vs 119.875 fps)
+                f"The hand take runs a little faster than the body ({self.hand_fps:g} vs "
+                f"{self.fps:g} fps) and is aligned at the body's rate: the preview at a point's "
+                "body frame may name a hand frame one off the table's."
+            )
         return (
             f"The hand take has {ratio:.3g} frames per body frame ({self.hand_fps:g} vs "
             f"{self.fps:g} fps) and is aligned at the body's rate, in steps of {ratio:.3g} "
