@@ -189,3 +189,45 @@ def test_the_warm_up_page_shows_file_names_as_text():
     assert (status, header) == (503, "warming-up")
     assert "reading &lt;img src=x onerror=alert(1)&gt;.bvh ..." in text
     assert "<img" not in text
+
+
+def test_a_hand_served_from_disk_with_no_side_in_its_name_is_said(tmp_path, capsys, sample_dir):
+    """``serve BODY HAND`` with a hand file whose name and joints carry no side (ManipNet's
+    left mug hand copied as ``mug_take.bvh``): the console warns at once with the flag to
+    pass, and the page's takes section says it beside the pair, until another Side is
+    chosen (stranger 13: spliced on the right arm, unsaid; ``splice`` and uploads warned)."""
+    import shutil
+
+    from conftest import MOCAP
+
+    from webapp import config
+    from webapp.serve_cli import unnamed_side
+    from webapp.state import Session
+    from webapp.views.inputs import InputsView
+
+    hand = tmp_path / "mug_take.bvh"
+    shutil.copyfile(MOCAP / "manipnet" / "mug1_leftHand.bvh", hand)
+    body = config.load_samples(sample_dir)[0].body
+    pair = unnamed_side(config.local_pair(body, hand, "right"), None)
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "mug_take.bvh" in err and "--side left" in err, err
+    assert "choose Side left" in pair.extra["unnamed_side"]
+    # named, or --side given: nothing said
+    named = unnamed_side(config.local_pair(body, MOCAP / "manipnet" / "mug1_leftHand.bvh"), None)
+    assert "unnamed_side" not in named.extra
+    assert "unnamed_side" not in unnamed_side(config.local_pair(body, hand), "right").extra
+    assert capsys.readouterr().err == ""
+
+    cfg = config.AppConfig(
+        sample_dir=sample_dir.resolve(),
+        upload_dir=tmp_path / "up",
+        default_sample=pair.name,
+        local=pair,
+    )
+    s = Session(cfg)
+    s.sample = pair.name  # the section reads the pair's name and side, not the takes
+    view = InputsView(s)
+    assert view.local_side.visible and "choose Side left" in view.local_side.object
+    s.side = "left"
+    view._show_local_side()
+    assert not view.local_side.visible

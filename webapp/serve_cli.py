@@ -164,6 +164,34 @@ def _open_local(pair) -> None:
     backend.prepare(pair.body, pair.hand, pair.side)
 
 
+def unnamed_side(pair, side_arg: str | None):
+    """``pair`` (``serve BODY HAND``'s) with the warning a hand take gets when neither its
+    file name nor its joint names carry a side (``engine.model.hand_side.
+    unnamed_side_warning``, the rule of ``splice`` and of the page's uploads): said on the
+    console at once, kept in ``pair.extra["unnamed_side"]`` for the page (stranger 13: a
+    side-less hand served from disk went on the right arm, unsaid). ``side_arg``: the
+    ``--side`` given (none: nothing is said when the name gives the side)."""
+    import dataclasses
+
+    from engine.cli import warn
+    from engine.io import load_take
+    from engine.model.hand_side import unnamed_side_warning
+    from engine.model.motion import Motion
+    from engine.model.roles import side_from_name
+
+    if side_arg is not None or side_from_name(pair.hand) is not None:
+        return pair
+    take = load_take(pair.hand)
+    if not isinstance(take, Motion):
+        return pair
+    console = unnamed_side_warning(pair.hand.name, take, pair.side, "pass --side {side}")
+    if not console:
+        return pair
+    warn(console)
+    page = unnamed_side_warning(pair.hand.name, take, pair.side, "choose Side {side}")
+    return dataclasses.replace(pair, extra={**pair.extra, "unnamed_side": page})
+
+
 def sample_url(url: str, sample: str) -> str:
     """The page's URL opening ``sample``; a pair opened from disk is named "BODY + HAND",
     whose spaces and "+" a query must escape."""
@@ -213,7 +241,7 @@ def run(args: argparse.Namespace) -> int:
 
             warn_side(args.hand, args.side)  # a right-named hand served as left: say so
             side = args.side or side_from_name(args.hand) or "right"
-            local = config.local_pair(args.body, args.hand, side)
+            local = unnamed_side(config.local_pair(args.body, args.hand, side), args.side)
             with backend.stages_to(stages):
                 _open_local(local)  # a take the engine refuses: one line, exit 2, no server
         cfg = config.configure(

@@ -435,6 +435,9 @@ class InputsView:
         local = s.config.local
         shown = local is not None and s.sample == local.name
         warning = side_warning(local.hand.name, s.side) if shown else ""
+        guess = local.extra.get("unnamed_side") if shown and s.side == local.side else ""
+        if guess and not warning:  # no side in the hand's names: never silent (stranger 13)
+            warning = f"<span class='hs-side-warning'>⚠ {safe_text.html(guess)}</span>"
         self.local_side.object = warning
         self.local_side.visible = bool(warning)
 
