@@ -200,6 +200,7 @@ def test_a_hand_served_from_disk_with_no_side_in_its_name_is_said(tmp_path, caps
 
     from conftest import MOCAP
 
+    from engine.io import load_take
     from webapp import config
     from webapp.serve_cli import unnamed_side
     from webapp.state import Session
@@ -208,14 +209,16 @@ def test_a_hand_served_from_disk_with_no_side_in_its_name_is_said(tmp_path, caps
     hand = tmp_path / "mug_take.bvh"
     shutil.copyfile(MOCAP / "manipnet" / "mug1_leftHand.bvh", hand)
     body = config.load_samples(sample_dir)[0].body
-    pair = unnamed_side(config.local_pair(body, hand, "right"), None)
+    pair = unnamed_side(config.local_pair(body, hand, "right"), None, load_take(hand))
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "mug_take.bvh" in err and "--side left" in err, err
     assert "choose Side left" in pair.extra["unnamed_side"]
     # named, or --side given: nothing said
-    named = unnamed_side(config.local_pair(body, MOCAP / "manipnet" / "mug1_leftHand.bvh"), None)
+    left = MOCAP / "manipnet" / "mug1_leftHand.bvh"
+    named = unnamed_side(config.local_pair(body, left), None, load_take(left))
     assert "unnamed_side" not in named.extra
-    assert "unnamed_side" not in unnamed_side(config.local_pair(body, hand), "right").extra
+    given = unnamed_side(config.local_pair(body, hand), "right", load_take(hand))
+    assert "unnamed_side" not in given.extra
     assert capsys.readouterr().err == ""
 
     cfg = config.AppConfig(

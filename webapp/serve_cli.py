@@ -157,38 +157,38 @@ def _drop_closed_websocket_writes(loop, context: dict) -> None:
     loop.default_exception_handler(context)
 
 
-def _open_local(pair) -> None:
-    """Read and prepare a pair named on the command line (cached for the first page)."""
+def _open_local(pair):
+    """Read and prepare a pair named on the command line (cached for the first page); the
+    ``webapp.backend.Prepared``."""
     from webapp import backend
 
-    backend.prepare(pair.body, pair.hand, pair.side)
+    return backend.prepare(pair.body, pair.hand, pair.side)
 
 
-def unnamed_side(pair, side_arg: str | None):
-    """``pair`` (``serve BODY HAND``'s) with the warning a hand take gets when neither its
-    file name nor its joint names carry a side (``engine.model.hand_side.
-    unnamed_side_warning``, the rule of ``splice`` and of the page's uploads): said on the
-    console at once, kept in ``pair.extra["unnamed_side"]`` for the page (stranger 13: a
-    side-less hand served from disk went on the right arm, unsaid). ``side_arg``: the
-    ``--side`` given (none: nothing is said when the name gives the side)."""
+def unnamed_side(pair, side_arg: str | None, hand):
+    """``pair`` (``serve BODY HAND``'s, its hand take ``hand`` as read) with the warning a
+    hand take gets when neither its file name nor its joint names carry a side
+    (``engine.model.hand_side.unnamed_side_warning``, the rule of ``splice`` and of the
+    page's uploads): said on the console, kept in ``pair.extra["unnamed_side"]`` for the
+    page (stranger 13: a side-less hand served from disk went on the right arm, unsaid).
+    ``side_arg``: the ``--side`` given (none: nothing is said when the name gives the
+    side)."""
     import dataclasses
 
     from engine.cli import warn
-    from engine.io import load_take
     from engine.model.hand_side import unnamed_side_warning
     from engine.model.motion import Motion
     from engine.model.roles import side_from_name
 
     if side_arg is not None or side_from_name(pair.hand) is not None:
         return pair
-    take = load_take(pair.hand)
-    if not isinstance(take, Motion):
+    if not isinstance(hand, Motion):
         return pair
-    console = unnamed_side_warning(pair.hand.name, take, pair.side, "pass --side {side}")
+    console = unnamed_side_warning(pair.hand.name, hand, pair.side, "pass --side {side}")
     if not console:
         return pair
     warn(console)
-    page = unnamed_side_warning(pair.hand.name, take, pair.side, "choose Side {side}")
+    page = unnamed_side_warning(pair.hand.name, hand, pair.side, "choose Side {side}")
     return dataclasses.replace(pair, extra={**pair.extra, "unnamed_side": page})
 
 
@@ -241,9 +241,11 @@ def run(args: argparse.Namespace) -> int:
 
             warn_side(args.hand, args.side)  # a right-named hand served as left: say so
             side = args.side or side_from_name(args.hand) or "right"
-            local = unnamed_side(config.local_pair(args.body, args.hand, side), args.side)
+            local = config.local_pair(args.body, args.hand, side)
             with backend.stages_to(stages):
-                _open_local(local)  # a take the engine refuses: one line, exit 2, no server
+                prepared = _open_local(local)  # a take the engine refuses: one line, exit 2
+            # the hand take as read for the pair (not read a second time)
+            local = unnamed_side(local, args.side, prepared.hand)
         cfg = config.configure(
             sample_dir=args.sample_dir,
             default_sample=args.sample,

@@ -437,7 +437,7 @@ class InputsView:
         warning = side_warning(local.hand.name, s.side) if shown else ""
         guess = local.extra.get("unnamed_side") if shown and s.side == local.side else ""
         if guess and not warning:  # no side in the hand's names: never silent (stranger 13)
-            warning = f"<span class='hs-side-warning'>⚠ {safe_text.html(guess)}</span>"
+            warning = _side_warning_html(guess)
         self.local_side.object = warning
         self.local_side.visible = bool(warning)
 
@@ -449,7 +449,7 @@ class InputsView:
         if warning:
             return f"; {warning}"
         if self._side_guess:  # no side in the hand's names: never silent
-            return f"; <span class='hs-side-warning'>⚠ {safe_text.html(self._side_guess)}</span>"
+            return f"; {_side_warning_html(self._side_guess)}"
         if self._side_note:
             return f"; <span class='hs-side-from-name'>{safe_text.html(self._side_note)}</span>"
         return ""
@@ -650,7 +650,13 @@ def side_warning(hand_name: str, side: str) -> str:
     name says (the rule: ``engine.model.roles.side_name_conflict``), else ''. The one
     wording for an uploaded pair and for a pair opened from disk."""
     conflict = side_name_conflict(hand_name, side) if hand_name else None
-    return f"<span class='hs-side-warning'>⚠ {safe_text.html(conflict)}</span>" if conflict else ""
+    return _side_warning_html(conflict) if conflict else ""
+
+
+def _side_warning_html(text: str) -> str:
+    """A side warning's words (plain text) as the page shows every one: escaped, in the
+    ``hs-side-warning`` span with its sign."""
+    return f"<span class='hs-side-warning'>⚠ {safe_text.html(text)}</span>"
 
 
 def _hand_as_body(which: str, kept: uploads.Kept) -> bool:
