@@ -626,29 +626,40 @@ def bvh_bytes(motion) -> bytes:
     return encode("bvh", motion)
 
 
-def glb_bytes(motion) -> bytes:
-    """``motion`` as a GLB file (the skinned mannequin), made in a child process."""
+def glb_bytes(motion, credit: str = "") -> bytes:
+    """``motion`` as a GLB file (the skinned mannequin), made in a child process;
+    ``credit`` (the takes' sources and licences) in its ``asset.copyright``."""
     from webapp.downloads import encode
 
-    return encode("glb", motion)
+    return encode("glb", motion, credit=credit)
 
 
-def served_file(prepared: Prepared, solution: Solution, kind: str, name: str, owner=None):
+def served_file(
+    prepared: Prepared, solution: Solution, kind: str, name: str, owner=None, credit: str = ""
+):
     """The spliced take's ``kind`` ("bvh" or "glb") file, written to the server's disk by a
     child (``webapp.downloads.write``: the command line's writer, the CLI's bytes) and
     served over HTTP under the browser name ``name`` (``webapp.served_files``: the page
     fetches it; the server holds none of its bytes). The file made for this alignment
     before is served again while the server keeps it (the same bytes: an alignment never
-    changes); ``owner`` (a page) keeps its latest file of each kind."""
+    changes); ``owner`` (a page) keeps its latest file of each kind. ``credit``: the takes'
+    sources and licences, inside a GLB (``webapp.downloads.encode``; a BVH has no place)."""
     from webapp.downloads import write
     from webapp.served_files import STORE
 
-    kept = solution.cache.get(("file", kind))
-    if kept is not None and kept.name == name and STORE.get(kept.token) is kept:
+    kept, kept_credit = solution.cache.get(("file", kind), (None, None))
+    if (
+        kept is not None
+        and kept.name == name
+        and kept_credit == credit
+        and STORE.get(kept.token) is kept
+    ):
         return kept
     motion = splice(prepared, solution)
-    served = STORE.put(lambda path: write(kind, motion, path), name, kind, owner=owner)
-    solution.cache[("file", kind)] = served
+    served = STORE.put(
+        lambda path: write(kind, motion, path, credit=credit), name, kind, owner=owner
+    )
+    solution.cache[("file", kind)] = (served, credit)
     return served
 
 

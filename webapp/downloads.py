@@ -38,22 +38,24 @@ class EncodeFailed(HandSpliceError):
     """The child encoding a download died or ran out of time."""
 
 
-def encode(kind: str, motion, seconds: float = ENCODE_SECONDS) -> bytes:
+def encode(kind: str, motion, seconds: float = ENCODE_SECONDS, credit: str = "") -> bytes:
     """``kind`` ("bvh" or "glb") bytes of ``motion``, made in a child process.
 
+    ``credit``: the takes' sources and licences, carried inside a GLB (``asset.copyright``);
+    a BVH has no place for it (no comment syntax: its bytes stay the command line's).
     Raises what the encoder raised (``ValueError`` for a motion BVH cannot hold, with
     its text), or :class:`EncodeFailed` when the child dies or outlasts ``seconds``."""
-    return _in_child(kind, motion, None, seconds)
+    return _in_child(kind, motion, None, seconds, credit)
 
 
-def write(kind: str, motion, path, seconds: float = ENCODE_SECONDS) -> int:
+def write(kind: str, motion, path, seconds: float = ENCODE_SECONDS, credit: str = "") -> int:
     """Write the ``kind`` file of ``motion`` to ``path`` (atomically: whole or not at all)
     in a child process, with the command line's writer; returns its size in bytes.
-    Raises as :func:`encode`."""
-    return _in_child(kind, motion, str(path), seconds)
+    ``credit`` and what it raises: as :func:`encode`."""
+    return _in_child(kind, motion, str(path), seconds, credit)
 
 
-def _in_child(kind: str, motion, path: str | None, seconds: float):
+def _in_child(kind: str, motion, path: str | None, seconds: float, credit: str = ""):
     from webapp.uploads import child_context
 
     if kind not in ENCODERS:
@@ -61,7 +63,7 @@ def _in_child(kind: str, motion, path: str | None, seconds: float):
     ctx = child_context()
     here, there = ctx.Pipe(duplex=True)
     child = ctx.Process(
-        target=_child_encode, args=(kind, there, path), daemon=True, name=f"hs-{kind}"
+        target=_child_encode, args=(kind, there, path, credit), daemon=True, name=f"hs-{kind}"
     )
     died = EncodeFailed(f"the {kind.upper()} file could not be made (its process died)")
     try:
@@ -103,28 +105,28 @@ def _receive_motion(conn):
     return pickle.loads(head, buffers=buffers)
 
 
-def _bvh(motion) -> bytes:
+def _bvh(motion, credit: str = "") -> bytes:  # BVH has no comments: no credit inside
     from engine.io.bvh import format_bvh
 
     return format_bvh(motion).encode("utf-8")
 
 
-def _glb(motion) -> bytes:
+def _glb(motion, credit: str = "") -> bytes:
     from engine.export.glb import glb_bytes
 
-    return glb_bytes(motion)
+    return glb_bytes(motion, copyright=credit or None)
 
 
-def _write_bvh(motion, path: str) -> None:
+def _write_bvh(motion, path: str, credit: str = "") -> None:
     from engine.io.bvh import write_bvh
 
     write_bvh(motion, path)
 
 
-def _write_glb(motion, path: str) -> None:
+def _write_glb(motion, path: str, credit: str = "") -> None:
     from engine.export.glb import write_glb
 
-    write_glb(motion, path)
+    write_glb(motion, path, copyright=credit or None)
 
 
 #: what each download kind runs in the child (the command line's own encoders)
@@ -133,13 +135,14 @@ ENCODERS = {"bvh": _bvh, "glb": _glb}
 WRITERS = {"bvh": _write_bvh, "glb": _write_glb}
 
 
-def _child_encode(kind: str, conn, path: str | None = None) -> None:  # runs in the child
+def _child_encode(kind: str, conn, path: str | None = None, credit: str = "") -> None:
+    # runs in the child
     try:
         motion = _receive_motion(conn)
         if path is None:
-            data = ENCODERS[kind](motion)
+            data = ENCODERS[kind](motion, credit)
         else:
-            WRITERS[kind](motion, path)
+            WRITERS[kind](motion, path, credit)
             data = None
     except Exception as exc:  # noqa: BLE001 - the parent raises it with its one line
         text = str(exc).strip().splitlines()

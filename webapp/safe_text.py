@@ -1,4 +1,4 @@
-"""Outside text made safe for the page: the one place that escapes it.
+"""Outside text made safe for the page (and for files' metadata): the one place that escapes it.
 
 Text that comes from a file (joint names, reader errors), a file name, a link or a
 session file may hold HTML or Markdown. Before it reaches a pane it goes through
@@ -33,3 +33,10 @@ def markdown(text: object) -> str:
     escaped = _html.escape(_CONTROL.sub(" ", str(text)), quote=False)
     # entities (&amp; &lt; &gt;) hold no Markdown specials, so this cannot break them
     return _MARKDOWN_SPECIALS.sub(r"\\\1", escaped)
+
+
+def one_line(text: object) -> str:
+    """``text`` for a file's metadata (a GIF comment, an MP4 tag, a GLB's ``asset``): one
+    line, every control character (line breaks and tabs included) a space, runs of spaces
+    one (a file name's control characters never reach a file a viewer shows)."""
+    return " ".join(_CONTROL.sub(" ", str(text)).replace("\t", " ").split())

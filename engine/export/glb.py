@@ -108,10 +108,15 @@ def display_motion(motion: Motion, scale: float, axes: np.ndarray) -> tuple[np.n
     return rots, trans
 
 
-def glb_bytes(motion: Motion, roles=None, frames: range | None = None) -> bytes:
+def glb_bytes(
+    motion: Motion, roles=None, frames: range | None = None, copyright: str | None = None
+) -> bytes:
     """The take (frames ``frames``, default all) as a GLB with the skinned mannequin.
 
     ``roles`` (``engine.model.roles.Roles``) fixes arms and fingers as for the renderer.
+    ``copyright``: the credit of the takes it was made from (their sources and licences),
+    written as the file's ``asset.copyright`` (glTF 2.0: "a copyright message suitable for
+    display to credit the content creator"); none when None or empty.
     """
     from engine.mesh.anatomy import find_anatomy
     from engine.mesh.mannequin import build_mannequin
@@ -135,7 +140,11 @@ def glb_bytes(motion: Motion, roles=None, frames: range | None = None) -> bytes:
     rots = rot.make_continuous(rots, axis=0)
 
     gltf: dict = {
-        "asset": {"version": "2.0", "generator": "HandSplice"},
+        "asset": {
+            "version": "2.0",
+            "generator": "HandSplice",
+            **({"copyright": str(copyright)} if copyright else {}),
+        },
         "scene": 0,
         "scenes": [{"name": Path(motion.meta.source or "take").stem, "nodes": []}],
         "nodes": [],
@@ -266,8 +275,14 @@ def _four_influences(joints: np.ndarray, weights: np.ndarray) -> tuple[np.ndarra
     return j4, w4.astype(np.float32)
 
 
-def write_glb(motion: Motion, path: str | Path, roles=None, frames: range | None = None) -> Path:
+def write_glb(
+    motion: Motion,
+    path: str | Path,
+    roles=None,
+    frames: range | None = None,
+    copyright: str | None = None,
+) -> Path:
     """Write :func:`glb_bytes` to ``path`` atomically."""
     path = Path(path)
-    write_bytes(path, glb_bytes(motion, roles=roles, frames=frames))
+    write_bytes(path, glb_bytes(motion, roles=roles, frames=frames, copyright=copyright))
     return path

@@ -161,9 +161,11 @@ class GifFrames:
         self._pool.shutdown(wait=True, cancel_futures=True)
 
 
-def gif_bytes(frames: Sequence, fps: float) -> bytes:
+def gif_bytes(frames: Sequence, fps: float, comment: str | None = None) -> bytes:
     """A looping GIF of frames playing at exactly ``fps`` (see :func:`gif_schedule`);
-    Pillow. Each frame is an ``(H, W, 3) uint8`` array or a :func:`gif_frame` already."""
+    Pillow. Each frame is an ``(H, W, 3) uint8`` array or a :func:`gif_frame` already.
+    ``comment``: written in the file's comment extension (UTF-8; Pillow reads it back as
+    ``info["comment"]``), e.g. the credit of the takes shown; none when None or empty."""
     import io
 
     from PIL import Image
@@ -185,6 +187,7 @@ def gif_bytes(frames: Sequence, fps: float) -> bytes:
         loop=0,
         optimize=False,
         disposal=1,
+        **({"comment": str(comment).encode("utf-8")} if comment else {}),
     )
     return buf.getvalue()
 
@@ -220,8 +223,11 @@ def write_mp4(
     progress: Progress | None = None,
     total: int | None = None,
     quality: float = 7.0,
+    metadata: dict[str, str] | None = None,
 ) -> Path:
-    """Write frames as H.264 MP4 at ``fps`` (imageio-ffmpeg). All frames one size."""
+    """Write frames as H.264 MP4 at ``fps`` (imageio-ffmpeg). All frames one size.
+    ``metadata``: the container's tags (``{"comment": ..., "copyright": ...}``: ffmpeg's
+    ``-metadata KEY=VALUE``; a player's or ``ffprobe``'s file properties show them)."""
     import imageio_ffmpeg
 
     if not fps > 0:
@@ -245,7 +251,8 @@ def write_mp4(
                         quality=quality,
                         macro_block_size=1,
                         ffmpeg_log_level="error",
-                        output_params=["-preset", "veryfast", "-movflags", "+faststart"],
+                        output_params=["-preset", "veryfast", "-movflags", "+faststart"]
+                        + _metadata_params(metadata),
                     )
                     writer.send(None)
                 elif img.shape[:2] != size:
@@ -267,6 +274,16 @@ def write_mp4(
         if count == 0:
             raise ValueError("write_mp4: no frames")
     return path
+
+
+def _metadata_params(metadata: dict[str, str] | None) -> list[str]:
+    """ffmpeg's ``-metadata KEY=VALUE`` arguments of ``metadata`` (empty values left out;
+    the arguments go to ffmpeg as a list, never through a shell)."""
+    params: list[str] = []
+    for key, value in (metadata or {}).items():
+        if value:
+            params += ["-metadata", f"{key}={value}"]
+    return params
 
 
 def parse_frames(frames: str) -> slice:
