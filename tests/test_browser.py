@@ -290,6 +290,10 @@ def test_download_glb_is_the_spliced_take_in_3d(page, tmp_path):
     want = forward_kinematics(motion)[0] * scale
     assert np.abs(world[:, joints][..., :3, 3] - want).max() < 1e-4
     assert accessor(doc, blob, doc.meshes[0].primitives[0].attributes.POSITION).shape[0] > 1000
+    # the file credits the takes it was made from (stranger 12 F7), as the page's line does
+    terms = pane_text(page.locator(".hs-share-terms"))
+    assert "Bandai-Namco-Research-Motiondataset" in doc.asset.copyright
+    assert terms.strip() in doc.asset.copyright and "jaanga/gestification" in terms
 
 
 #: the sample pair with the shortest body take (59 frames at 30 fps): the GIF export renders
@@ -343,8 +347,10 @@ def test_download_preview_gif(browser, demo_url, tmp_path):
     frames = iio.imread(path, index=None)
     assert frames.ndim == 4 and frames.shape[3] in (3, 4)
     # stranger 7: the three views and, right of them, the spliced hands close up (the
-    # default camera's fingers were a few pixels of a 720x272 video)
-    assert frames.shape[1:3] == (VIDEO_SIZE[1], VIDEO_SIZE[0] + VIDEO_CLOSEUP_WIDTH)
+    # default camera's fingers were a few pixels of a 720x272 video); under them the
+    # takes' credit in two to four lines (stranger 12 F7), which the file carries too
+    assert frames.shape[2] == VIDEO_SIZE[0] + VIDEO_CLOSEUP_WIDTH
+    assert VIDEO_SIZE[1] + 20 <= frames.shape[1] <= VIDEO_SIZE[1] + 80, frames.shape
     # every frame of the 30 fps take, each shown for its own time (the GIF was thinned to
     # 10 fps before: stranger's rough edge)
     fps = page.evaluate("hs.cols('hs-rates', ['fps']).fps[0]")
@@ -352,11 +358,14 @@ def test_download_preview_gif(browser, demo_url, tmp_path):
     from PIL import Image
 
     with Image.open(path) as gif:
+        credit = gif.info["comment"].decode("utf-8")
         delays = []
         for k in range(gif.n_frames):
             gif.seek(k)
             delays.append(gif.info["duration"])
     assert set(delays) <= {30, 40} and abs(sum(delays) - 1000 * 59 / fps) <= 10, delays
+    terms = pane_text(page.locator(".hs-share-terms")).strip()
+    assert terms.startswith("Licences: body CC BY-NC 4.0") and terms in credit, (terms, credit)
     # a second click with nothing changed: the same file at once, not a second render
     status = page.locator(".hs-export-status")
     with page.expect_download(timeout=60_000) as again:

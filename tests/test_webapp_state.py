@@ -1241,7 +1241,11 @@ def test_sample_credits_and_the_no_share_warning(session):
     # Bandai dataset-2 (CC BY-NC) + a Leap hand (MIT): shareable, non-commercially, with
     # credit; said in one plain line beside the downloads (stranger 10)
     assert alert.visible and alert.alert_type == "info"
-    assert alert.object.startswith("Licences: body CC BY-NC 4.0, credit: Bandai-Namco")
+    # the licence's name with the caveats the takes panel shows (stranger 12 F7)
+    assert alert.object.startswith(
+        "Licences: body CC BY-NC 4.0 (non-commercial, with credit; see sample_data/README.md "
+        "for an upstream caveat), credit: Bandai-Namco"
+    )
     assert "; hand MIT, credit: jaanga/gestification" in alert.object
     assert "may be shared for non-commercial use only, crediting both sources" in alert.object
     # one rule, the takes' own licences: every pair with a dataset-1 body (CC BY-NC-ND per

@@ -977,11 +977,19 @@ def preview_video(
     start: int = 0,
     cancelled=None,
     closeup: int = VIDEO_CLOSEUP_WIDTH,
+    credit: str = "",
+    caption: str = "",
 ) -> bytes:
     """An animated preview (GIF or MP4 bytes) at the take's speed: the body frames of
     :func:`video_frames` (at most 30 fps, at most ``max_frames`` frames from body frame
     ``start`` of a long take), each drawn by :func:`video_frame` (three panels of ``size``
     and the spliced hands close up, ``closeup`` pixels wide).
+
+    ``credit`` (the takes' sources and licences: ``webapp.views.credits.file_credit``) goes
+    inside the file: the GIF's comment, the MP4's ``comment`` tag. ``caption``
+    (``video_caption``) is burned under every frame, a strip of its own below the panels
+    (``engine.render.offscreen.caption_strip``: it covers nothing, the frames grow by its
+    height), and is the MP4's ``copyright`` tag. Empty: none.
 
     ``progress(done, total)`` is called after each rendered frame and once more (total,
     total) when the file is encoded. ``cancelled()`` (if given) is asked before each frame:
@@ -999,17 +1007,27 @@ def preview_video(
         raise ValueError(f"format: expected gif or mp4, got {fmt!r}")
     indices, fps = video_frames(prepared.n, float(prepared.body.fps), start, max_frames=max_frames)
     total = len(indices) + 1  # + encoding
-    key = _video_key(camera, size, indices, closeup)
+    key = _video_key(camera, size, indices, closeup, credit, caption)
     made = made_video(solution, fmt, key)
     if made is not None:  # nothing changed since this file was made: the same file
         if progress is not None:
             progress(total, total)
         return made
 
+    strip = None  # the caption, drawn once at the frames' width
+
     def rendered():
+        nonlocal strip
         for done, i in enumerate(indices, 1):
             check_cancelled(cancelled)
-            yield video_frame(prepared, solution, i, camera, size, closeup)
+            image = video_frame(prepared, solution, i, camera, size, closeup)
+            if caption:
+                if strip is None:
+                    from engine.render.offscreen import caption_strip
+
+                    strip = caption_strip(caption, image.shape[1])
+                image = np.concatenate([image, strip], axis=0)
+            yield image
             if progress is not None:
                 progress(done, total)
 
@@ -1020,11 +1038,11 @@ def preview_video(
             for image in rendered():
                 frames.add(image)
             images = frames.images()
-        data = gif_bytes(images, fps)  # exact timing: per-frame centisecond delays
+        data = gif_bytes(images, fps, comment=credit)  # exact timing: centisecond delays
     else:
         with tempfile.TemporaryDirectory(prefix="handsplice-video-") as folder:
             path = Path(folder) / "preview.mp4"
-            write_mp4(rendered(), path, fps)
+            write_mp4(rendered(), path, fps, metadata={"comment": credit, "copyright": caption})
             data = path.read_bytes()
     solution.cache[("video", fmt)] = (key, data)  # the latest of each format, per alignment
     if progress is not None:
@@ -1040,16 +1058,29 @@ def made_video(solution: Solution, fmt: str, key: tuple) -> bytes | None:
     return kept[1] if kept is not None and kept[0] == key else None
 
 
-def video_key(prepared: Prepared, start: int = 0, camera: str = VIDEO_CAMERA) -> tuple:
+def video_key(
+    prepared: Prepared,
+    start: int = 0,
+    camera: str = VIDEO_CAMERA,
+    credit: str = "",
+    caption: str = "",
+) -> tuple:
     """The key :func:`preview_video` keeps its file under (its default size, from
-    ``start``, with ``camera``)."""
+    ``start``, with ``camera``, ``credit`` and ``caption``)."""
     indices, _ = video_frames(prepared.n, float(prepared.body.fps), start)
-    return _video_key(camera, VIDEO_SIZE, indices, VIDEO_CLOSEUP_WIDTH)
+    return _video_key(camera, VIDEO_SIZE, indices, VIDEO_CLOSEUP_WIDTH, credit, caption)
 
 
-def _video_key(camera: str, size: tuple[int, int], indices: range, closeup: int) -> tuple:
+def _video_key(
+    camera: str,
+    size: tuple[int, int],
+    indices: range,
+    closeup: int,
+    credit: str = "",
+    caption: str = "",
+) -> tuple:
     near = 0 if camera == "hands" else int(max(closeup, 0))
-    return (camera, tuple(size), near, indices.start, indices.stop, indices.step)
+    return (camera, tuple(size), near, indices.start, indices.stop, indices.step, credit, caption)
 
 
 #: the command line's program as a user who followed the README has it: ``make demo``

@@ -509,3 +509,43 @@ def label_image(img: np.ndarray, text: str) -> np.ndarray:
     draw.rectangle((box[0] - 3, box[1] - 2, box[2] + 3, box[3] + 2), fill=(255, 255, 255))
     draw.text((6, 4), text, fill=(30, 30, 30), font=font)
     return np.asarray(pil)
+
+
+#: the caption strip's font size (pixels: Pillow's default font, legible at 100 %) and
+#: most lines (a longer text is cut with an ellipsis; files carry it whole in metadata)
+CAPTION_FONT_PX = 12
+CAPTION_MAX_LINES = 4
+
+
+def caption_strip(text: str, width: int, font_px: int = CAPTION_FONT_PX) -> np.ndarray:
+    """``(H, width, 3) uint8``: ``text`` in dark grey on white, wrapped at words to
+    ``width`` pixels (at most :data:`CAPTION_MAX_LINES` lines), to put under a video's
+    frames: it covers nothing of the takes. ``H`` is the lines' height and a margin;
+    ``(0, width, 3)`` for an empty text."""
+    if not text or width <= 0:
+        return np.zeros((0, max(int(width), 0), 3), np.uint8)
+    from PIL import Image, ImageDraw, ImageFont
+
+    try:
+        font = ImageFont.load_default(size=font_px)
+    except TypeError:  # Pillow < 10.1
+        font = ImageFont.load_default()
+    measure = ImageDraw.Draw(Image.new("RGB", (1, 1))).textlength
+    room = width - 12
+    lines: list[str] = []
+    for word in str(text).split():
+        if lines and measure(f"{lines[-1]} {word}", font=font) <= room:
+            lines[-1] = f"{lines[-1]} {word}"
+        else:
+            lines.append(word)
+    if len(lines) > CAPTION_MAX_LINES:
+        lines = lines[:CAPTION_MAX_LINES]
+        while lines[-1] and measure(lines[-1] + " …", font=font) > room:
+            lines[-1] = lines[-1][:-1]
+        lines[-1] += " …"
+    step = font_px + 4
+    pil = Image.new("RGB", (int(width), step * len(lines) + 6), (255, 255, 255))
+    draw = ImageDraw.Draw(pil)
+    for k, line in enumerate(lines):
+        draw.text((6, 3 + step * k), line, fill=(40, 40, 40), font=font)
+    return np.asarray(pil)

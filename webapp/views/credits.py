@@ -100,6 +100,16 @@ def _short_licence(text: str) -> str:
     return re.split(r" per | \(|;", text, maxsplit=1)[0].strip()
 
 
+def _closing(text: str) -> int:
+    """Where the ``)`` closing ``text``'s opening ``(`` is (``len(text)`` when unclosed)."""
+    depth = 0
+    for k, char in enumerate(text):
+        depth += {"(": 1, ")": -1}.get(char, 0)
+        if depth == 0:
+            return k
+    return len(text)
+
+
 def licence_line(text: str) -> str:
     """A samples.json licence as the share terms say it: its name and every caveat the takes
     panel shows with it, only the ``per ...`` clause (where the name was read) left out:
@@ -117,11 +127,7 @@ def licence_line(text: str) -> str:
         rest = rest[min(cut) :] if cut else ""
     rest = rest.strip(" ;:,")
     if rest.startswith("("):  # "(inside)" and what follows it: "(BEAT); the copy's ..."
-        depth = 0
-        for end, char in enumerate(rest):
-            depth += {"(": 1, ")": -1}.get(char, 0)
-            if depth == 0:
-                break
+        end = _closing(rest)
         inside, after = rest[1:end], rest[end + 1 :].strip(" ;:,")
         rest = "; ".join(part for part in (inside.strip(), after) if part)
     return f"{name} ({rest})" if rest else name

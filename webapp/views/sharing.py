@@ -32,6 +32,7 @@ from webapp import backend, safe_text
 from webapp.served_files import STORE, ServedFile
 from webapp.state import VIEW_STATE, Session
 from webapp.views._dispatch import Settle, after_path, with_document_lock
+from webapp.views.credits import file_credit, video_caption
 from webapp.views.refusal import refusal_box
 
 #: exports of all sessions share these threads (renders take turns on the OpenGL lock)
@@ -262,8 +263,10 @@ class SharingView:
         self.prepare_text.visible = True
         t0 = time.perf_counter()
         owner = id(self)
+        credit = file_credit(s)  # the takes' sources and licences, inside a GLB
         job = asyncio.get_running_loop().run_in_executor(
-            _FILES, lambda: backend.served_file(prepared, solution, kind, name, owner=owner)
+            _FILES,
+            lambda: backend.served_file(prepared, solution, kind, name, owner=owner, credit=credit),
         )
         try:
             while True:
@@ -315,7 +318,10 @@ class SharingView:
             self.message.visible = True
             return None
         span = f"body frames {shown.start}–{shown[-1]} at {fps:.3g} fps, {camera} camera"
-        made = backend.made_video(solution, fmt, backend.video_key(prepared, start, camera))
+        # the takes' credit inside the file, and a caption under its frames (stranger 12 F7)
+        credit, caption = file_credit(s), video_caption(s)
+        key = backend.video_key(prepared, start, camera, credit, caption)
+        made = backend.made_video(solution, fmt, key)
         if made is not None:  # nothing changed since it was made: the same file again
             self.message.visible = False
             self.progress.value = 100
@@ -360,6 +366,8 @@ class SharingView:
                 progress=progress,
                 start=start,
                 cancelled=lambda: s.page_is_closed,  # its tab is gone: nobody will get it
+                credit=credit,
+                caption=caption,
             ),
         )
         try:
