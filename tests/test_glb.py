@@ -341,3 +341,17 @@ def test_app_glb_download_callback(tmp_path):
     world, _ = animated_world(doc, doc.binary_blob(), motion.n_frames)
     want = expected_positions(motion)
     assert np.abs(world[:, doc.skins[0].joints][..., :3, 3] - want).max() < TOL_M
+    # the app's file carries the takes' credit (stranger 12 F7) and stays valid glTF
+    assert "Bandai-Namco-Research-Motiondataset" in doc.asset.copyright
+    from playwright._impl._driver import compute_driver_executable
+
+    _js_ready()
+    proc = subprocess.run(
+        [str(compute_driver_executable()[0]), "validate-gltf.mjs", str(data.path)],
+        cwd=JS,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    issues = json.loads(proc.stdout)["issues"]
+    assert issues["numErrors"] == 0 and issues["numWarnings"] == 0, issues["messages"][:10]

@@ -1,7 +1,11 @@
 """Where the open takes come from: each sample's description, licence and credit, and the
-no-share warning of pairs whose licence forbids sharing spliced results.
+no-share warning of pairs whose licence forbids sharing spliced results; the same words
+beside the downloads (:func:`share_terms`) and inside the downloaded files
+(:func:`file_credit`, :func:`video_caption`).
 
-All text comes from ``sample_data/samples.json`` and is escaped before it reaches the page.
+All text comes from ``sample_data/samples.json`` (and, for the user's own takes, their file
+names) and is escaped before it reaches the page; a file's credit is one line without
+control characters.
 """
 
 from __future__ import annotations
