@@ -139,10 +139,13 @@ def main(argv=None) -> int:
     parser.add_argument("--before", default=BEFORE, help="the reference commit (the app then)")
     parser.add_argument("--pause-ms", type=int, default=0)
     parser.add_argument("--no-write", action="store_true")
+    parser.add_argument(
+        "--alone", action="store_true", help="this checkout's server only (no reference beside it)"
+    )
     args = parser.parse_args(argv)
     from playwright.sync_api import sync_playwright
 
-    codes = {args.before: baseline_app(args.before), "now": None}
+    codes = {"now": None} if args.alone else {args.before: baseline_app(args.before), "now": None}
     rows = []
     with tempfile.TemporaryDirectory() as tmp, sync_playwright() as p:
         browser = launch_chromium(p)
