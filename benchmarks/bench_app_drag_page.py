@@ -167,10 +167,17 @@ def main(argv=None) -> int:
         "issue 13, drag150)\n\n"
         "| pair | code | drag → new path p50 / **p95** / max | server per edit p50 / p95 "
         "| server CPU per drag (median) | drags | load 1/5/15 min, before → after |\n"
-        "|---|---|---|---|---|---|---|\n" + "\n".join(rows) + "\n\n"
-        f"Both codes' servers side by side, their drags taking turns, {args.drags} each, "
-        f"{args.pause_ms} ms between drags; *{args.before}* = the app at that commit. "
-        "Goals: p95 ≤ 150 ms (2 min), ≤ 300 ms (10 min)."
+        "|---|---|---|---|---|---|---|\n"
+        + "\n".join(rows)
+        + "\n\n"
+        + (
+            f"This checkout's server alone, {args.drags} drags, "
+            if args.alone
+            else f"Both codes' servers side by side, their drags taking turns, {args.drags} each, "
+        )
+        + f"{args.pause_ms} ms between drags"
+        + ("; " if args.alone else f"; *{args.before}* = the app at that commit. ")
+        + "Goals: p95 ≤ 150 ms (2 min), ≤ 300 ms (10 min)."
     )
     print(md)
     if not args.no_write:
