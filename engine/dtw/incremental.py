@@ -85,7 +85,6 @@ import numpy as np
 from numba.core.dispatcher import Dispatcher
 
 from engine.base import tolerances as T
-from engine.base.beside import Beside
 
 from . import fixed
 from . import kernels as K
@@ -483,12 +482,23 @@ class Aligner:
             cells = self._compute(self._problem, self._fwd, band, f0, f1)
             return cells, self._backward(rband, first_backward)
         self._reversed_problem()  # made here, not on both threads
-        backward = Beside(lambda: self._backward(rband, first_backward), "hs-dtw-backward")
+        result: dict = {}
+
+        def run_backward():
+            try:
+                result["cells"] = self._backward(rband, first_backward)
+            except BaseException as exc:  # re-raised on the calling thread
+                result["error"] = exc
+
+        worker = threading.Thread(target=run_backward, name="hs-dtw-backward", daemon=True)
+        worker.start()
         try:
             cells = self._compute(self._problem, self._fwd, band, f0, f1)
         finally:
-            backward.wait()
-        return cells, backward.result()
+            worker.join()
+        if "error" in result:
+            raise result["error"]
+        return cells, result["cells"]
 
     def _backward(self, rband: Band, first_row: int) -> int:
         """Make backward rows ``first_row..n-1`` valid with β of ``first_row`` stored."""

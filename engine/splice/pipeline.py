@@ -45,7 +45,6 @@ from engine.align.features import (
 )
 from engine.base import limits
 from engine.base import tolerances as T
-from engine.base.beside import Beside
 from engine.base.errors import HandSpliceError, ParameterError, RoleError, SideError
 from engine.dtw import Aligner, Band, Ends, align_features, fixed
 from engine.dtw import constraints as C
@@ -839,7 +838,6 @@ def _solve_pass2(
     probe=None,
     exact: bool = False,
     chance: float | None = None,
-    guess: Ends | None = None,
 ):
     """Pass 2 with open ends (when ``pass1`` is open): returns (Alignment, solver, Ends,
     probe solver). ``chance``: :func:`chance_cost` of ``rows`` when known.
@@ -858,13 +856,6 @@ def _solve_pass2(
     rounded skip stays the same (``exact``: as :func:`_solve`). Both skips are multiples of
     ``engine.dtw.fixed.QUANTUM``: with exact costs (the hand-spin pass's) every γ sum is
     exact and an edit's forward re-solve keeps the rows that settle.
-
-    ``guess``: the previous edit's final ends (an edit, with its own final ``solver``): the
-    final solve with them runs on a second thread beside the probe (:class:`Beside`), and is
-    the result when the probe's ends come out the same (the usual case: the skip is rounded
-    by :func:`skip_step`), so an edit waits for one solve's time instead of two; otherwise it
-    is solved again with the probe's ends, as without a guess. The same solver, the same
-    inputs: the same result either way.
     """
     if pass1.fixed:
         al, solver = _solve(rows, metric, band, solver, incremental, Ends(), exact)
@@ -874,22 +865,10 @@ def _solve_pass2(
     first = Ends(pass1.body, pass1.hand, float(fixed.on_grid(0.5 * chance)))
     # one-shot (the CLI): both solves share one computation of the band's costs
     shared = None if incremental else SharedCosts(*rows, metric=metric)
-    ahead = None
-    if incremental and solver is not None and solver is not probe and guess not in (None, first):
-        ahead = Beside(
-            lambda: _solve(rows, metric, band, solver, incremental, guess, exact)[0],
-            "hs-pass2-final",
-        )
-    try:
-        al, probe = _solve(rows, metric, band, probe or shared, incremental, first, exact)
-    finally:
-        if ahead is not None:
-            ahead.wait()
+    al, probe = _solve(rows, metric, band, probe or shared, incremental, first, exact)
     matched = al.cost - first.skip * unmatched_frames(al.path, n, m)
     typical = float(fixed.on_grid(skip_step(max(matched, 0.0) / len(al.path))))
     ends = Ends(pass1.body, pass1.hand, min(first.skip, typical))
-    if ahead is not None and ends == guess:
-        return ahead.result(), solver, ends, probe
     if shared is not None:
         probe = None
     if ends == first:
@@ -1101,7 +1080,6 @@ def align_passes(
         probe2,
         exact,
         None if ends1.fixed else _pass2_chance(features, (body2, hand2), metric2),
-        guess=prev2.ends if solver2 is not None else None,
     )
     t2 = time.perf_counter()
     timings["pass2"] = t2 - t1
