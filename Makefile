@@ -25,7 +25,7 @@ TEST_LANES ?= -n 2 --dist loadscope --no-loadscope-reorder
 export PYOPENGL_PLATFORM ?= egl
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.numba_cache
 
-.PHONY: demo test lint demo-deps test-deps js venv bench clean
+.PHONY: demo test gallery lint demo-deps test-deps js venv bench clean
 
 demo: demo-deps venv
 	$(BIN)/handsplice serve --port $(PORT) --show-url
@@ -35,6 +35,10 @@ test: test-deps venv js
 	$(BIN)/ruff format --check engine webapp tests benchmarks
 	$(BIN)/lint-imports
 	$(BIN)/python -m pytest -q $(TEST_LANES)
+
+# the README gallery's screenshots, made by the browser tests that reach each state
+gallery: test-deps venv js
+	HANDSPLICE_GALLERY=1 $(BIN)/python -m pytest -q tests/test_browser.py tests/test_browser_trust.py tests/test_browser_uploads.py
 
 lint: venv
 	$(BIN)/ruff check engine webapp tests benchmarks

@@ -12,6 +12,25 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
+
+#: where the browser tests put the README gallery's screenshots: ``benchmarks/figures``
+#: under ``HANDSPLICE_GALLERY=1`` (``make gallery``), else a folder of their own for the
+#: run, so running the tests leaves the checkout as it was
+GALLERY_ENV = "HANDSPLICE_GALLERY"
+
+
+def gallery_dir() -> Path:
+    """The folder for gallery screenshots (see :data:`GALLERY_ENV`), made if missing."""
+    if os.environ.get(GALLERY_ENV) == "1":
+        folder = ROOT / "benchmarks" / "figures"
+    else:
+        import tempfile
+
+        folder = Path(tempfile.gettempdir()) / f"handsplice-gallery-{os.getpid()}"
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder
+
+
 SAMPLE_DATA = ROOT / "sample_data"
 # ../shared/data/mocap beside the checkout; HANDSPLICE_MOCAP overrides
 MOCAP = Path(os.environ.get("HANDSPLICE_MOCAP", ROOT.parent / "shared" / "data" / "mocap"))

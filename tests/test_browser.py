@@ -17,6 +17,7 @@ import pytest
 from conftest import (
     assert_no_traceback,
     band_cells,
+    gallery_dir,
     open_page,
     pane_text,
     revision,
@@ -593,9 +594,6 @@ def test_quick_clicks_and_a_drag_all_reach_the_session(browser, demo_url, tmp_pa
         page.context.close()
 
 
-FIGURES = __import__("pathlib").Path(__file__).resolve().parents[1] / "benchmarks" / "figures"
-
-
 def _open_wide(browser, url: str):
     """A page on a wide screen (1920 x 1080), where matrix and preview sit side by side."""
     return open_page(browser, url, width=1920, height=1080, timeout_s=120, console=True)
@@ -675,7 +673,9 @@ def _legends_close_up_and_play(page) -> None:
     )
     page.locator(".hs-preview").first.scroll_into_view_if_needed()
     page.wait_for_timeout(500)
-    page.locator(".hs-preview").first.screenshot(path=str(FIGURES / "gallery_hand_closeup.png"))
+    page.locator(".hs-preview").first.screenshot(
+        path=str(gallery_dir() / "gallery_hand_closeup.png")
+    )
     # play runs at the take's rate with the one slider on the frame shown
     sliders = page.locator(".hs-frame-slider")
     assert sliders.count() == 1
@@ -711,12 +711,11 @@ def test_one_frame_numbering_from_hover_to_session_file(browser, demo_url, tmp_p
         preview_box = page.locator(".hs-preview-image").first.bounding_box()
         assert preview_box["x"] > matrix_box["x"] + matrix_box["width"]
         assert preview_box["y"] < matrix_box["y"] + matrix_box["height"]
-        FIGURES.mkdir(parents=True, exist_ok=True)
         page.locator(".hs-status").scroll_into_view_if_needed()
         page.evaluate("window.scrollBy(0, -60)")
         page.mouse.move(*page.evaluate("hs.xy(90, 120)"))
         _hover_text(page, 90, 120, "hand frame")
-        page.screenshot(path=str(FIGURES / "gallery_first_view.png"))
+        page.screenshot(path=str(gallery_dir() / "gallery_first_view.png"))
         _legends_close_up_and_play(page)
         rates = page.evaluate("hs.cols('hs-rates', ['fps', 'hand_fps'])")
         assert rates["hand_fps"][0] != rates["fps"][0]  # the demo pair: 30 vs 40 fps
@@ -775,7 +774,7 @@ def test_one_frame_numbering_from_hover_to_session_file(browser, demo_url, tmp_p
         _drag(page, tb, th, tb - 12, th - 14)
         _wait_revision(page, rev)
         page.wait_for_timeout(1500)
-        page.screenshot(path=str(FIGURES / "gallery_point_dragged.png"))
+        page.screenshot(path=str(gallery_dir() / "gallery_point_dragged.png"))
         assert not page.errors, page.errors
     finally:
         page.context.close()
@@ -822,7 +821,9 @@ def test_lesson_steps_by_cell_and_by_row(browser, demo_url):
         for _ in range(rows[0] + 3):
             step.click()
         page.wait_for_timeout(1500)
-        page.locator(".hs-teaching").first.screenshot(path=str(FIGURES / "gallery_lesson_step.png"))
+        page.locator(".hs-teaching").first.screenshot(
+            path=str(gallery_dir() / "gallery_lesson_step.png")
+        )
         assert not page.errors, page.errors
     finally:
         page.context.close()

@@ -4,13 +4,11 @@ around the path, the desync meter on the phase track, a suggestion clicked throu
 from __future__ import annotations
 
 import re
-from pathlib import Path
 
 import pytest
-from conftest import open_page
+from conftest import gallery_dir, open_page
 
 pytestmark = pytest.mark.browser
-FIGURES = Path(__file__).resolve().parents[1] / "benchmarks" / "figures"
 
 
 @pytest.fixture(scope="module")
@@ -78,9 +76,8 @@ def test_a_suggestion_clicked_through_to_a_placed_point(page):
     page.locator(".hs-suggestion button", has_text="Place a matching point").first.wait_for(
         timeout=30_000
     )
-    FIGURES.mkdir(exist_ok=True)
     page.locator(".hs-cost-matrix").first.scroll_into_view_if_needed()
-    page.screenshot(path=str(FIGURES / "gallery_trust.png"))
+    page.screenshot(path=str(gallery_dir() / "gallery_trust.png"))
     page.locator(".hs-suggestion button").first.click()
     page.wait_for_function(
         "(b) => hs.cols('hs-points-source', ['x']).x.includes(b)", arg=body, timeout=30_000

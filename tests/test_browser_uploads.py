@@ -24,9 +24,9 @@ from conftest import (
     BODY_BVH,
     HAND_BVH,
     MOCAP,
-    ROOT,
     XSS_PAYLOAD,
     assert_no_traceback,
+    gallery_dir,
     open_page,
     pane_text,
     revision,
@@ -46,7 +46,6 @@ MAX_UPLOAD_MB = 3
 #: edit of a new pair compiles kernels (40 s seen under a load of 19)
 SERVER_START_S = 600.0
 BUSY_S = 240.0
-FIGURE = ROOT / "benchmarks" / "figures" / "gallery_upload.png"
 
 
 @pytest.fixture(scope="module")
@@ -207,8 +206,7 @@ def test_upload_a_bvh_pair_then_edit_splice_and_preview(page, tmp_path):
     assert "body frame" in caption
     page.locator(".hs-upload-status").scroll_into_view_if_needed()
     page.evaluate("window.scrollTo(0, 0)")
-    FIGURE.parent.mkdir(parents=True, exist_ok=True)
-    page.screenshot(path=str(FIGURE), full_page=False)
+    page.screenshot(path=str(gallery_dir() / "gallery_upload.png"), full_page=False)
     page.screenshot(path=str(tmp_path / "full.png"), full_page=True)
     assert not page.errors, page.errors
 
