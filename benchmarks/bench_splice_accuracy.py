@@ -27,7 +27,7 @@ from __future__ import annotations
 import argparse
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -163,6 +163,41 @@ def _left(seed: int) -> Case:
 )
 def _manipnet(seed: int) -> Case:
     return make_rig_case("manipnet", seed)
+
+
+def untrimmed_rig_case(kind: str, seed: int, seconds=(1.0, 2.0)) -> Case:
+    """``make_rig_case(kind, seed)`` with its body take cut ``U(seconds)`` s at each end, so
+    the hand take starts earlier and ends later than the body, as an untrimmed take from
+    another session does (the truth and the reference cut with it)."""
+    case = make_rig_case(kind, seed)
+    rr = np.random.default_rng([seed, 2])
+    fps, n = case.body.fps, case.body.n_frames
+    a, b = (int(round(rr.uniform(*seconds) * fps)) for _ in range(2))
+    return replace(
+        case,
+        name=f"{case.name} untrimmed",
+        family=f"{kind}-untrimmed",
+        body=case.body.frames(a, n - b),
+        truth=case.truth[a : n - b],
+        reference=case.reference.frames(a, n - b),
+        params={**case.params, "untrimmed_s": [a / fps, b / fps]},
+    )
+
+
+#: seeds of the rig families whose base take is long enough to lose 2-4 s (LAFAN1 crops and
+#: BEAT; ``split_rigs`` takes its base by ``seed % 3``, and the Bandai takes are 3-7 s)
+_LONG_BASE = tuple(s for s in range(30) if s % 3)[:12]
+
+
+@family(
+    "manipnet-untrimmed",
+    12,
+    "the manipnet family's takes with the body cut 1-2 s at each end (the forearm-less hand "
+    "take starts earlier and ends later): the hand-spin pass's open ends",
+    _RIG_DEV,
+)
+def _manipnet_untrimmed(seed: int) -> Case:
+    return untrimmed_rig_case("manipnet", _LONG_BASE[seed % len(_LONG_BASE)])
 
 
 @family(
