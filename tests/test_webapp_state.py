@@ -1604,7 +1604,7 @@ def test_a_link_of_uploads_opens_on_a_server_started_on_the_same_files(cfg, tmp_
     showed the pair without the link's points. The server's files with the link's bytes
     open it (``uploads.file_for``): points, tolerance and view, no notice, nothing copied."""
     from webapp import app
-    from webapp.views.inputs import InputsView
+    from webapp.views.inputs import UPLOADED, InputsView
     from webapp.views.link_notice import link_notice
 
     s, body, hand = demo_pair_uploaded(cfg)
@@ -1631,14 +1631,22 @@ def test_a_link_of_uploads_opens_on_a_server_started_on_the_same_files(cfg, tmp_
     )
     assert (other.sample, other.body_sha256, other.hand_sha256) == (None, body, hand)
     assert other.take_paths() == (local.body, local.hand)
+    # the Sample pair menu names the disk pair as a plain load does (stranger 13 F2: it
+    # said "(your uploaded pair)" over the line "opened from disk"), and picks nothing
+    assert inputs.sample.value == local.name and UPLOADED not in inputs.sample.options
+    assert other.sample is None and other.body_sha256 == body
     assert other.points == s.points and other.points[0].tolerance == 2
     assert (other.tolerance, other.matrix, other.frame) == (1, "pass2", 40)
     assert not other.link_waiting
     assert other.solution.pass1.cost == pytest.approx(s.solution.pass1.cost)
     # the session file the same (Open a session file)
     from_file = Session(served)
+    from_file.load_sample(local.name)
+    file_inputs = InputsView(from_file)
     from_file.from_json(s.to_json(), "handsplice-session.json")
     assert from_file.error == "" and from_file.points == s.points
+    assert (from_file.sample, file_inputs.sample.value) == (None, local.name)
+    assert list(file_inputs.sample.options) == [p.name for p in served.samples()]
     assert list(empty.iterdir()) == []  # read where it is: nothing uploaded
     # bytes no file here has: each missing take named, as before
     with pytest.raises(uploads.UploadError) as missing:

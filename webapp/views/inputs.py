@@ -179,21 +179,37 @@ class InputsView:
     def _sample_options(self) -> list[str]:
         if self.session.waiting:
             return [self._waiting_label(), *self._names]
-        uploaded = not self.session.sample and self.session.body_sha256
+        uploaded = self._shown_entry() is None and self.session.body_sha256
         return ([UPLOADED] if uploaded else []) + self._names
 
     def _sample_value(self) -> str | None:
         s = self.session
         if s.waiting:  # the chosen takes are the upload, not the pair still shown
             return self._waiting_label()
-        if s.sample in self._names:
-            return s.sample
+        entry = self._shown_entry()
+        if entry in self._names:
+            return entry
         return UPLOADED if s.body_sha256 else None
+
+    def _shown_entry(self) -> str | None:
+        """The selector's entry of the takes open: the sample's, or the disk pair's own
+        entry when they are the very files of ``serve BODY HAND`` (a link or session file
+        of uploads with their bytes opens them: ``uploads.file_for``), as on a plain load
+        of that server (stranger 13 F2: it said "your uploaded pair" over the line "opened
+        from disk"); None for other uploads."""
+        s, local = self.session, self.session.config.local
+        if s.sample or local is None or not (s.body_sha256 and s.hand_sha256):
+            return s.sample or None
+        try:
+            paths = s.take_paths()
+        except uploads.UploadError:
+            return None
+        return local.name if tuple(paths) == (local.body, local.hand) else None
 
     def _on_sample(self, event):
         if not event.new or event.new in (UPLOADED, WAITING, WAITING_SIDE):
             return
-        if event.new != self.session.sample:
+        if event.new != self._shown_entry():
             self.session.load_sample(event.new)
         elif self.session.waiting:  # back to the sample still shown: the upload is dropped
             self._forget_uploads()
