@@ -57,6 +57,12 @@ HAND_AS_BODY = (
     "names its shoulder (Joint-role overrides, below); a hand take goes in the hand "
     "field</span>"
 )
+#: and on a hand take without finger joints (a body take, by its joint names): the mirror
+BODY_AS_HAND = (
+    "<span class='hs-body-as-hand'>⚠ it has no finger joints (it looks like a body take): a "
+    "pair with it as the hand take is refused unless a role override names its fingers "
+    "(Joint-role overrides, below); a body take goes in the body field</span>"
+)
 
 MARKER_BODY_NOTE = (
     "The body take holds **markers** (C3D/TRC): it has no skeleton to receive fingers. "
@@ -363,8 +369,9 @@ class InputsView:
             return
         # the tile is narrow: the frame count there, the whole description in the line below
         frames = kept.summary.get("frames", 0)
-        if _hand_as_body(which, kept):  # read, but a pair will refuse it (stranger 11 F10)
-            self._droppers[which].verdict("doubt", tile, "Checked", f"{frames} frames · a hand?")
+        doubt = _other_fields_take(which, kept)
+        if doubt:  # read, but a pair will refuse it (stranger 11 F10)
+            self._droppers[which].verdict("doubt", tile, "Checked", f"{frames} frames · {doubt}")
         else:
             self._droppers[which].verdict("ok", tile, "Checked", f"{frames} frames")
         self._pending[which] = kept
@@ -406,8 +413,8 @@ class InputsView:
                     f"; <span class='hs-reader-note'>note: {safe_text.html(n)}</span>"
                     for n in _own_notes(kept)
                 )
-                if _hand_as_body(which, kept) and not (opened or failed):
-                    notes += f"; {HAND_AS_BODY}"
+                if _other_fields_take(which, kept) and not (opened or failed):
+                    notes += f"; {HAND_AS_BODY if which == 'body' else BODY_AS_HAND}"
                 parts.append(
                     f"{which}: <b>{safe_text.html(kept.name)}</b> "
                     f"({safe_text.html(_describe(kept.summary))}{notes})"
@@ -675,11 +682,17 @@ def _side_warning_html(text: str) -> str:
     return f"<span class='hs-side-warning'>⚠ {safe_text.html(text)}</span>"
 
 
-def _hand_as_body(which: str, kept: uploads.Kept) -> bool:
-    """A take in the body field that looks like a hand take by its joint names (no
-    shoulder above any hand's elbow: ``Roles.looks_like_hand_take``). It is kept, not
-    refused: a role override naming its shoulder makes it a body."""
-    return which == "body" and bool(kept.summary.get("hand_take"))
+def _other_fields_take(which: str, kept: uploads.Kept) -> str:
+    """The tile's words ("a hand?", "a body?") when the take in ``which`` field looks like
+    the other field's by its joint names, else '': in the body field a hand take (no
+    shoulder above any hand's elbow: ``Roles.looks_like_hand_take``), in the hand field a
+    body take without fingers (``Roles.looks_like_body_take``). It is kept, not refused: a
+    role override naming the shoulder (the fingers) makes it one."""
+    if which == "body" and kept.summary.get("hand_take"):
+        return "a hand?"
+    if which == "hand" and kept.summary.get("body_take"):
+        return "a body?"
+    return ""
 
 
 def _unnamed_side(hand_name: str, take, side: str) -> str:
