@@ -254,6 +254,7 @@ def test_the_link_follows_the_frame_slider(served, tmp_path):
     browser, url = served
     page = _open(browser, url)
     try:
+        entries = page.evaluate("history.length")  # the tab's pages: the app's one entry
         box = page.locator(".hs-share-url input")
         query = dict(parse_qsl(urlsplit(box.input_value()).query))
         assert query.get("frame") == "0" and "band" not in query and "refine" not in query, query
@@ -285,7 +286,13 @@ def test_the_link_follows_the_frame_slider(served, tmp_path):
             assert time.monotonic() < deadline, link
             page.wait_for_timeout(100)
         assert "refine=" not in link and f"frame={frame}" in link, link
+        # the address bar follows in place (stranger 13 F4: each change was a history entry
+        # the page did not follow on Back): Back leaves the app, as from any other page
+        page.wait_for_function("() => location.search.includes('band=2s')", timeout=30_000)
+        assert page.evaluate("history.length") == entries
         assert not page.errors, page.errors
+        page.go_back()
+        assert not page.url.startswith(url), page.url
     finally:
         page.context.close()
 

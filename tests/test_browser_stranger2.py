@@ -182,6 +182,9 @@ def _refused_table_edit_is_said_next_to_the_table(page, tmp_path) -> None:
     # the point as a user counts and reads it, what is wrong and what was expected
     assert text.startswith("matching point 1 (body 9999, hand "), text
     assert f"outside the takes; expected body frames 0 to {n - 1} and hand frames 0 to " in text
+    # one refusal, one box: not again on the page's error line under the matrix (stranger 13 F3)
+    page.wait_for_timeout(300)
+    assert not page.locator(".hs-error").first.is_visible()
     page.screenshot(path=str(tmp_path / "refused_body.png"))
     assert _points(page) == 1
     _edit(page, "tolerance", "abc")

@@ -79,3 +79,31 @@ def test_a_hand_take_in_the_body_field_says_so_at_once(view):
     assert "looks like a hand take" not in view.uploaded.object
     _upload(view, "hand", "fingers-ok.bvh", FINGERS.read_bytes())
     assert view.tiles["hand"][0][:3] == ("ok", "fingers-ok.bvh", "Checked")
+
+
+def test_a_body_take_in_the_hand_field_says_so_at_once(view, tmp_path):
+    """The mirror of stranger 11 F10: a body take without fingers dropped into the hand
+    field was said only once the pair was complete ("has no finger joints"). Its tile is
+    amber at once and the line says why (``Roles.looks_like_body_take``); the pair is then
+    refused for it, as said. A body with fingers (BEAT) in the hand field, or a hand take,
+    is plain "Checked": its fingers can be spliced."""
+    from conftest import cropped_bvh
+
+    body = view.session.config.sample("wave-ok").body
+    _upload(view, "hand", "my-body.bvh", body.read_bytes())
+    state, tile, title, words = view.tiles["hand"][-1]
+    assert (state, tile, title) == ("doubt", "my-body.bvh", "Checked")
+    assert words.endswith(" frames · a body?"), words
+    line = view.uploaded.object
+    assert "no finger joints (it looks like a body take)" in line and "role override" in line
+    assert "now the other take" in line and not view.message.visible
+    assert "hand" in view._pending  # kept for the pair, not refused
+    walk = MOCAP / "bandai-namco" / "dataset-1_bye_normal_001.bvh"
+    _upload(view, "body", "my-walk.bvh", walk.read_bytes())
+    assert "my\\-body\\.bvh has no finger joints" in view.message.object  # escaped
+    assert "looks like a body take" not in view.uploaded.object  # the refusal says it now
+    beat = cropped_bvh(view.session.config.sample("beat-self").body, tmp_path / "wayne.bvh", 60)
+    _upload(view, "hand", "wayne.bvh", beat.read_bytes())
+    assert view.tiles["hand"][-1][:3] == ("ok", "wayne.bvh", "Checked")
+    _upload(view, "hand", "fingers-ok.bvh", FINGERS.read_bytes())
+    assert view.tiles["hand"][-1][:3] == ("ok", "fingers-ok.bvh", "Checked")

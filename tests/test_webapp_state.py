@@ -1463,6 +1463,47 @@ def test_points_table_refuses_a_fraction_of_a_frame_with_the_rules_one_text(sess
     assert session.points[0].hand == 125 and session.error == ""
 
 
+def test_a_refused_table_edit_is_said_once_beside_the_table(session):
+    """Stranger 13 F3: -5 typed into a point's hand cell showed the same red box twice,
+    under the matrix legend and above the table. The table's box says it (where it was
+    typed), the page's error line does not; also when the edit's solve is refused later,
+    off the loop. A refusal of another front (a click on the matrix: the session's own
+    point API) is said on the page's line only."""
+    from types import SimpleNamespace
+
+    from engine.base.errors import HandSpliceError
+    from webapp.views.controls import PointsTable, error_alert
+
+    table, alert = PointsTable(session), error_alert(session)
+    session.add_point(51, 80)
+    table._on_edit(SimpleNamespace(row=0, column="hand frame", value=-5))
+    assert session.error == (
+        "matching point 1 (body 51, hand -5): expected a whole hand frame number >= 0, got -5"
+    )
+    assert table.refusal.visible and "hand frame number" in table.refusal.object
+    assert not alert.visible
+    # the edit is taken, its solve refused on the worker: the table's refusal still
+    jobs = []
+    session.runner = SimpleNamespace(submit=jobs.append, solving=lambda: False)
+    try:
+        table._on_edit(SimpleNamespace(row=0, column="hand frame", value=90))
+        assert session.error == "" and not table.refusal.visible
+        (job,) = [j for j in jobs if j.kind == "solve"]
+        job.failed(HandSpliceError("no alignment fits these matching points"))
+    finally:
+        session.runner = None
+    assert session.error == "no alignment fits these matching points"
+    assert table.refusal.visible and not alert.visible
+    assert session.points[0].hand == 80  # back to the path on screen
+    # a click on the matrix out of order: the page's line, not the table's box
+    session.add_point(60, 10)
+    assert session.error.startswith("matching point 2 (body 60, hand 10): hand frame 10 is")
+    assert alert.visible and not table.refusal.visible
+    # an accepted table edit clears the line too
+    table._on_edit(SimpleNamespace(row=0, column="hand frame", value=81))
+    assert session.error == "" and not alert.visible and not table.refusal.visible
+
+
 def test_a_refused_seconds_entry_speaks_of_its_field(session):
     """What is typed into a width's field in seconds is refused in that field's words
     (``W1 in seconds``, seconds only, the text as typed), not as ``band`` with its
@@ -1604,7 +1645,7 @@ def test_a_link_of_uploads_opens_on_a_server_started_on_the_same_files(cfg, tmp_
     showed the pair without the link's points. The server's files with the link's bytes
     open it (``uploads.file_for``): points, tolerance and view, no notice, nothing copied."""
     from webapp import app
-    from webapp.views.inputs import InputsView
+    from webapp.views.inputs import UPLOADED, InputsView
     from webapp.views.link_notice import link_notice
 
     s, body, hand = demo_pair_uploaded(cfg)
@@ -1631,14 +1672,22 @@ def test_a_link_of_uploads_opens_on_a_server_started_on_the_same_files(cfg, tmp_
     )
     assert (other.sample, other.body_sha256, other.hand_sha256) == (None, body, hand)
     assert other.take_paths() == (local.body, local.hand)
+    # the Sample pair menu names the disk pair as a plain load does (stranger 13 F2: it
+    # said "(your uploaded pair)" over the line "opened from disk"), and picks nothing
+    assert inputs.sample.value == local.name and UPLOADED not in inputs.sample.options
+    assert other.sample is None and other.body_sha256 == body
     assert other.points == s.points and other.points[0].tolerance == 2
     assert (other.tolerance, other.matrix, other.frame) == (1, "pass2", 40)
     assert not other.link_waiting
     assert other.solution.pass1.cost == pytest.approx(s.solution.pass1.cost)
     # the session file the same (Open a session file)
     from_file = Session(served)
+    from_file.load_sample(local.name)
+    file_inputs = InputsView(from_file)
     from_file.from_json(s.to_json(), "handsplice-session.json")
     assert from_file.error == "" and from_file.points == s.points
+    assert (from_file.sample, file_inputs.sample.value) == (None, local.name)
+    assert list(file_inputs.sample.options) == [p.name for p in served.samples()]
     assert list(empty.iterdir()) == []  # read where it is: nothing uploaded
     # bytes no file here has: each missing take named, as before
     with pytest.raises(uploads.UploadError) as missing:

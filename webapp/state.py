@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import re
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from urllib.parse import urlencode
 
@@ -267,7 +268,9 @@ class Session(param.Parameterized):
         self._redo: list[Snapshot] = []
         self._applying = False
         self._slider_run: tuple[str, float] | None = None
-        self._refused: tuple[str, C.ConstraintError | None] = ("", None)
+        self._refused: tuple[str, C.ConstraintError | None, str] = ("", None, "")
+        #: the front whose edit is being made (:meth:`edit_from`); its refusal is said there
+        self._front = ""
         #: the inputs (``side``, ``roles``, ...) whose change ``error`` refuses, if any
         self.refused_inputs: tuple[str, ...] = ()
         self.prepared: backend.Prepared | None = None
@@ -308,20 +311,42 @@ class Session(param.Parameterized):
 
     # ------------------------------------------------------------ refusals
 
-    def refuse(self, exc: BaseException, text: str | None = None, inputs=()) -> None:
+    def refuse(
+        self, exc: BaseException, text: str | None = None, inputs=(), front: str | None = None
+    ) -> None:
         """Say why an edit or input was refused: ``error`` is ``text`` (default: the
-        exception's one line) and :meth:`refusal` the constraint behind it, if any."""
+        exception's one line) and :meth:`refusal` the constraint behind it, if any;
+        ``front``: the front whose edit it was (default: the one making an edit now,
+        :meth:`edit_from`), :attr:`refused_from`."""
         text = self._named_uploads(backend.one_line(exc)) if text is None else text
         cause = exc if isinstance(exc, C.ConstraintError) else getattr(exc, "constraint", None)
-        self._refused = (text, cause)
+        self._refused = (text, cause, self._front if front is None else front)
         self.refused_inputs = tuple(inputs)
         self.error = text
 
     def refusal(self) -> C.ConstraintError | None:
         """The structured constraint refusal (field, value, expected, the refused point)
         behind the current ``error``; None when ``error`` is not a constraint's."""
-        text, cause = self._refused
+        text, cause, _ = self._refused
         return cause if self.error and text == self.error else None
+
+    @contextmanager
+    def edit_from(self, front: str):
+        """Edits made inside this block come from ``front`` (``"table"``: the points
+        table): their refusal, at once or from their solve off the loop, has
+        :attr:`refused_from` ``front``, so that one box says it, where it was typed."""
+        outer, self._front = self._front, front
+        try:
+            yield
+        finally:
+            self._front = outer
+
+    @property
+    def refused_from(self) -> str:
+        """The front (:meth:`edit_from`) whose edit the current ``error`` refuses; '' for
+        any other (a click on the matrix, a slider, a link: the page's error line)."""
+        text, _, front = self._refused
+        return front if self.error and text == self.error else ""
 
     def begin_opening(self, name: str) -> None:
         """A new pair named ``name`` is being opened off the loop: the views of the open
@@ -1087,13 +1112,14 @@ class Session(param.Parameterized):
             self._chain = sol
             return sol
 
+        front = self._front  # the edit's, when its solve is refused later
         self.runner.submit(
             Job(
                 "solve",
                 "aligning",
                 work,
                 done=lambda sol: self._solved(sol, t0, values, automatic),
-                failed=self._solve_failed,
+                failed=lambda exc: self._solve_failed(exc, front),
             )
         )
         return True  # refused later: _solve_failed
@@ -1109,11 +1135,12 @@ class Session(param.Parameterized):
         self._accepted_automatic = self.automatic if automatic is None else automatic
         self._accepted_undo = len(self._undo)
 
-    def _solve_failed(self, exc: BaseException) -> None:
-        """The newest solve was refused (off the loop): its reason is shown and the edit
-        values go back to those of the path on screen (the undo steps since go too)."""
+    def _solve_failed(self, exc: BaseException, front: str = "") -> None:
+        """The newest solve was refused (off the loop): its reason is shown (as the refusal
+        of ``front``'s edit) and the edit values go back to those of the path on screen (the
+        undo steps since go too)."""
         self.end_opening()
-        self.refuse(exc)
+        self.refuse(exc, front=front)
         if self._accepted is not None:
             self.automatic = self._accepted_automatic  # first: the values' watchers read it
             self._apply(self._accepted)

@@ -60,7 +60,8 @@ class Staged:
 class Kept:
     """A checked upload kept by content hash; ``summary`` describes the take
     (``kind`` "skeleton" or "markers", ``frames``, ``fps``, ``joints``/``markers``; a
-    skeleton's ``hand_take``: ``engine.model.roles.Roles.looks_like_hand_take``) and
+    skeleton's ``hand_take`` and ``body_take``: ``engine.model.roles.Roles``'
+    ``looks_like_hand_take`` and ``looks_like_body_take``) and
     ``take`` is what the reader read (handed over by the child: not read twice)."""
 
     digest: str
@@ -430,11 +431,12 @@ def _child_read(path: str, memory: int, conn) -> None:  # runs in the child proc
         if isinstance(take, MarkerSet):
             summary = {"kind": "markers", "markers": len(take.labels)}
         else:
+            roles = find_roles(take.skeleton)  # by its joint names, as a pair opens it
             summary = {
                 "kind": "skeleton",
                 "joints": int(take.skeleton.n_joints),
-                # by its joint names, as a pair opens it without role overrides
-                "hand_take": find_roles(take.skeleton).looks_like_hand_take,
+                "hand_take": roles.looks_like_hand_take,
+                "body_take": roles.looks_like_body_take,
             }
         summary.update(frames=int(take.n_frames), fps=float(take.fps))
         conn.send(("ok", summary, take))

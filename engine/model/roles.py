@@ -445,6 +445,15 @@ class Roles:
         ]
         return bool(arms) and not any(arm.has_shoulder for arm in arms)
 
+    @property
+    def looks_like_body_take(self) -> bool:
+        """No hand of the rig has finger joints (sided or not: ``ArmRoles.has_fingers``): a
+        body take without fingers (Bandai, LAFAN1), or a rig without hands, which the splice
+        refuses as the hand take (it has no fingers to give) unless a role override names
+        them. A body with fingers (BEAT) is not one: its fingers can be spliced."""
+        arms = (self.right, self.left, self.unsided)
+        return not any(arm.has_fingers for arm in arms if arm is not None)
+
     def require(self, side: str, role: str) -> int:
         """Joint index of ``role`` on ``side``; ``RoleError`` naming the nearest
         joint names when the rig has none."""

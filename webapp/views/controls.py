@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import time
-
 import pandas as pd
 import panel as pn
 from bokeh.models import CustomJS
@@ -360,6 +358,11 @@ class PointsTabulator(pn.widgets.Tabulator):
         return model
 
 
+#: the points table as the front of an edit (``Session.edit_from``): its refusal is said in
+#: the table's own box, not on the page's error line
+TABLE_FRONT = "table"
+
+
 class PointsTable:
     """Tabulator of the matching points: edit frames and per-point tolerance, delete rows.
 
@@ -379,7 +382,6 @@ class PointsTable:
         self.refusal = refusal_box(
             "hs-table-error", into_view=True, sizing_mode="stretch_width", margin=(4, 10)
         )
-        self._edited_at = -1e9
         # after the edit's path is in the page (``after_path``): re-rendering the table in
         # the tick that draws the path, or while its solve runs, delayed the path
         doc = pn.state.curdoc
@@ -468,8 +470,15 @@ class PointsTable:
             return
         # the rules and their one text are engine.dtw.constraints' (as for every front):
         # a fraction of a frame (12.5) is refused, never truncated
-        self._edited_at = time.monotonic()
         s.error = ""  # a new edit: only its own refusal is shown
+        with s.edit_from(TABLE_FRONT):  # its refusal is said here (even from its solve)
+            self._edit(k, column, value)
+        self._refresh()
+        self._on_error()
+
+    def _edit(self, k: int, column: str, value) -> None:
+        """Point ``k``'s ``column`` set to ``value`` as typed; a refusal said by the session."""
+        s = self.session
         try:
             if column == "tolerance":
                 text = "" if value is None else str(value).strip()
@@ -488,18 +497,15 @@ class PointsTable:
                 )
         except C.ConstraintError as exc:
             s.refuse(exc, str(exc))
-        self._refresh()
-        self._on_error()
-
-    #: a refusal this long after a table edit (a solve off the loop) is the edit's own
-    REFUSAL_S = 30.0
 
     def _on_error(self, *_):
+        """The refusal of an edit typed in this table is said here, and only here (stranger
+        13 F3: the page's error line under the matrix said it too); another's is not."""
         s = self.session
-        if s.error and time.monotonic() - self._edited_at < self.REFUSAL_S:
+        if s.error and s.refused_from == TABLE_FRONT:
             self.refusal.object = safe_text.markdown(s.error)
             self.refusal.visible = True
-        elif not s.error:
+        else:
             self.refusal.visible = False
 
     def _on_click(self, event):
@@ -602,8 +608,13 @@ def error_alert(session: Session) -> pn.viewable.Viewable:
 
     def update(*_):
         alert.object = safe_text.markdown(session.error)
-        # a refused side is shown under the Side control (webapp.views.inputs)
-        alert.visible = bool(session.error) and "side" not in session.refused_inputs
+        # a refused side is shown under the Side control (webapp.views.inputs), a refused
+        # edit of the points table above the table (PointsTable): one refusal, one box
+        alert.visible = (
+            bool(session.error)
+            and "side" not in session.refused_inputs
+            and session.refused_from != TABLE_FRONT
+        )
 
     session.param.watch(update, ["error"])
     update()

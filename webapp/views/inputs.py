@@ -57,6 +57,12 @@ HAND_AS_BODY = (
     "names its shoulder (Joint-role overrides, below); a hand take goes in the hand "
     "field</span>"
 )
+#: and on a hand take without finger joints (a body take, by its joint names): the mirror
+BODY_AS_HAND = (
+    "<span class='hs-body-as-hand'>⚠ it has no finger joints (it looks like a body take): a "
+    "pair with it as the hand take is refused unless a role override names its fingers "
+    "(Joint-role overrides, below); a body take goes in the body field</span>"
+)
 
 MARKER_BODY_NOTE = (
     "The body take holds **markers** (C3D/TRC): it has no skeleton to receive fingers. "
@@ -179,21 +185,37 @@ class InputsView:
     def _sample_options(self) -> list[str]:
         if self.session.waiting:
             return [self._waiting_label(), *self._names]
-        uploaded = not self.session.sample and self.session.body_sha256
+        uploaded = self._shown_entry() is None and self.session.body_sha256
         return ([UPLOADED] if uploaded else []) + self._names
 
     def _sample_value(self) -> str | None:
         s = self.session
         if s.waiting:  # the chosen takes are the upload, not the pair still shown
             return self._waiting_label()
-        if s.sample in self._names:
-            return s.sample
+        entry = self._shown_entry()
+        if entry in self._names:
+            return entry
         return UPLOADED if s.body_sha256 else None
+
+    def _shown_entry(self) -> str | None:
+        """The selector's entry of the takes open: the sample's, or the disk pair's own
+        entry when they are the very files of ``serve BODY HAND`` (a link or session file
+        of uploads with their bytes opens them: ``uploads.file_for``), as on a plain load
+        of that server (stranger 13 F2: it said "your uploaded pair" over the line "opened
+        from disk"); None for other uploads."""
+        s, local = self.session, self.session.config.local
+        if s.sample or local is None or not (s.body_sha256 and s.hand_sha256):
+            return s.sample or None
+        try:
+            paths = s.take_paths()
+        except uploads.UploadError:
+            return None
+        return local.name if tuple(paths) == (local.body, local.hand) else None
 
     def _on_sample(self, event):
         if not event.new or event.new in (UPLOADED, WAITING, WAITING_SIDE):
             return
-        if event.new != self.session.sample:
+        if event.new != self._shown_entry():
             self.session.load_sample(event.new)
         elif self.session.waiting:  # back to the sample still shown: the upload is dropped
             self._forget_uploads()
@@ -347,8 +369,9 @@ class InputsView:
             return
         # the tile is narrow: the frame count there, the whole description in the line below
         frames = kept.summary.get("frames", 0)
-        if _hand_as_body(which, kept):  # read, but a pair will refuse it (stranger 11 F10)
-            self._droppers[which].verdict("doubt", tile, "Checked", f"{frames} frames · a hand?")
+        doubt = _other_fields_take(which, kept)
+        if doubt:  # read, but a pair will refuse it (stranger 11 F10)
+            self._droppers[which].verdict("doubt", tile, "Checked", f"{frames} frames · {doubt}")
         else:
             self._droppers[which].verdict("ok", tile, "Checked", f"{frames} frames")
         self._pending[which] = kept
@@ -390,8 +413,8 @@ class InputsView:
                     f"; <span class='hs-reader-note'>note: {safe_text.html(n)}</span>"
                     for n in _own_notes(kept)
                 )
-                if _hand_as_body(which, kept) and not (opened or failed):
-                    notes += f"; {HAND_AS_BODY}"
+                if _other_fields_take(which, kept) and not (opened or failed):
+                    notes += f"; {HAND_AS_BODY if which == 'body' else BODY_AS_HAND}"
                 parts.append(
                     f"{which}: <b>{safe_text.html(kept.name)}</b> "
                     f"({safe_text.html(_describe(kept.summary))}{notes})"
@@ -659,11 +682,17 @@ def _side_warning_html(text: str) -> str:
     return f"<span class='hs-side-warning'>⚠ {safe_text.html(text)}</span>"
 
 
-def _hand_as_body(which: str, kept: uploads.Kept) -> bool:
-    """A take in the body field that looks like a hand take by its joint names (no
-    shoulder above any hand's elbow: ``Roles.looks_like_hand_take``). It is kept, not
-    refused: a role override naming its shoulder makes it a body."""
-    return which == "body" and bool(kept.summary.get("hand_take"))
+def _other_fields_take(which: str, kept: uploads.Kept) -> str:
+    """The tile's words ("a hand?", "a body?") when the take in ``which`` field looks like
+    the other field's by its joint names, else '': in the body field a hand take (no
+    shoulder above any hand's elbow: ``Roles.looks_like_hand_take``), in the hand field a
+    body take without fingers (``Roles.looks_like_body_take``). It is kept, not refused: a
+    role override naming the shoulder (the fingers) makes it one."""
+    if which == "body" and kept.summary.get("hand_take"):
+        return "a hand?"
+    if which == "hand" and kept.summary.get("body_take"):
+        return "a body?"
+    return ""
 
 
 def _unnamed_side(hand_name: str, take, side: str) -> str:

@@ -1,7 +1,8 @@
 """Downloads (spliced BVH and GLB, preview GIF/MP4, session JSON) and the shareable link.
 
 The browser's address bar always carries the link of the current state (updated
-after every edit), so copying it shares the session; the field below shows it too.
+after every edit, in place: no history entries, :mod:`webapp.views.address_bar`), so
+copying it shares the session; the field below shows it too.
 
 GIF/MP4 exports take seconds: they render on a worker thread while the event loop
 goes on serving every session (this one included); a progress bar and a line of
@@ -32,6 +33,7 @@ from webapp import backend, safe_text
 from webapp.served_files import STORE, ServedFile
 from webapp.state import VIEW_STATE, Session
 from webapp.views._dispatch import Settle, after_path, with_document_lock
+from webapp.views.address_bar import AddressBar
 from webapp.views.credits import file_credit, video_caption
 from webapp.views.refusal import refusal_box
 
@@ -41,8 +43,8 @@ _EXPORTS = ThreadPoolExecutor(max_workers=2, thread_name_prefix="hs-export")
 _FILES = ThreadPoolExecutor(max_workers=2, thread_name_prefix="hs-download")
 #: how often the page's progress follows an export, seconds
 PROGRESS_INTERVAL = 0.25
-#: the link takes the preview's frame once it has stood still this long, ms: each new link
-#: is a browser history entry, so not one per frame while Play runs or the slider is dragged
+#: the link takes the preview's frame once it has stood still this long, ms: not one link
+#: (and address bar) per frame while Play runs or the slider is dragged
 FRAME_LINK_MS = 300
 #: the name the page gives the downloaded session file (the command line refers to it)
 SESSION_FILENAME = "handsplice-session.json"
@@ -180,6 +182,7 @@ class SharingView:
         self.link = pn.widgets.TextInput(
             label="Link to this session", value="", css_classes=["hs-share-url"], disabled=False
         )
+        self.address = AddressBar()
         self.command = pn.pane.HTML(
             "",
             css_classes=["hs-cli"],
@@ -436,11 +439,10 @@ class SharingView:
     def _update_link(self, *_):
         query = self.session.share_url()
         self.link.value = self._base_url() + query
-        loc = pn.state.location
         # a shared link waiting for its takes stays in the address bar (stranger 12: a
         # reload lost it): the address follows the page again once the link opened
-        if loc is not None and loc.search != query and not self.session.link_waiting:
-            loc.param.update(search=query)
+        if not self.session.link_waiting:
+            self.address.show(query)
         s = self.session
         if s.prepared is not None:
             body, hand = self._take_names()
@@ -475,5 +477,6 @@ class SharingView:
             self.message,
             self.link,
             self.command,
+            self.address.panel(),
             sizing_mode="stretch_width",
         )
