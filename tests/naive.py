@@ -163,8 +163,10 @@ def trim(lo, hi):
     return lo2, hi2
 
 
-def dtw_banded_open(cost, lo, hi, skip=0.0, max_body=0, max_hand=0):
+def dtw_banded_open(cost, lo, hi, skip=0.0, max_body=0, max_hand=0, end_body=None, end_hand=None):
     """(total, path) of banded DTW with open ends (engine.dtw.Ends), plainly.
+
+    ``end_body``/``end_hand`` (None: ``max_body``/``max_hand``): the end's own limits.
 
     A path may start at (0, 0), at (i, 0) with i <= max_body or at (0, j) with
     j <= max_hand, and end at (n-1, m-1), (i, m-1) with n-1-i <= max_body or (n-1, j)
@@ -201,8 +203,10 @@ def dtw_banded_open(cost, lo, hi, skip=0.0, max_body=0, max_hand=0):
                     best_value, best_cell = value, cell
             gamma[(i, j)] = float(cost[i][j]) + best_value
             back[(i, j)] = best_cell
-    ends = [(n - 1, j) for j in range(m - 1, -1, -1) if m - 1 - j <= max_hand]
-    ends += [(i, m - 1) for i in range(n - 2, -1, -1) if n - 1 - i <= max_body]
+    end_body = max_body if end_body is None else end_body
+    end_hand = max_hand if end_hand is None else end_hand
+    ends = [(n - 1, j) for j in range(m - 1, -1, -1) if m - 1 - j <= end_hand]
+    ends += [(i, m - 1) for i in range(n - 2, -1, -1) if n - 1 - i <= end_body]
     total, end = INF, (n - 1, m - 1)
     for i, j in ends:
         if (i, j) in gamma:

@@ -9,7 +9,7 @@ import pytest
 from engine.base.errors import ParameterError
 from engine.dtw import Aligner, Band, align, align_features
 from engine.dtw import kernels as K
-from engine.dtw.align import Ends, check_ends
+from engine.dtw.align import Ends, check_ends, ends_through_points
 
 
 def _random_case(rng, n, m, ties):
@@ -27,7 +27,14 @@ def _points(rng, n, m, k):
 
 def _naive(cost, band, ends):
     return naive.dtw_banded_open(
-        cost.tolist(), band.lo.tolist(), band.hi.tolist(), ends.skip, ends.body, ends.hand
+        cost.tolist(),
+        band.lo.tolist(),
+        band.hi.tolist(),
+        ends.skip,
+        ends.body,
+        ends.hand,
+        ends.end_body,
+        ends.end_hand,
     )
 
 
@@ -177,7 +184,7 @@ def test_incremental_open_ends_exact_across_edits():
         a, b = rng.random((n, 3)), rng.random((m, 3))
         if trial % 2:
             a, b = np.round(a * 2), np.round(b * 2)
-        cost = naive.local_cost_matrix(a.tolist(), b.tolist())
+        cost = np.array(naive.local_cost_matrix(a.tolist(), b.tolist()))
         ends = Ends(
             int(rng.integers(0, n // 2)),
             int(rng.integers(0, m // 2)),
@@ -219,7 +226,7 @@ def test_incremental_open_ends_exact_when_points_sit_on_the_first_or_last_body_f
     for _ in range(40):
         n, m = int(rng.integers(20, 80)), int(rng.integers(20, 80))
         a, b = rng.random((n, 3)), rng.random((m, 3))
-        cost = naive.local_cost_matrix(a.tolist(), b.tolist())
+        cost = np.array(naive.local_cost_matrix(a.tolist(), b.tolist()))
         ends = Ends(n // 2, m // 2, float(rng.choice([0.1, 0.3])))
         solver = Aligner(a, b)
         solver.solve(Band.from_constraints(n, m, 0.3, [], open_ends=True), ends)
@@ -293,3 +300,73 @@ def test_join_at_every_row_when_the_first_body_frame_starts_off_column_0():
             )
             checked += 1
     assert checked > 100
+
+
+def _visits(path, x: int, y: float, tol: float) -> bool:
+    """The path crosses body frame ``x`` within ``y ± tol``."""
+    cols = [int(j) for i, j in path if int(i) == x]
+    return bool(cols) and min(cols) <= y + tol and max(cols) >= y - tol
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_start_and_end_limits_of_their_own_exact_in_both_directions(seed):
+    """Ends with the end's own limits (``body_end``/``hand_end``): the forward solve and the
+    incremental solver (its backward rows read the reversed ends, joined at a row between)
+    give the plain reference's path; the reversed ends swap start and end."""
+    e = Ends(3, 4, 0.5, 7, 1)
+    assert (e.end_body, e.end_hand) == (7, 1) and e.reversed() == Ends(7, 1, 0.5, 3, 4)
+    assert Ends(3, 4, 0.5, 3, 4) == Ends(3, 4, 0.5) and Ends(0, 0, 0.0, 0, 0).fixed
+    assert list(e.array()) == [0.5, 3.0, 4.0, 7.0, 1.0] and not Ends(0, 0, 0.0, 2).fixed
+    rng = np.random.default_rng(100 + seed)
+    checked = 0
+    for trial in range(30):
+        n, m = int(rng.integers(30, 90)), int(rng.integers(30, 90))
+        a, b = rng.random((n, 3)), rng.random((m, 3))
+        if trial % 2:
+            a, b = np.round(a * 2), np.round(b * 2)
+        cost = np.array(naive.local_cost_matrix(a.tolist(), b.tolist()))
+        ends = Ends(
+            *(int(rng.integers(0, k // 2)) for k in (n, m)),
+            float(rng.choice([0.0, 0.1, 0.3])),
+            *(int(rng.integers(0, k // 2)) for k in (n, m)),
+        )
+        try:
+            band = Band.from_constraints(n, m, float(rng.uniform(0.3, 1.0)), [], open_ends=True)
+            check_ends(band, ends)
+        except ParameterError:
+            continue
+        total, path = _naive(cost, band, ends)
+        if not np.isfinite(total):
+            continue
+        for got in (align(cost, band, ends), Aligner(a, b).solve(band, ends)):
+            assert got.cost == pytest.approx(total, abs=1e-9)
+            assert [tuple(c) for c in got.path.tolist()] == path
+        checked += 1
+    assert checked > 10
+
+
+def test_a_point_on_the_hand_takes_first_or_last_frame_pins_that_end():
+    """Stranger 14 F1: ``--match 60:0`` started the hand at body frame 102 (the open start
+    skipped the point's row, where the band's clip holds); a point whose window reaches the
+    last hand frame was skipped at the end likewise. ``ends_through_points`` keeps every
+    point's row on the path; without such a point it changes nothing."""
+    rng = np.random.default_rng(7)
+    n, m = 120, 60
+    a, b = rng.random((n, 2)), rng.random((m, 2))
+    b[[0, m - 1]] += 2.0  # matching anything to the hand's first and last frames is costly:
+    cost = np.array(naive.local_cost_matrix(a.tolist(), b.tolist()))  # a free open end
+    # would rather skip the points' rows
+    ends = Ends(n // 2, m // 2, 0.1)
+    assert ends_through_points(ends, [(40, 20, 2)], n, m) is ends  # nothing to pin
+    missed = 0  # cases whose points the unpinned ends skip (the bug, as it was)
+    for pts in ([(50, 0, 0)], [(100, 59, 0)], [(30, 1, 3), (90, 59, 0)], [(10, 5, 0), (80, 57, 4)]):
+        band = Band.from_constraints(n, m, 0.6, pts, open_ends=True)
+        loose = align(cost, band, ends)
+        missed += not all(_visits(loose.path.tolist(), *p) for p in pts)
+        pinned = ends_through_points(ends, pts, n, m)
+        got = align(cost, band, pinned)
+        assert all(_visits(got.path.tolist(), *p) for p in pts), (pts, got.path[[0, -1]])
+        total, path = _naive(cost, band, pinned)
+        assert got.cost == pytest.approx(total) and [tuple(c) for c in got.path.tolist()] == path
+        assert Aligner(a, b).solve(band, pinned).cost == pytest.approx(total)
+    assert missed >= 2

@@ -501,3 +501,26 @@ def test_the_kernel_cache_is_known_cold_or_warm(tmp_path, monkeypatch):
     (tmp_path / "engine" / "dtw").mkdir(parents=True)
     (tmp_path / "engine" / "dtw" / "kernels.forward-12.py311.nbi").write_bytes(b"x")
     assert kernels_cached()
+
+
+@pytest.mark.parametrize(
+    "matches, first, last",
+    [(["60:0"], 60, None), (["150:81:0"], None, 150), (["40:7:3", "150:79:3"], None, 147)],
+)
+def test_a_point_on_the_hand_takes_first_or_last_frame_pins_where_the_hand_starts_or_ends(
+    tmp_path, matches, first, last
+):
+    """Stranger 14 F1: ``--match 60:0`` (the hand's first frame at body frame 60) started
+    the hand at body frame 102, and a point on (or whose tolerance reached) the hand's
+    last frame, 81, let it end at body frame 103: the open ends skipped the points' rows.
+    The matched body frames now run from the point (or before) to the point (or after)."""
+    rep = tmp_path / "r.json"
+    args = ["splice", str(BODY), str(HAND), "-o", str(tmp_path / "o.bvh"), "--side", "right"]
+    for m in matches:
+        args += ["--match", m]
+    assert main([*args, "--report", str(rep), "--quiet"]) == 0
+    body0, body1 = json.loads(rep.read_text())["overlap"]["body"]
+    if first is not None:
+        assert body0 <= first, (body0, body1)
+    if last is not None:
+        assert body1 >= last, (body0, body1)

@@ -22,7 +22,7 @@ Modules: ``band`` (Band), ``align`` (Alignment, align, align_features),
 kernels and the metric registry: ``register_metric``).
 """
 
-from .align import FIXED, Alignment, Ends, align, align_features
+from .align import FIXED, Alignment, Ends, align, align_features, ends_through_points
 from .band import Band, check_path
 from .incremental import Aligner, SolveStats
 from .kernels import metric_names, register_metric
@@ -33,6 +33,7 @@ __all__ = [
     "Aligner",
     "Alignment",
     "Ends",
+    "ends_through_points",
     "Band",
     "BandValues",
     "CostImage",

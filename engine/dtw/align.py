@@ -36,8 +36,10 @@ class Ends:
 
     A path starts at ``(0, 0)`` or, leaving the first frames of one take unmatched,
     at ``(i, 0)`` with ``i <= body`` or ``(0, j)`` with ``j <= hand``; it ends at
-    ``(n-1, m-1)``, ``(i, m-1)`` with ``n-1-i <= body`` or ``(n-1, j)`` with
-    ``m-1-j <= hand``. The limits hold at each end separately (frames).
+    ``(n-1, m-1)``, ``(i, m-1)`` with ``n-1-i <= end_body`` or ``(n-1, j)`` with
+    ``m-1-j <= end_hand``. ``body_end``/``hand_end`` (None: as ``body``/``hand``) are
+    the end's own limits where they differ from the start's (:func:`ends_through_points`:
+    a matching point on the hand take's first or last frame).
 
     Every unmatched frame costs ``skip`` (local-cost units per frame): the total of a
     path is the sum of its cells' local costs plus ``skip`` times the frames of both
@@ -52,25 +54,83 @@ class Ends:
     body: int = 0
     hand: int = 0
     skip: float = 0.0
+    body_end: int | None = None
+    hand_end: int | None = None
 
     def __post_init__(self):
-        for name in ("body", "hand"):
+        for name in ("body", "hand", "body_end", "hand_end"):
             v = getattr(self, name)
+            if v is None and name.endswith("_end"):
+                continue
             if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < 0:
                 raise ParameterError(
                     f"open ends: {name} must be a whole number of frames >= 0, got {v!r}"
                 )
+        for name, start in (("body_end", self.body), ("hand_end", self.hand)):
+            if getattr(self, name) == start:  # one spelling of each set of limits
+                object.__setattr__(self, name, None)
         if not (np.isfinite(self.skip) and self.skip >= 0):
             raise ParameterError(f"open ends: skip must be a finite cost >= 0, got {self.skip!r}")
 
     @property
+    def end_body(self) -> int:
+        """Body frames that may stay unmatched at the end."""
+        return self.body if self.body_end is None else int(self.body_end)
+
+    @property
+    def end_hand(self) -> int:
+        """Hand frames that may stay unmatched at the end."""
+        return self.hand if self.hand_end is None else int(self.hand_end)
+
+    @property
     def fixed(self) -> bool:
         """True when every path runs from (0, 0) to (n-1, m-1)."""
-        return self.body == 0 and self.hand == 0
+        return self.body == self.hand == self.end_body == self.end_hand == 0
 
     def array(self) -> np.ndarray:
-        """``[skip, body, hand]`` float64, as the kernels read it."""
-        return np.array([float(self.skip), float(self.body), float(self.hand)])
+        """``[skip, body, hand, end_body, end_hand]`` float64, as the kernels read it
+        (the start's limits first: a forward pass reads them at its first rows)."""
+        return np.array(
+            [
+                float(self.skip),
+                float(self.body),
+                float(self.hand),
+                float(self.end_body),
+                float(self.end_hand),
+            ]
+        )
+
+    def reversed(self) -> Ends:
+        """The same ends for the reversed problem (rows and columns in the opposite
+        order): its start is this one's end."""
+        return Ends(self.end_body, self.end_hand, self.skip, self.body, self.hand)
+
+
+def ends_through_points(ends: Ends, points, n: int, m: int) -> Ends:
+    """``ends`` narrowed so that every open-end path passes all matching ``points``
+    (``(x, y, tol)`` frames of an ``n x m`` problem).
+
+    The band's clips hold a path to a point's window only on the rows the path visits,
+    and an open end lets it skip rows: when the first point's window reaches the hand
+    take's first frame (``y - tol <= 0``), a path could start on that column below the
+    point, leaving the point's body frame unmatched (stranger 14: ``--match 60:0`` started
+    the hand at body frame 102); likewise at the end with the last point's window on the
+    last hand frame. The start may then leave at most ``x`` body frames unmatched, the end
+    at most ``n - 1 - x``. Every path these ends forbid misses a point, so nothing else
+    changes; without such a point the ends are returned as they are."""
+    pts = sorted((int(x), float(y), float(t or 0.0)) for x, y, t in points)
+    if not pts or ends.fixed:
+        return ends
+    body, body_end = ends.body, ends.end_body
+    x, y, t = pts[0]
+    if y - t <= 0:
+        body = min(body, max(x, 0))
+    x, y, t = pts[-1]
+    if y + t >= m - 1:
+        body_end = min(body_end, max(n - 1 - x, 0))
+    if (body, body_end) == (ends.body, ends.end_body):
+        return ends
+    return Ends(body, ends.hand, ends.skip, body_end, ends.end_hand)
 
 
 FIXED = Ends()
@@ -435,10 +495,10 @@ def check_ends(band: Band, ends: Ends) -> None:
             f"the band's first body frame starts at hand frame {band.lo[0]}, but at most "
             f"{ends.hand} hand frames may be left unmatched at the start"
         )
-    if band.hi[-1] < band.m - 1 - ends.hand:
+    if band.hi[-1] < band.m - 1 - ends.end_hand:
         raise ParameterError(
             f"the band's last body frame ends at hand frame {band.hi[-1]}, but at most "
-            f"{ends.hand} of the {band.m} hand frames may be left unmatched at the end"
+            f"{ends.end_hand} of the {band.m} hand frames may be left unmatched at the end"
         )
 
 

@@ -528,7 +528,8 @@ class Aligner:
             side.bp,
             side.gamma,
             every,
-            self._ends.array(),
+            # the reversed problem starts at this one's end (Ends.reversed)
+            (self._ends if problem is self._problem else self._ends.reversed()).array(),
             side.last_col,
             side.last_row,
         )

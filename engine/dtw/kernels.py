@@ -210,8 +210,9 @@ def _dp_pair(prev, mid, cur, crow_a, crow_b, lo_a, hi_a, lo_b, hi_b, bp_a, bp_b,
 def _edge(i, ends):
     """γ(i, -1): the cost of leaving body frames ``0..i`` unmatched (open start), or +inf.
 
-    ``ends`` = ``[skip, max_body, max_hand]`` (float64): cost per unmatched frame and
-    how many frames of each take may stay unmatched at each end (0, 0: fixed ends).
+    ``ends`` = ``[skip, max_body, max_hand, end_body, end_hand]`` (float64,
+    ``Ends.array``): cost per unmatched frame and how many frames of each take may stay
+    unmatched at the start and at the end (all 0: fixed ends).
     """
     if i + 1 <= ends[1]:
         return ends[0] * (i + 1)
@@ -489,8 +490,8 @@ def forward_metric(
 def best_end(last_row, last_col, lo, hi, ends, i_max):
     """The open end of the cheapest path: (total, i, j).
 
-    Candidates: ``(n-1, j)`` with ``m-1-j <= max_hand`` (total γ + skip·(m-1-j)) and
-    ``(i, m-1)`` with ``n-1-i <= max_body`` (γ + skip·(n-1-i)); only rows ``<= i_max``
+    Candidates: ``(n-1, j)`` with ``m-1-j <= end_hand`` (total γ + skip·(m-1-j)) and
+    ``(i, m-1)`` with ``n-1-i <= end_body`` (γ + skip·(n-1-i)); only rows ``<= i_max``
     are read from ``last_col`` (``last_row`` is γ of row n-1). Ties: the last row wins,
     there the larger column; then the larger row. Fixed ends ([skip, 0, 0]) give
     γ(n-1, m-1) at (n-1, m-1).
@@ -501,14 +502,14 @@ def best_end(last_row, last_col, lo, hi, ends, i_max):
     bi = n - 1
     bj = m - 1
     if i_max >= n - 1:
-        j_min = max(lo[n - 1], m - 1 - int(ends[2]))
+        j_min = max(lo[n - 1], m - 1 - int(ends[4]))
         for j in range(hi[n - 1], j_min - 1, -1):
             t = last_row[j] + ends[0] * (m - 1 - j)
             if t < best:
                 best = t
                 bi = n - 1
                 bj = j
-    for i in range(min(n - 2, i_max), max(0, n - 1 - int(ends[1])) - 1, -1):
+    for i in range(min(n - 2, i_max), max(0, n - 1 - int(ends[3])) - 1, -1):
         if hi[i] == m - 1:
             t = last_col[i] + ends[0] * (n - 1 - i)
             if t < best:
@@ -620,7 +621,7 @@ def join_path(gamma, bp, lo, hi, start, rgamma, rbp, rlo, rhi, rstart, J, ends, 
     kind = 0
     end_row = -1
     skip = ends[0]
-    for i in range(max(0, n - 1 - int(ends[1])), J + 1):  # paths ending above the junction
+    for i in range(max(0, n - 1 - int(ends[3])), J + 1):  # paths ending above the junction
         if hi[i] == m - 1:
             t = fcol[i] + skip * (n - 1 - i)
             if t < best:

@@ -220,6 +220,7 @@ def row_spread(
     # each block's forward γ is made again from its checkpoint and the pair reduced
     rproblem = problem.reversed()
     rband = band.reversed()
+    re = ends.reversed().array()  # the reversed problem starts at this one's end
     rlast_col = np.empty(n)
     rlast_row = np.empty(m)
     spread = np.empty(n)
@@ -228,7 +229,7 @@ def row_spread(
     rbefore = None
     for r0, r1 in reversed(blocks):
         check_cancelled(cancelled)
-        gb, rstart = _sweep(rproblem, rband, n - r1, n - r0, rbefore, e, rlast_col, rlast_row)
+        gb, rstart = _sweep(rproblem, rband, n - r1, n - r0, rbefore, re, rlast_col, rlast_row)
         rbefore = _row_of(gb, rstart, n - r0 - 1)
         gf, start = _sweep(
             problem, band, r0, r1, checkpoints.pop(r0 - 1, None), e, last_col, last_row
@@ -317,7 +318,7 @@ def near_optimal_rows(a, b, band: Band, metric, margin: float, ends: Ends = FIXE
     if per_cell:
         margin = float(margin) * float(total) / len(path)
     rband = band.reversed()
-    gb, _ = _gamma(problem.reversed(), rband, ends)
+    gb, _ = _gamma(problem.reversed(), rband, ends.reversed())
     n = band.n
     first = np.full(n, -1, np.int64)
     last = np.full(n, -1, np.int64)
@@ -345,8 +346,8 @@ def _near_rows(gf, gb, lo, hi, start, rlo, rstart, m, ends, limit, first, last):
     reversed problem's γ at ``(n-1-i, m-1-j)``."""
     n = lo.shape[0]
     skip = ends[0]
-    max_body = int(ends[1])
-    max_hand = int(ends[2])
+    max_body = int(ends[3])  # the end's limits: β's open end
+    max_hand = int(ends[4])
     for i in range(n):
         ri = n - 1 - i
         for j in range(lo[i], hi[i] + 1):

@@ -34,7 +34,7 @@ import numpy as np
 
 from engine.base import tolerances as T
 from engine.base.errors import ParameterError
-from engine.dtw import Band, Ends
+from engine.dtw import Band, Ends, ends_through_points
 from engine.dtw import constraints as C
 
 #: pass 2 directly around the upsampled coarse path (no fine pass 1) when False; measured
@@ -294,11 +294,11 @@ def solve(
     t0 = time.perf_counter()
     radius = max(int(math.ceil(T.PASS1_FINE_RADIUS_S * fps)), rows.k)
     try:
-        band_c, _ = coarse_band(rows, band1, points)
+        band_c, pts_c = coarse_band(rows, band1, points)
         ends_c = Ends()
         if is_open:
             lim = coarse_limits(fine_limits, rows.k, rows.n, rows.m)
-            ends_c = Ends(lim[0], lim[1], coarse_skip)
+            ends_c = ends_through_points(Ends(lim[0], lim[1], coarse_skip), pts_c, rows.n, rows.m)
         solver_c = previous.solver if previous is not None else None
         near = None
         if band1.area >= T.PASS1_NEAR_MIN_CELLS and solver_c is None and not incremental:

@@ -46,7 +46,7 @@ from engine.align.features import (
 from engine.base import limits
 from engine.base import tolerances as T
 from engine.base.errors import HandSpliceError, ParameterError, RoleError, SideError
-from engine.dtw import Aligner, Band, Ends, align_features, fixed
+from engine.dtw import Aligner, Band, Ends, align_features, ends_through_points, fixed
 from engine.dtw import constraints as C
 from engine.dtw.align import SharedCosts
 from engine.dtw.kernels import get_metric, metric_names
@@ -862,13 +862,13 @@ def _solve_pass2(
         return al, solver, Ends(), None
     n, m = len(rows[0]), len(rows[1])
     chance = chance_cost(rows, metric) if chance is None else chance
-    first = Ends(pass1.body, pass1.hand, float(fixed.on_grid(0.5 * chance)))
+    first = replace(pass1, skip=float(fixed.on_grid(0.5 * chance)))  # pass 1's limits
     # one-shot (the CLI): both solves share one computation of the band's costs
     shared = None if incremental else SharedCosts(*rows, metric=metric)
     al, probe = _solve(rows, metric, band, probe or shared, incremental, first, exact)
     matched = al.cost - first.skip * unmatched_frames(al.path, n, m)
     typical = float(fixed.on_grid(skip_step(max(matched, 0.0) / len(al.path))))
-    ends = Ends(pass1.body, pass1.hand, min(first.skip, typical))
+    ends = replace(pass1, skip=min(first.skip, typical))
     if shared is not None:
         probe = None
     if ends == first:
@@ -1015,7 +1015,8 @@ def align_passes(
     # CLI agree; they recompute the rows from the first edited one on
     exact = hand_lacks_forearm(features)
     solver1 = previous.pass1.solver if same else None
-    ends1 = pass1_ends(features, kind, max_unmatched_s)
+    # a point on the hand take's first or last frame pins that end (stranger 14 F1)
+    ends1 = ends_through_points(pass1_ends(features, kind, max_unmatched_s), pts, n, m)
     coarse1 = None
     if features.coarse is not None:  # multi-resolution pass 1 (engine.splice.coarse)
         cr = features.coarse
