@@ -15,6 +15,7 @@ from webapp.views.inputs import InputsView
 
 FINGERS = MOCAP / "gestification" / "fingers-ok.bvh"
 HELLO = MOCAP / "gestification" / "hello-world.bvh"
+WAVE = MOCAP / "bandai-namco" / "dataset-2_wave-right-hand_normal_001.bvh"
 #: a PNG's first bytes under a .bvh name
 PICTURE = b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR" + bytes(64)
 
@@ -107,3 +108,48 @@ def test_a_body_take_in_the_hand_field_says_so_at_once(view, tmp_path):
     assert view.tiles["hand"][-1][:3] == ("ok", "wayne.bvh", "Checked")
     _upload(view, "hand", "fingers-ok.bvh", FINGERS.read_bytes())
     assert view.tiles["hand"][-1][:3] == ("ok", "fingers-ok.bvh", "Checked")
+
+
+def test_a_new_take_waits_for_the_other_fields_file_on_its_way(view):
+    """Stranger 14 F8: with a pair of uploads open, a new body dropped with a new hand
+    opened first with the previous hand (a wasted alignment of a long take) while the
+    new hand was still coming; the pair now opens once the file on its way is checked."""
+    from webapp.views.dropper import Receipt
+
+    opened = []
+    view._open_pair = _recorder(opened, view._open_pair)
+    _upload(view, "body", "wave.bvh", WAVE.read_bytes())
+    _upload(view, "hand", "hello-world.bvh", HELLO.read_bytes())
+    assert len(opened) == 1 and view._open
+    # a new hand is coming (its first chunk is in) when a new body has been checked
+    view._on_progress("hand", Receipt("hand2.bvh", "hand2.bvh", 10, 100, 1, 10, 0.1))
+    _upload(view, "body", "wave2.bvh", cropped_bytes(WAVE, 150))
+    assert len(opened) == 1, "opened with the previous hand"
+    _upload(view, "hand", "hand2.bvh", cropped_bytes(HELLO, 70))
+    assert len(opened) == 2
+    assert {k: v.name for k, v in view._open.items()} == {"body": "wave2.bvh", "hand": "hand2.bvh"}
+    # the file on its way refused: the new body opens with the open pair's hand
+    view._on_progress("hand", Receipt("pic.bvh", "pic.bvh", 10, 100, 1, 10, 0.1))
+    _upload(view, "body", "wave3.bvh", cropped_bytes(WAVE, 140))
+    assert len(opened) == 2
+    _upload(view, "hand", "pic.bvh", PICTURE)
+    assert len(opened) == 3
+    assert {k: v.name for k, v in view._open.items()} == {"body": "wave3.bvh", "hand": "hand2.bvh"}
+
+
+def _recorder(calls: list, fn):
+    async def wrapped():
+        calls.append(1)
+        return await fn()
+
+    return wrapped
+
+
+def cropped_bytes(path, frames: int) -> bytes:
+    """The BVH at ``path`` cut to its first ``frames`` frames (other bytes: another take)."""
+    text = path.read_text()
+    head, _, rows = text.partition("MOTION")
+    lines = rows.strip().splitlines()
+    body = [ln for ln in lines if not ln.startswith(("Frames:", "Frame Time:"))]
+    time = next(ln for ln in lines if ln.startswith("Frame Time:"))
+    return (f"{head}MOTION\nFrames: {frames}\n{time}\n" + "\n".join(body[:frames]) + "\n").encode()

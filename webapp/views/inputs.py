@@ -19,6 +19,7 @@ from __future__ import annotations
 import asyncio
 import dataclasses
 import functools
+import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -36,6 +37,9 @@ from webapp.views.refusal import refusal_box
 #: the upload checks of all sessions share these threads (the pair then opens on the
 #: session's own worker: webapp.solves)
 _WORKERS = ThreadPoolExecutor(max_workers=2, thread_name_prefix="hs-upload")
+#: a field's file counts as on its way while its last chunk or check is this recent (s): an
+#: upload given up in the browser does not hold the other field's take back for long
+INCOMING_S = 20.0
 #: the sample selector's entry while an uploaded pair is open
 UPLOADED = "(your uploaded pair)"
 #: the sample selector's entry while one uploaded take waits for its partner (the views
@@ -123,6 +127,11 @@ class InputsView:
         )
         #: checked takes the next pair opens with; the uploaded pair that is open (if any)
         self._pending: dict[str, uploads.Kept] = {}
+        #: fields whose file is on its way (receiving or being checked), with when it was
+        #: last heard of (monotonic s): a pair does not open with the other field's older
+        #: take meanwhile (stranger 14 F8: a new long body was aligned with the previous
+        #: hand while its own hand was still coming)
+        self._incoming: dict[str, float] = {}
         self._open: dict[str, uploads.Kept] = {}
         self._opening = False
         #: what the last opening did with the side (followed the hand file's name)
@@ -343,6 +352,7 @@ class InputsView:
         """How much of a file is on the server: in its tile (percent, MB, time left) and
         on the line below the fields."""
         main, sub = receipt.words()
+        self._incoming[which] = time.monotonic()
         if receipt.chunk < receipt.chunks:  # the last chunk's tile says "Checking…" next
             self._droppers[which].verdict("receiving", receipt.tile, main, sub)
         self.uploaded.object = (
@@ -351,6 +361,7 @@ class InputsView:
         )
 
     def _on_staged(self, which: str, staged: uploads.Staged):
+        self._incoming[which] = time.monotonic()
         self.uploaded.object = f"checking <b>{safe_text.html(staged.name)}</b>…"
         tile = self._droppers[which].file_name
         self._droppers[which].verdict("checking", tile, "Checking…", "on the server")
@@ -363,9 +374,11 @@ class InputsView:
             kept = await loop.run_in_executor(_WORKERS, uploads.check, self.session.config, staged)
         except uploads.UploadError as exc:
             self._refuse(which, one_line(exc), tile)
+            await self._open_if_complete(new_only=True)
             return
         except Exception as exc:  # never a traceback in the page
             self._refuse(which, f"{staged.name}: cannot be read ({type(exc).__name__})", tile)
+            await self._open_if_complete(new_only=True)
             return
         # the tile is narrow: the frame count there, the whole description in the line below
         frames = kept.summary.get("frames", 0)
@@ -375,16 +388,28 @@ class InputsView:
         else:
             self._droppers[which].verdict("ok", tile, "Checked", f"{frames} frames")
         self._pending[which] = kept
+        self._incoming.pop(which, None)
         self._refusals.pop(which, None)
         self._show_refusals()
         self._show_uploaded()
-        if len(self._pending) == 2:
-            await self._open_pair()
+        await self._open_if_complete()
+
+    async def _open_if_complete(self, new_only: bool = False) -> None:
+        """Open the pair once both fields hold a checked take and neither field's file is
+        still on its way (heard of in the last :data:`INCOMING_S`: the other field's take
+        would be replaced a moment later, and its own check opens the pair then).
+        ``new_only`` (after a refusal): only when a field holds a take the open pair lacks."""
+        now = time.monotonic()
+        coming = [w for w, t in self._incoming.items() if now - t < INCOMING_S]
+        if len(self._pending) != 2 or coming or (new_only and self._pending == self._open):
+            return
+        await self._open_pair()
 
     def _refuse(self, which: str, text: str, tile: str | None = None, words: str = "see below"):
         """A take was refused: its tile turns red with ``words`` under "Refused", the
         reason is shown, and the take of the open uploaded pair (if any) is the one the next
         upload pairs with."""
+        self._incoming.pop(which, None)
         self._red_tile(which, "Refused", words, tile)
         if which in self._open:
             self._pending[which] = self._open[which]
