@@ -572,6 +572,8 @@ def test_a_bad_link_opens_the_demo_and_says_why(cfg):
     old = Session(cfg)
     app._initial_state(old, {"sample": "wave-hello", "pts": "30:10:2"})
     assert old.points == (MatchPoint(30, 12, 2.469),) and not old.error
+    # and said (stranger 14 F5: a hand-written 40:7 became 40:9 silently)
+    assert "no frames=hand" in old.link_notice and "frames=hand" not in ok.link_notice
 
 
 def test_a_link_without_takes_means_one_thing_on_every_front(cfg):

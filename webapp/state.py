@@ -70,6 +70,14 @@ PASS2_SPIN_NOTE = (
 UNDO_LIMIT = 200
 #: changes of one slider that follow each other with less than this many idle seconds
 #: between them (a drag, a run of arrow-key steps) are one undo step
+#: a link's points without ``frames=hand``: read as links made before hand frames were the
+#: hand file's own held them (the alignment grid's columns), which moves them on a hand
+#: take at another rate; said at the page's top
+GRID_FRAMES_NOTE = (
+    "pts: this link has no frames=hand, so its hand frames are read as the alignment grid's "
+    "(as links made before 2026-12 held them); add &frames=hand to a link whose hand frames "
+    "are the hand file's own"
+)
 SLIDER_PARAMS = ("band", "refine_band", "tolerance")
 SLIDER_RUN_S = 5.0
 
@@ -1677,6 +1685,8 @@ class Session(param.Parameterized):
             text = "; ".join(backend.one_line(p) for p in problems)
             self.keep_error(f"shared link: {text}", problems[0])
             self.link_not_opened(f"{text} (left out; the rest of the link opened)")
+        if spec.points and spec.hand_frames == "grid":  # said, not silent (stranger 14 F5)
+            self.link_not_opened(GRID_FRAMES_NOTE)
 
         left_out = "; ".join(backend.one_line(p) for p in problems)
 
