@@ -147,6 +147,11 @@ def test_defaults_from_empty_object():
         ({"view": {"follow": 1}}, "view.follow", "expected true or false, got 1"),
         ({"view": {"pick": None}}, "view.pick", "expected true or false, got null"),
         ({"view": {"orbit": 30}}, "view.orbit", "unknown field (known: matrix, frame, camera"),
+        # a misspelt key gets the field it may have meant, as a link's does (stranger 14 F9)
+        ({"tolerence": 2}, "tolerence", "unknown field (did you mean 'tolerance'? known: band,"),
+        ({"view": {"camra": "front"}}, "view.camra", "(did you mean 'camera'? known: matrix"),
+        ({"inputs": {"hnad": {"path": "h.bvh"}}}, "inputs.hnad", "(did you mean 'hand'?"),
+        ({"inputs": {"body": {"nmae": "b"}}}, "inputs.body.nmae", "(did you mean 'name'?"),
         ({"roles": {"body": {"right.wrist": 3}}}, "", "roles.body: right.wrist"),
         ({"roles": {"body": {"right.wirst": "R"}}}, "", "did you mean right.wrist"),
         ({"roles": {"right": {"wrist": "R"}}}, "roles.right", "body, hand"),
