@@ -289,6 +289,41 @@ def test_session_file_from_the_app_gives_the_apps_map(tmp_path, sample_dir):
     assert params["points_given"] == [[60, 40, 0.0]]
 
 
+def test_session_file_of_other_takes_is_said_in_one_line(tmp_path, capsys):
+    """A session the app made on another body take (its sha256 in the file) replayed on
+    BODY: one warning line naming the file, the take and that its points were placed on
+    that take; the splice is still written (stranger 14 F3). On its own takes: no word."""
+    import hashlib
+
+    digest = {f: hashlib.sha256(f.read_bytes()).hexdigest() for f in (BODY, HAND)}
+    session = tmp_path / "handsplice-session.json"
+
+    def replay(body_sha: str) -> list[str]:
+        session.write_text(
+            json.dumps(
+                {
+                    "format": "handsplice-session",
+                    "version": 2,
+                    "inputs": {
+                        "body": {"sha256": body_sha, "name": "session1_body_wave.bvh"},
+                        "hand": {"sha256": digest[HAND], "name": HAND.name},
+                    },
+                    "points": [{"body": 40, "hand": 7, "tolerance": None}],
+                }
+            )
+        )
+        out = tmp_path / "t.bvh"
+        argv = ["splice", str(BODY), str(HAND), "-o", str(out), "--session", str(session)]
+        assert main([*argv, "--quiet"]) == 0 and out.is_file()
+        return capsys.readouterr().err.strip().splitlines()
+
+    assert replay(digest[BODY]) == []
+    assert replay("0" * 64) == [
+        "handsplice: warning: handsplice-session.json was made on body take "
+        f"session1_body_wave.bvh, not {BODY.name}: its matching points were placed on that take"
+    ]
+
+
 def test_bad_session_file_is_one_line(tmp_path, capsys):
     bad = tmp_path / "s.json"
     bad.write_text('{"points": [{"body": 5}]}')

@@ -433,6 +433,67 @@ def validate(spec: SessionSpec, source: str | None = None) -> SessionSpec:
     return spec
 
 
+# ---------------------------------------------------------------- whose takes
+
+
+def foreign_takes(
+    spec: SessionSpec, body: str | Path, hand: str | Path, folder: str | Path = "."
+) -> tuple[tuple[str, str, str], ...]:
+    """The takes ``spec`` names that ``body`` and ``hand`` (files) are not: ``(role, the
+    session's name for its take, the file's name)`` for each, body first; ``()`` when the session belongs
+    to these takes. The one rule of "does this session belong to these takes":
+
+    * a take stored by ``sha256`` (the app's files) is these bytes or not;
+    * a take stored by ``path`` (relative to ``folder``, the session file's) is the same
+      file, or one with the same bytes; a path that names no file is compared by file name;
+    * a sample pair (``inputs.sample``) or a take the session does not name: nothing to
+      compare, never said.
+    """
+    from engine.base.digest import file_sha256
+
+    out = []
+    for role, ref, path in (("body", spec.body, Path(body)), ("hand", spec.hand, Path(hand))):
+        if ref is None or spec.sample is not None:
+            continue
+        if ref.sha256:
+            if file_sha256(path) != ref.sha256:
+                out.append((role, ref.name or ref.sha256[:12], path.name))
+            continue
+        named = Path(folder) / Path(ref.path).expanduser()
+        if named.is_file():
+            same = named.resolve() == path.resolve() or file_sha256(named) == file_sha256(path)
+        else:
+            same = named.name == path.name
+        if not same:
+            out.append((role, ref.path, path.name))
+    return tuple(out)
+
+
+def foreign_takes_warning(
+    source: str, foreign: tuple[tuple[str, str, str], ...], points_used: bool
+) -> str | None:
+    """One line saying that the session file ``source`` was made on other takes (the
+    :func:`foreign_takes` of its spec), None when it was not: ``s.json was made on body
+    take wave.bvh, not call.bvh: its matching points were placed on that take``."""
+    if not foreign:
+        return None
+    takes = " and ".join(f"{role} take {_one_line(name)}" for role, name, _ in foreign)
+    given = " and ".join(_one_line(given) for _, _, given in foreign)
+    which = "those takes" if len(foreign) > 1 else "that take"
+    what = (
+        f"its matching points were placed on {which}"
+        if points_used
+        else f"its settings were tuned on {which}"
+    )
+    return f"{source} was made on {takes}, not {given}: {what}"
+
+
+def _one_line(name: str) -> str:
+    """A file name from a file, on one line of at most 80 characters."""
+    text = " ".join(str(name).split())
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
 # ---------------------------------------------------------------- text and files
 
 

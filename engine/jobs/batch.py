@@ -48,7 +48,6 @@ workers must have HandSplice installed and see the same file paths).
 from __future__ import annotations
 
 import csv
-import hashlib
 import html
 import io
 import json
@@ -65,6 +64,7 @@ from typing import Any
 
 from engine import __version__
 from engine.base.atomic import atomic_path, clean_stale, write_text, write_texts
+from engine.base.digest import file_sha256
 from engine.base.errors import HandSpliceError, ParameterError
 from engine.base.limits import MAX_MANIFEST_ROWS, PAIR_MEMORY_MB, PAIR_SECONDS
 from engine.dtw import constraints as C
@@ -288,14 +288,6 @@ def _auto_name(body: str, hand: str, side: str) -> str:
 
 
 # ---------------------------------------------------------------- one pair (runs on a worker)
-
-
-def file_sha256(path: str | Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 def input_key(job: PairJob) -> dict:
