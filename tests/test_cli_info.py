@@ -273,10 +273,12 @@ def test_console_script_text_and_json():
     proc = subprocess.run(
         [str(HANDSPLICE), "info", str(path)], capture_output=True, text=True, timeout=120
     )
-    assert proc.returncode == 0 and proc.stderr == ""
+    note = "hello-world.bvh: the header says 82 frames, the file has 83 data rows"
+    assert proc.returncode == 0 and proc.stderr.startswith(f"handsplice: note: {note}: the first")
     assert "right fingers" in proc.stdout and "rMid1 rMid2 rMid3" in proc.stdout
     proc = subprocess.run(
         [str(HANDSPLICE), "info", "--json", str(path)], capture_output=True, text=True, timeout=120
     )
     report = json.loads(proc.stdout)
     assert report["frames"] == 82 and report["roles"]["right"]["elbow"] == "rForeArm"
+    assert [n.split(": the first")[0] for n in report["notes"]] == [note]  # stranger 14 F4
