@@ -22,6 +22,9 @@ What the reader accepts (as real files contain it)
   ``hello.bvh: the header says 82 frames, the file has 83 data rows: the first, all
   zeros (the gestification exporter's extra row), was left out``). Fewer rows than
   ``Frames:`` is a truncated file and an error.
+* A first or last frame that is a one-frame outlier pose (a tracking glitch: a joint more
+  than 90° from both its neighbours, which agree) is said in ``meta.notes``
+  (``engine.model.edge_glitch``, the rule and its measurement).
 * ``Frame Time`` gives ``fps = 1 / frame_time``, snapped to the nearest integer when
   within 0.05 % of it (``0.0333333`` -> 30, ``.03333`` -> 30; ``0.027`` -> 37.037...).
 
@@ -84,6 +87,7 @@ from engine.base.errors import MotionFormatError
 from engine.base.limits import MAX_ABS_VALUE, MAX_DEPTH, MAX_FRAMES, MAX_JOINTS
 from engine.io.numbers import NOT_NUMERIC_RE, NUMBER_RE, WHOLE_RE, parse_rows
 from engine.model import rotations as rot
+from engine.model.edge_glitch import edge_outlier_notes, edge_outliers
 from engine.model.motion import (
     POSITION_CHANNELS,
     ROTATION_CHANNELS,
@@ -186,6 +190,12 @@ def _parse_lines(lines: list[str], n_chars: int, source: str) -> Motion:
         lines, motion_line, skeleton, where, n_chars
     )
     probe = _probe_positions(skeleton, rotations, translations)
+    rotating = [
+        j for j, c in enumerate(skeleton.channels) if any(x.endswith("rotation") for x in c)
+    ]
+    glitches = edge_outliers(rotations, skeleton.names, rotating)
+    if glitches:
+        notes += edge_outlier_notes(Path(source).name if source else "BVH", glitches)
     meta = MotionMeta(
         units=_detect_units(skeleton, probe),
         up_axis=_detect_up_axis(skeleton, probe),
