@@ -89,22 +89,30 @@ def test_batch_on_two_worker_cluster_then_resume(takes, tmp_path, capsys):
         f"{b[1]},{h[2]},right,,,raise-ok",
         f"{b[2]},{h[0]},right,,5:6:2;40:45,bye-hello-matched",
         f"bodies/broken.bvh,{h[0]},right,,,broken",
+        # a bad cell fails its row only, the others run (stranger 14 F10: it stopped the batch)
+        f"{b[0]},{h[0]},right,,80:20;60:30,bad-match",
     ]
     manifest = _write_manifest(takes, rows)  # relative paths: from the manifest's folder
     out = tmp_path / "out"
 
     status = main(["batch", str(manifest), "-o", str(out), "--workers", "2"])
     err = capsys.readouterr().err
-    assert status == 3, err  # finished, one pair failed
+    assert status == 3, err  # finished, two pairs failed
     summary = _summary(out)
-    assert len(summary) == 7
+    assert len(summary) == 8
     assert summary["broken"]["status"] == "failed"
     assert "broken.bvh" in summary["broken"]["error"] and "line" in summary["broken"]["error"]
+    assert summary["bad-match"]["status"] == "failed"
+    assert summary["bad-match"]["error"] == (
+        "manifest.csv line 9, column match: matching point 2 (body 60, hand 30): body frame 60 "
+        "is not after matching point 1's body frame 80; body frames must increase from one "
+        "point to the next"
+    )
     done = [n for n, r in summary.items() if r["status"] == "done"]
     assert len(done) == 6
-    # progress on stderr: one line per pair, the failure named
-    assert len(re.findall(r"^\[\d/7\] ", err, re.M)) == 7
-    assert "broken: failed" in err
+    # progress on stderr: one line per pair, the failures named
+    assert len(re.findall(r"^\[\d/8\] ", err, re.M)) == 8
+    assert "broken: failed" in err and "bad-match: failed: manifest.csv line 9" in err
     # separate worker processes, none of them this test process
     workers = {summary[n]["worker"] for n in done}
     assert len(workers) == 2 and all(not w.endswith(f":{os.getpid()}") for w in workers)
@@ -127,6 +135,7 @@ def test_batch_on_two_worker_cluster_then_resume(takes, tmp_path, capsys):
     assert abs(matched["map"][40] - 45) < 2.0  # merged and smoothed: near the point
     page = (out / "index.html").read_text(encoding="utf-8")
     assert page.count("<img ") == 6 and "broken" in page and "failed" in page
+    assert "bad-match" in page
     # no temporary files left behind by the atomic writes
     assert not [p for p in out.iterdir() if p.name.startswith(".") and p.name != MARKER_DIR]
     mtimes = {n: (out / summary[n]["output"]).stat().st_mtime_ns for n in done}
@@ -136,7 +145,7 @@ def test_batch_on_two_worker_cluster_then_resume(takes, tmp_path, capsys):
     assert status == 3
     again = _summary(out)
     assert {n for n, r in again.items() if r["status"] == "skipped"} == set(done)
-    assert again["broken"]["status"] == "failed"
+    assert again["broken"]["status"] == "failed" and again["bad-match"]["status"] == "failed"
     assert {n: (out / summary[n]["output"]).stat().st_mtime_ns for n in done} == mtimes
 
     # a changed input (same name) is no longer "done": its hash differs
@@ -184,6 +193,26 @@ def test_run_pair_records_errors_without_raising(takes, tmp_path):
         ("body,hand\na.bvh,b.bvh\n", 1, "missing column side"),
         ("body,hand,sde\na.bvh,b.bvh,right\n", 1, "unknown column 'sde'"),
         ("body,hand,side,side\n", 1, "appears twice"),
+        ("body,hand,side,name\na.bvh,b.bvh,right,x\nc.bvh,d.bvh,left,x\n", 3, "already used"),
+        ("body,hand,side\na.bvh,b.bvh,right,extra\n", 2, "4 values for 3 columns"),
+        ("body,hand,side\n", None, "no pairs"),
+        ("", None, "empty manifest"),
+        ('body,hand,side\n"a.bvh,b.bvh,right\n', None, "not valid CSV"),
+    ],
+)
+def test_manifest_errors_name_the_line(tmp_path, text, line, words):
+    with pytest.raises(ManifestError) as info:
+        parse_manifest(text, tmp_path / "m.csv")
+    msg = str(info.value)
+    assert words in msg, msg
+    assert "points[" not in msg and "match[" not in msg, msg
+    if line is not None:  # a matching point's cell: the line and the column
+        assert msg.startswith((f"m.csv line {line}: ", f"m.csv line {line}, column match: ")), msg
+
+
+@pytest.mark.parametrize(
+    "text, line, words",
+    [
         (
             "body,hand,side\na.bvh,b.bvh,right\n\na.bvh,b.bvh,up\n",
             4,
@@ -220,22 +249,20 @@ def test_run_pair_records_errors_without_raising(takes, tmp_path):
             "500 frames, got -3",
         ),
         ("body,hand,side\n,b.bvh,right\n", 2, "body: empty"),
-        ("body,hand,side,name\na.bvh,b.bvh,right,x\nc.bvh,d.bvh,left,x\n", 3, "already used"),
         ("body,hand,side,name\na.bvh,b.bvh,right,../../etc/x\n", 2, "name"),
-        ("body,hand,side\na.bvh,b.bvh,right,extra\n", 2, "4 values for 3 columns"),
-        ("body,hand,side\n", None, "no pairs"),
-        ("", None, "empty manifest"),
-        ('body,hand,side\n"a.bvh,b.bvh,right\n', None, "not valid CSV"),
     ],
 )
-def test_manifest_errors_name_the_line(tmp_path, text, line, words):
-    with pytest.raises(ManifestError) as info:
-        parse_manifest(text, tmp_path / "m.csv")
-    msg = str(info.value)
-    assert words in msg, msg
-    assert "points[" not in msg and "match[" not in msg, msg
-    if line is not None:  # a matching point's cell: the line and the column
-        assert msg.startswith((f"m.csv line {line}: ", f"m.csv line {line}, column match: ")), msg
+def test_a_bad_cell_refuses_its_row_only(tmp_path, text, line, words):
+    """A bad value in one row's cell is that row's failure, in the same one line (the file,
+    its line and column); the file's other rows are read (stranger 14 F10)."""
+    text += "c.bvh,d.bvh,left\n"
+    jobs = parse_manifest(text, tmp_path / "m.csv")
+    (job,) = [j for j in jobs if j.refused]
+    good = jobs[-1]
+    assert job.line == line and words in job.refused, job.refused
+    assert job.refused.startswith((f"m.csv line {line}: ", f"m.csv line {line}, column match: "))
+    assert "points[" not in job.refused and "match[" not in job.refused
+    assert good.refused == "" and good.side == "left" and Path(good.body).name == "c.bvh"
 
 
 def test_manifest_paths_defaults_and_names(tmp_path):
@@ -256,15 +283,10 @@ def test_manifest_paths_defaults_and_names(tmp_path):
 
 def test_cli_manifest_error_is_one_line_exit_2(tmp_path, capsys):
     manifest = tmp_path / "pairs.csv"
-    manifest.write_text(
-        "body,hand,side\na.bvh,b.bvh,right\na.bvh,b.bvh,sideways\n", encoding="utf-8"
-    )
+    manifest.write_text("body,hand,side\na.bvh,b.bvh,right\na.bvh,b.bvh,left,x\n", encoding="utf-8")
     assert main(["batch", str(manifest), "-o", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip()
-    assert err == (
-        "handsplice: error: pairs.csv line 3: side: expected right, left, both or "
-        "auto, got 'sideways'"
-    )
+    assert err == "handsplice: error: pairs.csv line 3: 4 values for 3 columns"
     assert not (tmp_path / "o").exists()  # nothing ran
     assert main(["batch", str(tmp_path / "none.csv"), "-o", str(tmp_path / "o")]) == 2
     assert "none.csv" in capsys.readouterr().err
@@ -374,6 +396,23 @@ def test_a_missing_take_fails_its_pair_before_any_cluster_starts(tmp_path):
     assert rec["error"] == f"{missing}: no such file"
     rows = list(csv.DictReader((tmp_path / "out" / "summary.csv").open()))
     assert rows[0]["error"] == f"{missing}: no such file"
+    # rows with a bad cell: failed alike, before any cluster, each with its one line; at the
+    # CLI the batch finishes with exit status 3 (stranger 14 F10: exit 2, nothing run)
+    manifest.write_text(
+        "body,hand,side,match\n"
+        f"{MOCAP / BODIES[0]},{MOCAP / HANDS[0]},sideways,\n"
+        f"{MOCAP / BODIES[0]},{MOCAP / HANDS[0]},right,80:20;60:30\n"
+    )
+    result = run_batch(manifest, tmp_path / "out", client=NoCluster(), thumbnails="none")
+    assert [r["status"] for r in result.records] == ["failed", "failed"]
+    assert result.records[0]["error"] == (
+        "m.csv line 2: side: expected right, left, both or auto, got 'sideways'"
+    )
+    assert result.records[1]["error"].startswith("m.csv line 3, column match: matching point 2")
+    rows = list(csv.DictReader((tmp_path / "out" / "summary.csv").open()))
+    assert [r["error"] for r in rows] == [r["error"] for r in result.records]
+    assert [r["line"] for r in rows] == ["2", "3"]
+    assert main(["batch", str(manifest), "-o", str(tmp_path / "cli"), "--quiet"]) == 3
 
 
 # ---------------------------------------------------------------- reader notes
@@ -395,7 +434,8 @@ def test_reader_notes_reach_the_pair_record_summary_page_and_progress(takes, tmp
         line=2,
         name="cut",
         body=str(trc),
-        hand=str(takes / "hands" / Path(HANDS[0]).name),
+        # fingers-ok: no note of its own (hello-world's first frame has one: test_edge_glitch)
+        hand=str(takes / "hands" / Path(HANDS[2]).name),
         side="right",
     )
     rec = run_pair(job, tmp_path, thumbnails="none", seconds=None, memory_mb=None)

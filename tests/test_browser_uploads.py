@@ -371,10 +371,14 @@ def test_a_cut_trc_says_so_in_the_page_escaped(page, tmp_path):
         in text
     )
     _upload(page, "hand", HAND_BVH)
-    _wait_uploaded(page, r"Uploaded body:.*hand:.*open\.")
+    text = _wait_uploaded(page, r"Uploaded body:.*hand:.*open\.")
+    # a BVH reader's note takes the same path: the Leap take's extra zero row (stranger 14 F4)
+    leap = "the header says 82 frames, the file has 83 data rows: the first, all zeros"
+    assert f"{HAND_BVH.name} (" in text and f"; note: {leap}" in text, text
     shown = page.locator(".hs-marker-note")
     shown.wait_for(state="visible", timeout=BUSY_S * 1000)
     assert note in pane_text(shown)
+    assert f"{HAND_BVH.name}: {leap}" in pane_text(shown)
     assert "no skeleton to receive fingers" in pane_text(shown)  # the marker note stays
     shown.scroll_into_view_if_needed()
     page.screenshot(path=str(tmp_path / "trc_note.png"))

@@ -123,6 +123,14 @@ def test_gestification_zero_row_is_dropped():
     assert m.n_frames == head["frames"]
     # frame 0 of the take is the second data row
     np.testing.assert_allclose(m.translations[0, 0], rows[1, :3], atol=1e-12)
+    # and it is said, as the TRC reader's frame-count note (stranger 14 F4: silent)
+    assert m.meta.notes[:1] == (  # then its glitched first frame's (test_edge_glitch)
+        "hello-world.bvh: the header says 82 frames, the file has 83 data rows: the first, "
+        "all zeros (the gestification exporter's extra row), was left out",
+    )
+    clean = "\n".join(ln for k, ln in enumerate(text.splitlines()) if k != _first_row(text))
+    clean_notes = parse_bvh(clean, "c.bvh").meta.notes  # rows as the header says: no row note
+    assert not [n for n in clean_notes if "data rows" in n], clean_notes
 
 
 def test_extra_rows_without_zero_row_are_kept():
@@ -133,6 +141,15 @@ def test_extra_rows_without_zero_row_are_kept():
     rows[i + 1] = rows[i + 2]
     m = parse_bvh("\n".join(rows), "x.bvh")
     assert m.n_frames == 83
+    assert m.meta.notes == (
+        "x.bvh: the header says 82 frames, the file has 83 data rows: all 83 were read",
+    )
+
+
+def _first_row(text: str) -> int:
+    """The line index of the first data row."""
+    lines = text.splitlines()
+    return next(k for k, ln in enumerate(lines) if ln.startswith("Frame Time")) + 1
 
 
 EXPECTED_META = {

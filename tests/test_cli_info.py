@@ -36,6 +36,12 @@ def test_info_json_on_every_capture(path, capsys):
     code, out, err = _info(capsys, "--json", path)
     notes = load_take(path).meta.notes  # pyomeca's TRC: its header says 652 frames, 93 read
     assert code == 0 and err == "".join(f"handsplice: note: {n}\n" for n in notes)
+    # the end-frame outlier rule (engine.model.edge_glitch) holds on the measured takes only
+    from test_edge_glitch import GLITCHED
+
+    outliers = [n for n in notes if "one-frame outlier pose" in n]
+    assert bool(outliers) == (path.name in GLITCHED), outliers
+    assert all(n.startswith(f"{path.name}: frame 0 is ") for n in outliers), outliers
     report = json.loads(out)
     assert report["file"] == str(path) and report["format"] == path.suffix[1:]
     assert report["frames"] > 0 and report["fps"] > 0
@@ -273,10 +279,12 @@ def test_console_script_text_and_json():
     proc = subprocess.run(
         [str(HANDSPLICE), "info", str(path)], capture_output=True, text=True, timeout=120
     )
-    assert proc.returncode == 0 and proc.stderr == ""
+    note = "hello-world.bvh: the header says 82 frames, the file has 83 data rows"
+    assert proc.returncode == 0 and proc.stderr.startswith(f"handsplice: note: {note}: the first")
     assert "right fingers" in proc.stdout and "rMid1 rMid2 rMid3" in proc.stdout
     proc = subprocess.run(
         [str(HANDSPLICE), "info", "--json", str(path)], capture_output=True, text=True, timeout=120
     )
     report = json.loads(proc.stdout)
     assert report["frames"] == 82 and report["roles"]["right"]["elbow"] == "rForeArm"
+    assert report["notes"][0].split(": the first")[0] == note  # stranger 14 F4

@@ -141,6 +141,8 @@ def _manifest(tmp, band, refine, points, capsys):
     )
     try:
         (job,) = batch.parse_manifest(text + "\n", tmp / "m.csv")
+        if job.refused:  # a bad cell fails its row (with the same one line), never run
+            return "refused", job.refused
         motion, _ = batch.splice_pair(load_take(job.body), load_take(job.hand), job)
     except HandSpliceError as exc:
         return "refused", batch.one_line(exc)

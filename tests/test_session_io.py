@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 
 import pytest
@@ -147,6 +148,11 @@ def test_defaults_from_empty_object():
         ({"view": {"follow": 1}}, "view.follow", "expected true or false, got 1"),
         ({"view": {"pick": None}}, "view.pick", "expected true or false, got null"),
         ({"view": {"orbit": 30}}, "view.orbit", "unknown field (known: matrix, frame, camera"),
+        # a misspelt key gets the field it may have meant, as a link's does (stranger 14 F9)
+        ({"tolerence": 2}, "tolerence", "unknown field (did you mean 'tolerance'? known: band,"),
+        ({"view": {"camra": "front"}}, "view.camra", "(did you mean 'camera'? known: matrix"),
+        ({"inputs": {"hnad": {"path": "h.bvh"}}}, "inputs.hnad", "(did you mean 'hand'?"),
+        ({"inputs": {"body": {"nmae": "b"}}}, "inputs.body.nmae", "(did you mean 'name'?"),
         ({"roles": {"body": {"right.wrist": 3}}}, "", "roles.body: right.wrist"),
         ({"roles": {"body": {"right.wirst": "R"}}}, "", "did you mean right.wrist"),
         ({"roles": {"right": {"wrist": "R"}}}, "roles.right", "body, hand"),
@@ -427,3 +433,49 @@ def test_a_truncated_file_says_where_it_ends_in_a_whole_sentence():
     text = str(err.value)
     assert "cut.json" in text and "\n" not in text
     assert text.endswith("line 1, column 12: not valid JSON (unterminated string starting)")
+
+
+def test_foreign_takes_is_the_one_rule_of_whose_session_this_is(tmp_path):
+    """A session names its takes by sha256 (the app) or path; played on other files it is
+    said, naming the take, the session's file and the given one (stranger 14 F3)."""
+    from engine.io.session import TakeRef, foreign_takes, foreign_takes_warning
+
+    wave, call, hello = (tmp_path / n for n in ("wave.bvh", "call.bvh", "hello.bvh"))
+    for f in (wave, call, hello):
+        f.write_text(f"not a take, only bytes of {f.name}\n")
+    sha = {f: hashlib.sha256(f.read_bytes()).hexdigest() for f in (wave, call, hello)}
+    app = SessionSpec(
+        body=TakeRef(sha256=sha[wave], name="wave.bvh"),
+        hand=TakeRef(sha256=sha[hello], name="hello.bvh"),
+    )
+    assert foreign_takes(app, wave, hello) == ()
+    copy = tmp_path / "renamed.bvh"  # the same bytes under another name belong
+    copy.write_bytes(wave.read_bytes())
+    assert foreign_takes(app, copy, hello) == ()
+    assert foreign_takes(app, call, hello) == (("body", "wave.bvh", "call.bvh"),)
+    assert foreign_takes(app, call, wave) == (
+        ("body", "wave.bvh", "call.bvh"),
+        ("hand", "hello.bvh", "wave.bvh"),
+    )
+    text = foreign_takes_warning("s.json", foreign_takes(app, call, hello), points_used=True)
+    assert text == (
+        "s.json was made on body take wave.bvh, not call.bvh: "
+        "its matching points were placed on that take"
+    )
+    both = foreign_takes_warning("s.json", foreign_takes(app, call, wave), points_used=False)
+    assert both.endswith("not call.bvh and wave.bvh: its settings were tuned on those takes")
+    assert foreign_takes_warning("s.json", (), points_used=True) is None
+    # paths (relative to the session file's folder): the same file, the same bytes, or by name
+    cli = SessionSpec(body=TakeRef(path="wave.bvh"), hand=TakeRef(path="gone/hello.bvh"))
+    assert foreign_takes(cli, wave, hello, tmp_path) == ()
+    assert foreign_takes(cli, copy, hello, tmp_path) == ()
+    assert foreign_takes(cli, call, call, tmp_path) == (
+        ("body", "wave.bvh", "call.bvh"),
+        ("hand", "gone/hello.bvh", "call.bvh"),
+    )
+    # a sample pair's session, or one naming no takes: nothing to compare
+    assert foreign_takes(SessionSpec(sample="wave-ok"), call, call) == ()
+    assert foreign_takes(SessionSpec(), call, call) == ()
+    # a name from the file stays on one line
+    odd = SessionSpec(body=TakeRef(sha256=sha[wave], name="a\nb.bvh"))
+    assert "\n" not in foreign_takes_warning("s.json", foreign_takes(odd, call, hello), True)

@@ -93,8 +93,11 @@ def test_splice_writes_bvh_report_and_progress(tmp_path, capsys, monkeypatch):
 
 
 def test_quiet_prints_nothing(tmp_path, capsys):
+    """No progress; only the reader's notes (the hand file's extra zero row), which are
+    the file's, not the command's progress."""
     assert main(["splice", str(BODY), str(HAND), "-o", str(tmp_path / "o.bvh"), "--quiet"]) == 0
-    assert capsys.readouterr().err == ""
+    notes = read_bvh(HAND).meta.notes
+    assert notes and capsys.readouterr().err == "".join(f"handsplice: note: {n}\n" for n in notes)
 
 
 def test_roles_file_maps_an_unusual_name(tmp_path):
@@ -287,6 +290,42 @@ def test_session_file_from_the_app_gives_the_apps_map(tmp_path, sample_dir):
     params = json.loads(rep2.read_text())["parameters"]
     assert params["band"] == 0.4 and params["refine_band"] == 0.08
     assert params["points_given"] == [[60, 40, 0.0]]
+
+
+def test_session_file_of_other_takes_is_said_in_one_line(tmp_path, capsys):
+    """A session the app made on another body take (its sha256 in the file) replayed on
+    BODY: one warning line naming the file, the take and that its points were placed on
+    that take; the splice is still written (stranger 14 F3). On its own takes: no word."""
+    import hashlib
+
+    digest = {f: hashlib.sha256(f.read_bytes()).hexdigest() for f in (BODY, HAND)}
+    session = tmp_path / "handsplice-session.json"
+
+    def replay(body_sha: str) -> list[str]:
+        session.write_text(
+            json.dumps(
+                {
+                    "format": "handsplice-session",
+                    "version": 2,
+                    "inputs": {
+                        "body": {"sha256": body_sha, "name": "session1_body_wave.bvh"},
+                        "hand": {"sha256": digest[HAND], "name": HAND.name},
+                    },
+                    "points": [{"body": 40, "hand": 7, "tolerance": None}],
+                }
+            )
+        )
+        out = tmp_path / "t.bvh"
+        argv = ["splice", str(BODY), str(HAND), "-o", str(out), "--session", str(session)]
+        assert main([*argv, "--quiet"]) == 0 and out.is_file()
+        err = capsys.readouterr().err.strip().splitlines()
+        return [line for line in err if not line.startswith("handsplice: note:")]
+
+    assert replay(digest[BODY]) == []
+    assert replay("0" * 64) == [
+        "handsplice: warning: handsplice-session.json was made on body take "
+        f"session1_body_wave.bvh, not {BODY.name}: its matching points were placed on that take"
+    ]
 
 
 def test_bad_session_file_is_one_line(tmp_path, capsys):

@@ -114,3 +114,15 @@ def test_an_upload_check_carries_the_note_with_the_users_file_name(tmp_path, sam
     assert kept.summary["frames"] == 40 and kept.summary["notes"] == [expected]
     assert kept.take.meta.notes == (expected,)
     assert kept.path.name != name  # kept under its hash; the note still names the user's file
+    # a BVH reader's note travels the same way: the Leap/gestification extra zero row
+    # (stranger 14 F4: left out in silence), for the upload line and the open takes' note
+    leap = MOCAP / "gestification/hello-world.bvh"
+    name = "session2_leap_hello.bvh"
+    kept = uploads.check(cfg, uploads.stage_bytes(cfg, name, leap.read_bytes()))
+    expected = (
+        f"{name}: the header says 82 frames, the file has 83 data rows: the first, all zeros "
+        "(the gestification exporter's extra row), was left out"
+    )
+    assert kept.summary["frames"] == 82 and kept.summary["notes"][0] == expected
+    assert kept.take.meta.notes[0] == expected
+    assert kept.summary["notes"][1].startswith(f"{name}: frame 0 is a one-frame outlier pose")

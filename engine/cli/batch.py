@@ -9,7 +9,9 @@ spliced BVH, its report and a thumbnail; ``summary.csv`` grows as pairs finish, 
 Re-running skips finished pairs. See :mod:`engine.jobs.batch` for the manifest format.
 
 Exit status: 0 when every pair is done or skipped, 3 when the batch finished but
-some pairs failed (listed in the summary), 2 for a malformed manifest or option.
+some pairs failed (listed in the summary; a row with a bad cell, such as a ``match`` out of
+order, is such a failure, the other rows run), 2 for a file that is no manifest (not CSV, a
+bad header, a row with more values than columns, a name used twice) or a bad option.
 """
 
 from __future__ import annotations
@@ -29,8 +31,9 @@ def add_parser(subparsers) -> None:
         help="splice many body/hand pairs listed in a CSV manifest (Dask)",
         description="Splice every pair of a manifest CSV (columns body, hand, side; optional "
         "band, refine_band, match, name; relative paths from the manifest's folder) "
-        "on dask.distributed. Re-running skips finished pairs; a failing pair is "
-        "recorded and never stops the batch. Exit status 3 when some pairs failed.",
+        "on dask.distributed. Re-running skips finished pairs; a failing pair (or a "
+        "row with a bad cell) is recorded and never stops the batch. Exit status 3 when "
+        "some pairs failed.",
     )
     p.add_argument("manifest", help="the manifest CSV")
     p.add_argument(

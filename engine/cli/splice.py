@@ -23,8 +23,9 @@
 * ``--session SESSION.json``: the session file the browser app downloads
   (:mod:`engine.io.session`): side, band widths, global tolerance, matching points
   and role overrides, so an alignment tuned in the app is replayed here on BODY and
-  HAND. Its points are in the app's alignment-grid frames (the cost matrix's: hand
-  frames resampled to the body's rate), as the app shows them. Flags given on the
+  HAND. Its points are in each file's own frames (version 1 files: the alignment grid's).
+  A file made on other takes (its stored sha256 or path) is said in one warning line
+  (``engine.io.session.foreign_takes``); the splice still runs. Flags given on the
   command line win over the file: ``--side``, ``--band``, ``--refine-band``,
   ``--roles``, and ``--match`` (which replaces all of the file's points).
 * ``--report``: REPORT.json (see ``engine.splice.report``): the frame map, both
@@ -224,6 +225,25 @@ def _point_source(exc, args) -> Exception:
     return exc
 
 
+def _warn_foreign_session(spec, args, session_points: bool) -> None:
+    """One warning line when the ``--session`` file names other takes than BODY and HAND
+    (``engine.io.session.foreign_takes``, the one rule); ``session_points``: its matching
+    points are the ones applied (no ``--match``)."""
+    from pathlib import Path
+
+    from engine.cli import warn
+    from engine.io.session import foreign_takes, foreign_takes_warning
+
+    source = Path(args.session)
+    text = foreign_takes_warning(
+        source.name,
+        foreign_takes(spec, args.body, args.hand, source.parent),
+        session_points,
+    )
+    if text:
+        warn(text)
+
+
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
@@ -269,6 +289,8 @@ def run(args: argparse.Namespace) -> int:
 
     body = load_take(args.body)
     hand = load_take(args.hand)
+    if spec is not None:  # a session made on other takes: its points are theirs (stranger 14)
+        _warn_foreign_session(spec, args, session_points=not args.match and bool(points))
     from engine.cli.info import warn_side
 
     warn_side(args.hand, args.side)  # a right-named hand spliced as left: say so

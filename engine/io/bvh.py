@@ -18,7 +18,13 @@ What the reader accepts (as real files contain it)
 * Data rows versus ``Frames:``: the rows actually present are used. More rows than
   ``Frames:`` is accepted; when there is exactly one extra row and the *first* row is
   all zeros (the gestification exporter writes a zero row before the take) that row
-  is dropped. Fewer rows than ``Frames:`` is a truncated file and an error.
+  is dropped. Either is said in ``meta.notes`` (as the TRC reader's frame-count note:
+  ``hello.bvh: the header says 82 frames, the file has 83 data rows: the first, all
+  zeros (the gestification exporter's extra row), was left out``). Fewer rows than
+  ``Frames:`` is a truncated file and an error.
+* A first or last frame that is a one-frame outlier pose (a tracking glitch: a joint more
+  than 90° from both its neighbours, which agree) is said in ``meta.notes``
+  (``engine.model.edge_glitch``, the rule and its measurement).
 * ``Frame Time`` gives ``fps = 1 / frame_time``, snapped to the nearest integer when
   within 0.05 % of it (``0.0333333`` -> 30, ``.03333`` -> 30; ``0.027`` -> 37.037...).
 
@@ -81,6 +87,7 @@ from engine.base.errors import MotionFormatError
 from engine.base.limits import MAX_ABS_VALUE, MAX_DEPTH, MAX_FRAMES, MAX_JOINTS
 from engine.io.numbers import NOT_NUMERIC_RE, NUMBER_RE, WHOLE_RE, parse_rows
 from engine.model import rotations as rot
+from engine.model.edge_glitch import edge_outlier_notes, edge_outliers
 from engine.model.motion import (
     POSITION_CHANNELS,
     ROTATION_CHANNELS,
@@ -179,13 +186,22 @@ def _parse_lines(lines: list[str], n_chars: int, source: str) -> Motion:
     if not any(s.strip() for s in lines):
         raise MotionFormatError.empty(where)
     skeleton, motion_line = _parse_hierarchy(lines, where)
-    fps, rotations, translations = _parse_motion(lines, motion_line, skeleton, where, n_chars)
+    fps, rotations, translations, notes = _parse_motion(
+        lines, motion_line, skeleton, where, n_chars
+    )
     probe = _probe_positions(skeleton, rotations, translations)
+    rotating = [
+        j for j, c in enumerate(skeleton.channels) if any(x.endswith("rotation") for x in c)
+    ]
+    glitches = edge_outliers(rotations, skeleton.names, rotating)
+    if glitches:
+        notes += edge_outlier_notes(Path(source).name if source else "BVH", glitches)
     meta = MotionMeta(
         units=_detect_units(skeleton, probe),
         up_axis=_detect_up_axis(skeleton, probe),
         source=source,
         format="bvh",
+        notes=notes,
     )
     return Motion(skeleton, rotations, translations, fps, meta)
 
@@ -453,9 +469,9 @@ def _finite_numbers(vals: list[str], where: str | None, i: int, field: str) -> n
 
 def _parse_motion(
     lines: list[str], motion_line: int, skeleton: Skeleton, where: str | None, text_bytes: int = 0
-) -> tuple[float, np.ndarray, Translations | np.ndarray]:
+) -> tuple[float, np.ndarray, Translations | np.ndarray, tuple[str, ...]]:
     """fps, local quaternions ``(F, J, 4)`` and translations ``(F, J, 3)`` of the MOTION
-    section (``_read_rows``).
+    section (``_read_rows``), and the reader's notes (``_frame_count_notes``).
 
     The header's frame count, the rate and the poses they ask for are checked against
     ``engine.base.limits`` before any row is read (``text_bytes``: the size of the file).
@@ -527,7 +543,8 @@ def _parse_motion(
                 "channels (CHANNELS 0 everywhere: expected no values)",
                 line=row_lines[0] + 1,
             )
-        return fps, *_channels_to_pose(skeleton, np.zeros((n_frames, 0)))
+        rotations, translations = _channels_to_pose(skeleton, np.zeros((n_frames, 0)))
+        return fps, rotations, translations, ()
     if len(row_lines) > MAX_FRAMES + 1:
         raise MotionFormatError(
             where,
@@ -555,10 +572,32 @@ def _parse_motion(
     rotations, translations, first_zero = _read_rows(lines, row_lines, skeleton, where, short)
     if short is not None:
         raise short
-    if len(row_lines) == n_frames + 1 and first_zero:
-        # gestification: a zero row before the take
+    dropped = len(row_lines) == n_frames + 1 and first_zero
+    if dropped:  # gestification: a zero row before the take
         rotations, translations = rotations[1:], translations.frames(1)
-    return fps, rotations, translations
+    return (
+        fps,
+        rotations,
+        translations,
+        _frame_count_notes(n_frames, len(row_lines), dropped, where),
+    )
+
+
+def _frame_count_notes(
+    n_frames: int, n_rows: int, dropped_first: bool, source: str | None
+) -> tuple[str, ...]:
+    """A note when the file holds more data rows than its ``Frames:`` says (fewer is an
+    error): the zero row left out (``dropped_first``), or every row used; none when they
+    agree. The file is named as the TRC reader's note names it (its file name)."""
+    if n_rows <= n_frames:
+        return ()
+    name = Path(source).name if source else "BVH"
+    said = f"{name}: the header says {n_frames} frames, the file has {n_rows} data rows"
+    if dropped_first:
+        return (
+            f"{said}: the first, all zeros (the gestification exporter's extra row), was left out",
+        )
+    return (f"{said}: all {n_rows} were read",)
 
 
 #: data rows read (split, converted, turned into poses) at a time: the reader's memory

@@ -207,6 +207,15 @@ class _Reader:
     def fail(self, field_name: str, message: str) -> SessionError:
         return SessionError(self.source, field_name, message)
 
+    def unknown(self, parent: str, key, known) -> SessionError:
+        """The refusal of a key the file's object ``parent`` has no field for, with the
+        field it may have meant, as a link's typo is said (``tolerence: unknown field (did
+        you mean 'tolerance'? known: ...)``)."""
+        return self.fail(
+            f"{parent}.{str(key)[:40]}" if parent else str(key)[:40],
+            f"unknown field ({did_you_mean(key, known)}known: {', '.join(known)})",
+        )
+
     def integer(self, value, field_name: str) -> int:
         if (
             isinstance(value, bool)
@@ -230,7 +239,7 @@ class _Reader:
             )
         unknown = set(value) - {"path", "sha256", "name"}
         if unknown:
-            raise self.fail(f"{field_name}.{sorted(unknown)[0]}", "unknown field")
+            raise self.unknown(field_name, sorted(unknown)[0], ("path", "sha256", "name"))
         if "sha256" in value:
             digest = value["sha256"]
             if not isinstance(digest, str) or not _HEX64.match(digest):
@@ -244,6 +253,13 @@ class _Reader:
         if "path" in value:
             return TakeRef(path=self.string(value["path"], f"{field_name}.path", 4096))
         raise self.fail(field_name, 'expected a "path" or a "sha256"')
+
+
+def did_you_mean(key, known) -> str:
+    """``"did you mean 'tolerance'? "`` for a key close to one of ``known`` (difflib), else
+    ``""``: the one wording of a typo'd key, in a session file and a link alike."""
+    near = difflib.get_close_matches(str(key), list(known), n=1)
+    return f"did you mean {near[0]!r}? " if near else ""
 
 
 def _show(value) -> str:
@@ -281,9 +297,7 @@ def from_dict(data: Any, source: str | None = None) -> SessionSpec:
         raise r.fail("", f"expected a JSON object at the top level, got {_show(data)}")
     unknown = set(data) - _TOP_FIELDS
     if unknown:
-        raise r.fail(
-            sorted(unknown)[0], "unknown field (known: " + ", ".join(sorted(_TOP_FIELDS)) + ")"
-        )
+        raise r.unknown("", sorted(unknown)[0], sorted(_TOP_FIELDS))
     if data.get("format", FORMAT) != FORMAT:
         raise r.fail("format", f'expected "{FORMAT}", got {_show(data.get("format"))}')
     version = data.get("version", VERSION)
@@ -299,7 +313,7 @@ def from_dict(data: Any, source: str | None = None) -> SessionSpec:
         raise r.fail("inputs", f"expected an object, got {_show(inputs)}")
     unknown = set(inputs) - {"sample", "body", "hand"}
     if unknown:
-        raise r.fail(f"inputs.{sorted(unknown)[0]}", "unknown field (known: sample, body, hand)")
+        raise r.unknown("inputs", sorted(unknown)[0], ("sample", "body", "hand"))
     if "sample" in inputs:
         if "body" in inputs or "hand" in inputs:
             raise r.fail("inputs", "expected either a sample or body and hand, not both")
@@ -340,9 +354,7 @@ def from_dict(data: Any, source: str | None = None) -> SessionSpec:
         raise r.fail("view", f"expected an object, got {_show(view)}")
     unknown = set(view) - set(VIEW_FIELDS)
     if unknown:
-        raise r.fail(
-            f"view.{sorted(unknown)[0]}", f"unknown field (known: {', '.join(VIEW_FIELDS)})"
-        )
+        raise r.unknown("view", sorted(unknown)[0], VIEW_FIELDS)
     for key, choices in (("matrix", MATRIX_VIEWS), ("camera", PREVIEW_CAMERAS)):
         if key in view and (not isinstance(view[key], str) or view[key] not in choices):
             raise r.fail(
@@ -419,6 +431,67 @@ def _role_map(r: _Reader, mapping, field_name: str) -> dict:
 def validate(spec: SessionSpec, source: str | None = None) -> SessionSpec:
     """``spec`` (its fields are checked when it is made, by ``engine.dtw.constraints``)."""
     return spec
+
+
+# ---------------------------------------------------------------- whose takes
+
+
+def foreign_takes(
+    spec: SessionSpec, body: str | Path, hand: str | Path, folder: str | Path = "."
+) -> tuple[tuple[str, str, str], ...]:
+    """The takes ``spec`` names that ``body`` and ``hand`` (files) are not: ``(role, the
+    session's name for its take, the file's name)`` for each, body first; ``()`` when the session belongs
+    to these takes. The one rule of "does this session belong to these takes":
+
+    * a take stored by ``sha256`` (the app's files) is these bytes or not;
+    * a take stored by ``path`` (relative to ``folder``, the session file's) is the same
+      file, or one with the same bytes; a path that names no file is compared by file name;
+    * a sample pair (``inputs.sample``) or a take the session does not name: nothing to
+      compare, never said.
+    """
+    from engine.base.digest import file_sha256
+
+    out = []
+    for role, ref, path in (("body", spec.body, Path(body)), ("hand", spec.hand, Path(hand))):
+        if ref is None or spec.sample is not None:
+            continue
+        if ref.sha256:
+            if file_sha256(path) != ref.sha256:
+                out.append((role, ref.name or ref.sha256[:12], path.name))
+            continue
+        named = Path(folder) / Path(ref.path).expanduser()
+        if named.is_file():
+            same = named.resolve() == path.resolve() or file_sha256(named) == file_sha256(path)
+        else:
+            same = named.name == path.name
+        if not same:
+            out.append((role, ref.path, path.name))
+    return tuple(out)
+
+
+def foreign_takes_warning(
+    source: str, foreign: tuple[tuple[str, str, str], ...], points_used: bool
+) -> str | None:
+    """One line saying that the session file ``source`` was made on other takes (the
+    :func:`foreign_takes` of its spec), None when it was not: ``s.json was made on body
+    take wave.bvh, not call.bvh: its matching points were placed on that take``."""
+    if not foreign:
+        return None
+    takes = " and ".join(f"{role} take {_one_line(name)}" for role, name, _ in foreign)
+    given = " and ".join(_one_line(given) for _, _, given in foreign)
+    which = "those takes" if len(foreign) > 1 else "that take"
+    what = (
+        f"its matching points were placed on {which}"
+        if points_used
+        else f"its settings were tuned on {which}"
+    )
+    return f"{source} was made on {takes}, not {given}: {what}"
+
+
+def _one_line(name: str) -> str:
+    """A file name from a file, on one line of at most 80 characters."""
+    text = " ".join(str(name).split())
+    return text if len(text) <= 80 else text[:77] + "..."
 
 
 # ---------------------------------------------------------------- text and files
@@ -671,13 +744,12 @@ def read_query(query: dict[str, str]) -> tuple[SessionSpec, tuple[SessionError, 
         data["view"] = view
     for key in q:
         if key not in QUERY_KEYS:
-            near = difflib.get_close_matches(str(key), QUERY_KEYS, n=1)
-            hint = f"did you mean {near[0]!r}? " if near else ""
             problems.append(
                 SessionError(
                     source,
                     str(key)[:40],
-                    f"not a link parameter ({hint}known: {', '.join(QUERY_KEYS)})",
+                    f"not a link parameter ({did_you_mean(key, QUERY_KEYS)}known: "
+                    f"{', '.join(QUERY_KEYS)})",
                 )
             )
     spec = from_dict(data, source)

@@ -13,8 +13,12 @@ the same forms), ``match`` (matching points ``BODY:HAND[:TOL]`` separated by ``;
 or spaces, frames 0-based in each file's own numbering, as ``handsplice splice
 --match``) and ``name`` (the output file stem) are optional; an empty cell means
 the default. Ranges and error text are :mod:`engine.dtw.constraints`' (as every front). Relative paths resolve against the manifest's folder.
-Blank lines and lines starting with ``#`` are skipped. A malformed manifest
-raises :class:`ManifestError` naming the CSV line and column, before anything runs.
+Blank lines and lines starting with ``#`` are skipped. A file that is no manifest (not
+CSV, a bad or missing header, a row with more values than columns, a name used twice, too
+many rows) raises :class:`ManifestError` naming the CSV line and column, before anything
+runs. A bad value in one row's cell (``side``, ``band``, ``refine_band``, ``match``, a
+take's path, ``name``) fails that row only (:attr:`PairJob.refused`, the same one line):
+it is recorded in the summary and the other rows run, as a pair that fails does.
 
 Per pair ``NAME`` the output folder receives (every file written atomically)::
 
@@ -48,7 +52,6 @@ workers must have HandSplice installed and see the same file paths).
 from __future__ import annotations
 
 import csv
-import hashlib
 import html
 import io
 import json
@@ -65,6 +68,7 @@ from typing import Any
 
 from engine import __version__
 from engine.base.atomic import atomic_path, clean_stale, write_text, write_texts
+from engine.base.digest import file_sha256
 from engine.base.errors import HandSpliceError, ParameterError
 from engine.base.limits import MAX_MANIFEST_ROWS, PAIR_MEMORY_MB, PAIR_SECONDS
 from engine.dtw import constraints as C
@@ -118,7 +122,9 @@ class ManifestError(HandSpliceError, ValueError):
 class PairJob:
     """One row of the manifest, validated; paths absolute.
 
-    ``match`` holds ``(body_frame, hand_frame, tolerance or None)`` triples.
+    ``match`` holds ``(body_frame, hand_frame, tolerance or None)`` triples. ``refused``:
+    the one line (``m.csv line 5, column match: ...``) of a row whose cell has a bad value;
+    such a row is failed with it and never run, its other fields what could be read.
     """
 
     line: int
@@ -129,6 +135,7 @@ class PairJob:
     band: float | str | None = None  # a fraction, or seconds as text ("10s")
     refine_band: float | str | None = None
     match: tuple[tuple[int, int, float | None], ...] = ()
+    refused: str = ""
 
     def options(self) -> dict:
         """The splice options of this pair (what the done marker compares)."""
@@ -189,7 +196,7 @@ def parse_manifest(text: str, path: str | Path) -> list[PairJob]:
             cells = {k: (row[i].strip() if i < len(row) else "") for i, k in enumerate(header)}
             job = _parse_row(cells, path, line, base)
             if job.name in names:
-                if cells.get("name"):
+                if cells.get("name") == job.name:
                     raise ManifestError(
                         path, line, f"name: {job.name!r} is already used on line {names[job.name]}"
                     )
@@ -235,6 +242,31 @@ def _check_header(cols: list[str], path: Path, line: int) -> list[str]:
 
 
 def _parse_row(cells: dict[str, str], path: Path, line: int, base: Path) -> PairJob:
+    """One row's pair; a bad value in a cell gives a pair ``refused`` with its one line."""
+    try:
+        return _read_row(cells, path, line, base)
+    except ManifestError as exc:
+        return _refused_row(cells, line, base, str(exc))
+
+
+def _refused_row(cells: dict[str, str], line: int, base: Path, reason: str) -> PairJob:
+    """The pair of a row refused for ``reason``: what of it can be shown in the summary
+    (the takes' paths, its side as written, its name or the automatic one)."""
+    takes = {}
+    for key in ("body", "hand"):
+        value = cells.get(key, "")
+        ok = value and "\x00" not in value and len(value) <= 4096
+        takes[key] = str((base / Path(value).expanduser()).resolve()) if ok else value[:200]
+    side = " ".join(cells.get("side", "").lower().split())[:40]
+    name = cells.get("name", "")
+    if not _name_ok(name):
+        name = _auto_name(takes["body"] or "body", takes["hand"] or "hand", side or "side")
+    return PairJob(
+        line=line, name=name, body=takes["body"], hand=takes["hand"], side=side, refused=reason
+    )
+
+
+def _read_row(cells: dict[str, str], path: Path, line: int, base: Path) -> PairJob:
     def fail(column: str, message: str) -> ManifestError:
         return ManifestError(path, line, f"{column}: {message}")
 
@@ -263,7 +295,7 @@ def _parse_row(cells: dict[str, str], path: Path, line: int, base: Path) -> Pair
     refine = None if refine is None else refine.to_json()
     name = cells.get("name", "")
     if name:
-        if _NAME_OK.search(name) or name.startswith(".") or len(name) > 120:
+        if not _name_ok(name):
             raise fail(
                 "name",
                 f"{name[:40]!r}: use letters, digits and _ . + - only (it becomes a file name)",
@@ -282,20 +314,17 @@ def _parse_row(cells: dict[str, str], path: Path, line: int, base: Path) -> Pair
     )
 
 
+def _name_ok(name: str) -> bool:
+    """Whether a ``name`` cell can be the pair's output file stem."""
+    return bool(name) and not (_NAME_OK.search(name) or name.startswith(".") or len(name) > 120)
+
+
 def _auto_name(body: str, hand: str, side: str) -> str:
     stem = f"{Path(body).stem}+{Path(hand).stem}-{side}"
     return _NAME_OK.sub("_", stem).strip("._")[:120] or "pair"
 
 
 # ---------------------------------------------------------------- one pair (runs on a worker)
-
-
-def file_sha256(path: str | Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 def input_key(job: PairJob) -> dict:
@@ -698,8 +727,10 @@ def run_batch(
     records: dict[str, dict] = {}
     todo: list[PairJob] = []
     for job in jobs:
-        missing = missing_input(job)
-        if missing is not None:  # refused before any cluster starts, as `splice` says it
+        # a bad cell, or a take that is not there: failed before any cluster starts, in the
+        # words `splice` uses; the other pairs run (a failing pair never stops the batch)
+        missing = job.refused or missing_input(job)
+        if missing:
             rec = {**_base_record(job), "status": "failed", "error": missing, "seconds": "0.00"}
             records[job.name] = rec
             show.update(rec)
