@@ -284,6 +284,8 @@ class Session(param.Parameterized):
         #: a new pair refused for its side while another pair is open: (its input values,
         #: the ``waiting`` text); the next side chosen opens it (:meth:`_side_chosen`)
         self._side_wait: tuple[dict, str] | None = None
+        #: a new pair is being opened again on the side in force (:meth:`_open_failed`)
+        self._side_reopened = False
         self._shown: dict | None = None  # SHOWN_INPUTS of the pair shown, once one is
         #: a shared link that could not open because its uploaded takes are not on this
         #: server (its spec): the page's upload of those files opens it (:meth:`load_uploads`)
@@ -662,12 +664,19 @@ class Session(param.Parameterized):
             self.refuse(exc, text)
 
     def _open_dropped(self, then) -> None:
+        self._side_reopened = False
         if self.runner is None or not self.runner.inputs_pending():
             self.end_opening()
         then(False)
 
     def _open_failed(self, exc: BaseException, old: dict, then, new_pair: bool = False) -> None:
-        self.end_opening()
+        """A new pair or input change could not open. The inputs go back to those shown
+        (the views ignore them meanwhile: the opening ends after, so a page's uploads are
+        never taken for other takes chosen). A new pair whose takes have only another side
+        than the one asked for waits for it, when that side is not the one in force; when
+        it is, choosing it could not be a change (a Side control already showing it), so the
+        pair opens on it at once (stranger 14 F2)."""
+        reopened, self._side_reopened = self._side_reopened, False
         message = self._named_uploads(backend.one_line(exc))
         # a new pair whose takes have only the other side waits for it (the open pair stays)
         wait = None
@@ -680,6 +689,12 @@ class Session(param.Parameterized):
             wait = self._current(k for k in old if k != "side")
         if self.prepared is not None:  # keep what worked: inputs back to their old values
             self._apply(old)
+        if wait and self.side in exc.found and not reopened:
+            # the side in force is one the new pair has: it opens on it now
+            self._side_wait, self._side_reopened = (wait, ""), True
+            self._on_inputs(_Change("side", self.side), then=then)
+            return
+        self.end_opening()
         # the inputs whose change was refused (a side the takes lack): the page shows
         # the refusal next to their controls
         self.refuse(exc, message, inputs=("side",) if wait else tuple(old))
@@ -711,6 +726,7 @@ class Session(param.Parameterized):
         and suggestions are not the new pair's) and the progress line counts the whole
         opening, the first alignment included (seconds on a marker take)."""
         self.prepared = prepared
+        self._side_reopened = False
         self._shown = self._current(SHOWN_INPUTS)
         self._chain = None
         self.param.update(solution=None, trust=None, history_note="")
