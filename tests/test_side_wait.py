@@ -133,3 +133,12 @@ def test_a_new_pair_that_has_the_side_in_force_opens_on_it(cfg, kept):
         assert not s.waits_for_side and not s.waiting, s.waiting
         assert (s.hand_sha256, s.hand_name, s.side) == (kept[HAND_BVH.name], "x_left.bvh", "right")
         assert s.solution is not None and s.m_hand == s.prepared.m_hand and not s.error
+        # the other side, which it lacks, is refused; the pair stays on the side shown, and
+        # the refusal asks for no side (the one it would ask for is the one in force)
+        s.side = "left"
+        if off_loop:
+            doc.pump(lambda s=s: s.error and not s.busy)
+        assert s.side == "right" and s.hand_name == "x_left.bvh" and not s.waits_for_side
+        assert s.error == (
+            "x_left.bvh has no left hand (hands found: right); it stays on the right side"
+        )

@@ -695,6 +695,10 @@ class Session(param.Parameterized):
             self._on_inputs(_Change("side", self.side), then=then)
             return
         self.end_opening()
+        if not wait and "side" in old and isinstance(exc, SideError) and self.side in exc.found:
+            # the pair stays on the side shown: no "choose side X" for the side in force
+            message = re.sub(r"; choose side \w+ in the page$", "", message)
+            message += f"; it stays on the {self.side} side"
         # the inputs whose change was refused (a side the takes lack): the page shows
         # the refusal next to their controls
         self.refuse(exc, message, inputs=("side",) if wait else tuple(old))
