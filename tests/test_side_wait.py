@@ -142,3 +142,17 @@ def test_a_new_pair_that_has_the_side_in_force_opens_on_it(cfg, kept):
         assert s.error == (
             "x_left.bvh has no left hand (hands found: right); it stays on the right side"
         )
+
+
+def test_a_link_without_a_side_opens_a_left_named_right_hand_on_its_joints_side(cfg, kept):
+    """Stranger 14 F2, a link's way in: without ``side`` the page takes the hand file's
+    name's side, unless its joint names are the other hand's (the one rule,
+    ``engine.model.roles.hand_file_side``): a right hand named ``..._left_...`` opens right."""
+    s = Session(cfg)
+    s.load_sample(cfg.default_sample)
+    body, hand = kept[BODY_BVH.name], kept[HAND_BVH.name]
+    s.open_link(
+        {"body": body, "bname": BODY_BVH.name, "hand": hand, "hname": "pointing_left_hand.bvh"}
+    )
+    assert (s.hand_sha256, s.hand_name, s.side) == (hand, "pointing_left_hand.bvh", "right")
+    assert s.solution is not None and not s.error, s.error

@@ -1496,6 +1496,22 @@ class Session(param.Parameterized):
         named = side_from_name(spec.hand.name) if spec.hand and spec.hand.name else None
         return named or self.side
 
+    @staticmethod
+    def _joints_side(spec: SessionSpec, side: str, hand_path, takes=None) -> str:
+        """``side`` (:meth:`_side_for`'s), unless ``spec`` gives none and its hand file's
+        name says a side its joint names contradict: then the joints' (the one rule,
+        ``engine.model.roles.hand_file_side``; stranger 14 F2). ``takes``: as read."""
+        if spec.side is not None or spec.hand is None or not side_from_name(spec.hand.name or ""):
+            return side
+        from engine.io import load_take
+        from engine.model.motion import Motion
+        from engine.model.roles import hand_file_side
+
+        take = takes[1] if takes else load_take(hand_path)
+        if not isinstance(take, Motion):
+            return side
+        return hand_file_side(spec.hand.name, take.skeleton).side or side
+
     def _stage(
         self, spec: SessionSpec, progress=None, keep_takes: bool = False, takes=None
     ) -> dict:
@@ -1548,6 +1564,7 @@ class Session(param.Parameterized):
                     "expected a sample or uploaded body and hand takes (none are open and the "
                     "server has no default pair)",
                 )
+        side = self._joints_side(spec, side, paths[1], takes)
         roles = dict(spec.roles)
         prepared = backend.prepare(paths[0], paths[1], side, roles, takes=takes)
         points = tuple(spec.points)  # checked by engine.dtw.constraints when the spec was made
