@@ -115,7 +115,22 @@ def describe_motion(motion, path, overrides=None, side=None) -> dict:
         "finger_chains": finger_chains(motion.skeleton, roles),
         "sides": roles.sides_found(),
         "hand_sides": [s for s in SIDES if roles.side(s).has_fingers],
+        "geometry_side": _geometry_side(motion, roles),
     }
+
+
+def _geometry_side(motion, roles) -> dict | None:
+    """For a hand take whose names carry no side: the side ``splice`` without ``--side``
+    takes it as (its geometry: ``engine.model.hand_side.sided_roles``'s rule,
+    :func:`~engine.model.hand_side.geometric_side`), ``{"side": "right"|"left"|None,
+    "reason": ...}``; None when the names give the side."""
+    from engine.model.hand_side import geometric_side
+
+    arm = roles.unsided
+    if arm is None or not arm.has_fingers:
+        return None
+    vote = geometric_side(motion, arm)
+    return {"side": vote.side, "reason": vote.reason}
 
 
 def finger_chains(skeleton, roles) -> dict:
@@ -177,6 +192,20 @@ def describe_glb(path, overrides=None, side=None) -> dict:
         "sides": roles.sides_found(),
         "hand_sides": [s for s in SIDES if roles.side(s).has_fingers],
     }
+
+
+def _geometry_side(motion, roles) -> dict | None:
+    """For a hand take whose names carry no side: the side ``splice`` without ``--side``
+    takes it as (its geometry: ``engine.model.hand_side.sided_roles``'s rule,
+    :func:`~engine.model.hand_side.geometric_side`), ``{"side": "right"|"left"|None,
+    "reason": ...}``; None when the names give the side."""
+    from engine.model.hand_side import geometric_side
+
+    arm = roles.unsided
+    if arm is None or not arm.has_fingers:
+        return None
+    vote = geometric_side(motion, arm)
+    return {"side": vote.side, "reason": vote.reason}
 
 
 def describe_markers(markers, path, side=None) -> dict:
@@ -297,7 +326,26 @@ def _role_rows(report: dict) -> list[tuple[str, str]]:
         found = [f"{k}={arm[k]}" for k in _ARM_KEYS if arm[k] is not None]
         fingers = _finger_items(report, "unsided")
         rows += [("no side", line) for line in _wrap(found + fingers, 72)]
-        rows.append(("", "(names carry no side: pass --side right|left)"))
+        guess = report.get("geometry_side") or {}
+        if guess.get("side"):
+            rows.append(
+                (
+                    "",
+                    f"(names carry no side: splice without --side takes it as the "
+                    f"{guess['side']} hand, the hand its geometry forms; pass --side "
+                    "right|left to choose)",
+                )
+            )
+        elif guess:
+            rows.append(
+                (
+                    "",
+                    f"(names carry no side; its geometry does not tell "
+                    f"({guess['reason']}): pass --side right|left)",
+                )
+            )
+        else:
+            rows.append(("", "(names carry no side: pass --side right|left)"))
     return rows
 
 
