@@ -130,3 +130,11 @@ def test_splice_warns_when_the_file_name_says_the_other_side(
     assert warnings == [f"handsplice: warning: {LEFT_NAMED_WARNING}"], err
     assert main(["info", str(out), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["hand_sides"] == ["right"]
+
+
+def test_info_warns_when_the_file_name_says_the_other_side(left_named_right_hand, capsys):
+    """``info`` says it too, with no ``--side`` or with the joints' side (nothing else)."""
+    for extra in ([], ["--side", "right"]):
+        assert main(["info", str(left_named_right_hand), *extra]) == 0
+        warnings = [x for x in capsys.readouterr().err.splitlines() if "warning" in x]
+        assert warnings == [f"handsplice: warning: {LEFT_NAMED_WARNING}"], extra

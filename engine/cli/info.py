@@ -26,6 +26,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from pathlib import Path
 
 
 def add_parser(subparsers) -> None:
@@ -66,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
         warn_side(args.file, args.side)
     else:
         take = load_take(args.file)
-        warn_side(args.file, args.side)
+        warn_side(args.file, args.side, take)
         if isinstance(take, MarkerSet):
             if overrides:
                 from engine.base.errors import ParameterError
@@ -85,11 +86,20 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def warn_side(path, side) -> None:
-    """``--side`` contradicting the file's name: one warning line (the side asked wins)."""
+def warn_side(path, side, take=None) -> None:
+    """``--side`` contradicting the file's name: one warning line (the side asked wins).
+    ``take``: the take as read; when its joint names contradict the file name (the one rule,
+    ``engine.model.roles.hand_file_side``) and no side, or their side, is asked for, the
+    warning is theirs."""
     from engine.cli import warn
-    from engine.model.roles import side_name_conflict
+    from engine.model.motion import Motion
+    from engine.model.roles import hand_file_side, side_name_conflict
 
+    if isinstance(take, Motion):
+        named = hand_file_side(Path(str(path)).name, take.skeleton)
+        if named.warning and side in (None, "auto", named.side):
+            warn(named.warning)
+            return
     conflict = side_name_conflict(path, side)
     if conflict:
         warn(f"{conflict} (leave --side out to follow the name)")

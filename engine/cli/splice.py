@@ -271,7 +271,7 @@ def run(args: argparse.Namespace) -> int:
     hand = load_take(args.hand)
     from engine.cli.info import warn_side
 
-    warn_side(args.hand, args.side)  # a right-named hand spliced as left: say so
+    warn_side(args.hand, args.side, hand)  # a right-named hand spliced as left: say so
     # a marker body (C3D/TRC) has no skeleton to receive fingers: OUT is then the hand take
     # retimed to it (engine.splice.retime), as the app's download of such a pair
     retimed = pipeline.marker_body(body)
@@ -279,16 +279,10 @@ def run(args: argparse.Namespace) -> int:
     if args.side not in ("right", "left"):
         from engine.cli import warn
         from engine.model.hand_side import unnamed_side_warning
-        from engine.model.motion import Motion
-        from engine.model.roles import hand_file_side
 
         guessed = unnamed_side_warning(Path(args.hand).name, hand, None, "pass --side {side}")
         if guessed:  # a side from the geometry alone: say it, with the flag that overrides it
             warn(guessed)
-        if isinstance(hand, Motion):  # a file name saying the other side than the joints
-            contradiction = hand_file_side(Path(args.hand).name, hand.skeleton).warning
-            if contradiction:
-                warn(contradiction)
     body_roles = hand_roles = None
     if args.roles:
         from engine.model.roles import read_roles_json
