@@ -113,8 +113,10 @@ def test_batch_notes_a_file_name_saying_the_other_side(left_named_right_hand):
 
     job = PairJob(1, "p", str(BODY), str(left_named_right_hand), "auto")
     assert side_notes(job, load_take(left_named_right_hand)) == (LEFT_NAMED_WARNING,)
-    asked = PairJob(1, "p", str(BODY), str(left_named_right_hand), "right")
-    assert side_notes(asked, load_take(left_named_right_hand)) == ()
+    asked = PairJob(1, "p", str(BODY), str(left_named_right_hand), "right")  # the joints'
+    assert side_notes(asked, load_take(left_named_right_hand)) == (LEFT_NAMED_WARNING,)
+    other = PairJob(1, "p", str(BODY), str(left_named_right_hand), "left")  # refused later
+    assert side_notes(other, load_take(left_named_right_hand)) == ()
 
 
 @pytest.mark.timeout(1500)  # a whole splice: kernels compile on a cold cache

@@ -472,17 +472,18 @@ def side_notes(job: PairJob, hand) -> tuple[str, ...]:
     as ``handsplice splice`` says them on stderr, carried as the reader notes are."""
     from engine.model.hand_side import unnamed_side_warning
     from engine.model.motion import Motion
-
-    if job.side in ("right", "left") or not isinstance(hand, Motion):
-        return ()
     from engine.model.roles import hand_file_side
 
+    if not isinstance(hand, Motion):
+        return ()
     name = Path(job.hand).name
-    texts = (
-        unnamed_side_warning(name, hand, None, "set its side column to {side}"),
-        hand_file_side(name, hand.skeleton).warning,  # a name saying the other side
-    )
-    return tuple(t for t in texts if t)
+    named = hand_file_side(name, hand.skeleton)  # a name saying the other side: as splice
+    if named.warning and job.side in (None, "auto", named.side):
+        return (named.warning,)
+    if job.side in ("right", "left"):
+        return ()
+    text = unnamed_side_warning(name, hand, None, "set its side column to {side}")
+    return (text,) if text else ()
 
 
 def reader_notes(*takes) -> tuple[str, ...]:
