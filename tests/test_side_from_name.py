@@ -140,3 +140,12 @@ def test_info_warns_when_the_file_name_says_the_other_side(left_named_right_hand
         assert main(["info", str(left_named_right_hand), *extra]) == 0
         warnings = [x for x in capsys.readouterr().err.splitlines() if "warning" in x]
         assert warnings == [f"handsplice: warning: {LEFT_NAMED_WARNING}"], extra
+
+
+def test_serve_takes_the_joints_side_of_a_left_named_right_hand(left_named_right_hand):
+    """``serve BODY HAND`` without ``--side``: the same rule (it used to open the pair as
+    left, which the hand lacks)."""
+    from webapp.serve_cli import _named_side
+
+    assert _named_side(left_named_right_hand) == ("right", LEFT_NAMED_WARNING)
+    assert _named_side(MUG) == ("right", None)  # mug1_rightHand.bvh: no side in its joints
