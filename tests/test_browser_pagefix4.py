@@ -114,6 +114,26 @@ def test_an_uploaded_hand_takes_the_side_its_file_name_says(page, tmp_path):
     warned = text[text.index("⚠ mug.bvh") :]  # the warning's mark, as a contradicting name's
     assert "spliced as the right hand (the side given), mirrored" in warned, text
     assert "if it is the left hand, choose Side left" in warned, text
+    # stranger 14 (F2): a right hand (rHand...) whose file name says left, uploaded while the
+    # Side shows right, opens on the right (its joints) with a warning naming the file; it
+    # used to wait for "side right" with right already chosen, and a click on left then
+    # right threw both uploads away
+    left_named = tmp_path / "pointing_left_hand.bvh"
+    left_named.write_bytes(HAND_BVH.read_bytes())
+    _upload(page, "hand", left_named)
+    text = _wait_line(page, r"hand: pointing_left_hand\.bvh.*— open[;.]")
+    assert (
+        "⚠ pointing_left_hand.bvh: the file name says left but its joint names are a right "
+        "hand (rHand); taking it as the right hand"
+    ) in text, text
+    assert _active_side(page) == "right" and not page.locator(".hs-upload-error").is_visible()
+    page.locator(".hs-side").first.locator("button", has_text="left").click()  # it lacks left
+    error = page.locator(".hs-upload-error")
+    error.wait_for(state="visible", timeout=BUSY_S * 1000)
+    assert "it stays on the right side" in pane_text(error), pane_text(error)
+    assert _active_side(page) == "right"
+    assert "pointing_left_hand.bvh" in pane_text(page.locator(".hs-upload-hand"))  # kept
+    assert "— open" in pane_text(page.locator(".hs-upload-status"))
     assert not page.errors, page.errors
 
 

@@ -110,3 +110,49 @@ def test_off_the_loop_a_new_pair_opens_until_its_first_path_is_in(cfg, kept):
     assert s.solution is not None and s.n == s.prepared.n and not s.error
     assert s.to_query()["hname"] == "mug_leftHand.bvh"
     doc.pump(lambda: not s.busy)
+
+
+def test_a_new_pair_that_has_the_side_in_force_opens_on_it(cfg, kept):
+    """Stranger 14 F2: a new pair asked for a side its hand lacks (a right hand, ``rHand``,
+    whose file name says left) while the side in force is the one it has waited with the
+    Side control already showing that side: choosing it could not be a change, so the page
+    was stuck. It opens on the side in force at once, off the loop too."""
+    for off_loop in (False, True):
+        s, doc = Session(cfg), FakeDoc()
+        if off_loop:
+            s.compute_off_loop(doc)
+        s.load_sample(cfg.default_sample)
+        if off_loop:
+            doc.pump(lambda s=s: s.solution is not None and not s.busy)
+        assert s.side == "right" and s.solution is not None
+        s.load_uploads(
+            kept[BODY_BVH.name], kept[HAND_BVH.name], BODY_BVH.name, "x_left.bvh", side="left"
+        )
+        if off_loop:
+            doc.pump(lambda s=s: not s.opening and not s.busy)
+        assert not s.waits_for_side and not s.waiting, s.waiting
+        assert (s.hand_sha256, s.hand_name, s.side) == (kept[HAND_BVH.name], "x_left.bvh", "right")
+        assert s.solution is not None and s.m_hand == s.prepared.m_hand and not s.error
+        # the other side, which it lacks, is refused; the pair stays on the side shown, and
+        # the refusal asks for no side (the one it would ask for is the one in force)
+        s.side = "left"
+        if off_loop:
+            doc.pump(lambda s=s: s.error and not s.busy)
+        assert s.side == "right" and s.hand_name == "x_left.bvh" and not s.waits_for_side
+        assert s.error == (
+            "x_left.bvh has no left hand (hands found: right); it stays on the right side"
+        )
+
+
+def test_a_link_without_a_side_opens_a_left_named_right_hand_on_its_joints_side(cfg, kept):
+    """Stranger 14 F2, a link's way in: without ``side`` the page takes the hand file's
+    name's side, unless its joint names are the other hand's (the one rule,
+    ``engine.model.roles.hand_file_side``): a right hand named ``..._left_...`` opens right."""
+    s = Session(cfg)
+    s.load_sample(cfg.default_sample)
+    body, hand = kept[BODY_BVH.name], kept[HAND_BVH.name]
+    s.open_link(
+        {"body": body, "bname": BODY_BVH.name, "hand": hand, "hname": "pointing_left_hand.bvh"}
+    )
+    assert (s.hand_sha256, s.hand_name, s.side) == (hand, "pointing_left_hand.bvh", "right")
+    assert s.solution is not None and not s.error, s.error

@@ -91,3 +91,28 @@ def test_batch_notes_carry_the_warning_unless_the_manifest_gives_the_side(tmp_pa
     (note,) = side_notes(job, take)
     assert note.startswith("mug1.bvh: ") and note.endswith("set its side column to left")
     assert side_notes(PairJob(2, "p", str(BODY), str(hand), "left"), take) == ()
+
+
+def test_info_says_the_side_splice_takes_a_side_less_hand_as(tmp_path, capsys, monkeypatch):
+    """Stranger 14 F6: ``info`` on a hand take whose names carry no side says the side
+    ``splice`` without ``--side`` takes it as (its geometry, the same rule)."""
+    import json
+
+    import engine.splice.retime as retime
+
+    def stop(*args, **kwargs):
+        raise HandSpliceError("stopped here")
+
+    monkeypatch.setattr(retime, "splice_takes", stop)
+    hand = tmp_path / "mug1.bvh"
+    shutil.copyfile(MOCAP / "manipnet" / "mug1_rightHand.bvh", hand)
+    main(["splice", str(BODY), str(hand), "-o", str(tmp_path / "out.bvh"), "--quiet"])
+    spliced = re.search(r"spliced as the (\w+) hand", capsys.readouterr().err).group(1)
+    assert main(["info", str(hand), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["geometry_side"]["side"] == spliced
+    assert main(["info", str(hand)]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert f"splice without --side takes it as the {spliced} hand" in text, text
+    named = MOCAP / "manipnet" / "mug1_rightHand.bvh"  # the name gives the side: nothing said
+    assert main(["info", str(named), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["geometry_side"] is None

@@ -16,6 +16,7 @@ tabs) never share matching points or parameters.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import gc
 import logging
 import traceback
@@ -165,6 +166,25 @@ def _open_local(pair):
     return backend.prepare(pair.body, pair.hand, pair.side)
 
 
+def _named_side(hand_path) -> tuple[str | None, str | None]:
+    """(side, warning) for ``serve BODY HAND`` without ``--side`` whose hand file's name says
+    a side: the rule of every front (``engine.model.roles.hand_file_side``: joint names over
+    the file name). A hand the reader refuses is left to the pair's own opening (one line)."""
+    from engine.base.errors import HandSpliceError
+    from engine.io import load_take
+    from engine.model.motion import Motion
+    from engine.model.roles import hand_file_side, side_from_name
+
+    try:
+        take = load_take(hand_path)
+    except (HandSpliceError, ValueError, OSError):
+        return side_from_name(hand_path), None
+    if not isinstance(take, Motion):
+        return side_from_name(hand_path), None
+    named = hand_file_side(Path(hand_path).name, take.skeleton)
+    return named.side, named.warning
+
+
 def unnamed_side(pair, side_arg: str | None, hand):
     """``pair`` (``serve BODY HAND``'s, its hand take ``hand`` as read) with the warning a
     hand take gets when neither its file name nor its joint names carry a side
@@ -173,7 +193,6 @@ def unnamed_side(pair, side_arg: str | None, hand):
     page (stranger 13: a side-less hand served from disk went on the right arm, unsaid).
     ``side_arg``: the ``--side`` given (none: nothing is said when the name gives the
     side)."""
-    import dataclasses
 
     from engine.cli import warn
     from engine.model.hand_side import unnamed_side_warning
@@ -240,8 +259,18 @@ def run(args: argparse.Namespace) -> int:
             from webapp import backend
 
             warn_side(args.hand, args.side)  # a right-named hand served as left: say so
-            side = args.side or side_from_name(args.hand) or "right"
+            side, contradiction = args.side, None
+            if side is None and side_from_name(args.hand) is not None:
+                side, contradiction = _named_side(args.hand)
+            side = side or "right"
             local = config.local_pair(args.body, args.hand, side)
+            if contradiction:  # said on the console and, for this pair, in the page
+                from engine.cli import warn
+
+                warn(contradiction)
+                local = dataclasses.replace(
+                    local, extra={**local.extra, "name_side": contradiction}
+                )
             with backend.stages_to(stages):
                 prepared = _open_local(local)  # a take the engine refuses: one line, exit 2
             # the hand take as read for the pair (not read a second time)

@@ -292,6 +292,8 @@ class Session(param.Parameterized):
         #: a new pair refused for its side while another pair is open: (its input values,
         #: the ``waiting`` text); the next side chosen opens it (:meth:`_side_chosen`)
         self._side_wait: tuple[dict, str] | None = None
+        #: a new pair is being opened again on the side in force (:meth:`_open_failed`)
+        self._side_reopened = False
         self._shown: dict | None = None  # SHOWN_INPUTS of the pair shown, once one is
         #: a shared link that could not open because its uploaded takes are not on this
         #: server (its spec): the page's upload of those files opens it (:meth:`load_uploads`)
@@ -670,12 +672,19 @@ class Session(param.Parameterized):
             self.refuse(exc, text)
 
     def _open_dropped(self, then) -> None:
+        self._side_reopened = False
         if self.runner is None or not self.runner.inputs_pending():
             self.end_opening()
         then(False)
 
     def _open_failed(self, exc: BaseException, old: dict, then, new_pair: bool = False) -> None:
-        self.end_opening()
+        """A new pair or input change could not open. The inputs go back to those shown
+        (the views ignore them meanwhile: the opening ends after, so a page's uploads are
+        never taken for other takes chosen). A new pair whose takes have only another side
+        than the one asked for waits for it, when that side is not the one in force; when
+        it is, choosing it could not be a change (a Side control already showing it), so the
+        pair opens on it at once (stranger 14 F2)."""
+        reopened, self._side_reopened = self._side_reopened, False
         message = self._named_uploads(backend.one_line(exc))
         # a new pair whose takes have only the other side waits for it (the open pair stays)
         wait = None
@@ -688,6 +697,16 @@ class Session(param.Parameterized):
             wait = self._current(k for k in old if k != "side")
         if self.prepared is not None:  # keep what worked: inputs back to their old values
             self._apply(old)
+        if wait and self.side in exc.found and not reopened:
+            # the side in force is one the new pair has: it opens on it now
+            self._side_wait, self._side_reopened = (wait, ""), True
+            self._on_inputs(_Change("side", self.side), then=then)
+            return
+        self.end_opening()
+        if not wait and "side" in old and isinstance(exc, SideError) and self.side in exc.found:
+            # the pair stays on the side shown: no "choose side X" for the side in force
+            message = re.sub(r"; choose side \w+ in the page$", "", message)
+            message += f"; it stays on the {self.side} side"
         # the inputs whose change was refused (a side the takes lack): the page shows
         # the refusal next to their controls
         self.refuse(exc, message, inputs=("side",) if wait else tuple(old))
@@ -719,6 +738,7 @@ class Session(param.Parameterized):
         and suggestions are not the new pair's) and the progress line counts the whole
         opening, the first alignment included (seconds on a marker take)."""
         self.prepared = prepared
+        self._side_reopened = False
         self._shown = self._current(SHOWN_INPUTS)
         self._chain = None
         self.param.update(solution=None, trust=None, history_note="")
@@ -1484,6 +1504,22 @@ class Session(param.Parameterized):
         named = side_from_name(spec.hand.name) if spec.hand and spec.hand.name else None
         return named or self.side
 
+    @staticmethod
+    def _joints_side(spec: SessionSpec, side: str, hand_path, takes=None) -> str:
+        """``side`` (:meth:`_side_for`'s), unless ``spec`` gives none and its hand file's
+        name says a side its joint names contradict: then the joints' (the one rule,
+        ``engine.model.roles.hand_file_side``; stranger 14 F2). ``takes``: as read."""
+        if spec.side is not None or spec.hand is None or not side_from_name(spec.hand.name or ""):
+            return side
+        from engine.io import load_take
+        from engine.model.motion import Motion
+        from engine.model.roles import hand_file_side
+
+        take = takes[1] if takes else load_take(hand_path)
+        if not isinstance(take, Motion):
+            return side
+        return hand_file_side(spec.hand.name, take.skeleton).side or side
+
     def _stage(
         self, spec: SessionSpec, progress=None, keep_takes: bool = False, takes=None
     ) -> dict:
@@ -1536,6 +1572,7 @@ class Session(param.Parameterized):
                     "expected a sample or uploaded body and hand takes (none are open and the "
                     "server has no default pair)",
                 )
+        side = self._joints_side(spec, side, paths[1], takes)
         roles = dict(spec.roles)
         prepared = backend.prepare(paths[0], paths[1], side, roles, takes=takes)
         points = tuple(spec.points)  # checked by engine.dtw.constraints when the spec was made

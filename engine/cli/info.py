@@ -26,6 +26,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from pathlib import Path
 
 
 def add_parser(subparsers) -> None:
@@ -66,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
         warn_side(args.file, args.side)
     else:
         take = load_take(args.file)
-        warn_side(args.file, args.side)
+        warn_side(args.file, args.side, take)
         if isinstance(take, MarkerSet):
             if overrides:
                 from engine.base.errors import ParameterError
@@ -85,11 +86,20 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def warn_side(path, side) -> None:
-    """``--side`` contradicting the file's name: one warning line (the side asked wins)."""
+def warn_side(path, side, take=None) -> None:
+    """``--side`` contradicting the file's name: one warning line (the side asked wins).
+    ``take``: the take as read; when its joint names contradict the file name (the one rule,
+    ``engine.model.roles.hand_file_side``) and no side, or their side, is asked for, the
+    warning is theirs."""
     from engine.cli import warn
-    from engine.model.roles import side_name_conflict
+    from engine.model.motion import Motion
+    from engine.model.roles import hand_file_side, side_name_conflict
 
+    if isinstance(take, Motion):
+        named = hand_file_side(Path(str(path)).name, take.skeleton)
+        if named.warning and side in (None, "auto", named.side):
+            warn(named.warning)
+            return
     conflict = side_name_conflict(path, side)
     if conflict:
         warn(f"{conflict} (leave --side out to follow the name)")
@@ -115,7 +125,22 @@ def describe_motion(motion, path, overrides=None, side=None) -> dict:
         "finger_chains": finger_chains(motion.skeleton, roles),
         "sides": roles.sides_found(),
         "hand_sides": [s for s in SIDES if roles.side(s).has_fingers],
+        "geometry_side": _geometry_side(motion, roles),
     }
+
+
+def _geometry_side(motion, roles) -> dict | None:
+    """For a hand take whose names carry no side: the side ``splice`` without ``--side``
+    takes it as (its geometry: ``engine.model.hand_side.sided_roles``'s rule,
+    :func:`~engine.model.hand_side.geometric_side`), ``{"side": "right"|"left"|None,
+    "reason": ...}``; None when the names give the side."""
+    from engine.model.hand_side import geometric_side
+
+    arm = roles.unsided
+    if arm is None or not arm.has_fingers:
+        return None
+    vote = geometric_side(motion, arm)
+    return {"side": vote.side, "reason": vote.reason}
 
 
 def finger_chains(skeleton, roles) -> dict:
@@ -177,6 +202,20 @@ def describe_glb(path, overrides=None, side=None) -> dict:
         "sides": roles.sides_found(),
         "hand_sides": [s for s in SIDES if roles.side(s).has_fingers],
     }
+
+
+def _geometry_side(motion, roles) -> dict | None:
+    """For a hand take whose names carry no side: the side ``splice`` without ``--side``
+    takes it as (its geometry: ``engine.model.hand_side.sided_roles``'s rule,
+    :func:`~engine.model.hand_side.geometric_side`), ``{"side": "right"|"left"|None,
+    "reason": ...}``; None when the names give the side."""
+    from engine.model.hand_side import geometric_side
+
+    arm = roles.unsided
+    if arm is None or not arm.has_fingers:
+        return None
+    vote = geometric_side(motion, arm)
+    return {"side": vote.side, "reason": vote.reason}
 
 
 def describe_markers(markers, path, side=None) -> dict:
@@ -297,7 +336,26 @@ def _role_rows(report: dict) -> list[tuple[str, str]]:
         found = [f"{k}={arm[k]}" for k in _ARM_KEYS if arm[k] is not None]
         fingers = _finger_items(report, "unsided")
         rows += [("no side", line) for line in _wrap(found + fingers, 72)]
-        rows.append(("", "(names carry no side: pass --side right|left)"))
+        guess = report.get("geometry_side") or {}
+        if guess.get("side"):
+            rows.append(
+                (
+                    "",
+                    f"(names carry no side: splice without --side takes it as the "
+                    f"{guess['side']} hand, the hand its geometry forms; pass --side "
+                    "right|left to choose)",
+                )
+            )
+        elif guess:
+            rows.append(
+                (
+                    "",
+                    f"(names carry no side; its geometry does not tell "
+                    f"({guess['reason']}): pass --side right|left)",
+                )
+            )
+        else:
+            rows.append(("", "(names carry no side: pass --side right|left)"))
     return rows
 
 

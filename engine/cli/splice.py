@@ -293,7 +293,7 @@ def run(args: argparse.Namespace) -> int:
         _warn_foreign_session(spec, args, session_points=not args.match and bool(points))
     from engine.cli.info import warn_side
 
-    warn_side(args.hand, args.side)  # a right-named hand spliced as left: say so
+    warn_side(args.hand, args.side, hand)  # a right-named hand spliced as left: say so
     # a marker body (C3D/TRC) has no skeleton to receive fingers: OUT is then the hand take
     # retimed to it (engine.splice.retime), as the app's download of such a pair
     retimed = pipeline.marker_body(body)

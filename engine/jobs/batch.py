@@ -496,14 +496,22 @@ NOTE_SEPARATOR = " | "
 
 def side_notes(job: PairJob, hand) -> tuple[str, ...]:
     """The warning for a hand take whose names carry no side, spliced (side ``auto``) as
-    the hand its geometry forms (``engine.model.hand_side.unnamed_side_warning``, as
-    ``handsplice splice`` says it on stderr), carried as the reader notes are."""
+    the hand its geometry forms (``engine.model.hand_side.unnamed_side_warning``), or whose
+    file name says the other side than its joint names (``engine.model.roles.hand_file_side``),
+    as ``handsplice splice`` says them on stderr, carried as the reader notes are."""
     from engine.model.hand_side import unnamed_side_warning
     from engine.model.motion import Motion
+    from engine.model.roles import hand_file_side
 
-    if job.side in ("right", "left") or not isinstance(hand, Motion):
+    if not isinstance(hand, Motion):
         return ()
-    text = unnamed_side_warning(Path(job.hand).name, hand, None, "set its side column to {side}")
+    name = Path(job.hand).name
+    named = hand_file_side(name, hand.skeleton)  # a name saying the other side: as splice
+    if named.warning and job.side in (None, "auto", named.side):
+        return (named.warning,)
+    if job.side in ("right", "left"):
+        return ()
+    text = unnamed_side_warning(name, hand, None, "set its side column to {side}")
     return (text,) if text else ()
 
 

@@ -284,11 +284,53 @@ def _biped_label(side, tokens: list[str], finger: str) -> _Label:
     return _Label(side, "finger", finger, number=number, numbered_by="digit")
 
 
+#: a file name's whole tokens (split on ``_ - . space``) that say a side: the labs' ``RH``/``LH``
+_FILE_SIDE_TOKENS = {"rh": "right", "lh": "left"}
+
+
 def side_from_name(text: str | Path) -> str | None:
-    """``"right"``/``"left"`` if a file name says so (``mug1_rightHand.bvh``), else None."""
+    """``"right"``/``"left"`` if a file name says so (``mug1_rightHand.bvh``,
+    ``gloves_RH_mug.bvh``: ``RH``/``LH`` only as a whole token between ``_ - . space``, so
+    ``birch.bvh`` says nothing), else None (also when it names both sides)."""
     stem = Path(str(text)).stem
     sides = {_SIDE_WORDS[t] for t in name_tokens(stem) if t in ("right", "left")}
+    sides |= {
+        _FILE_SIDE_TOKENS[t] for t in re.split(r"[_\-. ]+", stem.lower()) if t in _FILE_SIDE_TOKENS
+    }
     return sides.pop() if len(sides) == 1 else None
+
+
+@dataclass(frozen=True)
+class HandFileSide:
+    """The side a hand take's names give: ``side`` (None: its file name says none) and
+    ``warning`` (one line, or None) when its file name contradicts its joint names."""
+
+    side: str | None
+    warning: str | None = None
+
+
+def hand_file_side(text: str | Path, skeleton: Skeleton) -> HandFileSide:
+    """The side the file name ``text`` gives a hand take whose joints are ``skeleton``.
+
+    The one rule for a file name against joint names (the CLI, ``batch``, ``serve`` and the
+    page): joint names are stronger evidence than a file name. When the name says one side
+    and the joint names carry hands of the other side only (gestification's ``rHand``,
+    ``rIndex1`` saved as ``pointing_left_hand.bvh``), the side is the joints', with a
+    warning naming the file; otherwise it is the name's (:func:`side_from_name`), silently.
+    """
+    named = side_from_name(text)
+    if named is None:
+        return HandFileSide(None)
+    roles = find_roles(skeleton)
+    by_joints = [s for s in roles.sides_found() if roles.side_source.get(s) == "names"]
+    if not by_joints or named in by_joints:
+        return HandFileSide(named)
+    side = by_joints[0]
+    return HandFileSide(
+        side,
+        f"{Path(str(text)).name}: the file name says {named} but its joint names are a "
+        f"{side} hand ({roles.name(roles.side(side).wrist)}); taking it as the {side} hand",
+    )
 
 
 def side_name_conflict(text: str | Path, side: str | None) -> str | None:

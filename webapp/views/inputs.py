@@ -27,7 +27,7 @@ import panel as pn
 
 from engine.model.hand_side import unnamed_side_warning
 from engine.model.motion import Motion
-from engine.model.roles import side_from_name, side_name_conflict
+from engine.model.roles import HandFileSide, hand_file_side, side_from_name, side_name_conflict
 from webapp import backend, safe_text, uploads
 from webapp.backend import one_line
 from webapp.state import Session
@@ -138,6 +138,9 @@ class InputsView:
         self._side_note = ""
         #: the last opening's hand take had no side in its names: the engine's warning
         self._side_guess = ""
+        #: the last opening's hand file name says the other side than its joint names: the
+        #: engine's warning (the joints' side was taken: ``roles.hand_file_side``)
+        self._name_joints = ""
         #: the last opening opened the shared link that waited for these uploads
         self._link_applied = False
         self._droppers = {"body": self.body_file, "hand": self.hand_file}
@@ -482,7 +485,9 @@ class InputsView:
         s = self.session
         local = s.config.local
         shown = local is not None and s.sample == local.name
-        warning = side_warning(local.hand.name, s.side) if shown else ""
+        named = local.extra.get("name_side") if shown and s.side == local.side else ""
+        warning = _side_warning_html(named) if named else ""  # the joints' side, not the name's
+        warning = warning or (side_warning(local.hand.name, s.side) if shown else "")
         guess = local.extra.get("unnamed_side") if shown and s.side == local.side else ""
         if guess and not warning:  # no side in the hand's names: never silent (stranger 13)
             warning = _side_warning_html(guess)
@@ -493,6 +498,8 @@ class InputsView:
         """``; side right, as the hand file's name says`` when the opening followed the
         name, or the warning when the side in force contradicts it (escaped)."""
         hand = self._pending.get("hand")
+        if self._name_joints:  # the name said the other side: the joints' side was taken
+            return f"; {_side_warning_html(self._name_joints)}"
         warning = side_warning(hand.name, self.session.side) if hand else ""
         if warning:
             return f"; {warning}"
@@ -527,19 +534,25 @@ class InputsView:
             # the same content again, maybe under another name: the newest name is used
             s.rename_takes(body.name, hand.name)
             self._side_guess = _unnamed_side(hand.name, hand.take, s.side)
+            self._name_joints = _hand_file_side(hand.name, hand.take).warning or ""
             self._open = dict(self._pending)
             self._show_uploaded(opened=True)
             return
         # the side follows the hand file's name (mug1_rightHand.bvh: right), as the CLI's
-        # without --side; the Side control then shows it and the line below says why
-        named = side_from_name(hand.name)
-        side = named or s.side
+        # without --side, unless its joint names are the other hand's (then theirs, warned:
+        # the one rule, engine.model.roles.hand_file_side); the Side control then shows it
+        # and the line below says why
+        named = _hand_file_side(hand.name, hand.take)
+        side = named.side or s.side
         self._side_note = (
-            f"side {side}, as the hand file's name says" if named and named != s.side else ""
+            f"side {side}, as the hand file's name says"
+            if named.side and named.side != s.side and not named.warning
+            else ""
         )
         self._side_guess = ""
+        self._name_joints = named.warning or ""
         # a hand take whose name says no side: warned about once open, as the side then in force
-        unnamed = hand.take if not named else None
+        unnamed = hand.take if not named.side else None
         self._link_applied = False
         self.uploaded.object += OPENING
         # the session holds the takes from now on (the engine's cache once they are open):
@@ -718,6 +731,15 @@ def _other_fields_take(which: str, kept: uploads.Kept) -> str:
     if which == "hand" and kept.summary.get("body_take"):
         return "a body?"
     return ""
+
+
+def _hand_file_side(hand_name: str, take) -> HandFileSide:
+    """The side an uploaded hand take (``take``: Motion, or markers/None) opens on by its
+    names, with the warning when its file name contradicts its joint names (the rule:
+    ``engine.model.roles.hand_file_side``); a take not read here: its file name's."""
+    if not isinstance(take, Motion):
+        return HandFileSide(side_from_name(hand_name))
+    return hand_file_side(hand_name, take.skeleton)
 
 
 def _unnamed_side(hand_name: str, take, side: str) -> str:
