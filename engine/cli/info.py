@@ -204,20 +204,6 @@ def describe_glb(path, overrides=None, side=None) -> dict:
     }
 
 
-def _geometry_side(motion, roles) -> dict | None:
-    """For a hand take whose names carry no side: the side ``splice`` without ``--side``
-    takes it as (its geometry: ``engine.model.hand_side.sided_roles``'s rule,
-    :func:`~engine.model.hand_side.geometric_side`), ``{"side": "right"|"left"|None,
-    "reason": ...}``; None when the names give the side."""
-    from engine.model.hand_side import geometric_side
-
-    arm = roles.unsided
-    if arm is None or not arm.has_fingers:
-        return None
-    vote = geometric_side(motion, arm)
-    return {"side": vote.side, "reason": vote.reason}
-
-
 def describe_markers(markers, path, side=None) -> dict:
     """The ``info`` report of a marker take (C3D, TRC) as a JSON-ready dict."""
     import numpy as np
