@@ -173,15 +173,14 @@ def _named_side(hand_path) -> tuple[str | None, str | None]:
     from engine.base.errors import HandSpliceError
     from engine.io import load_take
     from engine.model.motion import Motion
-    from engine.model.roles import hand_file_side, side_from_name
+    from engine.model.roles import hand_file_side
 
     try:
         take = load_take(hand_path)
     except (HandSpliceError, ValueError, OSError):
-        return side_from_name(hand_path), None
-    if not isinstance(take, Motion):
-        return side_from_name(hand_path), None
-    named = hand_file_side(Path(hand_path).name, take.skeleton)
+        take = None
+    skeleton = take.skeleton if isinstance(take, Motion) else None
+    named = hand_file_side(Path(hand_path).name, skeleton)
     return named.side, named.warning
 
 

@@ -1516,9 +1516,8 @@ class Session(param.Parameterized):
         from engine.model.roles import hand_file_side
 
         take = takes[1] if takes else load_take(hand_path)
-        if not isinstance(take, Motion):
-            return side
-        return hand_file_side(spec.hand.name, take.skeleton).side or side
+        skeleton = take.skeleton if isinstance(take, Motion) else None
+        return hand_file_side(spec.hand.name, skeleton).side or side
 
     def _stage(
         self, spec: SessionSpec, progress=None, keep_takes: bool = False, takes=None

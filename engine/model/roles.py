@@ -309,8 +309,9 @@ class HandFileSide:
     warning: str | None = None
 
 
-def hand_file_side(text: str | Path, skeleton: Skeleton) -> HandFileSide:
-    """The side the file name ``text`` gives a hand take whose joints are ``skeleton``.
+def hand_file_side(text: str | Path, skeleton: Skeleton | None) -> HandFileSide:
+    """The side the file name ``text`` gives a hand take whose joints are ``skeleton``
+    (None: a take with no joints read, markers say: the name's side, silently).
 
     The one rule for a file name against joint names (the CLI, ``batch``, ``serve`` and the
     page): joint names are stronger evidence than a file name. When the name says one side
@@ -319,8 +320,8 @@ def hand_file_side(text: str | Path, skeleton: Skeleton) -> HandFileSide:
     warning naming the file; otherwise it is the name's (:func:`side_from_name`), silently.
     """
     named = side_from_name(text)
-    if named is None:
-        return HandFileSide(None)
+    if named is None or skeleton is None:
+        return HandFileSide(named)
     roles = find_roles(skeleton)
     by_joints = [s for s in roles.sides_found() if roles.side_source.get(s) == "names"]
     if not by_joints or named in by_joints:

@@ -27,7 +27,7 @@ import panel as pn
 
 from engine.model.hand_side import unnamed_side_warning
 from engine.model.motion import Motion
-from engine.model.roles import HandFileSide, hand_file_side, side_from_name, side_name_conflict
+from engine.model.roles import HandFileSide, hand_file_side, side_name_conflict
 from webapp import backend, safe_text, uploads
 from webapp.backend import one_line
 from webapp.state import Session
@@ -734,12 +734,9 @@ def _other_fields_take(which: str, kept: uploads.Kept) -> str:
 
 
 def _hand_file_side(hand_name: str, take) -> HandFileSide:
-    """The side an uploaded hand take (``take``: Motion, or markers/None) opens on by its
-    names, with the warning when its file name contradicts its joint names (the rule:
-    ``engine.model.roles.hand_file_side``); a take not read here: its file name's."""
-    if not isinstance(take, Motion):
-        return HandFileSide(side_from_name(hand_name))
-    return hand_file_side(hand_name, take.skeleton)
+    """:func:`engine.model.roles.hand_file_side` of an uploaded hand take as read (a
+    ``Motion``; markers or None: its file name's side)."""
+    return hand_file_side(hand_name, take.skeleton if isinstance(take, Motion) else None)
 
 
 def _unnamed_side(hand_name: str, take, side: str) -> str:
