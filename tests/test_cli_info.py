@@ -263,7 +263,11 @@ def test_bad_roles_file(tmp_path, capsys):
     mapping = tmp_path / "roles.json"
     mapping.write_text('{"right.wrist": "Hand_R",\n "right.elbow": }')
     code, _, err = _info(capsys, "--roles", mapping, bandai)
-    assert code == 2 and "roles.json line 2: invalid JSON" in err and err.count("\n") == 1
+    assert (
+        code == 2
+        and "roles.json: line 2, column 17: not valid JSON" in err
+        and err.count("\n") == 1
+    )
     mapping.write_text('{"right.wrist": "Hnad_R"}')
     code, _, err = _info(capsys, "--roles", mapping, bandai)
     assert code == 2 and "right.wrist: the skeleton has no joint named 'Hnad_R'" in err

@@ -56,8 +56,12 @@ from engine.model.motion import MarkerSet, Motion
 pytestmark = pytest.mark.timeout(300, method="thread")
 
 EXAMPLE_SECONDS = 10.0  # a hang: no reader needs more than ~0.1 s on these inputs
-# HANDSPLICE_FUZZ_SCALE=20 multiplies the examples for a long exploratory run
+# HANDSPLICE_FUZZ_SCALE=20 multiplies the examples for a long exploratory run, with fresh
+# random examples each time; the suite's own run (scale 1) is derandomized, so the gate
+# gives the same answer on every clone (stop 32's CI met a new example and went red
+# on work that had not touched it; that example is now in test_json_text.py)
 SCALE = max(1, int(os.environ.get("HANDSPLICE_FUZZ_SCALE", "1")))
+EXPLORE = SCALE > 1 or os.environ.get("HANDSPLICE_FUZZ_RANDOM") == "1"
 
 
 def n_examples(n: int) -> int:
@@ -67,7 +71,7 @@ def n_examples(n: int) -> int:
 FUZZ = settings(
     max_examples=n_examples(400),
     deadline=timedelta(seconds=5),
-    derandomize=False,
+    derandomize=not EXPLORE,
     suppress_health_check=[
         HealthCheck.too_slow,
         HealthCheck.data_too_large,

@@ -332,7 +332,7 @@ def test_load_role_overrides(tmp_path):
     assert load_role_overrides(good) == {"right.wrist": "Bip01_R_Hand", "left.index1": None}
     bad = tmp_path / "bad.json"
     bad.write_text('{\n  "right.wrist": "X",\n  oops\n}')
-    with pytest.raises(ParameterError, match=r"bad\.json line 3: invalid JSON"):
+    with pytest.raises(ParameterError, match=r"bad\.json: line 3, column \d+: not valid JSON"):
         load_role_overrides(bad)
     listed = tmp_path / "list.json"
     listed.write_text("[1, 2]")

@@ -7,10 +7,10 @@ only from ``sample_dir`` and ``upload_dir``.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from engine.base.json_text import JsonTextError, parse_json
 from engine.base.limits import MAX_UPLOAD_BYTES
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -127,8 +127,8 @@ def _read_manifest(sample_dir: Path) -> dict | list | None:
     if not path.is_file():
         return None
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError:
+        return parse_json(path.read_bytes(), finite=False)
+    except (OSError, JsonTextError):
         return None
 
 

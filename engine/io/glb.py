@@ -14,7 +14,6 @@ field.
 
 from __future__ import annotations
 
-import json
 import struct
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from engine.base.errors import MotionFormatError
+from engine.base.json_text import JsonTextError, parse_json
 from engine.base.limits import MAX_GLB_JSON_BYTES, MAX_JOINTS
 from engine.model.motion import Skeleton
 
@@ -78,9 +78,9 @@ def _json_chunk(path: Path) -> dict:
     if len(text) < length:
         raise MotionFormatError(path, f"JSON chunk: {len(text):,} of {length:,} bytes (truncated?)")
     try:
-        doc = json.loads(text.decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
-        raise MotionFormatError(path, f"JSON chunk: not valid JSON ({exc})") from None
+        doc = parse_json(text, finite=False)
+    except JsonTextError as exc:
+        raise MotionFormatError(path, f"JSON chunk: {exc.detail}") from None
     if not isinstance(doc, dict):
         raise MotionFormatError(path, "JSON chunk: expected an object")
     return doc

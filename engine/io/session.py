@@ -58,6 +58,7 @@ from typing import Any
 
 from engine.base.atomic import write_text
 from engine.base.errors import ParameterError
+from engine.base.json_text import JsonTextError, parse_json
 from engine.base.limits import MAX_SESSION_BYTES
 from engine.dtw import constraints as C
 from engine.dtw.constraints import MatchPoint, Width
@@ -509,25 +510,10 @@ def parse_session(text: str | bytes, source: str | None = None) -> SessionSpec:
     if len(text) > MAX_TEXT:
         raise SessionError(source, "", f"expected at most {MAX_TEXT} characters, got {len(text)}")
     try:
-        data = json.loads(text, parse_constant=_reject_constant)
-    except json.JSONDecodeError as exc:
-        # json's messages end in " at" where it gives the place ("Unterminated string
-        # starting at"): the place is said first, whole (stranger 8 read a cut-off sentence)
-        raise SessionError(
-            source,
-            "",
-            f"line {exc.lineno}, column {exc.colno}: not valid JSON "
-            f"({exc.msg.removesuffix(' at').lower()})",
-        ) from None
-    except RecursionError:
-        raise SessionError(source, "", "JSON nested too deeply") from None
-    except ValueError as exc:
-        raise SessionError(source, "", str(exc)) from None
+        data = parse_json(text)
+    except JsonTextError as exc:
+        raise SessionError(source, "", exc.detail) from None
     return from_dict(data, source)
-
-
-def _reject_constant(name: str):
-    raise ValueError(f"expected finite numbers, found {name}")
 
 
 def format_session(spec: SessionSpec) -> str:
@@ -722,8 +708,8 @@ def read_query(query: dict[str, str]) -> tuple[SessionSpec, tuple[SessionError, 
             data["points"] = [[p.body, p.hand, p.tolerance] for p in points]
     if q.get("roles"):
         try:
-            roles = json.loads(str(q["roles"]))
-        except (json.JSONDecodeError, RecursionError):
+            roles = parse_json(str(q["roles"]))
+        except JsonTextError:
             problems.append(SessionError(source, "roles", "expected a JSON object"))
         else:
             if checked({"roles": roles}):

@@ -70,6 +70,7 @@ from engine import __version__
 from engine.base.atomic import atomic_path, clean_stale, write_text, write_texts
 from engine.base.digest import file_sha256
 from engine.base.errors import HandSpliceError, ParameterError
+from engine.base.json_text import parse_json
 from engine.base.limits import MAX_MANIFEST_ROWS, PAIR_MEMORY_MB, PAIR_SECONDS
 from engine.dtw import constraints as C
 
@@ -362,9 +363,9 @@ def is_done(job: PairJob, outdir: Path) -> dict | None:
     """The done marker of ``job`` if it is current (same inputs and options, outputs present)."""
     path = marker_path(job, outdir)
     try:
-        marker = json.loads(path.read_text(encoding="utf-8"))
+        marker = parse_json(path.read_bytes(), finite=False)
         key = input_key(job)
-    except (OSError, ValueError):
+    except (OSError, ValueError):  # JsonTextError is a ValueError
         return None
     if not isinstance(marker, dict) or marker.get("key") != key:
         return None

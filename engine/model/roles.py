@@ -58,7 +58,6 @@ after the automatic match and always win.
 from __future__ import annotations
 
 import difflib
-import json
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -66,6 +65,7 @@ from pathlib import Path
 import numpy as np
 
 from engine.base.errors import ParameterError, RoleError
+from engine.base.json_text import JsonTextError, parse_json
 from engine.model.motion import Skeleton
 
 SIDES = ("right", "left")
@@ -868,17 +868,10 @@ def read_roles_json(path: str | Path):
             f"{path.name}: more than {MAX_ROLES_BYTES:,} bytes; a roles map is a small JSON object"
         )
     try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise ParameterError(f"{path.name}: not UTF-8 text (byte at offset {exc.start})") from None
-    try:
-        return json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ParameterError(f"{path.name} line {exc.lineno}: invalid JSON ({exc.msg})") from None
-    except RecursionError:
+        return parse_json(raw, finite=False)
+    except JsonTextError as exc:
         raise ParameterError(
-            f"{path.name}: JSON nested too deeply; a roles map is "
-            '{"right.wrist": "JointName", ...}'
+            f'{path.name}: {exc.detail}; a roles map is {{"right.wrist": "JointName", ...}}'
         ) from None
 
 

@@ -30,8 +30,6 @@ thousand vertices, not one per frame, and a zoom brings every frame in view.
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import panel as pn
 from bokeh.events import DoubleTap, PanEnd, PanStart, RangesUpdate, Tap
@@ -50,6 +48,7 @@ from bokeh.models import (
 from bokeh.palettes import Viridis256
 from bokeh.plotting import figure
 
+from engine.base.json_text import JsonTextError, parse_json
 from webapp.matrix_frames import JS_VIEW_FRAME
 from webapp.state import Session
 from webapp.views import decimate, page_js
@@ -128,15 +127,36 @@ def _rates(session: Session) -> dict:
     }
 
 
+def _fresh_edits(text, acked: int) -> list[dict]:
+    """The page's queued point edits (a JSON list of ``{"seq", "before", "after"}``) newer
+    than ``acked``, oldest first; text that is not such a list (a client other than the
+    page's own script can send anything) gives none."""
+    try:
+        queue = parse_json(str(text))
+    except JsonTextError:
+        return []
+    if not isinstance(queue, list):
+        return []
+    fresh = [
+        e for e in queue if isinstance(e, dict) and type(e.get("seq")) is int and e["seq"] > acked
+    ]
+    return sorted(fresh, key=lambda e: e["seq"])
+
+
 def _rows(cols) -> list[tuple[float, float, float]]:
     """The page's ``{"x": [...], "y": [...], "tol": [...]}`` as ``(x, y, tol)`` rows."""
     if not isinstance(cols, dict):
         return []
-    xs, ys, tols = (list(cols.get(k) or []) for k in ("x", "y", "tol"))
-    tols += [None] * (len(xs) - len(tols))
+    xs, ys, tols = (cols.get(k) if isinstance(cols.get(k), list) else [] for k in ("x", "y", "tol"))
+    tols = tols + [None] * (len(xs) - len(tols))
 
     def num(v):
-        return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else None
+        if not isinstance(v, int | float) or isinstance(v, bool):
+            return None
+        try:
+            return float(v)
+        except OverflowError:  # an integer past float's range
+            return None
 
     return [(num(x), num(y), num(t)) for x, y, t in zip(xs, ys, tols)]
 
@@ -1077,14 +1097,7 @@ class CostMatrixView:
             )
 
     def _apply_edits(self) -> None:
-        try:
-            queue = json.loads((self.edit_source.data.get("edits") or ["[]"])[0])
-        except (TypeError, ValueError):
-            return
-        fresh = sorted(
-            (e for e in queue if isinstance(e, dict) and int(e.get("seq", 0)) > self._acked),
-            key=lambda e: int(e["seq"]),
-        )
+        fresh = _fresh_edits((self.edit_source.data.get("edits") or ["[]"])[0], self._acked)
         if not fresh:
             return
         for edit in fresh:  # one at a time: each is solved before the next is merged
