@@ -653,3 +653,49 @@ def test_limits_module_is_the_one_place():
         src = Path(mod.__file__).read_text()
         assert "limits.check_take" in src, mod.__name__
     assert resource.RLIMIT_DATA  # the sandbox's hard memory cap exists on this platform
+
+
+# ------------------------------------------------------------------ tokens of thousands of digits
+
+DIGITS = "9" * 5000  # past Python's int-from-text limit (4,300 digits); float reads it as inf
+
+
+@pytest.mark.parametrize(
+    ("field", "edit", "words"),
+    [
+        (
+            "CHANNELS",
+            lambda t: re.sub(r"CHANNELS \d", "CHANNELS " + DIGITS, t, count=1),
+            ("line 5", "CHANNELS count must be a whole number 0-6"),
+        ),
+        (
+            "OFFSET",
+            lambda t: re.sub(r"OFFSET \S+", "OFFSET " + DIGITS, t, count=1),
+            ("line 4", "OFFSET", "is not a finite number"),
+        ),
+    ],
+)
+def test_a_bvh_token_of_thousands_of_digits_is_one_short_line(field, edit, words, tmp_path, capsys):
+    path = tmp_path / f"huge-{field}.bvh"
+    path.write_text(edit(BODY.read_text()))
+    status, err = cli(["info", str(path)], capsys)
+    one_line_exit_2(status, err, path.name, *words)
+    assert len(err) < 200, err  # the token is quoted clipped, not whole
+
+
+def test_a_trc_value_of_thousands_of_digits_is_one_short_line(tmp_path, capsys):
+    lines = TRC.read_text().splitlines()
+    cells = lines[6].split(",")
+    cells[2] = DIGITS
+    lines[6] = ",".join(cells)
+    path = tmp_path / "huge.trc"
+    path.write_text("\n".join(lines) + "\n")
+    status, err = cli(["info", str(path)], capsys)
+    one_line_exit_2(status, err, "huge.trc line 7", "is not finite")
+    assert len(err) < 200, err
+
+
+def test_any_format_error_is_clipped_to_one_short_line():
+    err = MotionFormatError("x.bvh", "found " + DIGITS + "\nsecond line", line=3)
+    assert str(err).startswith("x.bvh line 3: found 999") and str(err).endswith("…")
+    assert "\n" not in str(err) and len(str(err)) < 330

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from engine.base import tolerances as T
-from engine.base.errors import HandSpliceError, check_cancelled
+from engine.base.errors import HandSpliceError, check_cancelled, first_line
 
 #: command-line wording in engine messages -> what the page calls the same control
 _PAGE_WORDS = (
@@ -42,7 +42,7 @@ def one_line(exc: BaseException) -> str:
     text = str(exc).strip()
     if isinstance(exc, KeyError) and len(exc.args) == 1 and isinstance(exc.args[0], str):
         text = exc.args[0]
-    text = text.splitlines()[0] if text else type(exc).__name__
+    text = first_line(text) or type(exc).__name__
     for pattern, words in _PAGE_WORDS:
         text = pattern.sub(words, text)
     return text

@@ -8,6 +8,17 @@ from __future__ import annotations
 
 from pathlib import Path
 
+MAX_MESSAGE_CHARS = 300  # a message quotes a file's text; a 5,000-digit token is clipped
+
+
+def first_line(text: object, limit: int = MAX_MESSAGE_CHARS) -> str:
+    """The first line of ``text`` (stripped), at most ``limit`` characters, a clipped one
+    ending in an ellipsis: what every front shows of an error (the CLI's one line, a batch
+    summary cell, the page's refusal box)."""
+    lines = str(text).strip().splitlines()
+    line = lines[0].strip() if lines else ""
+    return line if len(line) <= limit else line[: limit - 1] + "…"
+
 
 class HandSpliceError(Exception):
     """Base class: a user-facing problem with input or parameters (CLI exit 2)."""
@@ -49,7 +60,7 @@ class MotionFormatError(HandSpliceError, ValueError):
     def __init__(self, path: str | Path | None, message: str, line: int | None = None):
         self.path = None if path is None else str(path)
         self.line = line
-        self.detail = message
+        self.detail = message = first_line(message)
         where = Path(self.path).name if self.path else "<input>"
         if line is not None:
             where = f"{where} line {line}"

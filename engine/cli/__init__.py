@@ -25,7 +25,7 @@ import re
 import sys
 
 from engine import __version__
-from engine.base.errors import HandSpliceError
+from engine.base.errors import HandSpliceError, first_line
 
 # module names under engine.cli, in the order shown by --help
 SUBCOMMANDS = ["info", "splice", "analyze", "synthesize", "render", "batch"]
@@ -159,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
     except (HandSpliceError, ValueError, OSError, KeyError) as exc:
         if args.debug:
             raise
-        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        msg = first_line(exc) or type(exc).__name__
         if isinstance(exc, OSError) and getattr(exc, "filename", None):
             msg = f"{exc.filename}: {exc.strerror or msg}"
         elif not isinstance(exc, OSError | KeyError):  # a file's errors start with its name
@@ -170,7 +170,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.debug:
             raise
         what = "memory" if isinstance(exc, MemoryError) else "nesting depth"
-        detail = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        detail = first_line(exc) or type(exc).__name__
         print(
             f"handsplice: error: the input needs more {what} than this machine allows "
             f"({detail}); refusing it",
@@ -181,7 +181,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.debug:
             raise
         print(
-            f"handsplice: internal error: {type(exc).__name__}: {exc} (rerun with --debug)",
+            f"handsplice: internal error: {type(exc).__name__}: {first_line(exc)} "
+            "(rerun with --debug)",
             file=sys.stderr,
         )
         return 1

@@ -412,7 +412,7 @@ class _Hierarchy:
             raise self.fail("CHANNELS outside a joint block", i)
         if k + 1 >= len(tokens):
             raise self.fail("CHANNELS without a count", i)
-        if not _WHOLE_RE.fullmatch(tokens[k + 1]):
+        if not _WHOLE_RE.fullmatch(tokens[k + 1]) or len(tokens[k + 1]) > 3:
             raise self.fail(
                 f"CHANNELS count must be a whole number 0-6, found {tokens[k + 1][:40]!r}", i
             )
@@ -456,7 +456,7 @@ def _finite_numbers(vals: list[str], where: str | None, i: int, field: str) -> n
     out = np.array([float(v) for v in vals])
     if not np.all(np.isfinite(out)):
         bad = vals[int(np.flatnonzero(~np.isfinite(out))[0])]
-        raise MotionFormatError(where, f"{field}: {bad!r} is not a finite number", line=i + 1)
+        raise MotionFormatError(where, f"{field}: {bad[:40]!r} is not a finite number", line=i + 1)
     if np.abs(out).max(initial=0.0) > MAX_ABS_VALUE:
         bad = vals[int(np.argmax(np.abs(out)))]
         raise MotionFormatError(

@@ -248,7 +248,7 @@ def _row_values(fields: list[str], number: int, labels: list[str], source) -> li
         value = float(text)
         if not math.isfinite(value):
             raise MotionFormatError(
-                source, f"{_column_name(col, labels)}: {text!r} is not finite", line=number
+                source, f"{_column_name(col, labels)}: {text[:20]!r} is not finite", line=number
             )
         if abs(value) > MAX_ABS_VALUE:
             raise MotionFormatError(

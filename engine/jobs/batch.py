@@ -69,7 +69,7 @@ from typing import Any
 from engine import __version__
 from engine.base.atomic import atomic_path, clean_stale, write_text, write_texts
 from engine.base.digest import file_sha256
-from engine.base.errors import HandSpliceError, ParameterError
+from engine.base.errors import HandSpliceError, ParameterError, first_line
 from engine.base.json_text import parse_json
 from engine.base.limits import MAX_MANIFEST_ROWS, PAIR_MEMORY_MB, PAIR_SECONDS
 from engine.dtw import constraints as C
@@ -568,11 +568,11 @@ def one_line(exc: BaseException) -> str:
     named_file = isinstance(exc, OSError) and getattr(exc, "filename", None)
     if named_file:
         text = f"{exc.filename}: {exc.strerror or text}"
-    first = text.splitlines()[0] if text else ""
+    first = first_line(text)
     name = type(exc).__name__
     if not isinstance(exc, HandSpliceError) and not named_file:
         first = f"{name}: {first}" if first else name
-    return first[:500]
+    return first
 
 
 def _where(exc: BaseException) -> str:
