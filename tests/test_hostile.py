@@ -699,3 +699,17 @@ def test_any_format_error_is_clipped_to_one_short_line():
     err = MotionFormatError("x.bvh", "found " + DIGITS + "\nsecond line", line=3)
     assert str(err).startswith("x.bvh line 3: found 999") and str(err).endswith("…")
     assert "\n" not in str(err) and len(str(err)) < 330
+
+
+@pytest.mark.parametrize(
+    ("flag", "value"),
+    [("--frame", DIGITS), ("--size", DIGITS + "x10"), ("--frames", "1:" + DIGITS)],
+)
+def test_a_flag_value_of_thousands_of_digits_is_one_short_line(flag, value, tmp_path, capsys):
+    try:  # argparse's refusals exit from inside main
+        status = main(["render", str(BODY), "-o", str(tmp_path / "r.png"), flag, value])
+    except SystemExit as exc:
+        status = exc.code
+    err = capsys.readouterr().err.strip()
+    one_line_exit_2(status, err, flag)
+    assert len(err) < 400, err

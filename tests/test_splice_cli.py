@@ -455,7 +455,7 @@ FLAG_REFUSALS = [
     ),
     (
         ["render", "{body}", "-o", "{tmp}/o.png", "--size=-5x10"],
-        "--size '-5x10': expected WIDTHxHEIGHT, e.g. 640x480",
+        "--size '-5x10': expected WIDTHxHEIGHT from 16 to 4096, e.g. 640x480",
     ),
     (
         ["synthesize", "{body}", "-o", "{tmp}/o.bvh", "--poses", "fist@x"],

@@ -115,7 +115,7 @@ class _Parser(argparse.ArgumentParser):
         if missing:
             flag = missing.group(1)
             message = f"{flag}: expected a value (one that starts with '-' goes as {flag}=VALUE)"
-        self.exit(2, f"handsplice: error: {message}\n")
+        self.exit(2, f"handsplice: error: {first_line(message)}\n")
 
 
 def build_parser() -> argparse.ArgumentParser:

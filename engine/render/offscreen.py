@@ -54,8 +54,10 @@ def parse_size(size) -> tuple[int, int]:
     """``(width, height)`` from a tuple or a ``"WxH"`` string, each 16..4096."""
     if isinstance(size, str):
         parts = size.lower().split("x")
-        if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
-            raise ParameterError(f"size {size!r}: expected WIDTHxHEIGHT, e.g. 640x480")
+        if len(parts) != 2 or not all(p.strip().isdigit() and len(p.strip()) <= 5 for p in parts):
+            raise ParameterError(
+                f"size {size[:40]!r}: expected WIDTHxHEIGHT from 16 to {MAX_SIZE}, e.g. 640x480"
+            )
         size = (int(parts[0]), int(parts[1]))
     try:
         w, h = (int(v) for v in size)
